@@ -15,6 +15,7 @@
 //! | [`frame`] | [`CanFrame`](frame::CanFrame): 11-bit identifier + 0..=8 bytes, to and from `embedded_can::Frame` |
 //! | [`id`] | the identifier codec: [`MacId`](id::MacId), message groups 1–4 and their message IDs |
 //! | [`explicit`] | explicit message header, service codes, body formats, requests, (error) responses |
+//! | [`messages`] | fixed-layout bodies: duplicate MAC check, allocate/release, UCMM open/close, heartbeat/shutdown, Offline Connection Set |
 //!
 //! ## No-panic contract
 //!
@@ -30,6 +31,7 @@ extern crate std;
 pub mod explicit;
 pub mod frame;
 pub mod id;
+pub mod messages;
 pub mod time;
 
 pub use frame::{CanFrame, CanId, FrameError};
