@@ -15,6 +15,7 @@
 //! | [`frame`] | [`CanFrame`](frame::CanFrame): 11-bit identifier + 0..=8 bytes, to and from `embedded_can::Frame` |
 //! | [`id`] | the identifier codec: [`MacId`](id::MacId), message groups 1–4 and their message IDs |
 //! | [`explicit`] | explicit message header, service codes, body formats, requests, (error) responses |
+//! | [`fragment`] | explicit (acknowledged) and I/O (unacknowledged) fragmentation: senders and reassemblers |
 //! | [`messages`] | fixed-layout bodies: duplicate MAC check, allocate/release, UCMM open/close, heartbeat/shutdown, Offline Connection Set |
 //!
 //! ## No-panic contract
@@ -29,6 +30,7 @@
 extern crate std;
 
 pub mod explicit;
+pub mod fragment;
 pub mod frame;
 pub mod id;
 pub mod messages;
