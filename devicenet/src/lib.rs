@@ -17,6 +17,30 @@
 //! | [`explicit`] | explicit message header, service codes, body formats, requests, (error) responses |
 //! | [`fragment`] | explicit (acknowledged) and I/O (unacknowledged) fragmentation: senders and reassemblers |
 //! | [`messages`] | fixed-layout bodies: duplicate MAC check, allocate/release, UCMM open/close, heartbeat/shutdown, Offline Connection Set |
+//! | [`slave`] | the group-2-only [`SlaveNode`](slave::SlaveNode): network access, Predefined Master/Slave Connection Set, objects, connections |
+//! | [`led`] | Module/Network Status LED indications, flashing and the power-up test |
+//! | [`reference`] | the reference 28-frame bring-up of notes §2, the golden transcript every test compares with |
+//!
+//! ## Driving the slave
+//!
+//! ```
+//! use devicenet::{CanFrame, DeviceConfig, Duration, Instant, SlaveNode};
+//!
+//! let mut node = SlaveNode::new(DeviceConfig::reference()).unwrap();
+//! let mut now = Instant::ZERO;
+//! node.power_on(now);
+//! // The first duplicate MAC ID check request is queued at once.
+//! let frame = node.poll_transmit().unwrap();
+//! assert_eq!(frame.to_string(), "42F#00341278563412");
+//! // Two seconds without an answer: on-line.
+//! while let Some(at) = node.poll_at() {
+//!     now = at;
+//!     node.handle_timeout(now);
+//!     while node.poll_transmit().is_some() {}
+//!     if node.network_state() == devicenet::slave::NetworkState::Online { break; }
+//! }
+//! assert_eq!(now, Instant::ZERO + Duration::from_secs(2));
+//! ```
 //!
 //! ## No-panic contract
 //!
@@ -33,9 +57,13 @@ pub mod explicit;
 pub mod fragment;
 pub mod frame;
 pub mod id;
+pub mod led;
 pub mod messages;
+pub mod reference;
+pub mod slave;
 pub mod time;
 
 pub use frame::{CanFrame, CanId, FrameError};
 pub use id::{Group2Message, Identifier, MacId};
+pub use slave::{DeviceConfig, Event, SlaveNode};
 pub use time::{Duration, Instant};

@@ -1,0 +1,756 @@
+//! Unit tests of the slave node: network access, the validation tables of notes §3.4 and §5,
+//! objects, connections and fragmentation, driven on a virtual clock.
+
+use super::*;
+use crate::reference::INPUT_IMAGE;
+use rstest::rstest;
+use std::vec::Vec;
+
+type Tx = Vec<(u16, Vec<u8>)>;
+
+struct Rig {
+    node: SlaveNode,
+    now: Instant,
+}
+
+impl Rig {
+    fn new(config: DeviceConfig) -> Rig {
+        let mut node = SlaveNode::new(config).unwrap();
+        // The reference image wherever the produced size is the reference one.
+        let _ = node.set_input(&INPUT_IMAGE);
+        Rig { node, now: Instant::ZERO }
+    }
+
+    /// Powered on at t = 0 and on-line at t = 2 s.
+    fn online() -> Rig {
+        let mut rig = Rig::new(DeviceConfig::reference());
+        rig.node.power_on(rig.now);
+        rig.advance(Duration::from_secs(2));
+        assert_eq!(rig.node.network_state(), NetworkState::Online);
+        rig.events();
+        rig
+    }
+
+    /// On-line with explicit allocated by master 0.
+    fn explicit() -> Rig {
+        let mut rig = Rig::online();
+        assert_eq!(rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]), tx(0x42B, &[0x00, 0xCB, 0x00]));
+        rig.events();
+        rig
+    }
+
+    /// Explicit and poll established (EPR 100 ms).
+    fn established() -> Rig {
+        let mut rig = Rig::explicit();
+        assert_eq!(rig.send(0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00]), tx(0x42B, &[0x00, 0xCB, 0x00]));
+        assert_eq!(
+            rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]),
+            tx(0x42B, &[0x00, 0x90, 0x64, 0x00])
+        );
+        rig.events();
+        rig
+    }
+
+    fn drain(&mut self) -> Tx {
+        let mut out = Vec::new();
+        while let Some(f) = self.node.poll_transmit() {
+            out.push((f.id().as_raw(), f.data().to_vec()));
+        }
+        out
+    }
+
+    fn events(&mut self) -> Vec<Event> {
+        let mut out = Vec::new();
+        while let Some(e) = self.node.poll_event() {
+            out.push(e);
+        }
+        out
+    }
+
+    /// Runs every timer up to `now + d`, returning what was sent.
+    fn advance(&mut self, d: Duration) -> Tx {
+        let end = self.now + d;
+        let mut out = self.drain();
+        while let Some(at) = self.node.poll_at() {
+            if at > end {
+                break;
+            }
+            self.now = at.max(self.now);
+            self.node.handle_timeout(self.now);
+            out.extend(self.drain());
+        }
+        self.now = end;
+        self.node.handle_timeout(end);
+        out.extend(self.drain());
+        out
+    }
+
+    fn send(&mut self, id: u16, data: &[u8]) -> Tx {
+        let frame = CanFrame::from_raw(id, data).unwrap();
+        self.node.handle_frame(&frame, self.now);
+        self.drain()
+    }
+}
+
+fn tx(id: u16, data: &[u8]) -> Tx {
+    std::vec![(id, data.to_vec())]
+}
+
+// ----- network access (notes §7.1) -------------------------------------------------------------
+
+#[test]
+fn duplicate_mac_check_two_requests_one_second_apart() {
+    let mut rig = Rig::new(DeviceConfig::reference());
+    rig.node.power_on(Instant::ZERO);
+    let req = [0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+    assert_eq!(rig.drain(), tx(0x42F, &req));
+    assert_eq!(rig.node.poll_at(), Some(Instant::from_secs(1)));
+    assert_eq!(rig.advance(Duration::from_millis(999)), Tx::new());
+    assert_eq!(rig.advance(Duration::from_millis(1)), tx(0x42F, &req));
+    assert!(matches!(rig.node.network_state(), NetworkState::DuplicateMacCheck { requests_sent: 2, .. }));
+    assert_eq!(rig.advance(Duration::from_millis(999)), Tx::new());
+    assert_eq!(rig.events(), Vec::<Event>::new());
+    rig.advance(Duration::from_millis(1));
+    assert_eq!(rig.node.network_state(), NetworkState::Online);
+    assert_eq!(rig.events(), std::vec![Event::Online]);
+}
+
+#[rstest]
+#[case::request_during_check(&[0x00, 0x99, 0x00, 1, 2, 3, 4])]
+#[case::response_during_check(&[0x80, 0x99, 0x00, 1, 2, 3, 4])]
+fn duplicate_during_check_faults(#[case] data: &[u8]) {
+    let mut rig = Rig::new(DeviceConfig::reference());
+    rig.node.power_on(Instant::ZERO);
+    rig.drain();
+    rig.advance(Duration::from_millis(500));
+    assert_eq!(rig.send(0x42F, data), Tx::new());
+    assert_eq!(rig.node.network_state(), NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId));
+    assert_eq!(rig.events(), std::vec![Event::CommunicationFaulted(FaultReason::DuplicateMacId)]);
+    // Faulted: silent, no second request, no answer to anything.
+    assert_eq!(rig.advance(Duration::from_secs(5)), Tx::new());
+    assert_eq!(rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]), Tx::new());
+    assert_eq!(rig.node.network_indication(), Indication::Red);
+}
+
+#[test]
+fn online_node_answers_a_newcomer_with_a_response() {
+    let mut rig = Rig::online();
+    assert_eq!(
+        rig.send(0x42F, &[0x00, 0x99, 0x00, 1, 2, 3, 4]),
+        tx(0x42F, &[0x80, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12])
+    );
+    assert_eq!(rig.node.network_state(), NetworkState::Online);
+}
+
+#[test]
+fn online_node_faults_on_a_response_for_its_mac() {
+    let mut rig = Rig::online();
+    assert_eq!(rig.send(0x42F, &[0x80, 0x99, 0x00, 1, 2, 3, 4]), Tx::new());
+    assert_eq!(rig.node.network_state(), NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId));
+}
+
+#[rstest]
+#[case::other_mac_dup_check(0x407, &[0x00, 0x01, 0x00, 4, 3, 2, 1])]
+#[case::ucmm_open(0x780, &[0x05, 0x4B, 0x00, 0x34])]
+#[case::ucmm_to_us_from_mac_7(0x787, &[0x05, 0x4B, 0x00, 0x34])]
+#[case::group1(0x3C6, &[1, 2, 3])]
+#[case::group4_who(0x7ED, &[0x3F, 0x4B, 0x02])]
+#[case::invalid_range(0x7F5, &[])]
+#[case::other_slave_explicit(0x434, &[0x00, 0x0E, 0x01, 0x01, 0x01])]
+#[case::malformed_dup_mac(0x42F, &[0x00, 0x01])]
+fn ignored_traffic(#[case] id: u16, #[case] data: &[u8]) {
+    let mut rig = Rig::online();
+    assert_eq!(rig.send(id, data), Tx::new());
+    assert_eq!(rig.node.network_state(), NetworkState::Online);
+}
+
+#[test]
+fn nothing_but_dup_mac_before_online() {
+    let mut rig = Rig::new(DeviceConfig::reference());
+    assert_eq!(rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]), Tx::new());
+    rig.node.power_on(rig.now);
+    rig.drain();
+    assert_eq!(rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]), Tx::new());
+}
+
+// ----- Predefined Master/Slave Connection Set (notes §3.4) -------------------------------------
+
+#[rstest]
+#[case::allocate_explicit(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00], &[0x00, 0xCB, 0x00])]
+#[case::allocate_explicit_and_poll(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00], &[0x00, 0xCB, 0x00])]
+#[case::xid_echoed(&[], 0x42E, &[0x40, 0x4B, 0x03, 0x01, 0x01, 0x00], &[0x40, 0xCB, 0x00])]
+#[case::conflict_second_master(&[0x01], 0x42E, &[0x01, 0x4B, 0x03, 0x01, 0x01, 0x01], &[0x01, 0x94, 0x0C, 0x01])]
+#[case::choice_zero(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x00, 0x00], &[0x00, 0x94, 0x09, 0x02])]
+#[case::ack_suppression_alone(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x41, 0x00], &[0x00, 0x94, 0x09, 0x02])]
+#[case::bit_strobe_lacking(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x05, 0x00], &[0x00, 0x94, 0x02, 0x02])]
+#[case::cos_lacking(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x11, 0x00], &[0x00, 0x94, 0x02, 0x02])]
+#[case::multicast_poll_lacking(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x09, 0x00], &[0x00, 0x94, 0x02, 0x02])]
+#[case::reserved_bit_lacking(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x81, 0x00], &[0x00, 0x94, 0x02, 0x02])]
+#[case::poll_without_explicit(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00], &[0x00, 0x94, 0x09, 0x02])]
+#[case::double_allocation(&[0x01], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00], &[0x00, 0x94, 0x0B, 0x02])]
+#[case::release_choice_zero(&[0x01], 0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x00], &[0x00, 0x94, 0x09, 0x02])]
+#[case::release_lacking_type(&[0x01], 0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x04], &[0x00, 0x94, 0x02, 0x02])]
+#[case::release_nonexistent(&[0x01], 0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x02], &[0x00, 0x94, 0x0B, 0x02])]
+#[case::release_ack_suppression(&[0x01], 0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x41], &[0x00, 0x94, 0x09, 0x02])]
+#[case::release_other_master(&[0x01], 0x42E, &[0x01, 0x4C, 0x03, 0x01, 0x01], &[0x01, 0x94, 0x0C, 0x01])]
+#[case::release_explicit(&[0x01], 0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x01], &[0x00, 0xCC])]
+#[case::get_on_group2_only_port(&[], 0x42E, &[0x00, 0x0E, 0x03, 0x01, 0x01], &[0x00, 0x94, 0x02, 0x03])]
+#[case::set_on_group2_only_port(&[0x01], 0x42E, &[0x00, 0x10, 0x03, 0x01, 0x03, 0x01], &[0x00, 0x94, 0x02, 0x03])]
+#[case::allocate_wrong_class(&[], 0x42E, &[0x00, 0x4B, 0x01, 0x01, 0x01, 0x00], &[0x00, 0x94, 0x16, 0xFF])]
+#[case::allocate_short(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01], &[0x00, 0x94, 0x13, 0xFF])]
+#[case::allocate_long(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00, 0x00], &[0x00, 0x94, 0x15, 0xFF])]
+#[case::allocator_reserved_bits(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x40], &[0x00, 0x94, 0x09, 0x02])]
+#[case::allocate_poll_through_explicit(&[0x01], 0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00], &[0x00, 0xCB, 0x00])]
+#[case::double_allocation_through_explicit(&[0x03], 0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00], &[0x00, 0x94, 0x0B, 0x02])]
+#[case::release_poll_through_explicit(&[0x03], 0x42C, &[0x00, 0x4C, 0x03, 0x01, 0x02], &[0x00, 0xCC])]
+fn predefined_set_validation(
+    #[case] allocated_first: &[u8],
+    #[case] id: u16,
+    #[case] request: &[u8],
+    #[case] response: &[u8],
+) {
+    let mut rig = Rig::online();
+    if let Some(&choice) = allocated_first.first() {
+        let resp = rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, choice, 0x00]);
+        assert_eq!(resp, tx(0x42B, &[0x00, 0xCB, 0x00]));
+    }
+    assert_eq!(rig.send(id, request), tx(0x42B, response));
+}
+
+#[test]
+fn ownership_and_allocation_information() {
+    let mut rig = Rig::explicit();
+    assert_eq!(rig.node.allocation(), (AllocationChoice::EXPLICIT, Some(MacId::new(0).unwrap())));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x05]), tx(0x42B, &[0x00, 0x8E, 0x01, 0x00]));
+    assert_eq!(rig.node.identity_status() & 1, 1);
+    // Releasing everything drops ownership (JB): master MAC 255.
+    assert_eq!(rig.send(0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x01]), tx(0x42B, &[0x00, 0xCC]));
+    assert_eq!(rig.node.allocation(), (AllocationChoice::empty(), None));
+    assert_eq!(rig.node.identity_status() & 1, 0);
+    // A second master may now allocate.
+    assert_eq!(rig.send(0x42E, &[0x07, 0x4B, 0x03, 0x01, 0x01, 0x07]), tx(0x42B, &[0x07, 0xCB, 0x00]));
+    assert_eq!(rig.node.allocation().1, MacId::new(7));
+}
+
+#[test]
+fn explicit_requests_only_from_the_owner() {
+    let mut rig = Rig::explicit();
+    assert_eq!(rig.send(0x42C, &[0x01, 0x0E, 0x01, 0x01, 0x01]), Tx::new());
+    assert_eq!(rig.node.stats().explicit_ignored, 1);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]), tx(0x42B, &[0x00, 0x8E, 0x34, 0x12]));
+}
+
+#[test]
+fn explicit_request_without_connection_is_ignored() {
+    let mut rig = Rig::online();
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]), Tx::new());
+}
+
+// ----- objects ---------------------------------------------------------------------------------
+
+#[rstest]
+#[case::vendor(&[0x0E, 0x01, 0x01, 0x01], &[0x8E, 0x34, 0x12])]
+#[case::device_type(&[0x0E, 0x01, 0x01, 0x02], &[0x8E, 0x0C, 0x00])]
+#[case::product_code(&[0x0E, 0x01, 0x01, 0x03], &[0x8E, 0x01, 0x00])]
+#[case::revision(&[0x0E, 0x01, 0x01, 0x04], &[0x8E, 0x01, 0x01])]
+#[case::status_owned_no_io(&[0x0E, 0x01, 0x01, 0x05], &[0x8E, 0x31, 0x00])]
+#[case::serial(&[0x0E, 0x01, 0x01, 0x06], &[0x8E, 0x78, 0x56, 0x34, 0x12])]
+#[case::state(&[0x0E, 0x01, 0x01, 0x08], &[0x8E, 0x03])]
+#[case::identity_class_revision(&[0x0E, 0x01, 0x00, 0x01], &[0x8E, 0x01, 0x00])]
+#[case::identity_unknown_attr(&[0x0E, 0x01, 0x01, 0x63], &[0x94, 0x14, 0xFF])]
+#[case::identity_set_vendor(&[0x10, 0x01, 0x01, 0x01, 0x00, 0x00], &[0x94, 0x0E, 0xFF])]
+#[case::identity_instance_2(&[0x0E, 0x01, 0x02, 0x01], &[0x94, 0x16, 0xFF])]
+#[case::identity_reset(&[0x05, 0x01, 0x01], &[0x85])]
+#[case::identity_reset_type_1(&[0x05, 0x01, 0x01, 0x01], &[0x85])]
+#[case::identity_reset_bad_type(&[0x05, 0x01, 0x01, 0x02], &[0x94, 0x20, 0xFF])]
+#[case::identity_unsupported_service(&[0x06, 0x01, 0x01], &[0x94, 0x08, 0xFF])]
+#[case::get_without_attribute(&[0x0E, 0x01, 0x01], &[0x94, 0x13, 0xFF])]
+#[case::router_class_revision(&[0x0E, 0x02, 0x00, 0x01], &[0x8E, 0x01, 0x00])]
+#[case::router_instance_attr(&[0x0E, 0x02, 0x01, 0x01], &[0x94, 0x14, 0xFF])]
+#[case::unknown_class(&[0x0E, 0x64, 0x01, 0x01], &[0x94, 0x16, 0xFF])]
+#[case::dnet_mac(&[0x0E, 0x03, 0x01, 0x01], &[0x8E, 0x05])]
+#[case::dnet_baud(&[0x0E, 0x03, 0x01, 0x02], &[0x8E, 0x01])]
+#[case::dnet_boi(&[0x0E, 0x03, 0x01, 0x03], &[0x8E, 0x00])]
+#[case::dnet_bus_off_counter(&[0x0E, 0x03, 0x01, 0x04], &[0x8E, 0x00])]
+#[case::dnet_allocation(&[0x0E, 0x03, 0x01, 0x05], &[0x8E, 0x01, 0x00])]
+#[case::dnet_mac_switch_changed(&[0x0E, 0x03, 0x01, 0x06], &[0x8E, 0x00])]
+#[case::dnet_no_mac_switch(&[0x0E, 0x03, 0x01, 0x08], &[0x94, 0x14, 0xFF])]
+#[case::dnet_class_revision(&[0x0E, 0x03, 0x00, 0x01], &[0x8E, 0x02, 0x00])]
+#[case::dnet_set_mac_not_programmable(&[0x10, 0x03, 0x01, 0x01, 0x07], &[0x94, 0x0E, 0xFF])]
+#[case::dnet_set_boi(&[0x10, 0x03, 0x01, 0x03, 0x01], &[0x90])]
+#[case::dnet_set_boi_invalid(&[0x10, 0x03, 0x01, 0x03, 0x02], &[0x94, 0x09, 0xFF])]
+#[case::dnet_clear_bus_off_counter(&[0x10, 0x03, 0x01, 0x04, 0x00], &[0x90])]
+#[case::dnet_bus_off_counter_nonzero(&[0x10, 0x03, 0x01, 0x04, 0x05], &[0x94, 0x09, 0xFF])]
+#[case::dnet_set_allocation_info(&[0x10, 0x03, 0x01, 0x05, 0x01, 0x00], &[0x94, 0x0E, 0xFF])]
+#[case::dnet_set_boi_too_long(&[0x10, 0x03, 0x01, 0x03, 0x01, 0x00], &[0x94, 0x15, 0xFF])]
+#[case::assembly_input_size(&[0x0E, 0x04, 0x64, 0x04], &[0x8E, 0x12, 0x00])]
+#[case::assembly_output_empty(&[0x0E, 0x04, 0x96, 0x03], &[0x8E])]
+#[case::assembly_set_input(&[0x10, 0x04, 0x64, 0x03, 0x00], &[0x94, 0x0E, 0xFF])]
+#[case::assembly_unknown_instance(&[0x0E, 0x04, 0x01, 0x03], &[0x94, 0x16, 0xFF])]
+#[case::assembly_set_output_short(&[0x10, 0x04, 0x96, 0x03, 0x01], &[0x94, 0x13, 0xFF])]
+#[case::connection_class_revision(&[0x0E, 0x05, 0x00, 0x01], &[0x8E, 0x01, 0x00])]
+#[case::poll_not_allocated(&[0x0E, 0x05, 0x02, 0x01], &[0x94, 0x16, 0xFF])]
+#[case::bit_strobe_instance(&[0x0E, 0x05, 0x03, 0x01], &[0x94, 0x16, 0xFF])]
+fn explicit_services(#[case] body: &[u8], #[case] response: &[u8]) {
+    let mut rig = Rig::explicit();
+    let mut request = std::vec![0x00];
+    request.extend_from_slice(body);
+    let mut expected = std::vec![0x00];
+    expected.extend_from_slice(response);
+    assert_eq!(rig.send(0x42C, &request), tx(0x42B, &expected));
+}
+
+#[rstest]
+// Explicit (instance 1), notes §5.1.
+#[case::e_state(1, 1, &[0x03])]
+#[case::e_instance_type(1, 2, &[0x00])]
+#[case::e_transport(1, 3, &[0x83])]
+#[case::e_produced_id(1, 4, &[0x2B, 0x04])]
+#[case::e_consumed_id(1, 5, &[0x2C, 0x04])]
+#[case::e_comm_characteristics(1, 6, &[0x21])]
+#[case::e_produced_size(1, 7, &[0x40, 0x00])]
+#[case::e_consumed_size(1, 8, &[0x40, 0x00])]
+#[case::e_epr(1, 9, &[0xC4, 0x09])]
+#[case::e_watchdog(1, 12, &[0x01])]
+#[case::e_produced_path_len(1, 13, &[0x00, 0x00])]
+#[case::e_produced_path(1, 14, &[])]
+#[case::e_consumed_path_len(1, 15, &[0x00, 0x00])]
+#[case::e_inhibit(1, 17, &[0x00, 0x00])]
+// Poll (instance 2), after EPR set.
+#[case::p_state(2, 1, &[0x03])]
+#[case::p_instance_type(2, 2, &[0x01])]
+#[case::p_transport(2, 3, &[0x82])]
+#[case::p_produced_id(2, 4, &[0xC5, 0x03])]
+#[case::p_consumed_id(2, 5, &[0x2D, 0x04])]
+#[case::p_comm_characteristics(2, 6, &[0x01])]
+#[case::p_produced_size(2, 7, &[0x12, 0x00])]
+#[case::p_consumed_size(2, 8, &[0x08, 0x00])]
+#[case::p_epr(2, 9, &[0x64, 0x00])]
+#[case::p_watchdog(2, 12, &[0x00])]
+#[case::p_produced_path_len(2, 13, &[0x06, 0x00])]
+#[case::p_produced_path(2, 14, &[0x20, 0x04, 0x24, 0x64, 0x30, 0x03])]
+#[case::p_consumed_path(2, 16, &[0x20, 0x04, 0x24, 0x96, 0x30, 0x03])]
+#[case::p_inhibit(2, 17, &[0x00, 0x00])]
+fn connection_attributes(#[case] instance: u8, #[case] attr: u8, #[case] value: &[u8]) {
+    let mut rig = Rig::established();
+    let resp = rig.send(0x42C, &[0x00, 0x0E, 0x05, instance, attr]);
+    let mut expected = std::vec![0x00, 0x8E];
+    expected.extend_from_slice(value);
+    assert_eq!(resp, tx(0x42B, &expected));
+}
+
+#[rstest]
+#[case::explicit_deferred_delete(1, 3, &[0x90])]
+#[case::explicit_auto_delete(1, 1, &[0x90])]
+#[case::explicit_timed_out_invalid(1, 0, &[0x94, 0x09, 0xFF])]
+#[case::explicit_auto_reset_invalid(1, 2, &[0x94, 0x09, 0xFF])]
+#[case::poll_timed_out(2, 0, &[0x90])]
+#[case::poll_auto_delete(2, 1, &[0x90])]
+#[case::poll_auto_reset(2, 2, &[0x90])]
+#[case::poll_deferred_invalid(2, 3, &[0x94, 0x09, 0xFF])]
+#[case::out_of_range(2, 9, &[0x94, 0x09, 0xFF])]
+fn watchdog_action_values(#[case] instance: u8, #[case] value: u8, #[case] response: &[u8]) {
+    let mut rig = Rig::established();
+    let mut expected = std::vec![0x00];
+    expected.extend_from_slice(response);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x05, instance, 0x0C, value]), tx(0x42B, &expected));
+}
+
+#[rstest]
+#[case::state(1, &[0x03], &[0x94, 0x0E, 0xFF])]
+#[case::produced_size(7, &[0x12, 0x00], &[0x94, 0x0E, 0xFF])]
+#[case::path(14, &[0x00], &[0x94, 0x0E, 0xFF])]
+#[case::cip_connection_id(10, &[0, 0], &[0x94, 0x14, 0xFF])]
+#[case::unknown(40, &[0x00], &[0x94, 0x14, 0xFF])]
+#[case::epr_too_short(9, &[0x64], &[0x94, 0x13, 0xFF])]
+#[case::epr_too_long(9, &[0x64, 0x00, 0x00], &[0x94, 0x15, 0xFF])]
+#[case::epr_above_65000(9, &[0xE9, 0xFD], &[0x94, 0x09, 0xFF])]
+#[case::epr_max(9, &[0xE8, 0xFD], &[0x90, 0xE8, 0xFD])]
+fn connection_set_rules(#[case] attr: u8, #[case] value: &[u8], #[case] response: &[u8]) {
+    let mut rig = Rig::established();
+    let mut req = std::vec![0x00, 0x10, 0x05, 0x02, attr];
+    req.extend_from_slice(value);
+    let mut expected = std::vec![0x00];
+    expected.extend_from_slice(response);
+    assert_eq!(rig.send(0x42C, &req), tx(0x42B, &expected));
+}
+
+#[rstest]
+#[case::exact(10, 100, 100)]
+#[case::rounded_up(10, 95, 100)]
+#[case::icp_example(100, 3594, 3600)]
+#[case::one_ms(1, 3594, 3594)]
+#[case::zero_disables(10, 0, 0)]
+fn expected_packet_rate_rounding(#[case] resolution: u16, #[case] requested: u16, #[case] applied: u16) {
+    let mut config = DeviceConfig::reference();
+    config.epr_resolution_ms = resolution;
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+    let [lo, hi] = requested.to_le_bytes();
+    let [alo, ahi] = applied.to_le_bytes();
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, lo, hi]), tx(0x42B, &[0x00, 0x90, alo, ahi]));
+    assert_eq!(rig.node.poll_connection().state, ConnectionState::Established);
+}
+
+#[test]
+fn identity_reset_reports_an_event_after_queueing_the_response() {
+    let mut rig = Rig::explicit();
+    assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x01, 0x01, 0x01]), tx(0x42B, &[0x00, 0x85]));
+    assert_eq!(rig.events(), std::vec![Event::ResetRequested(1)]);
+}
+
+#[test]
+fn programmable_mac_and_baud() {
+    let mut config = DeviceConfig::reference();
+    config.switches.programmable = true;
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]);
+    rig.events();
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x03, 0x01, 0x01, 0x40]), tx(0x42B, &[0x00, 0x94, 0x09, 0xFF]));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x03, 0x01, 0x01, 0x07]), tx(0x42B, &[0x00, 0x90]));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x03, 0x01, 0x02, 0x02]), tx(0x42B, &[0x00, 0x90]));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x03, 0x01, 0x02, 0x03]), tx(0x42B, &[0x00, 0x94, 0x09, 0xFF]));
+    assert_eq!(
+        rig.events(),
+        std::vec![
+            Event::SettingChanged(SettingChanged::MacId(MacId::new(7).unwrap())),
+            Event::SettingChanged(SettingChanged::BaudRate(BaudRate::Kbps500)),
+        ]
+    );
+    // The stored values are reported; the node keeps running at MAC 5 until reset.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x01]), tx(0x42B, &[0x00, 0x8E, 0x07]));
+    assert_eq!(rig.node.mac_id().as_raw(), 5);
+}
+
+#[test]
+fn switch_attributes() {
+    let mut config = DeviceConfig::reference();
+    config.switches = Switches {
+        mac_id: Some(5),
+        baud_rate: Some(1),
+        mac_id_changed: true,
+        baud_rate_changed: false,
+        programmable: false,
+    };
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x06]), tx(0x42B, &[0x00, 0x8E, 0x01]));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x08]), tx(0x42B, &[0x00, 0x8E, 0x05]));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x09]), tx(0x42B, &[0x00, 0x8E, 0x01]));
+}
+
+// ----- explicit fragmentation (notes §4.1) ------------------------------------------------------
+
+#[test]
+fn product_name_is_sent_fragmented_with_acks() {
+    let mut rig = Rig::explicit();
+    // "Serial-DeviceNet Bridge": 23 characters; body 8E 17 <23 bytes> = 25 bytes.
+    let first = rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x07]);
+    assert_eq!(first, tx(0x42B, &[0x80, 0x00, 0x8E, 0x17, b'S', b'e', b'r', b'i']));
+    let mut body = first[0].1[2..].to_vec();
+    let mut count = 0u8;
+    loop {
+        let next = rig.send(0x42C, &[0x80, 0xC0 | count, 0x00]);
+        if next.is_empty() {
+            break;
+        }
+        assert_eq!(next.len(), 1);
+        let frame = &next[0].1;
+        assert_eq!(frame[0], 0x80);
+        count += 1;
+        let kind = frame[1] >> 6;
+        assert_eq!(frame[1] & 0x3F, count);
+        body.extend_from_slice(&frame[2..]);
+        assert!(kind == 1 || kind == 2, "middle or last fragment");
+    }
+    assert_eq!(count, 4, "25 body bytes = 5 fragments of up to 6");
+    assert_eq!(&body[..2], &[0x8E, 23]);
+    assert_eq!(&body[2..], b"Serial-DeviceNet Bridge");
+}
+
+#[test]
+fn missing_ack_retries_once_then_aborts() {
+    let mut rig = Rig::explicit();
+    let first = rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x07]);
+    assert_eq!(first.len(), 1);
+    // One re-send after 1 s, then the transfer is abandoned after another second.
+    assert_eq!(rig.advance(Duration::from_millis(1000)), first);
+    assert_eq!(rig.advance(Duration::from_millis(1000)), Tx::new());
+    assert!(rig.events().contains(&Event::ExplicitTransferAborted));
+    assert_eq!(rig.advance(Duration::from_secs(3)), Tx::new());
+    // The connection still serves requests.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]), tx(0x42B, &[0x00, 0x8E, 0x34, 0x12]));
+}
+
+#[test]
+fn fragmented_request_is_acked_and_served() {
+    let mut rig = Rig::explicit();
+    // Set Assembly 150 attribute 3 = 8 bytes: body 10 04 96 03 + 8 bytes = 12 bytes, 2 fragments.
+    let out = [1u8, 2, 3, 4, 5, 6, 7, 8];
+    let r1 = rig.send(0x42C, &[0x80, 0x00, 0x10, 0x04, 0x96, 0x03, 1, 2]);
+    assert_eq!(r1, tx(0x42B, &[0x80, 0xC0, 0x00]));
+    // A duplicate of the first fragment is re-acked, not appended.
+    let dup = rig.send(0x42C, &[0x80, 0x00, 0x10, 0x04, 0x96, 0x03, 1, 2]);
+    assert_eq!(dup, tx(0x42B, &[0x80, 0xC0, 0x00]));
+    let r2 = rig.send(0x42C, &[0x80, 0x81, 3, 4, 5, 6, 7, 8]);
+    assert_eq!(r2, std::vec![(0x42B, std::vec![0x80, 0xC1, 0x00]), (0x42B, std::vec![0x00, 0x90])]);
+    assert_eq!(rig.node.output(), &out);
+    assert!(rig.events().contains(&Event::OutputReceived));
+}
+
+#[test]
+fn oversized_fragmented_request_is_rejected_with_too_much_data() {
+    let mut rig = Rig::explicit();
+    let mut acks = Vec::new();
+    acks.extend(rig.send(0x42C, &[0x80, 0x00, 0x10, 0x04, 0x96, 0x03, 0, 0]));
+    for count in 1..=12u8 {
+        acks.extend(rig.send(0x42C, &[0x80, 0x40 | count, 0, 0, 0, 0, 0, 0]));
+    }
+    assert!(acks.iter().any(|(_, d)| d.len() == 3 && d[2] == 0x01), "an ack with status 1: {acks:02X?}");
+}
+
+// ----- polled I/O (notes §4.2, §5) ---------------------------------------------------------------
+
+#[test]
+fn poll_ignored_until_epr_is_set() {
+    let mut rig = Rig::explicit();
+    rig.send(0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00]);
+    assert_eq!(rig.node.poll_connection().state, ConnectionState::Configuring);
+    assert_eq!(rig.send(0x42D, &[0; 8]), Tx::new());
+    assert_eq!(rig.node.stats().polls_ignored, 1);
+}
+
+#[test]
+fn poll_answered_at_once_with_three_fragments() {
+    let mut rig = Rig::established();
+    let resp = rig.send(0x42D, &[1, 0, 0, 0, 0, 0, 0, 0]);
+    assert_eq!(
+        resp,
+        std::vec![
+            (0x3C5, std::vec![0x00, 0, 0, 0, 0, 0, 0, 0]),
+            (0x3C5, std::vec![0x41, 0, 0, 0x0F, 0, 0, 0, 0]),
+            (0x3C5, std::vec![0x82, 0, 0, 0, 0]),
+        ]
+    );
+    assert_eq!(rig.node.output(), &[1, 0, 0, 0, 0, 0, 0, 0]);
+    assert_eq!(rig.events(), std::vec![Event::OutputReceived]);
+    assert_eq!(rig.node.identity_status() >> 4 & 0xF, 0b0110);
+}
+
+#[test]
+fn idle_poll_is_reported_and_answered() {
+    let mut rig = Rig::established();
+    rig.send(0x42D, &[9; 8]);
+    rig.events();
+    assert_eq!(rig.send(0x42D, &[]).len(), 3);
+    assert_eq!(rig.events(), std::vec![Event::Idle]);
+    assert!(rig.node.is_idle());
+    assert_eq!(rig.node.output(), &[9; 8], "idle keeps the last outputs");
+    assert_eq!(rig.node.identity_status() >> 4 & 0xF, 0b0111);
+}
+
+#[test]
+fn short_poll_accepted_long_poll_ignored() {
+    let mut config = DeviceConfig::reference();
+    config.consumed_size = 4;
+    config.produced_size = 2;
+    let mut rig = Rig::new(config);
+    rig.node.set_input(&[0xAA, 0xBB]).unwrap();
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
+    assert_eq!(rig.send(0x42D, &[1, 2]), tx(0x3C5, &[0xAA, 0xBB]), "produced size <= 8: not fragmented");
+    assert_eq!(rig.send(0x42D, &[1, 2, 3, 4, 5]), Tx::new());
+}
+
+#[test]
+fn set_input_checks_the_size() {
+    let mut rig = Rig::established();
+    assert_eq!(rig.node.set_input(&[0; 3]), Err(18));
+    let mut image = [0u8; 18];
+    image[0] = 0x42;
+    rig.node.set_input(&image).unwrap();
+    assert_eq!(rig.send(0x42D, &[0; 8])[0].1, std::vec![0x00, 0x42, 0, 0, 0, 0, 0, 0]);
+}
+
+#[test]
+fn assembly_output_set_refused_while_polling() {
+    let mut config = DeviceConfig::reference();
+    config.consumed_size = 2;
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+    // Configuring: the outputs may be set explicitly.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x04, 0x96, 0x03, 1, 2]), tx(0x42B, &[0x00, 0x90]));
+    assert_eq!(rig.node.output(), &[1, 2]);
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
+    // Established: the poll connection owns them.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x04, 0x96, 0x03, 1, 2]), tx(0x42B, &[0x00, 0x94, 0x10, 0xFF]));
+}
+
+// ----- watchdogs (notes §5.2–§5.4) ---------------------------------------------------------------
+
+#[test]
+fn explicit_inactivity_deletes_after_ten_seconds() {
+    let mut rig = Rig::explicit();
+    assert_eq!(rig.node.explicit_connection().deadline, Some(rig.now + Duration::from_secs(10)));
+    rig.advance(Duration::from_millis(9_999));
+    assert!(rig.node.explicit_connection().is_established());
+    rig.advance(Duration::from_millis(1));
+    assert_eq!(rig.node.explicit_connection().state, ConnectionState::NonExistent);
+    assert_eq!(rig.events(), std::vec![Event::ConnectionDeleted(ConnectionKind::Explicit)]);
+    assert_eq!(rig.node.allocation(), (AllocationChoice::empty(), None));
+}
+
+#[test]
+fn explicit_traffic_restarts_the_watchdog() {
+    let mut rig = Rig::explicit();
+    for _ in 0..5 {
+        rig.advance(Duration::from_secs(9));
+        rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]);
+    }
+    assert!(rig.node.explicit_connection().is_established());
+}
+
+#[test]
+fn poll_timeout_with_transition_to_timed_out() {
+    let mut rig = Rig::established();
+    rig.advance(Duration::from_millis(399));
+    assert!(rig.node.poll_connection().is_established());
+    rig.advance(Duration::from_millis(1));
+    assert_eq!(rig.node.poll_connection().state, ConnectionState::TimedOut);
+    assert_eq!(rig.events(), std::vec![Event::ConnectionTimedOut(ConnectionKind::Poll)]);
+    assert_eq!(rig.node.network_indication(), Indication::FlashingRed);
+    assert_eq!(rig.node.identity_status() >> 4 & 0xF, 0b0010);
+    // Polls are ignored in the timed-out state; a Connection Reset brings it back.
+    assert_eq!(rig.send(0x42D, &[0; 8]), Tx::new());
+    assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x05, 0x02]), tx(0x42B, &[0x00, 0x85]));
+    assert_eq!(rig.send(0x42D, &[0; 8]).len(), 3);
+}
+
+#[test]
+fn poll_auto_delete_and_auto_reset() {
+    let mut rig = Rig::established();
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x0C, 0x02]);
+    rig.advance(Duration::from_millis(1000));
+    assert!(rig.node.poll_connection().is_established(), "auto reset keeps it established");
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x0C, 0x01]);
+    rig.events();
+    rig.advance(Duration::from_millis(400));
+    assert_eq!(rig.node.poll_connection().state, ConnectionState::NonExistent);
+    assert_eq!(rig.node.allocation().0, AllocationChoice::EXPLICIT);
+}
+
+#[test]
+fn deferred_delete_waits_for_the_io_connection() {
+    let mut rig = Rig::established();
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x01, 0x0C, 0x03]);
+    // Keep polling for 12 s: the explicit watchdog (10 s) expires into deferred delete.
+    for _ in 0..120 {
+        rig.advance(Duration::from_millis(100));
+        rig.send(0x42D, &[0; 8]);
+    }
+    assert_eq!(rig.node.explicit_connection().state, ConnectionState::DeferredDelete);
+    // Explicit traffic brings it back to established.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x05, 0x01, 0x01]), tx(0x42B, &[0x00, 0x8E, 0x03]));
+    for _ in 0..120 {
+        rig.advance(Duration::from_millis(100));
+        rig.send(0x42D, &[0; 8]);
+    }
+    assert_eq!(rig.node.explicit_connection().state, ConnectionState::DeferredDelete);
+    // Polling stops: the poll times out and the explicit connection is deleted with it (JB).
+    rig.events();
+    rig.advance(Duration::from_millis(400));
+    assert_eq!(rig.node.poll_connection().state, ConnectionState::TimedOut);
+    assert_eq!(rig.node.explicit_connection().state, ConnectionState::NonExistent);
+    assert_eq!(
+        rig.events(),
+        std::vec![
+            Event::ConnectionTimedOut(ConnectionKind::Poll),
+            Event::ConnectionDeleted(ConnectionKind::Explicit)
+        ]
+    );
+}
+
+#[test]
+fn deferred_delete_without_io_deletes() {
+    let mut rig = Rig::explicit();
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x01, 0x0C, 0x03]);
+    rig.advance(Duration::from_secs(10));
+    assert_eq!(rig.node.explicit_connection().state, ConnectionState::NonExistent);
+}
+
+// ----- bus-off (notes §7.2) ------------------------------------------------------------------------
+
+#[test]
+fn bus_off_without_boi_faults() {
+    let mut rig = Rig::established();
+    rig.node.handle_bus_off(rig.now);
+    assert_eq!(rig.node.network_state(), NetworkState::CommunicationFaulted(FaultReason::BusOff));
+    assert_eq!(rig.node.bus_off_counter(), 1);
+    assert_eq!(rig.node.allocation(), (AllocationChoice::empty(), None));
+    assert_eq!(rig.node.network_indication(), Indication::Red);
+    assert_eq!(rig.send(0x42D, &[0; 8]), Tx::new());
+}
+
+#[test]
+fn bus_off_with_boi_restarts_the_duplicate_mac_check() {
+    let mut config = DeviceConfig::reference();
+    config.bus_off_interrupt = true;
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.events();
+    rig.node.handle_bus_off(rig.now);
+    assert_eq!(rig.events(), std::vec![Event::ResetCanController]);
+    assert_eq!(rig.drain(), tx(0x42F, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12]));
+    rig.advance(Duration::from_secs(2));
+    assert_eq!(rig.node.network_state(), NetworkState::Online);
+    assert_eq!(rig.node.bus_off_counter(), 1);
+}
+
+// ----- LEDs (notes §7.3) ---------------------------------------------------------------------------
+
+#[test]
+fn led_indications_follow_the_state() {
+    let mut rig = Rig::new(DeviceConfig::reference());
+    rig.node.power_on(Instant::ZERO);
+    assert_eq!(rig.node.leds(Instant::ZERO).module, led::Lit::Green, "self-test: MS green first");
+    rig.advance(Duration::from_secs(2));
+    assert_eq!(rig.node.network_indication(), Indication::FlashingGreen);
+    assert_eq!(rig.node.module_indication(), Indication::Green);
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]);
+    assert_eq!(rig.node.network_indication(), Indication::Green);
+    let status = ApplicationStatus { minor_recoverable_fault: true, ..ApplicationStatus::default() };
+    rig.node.set_application_status(status, rig.now);
+    assert_eq!(rig.node.module_indication(), Indication::FlashingRed);
+    assert_eq!(rig.node.identity_status() & 0x100, 0x100);
+}
+
+#[test]
+fn application_objects_are_served() {
+    struct Stats;
+    impl ObjectHandler for Stats {
+        fn handle(&mut self, req: &Request<'_>, reply: &mut Reply<'_>) -> Option<Result<(), ServiceError>> {
+            (req.class == 0x64).then(|| match (req.service, req.data) {
+                (ServiceCode::GetAttributeSingle, [1]) => reply.u32(0xDEAD_BEEF),
+                _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+            })
+        }
+    }
+    let mut rig = Rig::explicit();
+    let frame = CanFrame::from_raw(0x42C, &[0x00, 0x0E, 0x64, 0x01, 0x01]).unwrap();
+    rig.node.handle_frame_with(&frame, rig.now, &mut Stats);
+    assert_eq!(rig.drain(), tx(0x42B, &[0x00, 0x8E, 0xEF, 0xBE, 0xAD, 0xDE]));
+    let frame = CanFrame::from_raw(0x42C, &[0x00, 0x0E, 0x65, 0x01, 0x01]).unwrap();
+    rig.node.handle_frame_with(&frame, rig.now, &mut Stats);
+    assert_eq!(rig.drain(), tx(0x42B, &[0x00, 0x94, 0x16, 0xFF]));
+}
