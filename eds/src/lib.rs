@@ -1,0 +1,121 @@
+//! # eds
+//!
+//! DeviceNet Electronic Data Sheets (EDS): read real vendor files, check them, and write them
+//! deterministically. The `dnet-eds` command-line tool (`src/main.rs`) is a thin shell over
+//! this library.
+//!
+//! ## Layers
+//!
+//! | layer | module | input → output |
+//! |---|---|---|
+//! | decoding | [`text`] | bytes → text (UTF-8, else Latin-1), size capped |
+//! | lexer | `lexer` (private) | text → tokens with line/column; `$` comments, quoted strings |
+//! | raw sections | [`raw`] | tokens → [`RawEds`]: sections, entries, fields, every position kept |
+//! | typed model | [`model`] | [`RawEds`] → [`Eds`]: identity, I/O, parameters, enums, groups, unknowns kept |
+//! | checks | [`mod@check`] | [`Eds`] + [`RawEds`] → [`Report`] of [`Diagnostic`]s, errors vs warnings |
+//! | writer | [`mod@write`] | [`Eds`] → EDS text, deterministic (the generator's extension point) |
+//!
+//! Each layer only depends on the ones above it; each can be used alone (a tool that only needs
+//! sections can stop at [`RawEds`]).
+//!
+//! ## Dialect coverage
+//!
+//! Sections and keywords match ignoring case; `$` comments run to the end of the line outside
+//! strings; strings may span lines and adjacent strings are joined; entries span lines up to
+//! `;`; fields may be empty; integers are decimal or `0x`/`0X` hex; vendor keywords
+//! (`283_Name`) and unknown sections are kept; both enum dialects (`EnumN` in `[Params]`, legacy
+//! `[EnumPar]`) are read; every optional section may be missing; non-UTF-8 files are read as
+//! Latin-1.
+//!
+//! ## Quick start
+//!
+//! ```
+//! let text = b"[Device]\nVendCode = 283;\nProdName = \"Demo\";\n";
+//! let eds = eds::parse(text)?;
+//! assert_eq!(eds.device.as_ref().and_then(|d| d.vend_code), Some(283));
+//!
+//! let report = eds::check(text);
+//! assert!(report.has_errors()); // [File] and several [Device] keys are missing
+//!
+//! let written = eds::Writer::new().write(&eds);
+//! assert_eq!(eds::parse_str(&written)?, eds);
+//! # Ok::<(), eds::ParseError>(())
+//! ```
+//!
+//! ## No-panic contract
+//!
+//! Every entry point accepts any bytes and returns a value or an error; no input makes the
+//! library panic, recurse without bound or allocate without bound ([`limits`]). A property test
+//! feeds arbitrary bytes through every layer.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod check;
+pub mod diag;
+pub mod error;
+mod lexer;
+pub mod limits;
+pub mod model;
+pub mod raw;
+pub mod summary;
+pub mod text;
+pub mod value;
+pub mod write;
+
+pub use check::{check, check_file, check_str, Report};
+pub use diag::{Diagnostic, Rule, Severity, Span};
+pub use error::{EdsError, ParseError, SyntaxError};
+pub use model::{Eds, EnumDialect, EnumEntry, Param, ParamEnum};
+pub use raw::{Field, FieldValue, RawEds, RawEntry, RawSection};
+pub use summary::Summary;
+pub use value::{AttributePath, ConnectionMask, DataType, Descriptor, LinkPath, Value};
+pub use write::Writer;
+
+use std::path::Path;
+
+/// Parses an EDS given as bytes (UTF-8, else Latin-1) into the typed model.
+///
+/// Only syntax errors fail; problems in content (missing keys, bad values, ranges) are left to
+/// [`check()`], and untypeable entries are kept in the model's `other` lists.
+///
+/// # Errors
+///
+/// The first syntax error, or a size limit.
+pub fn parse(bytes: &[u8]) -> Result<Eds, ParseError> {
+    let (text, _) = text::decode(bytes)?;
+    parse_str(&text)
+}
+
+/// Parses decoded EDS text into the typed model; see [`parse`].
+///
+/// # Errors
+///
+/// The first syntax error.
+pub fn parse_str(text: &str) -> Result<Eds, ParseError> {
+    let raw = RawEds::parse(text)?;
+    Ok(Eds::from_raw(&raw).0)
+}
+
+/// Reads and parses the EDS file at `path`; errors name the file.
+///
+/// # Errors
+///
+/// [`EdsError::Io`] when the file cannot be read, [`EdsError::Parse`] (with the file name, line
+/// and column) when it is not well-formed.
+pub fn read_file(path: impl AsRef<Path>) -> Result<Eds, EdsError> {
+    let path = path.as_ref();
+    let bytes = read_bytes(path)?;
+    parse(&bytes).map_err(|e| EdsError::Parse(e.with_file(path)))
+}
+
+/// Reads at most [`limits::MAX_INPUT_BYTES`] + 1 bytes, so a huge file is refused without being
+/// loaded whole.
+pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, EdsError> {
+    use std::io::Read;
+    let io = |source| EdsError::Io { path: path.to_path_buf(), source };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let mut bytes = Vec::new();
+    let cap = u64::try_from(limits::MAX_INPUT_BYTES).unwrap_or(u64::MAX).saturating_add(1);
+    file.take(cap).read_to_end(&mut bytes).map_err(io)?;
+    Ok(bytes)
+}
