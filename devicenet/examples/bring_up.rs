@@ -65,7 +65,10 @@ fn main() -> ExitCode {
     }
     run_until(&mut node, now + Duration::from_millis(10), &mut seen);
 
-    println!("{:>3}  {:>10}  {:<3}  {:<4} {:<24} {:<58} verdict", "#", "time", "dir", "id", "data", "meaning");
+    println!(
+        "{:>3}  {:>10}  {:<3}  {:<4} {:<24} {:<58} verdict",
+        "#", "time", "dir", "id", "data", "meaning"
+    );
     let mut failures = 0;
     for i in 0..seen.len().max(BRING_UP.len()) {
         let (got, want) = (seen.get(i), BRING_UP.get(i));
