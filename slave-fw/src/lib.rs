@@ -1,0 +1,57 @@
+//! # slave-fw
+//!
+//! The serial side of the serial-to-DeviceNet converter: the code that talks to the legacy
+//! instrument. It is `no_std`, allocation-free and `unsafe`-free, so the RTIC firmware on the
+//! adapter board and the soft slave on Linux run exactly the same bridge logic.
+//!
+//! Like the [`devicenet`] core it is sans-IO: bytes and `now` go in, bytes to write to the UART,
+//! an input image, a status and the next deadline come out. Nothing here reads a clock or touches a
+//! peripheral; time is [`devicenet::Instant`] / [`devicenet::Duration`] (microseconds).
+//!
+//! ## Layers
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`serial::line`] | [`SerialSettings`](serial::SerialSettings): baud, parity, stop bits, character and 3.5-character times |
+//! | [`serial::checksum`] | 8-bit sum, 8-bit XOR and CRC-16/MODBUS |
+//! | [`serial::framed`] | the generic framed-serial wire format: [`FramedConfig`](serial::FramedConfig), the resynchronising [`FrameParser`](serial::FrameParser), the encoder |
+//! | [`serial::breaker`] | the intelligent circuit breaker of the source paper: status frames, commands, acknowledgements, and its preset configuration |
+//! | [`serial::sequencer`] | the [`CommandSequencer`](serial::CommandSequencer): poll output bytes → commands sent exactly once, retried, outcome reported; idle/fault actions |
+//! | [`serial::health`] | [`LinkHealth`](serial::LinkHealth): stale timeout and policy, the status byte, the freshness counter, [`Stats`](serial::Stats) |
+//! | [`serial::framed_profile`] | [`FramedProfile`](serial::FramedProfile): framing + sequencer + health for the breaker and similar instruments |
+//! | [`serial::modbus`] | Modbus RTU: the ADU codec ([`Request`](serial::modbus::Request), [`Response`](serial::modbus::Response)) and the scan-list [`ModbusMaster`](serial::modbus::ModbusMaster) |
+//! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
+//! | `sim` (feature `std`) | `SimulatedBreaker`: test equipment speaking the breaker protocol, sans-IO |
+//!
+//! The converter application (later) owns a [`Profile`](serial::Profile) next to the DeviceNet
+//! slave node: consumed poll data goes to [`Profile::set_outputs`](serial::Profile::set_outputs),
+//! the produced data is [`Profile::input_image`](serial::Profile::input_image) plus, in the
+//! extended assembly, [`LinkStatus::to_bytes`](serial::LinkStatus::to_bytes).
+//!
+//! ## Features
+//!
+//! | feature | default | what it adds |
+//! |---|---|---|
+//! | `std` | yes | the `sim` module and `std::error::Error` on the error types; build the firmware with `--no-default-features` |
+//! | `serde` | no | `Serialize`/`Deserialize` on every configuration type, for the device description file |
+//!
+//! ## No-panic contract
+//!
+//! Every parser and state machine in [`serial`] accepts any byte sequence and any `now`; no serial
+//! input can make it panic, allocate or grow without bound. Indexing that could panic is denied by
+//! lint outside tests, and property tests feed the parsers arbitrary bytes.
+#![cfg_attr(not(feature = "std"), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+#![cfg_attr(
+    not(test),
+    deny(clippy::indexing_slicing, clippy::unwrap_used, clippy::expect_used, clippy::panic)
+)]
+
+#[cfg(all(test, not(feature = "std")))]
+extern crate std;
+
+pub mod serial;
+
+#[cfg(feature = "std")]
+pub mod sim;

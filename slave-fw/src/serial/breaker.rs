@@ -1,0 +1,365 @@
+//! The intelligent circuit breaker of the source paper, on top of the generic framing.
+//!
+//! Every second the breaker's controller sends a status frame
+//! `0x68, 0x12, data[18], sum8(data), 0x16`: bytes 0–3 are the phase A, B, C and N currents,
+//! byte 9 the switch state (`0x0F` open, `0xF0` closed). Commands use the same framing,
+//! `0x68, len, cmd, args…, checksum, 0x16`: open `0x01`, close `0x02`, set parameter `0x03`
+//! (parameter id, little-endian u16 value), refresh `0x04`. The breaker acknowledges each with
+//! `0x68, 0x02, cmd | 0x80, status, checksum, 0x16`; status 0 means accepted.
+//!
+//! Status frames and acknowledgements are told apart by their length (18 vs 2 data bytes) and
+//! the acknowledgement flag in the first data byte ([`Message::classify`]).
+//!
+//! The converter does not need this module to run a breaker: [`profile_config`] is a plain
+//! [`FramedProfileConfig`] and a [`FramedProfile`](super::FramedProfile) does the rest. The typed
+//! views here serve the simulated breaker, the tests, and anyone who wants to read a status frame.
+
+use super::checksum::Checksum;
+use super::framed::{FramedConfig, LengthField};
+use super::framed_profile::{AckFormat, CommandFormat, FramedProfileConfig};
+use super::health::HealthConfig;
+use super::line::SerialSettings;
+use super::sequencer::{Command, CommandCode, SequencerConfig};
+use heapless::Vec;
+
+/// The start byte of every frame.
+pub const START: u8 = 0x68;
+/// The end byte of every frame.
+pub const END: u8 = 0x16;
+/// Data bytes in a status frame.
+pub const STATUS_LEN: usize = 18;
+/// Data bytes in an acknowledgement.
+pub const ACK_LEN: usize = 2;
+/// Set in the first data byte of an acknowledgement: `cmd | ACK_FLAG`.
+pub const ACK_FLAG: u8 = 0x80;
+
+/// Wire code of the open command.
+pub const CMD_OPEN: u8 = 0x01;
+/// Wire code of the close command.
+pub const CMD_CLOSE: u8 = 0x02;
+/// Wire code of the set-parameter command.
+pub const CMD_SET_PARAMETER: u8 = 0x03;
+/// Wire code of the refresh command.
+pub const CMD_REFRESH: u8 = 0x04;
+
+/// Acknowledgement status: accepted. Any other status is a refusal, reported verbatim as
+/// [`CommandOutcome::Rejected`](super::CommandOutcome::Rejected).
+pub const ACK_OK: u8 = 0x00;
+/// Acknowledgement status used by the simulated breaker: unknown command.
+pub const ACK_UNKNOWN_COMMAND: u8 = 0x01;
+/// Acknowledgement status used by the simulated breaker: bad argument (unknown parameter).
+pub const ACK_BAD_ARGUMENT: u8 = 0x02;
+/// Acknowledgement status used by the simulated breaker: wrong number of argument bytes.
+pub const ACK_BAD_LENGTH: u8 = 0x03;
+
+/// Byte 9 of a status frame when the breaker is open.
+pub const SWITCH_OPEN: u8 = 0x0F;
+/// Byte 9 of a status frame when the breaker is closed.
+pub const SWITCH_CLOSED: u8 = 0xF0;
+
+/// The breaker's framing: `0x68`, a length byte, at most 18 data bytes, sum-8, `0x16`.
+pub const FRAMING: FramedConfig = FramedConfig {
+    start: START,
+    length: LengthField::Byte,
+    end: Some(END),
+    checksum: Checksum::Sum8,
+    max_len: STATUS_LEN as u8,
+};
+
+/// The switch state, byte 9 of a status frame. Unknown values are kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SwitchState {
+    /// `0x0F`.
+    Open,
+    /// `0xF0`.
+    Closed,
+    /// Anything else.
+    Unknown(u8),
+}
+
+impl SwitchState {
+    /// The byte as sent.
+    pub const fn as_raw(self) -> u8 {
+        match self {
+            SwitchState::Open => SWITCH_OPEN,
+            SwitchState::Closed => SWITCH_CLOSED,
+            SwitchState::Unknown(b) => b,
+        }
+    }
+}
+
+impl From<u8> for SwitchState {
+    fn from(raw: u8) -> Self {
+        match raw {
+            SWITCH_OPEN => SwitchState::Open,
+            SWITCH_CLOSED => SwitchState::Closed,
+            b => SwitchState::Unknown(b),
+        }
+    }
+}
+
+/// The 18 data bytes of a status frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct StatusData(pub [u8; STATUS_LEN]);
+
+impl StatusData {
+    /// The data of a status frame, if `data` is exactly 18 bytes.
+    pub fn from_data(data: &[u8]) -> Option<StatusData> {
+        data.try_into().ok().map(StatusData)
+    }
+
+    /// A status with these phase currents and switch state, all other bytes zero.
+    pub fn new(currents: [u8; 4], switch: SwitchState) -> StatusData {
+        let mut d = [0u8; STATUS_LEN];
+        let [a, b, c, n] = currents;
+        d[0] = a;
+        d[1] = b;
+        d[2] = c;
+        d[3] = n;
+        d[9] = switch.as_raw();
+        StatusData(d)
+    }
+
+    /// Bytes 0–3: phase A, B, C and N currents.
+    pub fn phase_currents(&self) -> [u8; 4] {
+        [self.0[0], self.0[1], self.0[2], self.0[3]]
+    }
+
+    /// Byte 9: the switch state.
+    pub fn switch_state(&self) -> SwitchState {
+        SwitchState::from(self.0[9])
+    }
+
+    /// The 18 bytes.
+    pub fn as_bytes(&self) -> &[u8; STATUS_LEN] {
+        &self.0
+    }
+}
+
+/// A command to the breaker.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum BreakerCommand {
+    /// `0x01`: open.
+    Open,
+    /// `0x02`: close.
+    Close,
+    /// `0x03 id value_lo value_hi`: set parameter `id` to `value`.
+    SetParameter {
+        /// Parameter id.
+        id: u8,
+        /// New value.
+        value: u16,
+    },
+    /// `0x04`: send a status frame now.
+    Refresh,
+}
+
+impl BreakerCommand {
+    /// The wire code (first data byte).
+    pub const fn code(&self) -> u8 {
+        match self {
+            BreakerCommand::Open => CMD_OPEN,
+            BreakerCommand::Close => CMD_CLOSE,
+            BreakerCommand::SetParameter { .. } => CMD_SET_PARAMETER,
+            BreakerCommand::Refresh => CMD_REFRESH,
+        }
+    }
+
+    /// The frame data: code and arguments.
+    pub fn to_data(&self) -> Vec<u8, 4> {
+        let mut v = Vec::new();
+        let bytes: &[u8] = match *self {
+            BreakerCommand::SetParameter { id, value } => {
+                let [lo, hi] = value.to_le_bytes();
+                &[CMD_SET_PARAMETER, id, lo, hi]
+            }
+            _ => &[self.code()],
+        };
+        // At most 4 bytes.
+        let _ = v.extend_from_slice(bytes);
+        v
+    }
+
+    /// Decodes frame data; on failure, the acknowledgement status the breaker answers with.
+    pub fn parse(data: &[u8]) -> Result<BreakerCommand, u8> {
+        match data {
+            [CMD_OPEN] => Ok(BreakerCommand::Open),
+            [CMD_CLOSE] => Ok(BreakerCommand::Close),
+            [CMD_SET_PARAMETER, id, lo, hi] => {
+                Ok(BreakerCommand::SetParameter { id: *id, value: u16::from_le_bytes([*lo, *hi]) })
+            }
+            [CMD_REFRESH] => Ok(BreakerCommand::Refresh),
+            [CMD_OPEN | CMD_CLOSE | CMD_SET_PARAMETER | CMD_REFRESH, ..] => Err(ACK_BAD_LENGTH),
+            _ => Err(ACK_UNKNOWN_COMMAND),
+        }
+    }
+
+    /// The breaker command carried by poll outputs: code 1–4, set-parameter arguments in bytes
+    /// 2–4 (id, value low, value high). `None` for code 0 and unknown codes.
+    pub fn from_command(command: &Command) -> Option<BreakerCommand> {
+        let [id, lo, hi, ..] = command.args;
+        match command.code {
+            CommandCode::Open => Some(BreakerCommand::Open),
+            CommandCode::Close => Some(BreakerCommand::Close),
+            CommandCode::SetParameter => {
+                Some(BreakerCommand::SetParameter { id, value: u16::from_le_bytes([lo, hi]) })
+            }
+            CommandCode::Refresh => Some(BreakerCommand::Refresh),
+            CommandCode::None | CommandCode::Unknown(_) => None,
+        }
+    }
+}
+
+/// An acknowledgement: `cmd | 0x80, status`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Ack {
+    /// The wire code of the acknowledged command.
+    pub command: u8,
+    /// [`ACK_OK`] or a refusal status.
+    pub status: u8,
+}
+
+impl Ack {
+    /// The frame data.
+    pub fn to_data(&self) -> [u8; ACK_LEN] {
+        [self.command | ACK_FLAG, self.status]
+    }
+
+    /// Decodes frame data: 2 bytes, the first with [`ACK_FLAG`].
+    pub fn parse(data: &[u8]) -> Option<Ack> {
+        match data {
+            [cmd, status] if cmd & ACK_FLAG != 0 => Some(Ack { command: cmd & !ACK_FLAG, status: *status }),
+            _ => None,
+        }
+    }
+}
+
+/// A frame from the breaker, classified.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Message {
+    /// A status frame (18 data bytes).
+    Status(StatusData),
+    /// An acknowledgement (2 data bytes, flag set).
+    Ack(Ack),
+    /// Anything else with valid framing.
+    Other,
+}
+
+impl Message {
+    /// Tells status frames from acknowledgements by length and first data byte.
+    pub fn classify(data: &[u8]) -> Message {
+        if let Some(ack) = Ack::parse(data) {
+            Message::Ack(ack)
+        } else if let Some(status) = StatusData::from_data(data) {
+            Message::Status(status)
+        } else {
+            Message::Other
+        }
+    }
+}
+
+/// The breaker as a [`FramedProfileConfig`]: 9600 8N1, the framing above, 18-byte status frames
+/// as the input image, acknowledgements `cmd | 0x80, status` with 0 = ok, commands 1–4 mapped to
+/// wire codes 1–4 (set parameter takes 3 argument bytes), 500 ms response timeout with 2 retries,
+/// stale after 3 s, hold last value.
+pub fn profile_config() -> FramedProfileConfig {
+    let mut commands = Vec::new();
+    for (code, wire, args) in
+        [(1, CMD_OPEN, 0), (2, CMD_CLOSE, 0), (3, CMD_SET_PARAMETER, 3), (4, CMD_REFRESH, 0)]
+    {
+        // Four entries, capacity 8.
+        let _ = commands.push(CommandFormat { code, wire, args });
+    }
+    FramedProfileConfig {
+        serial: SerialSettings::new_8n1(9600),
+        framing: FRAMING,
+        status_len: STATUS_LEN as u8,
+        ack: Some(AckFormat { data_len: ACK_LEN as u8, flag: ACK_FLAG, ok_status: ACK_OK }),
+        commands,
+        sequencer: SequencerConfig::default(),
+        health: HealthConfig::default(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::FrameParser;
+    use rstest::rstest;
+
+    #[rstest]
+    #[case::open(BreakerCommand::Open, &[0x68, 0x01, 0x01, 0x01, 0x16])]
+    #[case::close(BreakerCommand::Close, &[0x68, 0x01, 0x02, 0x02, 0x16])]
+    #[case::set_parameter(BreakerCommand::SetParameter { id: 2, value: 0x1234 }, &[0x68, 0x04, 0x03, 0x02, 0x34, 0x12, 0x4B, 0x16])]
+    #[case::refresh(BreakerCommand::Refresh, &[0x68, 0x01, 0x04, 0x04, 0x16])]
+    fn command_frames(#[case] cmd: BreakerCommand, #[case] wire: &[u8]) {
+        let mut out = [0u8; 32];
+        let n = FRAMING.encode(&cmd.to_data(), &mut out).unwrap();
+        assert_eq!(&out[..n], wire);
+        let mut parser = FrameParser::<32>::new(FRAMING).unwrap();
+        let mut decoded = None;
+        parser.push_slice(wire, |e| decoded = Some(BreakerCommand::parse(e.unwrap().data())));
+        assert_eq!(decoded, Some(Ok(cmd)));
+    }
+
+    #[rstest]
+    #[case::unknown(&[0x09], ACK_UNKNOWN_COMMAND)]
+    #[case::empty(&[], ACK_UNKNOWN_COMMAND)]
+    #[case::open_with_args(&[0x01, 0x00], ACK_BAD_LENGTH)]
+    #[case::set_short(&[0x03, 0x01, 0x02], ACK_BAD_LENGTH)]
+    fn command_parse_errors(#[case] data: &[u8], #[case] status: u8) {
+        assert_eq!(BreakerCommand::parse(data), Err(status));
+    }
+
+    #[rstest]
+    #[case::open([1, 5, 0, 0, 0, 0, 0, 0], Some(BreakerCommand::Open))]
+    #[case::set([3, 5, 2, 0x34, 0x12, 9, 9, 9], Some(BreakerCommand::SetParameter { id: 2, value: 0x1234 }))]
+    #[case::none([0, 5, 0, 0, 0, 0, 0, 0], None)]
+    #[case::unknown([9, 5, 0, 0, 0, 0, 0, 0], None)]
+    fn from_poll_command(#[case] bytes: [u8; 8], #[case] cmd: Option<BreakerCommand>) {
+        assert_eq!(BreakerCommand::from_command(&Command::from_outputs(&bytes).unwrap()), cmd);
+    }
+
+    #[test]
+    fn status_frame_view() {
+        let data = [10, 11, 12, 1, 0, 0, 0, 0, 0, 0xF0, 0, 0, 0, 0, 0, 0, 0, 0];
+        let s = StatusData::from_data(&data).unwrap();
+        assert_eq!(s.phase_currents(), [10, 11, 12, 1]);
+        assert_eq!(s.switch_state(), SwitchState::Closed);
+        assert_eq!(StatusData::new([10, 11, 12, 1], SwitchState::Closed), s);
+        assert_eq!(StatusData::from_data(&data[..17]), None);
+        let mut wire = [0u8; 32];
+        let n = FRAMING.encode(s.as_bytes(), &mut wire).unwrap();
+        assert_eq!(&wire[..3], &[0x68, 0x12, 10]);
+        assert_eq!(&wire[n - 2..n], &[0x12, 0x16]);
+    }
+
+    #[rstest]
+    #[case::open(0x0F, SwitchState::Open)]
+    #[case::closed(0xF0, SwitchState::Closed)]
+    #[case::between(0x00, SwitchState::Unknown(0x00))]
+    fn switch_states(#[case] raw: u8, #[case] state: SwitchState) {
+        assert_eq!(SwitchState::from(raw), state);
+        assert_eq!(state.as_raw(), raw);
+    }
+
+    #[rstest]
+    #[case::ack(&[0x81, 0x00], Message::Ack(Ack { command: 1, status: 0 }))]
+    #[case::nak(&[0x83, 0x02], Message::Ack(Ack { command: 3, status: 2 }))]
+    #[case::two_bytes_no_flag(&[0x01, 0x00], Message::Other)]
+    #[case::status(&[0; 18], Message::Status(StatusData([0; 18])))]
+    #[case::odd_length(&[0; 5], Message::Other)]
+    fn classify(#[case] data: &[u8], #[case] message: Message) {
+        assert_eq!(Message::classify(data), message);
+    }
+
+    #[test]
+    fn ack_to_data() {
+        assert_eq!(Ack { command: 2, status: 0 }.to_data(), [0x82, 0x00]);
+    }
+
+    #[test]
+    fn preset_is_valid() {
+        profile_config().validate().unwrap();
+    }
+}

@@ -1,0 +1,130 @@
+//! Configuration errors: which field, and what is wrong with it.
+//!
+//! Every configuration type has a `validate()` returning the first [`ConfigError`] it finds. The
+//! error names the field as it is spelled in the configuration (`"scan.count"`), the list index when
+//! the field is inside a list, and the allowed range, so the device description loader can point
+//! at the offending line.
+
+use core::fmt;
+
+/// A configuration value that a profile cannot run with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConfigError {
+    /// The field, dotted from the configuration's root (`"framing.max_len"`, `"scan.count"`).
+    pub field: &'static str,
+    /// The index in the list the field belongs to (`scan[3]`), if any.
+    pub index: Option<u16>,
+    /// What is wrong with it.
+    pub problem: Problem,
+}
+
+/// What is wrong with a configuration field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Problem {
+    /// The value lies outside `min..=max`.
+    OutOfRange {
+        /// The configured value.
+        value: u32,
+        /// The smallest allowed value.
+        min: u32,
+        /// The largest allowed value.
+        max: u32,
+    },
+    /// The field conflicts with another setting; the text says which and why.
+    Conflict(&'static str),
+    /// The image bytes of this list entry overlap those of the entry at `other`.
+    Overlap {
+        /// Index of the entry it overlaps.
+        other: u16,
+    },
+    /// The same key appears again at `other`.
+    Duplicate {
+        /// Index of the first entry with the same key.
+        other: u16,
+    },
+}
+
+impl ConfigError {
+    /// An [`Problem::OutOfRange`] error for `field`.
+    pub const fn out_of_range(field: &'static str, value: u32, min: u32, max: u32) -> Self {
+        ConfigError { field, index: None, problem: Problem::OutOfRange { value, min, max } }
+    }
+
+    /// A [`Problem::Conflict`] error for `field`.
+    pub const fn conflict(field: &'static str, why: &'static str) -> Self {
+        ConfigError { field, index: None, problem: Problem::Conflict(why) }
+    }
+
+    /// The same error, located at list index `index`.
+    pub const fn at(mut self, index: usize) -> Self {
+        self.index = Some(if index > u16::MAX as usize { u16::MAX } else { index as u16 });
+        self
+    }
+
+    /// `Ok` when `min <= value <= max`, otherwise an [`Problem::OutOfRange`] error.
+    pub fn check_range(field: &'static str, value: u32, min: u32, max: u32) -> Result<(), ConfigError> {
+        if (min..=max).contains(&value) {
+            Ok(())
+        } else {
+            Err(ConfigError::out_of_range(field, value, min, max))
+        }
+    }
+}
+
+/// Converts a length or offset to `u32` for error reports, saturating.
+pub(crate) fn as_u32(n: usize) -> u32 {
+    u32::try_from(n).unwrap_or(u32::MAX)
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // `scan[3].count`: the list name is the part before the first dot.
+        match self.index {
+            Some(i) => match self.field.split_once('.') {
+                Some((list, rest)) => write!(f, "{list}[{i}].{rest}")?,
+                None => write!(f, "{}[{i}]", self.field)?,
+            },
+            None => f.write_str(self.field)?,
+        }
+        match self.problem {
+            Problem::OutOfRange { value, min, max } => {
+                write!(f, ": {value} is outside the allowed range {min}..={max}")
+            }
+            Problem::Conflict(why) => write!(f, ": {why}"),
+            Problem::Overlap { other } => write!(f, ": overlaps the image bytes of entry {other}"),
+            Problem::Duplicate { other } => write!(f, ": duplicates entry {other}"),
+        }
+    }
+}
+
+impl core::error::Error for ConfigError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+    use std::string::ToString;
+
+    #[rstest]
+    #[case::plain(
+        ConfigError::out_of_range("serial.baud", 5, 300, 4_000_000),
+        "serial.baud: 5 is outside the allowed range 300..=4000000"
+    )]
+    #[case::indexed(ConfigError::out_of_range("scan.count", 200, 1, 125).at(3), "scan[3].count: 200 is outside the allowed range 1..=125")]
+    #[case::overlap(ConfigError { field: "scan.offset", index: Some(2), problem: Problem::Overlap { other: 0 } }, "scan[2].offset: overlaps the image bytes of entry 0")]
+    #[case::conflict(
+        ConfigError::conflict("framing.end", "a delimited frame needs an end byte"),
+        "framing.end: a delimited frame needs an end byte"
+    )]
+    #[case::list_itself(ConfigError::out_of_range("commands", 9, 0, 8).at(8), "commands[8]: 9 is outside the allowed range 0..=8")]
+    fn display(#[case] e: ConfigError, #[case] text: &str) {
+        assert_eq!(e.to_string(), text);
+    }
+
+    #[test]
+    fn check_range_bounds_are_inclusive() {
+        assert!(ConfigError::check_range("x", 1, 1, 3).is_ok());
+        assert!(ConfigError::check_range("x", 3, 1, 3).is_ok());
+        assert!(ConfigError::check_range("x", 4, 1, 3).is_err());
+    }
+}

@@ -1,0 +1,641 @@
+//! The framed-serial profile: the breaker and every instrument that speaks a similar protocol.
+//!
+//! [`FramedProfile`] combines a [`FrameParser`], a [`CommandSequencer`] and a [`LinkHealth`]:
+//!
+//! * received frames whose data length is [`status_len`](FramedProfileConfig::status_len) become
+//!   the input image;
+//! * frames matching the [`AckFormat`] answer the command in progress (status `ok_status` →
+//!   [`CommandOutcome::Ok`], anything else → [`CommandOutcome::Rejected`]);
+//! * any other good frame counts as [`Stats::unexpected_frames`] (and as proof of life);
+//! * commands from the poll outputs are framed as `wire code, argument bytes…` according to the
+//!   [`CommandFormat`] table, padded with zeros for fixed-length framings.
+//!
+//! Everything that differs between instruments lives in [`FramedProfileConfig`]; the breaker is
+//! [`breaker::profile_config`](super::breaker::profile_config).
+
+use super::error::{as_u32, ConfigError, Problem};
+use super::framed::{FrameError, FrameParser, FramedConfig, LengthField};
+use super::health::{bump, HealthConfig, LinkHealth, LinkStatus, Stats};
+use super::line::SerialSettings;
+use super::sequencer::{
+    check_idle_frame, Command, CommandOutcome, CommandSequencer, SequencerConfig, Transmission,
+};
+use super::{FRAME_CAPACITY, IMAGE_CAPACITY};
+use devicenet::Instant;
+use heapless::Vec;
+
+/// The most entries in [`FramedProfileConfig::commands`].
+pub const MAX_COMMAND_FORMATS: usize = 8;
+
+/// How the instrument acknowledges a command.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct AckFormat {
+    /// Data bytes in an acknowledgement (2 for the breaker: `cmd | flag, status`). With one byte
+    /// there is no status and every acknowledgement is an acceptance.
+    pub data_len: u8,
+    /// Bits set in the first data byte of an acknowledgement, on top of the command's wire code
+    /// (`0x80` for the breaker), `1..=255`.
+    pub flag: u8,
+    /// The status byte (second data byte) that means accepted.
+    pub ok_status: u8,
+}
+
+/// How one poll command code is sent: `wire`, then the first `args` argument bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct CommandFormat {
+    /// The poll command code (byte 0 of the outputs), `1..=255`.
+    pub code: u8,
+    /// The first data byte of the command frame.
+    pub wire: u8,
+    /// How many argument bytes (poll bytes 2…) follow, `0..=6`.
+    pub args: u8,
+}
+
+/// Everything that describes a framed-serial instrument.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct FramedProfileConfig {
+    /// The serial line (timing of transmissions).
+    pub serial: SerialSettings,
+    /// The framing of every frame, both directions.
+    pub framing: FramedConfig,
+    /// Data bytes in a status frame; also the length of the input image, `1..=64`.
+    pub status_len: u8,
+    /// How commands are acknowledged; `None` when the instrument does not answer commands (each
+    /// command is then [`CommandOutcome::Ok`] once sent).
+    pub ack: Option<AckFormat>,
+    /// The commands the instrument understands.
+    pub commands: Vec<CommandFormat, MAX_COMMAND_FORMATS>,
+    /// Timeouts, retries, idle and fault frames.
+    pub sequencer: SequencerConfig,
+    /// Stale timeout and policy.
+    pub health: HealthConfig,
+}
+
+impl FramedProfileConfig {
+    /// The breaker of the source paper ([`breaker::profile_config`](super::breaker::profile_config)).
+    pub fn breaker() -> Self {
+        super::breaker::profile_config()
+    }
+
+    /// The most data bytes an outgoing frame may carry before padding.
+    fn max_tx_data(&self) -> usize {
+        match self.framing.length {
+            LengthField::Fixed(n) => usize::from(n),
+            LengthField::Byte | LengthField::Delimited => usize::from(self.framing.max_len),
+        }
+    }
+
+    /// Checks every field, and that status frames, acknowledgements, commands and idle/fault
+    /// frames fit the framing.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.serial.validate()?;
+        self.framing.validate()?;
+        self.sequencer.validate()?;
+        self.health.validate()?;
+
+        let (min, max) = match self.framing.length {
+            LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
+            LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
+        };
+        let max = max.min(as_u32(IMAGE_CAPACITY));
+        ConfigError::check_range("status_len", u32::from(self.status_len), min, max)?;
+
+        if let Some(ack) = self.ack {
+            let (min, max) = match self.framing.length {
+                LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
+                LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
+            };
+            ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
+            ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
+        }
+
+        let max_data = self.max_tx_data();
+        for (i, c) in self.commands.iter().enumerate() {
+            ConfigError::check_range("commands.code", u32::from(c.code), 1, 255).map_err(|e| e.at(i))?;
+            let max_args = max_data.saturating_sub(1).min(6);
+            ConfigError::check_range("commands.args", u32::from(c.args), 0, as_u32(max_args))
+                .map_err(|e| e.at(i))?;
+            if let Some(other) = self.commands.iter().take(i).position(|o| o.code == c.code) {
+                return Err(ConfigError {
+                    field: "commands.code",
+                    index: None,
+                    problem: Problem::Duplicate { other: other as u16 },
+                }
+                .at(i));
+            }
+            if self.framing.length == LengthField::Delimited && self.framing.end == Some(c.wire) {
+                return Err(ConfigError::conflict("commands.wire", "equals the end delimiter").at(i));
+            }
+        }
+
+        check_idle_frame("sequencer.on_idle", &self.sequencer.on_idle, 0, max_data)?;
+        check_idle_frame("sequencer.on_fault", &self.sequencer.on_fault, 0, max_data)?;
+        for (field, action) in
+            [("sequencer.on_idle", &self.sequencer.on_idle), ("sequencer.on_fault", &self.sequencer.on_fault)]
+        {
+            if let (LengthField::Delimited, Some(end), Some(frame)) =
+                (self.framing.length, self.framing.end, action.frame())
+            {
+                if frame.contains(&end) {
+                    return Err(ConfigError::conflict(field, "contains the end delimiter"));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A framed-serial instrument: input image from status frames, commands from poll outputs,
+/// link health. Driven like every [`Profile`](super::Profile): see the [`serial`](super) module.
+#[derive(Clone, Debug)]
+pub struct FramedProfile {
+    config: FramedProfileConfig,
+    parser: FrameParser<FRAME_CAPACITY>,
+    sequencer: CommandSequencer,
+    health: LinkHealth,
+    image: Vec<u8, IMAGE_CAPACITY>,
+    tx: Vec<u8, FRAME_CAPACITY>,
+}
+
+impl FramedProfile {
+    /// A profile for `config`, started at `now` (the stale timeout runs from here). The input image
+    /// starts as `status_len` zero bytes.
+    pub fn new(config: FramedProfileConfig, now: Instant) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let parser = FrameParser::new(config.framing)?;
+        let sequencer = CommandSequencer::new(config.sequencer.clone())?;
+        let health = LinkHealth::new(config.health, now)?;
+        let mut image = Vec::new();
+        image.resize(usize::from(config.status_len), 0).map_err(|_| {
+            ConfigError::out_of_range("status_len", u32::from(config.status_len), 1, as_u32(IMAGE_CAPACITY))
+        })?;
+        Ok(FramedProfile { config, parser, sequencer, health, image, tx: Vec::new() })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &FramedProfileConfig {
+        &self.config
+    }
+
+    /// Takes bytes read from the UART at `now`.
+    pub fn on_bytes(&mut self, bytes: &[u8], now: Instant) {
+        let FramedProfile { config, parser, sequencer, health, image, .. } = self;
+        for &b in bytes {
+            let skipped_before = parser.counters().skipped_bytes;
+            parser.push(b, |event| match event {
+                Ok(frame) => on_frame(config, sequencer, health, image, frame.data(), now),
+                Err(FrameError::BadChecksum) => health.on_checksum_error(),
+                Err(FrameError::BadEnd | FrameError::BadLength | FrameError::Overflow) => {
+                    health.on_framing_error()
+                }
+            });
+            health.on_discarded_bytes(parser.counters().skipped_bytes.wrapping_sub(skipped_before));
+        }
+        self.sync_stats();
+    }
+
+    /// Takes the consumed poll data received at `now`: the 8 command bytes, or an empty slice for
+    /// an idle poll.
+    pub fn set_outputs(&mut self, outputs: &[u8], now: Instant) {
+        self.sequencer.set_outputs(outputs, now);
+    }
+
+    /// The poll connection timed out at `now`.
+    pub fn connection_fault(&mut self, now: Instant) {
+        self.sequencer.connection_fault(now);
+    }
+
+    /// Advances timers to `now`: answer timeouts and retries, stale detection and policy.
+    pub fn poll(&mut self, now: Instant) {
+        self.sequencer.poll(now);
+        if self.health.poll(now) {
+            self.health.apply_stale_policy(&mut self.image);
+        }
+        self.sync_stats();
+    }
+
+    /// Advances to `now` and returns the next frame to write to the UART, if any. Call until
+    /// `None`.
+    pub fn poll_transmit(&mut self, now: Instant) -> Option<&[u8]> {
+        self.poll(now);
+        while let Some(t) = self.sequencer.next_transmission(now) {
+            let encoded = match t {
+                Transmission::Command { command, .. } => self.encode_command(&command),
+                Transmission::Idle | Transmission::Fault => {
+                    let frame = self.sequencer.frame_for(t).unwrap_or(&[]);
+                    encode_padded(&self.config.framing, frame, &mut self.tx)
+                }
+            };
+            if !encoded {
+                // Unknown command code (validated configurations never fail otherwise).
+                match t {
+                    Transmission::Command { .. } => {
+                        self.sequencer.complete(CommandOutcome::Unsupported);
+                    }
+                    Transmission::Idle | Transmission::Fault => self.sequencer.transmitted(t, now, now),
+                }
+                continue;
+            }
+            let done = now + self.config.serial.transmit_time(self.tx.len());
+            self.sequencer.transmitted(t, now, done);
+            if matches!(t, Transmission::Command { .. }) && self.config.ack.is_none() {
+                self.sequencer.complete(CommandOutcome::Ok);
+            }
+            bump(&mut self.health.stats_mut().frames_sent);
+            self.sync_stats();
+            return Some(&self.tx);
+        }
+        self.sync_stats();
+        None
+    }
+
+    /// Frames `command` into `self.tx`; `false` if the code has no [`CommandFormat`].
+    fn encode_command(&mut self, command: &Command) -> bool {
+        let Some(format) = command_format(&self.config, command) else {
+            return false;
+        };
+        let mut data: Vec<u8, 7> = Vec::new();
+        let args = command.args.get(..usize::from(format.args)).unwrap_or(&[]);
+        if data.push(format.wire).is_err() || data.extend_from_slice(args).is_err() {
+            return false;
+        }
+        encode_padded(&self.config.framing, &data, &mut self.tx)
+    }
+
+    /// When to call [`poll_transmit`](Self::poll_transmit) next.
+    pub fn poll_at(&self) -> Option<Instant> {
+        match (self.sequencer.poll_at(), self.health.poll_at()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// The input image: the data of the last status frame (or zeros, per policy and start-up).
+    pub fn input_image(&self) -> &[u8] {
+        &self.image
+    }
+
+    /// The link status.
+    pub fn status(&self) -> LinkStatus {
+        self.health.status(self.sequencer.outcome(), false, false)
+    }
+
+    /// The statistics.
+    pub fn stats(&self) -> &Stats {
+        self.health.stats()
+    }
+
+    /// The command sequencer (last command, outcome, mode).
+    pub fn sequencer(&self) -> &CommandSequencer {
+        &self.sequencer
+    }
+
+    /// The frame parser's counters by rejection kind.
+    pub fn parser_counters(&self) -> &super::FrameCounters {
+        self.parser.counters()
+    }
+
+    fn sync_stats(&mut self) {
+        let c = *self.sequencer.counters();
+        let s = self.health.stats_mut();
+        s.commands_sent = c.sent;
+        s.commands_retried = c.retried;
+        s.commands_failed = c.failed;
+        s.commands_rejected = c.rejected;
+        s.timeouts = c.timeouts;
+    }
+}
+
+fn command_format(config: &FramedProfileConfig, command: &Command) -> Option<CommandFormat> {
+    config.commands.iter().copied().find(|f| f.code == command.code.as_raw())
+}
+
+/// Frames `data` into `out`, padding with zeros up to a fixed length.
+fn encode_padded(framing: &FramedConfig, data: &[u8], out: &mut Vec<u8, FRAME_CAPACITY>) -> bool {
+    if let LengthField::Fixed(n) = framing.length {
+        let mut padded: Vec<u8, 255> = Vec::new();
+        if padded.extend_from_slice(data).is_err() || padded.resize(usize::from(n), 0).is_err() {
+            return false;
+        }
+        framing.encode_to_vec(&padded, out).is_ok()
+    } else {
+        framing.encode_to_vec(data, out).is_ok()
+    }
+}
+
+/// Handles one good frame's data.
+fn on_frame(
+    config: &FramedProfileConfig,
+    sequencer: &mut CommandSequencer,
+    health: &mut LinkHealth,
+    image: &mut Vec<u8, IMAGE_CAPACITY>,
+    data: &[u8],
+    now: Instant,
+) {
+    health.on_frame(now);
+    if let Some(ack) = config.ack {
+        if let Some((wire, status)) = parse_ack(&ack, data) {
+            let expected = sequencer.active().and_then(|c| command_format(config, c)).map(|f| f.wire);
+            if sequencer.awaiting_answer() && expected == Some(wire) {
+                let outcome = if status == ack.ok_status {
+                    CommandOutcome::Ok
+                } else {
+                    CommandOutcome::Rejected(status)
+                };
+                sequencer.complete(outcome);
+            }
+            return;
+        }
+    }
+    if data.len() == image.len() {
+        image.copy_from_slice(data);
+    } else {
+        bump(&mut health.stats_mut().unexpected_frames);
+    }
+}
+
+/// `(wire code, status)` of an acknowledgement, if `data` is one.
+fn parse_ack(ack: &AckFormat, data: &[u8]) -> Option<(u8, u8)> {
+    if data.len() != usize::from(ack.data_len) {
+        return None;
+    }
+    let (&first, rest) = data.split_first()?;
+    if first & ack.flag != ack.flag {
+        return None;
+    }
+    Some((first & !ack.flag, rest.first().copied().unwrap_or(ack.ok_status)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::breaker::{self, StatusData, SwitchState};
+    use crate::serial::checksum::Checksum;
+    use crate::serial::{IdleAction, LinkState, StalePolicy, StatusByte};
+    use proptest::prelude::*;
+    use rstest::rstest;
+    use std::vec::Vec as StdVec;
+
+    fn ms(n: u64) -> Instant {
+        Instant::from_millis(n)
+    }
+
+    fn frame(data: &[u8]) -> StdVec<u8> {
+        let mut out = [0u8; 64];
+        let n = breaker::FRAMING.encode(data, &mut out).unwrap();
+        out[..n].to_vec()
+    }
+
+    fn status(currents: [u8; 4], switch: SwitchState) -> StdVec<u8> {
+        frame(StatusData::new(currents, switch).as_bytes())
+    }
+
+    fn breaker_profile(policy: StalePolicy) -> FramedProfile {
+        let mut c = breaker::profile_config();
+        c.health.stale_policy = policy;
+        FramedProfile::new(c, ms(0)).unwrap()
+    }
+
+    fn drain(p: &mut FramedProfile, now: Instant) -> StdVec<StdVec<u8>> {
+        let mut out = StdVec::new();
+        while let Some(f) = p.poll_transmit(now) {
+            out.push(f.to_vec());
+            assert!(out.len() < 10);
+        }
+        out
+    }
+
+    #[test]
+    fn status_frame_fills_the_image() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        assert_eq!(p.input_image(), &[0u8; 18]);
+        assert_eq!(p.status().state, LinkState::Starting);
+        p.on_bytes(&status([10, 11, 12, 1], SwitchState::Closed), ms(5));
+        assert_eq!(&p.input_image()[..4], &[10, 11, 12, 1]);
+        assert_eq!(p.input_image()[9], 0xF0);
+        let s = p.status();
+        assert_eq!((s.state, s.freshness), (LinkState::Ok, 1));
+        assert_eq!(s.status_byte().as_raw(), StatusByte::LINK_OK);
+        assert_eq!(p.stats().frames_received, 1);
+    }
+
+    #[test]
+    fn open_command_sent_once_for_a_hundred_polls_and_acked() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        let mut sent = StdVec::new();
+        for i in 0..100u64 {
+            p.set_outputs(&[1, 1, 0, 0, 0, 0, 0, 0], ms(i * 10));
+            sent.extend(drain(&mut p, ms(i * 10)));
+            if i == 2 {
+                p.on_bytes(&frame(&[0x81, 0x00]), ms(i * 10 + 5));
+            }
+        }
+        assert_eq!(sent, std::vec![std::vec![0x68, 0x01, 0x01, 0x01, 0x16]]);
+        assert_eq!(p.status().command, CommandOutcome::Ok);
+        assert_eq!(p.stats().commands_sent, 1);
+        assert_eq!(p.stats().frames_sent, 1);
+    }
+
+    #[test]
+    fn set_parameter_carries_its_arguments() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[3, 1, 2, 0x34, 0x12, 0xEE, 0xEE, 0xEE], ms(0));
+        assert_eq!(
+            drain(&mut p, ms(0)),
+            std::vec![std::vec![0x68, 0x04, 0x03, 0x02, 0x34, 0x12, 0x4B, 0x16]]
+        );
+    }
+
+    #[rstest]
+    #[case::accepted(0x00, CommandOutcome::Ok)]
+    #[case::refused(0x02, CommandOutcome::Rejected(2))]
+    fn ack_status(#[case] status: u8, #[case] outcome: CommandOutcome) {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[2, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        drain(&mut p, ms(0));
+        p.on_bytes(&frame(&[0x82, status]), ms(10));
+        assert_eq!(p.status().command, outcome);
+    }
+
+    #[test]
+    fn ack_for_another_command_is_ignored() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[2, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        drain(&mut p, ms(0));
+        p.on_bytes(&frame(&[0x81, 0x00]), ms(10));
+        assert_eq!(p.status().command, CommandOutcome::Pending);
+        assert_eq!(p.input_image(), &[0u8; 18], "an ack is not status data");
+        assert_eq!(p.status().freshness, 1, "but it is a good frame");
+    }
+
+    #[test]
+    fn unanswered_command_retries_then_fails() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[1, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        let mut frames = 0;
+        let mut t = ms(0);
+        for _ in 0..20 {
+            frames += drain(&mut p, t).len();
+            match p.poll_at() {
+                Some(next) => t = next,
+                None => break,
+            }
+        }
+        assert_eq!(frames, 3, "1 + 2 retries");
+        assert_eq!(p.status().command, CommandOutcome::Failed);
+        assert_eq!(p.status().status_byte().command_code(), 4);
+        let s = p.stats();
+        assert_eq!((s.commands_sent, s.commands_retried, s.commands_failed, s.timeouts), (1, 2, 1, 3));
+    }
+
+    #[test]
+    fn unknown_command_code_is_unsupported() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[9, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        assert!(drain(&mut p, ms(0)).is_empty());
+        assert_eq!(p.status().command, CommandOutcome::Unsupported);
+    }
+
+    #[test]
+    fn idle_poll_never_sends_a_command_and_idle_frame_goes_once() {
+        let mut c = breaker::profile_config();
+        c.sequencer.on_idle = IdleAction::send(&[0x04]).unwrap();
+        let mut p = FramedProfile::new(c, ms(0)).unwrap();
+        let mut sent = StdVec::new();
+        for i in 0..100 {
+            p.set_outputs(&[], ms(i));
+            sent.extend(drain(&mut p, ms(i)));
+        }
+        assert_eq!(sent, std::vec![std::vec![0x68, 0x01, 0x04, 0x04, 0x16]]);
+        assert_eq!(p.stats().commands_sent, 0);
+    }
+
+    #[rstest]
+    #[case::hold(StalePolicy::HoldLastValue, 10)]
+    #[case::clear(StalePolicy::Clear, 0)]
+    fn stale_policy_and_status(#[case] policy: StalePolicy, #[case] current_after: u8) {
+        let mut p = breaker_profile(policy);
+        p.on_bytes(&status([10, 10, 10, 0], SwitchState::Closed), ms(1000));
+        drain(&mut p, ms(3999));
+        assert_eq!(p.status().state, LinkState::Ok);
+        assert_eq!(p.poll_at(), Some(ms(4000)));
+        drain(&mut p, ms(4000));
+        let s = p.status();
+        assert_eq!(s.state, LinkState::Timeout);
+        assert_eq!(s.status_byte().as_raw() & 0x03, StatusByte::LINK_TIMEOUT);
+        assert_eq!(s.freshness, 1, "no new frame");
+        assert_eq!(p.input_image()[0], current_after);
+        assert_eq!(p.stats().link_timeouts, 1);
+        p.on_bytes(&status([20, 20, 20, 0], SwitchState::Closed), ms(5000));
+        assert_eq!((p.status().state, p.status().freshness, p.input_image()[0]), (LinkState::Ok, 2, 20));
+    }
+
+    #[test]
+    fn garbage_and_bad_checksums_are_counted_and_survived() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        let mut bad = status([1, 2, 3, 4], SwitchState::Open);
+        let n = bad.len();
+        bad[n - 2] ^= 0xFF;
+        let mut bytes = std::vec![0x00, 0x55, 0x68, 0x30];
+        bytes.extend_from_slice(&bad);
+        p.on_bytes(&bytes, ms(10));
+        let s = p.status();
+        assert!(s.frame_errors);
+        assert_eq!(s.status_byte().as_raw() & StatusByte::FRAME_ERRORS, StatusByte::FRAME_ERRORS);
+        assert_eq!(p.stats().checksum_errors, 1);
+        assert_eq!(p.stats().framing_errors, 1, "0x68 0x30: bad length");
+        assert!(p.stats().discarded_bytes >= 3);
+        p.on_bytes(&status([5, 6, 7, 8], SwitchState::Open), ms(20));
+        assert_eq!(&p.input_image()[..4], &[5, 6, 7, 8]);
+        assert!(!p.status().frame_errors);
+        assert_eq!(p.parser_counters().bad_checksum, 1);
+    }
+
+    #[test]
+    fn unexpected_frames_are_counted() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.on_bytes(&frame(&[1, 2, 3]), ms(0));
+        assert_eq!(p.stats().unexpected_frames, 1);
+        assert_eq!(p.status().state, LinkState::Ok);
+    }
+
+    #[test]
+    fn instrument_without_acks_and_fixed_framing() {
+        let c = FramedProfileConfig {
+            serial: SerialSettings::new_8n1(19200),
+            framing: FramedConfig {
+                start: 0x02,
+                length: LengthField::Fixed(4),
+                end: Some(0x03),
+                checksum: Checksum::Xor8,
+                max_len: 4,
+            },
+            status_len: 4,
+            ack: None,
+            commands: Vec::from_slice(&[CommandFormat { code: 1, wire: b'O', args: 1 }]).unwrap(),
+            sequencer: SequencerConfig::default(),
+            health: HealthConfig::default(),
+        };
+        let mut p = FramedProfile::new(c, ms(0)).unwrap();
+        p.set_outputs(&[1, 7, 0x55, 0, 0, 0, 0, 0], ms(0));
+        // 'O' 0x55 padded to 4 bytes, XOR = 0x4F ^ 0x55 = 0x1A.
+        assert_eq!(drain(&mut p, ms(0)), std::vec![std::vec![0x02, b'O', 0x55, 0, 0, 0x1A, 0x03]]);
+        assert_eq!(p.status().command, CommandOutcome::Ok);
+        p.on_bytes(&[0x02, 1, 2, 3, 4, 4, 0x03], ms(1));
+        assert_eq!(p.input_image(), &[1, 2, 3, 4]);
+    }
+
+    fn breaker_with(f: impl FnOnce(&mut FramedProfileConfig)) -> FramedProfileConfig {
+        let mut c = breaker::profile_config();
+        f(&mut c);
+        c
+    }
+
+    #[rstest]
+    #[case::status_len_zero(breaker_with(|c| c.status_len = 0), "status_len", None)]
+    #[case::status_len_too_long(breaker_with(|c| c.status_len = 19), "status_len", None)]
+    #[case::ack_len(breaker_with(|c| c.ack = Some(AckFormat { data_len: 30, flag: 0x80, ok_status: 0 })), "ack.data_len", None)]
+    #[case::ack_flag(breaker_with(|c| c.ack = Some(AckFormat { data_len: 2, flag: 0, ok_status: 0 })), "ack.flag", None)]
+    #[case::command_code_zero(breaker_with(|c| c.commands[1].code = 0), "commands.code", Some(1))]
+    #[case::command_args(breaker_with(|c| c.commands[2].args = 7), "commands.args", Some(2))]
+    #[case::duplicate(breaker_with(|c| c.commands[3].code = 1), "commands.code", Some(3))]
+    #[case::idle_frame_too_long(breaker_with(|c| c.sequencer.on_idle = IdleAction::send(&[0; 19]).unwrap()), "sequencer.on_idle", None)]
+    #[case::framing(breaker_with(|c| c.framing.max_len = 0), "framing.max_len", None)]
+    #[case::serial(breaker_with(|c| c.serial.baud = 1), "serial.baud", None)]
+    #[case::health(breaker_with(|c| c.health.stale_timeout_ms = 0), "health.stale_timeout_ms", None)]
+    #[case::sequencer(breaker_with(|c| c.sequencer.retries = 200), "sequencer.retries", None)]
+    fn validate_rejects(#[case] c: FramedProfileConfig, #[case] field: &str, #[case] index: Option<u16>) {
+        let e = c.validate().unwrap_err();
+        assert_eq!((e.field, e.index), (field, index), "{e}");
+        assert!(FramedProfile::new(c, ms(0)).is_err());
+    }
+
+    #[test]
+    fn duplicate_names_the_first_entry() {
+        let e = breaker_with(|c| c.commands[3].code = 1).validate().unwrap_err();
+        assert_eq!(e.problem, Problem::Duplicate { other: 0 });
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_bytes_and_outputs_never_panic(
+            chunks in proptest::collection::vec((proptest::collection::vec(any::<u8>(), 0..64), proptest::collection::vec(any::<u8>(), 0..10), 0u64..2000), 0..40)
+        ) {
+            let mut p = breaker_profile(StalePolicy::Clear);
+            let mut now = ms(0);
+            for (bytes, outputs, dt) in chunks {
+                now += devicenet::Duration::from_millis(dt);
+                p.on_bytes(&bytes, now);
+                p.set_outputs(&outputs, now);
+                drain(&mut p, now);
+                prop_assert_eq!(p.input_image().len(), 18);
+                if let Some(t) = p.poll_at() {
+                    prop_assert!(t >= ms(0));
+                }
+            }
+        }
+    }
+}

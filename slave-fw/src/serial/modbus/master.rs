@@ -1,0 +1,1282 @@
+//! The Modbus RTU master: walks a scan list, fills the input image, writes changed outputs.
+//!
+//! ## Scan cycle
+//!
+//! A cycle reads every read entry (functions 1–4) of the scan list in order, and starts every
+//! [`poll_period_ms`](ModbusConfig::poll_period_ms) (at once when the previous cycle overran).
+//! Write entries (5, 6, 15, 16) are sent whenever their bytes of the output image have changed
+//! since they were last written, ahead of the next read, so outputs reach the instrument within
+//! one transaction. A write that fails (no answer after retries, or an exception) stays pending
+//! and is tried again in the next cycle, not sooner.
+//!
+//! Each transaction waits [`response_timeout_ms`](ModbusConfig::response_timeout_ms) after the
+//! end of its transmission and is repeated up to [`retries`](ModbusConfig::retries) times after a
+//! timeout or a corrupted answer. An exception is a definite answer and is not repeated.
+//!
+//! ## Framing: responses are delimited by length, not by silence
+//!
+//! RTU frames are officially delimited by 3.5 character times of silence, but byte timestamps
+//! are not available everywhere this code runs (a pseudo-terminal or a USB serial adapter
+//! delivers bytes in chunks). The master always knows what it asked for, so it delimits a
+//! response by its function code and byte count ([`pdu::response_len`]) and checks the CRC;
+//! leading bytes that cannot start the expected response (wrong unit address or function) are
+//! skipped. The silence is still honoured on transmit: a request goes out only when the line has
+//! been quiet for [`SerialSettings::modbus_interframe_silence`] since the last byte received
+//! (the `now` passed to [`ModbusMaster::on_bytes`]) and since the end of the master's own last
+//! transmission (estimated from the baud rate).
+//!
+//! ## Image layout
+//!
+//! Each entry occupies [`ScanEntry::image_len`] bytes at its `offset`: registers 2 bytes each in
+//! the configured [`ByteOrder`] (little-endian by default, as DeviceNet carries an INT), bits
+//! packed LSB first as on the Modbus wire (unused high bits of the last byte are zero on reads
+//! and ignored on writes; a single coil is bit 0).
+
+use super::pdu::{self, CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};
+use crate::serial::error::{as_u32, ConfigError, Problem};
+use crate::serial::health::{bump, HealthConfig, LinkHealth, LinkStatus, Stats};
+use crate::serial::line::{DataBits, SerialSettings};
+use crate::serial::sequencer::{check_idle_frame, CommandOutcome, IdleAction, OutputMode};
+use crate::serial::{IDLE_FRAME_CAPACITY, IMAGE_CAPACITY};
+use devicenet::{Duration, Instant};
+use heapless::Vec;
+
+/// The most entries in a scan list.
+pub const SCAN_LIST_CAPACITY: usize = 16;
+
+/// How a register's two bytes are laid out in the DeviceNet images.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum ByteOrder {
+    /// Low byte first, as DeviceNet carries an INT/UINT (registers are swapped from the wire).
+    #[default]
+    LittleEndian,
+    /// High byte first, as on the Modbus wire.
+    BigEndian,
+}
+
+/// One transaction of the scan list.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct ScanEntry {
+    /// The slave's unit address, `1..=247` (broadcast is not used).
+    pub unit: u8,
+    /// The function: 1–4 read into the input image, 5, 6, 15, 16 write from the output image.
+    pub function: Function,
+    /// The first coil, input or register (0-based protocol address).
+    pub address: u16,
+    /// How many coils, inputs or registers: `1..=2000` bits / `1..=125` registers to read,
+    /// `1..=1968` / `1..=123` to write, exactly 1 for functions 5 and 6.
+    pub count: u16,
+    /// Byte offset of this entry's data in the input image (reads) or output image (writes).
+    pub offset: u16,
+}
+
+impl ScanEntry {
+    /// Bytes this entry occupies in its image.
+    pub const fn image_len(&self) -> usize {
+        self.function.data_len(self.count)
+    }
+
+    fn range(&self) -> core::ops::Range<usize> {
+        let start = usize::from(self.offset);
+        start..start + self.image_len()
+    }
+}
+
+/// Everything that describes a Modbus RTU gateway.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+pub struct ModbusConfig {
+    /// The serial line; RTU requires 8 data bits.
+    pub serial: SerialSettings,
+    /// Milliseconds to wait for a response after the request's transmission, `1..=60_000`.
+    pub response_timeout_ms: u32,
+    /// Repetitions of a request after a timeout or corrupted answer, `0..=10`.
+    pub retries: u8,
+    /// Milliseconds from the start of one read cycle to the start of the next, `0..=3_600_000`
+    /// (0: back to back).
+    pub poll_period_ms: u32,
+    /// Length of the input image in bytes, `0..=64`.
+    pub input_len: u16,
+    /// Length of the output image in bytes, `0..=64`.
+    pub output_len: u16,
+    /// Register byte order in the images.
+    pub byte_order: ByteOrder,
+    /// The transactions, `1..=16`.
+    pub scan: Vec<ScanEntry, SCAN_LIST_CAPACITY>,
+    /// Stale timeout and policy (no valid response from any slave for that long).
+    pub health: HealthConfig,
+    /// Sent once on entry into idle: a Modbus ADU without CRC (unit, function, data), `2..=32`
+    /// bytes; the CRC is appended.
+    pub on_idle: IdleAction,
+    /// Sent once on entry into fault, like `on_idle`.
+    pub on_fault: IdleAction,
+}
+
+impl ModbusConfig {
+    /// The longest response timeout accepted, one minute.
+    pub const MAX_RESPONSE_TIMEOUT_MS: u32 = 60_000;
+    /// The most retries accepted.
+    pub const MAX_RETRIES: u8 = 10;
+    /// The longest poll period accepted, one hour.
+    pub const MAX_POLL_PERIOD_MS: u32 = 3_600_000;
+
+    /// A configuration for `scan` with 19200 8E1, 1 s response timeout, 2 retries, a 100 ms poll
+    /// period, images just large enough for the scan list, little-endian registers, 3 s stale
+    /// timeout holding the last value, nothing on idle or fault.
+    pub fn new(scan: Vec<ScanEntry, SCAN_LIST_CAPACITY>) -> Self {
+        let end = |write: bool| {
+            scan.iter().filter(|e| e.function.is_write() == write).map(|e| e.range().end).max().unwrap_or(0)
+        };
+        let len = |write| u16::try_from(end(write)).unwrap_or(u16::MAX);
+        ModbusConfig {
+            serial: SerialSettings::new_8e1(19200),
+            response_timeout_ms: 1000,
+            retries: 2,
+            poll_period_ms: 100,
+            input_len: len(false),
+            output_len: len(true),
+            byte_order: ByteOrder::LittleEndian,
+            scan,
+            health: HealthConfig::default(),
+            on_idle: IdleAction::Nothing,
+            on_fault: IdleAction::Nothing,
+        }
+    }
+
+    /// Checks every field, every scan entry against its function and image, and that read
+    /// entries do not overlap in the input image.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.serial.validate()?;
+        if self.serial.data_bits != DataBits::Eight {
+            return Err(ConfigError::conflict("serial.data_bits", "Modbus RTU uses 8 data bits"));
+        }
+        ConfigError::check_range(
+            "response_timeout_ms",
+            self.response_timeout_ms,
+            1,
+            Self::MAX_RESPONSE_TIMEOUT_MS,
+        )?;
+        ConfigError::check_range("retries", u32::from(self.retries), 0, u32::from(Self::MAX_RETRIES))?;
+        ConfigError::check_range("poll_period_ms", self.poll_period_ms, 0, Self::MAX_POLL_PERIOD_MS)?;
+        ConfigError::check_range("input_len", u32::from(self.input_len), 0, as_u32(IMAGE_CAPACITY))?;
+        ConfigError::check_range("output_len", u32::from(self.output_len), 0, as_u32(IMAGE_CAPACITY))?;
+        ConfigError::check_range("scan", as_u32(self.scan.len()), 1, as_u32(SCAN_LIST_CAPACITY))?;
+        for (i, e) in self.scan.iter().enumerate() {
+            self.validate_entry(e).map_err(|err| err.at(i))?;
+            if e.function.is_write() {
+                continue;
+            }
+            let r = e.range();
+            let overlap =
+                self.scan.iter().take(i).position(|o| {
+                    !o.function.is_write() && o.range().start < r.end && r.start < o.range().end
+                });
+            if let Some(other) = overlap {
+                return Err(ConfigError {
+                    field: "scan.offset",
+                    index: None,
+                    problem: Problem::Overlap { other: u16::try_from(other).unwrap_or(u16::MAX) },
+                }
+                .at(i));
+            }
+        }
+        self.health.validate()?;
+        check_idle_frame("on_idle", &self.on_idle, 2, IDLE_FRAME_CAPACITY)?;
+        check_idle_frame("on_fault", &self.on_fault, 2, IDLE_FRAME_CAPACITY)
+    }
+
+    fn validate_entry(&self, e: &ScanEntry) -> Result<(), ConfigError> {
+        ConfigError::check_range("scan.unit", u32::from(e.unit), 1, 247)?;
+        let image = usize::from(if e.function.is_write() { self.output_len } else { self.input_len });
+        // The most items that fit the image at offset 0, and the protocol maximum.
+        let fit = if e.function.is_bits() { image.saturating_mul(8) } else { image / 2 };
+        let max = u32::from(e.function.max_count()).min(as_u32(fit));
+        ConfigError::check_range("scan.count", u32::from(e.count), 1, max)?;
+        ConfigError::check_range("scan.address", u32::from(e.address), 0, 0x1_0000 - u32::from(e.count))?;
+        ConfigError::check_range(
+            "scan.offset",
+            u32::from(e.offset),
+            0,
+            as_u32(image.saturating_sub(e.image_len())),
+        )
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct EntryState {
+    /// A write entry whose output bytes changed since they were last sent.
+    dirty: bool,
+    /// A write entry that failed in the current cycle: not tried again before the next.
+    failed_this_cycle: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Job {
+    /// Scan list entry `i`.
+    Entry(usize),
+    /// The idle or fault frame.
+    ModeFrame,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Transaction {
+    job: Job,
+    attempt: u8,
+    deadline: Instant,
+    unit: u8,
+    function: u8,
+}
+
+/// A flag that is shown for the current and the last complete scan cycle.
+#[derive(Clone, Copy, Debug, Default)]
+struct CycleFlag {
+    current: bool,
+    last: bool,
+}
+
+impl CycleFlag {
+    fn roll(&mut self) {
+        self.last = self.current;
+        self.current = false;
+    }
+
+    fn shown(&self) -> bool {
+        self.current || self.last
+    }
+}
+
+/// A sans-IO Modbus RTU master over one serial line. Driven like every
+/// [`Profile`](crate::serial::Profile): see the [`serial`](crate::serial) module and the
+/// [module docs](self).
+#[derive(Clone, Debug)]
+pub struct ModbusMaster {
+    config: ModbusConfig,
+    health: LinkHealth,
+    input: Vec<u8, IMAGE_CAPACITY>,
+    output: [u8; IMAGE_CAPACITY],
+    outputs_valid: bool,
+    entries: [EntryState; SCAN_LIST_CAPACITY],
+    mode: OutputMode,
+    mode_frame_due: bool,
+    tx: Vec<u8, ADU_CAPACITY>,
+    rx: Vec<u8, ADU_CAPACITY>,
+    awaiting: Option<Transaction>,
+    /// An entry to send again, with its next attempt number.
+    retry: Option<(usize, u8)>,
+    cycle_running: bool,
+    cycle_started: Instant,
+    next_read: usize,
+    cycles: u32,
+    /// The line is quiet enough to transmit from this instant.
+    quiet_at: Instant,
+    unexpected_burst: bool,
+    exception: CycleFlag,
+    request_timeout: CycleFlag,
+    write_outcome: CommandOutcome,
+    last_exception: Option<(usize, ExceptionCode)>,
+    silence: Duration,
+}
+
+impl ModbusMaster {
+    /// A master for `config`, started at `now`: the first scan cycle starts at once and the stale
+    /// timeout runs from here. Nothing is written before the first outputs arrive.
+    pub fn new(config: ModbusConfig, now: Instant) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let health = LinkHealth::new(config.health, now)?;
+        let mut input = Vec::new();
+        input.resize(usize::from(config.input_len), 0).map_err(|_| {
+            ConfigError::out_of_range("input_len", u32::from(config.input_len), 0, as_u32(IMAGE_CAPACITY))
+        })?;
+        let silence = config.serial.modbus_interframe_silence();
+        let mut master = ModbusMaster {
+            config,
+            health,
+            input,
+            output: [0; IMAGE_CAPACITY],
+            outputs_valid: false,
+            entries: [EntryState::default(); SCAN_LIST_CAPACITY],
+            mode: OutputMode::Startup,
+            mode_frame_due: false,
+            tx: Vec::new(),
+            rx: Vec::new(),
+            awaiting: None,
+            retry: None,
+            cycle_running: false,
+            cycle_started: now,
+            next_read: 0,
+            cycles: 0,
+            quiet_at: now,
+            unexpected_burst: false,
+            exception: CycleFlag::default(),
+            request_timeout: CycleFlag::default(),
+            write_outcome: CommandOutcome::None,
+            last_exception: None,
+            silence,
+        };
+        master.start_cycle(now);
+        Ok(master)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ModbusConfig {
+        &self.config
+    }
+
+    fn entry(&self, i: usize) -> Option<ScanEntry> {
+        self.config.scan.get(i).copied()
+    }
+
+    fn is_write(&self, i: usize) -> bool {
+        self.entry(i).is_some_and(|e| e.function.is_write())
+    }
+
+    fn poll_period(&self) -> Duration {
+        Duration::from_millis(u64::from(self.config.poll_period_ms))
+    }
+
+    /// Takes the consumed poll data received at `now`: the output image (shorter data is padded
+    /// with zeros), or an empty slice for an idle poll. Write entries whose bytes changed are
+    /// queued.
+    pub fn set_outputs(&mut self, outputs: &[u8], _now: Instant) {
+        if outputs.is_empty() {
+            self.enter(OutputMode::Idle);
+            return;
+        }
+        if self.mode != OutputMode::Run {
+            self.mode = OutputMode::Run;
+            self.mode_frame_due = false;
+        }
+        let mut new = [0u8; IMAGE_CAPACITY];
+        let len = usize::from(self.config.output_len).min(IMAGE_CAPACITY);
+        for (slot, &b) in new.iter_mut().take(len).zip(outputs) {
+            *slot = b;
+        }
+        for (e, state) in self.config.scan.iter().zip(self.entries.iter_mut()) {
+            if e.function.is_write() && (!self.outputs_valid || !same_output(e, &self.output, &new)) {
+                state.dirty = true;
+            }
+        }
+        self.output = new;
+        self.outputs_valid = true;
+    }
+
+    /// The poll connection timed out at `now`.
+    pub fn connection_fault(&mut self, _now: Instant) {
+        self.enter(OutputMode::Fault);
+    }
+
+    fn enter(&mut self, mode: OutputMode) {
+        if self.mode == mode {
+            return;
+        }
+        self.mode = mode;
+        self.mode_frame_due = self.mode_action().and_then(IdleAction::frame).is_some();
+    }
+
+    fn mode_action(&self) -> Option<&IdleAction> {
+        match self.mode {
+            OutputMode::Idle => Some(&self.config.on_idle),
+            OutputMode::Fault => Some(&self.config.on_fault),
+            OutputMode::Startup | OutputMode::Run => None,
+        }
+    }
+
+    /// Takes bytes read from the UART at `now`.
+    pub fn on_bytes(&mut self, bytes: &[u8], now: Instant) {
+        if bytes.is_empty() {
+            return;
+        }
+        self.quiet_at = self.quiet_at.max(now + self.silence);
+        for &b in bytes {
+            match self.awaiting {
+                None => self.unexpected(1),
+                Some(t) => {
+                    if self.rx.push(b).is_err() {
+                        // Unreachable: a response is delimited before it can exceed an ADU.
+                        self.rx.clear();
+                        self.health.on_framing_error();
+                    }
+                    self.try_complete(t, now);
+                }
+            }
+        }
+    }
+
+    /// Bytes nobody asked for: counted, one framing error per burst between transmissions.
+    fn unexpected(&mut self, n: usize) {
+        self.health.on_discarded_bytes(as_u32(n));
+        if !self.unexpected_burst {
+            self.unexpected_burst = true;
+            self.health.on_framing_error();
+        }
+    }
+
+    fn drop_rx_front(&mut self, n: usize) {
+        let n = n.min(self.rx.len());
+        self.rx.drain(..n);
+        self.health.on_discarded_bytes(as_u32(n));
+    }
+
+    /// Delimits the response to `t` in the receive buffer and handles it once complete.
+    fn try_complete(&mut self, t: Transaction, now: Instant) {
+        loop {
+            let skip = self.rx.iter().position(|&b| b == t.unit).unwrap_or(self.rx.len());
+            if skip > 0 {
+                self.drop_rx_front(skip);
+            }
+            match self.rx.get(1) {
+                None => return,
+                Some(&code) if code & 0x7F != t.function => {
+                    self.drop_rx_front(1);
+                    continue;
+                }
+                Some(_) => {}
+            }
+            let len = match pdu::response_len(&self.rx) {
+                Ok(None) => return,
+                Ok(Some(len)) => len,
+                Err(_) => {
+                    self.drop_rx_front(1);
+                    continue;
+                }
+            };
+            if self.rx.len() < len {
+                return;
+            }
+            let rx = core::mem::take(&mut self.rx);
+            self.awaiting = None;
+            match Response::parse(rx.get(..len).unwrap_or(&[])) {
+                Ok((_, response)) => self.on_response(t, &response, now),
+                Err(CodecError::Crc) => {
+                    self.health.on_checksum_error();
+                    self.attempt_failed(t, false);
+                }
+                Err(_) => {
+                    self.health.on_framing_error();
+                    self.attempt_failed(t, false);
+                }
+            }
+            return;
+        }
+    }
+
+    fn on_response(&mut self, t: Transaction, response: &Response<'_>, now: Instant) {
+        let Job::Entry(i) = t.job else {
+            // The idle/fault frame: any well-formed answer will do.
+            self.health.on_frame(now);
+            return;
+        };
+        let Some(entry) = self.entry(i) else {
+            return;
+        };
+        if let Response::Exception { code, .. } = *response {
+            self.health.on_frame(now);
+            let stats = self.health.stats_mut();
+            bump(&mut stats.modbus_exceptions);
+            self.exception.current = true;
+            self.last_exception = Some((i, code));
+            if entry.function.is_write() {
+                bump(&mut self.health.stats_mut().commands_rejected);
+                self.write_outcome = CommandOutcome::Rejected(code.as_raw());
+                self.write_failed(i);
+            }
+            self.finish_entry(i);
+            return;
+        }
+        let answers = Request::parse(&self.tx).is_ok_and(|(_, request)| response.answers(&request));
+        if !answers {
+            self.health.on_framing_error();
+            self.attempt_failed(t, false);
+            return;
+        }
+        self.health.on_frame(now);
+        match *response {
+            Response::ReadCoils(d)
+            | Response::ReadDiscreteInputs(d)
+            | Response::ReadHoldingRegisters(d)
+            | Response::ReadInputRegisters(d) => {
+                store_read(&mut self.input, &entry, d, self.config.byte_order)
+            }
+            Response::WriteSingleCoil { .. }
+            | Response::WriteSingleRegister { .. }
+            | Response::WriteMultipleCoils { .. }
+            | Response::WriteMultipleRegisters { .. } => self.write_outcome = CommandOutcome::Ok,
+            Response::Exception { .. } => {}
+        }
+        self.finish_entry(i);
+    }
+
+    /// An attempt ended without a valid answer: retry, or give the transaction up.
+    fn attempt_failed(&mut self, t: Transaction, timed_out: bool) {
+        let Job::Entry(i) = t.job else {
+            return;
+        };
+        if timed_out {
+            bump(&mut self.health.stats_mut().timeouts);
+        }
+        if t.attempt <= self.config.retries {
+            self.retry = Some((i, t.attempt.saturating_add(1)));
+        } else {
+            self.request_timeout.current = true;
+            if self.is_write(i) {
+                bump(&mut self.health.stats_mut().commands_failed);
+                self.write_outcome = CommandOutcome::Failed;
+                self.write_failed(i);
+            }
+            self.finish_entry(i);
+        }
+    }
+
+    fn write_failed(&mut self, i: usize) {
+        if let Some(s) = self.entries.get_mut(i) {
+            s.dirty = true;
+            s.failed_this_cycle = true;
+        }
+    }
+
+    /// Entry `i` is done for this cycle; a read advances the cycle.
+    fn finish_entry(&mut self, i: usize) {
+        if self.is_write(i) {
+            return;
+        }
+        self.next_read = i + 1;
+        if self.cycle_running && self.next_read_entry().is_none() {
+            self.complete_cycle();
+        }
+    }
+
+    fn next_read_entry(&self) -> Option<usize> {
+        self.config
+            .scan
+            .iter()
+            .enumerate()
+            .skip(self.next_read)
+            .find(|(_, e)| !e.function.is_write())
+            .map(|(i, _)| i)
+    }
+
+    fn start_cycle(&mut self, now: Instant) {
+        self.cycle_running = true;
+        self.cycle_started = now;
+        self.next_read = 0;
+        for s in self.entries.iter_mut() {
+            s.failed_this_cycle = false;
+        }
+        if self.next_read_entry().is_none() {
+            self.complete_cycle();
+        }
+    }
+
+    fn complete_cycle(&mut self) {
+        self.cycle_running = false;
+        self.cycles = self.cycles.wrapping_add(1);
+        self.exception.roll();
+        self.request_timeout.roll();
+    }
+
+    /// Advances timers to `now`: response timeouts and retries, cycle starts, stale detection.
+    pub fn poll(&mut self, now: Instant) {
+        if self.health.poll(now) {
+            self.health.apply_stale_policy(&mut self.input);
+        }
+        if let Some(t) = self.awaiting {
+            if now >= t.deadline {
+                self.awaiting = None;
+                self.rx.clear();
+                self.attempt_failed(t, true);
+            }
+        }
+        if !self.cycle_running && now >= self.cycle_started + self.poll_period() {
+            self.start_cycle(now);
+        }
+    }
+
+    /// The next transaction, regardless of line silence: a retry, the idle/fault frame, a changed
+    /// write, the next read of the running cycle.
+    fn next_job(&self) -> Option<(Job, u8)> {
+        if self.awaiting.is_some() {
+            return None;
+        }
+        if let Some((i, attempt)) = self.retry {
+            return Some((Job::Entry(i), attempt));
+        }
+        if self.mode_frame_due {
+            return Some((Job::ModeFrame, 1));
+        }
+        if self.outputs_valid {
+            let write = self
+                .config
+                .scan
+                .iter()
+                .zip(self.entries.iter())
+                .position(|(e, s)| e.function.is_write() && s.dirty && !s.failed_this_cycle);
+            if let Some(i) = write {
+                return Some((Job::Entry(i), 1));
+            }
+        }
+        if self.cycle_running {
+            return self.next_read_entry().map(|i| (Job::Entry(i), 1));
+        }
+        None
+    }
+
+    /// Advances to `now` and returns the next request to write to the UART, if the line is free
+    /// and quiet. Call until `None`.
+    pub fn poll_transmit(&mut self, now: Instant) -> Option<&[u8]> {
+        self.poll(now);
+        loop {
+            let (job, attempt) = self.next_job()?;
+            if now < self.quiet_at {
+                return None;
+            }
+            if !self.encode(job) {
+                // Only reachable with a configuration that bypassed `validate`.
+                match job {
+                    Job::ModeFrame => self.mode_frame_due = false,
+                    Job::Entry(_) => {
+                        self.retry = None;
+                        let t = Transaction { job, attempt: u8::MAX, deadline: now, unit: 0, function: 0 };
+                        self.attempt_failed(t, false);
+                    }
+                }
+                continue;
+            }
+            let tx_done = now + self.config.serial.transmit_time(self.tx.len());
+            self.awaiting = Some(Transaction {
+                job,
+                attempt,
+                deadline: tx_done + Duration::from_millis(u64::from(self.config.response_timeout_ms)),
+                unit: self.tx.first().copied().unwrap_or(0),
+                function: self.tx.get(1).copied().unwrap_or(0) & 0x7F,
+            });
+            self.quiet_at = tx_done + self.silence;
+            self.rx.clear();
+            self.unexpected_burst = false;
+            match job {
+                Job::ModeFrame => self.mode_frame_due = false,
+                Job::Entry(i) => {
+                    if self.retry.is_some_and(|(r, _)| r == i) {
+                        self.retry = None;
+                    }
+                    if self.is_write(i) {
+                        if let Some(s) = self.entries.get_mut(i) {
+                            s.dirty = false;
+                        }
+                        if attempt <= 1 {
+                            bump(&mut self.health.stats_mut().commands_sent);
+                            self.write_outcome = CommandOutcome::Pending;
+                        } else {
+                            bump(&mut self.health.stats_mut().commands_retried);
+                        }
+                    }
+                }
+            }
+            bump(&mut self.health.stats_mut().frames_sent);
+            return Some(&self.tx);
+        }
+    }
+
+    /// Encodes `job` into `self.tx`.
+    fn encode(&mut self, job: Job) -> bool {
+        self.tx.clear();
+        if self.tx.resize(ADU_CAPACITY, 0).is_err() {
+            return false;
+        }
+        let n = match job {
+            Job::ModeFrame => {
+                let action = match self.mode {
+                    OutputMode::Idle => &self.config.on_idle,
+                    OutputMode::Fault => &self.config.on_fault,
+                    OutputMode::Startup | OutputMode::Run => &IdleAction::Nothing,
+                };
+                raw_adu(action.frame().unwrap_or(&[]), &mut self.tx)
+            }
+            Job::Entry(i) => match self.config.scan.get(i) {
+                Some(e) => encode_entry(e, &self.output, self.config.byte_order, &mut self.tx).ok(),
+                None => None,
+            },
+        };
+        match n {
+            Some(n) if n >= 2 => {
+                self.tx.truncate(n);
+                true
+            }
+            _ => {
+                self.tx.clear();
+                false
+            }
+        }
+    }
+
+    /// When to call [`poll_transmit`](Self::poll_transmit) next: a response deadline, the end of
+    /// the line silence when a transaction is waiting, the next cycle start, the stale deadline.
+    pub fn poll_at(&self) -> Option<Instant> {
+        let own = if let Some(t) = self.awaiting {
+            Some(t.deadline)
+        } else if self.next_job().is_some() {
+            Some(self.quiet_at)
+        } else if !self.cycle_running {
+            Some(self.cycle_started + self.poll_period())
+        } else {
+            None
+        };
+        match (own, self.health.poll_at()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// The input image (`input_len` bytes).
+    pub fn input_image(&self) -> &[u8] {
+        &self.input
+    }
+
+    /// The output image as last set (`output_len` bytes).
+    pub fn output_image(&self) -> &[u8] {
+        self.output.get(..usize::from(self.config.output_len)).unwrap_or(&[])
+    }
+
+    /// The link status; the command field is the outcome of the last write.
+    pub fn status(&self) -> LinkStatus {
+        self.health.status(self.write_outcome, self.exception.shown(), self.request_timeout.shown())
+    }
+
+    /// The statistics.
+    pub fn stats(&self) -> &Stats {
+        self.health.stats()
+    }
+
+    /// The last exception: scan list index and code.
+    pub fn last_exception(&self) -> Option<(usize, ExceptionCode)> {
+        self.last_exception
+    }
+
+    /// Read cycles completed since start-up (wraps).
+    pub fn completed_cycles(&self) -> u32 {
+        self.cycles
+    }
+}
+
+/// Whether write entry `e` has the same significant bits in both output images.
+fn same_output(e: &ScanEntry, old: &[u8; IMAGE_CAPACITY], new: &[u8; IMAGE_CAPACITY]) -> bool {
+    let r = e.range();
+    let len = r.len();
+    match (old.get(r.clone()), new.get(r)) {
+        (Some(a), Some(b)) => {
+            a.iter().zip(b).enumerate().all(|(k, (&x, &y))| (x ^ y) & significant_bits(e, k, len) == 0)
+        }
+        _ => true,
+    }
+}
+
+/// The bits of byte `k` (of `len`) that carry data for entry `e`.
+fn significant_bits(e: &ScanEntry, k: usize, len: usize) -> u8 {
+    let rem = e.count % 8;
+    if e.function.is_bits() && k + 1 == len && rem != 0 {
+        (1u8 << rem) - 1
+    } else {
+        0xFF
+    }
+}
+
+/// Copies a read response's data into the input image at the entry's offset.
+fn store_read(input: &mut [u8], e: &ScanEntry, data: &[u8], order: ByteOrder) {
+    let len = data.len();
+    let Some(dst) = input.get_mut(e.range()) else {
+        return;
+    };
+    if e.function.is_bits() {
+        for (k, (d, &s)) in dst.iter_mut().zip(data).enumerate() {
+            *d = s & significant_bits(e, k, len);
+        }
+    } else {
+        for (d, s) in dst.chunks_exact_mut(2).zip(data.chunks_exact(2)) {
+            if let ([d0, d1], [hi, lo]) = (d, s) {
+                (*d0, *d1) = match order {
+                    ByteOrder::BigEndian => (*hi, *lo),
+                    ByteOrder::LittleEndian => (*lo, *hi),
+                };
+            }
+        }
+    }
+}
+
+/// Encodes the request of scan entry `e` (writes take their data from `output`).
+fn encode_entry(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) -> Result<usize, CodecError> {
+    if let Some(read) = Request::read(e.function, e.address, e.count) {
+        return read.emit(e.unit, out);
+    }
+    let data = output.get(e.range()).ok_or(CodecError::ByteCount)?;
+    let len = data.len();
+    let word = |k: usize| -> u16 {
+        let (a, b) = (data.get(k).copied().unwrap_or(0), data.get(k + 1).copied().unwrap_or(0));
+        match order {
+            ByteOrder::BigEndian => u16::from_be_bytes([a, b]),
+            ByteOrder::LittleEndian => u16::from_le_bytes([a, b]),
+        }
+    };
+    let mut scratch = [0u8; ADU_CAPACITY];
+    let request = match e.function {
+        Function::WriteSingleCoil => {
+            Request::WriteSingleCoil { address: e.address, value: data.first().is_some_and(|b| b & 1 != 0) }
+        }
+        Function::WriteSingleRegister => Request::WriteSingleRegister { address: e.address, value: word(0) },
+        Function::WriteMultipleCoils => {
+            let bits = scratch.get_mut(..len).ok_or(CodecError::ByteCount)?;
+            for (k, (d, &s)) in bits.iter_mut().zip(data).enumerate() {
+                *d = s & significant_bits(e, k, len);
+            }
+            Request::WriteMultipleCoils { address: e.address, count: e.count, bits }
+        }
+        Function::WriteMultipleRegisters => {
+            let values = scratch.get_mut(..len).ok_or(CodecError::ByteCount)?;
+            for (k, pair) in values.chunks_exact_mut(2).enumerate() {
+                pair.copy_from_slice(&word(2 * k).to_be_bytes());
+            }
+            Request::WriteMultipleRegisters { address: e.address, values }
+        }
+        Function::ReadCoils
+        | Function::ReadDiscreteInputs
+        | Function::ReadHoldingRegisters
+        | Function::ReadInputRegisters => return Err(CodecError::UnknownFunction(e.function.code())),
+    };
+    request.emit(e.unit, out)
+}
+
+/// Writes `body` (unit, function, data) and its CRC into `out`.
+fn raw_adu(body: &[u8], out: &mut [u8]) -> Option<usize> {
+    let n = body.len();
+    let crc = crate::serial::checksum::crc16_modbus(body).to_le_bytes();
+    out.get_mut(..n)?.copy_from_slice(body);
+    out.get_mut(n..n + 2)?.copy_from_slice(&crc);
+    Some(n + 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::{LinkState, StalePolicy, StatusByte};
+    use proptest::prelude::*;
+    use rstest::rstest;
+    use std::string::ToString;
+    use std::vec::Vec as StdVec;
+
+    fn ms(n: u64) -> Instant {
+        Instant::from_millis(n)
+    }
+
+    fn entry(unit: u8, function: Function, address: u16, count: u16, offset: u16) -> ScanEntry {
+        ScanEntry { unit, function, address, count, offset }
+    }
+
+    /// Two reads, two writes:
+    /// 0: unit 1 holding 0..2 → input 0..4; 1: unit 1 coils 0..10 → input 4..6;
+    /// 2: unit 1 registers 10..12 ← output 0..4; 3: unit 2 coil 5 ← output bit 4.0.
+    fn config() -> ModbusConfig {
+        let scan = Vec::from_slice(&[
+            entry(1, Function::ReadHoldingRegisters, 0, 2, 0),
+            entry(1, Function::ReadCoils, 0, 10, 4),
+            entry(1, Function::WriteMultipleRegisters, 10, 2, 0),
+            entry(2, Function::WriteSingleCoil, 5, 1, 4),
+        ])
+        .unwrap();
+        let mut c = ModbusConfig::new(scan);
+        c.serial = SerialSettings::new_8e1(38400);
+        c.response_timeout_ms = 100;
+        c.retries = 2;
+        c.poll_period_ms = 1000;
+        c
+    }
+
+    /// A slave with 32 holding registers and 32 coils per unit address (1 and 2).
+    #[derive(Default)]
+    struct Slave {
+        holding: [[u16; 32]; 3],
+        coils: [[bool; 32]; 3],
+        silent: bool,
+        exception: Option<ExceptionCode>,
+        corrupt_next: bool,
+        garbage_first: StdVec<u8>,
+        requests: StdVec<StdVec<u8>>,
+    }
+
+    impl Slave {
+        fn answer(&mut self, adu: &[u8]) -> Option<StdVec<u8>> {
+            self.requests.push(adu.to_vec());
+            if self.silent {
+                return None;
+            }
+            let (unit, request) = Request::parse(adu).unwrap();
+            let u = usize::from(unit);
+            let mut data = [0u8; 256];
+            let response = if let Some(code) = self.exception {
+                Response::Exception { function: request.function().code(), code }
+            } else {
+                match request {
+                    Request::ReadHoldingRegisters { address, count } => {
+                        for k in 0..usize::from(count) {
+                            data[2 * k..2 * k + 2]
+                                .copy_from_slice(&self.holding[u][usize::from(address) + k].to_be_bytes());
+                        }
+                        Response::ReadHoldingRegisters(&data[..2 * usize::from(count)])
+                    }
+                    Request::ReadCoils { address, count } => {
+                        for k in 0..usize::from(count) {
+                            if self.coils[u][usize::from(address) + k] {
+                                data[k / 8] |= 1 << (k % 8);
+                            }
+                        }
+                        Response::ReadCoils(&data[..usize::from(count).div_ceil(8)])
+                    }
+                    Request::WriteMultipleRegisters { address, values } => {
+                        for (k, v) in values.chunks(2).enumerate() {
+                            self.holding[u][usize::from(address) + k] = u16::from_be_bytes([v[0], v[1]]);
+                        }
+                        Response::WriteMultipleRegisters { address, count: (values.len() / 2) as u16 }
+                    }
+                    Request::WriteSingleCoil { address, value } => {
+                        self.coils[u][usize::from(address)] = value;
+                        Response::WriteSingleCoil { address, value }
+                    }
+                    other => panic!("unexpected {other:?}"),
+                }
+            };
+            let mut out = [0u8; 256];
+            let n = response.emit(unit, &mut out).unwrap();
+            let mut v = std::mem::take(&mut self.garbage_first);
+            v.extend_from_slice(&out[..n]);
+            if self.corrupt_next {
+                self.corrupt_next = false;
+                let last = v.len() - 1;
+                v[last] ^= 0xFF;
+            }
+            Some(v)
+        }
+    }
+
+    /// Runs master and slave on a virtual clock from `*now` to `until`; the slave answers 5 ms
+    /// after each request.
+    fn run(m: &mut ModbusMaster, slave: &mut Slave, now: &mut Instant, until: Instant) {
+        for _ in 0..10_000 {
+            while let Some(req) = m.poll_transmit(*now) {
+                let req = req.to_vec();
+                if let Some(resp) = slave.answer(&req) {
+                    *now += Duration::from_millis(5);
+                    m.on_bytes(&resp, *now);
+                }
+            }
+            match m.poll_at() {
+                Some(t) if t <= until => *now = t.max(*now + Duration::from_micros(1)),
+                _ => {
+                    *now = (*now).max(until);
+                    m.poll(*now);
+                    return;
+                }
+            }
+        }
+        panic!("runaway");
+    }
+
+    fn master(c: ModbusConfig) -> ModbusMaster {
+        ModbusMaster::new(c, ms(0)).unwrap()
+    }
+
+    #[rstest]
+    #[case::little_endian(ByteOrder::LittleEndian, [0x34, 0x12, 0xCD, 0xAB])]
+    #[case::big_endian(ByteOrder::BigEndian, [0x12, 0x34, 0xAB, 0xCD])]
+    fn reads_fill_the_input_image(#[case] order: ByteOrder, #[case] registers: [u8; 4]) {
+        let mut c = config();
+        c.byte_order = order;
+        let mut m = master(c);
+        let mut s = Slave::default();
+        s.holding[1][0] = 0x1234;
+        s.holding[1][1] = 0xABCD;
+        s.coils[1][0] = true;
+        s.coils[1][9] = true;
+        let mut now = ms(0);
+        run(&mut m, &mut s, &mut now, ms(500));
+        assert_eq!(&m.input_image()[..4], &registers);
+        assert_eq!(&m.input_image()[4..], &[0x01, 0x02]);
+        assert_eq!(m.completed_cycles(), 1);
+        assert_eq!(s.requests.len(), 2, "no writes before the first outputs");
+        assert_eq!(s.requests[0], [0x01, 0x03, 0x00, 0x00, 0x00, 0x02, 0xC4, 0x0B]);
+        let st = m.status();
+        assert_eq!((st.state, st.freshness), (LinkState::Ok, 2));
+        assert_eq!(m.stats().frames_received, 2);
+    }
+
+    #[test]
+    fn writes_only_when_outputs_change() {
+        let mut m = master(config());
+        let mut s = Slave::default();
+        let mut now = ms(0);
+        for k in 0..100u64 {
+            m.set_outputs(&[0x01, 0x00, 0x02, 0x00, 0x01], now);
+            run(&mut m, &mut s, &mut now, ms(k * 50));
+        }
+        let writes = |s: &Slave, f: u8| s.requests.iter().filter(|r| r[1] == f).count();
+        assert_eq!((writes(&s, 0x10), writes(&s, 0x05)), (1, 1));
+        assert_eq!((s.holding[1][10], s.holding[1][11], s.coils[2][5]), (1, 2, true));
+        assert_eq!(m.stats().commands_sent, 2);
+        assert_eq!(m.status().command, CommandOutcome::Ok);
+
+        // A change in bits the coil entry ignores writes nothing; a register change rewrites
+        // only the register entry.
+        m.set_outputs(&[0x01, 0x00, 0x02, 0x00, 0xFF], now);
+        let until = now + Duration::from_millis(50);
+        run(&mut m, &mut s, &mut now, until);
+        m.set_outputs(&[0x05, 0x00, 0x02, 0x00, 0xFF], now);
+        let until = now + Duration::from_millis(50);
+        run(&mut m, &mut s, &mut now, until);
+        assert_eq!((writes(&s, 0x10), writes(&s, 0x05)), (2, 1));
+        assert_eq!(s.holding[1][10], 5);
+        let last_write = s.requests.iter().rev().find(|r| r[1] == 0x10).unwrap();
+        assert_eq!(&last_write[..11], &[0x01, 0x10, 0x00, 0x0A, 0x00, 0x02, 0x04, 0x00, 0x05, 0x00, 0x02]);
+    }
+
+    #[test]
+    fn write_goes_out_before_the_next_read() {
+        let mut m = master(config());
+        m.set_outputs(&[0, 0, 0, 0, 1], ms(0));
+        let first = m.poll_transmit(ms(0)).unwrap().to_vec();
+        assert_eq!(first[1], 0x10);
+    }
+
+    #[test]
+    fn exception_is_counted_and_shown_until_a_clean_cycle() {
+        let mut m = master(config());
+        let mut s = Slave { exception: Some(ExceptionCode::IllegalDataAddress), ..Slave::default() };
+        let mut now = ms(0);
+        run(&mut m, &mut s, &mut now, ms(500));
+        assert_eq!(m.stats().modbus_exceptions, 2);
+        assert_eq!(m.last_exception(), Some((1, ExceptionCode::IllegalDataAddress)));
+        assert_eq!(s.requests.len(), 2, "exceptions are not retried");
+        let b = m.status().status_byte();
+        assert!(b.contains(StatusByte::EXCEPTION | StatusByte::LINK_OK));
+        s.exception = None;
+        run(&mut m, &mut s, &mut now, ms(1005));
+        assert!(m.status().status_byte().contains(StatusByte::EXCEPTION), "cycle 2 is still running");
+        run(&mut m, &mut s, &mut now, ms(1500));
+        assert!(!m.status().status_byte().contains(StatusByte::EXCEPTION), "cycle 2 was clean");
+    }
+
+    #[test]
+    fn rejected_write_is_reported_and_retried_next_cycle() {
+        let mut m = master(config());
+        let mut s = Slave { exception: Some(ExceptionCode::IllegalDataValue), ..Slave::default() };
+        let mut now = ms(0);
+        m.set_outputs(&[1, 0, 0, 0, 0], now);
+        run(&mut m, &mut s, &mut now, ms(500));
+        assert_eq!(m.status().command, CommandOutcome::Rejected(3));
+        assert_eq!(m.stats().commands_rejected, 2);
+        let writes = s.requests.iter().filter(|r| r[1] == 0x10).count();
+        assert_eq!(writes, 1);
+        s.exception = None;
+        run(&mut m, &mut s, &mut now, ms(1500));
+        assert_eq!(s.requests.iter().filter(|r| r[1] == 0x10).count(), 2);
+        assert_eq!(m.status().command, CommandOutcome::Ok);
+    }
+
+    #[test]
+    fn timeout_retries_then_reports_and_goes_stale() {
+        let mut c = config();
+        c.health.stale_policy = StalePolicy::Clear;
+        c.health.stale_timeout_ms = 2000;
+        let mut m = master(c);
+        let mut s = Slave::default();
+        s.holding[1][0] = 0x1234;
+        let mut now = ms(0);
+        run(&mut m, &mut s, &mut now, ms(500));
+        assert_eq!(m.input_image()[0], 0x34);
+        s.silent = true;
+        let before = s.requests.len();
+        run(&mut m, &mut s, &mut now, ms(1900));
+        assert_eq!(s.requests.len() - before, 6, "two reads, 1 + 2 retries each");
+        assert_eq!(m.stats().timeouts, 6);
+        assert!(m.status().request_timeout);
+        assert!(m.status().status_byte().contains(StatusByte::REQUEST_TIMEOUT));
+        assert_eq!(m.input_image()[0], 0x34, "not stale yet");
+        run(&mut m, &mut s, &mut now, ms(3000));
+        assert_eq!(m.status().state, LinkState::Timeout);
+        assert_eq!(m.input_image(), &[0u8; 6], "cleared by policy");
+        assert_eq!(m.stats().link_timeouts, 1);
+    }
+
+    #[test]
+    fn response_timeout_counts_from_end_of_transmission() {
+        let mut m = master(config());
+        let req = m.poll_transmit(ms(0)).unwrap().len();
+        let tx = SerialSettings::new_8e1(38400).transmit_time(req);
+        assert_eq!(m.poll_at(), Some(ms(100) + tx));
+    }
+
+    #[test]
+    fn corrupted_response_is_retried_after_the_silence() {
+        let mut m = master(config());
+        let mut s = Slave { corrupt_next: true, ..Slave::default() };
+        s.holding[1][1] = 7;
+        let mut now = ms(0);
+        run(&mut m, &mut s, &mut now, ms(500));
+        assert_eq!(m.stats().checksum_errors, 1);
+        assert_eq!(s.requests[0], s.requests[1], "same request again");
+        assert_eq!(m.input_image()[2], 7);
+        assert!(!m.status().request_timeout);
+    }
+
+    #[test]
+    fn garbage_before_a_response_is_skipped() {
+        let mut m = master(config());
+        let mut s = Slave { garbage_first: std::vec![0x00, 0xFF, 0x01, 0x07], ..Slave::default() };
+        s.holding[1][0] = 0x0102;
+        let mut now = ms(0);
+        run(&mut m, &mut s, &mut now, ms(500));
+        assert_eq!(&m.input_image()[..2], &[0x02, 0x01]);
+        assert_eq!(m.stats().discarded_bytes, 4);
+        assert_eq!(s.requests.len(), 2);
+    }
+
+    #[test]
+    fn unsolicited_bytes_are_one_framing_error_per_burst() {
+        let mut m = master(config());
+        m.on_bytes(&[1, 2, 3], ms(0));
+        m.on_bytes(&[4], ms(1));
+        assert_eq!((m.stats().framing_errors, m.stats().discarded_bytes), (1, 4));
+        assert!(m.status().frame_errors);
+    }
+
+    #[test]
+    fn request_waits_for_the_line_to_be_quiet() {
+        let mut m = master(config());
+        // Noise on the line at 10 ms: the first request waits 1750 µs (38400 baud) after it.
+        m.on_bytes(&[0x55], ms(10));
+        assert!(m.poll_transmit(ms(10)).is_none());
+        assert_eq!(m.poll_at(), Some(ms(10) + Duration::from_micros(1750)));
+        assert!(m.poll_transmit(ms(10) + Duration::from_micros(1749)).is_none());
+        assert!(m.poll_transmit(ms(10) + Duration::from_micros(1750)).is_some());
+    }
+
+    #[test]
+    fn next_request_waits_the_silence_after_a_response() {
+        let mut m = master(config());
+        let req = m.poll_transmit(ms(0)).unwrap().to_vec();
+        let mut s = Slave::default();
+        let resp = s.answer(&req).unwrap();
+        m.on_bytes(&resp, ms(20));
+        assert_eq!(m.poll_at(), Some(ms(20) + Duration::from_micros(1750)));
+        assert!(m.poll_transmit(ms(21)).is_none());
+        assert!(m.poll_transmit(ms(22)).is_some());
+    }
+
+    #[test]
+    fn cycles_follow_the_poll_period() {
+        let mut m = master(config());
+        let mut s = Slave::default();
+        let mut now = ms(0);
+        run(&mut m, &mut s, &mut now, ms(3500));
+        assert_eq!(m.completed_cycles(), 4, "cycles at 0, 1000, 2000, 3000 ms");
+        assert_eq!(s.requests.len(), 8);
+    }
+
+    #[test]
+    fn idle_frame_once_per_entry_with_crc() {
+        let mut c = config();
+        c.on_idle = IdleAction::send(&[0x02, 0x05, 0x00, 0x05, 0x00, 0x00]).unwrap();
+        let mut m = master(c);
+        let mut s = Slave::default();
+        let mut now = ms(0);
+        for k in 0..10 {
+            m.set_outputs(&[], now);
+            run(&mut m, &mut s, &mut now, ms(k * 10));
+        }
+        let idle: StdVec<_> = s.requests.iter().filter(|r| r[0] == 2).collect();
+        assert_eq!(idle.len(), 1);
+        assert_eq!(Request::parse(idle[0]), Ok((2, Request::WriteSingleCoil { address: 5, value: false })));
+    }
+
+    fn config_with(f: impl FnOnce(&mut ModbusConfig)) -> ModbusConfig {
+        let mut c = config();
+        f(&mut c);
+        c
+    }
+
+    #[rstest]
+    #[case::data_bits(config_with(|c| c.serial.data_bits = DataBits::Seven), "serial.data_bits", None)]
+    #[case::timeout(config_with(|c| c.response_timeout_ms = 0), "response_timeout_ms", None)]
+    #[case::retries(config_with(|c| c.retries = 11), "retries", None)]
+    #[case::period(config_with(|c| c.poll_period_ms = 3_600_001), "poll_period_ms", None)]
+    #[case::input_len(config_with(|c| c.input_len = 65), "input_len", None)]
+    #[case::empty_scan(config_with(|c| c.scan.clear()), "scan", None)]
+    #[case::unit_zero(config_with(|c| c.scan[0].unit = 0), "scan.unit", Some(0))]
+    #[case::unit_high(config_with(|c| c.scan[1].unit = 248), "scan.unit", Some(1))]
+    #[case::count_zero(config_with(|c| c.scan[0].count = 0), "scan.count", Some(0))]
+    #[case::count_too_many_registers(config_with(|c| { c.input_len = 64; c.scan[0].count = 33 }), "scan.count", Some(0))]
+    #[case::single_coil_count(config_with(|c| c.scan[3].count = 2), "scan.count", Some(3))]
+    #[case::address_wraps(config_with(|c| c.scan[0].address = 0xFFFF), "scan.address", Some(0))]
+    #[case::offset(config_with(|c| c.scan[1].offset = 5), "scan.offset", Some(1))]
+    #[case::overlap(config_with(|c| { c.input_len = 8; c.scan[1].offset = 3 }), "scan.offset", Some(1))]
+    #[case::idle_too_short(config_with(|c| c.on_idle = IdleAction::send(&[1]).unwrap()), "on_idle", None)]
+    #[case::health(config_with(|c| c.health.stale_timeout_ms = 0), "health.stale_timeout_ms", None)]
+    fn validate_rejects(#[case] c: ModbusConfig, #[case] field: &str, #[case] index: Option<u16>) {
+        let e = c.validate().unwrap_err();
+        assert_eq!((e.field, e.index), (field, index), "{e}");
+        assert!(ModbusMaster::new(c, ms(0)).is_err());
+    }
+
+    #[test]
+    fn overlap_names_the_other_entry() {
+        let e = config_with(|c| {
+            c.input_len = 8;
+            c.scan[1].offset = 3;
+        })
+        .validate()
+        .unwrap_err();
+        assert_eq!(e.problem, Problem::Overlap { other: 0 });
+        assert_eq!(e.to_string(), "scan[1].offset: overlaps the image bytes of entry 0");
+    }
+
+    #[test]
+    fn new_sizes_the_images() {
+        let c = config();
+        assert_eq!((c.input_len, c.output_len), (6, 5));
+        c.validate().unwrap();
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_input_never_panics(
+            steps in proptest::collection::vec((proptest::collection::vec(any::<u8>(), 0..40), proptest::collection::vec(any::<u8>(), 0..8), 0u64..400, any::<bool>()), 0..60)
+        ) {
+            let mut m = master(config());
+            let mut now = ms(0);
+            for (bytes, outputs, dt, fault) in steps {
+                now += Duration::from_millis(dt);
+                m.on_bytes(&bytes, now);
+                if fault { m.connection_fault(now) } else { m.set_outputs(&outputs, now) }
+                let mut sent = 0;
+                while let Some(req) = m.poll_transmit(now) {
+                    prop_assert!(Request::parse(req).is_ok());
+                    sent += 1;
+                    prop_assert!(sent < 5);
+                }
+                prop_assert_eq!(m.input_image().len(), 6);
+            }
+        }
+
+        // A valid response split at any point is understood.
+        #[test]
+        fn response_in_two_chunks(split in 0usize..9) {
+            let mut m = master(config());
+            let req = m.poll_transmit(ms(0)).unwrap().to_vec();
+            let mut s = Slave::default();
+            s.holding[1][0] = 0xBEEF;
+            let resp = s.answer(&req).unwrap();
+            let split = split.min(resp.len());
+            m.on_bytes(&resp[..split], ms(5));
+            m.on_bytes(&resp[split..], ms(6));
+            prop_assert_eq!(&m.input_image()[..2], &[0xEF, 0xBE]);
+        }
+    }
+}

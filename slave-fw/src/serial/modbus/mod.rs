@@ -1,0 +1,18 @@
+//! Modbus RTU master profile: a DeviceNet-to-Modbus gateway.
+//!
+//! * [`pdu`]: the RTU ADU codec — [`Function`], [`ExceptionCode`], [`Request`], [`Response`],
+//!   CRC-16/MODBUS framing, and [`response_len`](pdu::response_len) to delimit frames.
+//! * [`master`]: the [`ModbusMaster`] that walks a [`ScanEntry`] list from a [`ModbusConfig`],
+//!   filling the input image from reads and writing changed outputs.
+//!
+//! The RTU codec and CRC are written here rather than taken from a crate (the issue allows
+//! either). The no_std candidates are `modbus-core` (a codec) and `rmodbus` (mostly a server
+//! framework); the codec here is small, borrows from the frame instead of copying, shares its CRC
+//! with the framed profile, is tested against published vectors, and keeps the firmware's
+//! dependencies to `heapless` and `devicenet`.
+
+pub mod master;
+pub mod pdu;
+
+pub use master::{ByteOrder, ModbusConfig, ModbusMaster, ScanEntry, SCAN_LIST_CAPACITY};
+pub use pdu::{CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};
