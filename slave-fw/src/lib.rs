@@ -21,7 +21,10 @@
 //! | [`serial::framed_profile`] | [`FramedProfile`](serial::FramedProfile): framing + sequencer + health for the breaker and similar instruments |
 //! | [`serial::modbus`] | Modbus RTU: the ADU codec ([`Request`](serial::modbus::Request), [`Response`](serial::modbus::Response)) and the scan-list [`ModbusMaster`](serial::modbus::ModbusMaster) |
 //! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
+//! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the vendor objects |
 //! | `sim` (feature `std`) | `SimulatedBreaker`: test equipment speaking the breaker protocol, sans-IO |
+//! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
+//! | `soft` (feature `std`) | `SoftSlave`: a converter wired to a simulated breaker on a virtual clock |
 //!
 //! The converter application (later) owns a [`Profile`](serial::Profile) next to the DeviceNet
 //! slave node: consumed poll data goes to [`Profile::set_outputs`](serial::Profile::set_outputs),
@@ -51,7 +54,14 @@
 #[cfg(all(test, not(feature = "std")))]
 extern crate std;
 
+pub mod converter;
 pub mod serial;
 
 #[cfg(feature = "std")]
 pub mod sim;
+
+#[cfg(feature = "std")]
+pub mod soft;
+
+#[cfg(feature = "description")]
+pub mod description;

@@ -1,0 +1,390 @@
+//! The device description file: one TOML file describes a converter for the soft slave, the
+//! firmware build and the EDS generator (style.md practice 9: one source of truth).
+//!
+//! ```toml
+//! [identity]
+//! vendor_id = 0x1234            # your ODVA vendor ID (0x1234 is a placeholder)
+//! vendor_name = "Example Automation"
+//! device_type = 0x000C          # communications adapter
+//! product_code = 1
+//! major_revision = 1
+//! minor_revision = 1
+//! serial_number = 0x12345678
+//! product_name = "Serial-DeviceNet Bridge"
+//! catalog = "SDN-1"
+//!
+//! [network]
+//! mac_id = 5
+//! baud_rate = "250k"            # "125k", "250k" or "500k"
+//! bus_off_interrupt = false
+//!
+//! [io]
+//! input_assembly = "plain"      # "plain" (instance 100) or "with_status" (101)
+//!
+//! [profile]
+//! kind = "breaker"              # "breaker", "framed" or "modbus"
+//! ```
+//!
+//! Every field is checked; an error names the file, the key (`profile.modbus.scan[1].offset`),
+//! the value and the allowed range, or the line and column of a syntax error. Unknown keys are
+//! errors too, so a misspelt setting never goes unnoticed. The complete reference, with every
+//! optional key, is in the README and in `slave-fw/descriptions/`.
+
+use crate::converter::{ConverterConfig, InputAssembly};
+use crate::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
+use crate::serial::{
+    FramedProfileConfig, HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings,
+};
+use devicenet::slave::config::MAX_PRODUCT_NAME;
+use devicenet::slave::{BaudRate, DeviceConfig, Identity, Switches};
+use devicenet::MacId;
+use serde::Deserialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A parsed and validated device description.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceDescription {
+    /// What the converter runs with.
+    pub converter: ConverterConfig,
+    /// The vendor's name (EDS `VendName`).
+    pub vendor_name: String,
+    /// The catalog number (EDS `Catalog`).
+    pub catalog: String,
+}
+
+/// Why a description was refused.
+#[derive(Debug)]
+pub struct DescriptionError {
+    /// The file, when the description came from one.
+    pub file: Option<PathBuf>,
+    /// What is wrong.
+    pub kind: DescriptionErrorKind,
+}
+
+/// What is wrong with a description.
+#[derive(Debug)]
+pub enum DescriptionErrorKind {
+    /// The file could not be read.
+    Io(std::io::Error),
+    /// TOML syntax, a missing or unknown key, or a value of the wrong type (with line and column).
+    Syntax(String),
+    /// A value outside its range or in conflict with another.
+    Invalid {
+        /// The dotted key.
+        key: String,
+        /// Why.
+        message: String,
+    },
+}
+
+impl fmt::Display for DescriptionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(file) = &self.file {
+            write!(f, "{}: ", file.display())?;
+        }
+        match &self.kind {
+            DescriptionErrorKind::Io(e) => write!(f, "cannot read the device description: {e}"),
+            DescriptionErrorKind::Syntax(e) => write!(f, "{}", e.trim_end()),
+            DescriptionErrorKind::Invalid { key, message } => write!(f, "{key}: {message}"),
+        }
+    }
+}
+
+impl std::error::Error for DescriptionError {}
+
+fn invalid(key: impl Into<String>, message: impl Into<String>) -> DescriptionErrorKind {
+    DescriptionErrorKind::Invalid { key: key.into(), message: message.into() }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    identity: IdentitySection,
+    network: NetworkSection,
+    #[serde(default)]
+    io: IoSection,
+    profile: ProfileSection,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IdentitySection {
+    vendor_id: u16,
+    #[serde(default)]
+    vendor_name: String,
+    device_type: u16,
+    product_code: u16,
+    major_revision: u8,
+    minor_revision: u8,
+    serial_number: u32,
+    product_name: String,
+    #[serde(default)]
+    catalog: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NetworkSection {
+    mac_id: u8,
+    baud_rate: String,
+    #[serde(default)]
+    bus_off_interrupt: bool,
+    #[serde(default = "one")]
+    epr_resolution_ms: u16,
+    #[serde(default)]
+    programmable: bool,
+}
+
+fn one() -> u16 {
+    1
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct IoSection {
+    #[serde(default)]
+    input_assembly: InputAssembly,
+    produced_size: Option<u16>,
+    consumed_size: Option<u16>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum ProfileKind {
+    Breaker,
+    Framed,
+    Modbus,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProfileSection {
+    kind: ProfileKind,
+    /// Breaker: overrides of the preset.
+    serial: Option<SerialSettings>,
+    health: Option<HealthConfig>,
+    sequencer: Option<SequencerConfig>,
+    /// `kind = "framed"`: the whole framed-profile configuration.
+    framed: Option<FramedProfileConfig>,
+    /// `kind = "modbus"`.
+    modbus: Option<ModbusSection>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModbusSection {
+    serial: Option<SerialSettings>,
+    response_timeout_ms: Option<u32>,
+    retries: Option<u8>,
+    poll_period_ms: Option<u32>,
+    byte_order: Option<ByteOrder>,
+    health: Option<HealthConfig>,
+    on_idle: Option<IdleAction>,
+    on_fault: Option<IdleAction>,
+    scan: Vec<ScanEntry>,
+}
+
+impl DeviceDescription {
+    /// The built-in description: the reference converter with the breaker (README).
+    pub fn reference() -> DeviceDescription {
+        DeviceDescription {
+            converter: ConverterConfig::breaker_reference(),
+            vendor_name: "Example Automation".into(),
+            catalog: "SDN-1".into(),
+        }
+    }
+
+    /// Reads and validates a description file.
+    pub fn load(path: &Path) -> Result<DeviceDescription, DescriptionError> {
+        let with_file = |kind| DescriptionError { file: Some(path.to_path_buf()), kind };
+        let text = std::fs::read_to_string(path).map_err(|e| with_file(DescriptionErrorKind::Io(e)))?;
+        Self::parse(&text).map_err(|e| with_file(e.kind))
+    }
+
+    /// Parses and validates description text.
+    pub fn parse(text: &str) -> Result<DeviceDescription, DescriptionError> {
+        let no_file = |kind| DescriptionError { file: None, kind };
+        let file: File =
+            toml::from_str(text).map_err(|e| no_file(DescriptionErrorKind::Syntax(e.to_string())))?;
+        build(file).map_err(no_file)
+    }
+}
+
+fn build(file: File) -> Result<DeviceDescription, DescriptionErrorKind> {
+    let id = file.identity;
+    if id.product_name.is_empty() || id.product_name.len() > MAX_PRODUCT_NAME {
+        return Err(invalid(
+            "identity.product_name",
+            format!("{} characters, allowed 1..={MAX_PRODUCT_NAME}", id.product_name.len()),
+        ));
+    }
+    if !id.product_name.bytes().all(|b| (0x20..0x7F).contains(&b)) {
+        return Err(invalid("identity.product_name", "must be printable ASCII"));
+    }
+    if !(1..=127).contains(&id.major_revision) {
+        return Err(invalid("identity.major_revision", format!("{} is outside 1..=127", id.major_revision)));
+    }
+    let mut product_name = heapless::String::new();
+    let _ = product_name.push_str(&id.product_name);
+    let net = file.network;
+    let mac_id = MacId::new(net.mac_id)
+        .ok_or_else(|| invalid("network.mac_id", format!("{} is outside 0..=63", net.mac_id)))?;
+    let baud_rate = match net.baud_rate.to_ascii_lowercase().as_str() {
+        "125k" | "125000" => BaudRate::Kbps125,
+        "250k" | "250000" => BaudRate::Kbps250,
+        "500k" | "500000" => BaudRate::Kbps500,
+        other => {
+            return Err(invalid(
+                "network.baud_rate",
+                format!("\"{other}\" is not one of \"125k\", \"250k\", \"500k\""),
+            ))
+        }
+    };
+    if net.epr_resolution_ms == 0 {
+        return Err(invalid("network.epr_resolution_ms", "0 is outside 1..=65535"));
+    }
+    let device = DeviceConfig {
+        identity: Identity {
+            vendor_id: id.vendor_id,
+            device_type: id.device_type,
+            product_code: id.product_code,
+            major_revision: id.major_revision,
+            minor_revision: id.minor_revision,
+            serial_number: id.serial_number,
+            product_name,
+        },
+        mac_id,
+        baud_rate,
+        port: 0,
+        bus_off_interrupt: net.bus_off_interrupt,
+        switches: Switches { programmable: net.programmable, ..Switches::default() },
+        // Replaced by ConverterConfig::device_config from the profile.
+        input_assembly: 100,
+        output_assembly: 150,
+        produced_size: 0,
+        consumed_size: 0,
+        epr_resolution_ms: net.epr_resolution_ms,
+    };
+    let profile = build_profile(file.profile)?;
+    let mut converter = ConverterConfig { device, profile, input: file.io.input_assembly };
+    converter.profile.validate().map_err(|e| {
+        let text = e.to_string();
+        match text.split_once(": ") {
+            Some((key, why)) => invalid(format!("profile.{}", profile_prefix(&converter.profile, key)), why),
+            None => invalid("profile", text),
+        }
+    })?;
+    let derived = converter.device_config();
+    if let Some(p) = file.io.produced_size.filter(|&p| p != derived.produced_size) {
+        return Err(invalid(
+            "io.produced_size",
+            format!("{p} disagrees with the profile and assembly, which produce {}", derived.produced_size),
+        ));
+    }
+    if let Some(c) = file.io.consumed_size.filter(|&c| c != derived.consumed_size) {
+        return Err(invalid(
+            "io.consumed_size",
+            format!("{c} disagrees with the profile, which consumes {}", derived.consumed_size),
+        ));
+    }
+    derived.validate().map_err(|e| invalid("io", e.to_string()))?;
+    converter.device = derived;
+    Ok(DeviceDescription { converter, vendor_name: id.vendor_name, catalog: id.catalog })
+}
+
+/// Where a profile's own field names live in the file.
+fn profile_prefix(profile: &ProfileConfig, key: &str) -> String {
+    match profile {
+        ProfileConfig::Framed(_) => key.to_string(),
+        ProfileConfig::Modbus(_) => format!("modbus.{key}"),
+    }
+}
+
+fn build_profile(section: ProfileSection) -> Result<ProfileConfig, DescriptionErrorKind> {
+    let misplaced =
+        |key: &str, kind: &str| invalid(format!("profile.{key}"), format!("not used with kind = \"{kind}\""));
+    match section.kind {
+        ProfileKind::Breaker => {
+            if section.framed.is_some() {
+                return Err(misplaced("framed", "breaker"));
+            }
+            if section.modbus.is_some() {
+                return Err(misplaced("modbus", "breaker"));
+            }
+            let mut c = FramedProfileConfig::breaker();
+            if let Some(s) = section.serial {
+                c.serial = s;
+            }
+            if let Some(h) = section.health {
+                c.health = h;
+            }
+            if let Some(q) = section.sequencer {
+                c.sequencer = q;
+            }
+            Ok(ProfileConfig::Framed(c))
+        }
+        ProfileKind::Framed => {
+            if section.modbus.is_some() {
+                return Err(misplaced("modbus", "framed"));
+            }
+            if section.serial.is_some() || section.health.is_some() || section.sequencer.is_some() {
+                return Err(invalid(
+                    "profile",
+                    "with kind = \"framed\" put serial, health and sequencer inside [profile.framed]",
+                ));
+            }
+            let c = section.framed.ok_or_else(|| {
+                invalid("profile.framed", "missing: kind = \"framed\" needs a [profile.framed] table")
+            })?;
+            Ok(ProfileConfig::Framed(c))
+        }
+        ProfileKind::Modbus => {
+            if section.framed.is_some() {
+                return Err(misplaced("framed", "modbus"));
+            }
+            if section.serial.is_some() || section.health.is_some() || section.sequencer.is_some() {
+                return Err(invalid(
+                    "profile",
+                    "with kind = \"modbus\" put serial and health inside [profile.modbus]",
+                ));
+            }
+            let m = section.modbus.ok_or_else(|| {
+                invalid("profile.modbus", "missing: kind = \"modbus\" needs a [profile.modbus] table")
+            })?;
+            if m.scan.is_empty() || m.scan.len() > SCAN_LIST_CAPACITY {
+                return Err(invalid(
+                    "profile.modbus.scan",
+                    format!("{} entries, allowed 1..={SCAN_LIST_CAPACITY}", m.scan.len()),
+                ));
+            }
+            let scan = heapless::Vec::from_iter(m.scan);
+            let mut c = ModbusConfig::new(scan);
+            if let Some(s) = m.serial {
+                c.serial = s;
+            }
+            if let Some(v) = m.response_timeout_ms {
+                c.response_timeout_ms = v;
+            }
+            if let Some(v) = m.retries {
+                c.retries = v;
+            }
+            if let Some(v) = m.poll_period_ms {
+                c.poll_period_ms = v;
+            }
+            if let Some(v) = m.byte_order {
+                c.byte_order = v;
+            }
+            if let Some(v) = m.health {
+                c.health = v;
+            }
+            if let Some(v) = m.on_idle {
+                c.on_idle = v;
+            }
+            if let Some(v) = m.on_fault {
+                c.on_fault = v;
+            }
+            Ok(ProfileConfig::Modbus(c))
+        }
+    }
+}

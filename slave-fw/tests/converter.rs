@@ -1,0 +1,200 @@
+//! The converter (slave node + breaker profile) against the simulated breaker on a virtual clock:
+//! the 28-frame bring-up with the breaker's real data, commands through the poll output executed
+//! exactly once, stale detection reported to the scanner, and the vendor objects.
+
+use devicenet::reference::{Direction, BRING_UP};
+use devicenet::slave::ConnectionState;
+use devicenet::{CanFrame, Duration, Instant};
+use slave_fw::converter::{ConverterConfig, InputAssembly};
+use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
+use slave_fw::serial::{HealthConfig, ProfileConfig, StalePolicy};
+use slave_fw::soft::SoftSlave;
+
+struct Rig {
+    slave: SoftSlave,
+    now: Instant,
+}
+
+type Tx = Vec<(u16, Vec<u8>)>;
+
+impl Rig {
+    fn new(config: ConverterConfig) -> Rig {
+        Rig { slave: SoftSlave::new(config, Instant::ZERO).unwrap(), now: Instant::ZERO }
+    }
+
+    fn advance(&mut self, d: Duration) -> Tx {
+        let end = self.now + d;
+        let mut out = Tx::new();
+        while let Some(at) = self.slave.poll_at().filter(|&at| at <= end) {
+            self.now = at.max(self.now);
+            self.slave.handle_timeout(self.now);
+            out.extend(self.drain());
+        }
+        self.now = end;
+        self.slave.handle_timeout(end);
+        out.extend(self.drain());
+        out
+    }
+
+    fn drain(&mut self) -> Tx {
+        std::iter::from_fn(|| self.slave.poll_transmit())
+            .map(|f| (f.id().as_raw(), f.data().to_vec()))
+            .collect()
+    }
+
+    fn send(&mut self, id: u16, data: &[u8]) -> Tx {
+        self.slave.handle_frame(&CanFrame::from_raw(id, data).unwrap(), self.now);
+        self.drain()
+    }
+
+    /// Powers on at 2 s (the master is on-line) and plays the master's side of notes §2.
+    fn bring_up(&mut self) -> Tx {
+        let mut seen = Tx::new();
+        self.advance(Duration::from_secs(2));
+        self.slave.power_on(self.now);
+        seen.extend(self.drain());
+        seen.extend(self.advance(Duration::from_secs(2)));
+        for f in BRING_UP.iter().filter(|f| f.direction == Direction::MasterToSlave).skip(2) {
+            seen.extend(self.advance(Duration::from_millis(10)));
+            seen.push((f.id, f.data.to_vec()));
+            seen.extend(self.send(f.id, f.data));
+        }
+        seen
+    }
+
+    /// The bring-up, then a 5 s EPR so the test can take its time between polls.
+    fn established(&mut self) {
+        self.bring_up();
+        let epr = self.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x88, 0x13]);
+        assert_eq!(epr, vec![(0x42B, vec![0x00, 0x90, 0x88, 0x13])]);
+    }
+
+    /// One poll cycle with `outputs`, returning the reassembled 18-byte response.
+    fn poll(&mut self, outputs: &[u8]) -> Vec<u8> {
+        self.advance(Duration::from_millis(50));
+        let frames = self.send(0x42D, outputs);
+        frames.iter().filter(|(id, _)| *id == 0x3C5).flat_map(|(_, d)| d[1..].to_vec()).collect()
+    }
+}
+
+#[test]
+fn bring_up_with_the_breakers_own_data() {
+    let mut rig = Rig::new(ConverterConfig::breaker_reference());
+    let seen = rig.bring_up();
+    // Everything but the master's own duplicate MAC checks, which the rig does not send.
+    let expected: Tx = BRING_UP.iter().skip(2).map(|f| (f.id, f.data.to_vec())).collect();
+    assert_eq!(seen, expected, "the breaker starts open with zero currents: the reference image");
+}
+
+#[test]
+fn open_and_close_reach_the_breaker_exactly_once() {
+    let mut rig = Rig::new(ConverterConfig::breaker_reference());
+    rig.established();
+    rig.slave.breaker_mut().set_switch(SwitchState::Closed);
+    rig.advance(Duration::from_millis(1100));
+    assert_eq!(rig.poll(&[0; 8])[9], 0xF0, "closed shows in the next status frame");
+    // Open, sequence 1, repeated a hundred times.
+    for _ in 0..100 {
+        rig.poll(&[1, 1, 0, 0, 0, 0, 0, 0]);
+    }
+    assert_eq!(rig.slave.breaker().commands(), &[BreakerCommand::Open]);
+    rig.advance(Duration::from_millis(1100));
+    assert_eq!(rig.poll(&[1, 1, 0, 0, 0, 0, 0, 0])[9], 0x0F);
+    // Close with a new sequence number, also once.
+    for _ in 0..20 {
+        rig.poll(&[2, 2, 0, 0, 0, 0, 0, 0]);
+    }
+    assert_eq!(rig.slave.breaker().commands(), &[BreakerCommand::Open, BreakerCommand::Close]);
+    assert_eq!(rig.slave.breaker().switch_state(), SwitchState::Closed);
+}
+
+#[test]
+fn idle_polls_and_poll_timeouts_never_send_a_command() {
+    let mut rig = Rig::new(ConverterConfig::breaker_reference());
+    rig.bring_up();
+    for _ in 0..10 {
+        rig.poll(&[]);
+    }
+    rig.advance(Duration::from_secs(2)); // 4 x EPR: the poll connection times out
+    assert_eq!(rig.slave.converter().node().poll_connection().state, ConnectionState::TimedOut);
+    assert!(rig.slave.breaker().commands().is_empty());
+}
+
+#[test]
+fn silent_breaker_is_reported_stale() {
+    let mut config = ConverterConfig::breaker_reference();
+    config.input = InputAssembly::WithStatus;
+    if let ProfileConfig::Framed(f) = &mut config.profile {
+        f.health = HealthConfig { stale_timeout_ms: 2500, stale_policy: StalePolicy::Clear };
+    }
+    let mut rig = Rig::new(config);
+    // The 28-frame sequence with a 20-byte produced size: read it and poll.
+    rig.advance(Duration::from_secs(2));
+    rig.slave.power_on(rig.now);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x05, 0x02, 0x07]), vec![(0x42B, vec![0x00, 0x8E, 20, 0x00])]);
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0xE8, 0x03]); // EPR 1000 ms
+    rig.slave.breaker_mut().set_load([10, 20, 30, 40]);
+    rig.slave.breaker_mut().set_switch(SwitchState::Closed);
+    rig.advance(Duration::from_millis(1100));
+    let fresh = rig.poll(&[0; 8]);
+    assert_eq!(&fresh[..4], &[10, 20, 30, 40]);
+    assert_eq!(fresh[18] & 0x01, 0x01, "link ok");
+    let counter = fresh[19];
+    rig.advance(Duration::from_millis(1000));
+    rig.advance(Duration::from_millis(100));
+    assert_ne!(rig.poll(&[0; 8])[19], counter, "freshness counter moves with new frames");
+    rig.slave.breaker_mut().set_silent(true);
+    let mut stale = Vec::new();
+    for _ in 0..8 {
+        stale = rig.poll(&[0; 8]);
+        rig.advance(Duration::from_millis(500));
+    }
+    assert_eq!(stale[18] & 0x03, 0x02, "status byte: timeout, not ok");
+    assert_eq!(&stale[..4], &[0, 0, 0, 0], "clear policy");
+    let status = rig.slave.converter().node().identity_status();
+    assert_eq!(status & 0x100, 0x100, "minor recoverable fault");
+    assert_eq!(rig.slave.converter().node().module_indication(), devicenet::led::Indication::FlashingRed);
+}
+
+#[test]
+fn vendor_objects_over_explicit_messaging() {
+    let mut rig = Rig::new(ConverterConfig::breaker_reference());
+    rig.established();
+    rig.advance(Duration::from_secs(3));
+    // Frames received (class 0x64, instance 1, attribute 1): a UDINT.
+    let resp = rig.send(0x42C, &[0x00, 0x0E, 0x64, 0x01, 0x01]);
+    let (_, data) = &resp[0];
+    assert_eq!(&data[..2], &[0x00, 0x8E]);
+    let frames = u32::from_le_bytes(data[2..6].try_into().unwrap());
+    assert!(frames >= 6, "about one status frame a second since t=0: {frames}");
+    // Settings: baud 9600, stale timeout 3000 ms, assembly 100.
+    assert_eq!(
+        rig.send(0x42C, &[0x00, 0x0E, 0x65, 0x01, 0x01]),
+        vec![(0x42B, vec![0x00, 0x8E, 0x80, 0x25, 0, 0])]
+    );
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x65, 0x01, 0x06]), vec![(0x42B, vec![0x00, 0x8E, 100])]);
+    assert_eq!(
+        rig.send(0x42C, &[0x00, 0x10, 0x65, 0x01, 0x05, 1]),
+        vec![(0x42B, vec![0x00, 0x94, 0x0E, 0xFF])]
+    );
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x65, 0x01, 0x63]), vec![(0x42B, vec![0x00, 0x94, 0x14, 0xFF])]);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x65, 0x02, 0x01]), vec![(0x42B, vec![0x00, 0x94, 0x16, 0xFF])]);
+}
+
+#[test]
+fn garbage_on_the_serial_line_is_counted_and_survived() {
+    let mut rig = Rig::new(ConverterConfig::breaker_reference());
+    rig.established();
+    let now = rig.now;
+    rig.slave.breaker_mut().send_garbage(&[0x68, 0x99, 0x01, 0x16, 0xFF, 0x00], now);
+    rig.slave.breaker_mut().corrupt_next_frames(2);
+    rig.advance(Duration::from_secs(4));
+    let stats = *rig.slave.converter().profile().stats();
+    assert!(stats.checksum_errors >= 2, "{stats:?}");
+    rig.slave.breaker_mut().set_load([7, 0, 0, 0]);
+    rig.slave.breaker_mut().set_switch(SwitchState::Closed);
+    rig.advance(Duration::from_millis(1100));
+    assert_eq!(rig.poll(&[0; 8])[0], 7, "still converting");
+}
