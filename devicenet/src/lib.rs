@@ -16,6 +16,7 @@
 //! | [`id`] | the identifier codec: [`MacId`](id::MacId), message groups 1–4 and their message IDs |
 //! | [`explicit`] | explicit message header, service codes, body formats, requests, (error) responses |
 //! | [`fragment`] | explicit (acknowledged) and I/O (unacknowledged) fragmentation: senders and reassemblers |
+//! | [`objects`] | object class IDs and the names of classes, attributes, connection states and watchdog actions |
 //! | [`messages`] | fixed-layout bodies: duplicate MAC check, allocate/release, UCMM open/close, heartbeat/shutdown, Offline Connection Set |
 //! | [`slave`] | the group-2-only [`SlaveNode`](slave::SlaveNode): network access, Predefined Master/Slave Connection Set, objects, connections |
 //! | [`led`] | Module/Network Status LED indications, flashing and the power-up test |
@@ -59,6 +60,7 @@ pub mod frame;
 pub mod id;
 pub mod led;
 pub mod messages;
+pub mod objects;
 pub mod reference;
 pub mod slave;
 pub mod time;

@@ -1,0 +1,240 @@
+//! The one bus trait the master runs on, and its three implementations: the simulated bus
+//! ([`sim`]), Linux SocketCAN ([`socketcan`](mod@self::socketcan)) and SLCAN over a serial line
+//! ([`slcan`]).
+//!
+//! A bus has its own clock ([`Bus::now`]): virtual time on the simulated bus, time since the bus
+//! was opened on a real one. Every frame that completes on the bus comes back from [`Bus::recv`],
+//! the master's own frames included (with [`Origin::Local`]), so a transcript holds the bus in the
+//! order the wire saw it. The protocol logic never asks which bus it runs on; the only
+//! simulation-specific input is [`Bus::hint`], which real buses ignore.
+
+pub mod sim;
+pub mod slcan;
+#[cfg(target_os = "linux")]
+pub mod socketcan;
+
+use devicenet::{CanFrame, Instant, MacId};
+use std::fmt;
+use std::str::FromStr;
+
+/// Who put a frame on the bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Origin {
+    /// This program (the master, or the replayed stimulus).
+    Local,
+    /// Any other node.
+    Remote,
+}
+
+/// A frame that completed on the bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BusEvent {
+    /// When it completed, on the bus's clock.
+    pub at: Instant,
+    /// The frame.
+    pub frame: CanFrame,
+    /// Who sent it.
+    pub origin: Origin,
+}
+
+/// A hint from the protocol layer that the simulated bus uses to run its devices the way the
+/// source capture shows; real buses ignore hints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Hint {
+    /// The master finished its duplicate MAC ID check and is on-line (notes §2: the device was
+    /// powered on then).
+    MasterOnline,
+    /// Power the device at `mac` on at `at` (replay: the recorded time of its first duplicate
+    /// MAC ID check).
+    PowerOn {
+        /// The device.
+        mac: MacId,
+        /// When, on the bus's clock.
+        at: Instant,
+    },
+}
+
+/// Why a bus operation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum BusError {
+    /// The interface or serial port could not be opened.
+    #[error("cannot open {what}: {source}")]
+    Open {
+        /// The interface or port.
+        what: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// Reading or writing failed.
+    #[error("{what}: {source}")]
+    Io {
+        /// What was being done.
+        what: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The adapter answered with an error or something unintelligible.
+    #[error("{0}")]
+    Adapter(String),
+}
+
+/// A CAN bus the master can send on and listen to.
+pub trait Bus {
+    /// The interface name written in `candump -L` logs (`sim`, `can0`, `slcan0`).
+    fn name(&self) -> &str;
+
+    /// The current time on this bus's clock.
+    fn now(&mut self) -> Instant;
+
+    /// Queues `frame` for transmission. It comes back from [`Bus::recv`] as
+    /// [`Origin::Local`] once it is on the bus.
+    fn send(&mut self, frame: &CanFrame) -> Result<(), BusError>;
+
+    /// The next frame that completes on the bus, waiting at most until `deadline`; `None` when the
+    /// deadline passed first (the bus clock then reads at least `deadline`).
+    fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError>;
+
+    /// A hint for a simulated bus; real buses ignore it.
+    fn hint(&mut self, _hint: Hint) {}
+}
+
+/// A CAN bit rate of DeviceNet: 125, 250 or 500 kbit/s.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Bitrate(u32);
+
+impl Bitrate {
+    /// 125 kbit/s.
+    pub const K125: Bitrate = Bitrate(125_000);
+    /// 250 kbit/s, the rate of the source capture.
+    pub const K250: Bitrate = Bitrate(250_000);
+    /// 500 kbit/s.
+    pub const K500: Bitrate = Bitrate(500_000);
+
+    /// Bits per second.
+    pub const fn bits_per_second(self) -> u32 {
+        self.0
+    }
+}
+
+impl Default for Bitrate {
+    fn default() -> Self {
+        Bitrate::K250
+    }
+}
+
+impl fmt::Display for Bitrate {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}k", self.0 / 1000)
+    }
+}
+
+impl FromStr for Bitrate {
+    type Err = String;
+
+    /// `125k`, `250k`, `500k`, or the same in bit/s (`250000`).
+    fn from_str(s: &str) -> Result<Bitrate, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "125k" | "125000" => Ok(Bitrate::K125),
+            "250k" | "250000" => Ok(Bitrate::K250),
+            "500k" | "500000" => Ok(Bitrate::K500),
+            other => Err(format!("unsupported bit rate '{other}': DeviceNet runs at 125k, 250k or 500k")),
+        }
+    }
+}
+
+/// Which bus to open, as given to `--bus`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BusSpec {
+    /// The in-process simulated bus.
+    Sim,
+    /// A SocketCAN interface (Linux).
+    SocketCan {
+        /// Interface name, e.g. `can0`.
+        iface: String,
+    },
+    /// An SLCAN (Lawicel) adapter on a serial line.
+    Slcan {
+        /// Serial device path.
+        path: String,
+        /// Serial baud rate (default 115200).
+        baud: u32,
+    },
+}
+
+/// The serial baud rate used for SLCAN when `@SERIALBAUD` is not given.
+pub const DEFAULT_SLCAN_BAUD: u32 = 115_200;
+
+impl FromStr for BusSpec {
+    type Err = String;
+
+    /// `sim`, `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
+    fn from_str(s: &str) -> Result<BusSpec, String> {
+        const EXPECTED: &str = "expected sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD]";
+        if s == "sim" {
+            return Ok(BusSpec::Sim);
+        }
+        if let Some(iface) = s.strip_prefix("socketcan:") {
+            if iface.is_empty() {
+                return Err(format!("socketcan needs an interface name ({EXPECTED})"));
+            }
+            return Ok(BusSpec::SocketCan { iface: iface.to_string() });
+        }
+        if let Some(rest) = s.strip_prefix("slcan:") {
+            let (path, baud) = match rest.rsplit_once('@') {
+                Some((path, baud)) => {
+                    let baud = baud
+                        .parse::<u32>()
+                        .ok()
+                        .filter(|&b| b > 0)
+                        .ok_or_else(|| format!("invalid serial baud rate '{baud}' in '{s}'"))?;
+                    (path, baud)
+                }
+                None => (rest, DEFAULT_SLCAN_BAUD),
+            };
+            if path.is_empty() {
+                return Err(format!("slcan needs a serial device path ({EXPECTED})"));
+            }
+            return Ok(BusSpec::Slcan { path: path.to_string(), baud });
+        }
+        Err(format!("unknown bus '{s}': {EXPECTED}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+
+    #[rstest]
+    #[case::sim("sim", BusSpec::Sim)]
+    #[case::socketcan("socketcan:can0", BusSpec::SocketCan { iface: "can0".into() })]
+    #[case::slcan_default_baud("slcan:/dev/ttyACM0", BusSpec::Slcan { path: "/dev/ttyACM0".into(), baud: 115_200 })]
+    #[case::slcan_baud("slcan:/dev/ttyUSB0@921600", BusSpec::Slcan { path: "/dev/ttyUSB0".into(), baud: 921_600 })]
+    fn bus_specs(#[case] text: &str, #[case] spec: BusSpec) {
+        assert_eq!(text.parse::<BusSpec>(), Ok(spec));
+    }
+
+    #[rstest]
+    #[case::unknown("vcan0", "unknown bus 'vcan0'")]
+    #[case::empty_iface("socketcan:", "needs an interface name")]
+    #[case::empty_path("slcan:@115200", "needs a serial device path")]
+    #[case::bad_baud("slcan:/dev/ttyACM0@fast", "invalid serial baud rate 'fast'")]
+    fn bad_bus_specs(#[case] text: &str, #[case] msg: &str) {
+        let err = text.parse::<BusSpec>().unwrap_err();
+        assert!(err.contains(msg), "{err}");
+    }
+
+    #[rstest]
+    #[case::k125("125k", Bitrate::K125)]
+    #[case::k250("250K", Bitrate::K250)]
+    #[case::k500("500000", Bitrate::K500)]
+    fn bitrates(#[case] text: &str, #[case] rate: Bitrate) {
+        assert_eq!(text.parse::<Bitrate>(), Ok(rate));
+    }
+
+    #[test]
+    fn unsupported_bitrate() {
+        assert!("1M".parse::<Bitrate>().unwrap_err().contains("125k, 250k or 500k"));
+    }
+}

@@ -1,0 +1,510 @@
+//! The simulated CAN bus: simulated devices and the master on a virtual clock.
+//!
+//! The model, per frame:
+//!
+//! * **Arbitration.** Every node (the master and each device) has a transmit queue served in
+//!   order. When the bus is idle, the head frames of all queues that are pending at that instant
+//!   contend, and the lowest identifier wins (notes §1.1): a frame that loses waits for the next
+//!   idle bus.
+//! * **Time on the wire.** A frame occupies the bus for its exact bit count at the chosen bit rate:
+//!   the stuffed region (start of frame to CRC) with the stuff bits the frame's own bit pattern
+//!   needs, the fixed tail, and the 3-bit intermission ([`frame_bits`]). Every other node receives
+//!   the frame at its end.
+//! * **Devices** are sans-IO ([`SimDevice`]): the bus calls them at the instants they ask for
+//!   ([`SimDevice::poll_at`]) and when a frame completes, and queues what they transmit.
+//! * **Power.** Each device powers on according to its [`PowerOn`] policy; by default when the
+//!   master reports it is on-line ([`Hint::MasterOnline`]), as in the source capture.
+//!
+//! Time is virtual: a 2 s duplicate MAC ID check costs no wall time. With
+//! [`SimBus::set_realtime`] the simulation waits for the wall clock to catch up with each instant
+//! it reaches.
+
+use super::{Bitrate, Bus, BusError, BusEvent, Hint, Origin};
+use devicenet::{CanFrame, Duration, Instant, MacId};
+use std::collections::VecDeque;
+
+/// A simulated device on the bus: a sans-IO node, driven by the bus at the instants it asks for.
+///
+/// The soft slave ([`crate::soft_slave::SoftSlave`]) implements it today; the converter (node plus
+/// serial profile) will replace it without touching the bus or the master.
+pub trait SimDevice {
+    /// The device's MAC ID (to route [`Hint::PowerOn`]).
+    fn mac(&self) -> MacId;
+    /// Power-on at `now`.
+    fn power_on(&mut self, now: Instant);
+    /// A frame another node put on the bus, received at `now`.
+    fn handle_frame(&mut self, frame: &CanFrame, now: Instant);
+    /// Runs the device's timers due at `now`.
+    fn handle_timeout(&mut self, now: Instant);
+    /// The next frame the device wants to transmit.
+    fn poll_transmit(&mut self) -> Option<CanFrame>;
+    /// When [`SimDevice::handle_timeout`] must be called next.
+    fn poll_at(&self) -> Option<Instant>;
+}
+
+/// When a simulated device is powered on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PowerOn {
+    /// When the master reports it is on-line ([`Hint::MasterOnline`]), as in the source capture.
+    #[default]
+    WhenMasterOnline,
+    /// At the start of the simulation.
+    AtStart,
+    /// At a fixed instant.
+    At(Instant),
+    /// Only when a [`Hint::PowerOn`] asks for it.
+    OnHint,
+}
+
+/// The bits a CAN 2.0A data frame occupies on the wire, intermission included: the stuffed region
+/// (SOF, identifier, RTR, IDE, r0, DLC, data, CRC) with the stuff bits this frame's bit pattern
+/// needs, then CRC delimiter, ACK slot and delimiter, 7-bit end of frame and 3-bit intermission.
+///
+/// Never more than [`CanFrame::worst_case_bits`], never less than the unstuffed 47 + 8n.
+pub fn frame_bits(frame: &CanFrame) -> u32 {
+    let mut bits: Vec<bool> = Vec::with_capacity(34 + 64);
+    let push = |bits: &mut Vec<bool>, value: u32, width: u32| {
+        for i in (0..width).rev() {
+            bits.push(value >> i & 1 == 1);
+        }
+    };
+    push(&mut bits, 0, 1); // SOF (dominant)
+    push(&mut bits, u32::from(frame.id().as_raw()), 11);
+    push(&mut bits, 0, 3); // RTR, IDE, r0
+    push(&mut bits, frame.dlc() as u32, 4);
+    for &b in frame.data() {
+        push(&mut bits, u32::from(b), 8);
+    }
+    // CRC-15, polynomial 0x4599, over SOF..data.
+    let mut crc: u16 = 0;
+    for &bit in &bits {
+        let next = bit ^ (crc >> 14 & 1 == 1);
+        crc = (crc << 1) & 0x7FFF;
+        if next {
+            crc ^= 0x4599;
+        }
+    }
+    push(&mut bits, u32::from(crc), 15);
+    // Bit stuffing: after five equal bits a complementary bit follows (and counts in the next run).
+    let mut stuff = 0u32;
+    let mut run = 0u32;
+    let mut last: Option<bool> = None;
+    for &bit in &bits {
+        if Some(bit) == last {
+            run += 1;
+        } else {
+            last = Some(bit);
+            run = 1;
+        }
+        if run == 5 {
+            stuff += 1;
+            last = Some(!bit);
+            run = 1;
+        }
+    }
+    bits.len() as u32 + stuff + 10 + 3
+}
+
+/// How long `frame` occupies the bus at `bitrate` ([`frame_bits`], rounded up to the microsecond).
+pub fn frame_duration(frame: &CanFrame, bitrate: Bitrate) -> Duration {
+    let bits = u64::from(frame_bits(frame));
+    let bps = u64::from(bitrate.bits_per_second().max(1));
+    Duration::from_micros((bits * 1_000_000).div_ceil(bps))
+}
+
+/// The 3-bit intermission counted at the end of [`frame_bits`]; receivers see the frame before it.
+const INTERMISSION_BITS: u64 = 3;
+
+/// Which node sent a frame: the master, or device `i`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Node {
+    Master,
+    Device(usize),
+}
+
+struct Attached {
+    device: Box<dyn SimDevice>,
+    power: PowerOn,
+    /// A power-on that is due (from the policy or a hint) and not yet done.
+    power_at: Option<Instant>,
+    powered: bool,
+    tx: VecDeque<(Instant, CanFrame)>,
+}
+
+struct OnWire {
+    sender: Node,
+    frame: CanFrame,
+    /// End of frame: receivers get it now.
+    end: Instant,
+}
+
+/// The simulated bus. See the [module docs](self) for the model.
+pub struct SimBus {
+    name: String,
+    bitrate: Bitrate,
+    now: Instant,
+    devices: Vec<Attached>,
+    master_tx: VecDeque<(Instant, CanFrame)>,
+    on_wire: Option<OnWire>,
+    /// The bus is idle from this instant (after the last frame's intermission).
+    idle_at: Instant,
+    outbox: VecDeque<BusEvent>,
+    realtime: Option<std::time::Instant>,
+    frames: u64,
+}
+
+impl SimBus {
+    /// An empty simulated bus at `bitrate`, at time zero.
+    pub fn new(bitrate: Bitrate) -> SimBus {
+        SimBus {
+            name: "sim".to_string(),
+            bitrate,
+            now: Instant::ZERO,
+            devices: Vec::new(),
+            master_tx: VecDeque::new(),
+            on_wire: None,
+            idle_at: Instant::ZERO,
+            outbox: VecDeque::new(),
+            realtime: None,
+            frames: 0,
+        }
+    }
+
+    /// Attaches a device with its power-on policy.
+    pub fn attach(&mut self, device: Box<dyn SimDevice>, power: PowerOn) {
+        let power_at = match power {
+            PowerOn::AtStart => Some(self.now),
+            PowerOn::At(at) => Some(at),
+            PowerOn::WhenMasterOnline | PowerOn::OnHint => None,
+        };
+        self.devices.push(Attached { device, power, power_at, powered: false, tx: VecDeque::new() });
+    }
+
+    /// Builder form of [`SimBus::attach`].
+    pub fn with_device(mut self, device: Box<dyn SimDevice>, power: PowerOn) -> SimBus {
+        self.attach(device, power);
+        self
+    }
+
+    /// Paces the simulation against the wall clock (`--realtime`).
+    pub fn set_realtime(&mut self, on: bool) {
+        self.realtime = on.then(std::time::Instant::now);
+    }
+
+    /// The bit rate.
+    pub fn bitrate(&self) -> Bitrate {
+        self.bitrate
+    }
+
+    /// Frames that completed on the bus so far.
+    pub fn frames_completed(&self) -> u64 {
+        self.frames
+    }
+
+    /// Number of attached devices.
+    pub fn device_count(&self) -> usize {
+        self.devices.len()
+    }
+
+    fn bit_time(&self, bits: u64) -> Duration {
+        let bps = u64::from(self.bitrate.bits_per_second().max(1));
+        Duration::from_micros((bits * 1_000_000).div_ceil(bps))
+    }
+
+    /// Sleeps until the wall clock reaches virtual time `t` (realtime mode only).
+    fn pace(&self, t: Instant) {
+        if let Some(start) = self.realtime {
+            let target = start + std::time::Duration::from_micros(t.total_micros());
+            let wall = std::time::Instant::now();
+            if target > wall {
+                std::thread::sleep(target - wall);
+            }
+        }
+    }
+
+    fn drain_device(&mut self, i: usize, now: Instant) {
+        let attached = &mut self.devices[i];
+        while let Some(frame) = attached.device.poll_transmit() {
+            attached.tx.push_back((now, frame));
+        }
+    }
+
+    /// The earliest instant something happens on the bus.
+    fn next_instant(&self) -> Option<Instant> {
+        let wire = self.on_wire.as_ref().map(|w| w.end);
+        let devices = self.devices.iter().filter_map(|d| {
+            let timer = if d.powered { d.device.poll_at() } else { None };
+            [timer, d.power_at].into_iter().flatten().min()
+        });
+        let arbitration = if self.on_wire.is_none() {
+            let heads = self.devices.iter().filter_map(|d| d.tx.front().map(|&(at, _)| at));
+            heads.chain(self.master_tx.front().map(|&(at, _)| at)).min().map(|ready| ready.max(self.idle_at))
+        } else {
+            None
+        };
+        [wire, arbitration].into_iter().flatten().chain(devices).min()
+    }
+
+    /// Does everything due at `self.now`: completes the frame on the wire, powers devices on, runs
+    /// their timers, then starts the next frame if the bus is idle (so frames queued at this
+    /// instant take part in the arbitration).
+    fn step(&mut self) {
+        let now = self.now;
+        if self.on_wire.as_ref().is_some_and(|w| w.end <= now) {
+            if let Some(w) = self.on_wire.take() {
+                self.frames += 1;
+                for i in 0..self.devices.len() {
+                    if w.sender != Node::Device(i) && self.devices[i].powered {
+                        self.devices[i].device.handle_frame(&w.frame, w.end);
+                        self.drain_device(i, w.end);
+                    }
+                }
+                let origin = if w.sender == Node::Master { Origin::Local } else { Origin::Remote };
+                self.outbox.push_back(BusEvent { at: w.end, frame: w.frame, origin });
+            }
+        }
+        for i in 0..self.devices.len() {
+            if self.devices[i].power_at.is_some_and(|at| at <= now) {
+                let d = &mut self.devices[i];
+                d.power_at = None;
+                d.powered = true;
+                d.tx.clear();
+                d.device.power_on(now);
+                self.drain_device(i, now);
+            }
+            if self.devices[i].powered && self.devices[i].device.poll_at().is_some_and(|at| at <= now) {
+                self.devices[i].device.handle_timeout(now);
+                self.drain_device(i, now);
+            }
+        }
+        if self.on_wire.is_none() && self.idle_at <= now {
+            self.arbitrate(now);
+        }
+    }
+
+    /// Lowest identifier among the head frames pending at `now` wins; the master wins a tie.
+    fn arbitrate(&mut self, now: Instant) {
+        let mut winner: Option<(u16, Node)> = None;
+        let mut consider = |id: u16, node: Node| {
+            if winner.is_none_or(|(best, _)| id < best) {
+                winner = Some((id, node));
+            }
+        };
+        if let Some(&(at, f)) = self.master_tx.front() {
+            if at <= now {
+                consider(f.id().as_raw(), Node::Master);
+            }
+        }
+        for (i, d) in self.devices.iter().enumerate() {
+            if let Some(&(at, f)) = d.tx.front() {
+                if at <= now {
+                    consider(f.id().as_raw(), Node::Device(i));
+                }
+            }
+        }
+        let Some((_, node)) = winner else { return };
+        let popped = match node {
+            Node::Master => self.master_tx.pop_front(),
+            Node::Device(i) => self.devices[i].tx.pop_front(),
+        };
+        if let Some((_, frame)) = popped {
+            let total = frame_duration(&frame, self.bitrate);
+            let intermission = self.bit_time(INTERMISSION_BITS);
+            let end =
+                now + Duration::from_micros(total.total_micros().saturating_sub(intermission.total_micros()));
+            self.idle_at = now + total;
+            self.on_wire = Some(OnWire { sender: node, frame, end });
+        }
+    }
+}
+
+impl Bus for SimBus {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn now(&mut self) -> Instant {
+        self.now
+    }
+
+    fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
+        self.master_tx.push_back((self.now, *frame));
+        Ok(())
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError> {
+        loop {
+            if let Some(ev) = self.outbox.pop_front() {
+                return Ok(Some(ev));
+            }
+            match self.next_instant() {
+                Some(t) if t <= deadline => {
+                    if t > self.now {
+                        self.pace(t);
+                        self.now = t;
+                    }
+                    self.step();
+                }
+                _ => {
+                    if deadline > self.now {
+                        self.pace(deadline);
+                        self.now = deadline;
+                    }
+                    return Ok(None);
+                }
+            }
+        }
+    }
+
+    fn hint(&mut self, hint: Hint) {
+        let now = self.now;
+        match hint {
+            Hint::MasterOnline => {
+                for d in &mut self.devices {
+                    if d.power == PowerOn::WhenMasterOnline && !d.powered && d.power_at.is_none() {
+                        d.power_at = Some(now);
+                    }
+                }
+            }
+            Hint::PowerOn { mac, at } => {
+                for d in &mut self.devices {
+                    if d.device.mac() == mac {
+                        d.power = PowerOn::OnHint;
+                        d.power_at = Some(at.max(now));
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A device that sends the frames it is given at power-on, and records what it receives.
+    struct Talker {
+        mac: MacId,
+        script: Vec<CanFrame>,
+        queue: VecDeque<CanFrame>,
+        received: std::rc::Rc<std::cell::RefCell<Vec<(Instant, CanFrame)>>>,
+    }
+
+    impl SimDevice for Talker {
+        fn mac(&self) -> MacId {
+            self.mac
+        }
+        fn power_on(&mut self, _now: Instant) {
+            self.queue.extend(self.script.iter().copied());
+        }
+        fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
+            self.received.borrow_mut().push((now, *frame));
+        }
+        fn handle_timeout(&mut self, _now: Instant) {}
+        fn poll_transmit(&mut self) -> Option<CanFrame> {
+            self.queue.pop_front()
+        }
+        fn poll_at(&self) -> Option<Instant> {
+            None
+        }
+    }
+
+    fn frame(id: u16, data: &[u8]) -> CanFrame {
+        CanFrame::from_raw(id, data).unwrap()
+    }
+
+    fn talker(
+        mac: u8,
+        script: Vec<CanFrame>,
+    ) -> (Box<Talker>, std::rc::Rc<std::cell::RefCell<Vec<(Instant, CanFrame)>>>) {
+        let received = std::rc::Rc::default();
+        let t = Talker {
+            mac: MacId::new(mac).unwrap(),
+            script,
+            queue: VecDeque::new(),
+            received: std::rc::Rc::clone(&received),
+        };
+        (Box::new(t), received)
+    }
+
+    fn drain(bus: &mut SimBus, until: Instant) -> Vec<BusEvent> {
+        std::iter::from_fn(|| bus.recv(until).unwrap()).collect()
+    }
+
+    #[test]
+    fn lowest_identifier_wins_among_frames_pending_together() {
+        let mut bus = SimBus::new(Bitrate::K250);
+        let (a, _) = talker(5, vec![frame(0x42B, &[1]), frame(0x42B, &[2])]);
+        let (b, _) = talker(6, vec![frame(0x3C6, &[3])]);
+        bus.attach(a, PowerOn::AtStart);
+        bus.attach(b, PowerOn::AtStart);
+        bus.send(&frame(0x407, &[0])).unwrap();
+        let ids: Vec<u16> =
+            drain(&mut bus, Instant::from_secs(1)).iter().map(|e| e.frame.id().as_raw()).collect();
+        // All pending at t = 0: 0x3C6 < 0x407 < 0x42B; device 5's second frame waits its turn.
+        assert_eq!(ids, vec![0x3C6, 0x407, 0x42B, 0x42B]);
+    }
+
+    #[test]
+    fn frames_take_their_time_on_the_wire_and_receivers_see_them_at_the_end() {
+        let mut bus = SimBus::new(Bitrate::K250);
+        let (a, received) = talker(5, vec![]);
+        bus.attach(a, PowerOn::AtStart);
+        let f = frame(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]);
+        bus.send(&f).unwrap();
+        bus.send(&f).unwrap();
+        let events = drain(&mut bus, Instant::from_secs(1));
+        let bits = u64::from(frame_bits(&f));
+        let first_end = (bits - 3) * 4; // 4 µs per bit at 250 kbit/s
+        assert_eq!(events[0].at, Instant::from_micros(first_end));
+        assert_eq!(events[0].origin, Origin::Local);
+        assert_eq!(events[1].at, Instant::from_micros(bits * 4 + first_end));
+        assert_eq!(received.borrow()[0].0, events[0].at);
+        assert_eq!(bus.now(), Instant::from_secs(1));
+    }
+
+    #[test]
+    fn devices_power_on_when_the_master_is_online() {
+        let mut bus = SimBus::new(Bitrate::K500);
+        let (a, _) = talker(5, vec![frame(0x42F, &[0; 7])]);
+        bus.attach(a, PowerOn::WhenMasterOnline);
+        assert!(drain(&mut bus, Instant::from_secs(2)).is_empty());
+        bus.hint(Hint::MasterOnline);
+        let events = drain(&mut bus, Instant::from_secs(3));
+        assert_eq!(events.len(), 1);
+        assert!(events[0].at > Instant::from_secs(2));
+        assert_eq!(events[0].origin, Origin::Remote);
+    }
+
+    #[test]
+    fn power_on_hint_at_a_recorded_time() {
+        let mut bus = SimBus::new(Bitrate::K250);
+        let (a, _) = talker(7, vec![frame(0x43F, &[0; 7])]);
+        bus.attach(a, PowerOn::WhenMasterOnline);
+        bus.hint(Hint::PowerOn { mac: MacId::new(7).unwrap(), at: Instant::from_millis(1500) });
+        bus.hint(Hint::MasterOnline); // no effect any more: the hint decided
+        let events = drain(&mut bus, Instant::from_secs(3));
+        assert_eq!(events.len(), 1);
+        assert!(events[0].at > Instant::from_millis(1500) && events[0].at < Instant::from_millis(1501));
+    }
+
+    #[test]
+    fn known_stuffing() {
+        // Identifier 0 and all-zero data stuff heavily; alternating bits not at all.
+        let zeros = frame(0x000, &[0; 8]);
+        assert!(frame_bits(&zeros) > 47 + 64 + 15);
+        let f = frame(0x555, &[0x55; 8]);
+        assert!(frame_bits(&f) <= f.worst_case_bits());
+    }
+
+    proptest! {
+        #[test]
+        fn bit_count_between_unstuffed_and_worst_case(id in 0u16..=0x7FF, data in proptest::collection::vec(any::<u8>(), 0..=8)) {
+            let f = frame(id, &data);
+            let bits = frame_bits(&f);
+            prop_assert!(bits >= 47 + 8 * data.len() as u32);
+            prop_assert!(bits <= f.worst_case_bits());
+        }
+    }
+}

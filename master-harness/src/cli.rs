@@ -1,0 +1,710 @@
+//! The `dnet-master` command line: options, bus opening, and the human and JSON reports.
+//!
+//! Exit status: 0 when every check holds, 1 when a check failed, the device diverged, timed out
+//! or answered with an error, 2 for a usage error (bad option, unknown bus, bad file).
+
+use crate::bus::sim::{PowerOn, SimBus};
+use crate::bus::{Bitrate, Bus, BusSpec};
+use crate::client::ReplyBody;
+use crate::decode::{self, Decoder};
+use crate::error::HarnessError;
+use crate::log::{format_line, read_log, LogWriter};
+use crate::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
+use crate::monitor::{self, MonitorOptions};
+use crate::replay::{self, ReplayOptions};
+use crate::scan::{self, ScanReport};
+use crate::session::{Record, Session, Verdict};
+use crate::soft_slave::SoftSlave;
+use clap::{Parser, Subcommand};
+use devicenet::explicit::ServiceCode;
+use devicenet::{Duration, Instant, MacId};
+use serde::Serialize;
+use serde_json::json;
+use std::ffi::OsString;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Parses a MAC ID: `0..=63`, decimal or `0x` hex.
+pub fn parse_mac(s: &str) -> Result<MacId, String> {
+    let v = parse_number(s)?;
+    u8::try_from(v).ok().and_then(MacId::new).ok_or_else(|| format!("MAC ID {s} is out of range 0..=63"))
+}
+
+/// Parses a decimal or `0x` hexadecimal number.
+pub fn parse_number(s: &str) -> Result<u32, String> {
+    let t = s.trim();
+    let r = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
+        Some(h) => u32::from_str_radix(h, 16),
+        None => t.parse::<u32>(),
+    };
+    r.map_err(|_| format!("'{s}' is not a number (decimal, or hex with 0x)"))
+}
+
+fn parse_u16(s: &str) -> Result<u16, String> {
+    u16::try_from(parse_number(s)?).map_err(|_| format!("{s} does not fit in 16 bits"))
+}
+
+fn parse_u8(s: &str) -> Result<u8, String> {
+    u8::try_from(parse_number(s)?).map_err(|_| format!("{s} does not fit in 8 bits"))
+}
+
+/// Parses hex bytes: `0201`, `02 01`, `02:01`, `02-01`.
+pub fn parse_hex(s: &str) -> Result<Vec<u8>, String> {
+    let digits: String = s.chars().filter(|c| !matches!(c, ' ' | ':' | '-' | '_')).collect();
+    let digits = digits.strip_prefix("0x").unwrap_or(&digits);
+    if digits.len() % 2 != 0 {
+        return Err(format!("'{s}': odd number of hex digits"));
+    }
+    (0..digits.len())
+        .step_by(2)
+        .map(|i| {
+            digits
+                .get(i..i + 2)
+                .and_then(|d| u8::from_str_radix(d, 16).ok())
+                .ok_or_else(|| format!("'{s}': invalid hex digit at position {}", i + 1))
+        })
+        .collect()
+}
+
+/// When the simulated slaves power on (`--slave-power-on`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PowerOnArg(pub PowerOn);
+
+impl std::str::FromStr for PowerOnArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "master-online" => Ok(PowerOnArg(PowerOn::WhenMasterOnline)),
+            "start" => Ok(PowerOnArg(PowerOn::AtStart)),
+            ms => parse_number(ms)
+                .map(|ms| PowerOnArg(PowerOn::At(Instant::from_millis(u64::from(ms)))))
+                .map_err(|_| format!("'{s}': expected master-online, start, or a time in ms")),
+        }
+    }
+}
+
+/// `dnet-master`: a bench DeviceNet master.
+#[derive(Debug, Parser)]
+#[command(name = "dnet-master", version, about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes candump logs.", long_about = None)]
+pub struct Cli {
+    /// The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD].
+    #[arg(long, global = true, default_value = "sim")]
+    pub bus: BusSpec,
+    /// The master's MAC ID.
+    #[arg(long, global = true, default_value = "0", value_parser = parse_mac)]
+    pub master_mac: MacId,
+    /// CAN bit rate: 125k, 250k or 500k (sim and slcan).
+    #[arg(long, global = true, default_value = "250k")]
+    pub bitrate: Bitrate,
+    /// Write every frame seen to FILE in candump -L format.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// Print a machine-readable JSON result instead of text.
+    #[arg(long, global = true)]
+    pub json: bool,
+    /// Also print the frame-by-frame table (connect and replay always do).
+    #[arg(long, global = true)]
+    pub frames: bool,
+    /// Explicit response timeout in ms.
+    #[arg(long, global = true, default_value_t = 1000, value_name = "MS")]
+    pub timeout: u64,
+    /// sim: pace the simulation in real time.
+    #[arg(long, global = true)]
+    pub realtime: bool,
+    /// sim: MAC IDs of the simulated slaves (comma-separated).
+    #[arg(long, global = true, value_delimiter = ',', default_value = "5", value_parser = parse_mac)]
+    pub slave_mac: Vec<MacId>,
+    /// sim: a device description file for the soft slave (not supported yet).
+    #[arg(long, global = true, value_name = "FILE")]
+    pub slave_config: Option<PathBuf>,
+    /// sim: when the slaves power on: master-online (as in the capture), start, or a time in ms.
+    #[arg(long, global = true, default_value = "master-online", value_name = "WHEN")]
+    pub slave_power_on: PowerOnArg,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// The full bring-up of devicenet-notes §2, every frame checked.
+    Connect {
+        /// The device's MAC ID.
+        #[arg(long, default_value = "5", value_parser = parse_mac)]
+        mac: MacId,
+        /// Expected packet rate of the poll connection, ms.
+        #[arg(long, default_value_t = 100)]
+        epr: u16,
+        /// Poll cycles after the connection is established.
+        #[arg(long, default_value_t = 1)]
+        polls: u32,
+        /// Poll output data in hex (default: zeros of the consumed size).
+        #[arg(long, value_parser = parse_hex)]
+        output: Option<Vec<u8>>,
+        /// Read the connection states back and check the 4 x EPR watchdog (adds frames).
+        #[arg(long)]
+        verify_state: bool,
+    },
+    /// Replay a candump -L transcript against the device at MAC N.
+    Replay {
+        /// The transcript (candump -L).
+        transcript: PathBuf,
+        /// The device under test.
+        #[arg(long, value_parser = parse_mac)]
+        mac: MacId,
+        /// How late an expected frame may be, ms.
+        #[arg(long, default_value_t = 1000)]
+        tolerance: u64,
+        /// How long to watch for extra frames after the transcript, ms.
+        #[arg(long, default_value_t = 500)]
+        settle: u64,
+    },
+    /// Find every device: identity and I/O sizes.
+    Scan {
+        /// First MAC ID.
+        #[arg(long, default_value_t = 0, value_parser = parse_u8)]
+        from: u8,
+        /// Last MAC ID.
+        #[arg(long, default_value_t = 63, value_parser = parse_u8)]
+        to: u8,
+    },
+    /// Get_Attribute_Single.
+    Get {
+        /// Device MAC ID.
+        #[arg(value_parser = parse_mac)]
+        mac: MacId,
+        /// Class ID.
+        #[arg(value_parser = parse_u16)]
+        class: u16,
+        /// Instance ID.
+        #[arg(value_parser = parse_u16)]
+        instance: u16,
+        /// Attribute ID.
+        #[arg(value_parser = parse_u8)]
+        attribute: u8,
+    },
+    /// Set_Attribute_Single.
+    Set {
+        /// Device MAC ID.
+        #[arg(value_parser = parse_mac)]
+        mac: MacId,
+        /// Class ID.
+        #[arg(value_parser = parse_u16)]
+        class: u16,
+        /// Instance ID.
+        #[arg(value_parser = parse_u16)]
+        instance: u16,
+        /// Attribute ID.
+        #[arg(value_parser = parse_u8)]
+        attribute: u8,
+        /// The value in hex.
+        #[arg(value_parser = parse_hex)]
+        value: Vec<u8>,
+    },
+    /// Connect, then show the polled data decoded by the device profile.
+    Monitor {
+        /// The device's MAC ID.
+        #[arg(long, default_value = "5", value_parser = parse_mac)]
+        mac: MacId,
+        /// Poll period (expected packet rate), ms.
+        #[arg(long, default_value_t = 100)]
+        epr: u16,
+        /// Poll output data in hex (e.g. 0201 closes the breaker).
+        #[arg(long, value_parser = parse_hex)]
+        output: Option<Vec<u8>>,
+        /// Record every sample in FILE (CSV).
+        #[arg(long, value_name = "FILE")]
+        csv: Option<PathBuf>,
+        /// Stop after K samples.
+        #[arg(long)]
+        count: Option<u64>,
+        /// Stop after this many seconds of monitoring (bus time; sim default 10 s unless --realtime).
+        #[arg(long)]
+        duration: Option<f64>,
+    },
+    /// Pretty-print a candump -L log as DeviceNet messages.
+    Decode {
+        /// The log.
+        logfile: PathBuf,
+    },
+}
+
+/// Opens the bus the options name.
+pub fn open_bus(cli: &Cli) -> Result<Box<dyn Bus>, HarnessError> {
+    match &cli.bus {
+        BusSpec::Sim => {
+            if let Some(path) = &cli.slave_config {
+                return Err(HarnessError::Usage(format!(
+                    "--slave-config {}: device description files are not supported yet (they come with slave_fw::description); use --slave-mac",
+                    path.display()
+                )));
+            }
+            let mut bus = SimBus::new(cli.bitrate);
+            let mut seen = Vec::new();
+            for &mac in &cli.slave_mac {
+                if seen.contains(&mac) {
+                    return Err(HarnessError::Usage(format!("--slave-mac {mac} given twice")));
+                }
+                seen.push(mac);
+                bus.attach(Box::new(SoftSlave::reference(mac)), cli.slave_power_on.0);
+            }
+            bus.set_realtime(cli.realtime);
+            Ok(Box::new(bus))
+        }
+        #[cfg(target_os = "linux")]
+        BusSpec::SocketCan { iface } => Ok(Box::new(crate::bus::socketcan::SocketCanBus::open(iface)?)),
+        #[cfg(not(target_os = "linux"))]
+        BusSpec::SocketCan { .. } => Err(HarnessError::Usage("SocketCAN is only available on Linux".into())),
+        BusSpec::Slcan { path, baud } => Ok(Box::new(crate::bus::slcan::open(path, *baud, cli.bitrate)?)),
+    }
+}
+
+/// One record as JSON.
+#[derive(Serialize)]
+struct RecordJson<'a> {
+    index: usize,
+    time_us: u64,
+    direction: &'a str,
+    id: String,
+    data: String,
+    meaning: &'a str,
+    verdict: &'static str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    note: Option<&'a str>,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    failures: Vec<&'a str>,
+}
+
+fn record_json<'a>(r: &'a Record, device: Option<MacId>) -> RecordJson<'a> {
+    let (verdict, note, failures) = match &r.verdict {
+        Verdict::Sent => ("sent", None, Vec::new()),
+        Verdict::Ok(n) => ("ok", Some(n.as_str()), Vec::new()),
+        Verdict::Fail(f) => ("fail", None, f.iter().map(String::as_str).collect()),
+        Verdict::Info(n) => ("info", Some(n.as_str()), Vec::new()),
+        Verdict::Unchecked => ("unchecked", None, Vec::new()),
+    };
+    RecordJson {
+        index: r.index,
+        time_us: r.at.total_micros(),
+        direction: r.direction(device),
+        id: format!("{:03X}", r.frame.id().as_raw()),
+        data: decode::hex(r.frame.data()).replace(' ', ""),
+        meaning: &r.meaning,
+        verdict,
+        note,
+        failures,
+    }
+}
+
+/// Prints the frame-by-frame table: index, time, direction, identifier, data, meaning, verdict.
+pub fn print_table(out: &mut dyn Write, records: &[Record], device: Option<MacId>) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{:>4}  {:>14}  {:<3}  {:<3}  {:<23}  {:<70}  verdict",
+        "#", "time", "dir", "id", "data", "meaning"
+    )?;
+    for r in records {
+        writeln!(
+            out,
+            "{:>4}  {:>14}  {:<3}  {:03X}  {:<23}  {:<70}  {}",
+            r.index,
+            r.at.to_string(),
+            r.direction(device),
+            r.frame.id().as_raw(),
+            decode::hex(r.frame.data()),
+            r.meaning,
+            r.verdict.label()
+        )?;
+    }
+    Ok(())
+}
+
+/// What a command produced, for printing.
+struct Outcome {
+    /// The command's own result, as JSON and as text lines.
+    json: serde_json::Value,
+    text: String,
+    /// Exit status.
+    code: u8,
+}
+
+fn exit_code(e: &HarnessError) -> u8 {
+    match e {
+        HarnessError::Usage(_) | HarnessError::Log(_) => 2,
+        _ => 1,
+    }
+}
+
+/// Runs `dnet-master` with `args` (the program name first), writing to `out` and `err`; returns
+/// the exit status. `terminal` says whether `out` is a terminal (monitor refreshes in place).
+pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write, terminal: bool) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let text = e.render().to_string();
+            let code = u8::try_from(e.exit_code()).unwrap_or(2);
+            let _ = if code == 0 { write!(out, "{text}") } else { write!(err, "{text}") };
+            return code;
+        }
+    };
+    match execute(&cli, out, terminal) {
+        Ok(code) => code,
+        Err(e) => {
+            if cli.json {
+                let _ = writeln!(out, "{}", json!({ "ok": false, "error": e.to_string() }));
+            }
+            let _ = writeln!(err, "error: {e}");
+            exit_code(&e)
+        }
+    }
+}
+
+fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, HarnessError> {
+    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    if let Command::Decode { logfile } = &cli.command {
+        return decode_command(cli, logfile, out).map_err(|e| match e {
+            HarnessError::Write { source, .. } => werr(source),
+            other => other,
+        });
+    }
+    // Read input files before touching the bus.
+    let transcript = match &cli.command {
+        Command::Replay { transcript, .. } => Some(read_log(transcript)?),
+        _ => None,
+    };
+    let mut bus = open_bus(cli)?;
+    let mut session = Session::new(bus.as_mut());
+    if let Some(path) = &cli.log {
+        let log = LogWriter::create(path)
+            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+        session.set_log(log);
+    }
+    let config = MasterConfig {
+        mac: cli.master_mac,
+        response_timeout: Duration::from_millis(cli.timeout.max(1)),
+        ..MasterConfig::default()
+    };
+    let (result, device): (Result<Outcome, HarnessError>, Option<MacId>) = match &cli.command {
+        Command::Connect { mac, epr, polls, output, verify_state } => {
+            let opts = ConnectOptions {
+                target: *mac,
+                epr_ms: *epr,
+                polls: *polls,
+                output: output.clone(),
+                verify_state: *verify_state,
+            };
+            let mut master = Master::new(&mut session, config);
+            (master.connect(&opts).map(|s| connect_outcome(&s)), Some(*mac))
+        }
+        Command::Replay { mac, tolerance, settle, .. } => {
+            let opts = ReplayOptions {
+                device: *mac,
+                tolerance: Duration::from_millis(*tolerance),
+                settle: Duration::from_millis(*settle),
+            };
+            let entries = transcript.unwrap_or_default();
+            let r = replay::replay(&mut session, &entries, &opts).map(|s| Outcome {
+                text: format!(
+                    "replay held: {} frames, {} from the device compared byte for byte, {} stimulus frames sent",
+                    s.frames, s.expected, s.stimulus
+                ),
+                json: json!({ "summary": s }),
+                code: 0,
+            });
+            (r, Some(*mac))
+        }
+        Command::Scan { from, to } => {
+            let mut master = Master::new(&mut session, config);
+            (scan::scan(&mut master, *from, *to).map(|r| scan_outcome(&r)), None)
+        }
+        Command::Get { mac, class, instance, attribute } => {
+            let mut master = Master::new(&mut session, config);
+            let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, None);
+            (r, Some(*mac))
+        }
+        Command::Set { mac, class, instance, attribute, value } => {
+            let mut master = Master::new(&mut session, config);
+            let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(value));
+            (r, Some(*mac))
+        }
+        Command::Monitor { mac, epr, output, csv, count, duration } => {
+            let duration = match duration {
+                Some(d) if !(d.is_finite() && *d >= 0.0) => {
+                    return Err(HarnessError::Usage(format!("--duration {d}: expected seconds >= 0")))
+                }
+                Some(d) => Some(Duration::from_micros((d * 1e6) as u64)),
+                None if cli.bus == BusSpec::Sim && !cli.realtime && count.is_none() => {
+                    Some(Duration::from_secs(10))
+                }
+                None => None,
+            };
+            let opts = MonitorOptions {
+                connect: ConnectOptions {
+                    target: *mac,
+                    epr_ms: *epr,
+                    polls: 0,
+                    output: output.clone(),
+                    verify_state: false,
+                },
+                count: *count,
+                duration,
+                in_place: terminal && !cli.json,
+            };
+            let mut csv_file = match csv {
+                Some(p) => Some(std::io::BufWriter::new(
+                    std::fs::File::create(p)
+                        .map_err(|source| HarnessError::Write { path: p.display().to_string(), source })?,
+                )),
+                None => None,
+            };
+            let mut master = Master::new(&mut session, config);
+            let mut sink = std::io::sink();
+            let screen: &mut dyn Write = if cli.json { &mut sink } else { out };
+            let r =
+                monitor::monitor(&mut master, &opts, screen, csv_file.as_mut().map(|f| f as &mut dyn Write));
+            if let Some(f) = &mut csv_file {
+                f.flush().map_err(|source| HarnessError::Write { path: "the CSV file".into(), source })?;
+            }
+            let r = r.map(|samples| Outcome {
+                text: format!("{} samples", samples.len()),
+                json: json!({ "samples": samples }),
+                code: 0,
+            });
+            (r, Some(*mac))
+        }
+        Command::Decode { .. } => unreachable!("handled above"),
+    };
+    session.flush()?;
+    let failures = session.failures();
+    let show_table = cli.frames || matches!(cli.command, Command::Connect { .. } | Command::Replay { .. });
+    let records = session.records();
+    let (mut code, error_text, payload) = match result {
+        Ok(o) => (o.code, None, Some(o)),
+        Err(e) => (exit_code(&e), Some(e), None),
+    };
+    if failures > 0 && code == 0 {
+        code = 1;
+    }
+    if cli.json {
+        let frames: Vec<RecordJson<'_>> = records.iter().map(|r| record_json(r, device)).collect();
+        let mut v = json!({ "ok": code == 0, "failures": failures, "frames": frames });
+        if let Some(p) = &payload {
+            if let (Some(obj), Some(extra)) = (v.as_object_mut(), p.json.as_object()) {
+                for (k, val) in extra {
+                    obj.insert(k.clone(), val.clone());
+                }
+            }
+        }
+        if let Some(e) = &error_text {
+            v["error"] = json!(e.to_string());
+            if let HarnessError::Divergence(d) = e {
+                v["divergence"] = json!(d);
+            }
+        }
+        writeln!(out, "{v}").map_err(werr)?;
+    } else {
+        if show_table {
+            print_table(out, records, device).map_err(werr)?;
+            writeln!(out).map_err(werr)?;
+        }
+        if let Some(p) = &payload {
+            if !p.text.is_empty() {
+                writeln!(out, "{}", p.text).map_err(werr)?;
+            }
+        }
+        if failures > 0 {
+            writeln!(out, "{failures} frame check(s) failed:").map_err(werr)?;
+            for r in records.iter().filter(|r| r.verdict.is_failure()) {
+                writeln!(out, "  #{} {}: {}", r.index, r.frame, r.verdict.label()).map_err(werr)?;
+            }
+        } else if error_text.is_none() && show_table {
+            writeln!(out, "{} frames, every check holds", records.len()).map_err(werr)?;
+        }
+    }
+    match error_text {
+        Some(e) if !cli.json => Err(e),
+        Some(_) => Ok(code),
+        None => Ok(code),
+    }
+}
+
+fn connect_outcome(s: &DeviceSummary) -> Outcome {
+    let hex16 = |v: Option<u16>| v.map_or_else(|| "?".into(), |v| format!("0x{v:04X}"));
+    let num = |v: Option<u16>| v.map_or_else(|| "?".into(), |v| v.to_string());
+    let text = format!(
+        "device MAC {}: {}vendor {}, device type {}, product code {}; poll produced {} / consumed {} bytes, EPR {} ms{}",
+        s.mac,
+        if s.ucmm_capable { "UCMM-capable, " } else { "group-2-only, " },
+        hex16(s.vendor_id),
+        hex16(s.device_type),
+        num(s.product_code),
+        num(s.produced_size),
+        num(s.consumed_size),
+        num(s.expected_packet_rate_ms),
+        s.last_input.as_ref().map_or_else(String::new, |i| format!("; last input {}", decode::hex(i)))
+    );
+    Outcome { json: json!({ "device": s }), text, code: 0 }
+}
+
+fn scan_outcome(r: &ScanReport) -> Outcome {
+    let mut text = format!(
+        "{:>3}  {:<6}  {:<6}  {:>7}  {:<5}  {:<10}  {:<26}  {:<9}  status\n",
+        "MAC", "vendor", "type", "product", "rev", "serial", "name", "poll i/o"
+    );
+    let opt16 = |v: Option<u16>| v.map_or_else(|| "-".into(), |v| format!("0x{v:04X}"));
+    for d in &r.devices {
+        let io = match (d.produced_size, d.consumed_size) {
+            (Some(p), Some(c)) => format!("{p}/{c}"),
+            _ => "-".into(),
+        };
+        text.push_str(&format!(
+            "{:>3}  {:<6}  {:<6}  {:>7}  {:<5}  {:<10}  {:<26}  {:<9}  {}\n",
+            d.mac,
+            opt16(d.vendor_id),
+            opt16(d.device_type),
+            d.product_code.map_or_else(|| "-".into(), |v| v.to_string()),
+            d.revision.clone().unwrap_or_else(|| "-".into()),
+            d.serial_number.map_or_else(|| "-".into(), |v| format!("0x{v:08X}")),
+            d.product_name.clone().unwrap_or_else(|| "-".into()),
+            io,
+            d.status
+        ));
+    }
+    text.push_str(&format!(
+        "{} device(s) found among {} MAC IDs; scan {}, {} with network access",
+        r.devices.len(),
+        r.asked,
+        Duration::from_micros(r.scan_micros),
+        Duration::from_micros(r.total_micros)
+    ));
+    Outcome { json: json!({ "scan": r }), text, code: 0 }
+}
+
+fn explicit_command(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    class_id: u16,
+    instance: u16,
+    attribute: u8,
+    value: Option<&Vec<u8>>,
+) -> Result<Outcome, HarnessError> {
+    master.open_explicit(mac)?;
+    let mut data = vec![attribute];
+    let service = match value {
+        Some(v) => {
+            data.extend_from_slice(v);
+            ServiceCode::SetAttributeSingle
+        }
+        None => ServiceCode::GetAttributeSingle,
+    };
+    let req = devicenet::explicit::Request { service, class: class_id, instance, data: &data };
+    let what = decode::request_text(&req);
+    let answer = master.request(mac, crate::client::Port::Explicit, &req)?;
+    // Polite: give the explicit connection back.
+    let released = master.release(mac, devicenet::messages::AllocationChoice::EXPLICIT);
+    let target = format!(
+        "{} inst {instance} {}",
+        decode::class_text(class_id),
+        decode::attribute_text(class_id, instance, attribute)
+    );
+    let outcome = match answer.reply.body {
+        ReplyBody::Success(bytes) => {
+            let shown = if value.is_some() && bytes.is_empty() {
+                "success".to_string()
+            } else {
+                decode::value_text(class_id, instance, attribute, &bytes)
+            };
+            let frag = if answer.reply.fragmented { " (fragmented response)" } else { "" };
+            Outcome {
+                text: format!("MAC {mac} {target}: {shown}{frag}\nhex: {}", decode::hex(&bytes)),
+                json: json!({ "request": what, "value": shown, "hex": decode::hex(&bytes).replace(' ', ""), "fragmented": answer.reply.fragmented }),
+                code: 0,
+            }
+        }
+        ReplyBody::Error { general, additional } => {
+            let text = decode::error_text(general, additional);
+            if let Some(i) = answer.record {
+                let v = master.session.record(i).verdict.clone();
+                master.session.set_verdict(i, v.with_failures(vec![format!("error response: {text}")]));
+            }
+            return Err(HarnessError::ErrorResponse { what, mac: mac.as_raw(), general, additional, text });
+        }
+    };
+    released?;
+    Ok(outcome)
+}
+
+fn decode_command(cli: &Cli, logfile: &std::path::Path, out: &mut dyn Write) -> Result<u8, HarnessError> {
+    let entries = read_log(logfile)?;
+    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    let mut decoder = Decoder::new();
+    let mut items = Vec::new();
+    for e in &entries {
+        let d = decoder.decode(&e.frame);
+        if cli.json {
+            items.push(json!({
+                "line": e.line,
+                "time_us": e.at.total_micros(),
+                "iface": e.iface,
+                "frame": e.frame.to_string(),
+                "meaning": d.summary,
+                "message": d.message,
+            }));
+        } else {
+            writeln!(out, "{:<40} {}", format_line(e.at, &e.iface, &e.frame), d.summary).map_err(werr)?;
+            if let Some(m) = &d.message {
+                writeln!(out, "{:<40}   => {m}", "").map_err(werr)?;
+            }
+        }
+    }
+    if cli.json {
+        writeln!(out, "{}", json!({ "ok": true, "frames": items })).map_err(werr)?;
+    }
+    Ok(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+
+    #[rstest]
+    #[case::plain("0201", vec![2, 1])]
+    #[case::spaced("02 01", vec![2, 1])]
+    #[case::colons("de:ad:BE:ef", vec![0xDE, 0xAD, 0xBE, 0xEF])]
+    #[case::empty("", vec![])]
+    fn hex_values(#[case] text: &str, #[case] bytes: Vec<u8>) {
+        assert_eq!(parse_hex(text), Ok(bytes));
+    }
+
+    #[rstest]
+    #[case::odd("021")]
+    #[case::bad("0G")]
+    fn bad_hex(#[case] text: &str) {
+        assert!(parse_hex(text).is_err());
+    }
+
+    #[rstest]
+    #[case::dec("5", 5)]
+    #[case::hex("0x3F", 63)]
+    fn macs(#[case] text: &str, #[case] mac: u8) {
+        assert_eq!(parse_mac(text).map(|m| m.as_raw()), Ok(mac));
+    }
+
+    #[test]
+    fn mac_out_of_range() {
+        assert!(parse_mac("64").unwrap_err().contains("0..=63"));
+        assert!(parse_mac("five").is_err());
+    }
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
+    }
+}

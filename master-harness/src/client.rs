@@ -1,0 +1,488 @@
+//! The master's side of one explicit transaction with one device, as a sans-IO state machine:
+//! the request goes out (fragmented with acknowledgements when longer than 8 bytes, notes §4.1),
+//! the response comes back (reassembled and acknowledged when fragmented), and every response frame
+//! is checked: identifier, header MAC (the master's), echoed XID, fragment protocol and the service
+//! byte (`request | 0x80`, or `0x94` for an error response).
+//!
+//! Several transactions with different devices can run at once (`scan` does); a blocking driver for
+//! one transaction is [`run`].
+//!
+//! Calling order, as for the core's state machines: after [`Transaction::start`] and after every
+//! input, drain [`Transaction::poll_transmit`], then check [`Transaction::is_done`], then wait until
+//! [`Transaction::poll_at`] and call [`Transaction::handle_timeout`].
+
+use crate::decode::hex;
+use crate::error::HarnessError;
+use crate::session::{is_from_device, Session, Verdict};
+use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
+use devicenet::fragment::{
+    AbortReason, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter, FragmentKind,
+    TransmitEvent,
+};
+use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use std::collections::VecDeque;
+
+/// Largest explicit message (header included) the master sends or reassembles.
+pub const MAX_MESSAGE: usize = 1024;
+
+/// The default explicit response timeout (`--timeout`): how long the master waits for a response,
+/// or for the next fragment of one, before it gives up. Not specified publicly (notes §9.4); 1 s
+/// matches the fragment acknowledge timeout of a conformance-tested slave (JB).
+pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// Where a request is sent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Port {
+    /// The explicit connection (Group 2 message 4).
+    Explicit,
+    /// The Group 2 Only Unconnected Explicit Request port (Group 2 message 6): Allocate/Release.
+    Group2Only,
+}
+
+/// What the device answered.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ReplyBody {
+    /// Success: the service response data.
+    Success(Vec<u8>),
+    /// Error response.
+    Error {
+        /// General status.
+        general: GeneralStatus,
+        /// Additional code.
+        additional: u8,
+    },
+}
+
+/// A complete response.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Reply {
+    /// The response header.
+    pub header: Header,
+    /// The answer.
+    pub body: ReplyBody,
+    /// `true` when it came in fragments.
+    pub fragmented: bool,
+    /// Bytes of the whole message (header + body).
+    pub message_len: usize,
+}
+
+impl Reply {
+    /// The success data, or `None` for an error response.
+    pub fn data(&self) -> Option<&[u8]> {
+        match &self.body {
+            ReplyBody::Success(d) => Some(d),
+            ReplyBody::Error { .. } => None,
+        }
+    }
+}
+
+/// Why a transaction failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ClientError {
+    /// The named timeout expired.
+    Timeout {
+        /// The timeout's name.
+        name: &'static str,
+        /// Its length.
+        after: Duration,
+    },
+    /// The device refused a request fragment (ack status) or never acknowledged it.
+    RequestAborted(String),
+}
+
+/// What became of a frame handed to [`Transaction::handle_frame`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Handled {
+    /// Not part of this transaction.
+    NotMine,
+    /// Part of it, with this verdict.
+    Frame(Verdict),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    Idle,
+    /// Sending a fragmented request.
+    Sending,
+    /// Waiting for the response (or its next fragment) until the deadline.
+    Awaiting {
+        deadline: Instant,
+    },
+    Done,
+}
+
+/// One explicit request/response exchange with one device. See the [module docs](self).
+pub struct Transaction {
+    target: MacId,
+    master: MacId,
+    port: Port,
+    xid: bool,
+    message: Vec<u8>,
+    service: ServiceCode,
+    timeout: Duration,
+    state: State,
+    tx: Box<ExplicitTransmitter<MAX_MESSAGE>>,
+    rx: Box<ExplicitReassembler<MAX_MESSAGE>>,
+    out: VecDeque<CanFrame>,
+    outcome: Option<Result<Reply, ClientError>>,
+}
+
+impl Transaction {
+    /// A transaction sending `request` (in body format `format`) from `master` to `target`.
+    pub fn new(
+        target: MacId,
+        master: MacId,
+        port: Port,
+        xid: bool,
+        request: &Request<'_>,
+        format: BodyFormat,
+        timeout: Duration,
+    ) -> Result<Transaction, HarnessError> {
+        let len = request.buffer_len(format).unwrap_or(0);
+        let mut message = vec![0u8; 1 + len];
+        message[0] = Header::new(xid, master).to_byte();
+        request
+            .emit(format, &mut message[1..])
+            .map_err(|e| HarnessError::Usage(format!("cannot build the request: {e}")))?;
+        if message.len() > MAX_MESSAGE {
+            return Err(HarnessError::Usage(format!(
+                "the request is {} bytes; the master sends at most {MAX_MESSAGE}",
+                message.len()
+            )));
+        }
+        Ok(Transaction {
+            target,
+            master,
+            port,
+            xid,
+            message,
+            service: request.service,
+            timeout,
+            state: State::Idle,
+            tx: Box::new(ExplicitTransmitter::new()),
+            rx: Box::new(ExplicitReassembler::new()),
+            out: VecDeque::new(),
+            outcome: None,
+        })
+    }
+
+    /// The device.
+    pub fn target(&self) -> MacId {
+        self.target
+    }
+
+    /// The service requested.
+    pub fn service(&self) -> ServiceCode {
+        self.service
+    }
+
+    fn request_id(&self) -> devicenet::CanId {
+        let message = match self.port {
+            Port::Explicit => Group2Message::ExplicitRequest,
+            Port::Group2Only => Group2Message::UnconnectedExplicitRequest,
+        };
+        Identifier::group2(self.target, message)
+    }
+
+    fn response_id(&self) -> devicenet::CanId {
+        Identifier::group2(self.target, Group2Message::ExplicitResponse)
+    }
+
+    fn ack_id(&self) -> devicenet::CanId {
+        Identifier::group2(self.target, Group2Message::ExplicitRequest)
+    }
+
+    fn queue(&mut self, id: devicenet::CanId, data: &[u8]) {
+        if let Ok(f) = CanFrame::new(id, data) {
+            self.out.push_back(f);
+        }
+    }
+
+    /// Starts the exchange at `now`.
+    pub fn start(&mut self, now: Instant) {
+        if self.message.len() <= 8 {
+            let (id, message) = (self.request_id(), self.message.clone());
+            self.queue(id, &message);
+            self.state = State::Awaiting { deadline: now + self.timeout };
+        } else {
+            // Cannot fail: the message is longer than 8 and within MAX_MESSAGE, the transmitter idle.
+            let _ = self.tx.start(&self.message, now);
+            self.state = State::Sending;
+            self.pump(now);
+        }
+    }
+
+    fn pump(&mut self, now: Instant) {
+        let id = self.request_id();
+        while let Some(p) = self.tx.poll_transmit(now) {
+            self.queue(id, &p);
+        }
+        while let Some(ev) = self.tx.poll_event(now) {
+            match ev {
+                TransmitEvent::Completed => self.state = State::Awaiting { deadline: now + self.timeout },
+                TransmitEvent::Aborted(AbortReason::AckTimeout) => self.finish(Err(ClientError::RequestAborted(
+                    "request fragment not acknowledged, also after one re-send (fragment acknowledge timeout)".into(),
+                ))),
+                TransmitEvent::Aborted(AbortReason::Rejected(status)) => self.finish(Err(
+                    ClientError::RequestAborted(format!("the device rejected a request fragment: ack status {status}")),
+                )),
+            }
+        }
+    }
+
+    fn finish(&mut self, outcome: Result<Reply, ClientError>) {
+        self.state = State::Done;
+        self.outcome = Some(outcome);
+    }
+
+    /// The next frame to send.
+    pub fn poll_transmit(&mut self) -> Option<CanFrame> {
+        self.out.pop_front()
+    }
+
+    /// When [`Transaction::handle_timeout`] is due.
+    pub fn poll_at(&self) -> Option<Instant> {
+        match self.state {
+            State::Idle | State::Done => None,
+            State::Sending => self.tx.poll_at(),
+            State::Awaiting { deadline } => Some(deadline),
+        }
+    }
+
+    /// Runs the timers due at `now`.
+    pub fn handle_timeout(&mut self, now: Instant) {
+        match self.state {
+            State::Sending => self.pump(now),
+            State::Awaiting { deadline } if now >= deadline => {
+                let name = if self.rx.in_progress() {
+                    "response fragment timeout"
+                } else {
+                    "explicit response timeout"
+                };
+                self.finish(Err(ClientError::Timeout { name, after: self.timeout }));
+            }
+            _ => {}
+        }
+    }
+
+    /// `true` once the outcome is known.
+    pub fn is_done(&self) -> bool {
+        self.state == State::Done
+    }
+
+    /// The outcome, once.
+    pub fn take_outcome(&mut self) -> Option<Result<Reply, ClientError>> {
+        self.outcome.take()
+    }
+
+    /// Takes a frame seen on the bus (from another node) at `now`.
+    pub fn handle_frame(&mut self, frame: &CanFrame, now: Instant) -> Handled {
+        if frame.id() != self.response_id() || matches!(self.state, State::Idle | State::Done) {
+            return Handled::NotMine;
+        }
+        let data = frame.data();
+        let Some(&first) = data.first() else {
+            return Handled::Frame(Verdict::fail("empty response frame (DLC 0)"));
+        };
+        let header = Header::from_byte(first);
+        let mut failures = Vec::new();
+        if header.mac != self.master {
+            failures.push(format!("header MAC {}, expected the master's MAC {}", header.mac, self.master));
+        }
+        if header.xid != self.xid {
+            failures.push(format!(
+                "XID {} not echoed (request XID {})",
+                u8::from(header.xid),
+                u8::from(self.xid)
+            ));
+        }
+        if header.fragmented {
+            return Handled::Frame(self.fragment(frame, now, failures));
+        }
+        if self.state == State::Sending {
+            failures.push("unfragmented response while the request is still being sent".into());
+            return Handled::Frame(Verdict::Fail(failures));
+        }
+        let body = &data[1..];
+        let (reply, mut more) = self.check_body(header, body, false, data.len());
+        failures.append(&mut more);
+        let note =
+            format!("response to {} checked: identifier, header MAC, XID, service", self.service_name());
+        self.finish(Ok(reply));
+        Handled::Frame(Verdict::Ok(note).with_failures(failures))
+    }
+
+    fn service_name(&self) -> String {
+        self.service.name().map_or_else(|| format!("service 0x{:02X}", self.service.as_raw()), String::from)
+    }
+
+    /// Checks a whole response body and builds the reply.
+    fn check_body(&self, header: Header, body: &[u8], fragmented: bool, len: usize) -> (Reply, Vec<String>) {
+        let mut failures = Vec::new();
+        let body_out = match Response::parse(body) {
+            Ok(Response::Success { service, data }) => {
+                if service != self.service {
+                    failures.push(format!(
+                        "service byte 0x{:02X}, expected 0x{:02X} ({} | 0x80)",
+                        0x80 | service.as_raw(),
+                        0x80 | self.service.as_raw(),
+                        self.service_name()
+                    ));
+                }
+                ReplyBody::Success(data.to_vec())
+            }
+            Ok(Response::Error { general, additional }) => {
+                if body.len() != 3 {
+                    failures.push(format!(
+                        "error response of {} body bytes, expected 3 (94 general additional)",
+                        body.len()
+                    ));
+                }
+                ReplyBody::Error { general, additional }
+            }
+            Err(e) => {
+                failures.push(format!("not a response ({e}): {}", hex(body)));
+                ReplyBody::Success(body.get(1..).unwrap_or(&[]).to_vec())
+            }
+        };
+        (Reply { header, body: body_out, fragmented, message_len: len }, failures)
+    }
+
+    fn fragment(&mut self, frame: &CanFrame, now: Instant, mut failures: Vec<String>) -> Verdict {
+        let data = frame.data();
+        let frag = match ExplicitFragment::parse(data) {
+            Ok(f) => f,
+            Err(e) => {
+                failures.push(format!("malformed fragment: {e}"));
+                return Verdict::Fail(failures);
+            }
+        };
+        if frag.fragment.kind == FragmentKind::Ack {
+            if self.state != State::Sending {
+                failures.push("fragment acknowledge while no request fragment is outstanding".into());
+                return Verdict::Fail(failures);
+            }
+            if data.len() != 3 {
+                failures.push(format!("fragment acknowledge of DLC {}, expected 3", data.len()));
+            }
+            self.tx.handle_ack(data, now);
+            self.pump(now);
+            return Verdict::Ok(format!("acknowledge of request fragment #{}", frag.fragment.count))
+                .with_failures(failures);
+        }
+        if self.state == State::Sending {
+            failures.push("response fragment while the request is still being sent".into());
+            return Verdict::Fail(failures);
+        }
+        let ack_id = self.ack_id();
+        match self.rx.receive(data) {
+            ExplicitReceive::Ack(ack) | ExplicitReceive::Duplicate(ack) => {
+                self.queue(ack_id, &ack);
+                self.state = State::Awaiting { deadline: now + self.timeout };
+                if frag.fragment.kind != FragmentKind::Last && data.len() != 8 {
+                    failures.push(format!(
+                        "{} fragment of DLC {}, expected 8",
+                        frag.fragment.kind,
+                        data.len()
+                    ));
+                }
+                Verdict::Ok(format!(
+                    "response fragment {} #{} acknowledged",
+                    frag.fragment.kind, frag.fragment.count
+                ))
+                .with_failures(failures)
+            }
+            ExplicitReceive::Complete(ack) => {
+                self.queue(ack_id, &ack);
+                let whole = self.rx.message().to_vec();
+                self.rx.reset();
+                let (reply, mut more) = match split_message(&whole) {
+                    Ok((header, body)) => self.check_body(header, body, true, whole.len()),
+                    Err(e) => (
+                        Reply {
+                            header: frag.header,
+                            body: ReplyBody::Success(Vec::new()),
+                            fragmented: true,
+                            message_len: 0,
+                        },
+                        vec![format!("reassembled response is malformed: {e}")],
+                    ),
+                };
+                failures.append(&mut more);
+                self.finish(Ok(reply));
+                Verdict::Ok(format!(
+                    "last response fragment #{} acknowledged; {} reassembled, checked",
+                    frag.fragment.count,
+                    self.service_name()
+                ))
+                .with_failures(failures)
+            }
+            ExplicitReceive::Rejected(ack) => {
+                self.queue(ack_id, &ack);
+                failures.push(format!("response longer than the master's {MAX_MESSAGE}-byte limit"));
+                Verdict::Fail(failures)
+            }
+            ExplicitReceive::Ignored(e) => {
+                failures.push(format!("fragment dropped: {e}"));
+                Verdict::Fail(failures)
+            }
+        }
+    }
+}
+
+/// Judges a frame that is not part of the exchange in progress: a frame from `device` is a failure
+/// ("unexpected"), anything else is other traffic.
+pub fn judge_other(session: &mut Session<'_>, index: usize, device: MacId) {
+    let frame = session.record(index).frame;
+    let verdict = if is_from_device(&frame, device) {
+        Verdict::fail("unexpected frame from the device at this point")
+    } else {
+        Verdict::Info("other traffic".into())
+    };
+    session.set_verdict(index, verdict);
+}
+
+/// Runs one transaction to its end on `session`; returns the reply and the index of the record
+/// that completed it. `other` judges every frame that is not part of it.
+pub fn run(
+    session: &mut Session<'_>,
+    tx: &mut Transaction,
+    mut other: impl FnMut(&mut Session<'_>, usize),
+) -> Result<(Result<Reply, ClientError>, Option<usize>), HarnessError> {
+    let now = session.now();
+    tx.start(now);
+    let mut last = None;
+    loop {
+        while let Some(f) = tx.poll_transmit() {
+            session.send(&f)?;
+        }
+        if tx.is_done() {
+            let outcome = tx.take_outcome().unwrap_or(Err(ClientError::Timeout {
+                name: "explicit response timeout",
+                after: Duration::ZERO,
+            }));
+            return Ok((outcome, last));
+        }
+        let now = session.now();
+        let deadline = tx.poll_at().unwrap_or(now);
+        match session.next(deadline)? {
+            Some(i) => {
+                let rec = session.record(i).clone();
+                if rec.origin == crate::bus::Origin::Local {
+                    continue;
+                }
+                match tx.handle_frame(&rec.frame, rec.at) {
+                    Handled::Frame(v) => {
+                        session.set_verdict(i, v);
+                        last = Some(i);
+                    }
+                    Handled::NotMine => other(session, i),
+                }
+            }
+            None => {
+                let now = session.now();
+                tx.handle_timeout(now);
+            }
+        }
+    }
+}

@@ -1,0 +1,772 @@
+//! DeviceNet meaning of CAN frames: identifiers, explicit requests and responses (services,
+//! objects, attributes, error codes by name), fragment reassembly (explicit and I/O), duplicate
+//! MAC ID checks, UCMM and the Offline Connection Set.
+//!
+//! A [`Decoder`] reads a whole exchange in order and keeps, per device MAC, what it needs to make
+//! sense of later frames: the last explicit request (to interpret its response), the message body
+//! format announced by the Allocate response, and the poll connection sizes read from Connection
+//! instance 2 attributes 7 and 8 (notes §4.2: I/O fragmentation is not signalled per frame, both
+//! ends know it from the size). When the sizes were not seen, poll data is taken as fragmented
+//! when its fragment bytes say so: an 8-byte frame starting with `00` opens a series, and frames
+//! continuing its count belong to it.
+//!
+//! All decoding uses the core's codecs; nothing here can panic on any frame.
+
+use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
+use devicenet::fragment::{
+    ExplicitFragment, ExplicitReassembler, ExplicitReceive, FragmentKind, IoReassembler,
+};
+use devicenet::id::{Group1MessageId, Group3MessageId, Group4MessageId};
+use devicenet::messages::{
+    AllocateRequest, AllocationInfo, DuplicateMacCheck, GroupSelect, OfflineMessage, ReleaseRequest,
+    UcmmCloseRequest, UcmmCloseResponse, UcmmOpenRequest, UcmmOpenResponse,
+};
+use devicenet::objects::{self, class};
+use devicenet::{CanFrame, Group2Message, Identifier};
+use std::collections::HashMap;
+use std::fmt::Write as _;
+
+/// Largest explicit message reassembled by the decoder (header included).
+pub const MAX_EXPLICIT_MESSAGE: usize = 1024;
+/// Largest I/O message reassembled by the decoder (64 fragments of 7 bytes, notes §4.2).
+pub const MAX_IO_MESSAGE: usize = 448;
+
+/// The meaning of one frame.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Decoded {
+    /// What this frame is.
+    pub summary: String,
+    /// The whole message this frame completed, for the last fragment of a series.
+    pub message: Option<String>,
+}
+
+impl Decoded {
+    fn frame(summary: String) -> Decoded {
+        Decoded { summary, message: None }
+    }
+
+    /// The summary, followed by the completed message if any.
+    pub fn text(&self) -> String {
+        match &self.message {
+            Some(m) => format!("{} => {m}", self.summary),
+            None => self.summary.clone(),
+        }
+    }
+}
+
+/// The request an explicit response answers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PendingRequest {
+    /// Service requested.
+    pub service: ServiceCode,
+    /// Class.
+    pub class: u16,
+    /// Instance.
+    pub instance: u16,
+    /// Attribute, for Get/Set_Attribute_Single.
+    pub attribute: Option<u8>,
+}
+
+impl PendingRequest {
+    /// From a parsed request.
+    pub fn of(req: &Request<'_>) -> PendingRequest {
+        let attribute = match req.service {
+            ServiceCode::GetAttributeSingle | ServiceCode::SetAttributeSingle => req.data.first().copied(),
+            _ => None,
+        };
+        PendingRequest { service: req.service, class: req.class, instance: req.instance, attribute }
+    }
+}
+
+/// Tracks an I/O fragment series on one connection direction.
+#[derive(Clone)]
+struct IoSeries {
+    rx: IoReassembler<MAX_IO_MESSAGE>,
+    /// The count expected next while a series is in progress.
+    next: Option<u8>,
+}
+
+impl IoSeries {
+    fn new() -> IoSeries {
+        IoSeries { rx: IoReassembler::new(), next: None }
+    }
+
+    /// Whether `data` is a fragment when the connection size is not known.
+    fn looks_fragmented(&self, data: &[u8]) -> bool {
+        match (data.first(), self.next) {
+            (Some(&b), Some(next)) => {
+                let kind = FragmentKind::from_bits(b >> 6);
+                (kind == FragmentKind::Middle || kind == FragmentKind::Last) && b & 0x3F == next
+            }
+            (Some(&0x00), None) => data.len() == 8,
+            _ => false,
+        }
+    }
+}
+
+#[derive(Clone)]
+struct Device {
+    body_format: BodyFormat,
+    pending: Option<PendingRequest>,
+    request_rx: ExplicitReassembler<MAX_EXPLICIT_MESSAGE>,
+    response_rx: ExplicitReassembler<MAX_EXPLICIT_MESSAGE>,
+    produced: Option<u16>,
+    consumed: Option<u16>,
+    poll_response: IoSeries,
+    poll_command: IoSeries,
+}
+
+impl Device {
+    fn new() -> Device {
+        Device {
+            body_format: BodyFormat::Class8Instance8,
+            pending: None,
+            request_rx: ExplicitReassembler::new(),
+            response_rx: ExplicitReassembler::new(),
+            produced: None,
+            consumed: None,
+            poll_response: IoSeries::new(),
+            poll_command: IoSeries::new(),
+        }
+    }
+}
+
+/// Decodes a stream of frames. See the [module docs](self).
+#[derive(Clone, Default)]
+pub struct Decoder {
+    devices: HashMap<u8, Device>,
+}
+
+/// Hex bytes separated by spaces.
+pub fn hex(bytes: &[u8]) -> String {
+    let mut s = String::with_capacity(bytes.len() * 3);
+    for (i, b) in bytes.iter().enumerate() {
+        if i > 0 {
+            s.push(' ');
+        }
+        let _ = write!(s, "{b:02X}");
+    }
+    s
+}
+
+/// `Identity(1)` or `class 0x99`.
+pub fn class_text(class: u16) -> String {
+    match objects::class_name(class) {
+        Some(name) => format!("{name}({class})"),
+        None => format!("class 0x{class:02X}"),
+    }
+}
+
+/// `attr 7 (product name)` or `attr 99`.
+pub fn attribute_text(class: u16, instance: u16, attribute: u8) -> String {
+    match objects::attribute_name(class, instance, attribute) {
+        Some(name) => format!("attr {attribute} ({name})"),
+        None => format!("attr {attribute}"),
+    }
+}
+
+/// An error response by name: `attribute not supported (0x14), additional code 0xFF (none)`.
+pub fn error_text(general: GeneralStatus, additional_code: u8) -> String {
+    let add = match additional::name(additional_code) {
+        Some(name) => format!("0x{additional_code:02X} ({name})"),
+        None => format!("0x{additional_code:02X}"),
+    };
+    format!("{general}, additional code {add}")
+}
+
+/// The name of a message body format.
+pub fn body_format_text(format: BodyFormat) -> String {
+    match format {
+        BodyFormat::Class8Instance8 => "8/8".into(),
+        BodyFormat::Class8Instance16 => "8/16".into(),
+        BodyFormat::Class16Instance16 => "16/16".into(),
+        BodyFormat::Class16Instance8 => "16/8".into(),
+        BodyFormat::CipPath => "CIP path".into(),
+        BodyFormat::Reserved(c) => format!("reserved ({c})"),
+    }
+}
+
+fn u16_of(data: &[u8]) -> Option<u16> {
+    match data {
+        [a, b] => Some(u16::from_le_bytes([*a, *b])),
+        _ => None,
+    }
+}
+
+fn u8_of(data: &[u8]) -> Option<u8> {
+    match data {
+        [a] => Some(*a),
+        _ => None,
+    }
+}
+
+/// A SHORT_STRING (length byte, then ASCII): `Some(text)` when the length matches.
+pub fn short_string(data: &[u8]) -> Option<String> {
+    let (&len, text) = data.split_first()?;
+    (usize::from(len) == text.len()).then(|| text.iter().map(|&b| char::from(b)).collect())
+}
+
+/// An attribute value, typed by class and attribute (notes §5.1, §6.1, §6.2); raw hex when the
+/// attribute is unknown or the length does not match its type.
+pub fn value_text(class_id: u16, instance: u16, attribute: u8, data: &[u8]) -> String {
+    let typed: Option<String> = if instance == 0 {
+        match attribute {
+            1 => u16_of(data).map(|v| v.to_string()),
+            _ => None,
+        }
+    } else {
+        match (class_id, attribute) {
+            (class::IDENTITY, 1..=3) => u16_of(data).map(|v| format!("0x{v:04X} ({v})")),
+            (class::IDENTITY, 4) => match data {
+                [maj, min] => Some(format!("{maj}.{min}")),
+                _ => None,
+            },
+            (class::IDENTITY, 5) => u16_of(data).map(|v| format!("0x{v:04X}")),
+            (class::IDENTITY, 6) => match data {
+                [a, b, c, d] => Some(format!("0x{:08X}", u32::from_le_bytes([*a, *b, *c, *d]))),
+                _ => None,
+            },
+            (class::IDENTITY, 7) => short_string(data).map(|s| format!("\"{s}\"")),
+            (class::IDENTITY, 8) => u8_of(data).map(|v| {
+                let name = match v {
+                    0 => "non-existent",
+                    1 => "self testing",
+                    2 => "standby",
+                    3 => "operational",
+                    4 => "major recoverable fault",
+                    5 => "major unrecoverable fault",
+                    _ => "unknown",
+                };
+                format!("{v} ({name})")
+            }),
+            (class::DEVICENET, 5) => AllocationInfo::parse(data).ok().map(|info| match info.master {
+                Some(m) => format!("allocated {} by master MAC {m}", info.choice),
+                None => format!("{} (not allocated)", info.choice),
+            }),
+            (class::DEVICENET, 1..=4 | 6..=9) => u8_of(data).map(|v| v.to_string()),
+            (class::ASSEMBLY, 4) => u16_of(data).map(|v| format!("{v} bytes")),
+            (class::CONNECTION, 1) => u8_of(data)
+                .map(|v| format!("{v} ({})", objects::connection_state_name(v).unwrap_or("unknown"))),
+            (class::CONNECTION, 12) => u8_of(data)
+                .map(|v| format!("{v} ({})", objects::watchdog_action_name(v).unwrap_or("unknown"))),
+            (class::CONNECTION, 2) => u8_of(data).map(|v| match v {
+                0 => "0 (explicit)".to_string(),
+                1 => "1 (I/O)".to_string(),
+                other => other.to_string(),
+            }),
+            (class::CONNECTION, 3 | 6) => u8_of(data).map(|v| format!("0x{v:02X}")),
+            (class::CONNECTION, 4 | 5) => u16_of(data).map(|v| format!("0x{v:03X}")),
+            (class::CONNECTION, 7 | 8) => u16_of(data).map(|v| format!("{v} bytes")),
+            (class::CONNECTION, 9 | 17) => u16_of(data).map(|v| format!("{v} ms")),
+            (class::CONNECTION, 13 | 15) => u16_of(data).map(|v| v.to_string()),
+            _ => None,
+        }
+    };
+    match typed {
+        Some(t) => t,
+        None if data.is_empty() => "(no data)".into(),
+        None => hex(data),
+    }
+}
+
+/// A request body in words: `Get_Attribute_Single Identity(1) inst 1 attr 1 (vendor ID)`.
+pub fn request_text(req: &Request<'_>) -> String {
+    let target = format!("{} inst {}", class_text(req.class), req.instance);
+    let service =
+        req.service.name().map_or_else(|| format!("service 0x{:02X}", req.service.as_raw()), String::from);
+    match req.service {
+        ServiceCode::GetAttributeSingle => match req.data {
+            [attr] => format!("{service} {target} {}", attribute_text(req.class, req.instance, *attr)),
+            _ => format!("{service} {target} data {}", hex(req.data)),
+        },
+        ServiceCode::SetAttributeSingle => match req.data.split_first() {
+            Some((&attr, value)) => format!(
+                "{service} {target} {} = {}",
+                attribute_text(req.class, req.instance, attr),
+                value_text(req.class, req.instance, attr, value)
+            ),
+            None => format!("{service} {target} (no attribute)"),
+        },
+        ServiceCode::AllocateMasterSlave if req.class == class::DEVICENET => {
+            match AllocateRequest::parse(req.data) {
+                Ok(a) => format!("{service} {target}: choice {}, allocator MAC {}", a.choice, a.allocator),
+                Err(e) => format!("{service} {target}: malformed ({e}): {}", hex(req.data)),
+            }
+        }
+        ServiceCode::ReleaseMasterSlave if req.class == class::DEVICENET => {
+            match ReleaseRequest::parse(req.data) {
+                Ok(r) => format!("{service} {target}: choice {}", r.choice),
+                Err(e) => format!("{service} {target}: malformed ({e}): {}", hex(req.data)),
+            }
+        }
+        _ if req.data.is_empty() => format!("{service} {target}"),
+        _ => format!("{service} {target} data {}", hex(req.data)),
+    }
+}
+
+/// A response body in words, interpreted with the request it answers when known.
+pub fn response_text(body: &[u8], pending: Option<&PendingRequest>) -> String {
+    match Response::parse(body) {
+        Ok(Response::Error { general, additional }) => {
+            format!("Error_Response: {}", error_text(general, additional))
+        }
+        Ok(Response::Success { service, data }) => {
+            let name =
+                service.name().map_or_else(|| format!("service 0x{:02X}", service.as_raw()), String::from);
+            let matching = pending.filter(|p| p.service == service);
+            match (service, matching) {
+                (ServiceCode::GetAttributeSingle, Some(p)) => {
+                    let attr = p.attribute.unwrap_or(0);
+                    format!(
+                        "{name} response: {} inst {} {} = {}",
+                        class_text(p.class),
+                        p.instance,
+                        attribute_text(p.class, p.instance, attr),
+                        value_text(p.class, p.instance, attr, data)
+                    )
+                }
+                (ServiceCode::SetAttributeSingle, Some(p)) if !data.is_empty() => {
+                    let attr = p.attribute.unwrap_or(0);
+                    format!(
+                        "{name} response: success, {} applied = {}",
+                        attribute_text(p.class, p.instance, attr),
+                        value_text(p.class, p.instance, attr, data)
+                    )
+                }
+                (ServiceCode::AllocateMasterSlave, _) => match data {
+                    [fmt] => format!(
+                        "{name} response: success, message body format {}",
+                        body_format_text(BodyFormat::from_code(*fmt))
+                    ),
+                    _ => format!("{name} response: success, data {}", hex(data)),
+                },
+                _ if data.is_empty() => format!("{name} response: success"),
+                _ => format!("{name} response: success, data {}", hex(data)),
+            }
+        }
+        Err(e) => format!("malformed response ({e}): {}", hex(body)),
+    }
+}
+
+impl Decoder {
+    /// A decoder that has seen nothing yet.
+    pub fn new() -> Decoder {
+        Decoder::default()
+    }
+
+    fn device(&mut self, mac: u8) -> &mut Device {
+        self.devices.entry(mac).or_insert_with(Device::new)
+    }
+
+    /// The poll connection sizes (produced, consumed) learned for `mac`.
+    pub fn connection_sizes(&self, mac: u8) -> (Option<u16>, Option<u16>) {
+        self.devices.get(&mac).map_or((None, None), |d| (d.produced, d.consumed))
+    }
+
+    /// Tells the decoder the poll connection sizes of `mac` (when known from elsewhere).
+    pub fn set_connection_sizes(&mut self, mac: u8, produced: Option<u16>, consumed: Option<u16>) {
+        let d = self.device(mac);
+        if produced.is_some() {
+            d.produced = produced;
+        }
+        if consumed.is_some() {
+            d.consumed = consumed;
+        }
+    }
+
+    /// Decodes the next frame of the exchange.
+    pub fn decode(&mut self, frame: &CanFrame) -> Decoded {
+        let data = frame.data();
+        match Identifier::decode(frame.id()) {
+            Identifier::Group1 { message, source } => self.group1(message, source.as_raw(), data),
+            Identifier::Group2 { mac, message } => self.group2(message, mac.as_raw(), data),
+            Identifier::Group3 { message, source } => Decoded::frame(group3(message, source.as_raw(), data)),
+            Identifier::Group4 { message } => Decoded::frame(group4(message, data)),
+            Identifier::Invalid(raw) => Decoded::frame(format!(
+                "invalid identifier 0x{raw:03X} (0x7F0-0x7FF are not used): {}",
+                hex(data)
+            )),
+        }
+    }
+
+    fn group1(&mut self, message: Group1MessageId, source: u8, data: &[u8]) -> Decoded {
+        let name = match message {
+            Group1MessageId::POLL_RESPONSE => "poll response",
+            Group1MessageId::COS_CYCLIC => "change-of-state/cyclic data",
+            Group1MessageId::BIT_STROBE_RESPONSE => "bit-strobe response",
+            Group1MessageId::MULTICAST_POLL_RESPONSE => "multicast poll response",
+            _ => {
+                return Decoded::frame(format!(
+                    "G1 message {} from MAC {source} (dynamic connection): {}",
+                    message.as_raw(),
+                    hex(data)
+                ))
+            }
+        };
+        let who = format!("{name} from MAC {source}");
+        if message == Group1MessageId::POLL_RESPONSE {
+            let device = self.device(source);
+            let produced = device.produced;
+            return io_data(&mut device.poll_response, produced, &who, data);
+        }
+        Decoded::frame(format!("{who}: {}", data_text(data)))
+    }
+
+    fn group2(&mut self, message: Group2Message, mac: u8, data: &[u8]) -> Decoded {
+        match message {
+            Group2Message::DuplicateMacCheck => Decoded::frame(match DuplicateMacCheck::parse(data) {
+                Ok(d) => format!(
+                    "duplicate MAC ID check {} for MAC {mac}: port {}, vendor 0x{:04X}, serial 0x{:08X}",
+                    if d.response { "response" } else { "request" },
+                    d.port,
+                    d.vendor_id,
+                    d.serial_number
+                ),
+                Err(e) => format!("malformed duplicate MAC ID check for MAC {mac} ({e}): {}", hex(data)),
+            }),
+            Group2Message::ExplicitRequest => self.explicit(mac, data, true, "explicit request to MAC"),
+            Group2Message::UnconnectedExplicitRequest => {
+                self.explicit(mac, data, true, "Group 2 Only unconnected request to MAC")
+            }
+            Group2Message::ExplicitResponse => self.explicit(mac, data, false, "explicit response from MAC"),
+            Group2Message::PollCommand => {
+                let who = format!("poll command to MAC {mac}");
+                let device = self.device(mac);
+                let consumed = device.consumed;
+                io_data(&mut device.poll_command, consumed, &who, data)
+            }
+            Group2Message::BitStrobeCommand => {
+                Decoded::frame(format!("bit-strobe command from master MAC {mac}: {}", data_text(data)))
+            }
+            Group2Message::MulticastPollCommand => {
+                Decoded::frame(format!("multicast poll command, group MAC {mac}: {}", data_text(data)))
+            }
+            Group2Message::CosCyclicAck => Decoded::frame(format!(
+                "change-of-state/cyclic acknowledge to MAC {mac}: {}",
+                data_text(data)
+            )),
+        }
+    }
+
+    fn explicit(&mut self, mac: u8, data: &[u8], request: bool, what: &str) -> Decoded {
+        let Some(&first) = data.first() else {
+            return Decoded::frame(format!("{what} {mac}: empty frame"));
+        };
+        let header = Header::from_byte(first);
+        let head =
+            format!("{what} {mac} [{}master MAC {}]", if header.xid { "XID 1, " } else { "" }, header.mac);
+        if !header.fragmented {
+            let body = &data[1..];
+            let device = self.device(mac);
+            if request {
+                // An unfragmented request resets fragmentation both ways (notes §4.1).
+                device.request_rx.reset();
+                device.response_rx.reset();
+            }
+            return Decoded::frame(format!("{head} {}", self.message_body(mac, body, request)));
+        }
+        let frag = match ExplicitFragment::parse(data) {
+            Ok(f) => f,
+            Err(e) => return Decoded::frame(format!("{head} malformed fragment ({e}): {}", hex(data))),
+        };
+        if frag.fragment.kind == FragmentKind::Ack {
+            let status = frag.ack_status().map_or_else(|| "no status".to_string(), |s| s.to_string());
+            return Decoded::frame(format!("{head} fragment ack #{} status {status}", frag.fragment.count));
+        }
+        let summary = format!(
+            "{head} fragment {} #{} ({} body bytes): {}",
+            frag.fragment.kind,
+            frag.fragment.count,
+            frag.body.len(),
+            hex(frag.body)
+        );
+        let device = self.device(mac);
+        let rx = if request { &mut device.request_rx } else { &mut device.response_rx };
+        match rx.receive(data) {
+            ExplicitReceive::Complete(_) => {
+                let whole = rx.message().to_vec();
+                rx.reset();
+                let body = whole.get(1..).unwrap_or(&[]);
+                let text =
+                    format!("reassembled {} bytes: {}", whole.len(), self.message_body(mac, body, request));
+                Decoded { summary, message: Some(text) }
+            }
+            ExplicitReceive::Ignored(e) => Decoded::frame(format!("{summary} (dropped: {e})")),
+            ExplicitReceive::Rejected(_) => Decoded::frame(format!("{summary} (dropped: message too long)")),
+            ExplicitReceive::Duplicate(_) => Decoded::frame(format!("{summary} (repeated)")),
+            ExplicitReceive::Ack(_) => Decoded::frame(summary),
+        }
+    }
+
+    /// A whole explicit body, remembering requests and learning sizes and the body format from
+    /// responses.
+    fn message_body(&mut self, mac: u8, body: &[u8], request: bool) -> String {
+        let device = self.device(mac);
+        if request {
+            match Request::parse(body, device.body_format) {
+                Ok(req) => {
+                    device.pending = Some(PendingRequest::of(&req));
+                    request_text(&req)
+                }
+                Err(e) => {
+                    device.pending = None;
+                    format!("malformed request ({e}): {}", hex(body))
+                }
+            }
+        } else {
+            let pending = device.pending.take();
+            if let (Some(p), Ok(Response::Success { data, .. })) = (pending, Response::parse(body)) {
+                match (p.service, p.class, p.instance, p.attribute) {
+                    (ServiceCode::GetAttributeSingle, class::CONNECTION, 2, Some(7)) => {
+                        device.produced = u16_of(data)
+                    }
+                    (ServiceCode::GetAttributeSingle, class::CONNECTION, 2, Some(8)) => {
+                        device.consumed = u16_of(data)
+                    }
+                    (ServiceCode::AllocateMasterSlave, class::DEVICENET, _, _) => {
+                        if let [fmt] = data {
+                            device.body_format = BodyFormat::from_code(*fmt);
+                        }
+                    }
+                    _ => {}
+                }
+            }
+            response_text(body, pending.as_ref())
+        }
+    }
+}
+
+fn data_text(data: &[u8]) -> String {
+    if data.is_empty() {
+        "no data".into()
+    } else {
+        format!("{} bytes {}", data.len(), hex(data))
+    }
+}
+
+/// I/O data on a connection of `size` bytes (unknown: inferred from the fragment bytes).
+fn io_data(series: &mut IoSeries, size: Option<u16>, who: &str, data: &[u8]) -> Decoded {
+    let fragmented = match size {
+        Some(size) => size > 8,
+        None => series.looks_fragmented(data),
+    };
+    if !fragmented {
+        series.next = None;
+        if data.is_empty() {
+            return Decoded::frame(format!("{who}: no data (idle)"));
+        }
+        return Decoded::frame(format!("{who}: {}", data_text(data)));
+    }
+    let inferred = if size.is_none() { ", size inferred from fragment bytes" } else { "" };
+    let (kind, count) = match data.first() {
+        Some(&b) => (FragmentKind::from_bits(b >> 6), b & 0x3F),
+        None => (FragmentKind::First, 0),
+    };
+    let summary =
+        format!("{who}: I/O fragment {kind} #{count}{inferred}: {}", hex(data.get(1..).unwrap_or(&[])));
+    match series.rx.receive(data) {
+        Ok(Some(whole)) => {
+            series.next = None;
+            let message = format!("{who}, {} bytes: {}", whole.len(), hex(whole));
+            Decoded { summary, message: Some(message) }
+        }
+        Ok(None) => {
+            series.next = Some(devicenet::fragment::next_count(count));
+            Decoded::frame(summary)
+        }
+        Err(e) => {
+            series.next = None;
+            Decoded::frame(format!("{summary} (dropped: {e})"))
+        }
+    }
+}
+
+fn group3(message: Group3MessageId, source: u8, data: &[u8]) -> String {
+    match message {
+        Group3MessageId::UNCONNECTED_REQUEST => match data.get(1) {
+            Some(0x4B) => match UcmmOpenRequest::parse(data) {
+                Ok(r) => format!(
+                    "UCMM Open Explicit Messaging Connection request from MAC {source} to MAC {}: body format {}, group select {}, source message ID {}",
+                    r.destination,
+                    body_format_text(r.body_format),
+                    group_select_text(r.group_select),
+                    r.source_message_id
+                ),
+                Err(e) => format!("malformed UCMM open request from MAC {source} ({e}): {}", hex(data)),
+            },
+            Some(0x4C) => match UcmmCloseRequest::parse(data) {
+                Ok(r) => format!(
+                    "UCMM Close Connection request from MAC {source} to MAC {}: connection instance {}",
+                    r.destination, r.connection_instance
+                ),
+                Err(e) => format!("malformed UCMM close request from MAC {source} ({e}): {}", hex(data)),
+            },
+            _ => format!("UCMM request from MAC {source}: {}", hex(data)),
+        },
+        Group3MessageId::UNCONNECTED_RESPONSE => match data.get(1) {
+            Some(0xCB) => match UcmmOpenResponse::parse(data) {
+                Ok(r) => format!(
+                    "UCMM Open response from MAC {source} to MAC {}: body format {}, connection instance {}",
+                    r.destination,
+                    body_format_text(r.body_format),
+                    r.connection_instance
+                ),
+                Err(e) => format!("malformed UCMM open response from MAC {source} ({e}): {}", hex(data)),
+            },
+            Some(0xCC) => match UcmmCloseResponse::parse(data) {
+                Ok(r) => format!("UCMM Close response from MAC {source} to MAC {}", r.destination),
+                Err(e) => format!("malformed UCMM close response from MAC {source} ({e}): {}", hex(data)),
+            },
+            Some(0x94) => match Response::parse(&data[1..]) {
+                Ok(Response::Error { general, additional }) => {
+                    format!("UCMM error response from MAC {source}: {}", error_text(general, additional))
+                }
+                _ => format!("UCMM response from MAC {source}: {}", hex(data)),
+            },
+            _ => format!("UCMM response from MAC {source}: {}", hex(data)),
+        },
+        _ => format!("G3 message {} from MAC {source} (dynamic connection): {}", message.as_raw(), hex(data)),
+    }
+}
+
+fn group_select_text(g: GroupSelect) -> String {
+    match g {
+        GroupSelect::Group1 => "group 1".into(),
+        GroupSelect::Group2 => "group 2".into(),
+        GroupSelect::Group3 => "group 3".into(),
+        GroupSelect::NodePing => "node ping".into(),
+        GroupSelect::Reserved(n) => format!("reserved ({n})"),
+    }
+}
+
+fn group4(message: Group4MessageId, data: &[u8]) -> String {
+    match OfflineMessage::parse(message, data) {
+        Ok(OfflineMessage::WhoRequest { selector, time_delay_offset }) => format!(
+            "Offline Connection Set: Who request (match {}, value {}), time-delay byte offset {time_delay_offset}",
+            selector.match_flag, selector.value
+        ),
+        Ok(OfflineMessage::WhoResponse { port, device }) => format!(
+            "Offline Connection Set: Who response: port {port}, vendor 0x{:04X}, serial 0x{:08X}",
+            device.vendor_id, device.serial_number
+        ),
+        Ok(OfflineMessage::IdentifyRequest { selector, .. }) => {
+            format!("Offline Connection Set: Identify request (value {})", selector.value)
+        }
+        Ok(OfflineMessage::IdentifyResponse { selector }) => {
+            format!("Offline Connection Set: Identify response (value {})", selector.value)
+        }
+        Ok(OfflineMessage::ChangeMacIdRequest { new_mac, device }) => format!(
+            "Offline Connection Set: Change MAC ID to {new_mac} for vendor 0x{:04X} serial 0x{:08X}",
+            device.vendor_id, device.serial_number
+        ),
+        Ok(OfflineMessage::OwnershipRequest { client, .. }) => {
+            format!("Offline Connection Set: ownership request from MAC {client}")
+        }
+        Ok(OfflineMessage::OwnershipResponse { client, .. }) => {
+            format!("Offline Connection Set: ownership response to MAC {client}")
+        }
+        Err(e) => format!("G4 message 0x{:02X}: {} ({e})", message.as_raw(), hex(data)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use devicenet::reference::BRING_UP;
+    use rstest::rstest;
+
+    fn f(id: u16, data: &[u8]) -> CanFrame {
+        CanFrame::from_raw(id, data).unwrap()
+    }
+
+    #[test]
+    fn the_reference_sequence_reads_like_the_notes() {
+        let mut d = Decoder::new();
+        let texts: Vec<String> = BRING_UP.iter().map(|r| d.decode(&f(r.id, r.data)).text()).collect();
+        assert!(texts[0].contains("duplicate MAC ID check request for MAC 0"), "{}", texts[0]);
+        assert!(
+            texts[4].contains("UCMM Open Explicit Messaging Connection request from MAC 0 to MAC 5"),
+            "{}",
+            texts[4]
+        );
+        assert!(
+            texts[6].contains(
+                "Allocate_Master/Slave_Connection_Set DeviceNet(3) inst 1: choice explicit, allocator MAC 0"
+            ),
+            "{}",
+            texts[6]
+        );
+        assert!(texts[7].contains("message body format 8/8"), "{}", texts[7]);
+        assert!(texts[8].contains("attr 12 (watchdog timeout action) = 3 (deferred delete)"), "{}", texts[8]);
+        assert!(texts[11].contains("vendor ID) = 0x1234"), "{}", texts[11]);
+        assert!(texts[19].contains("produced connection size) = 18 bytes"), "{}", texts[19]);
+        assert!(texts[23].contains("expected packet rate) applied = 100 ms"), "{}", texts[23]);
+        assert!(texts[25].contains("I/O fragment first #0"), "{}", texts[25]);
+        assert!(!texts[25].contains("inferred"), "size known from frame 19: {}", texts[25]);
+        assert!(
+            texts[27].contains("poll response from MAC 5, 18 bytes: 00 00 00 00 00 00 00 00 00 0F"),
+            "{}",
+            texts[27]
+        );
+        assert_eq!(d.connection_sizes(5), (Some(18), Some(8)));
+    }
+
+    #[test]
+    fn fragmented_explicit_response_is_reassembled() {
+        let mut d = Decoder::new();
+        d.decode(&f(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x07]));
+        let first = d.decode(&f(0x42B, &[0x80, 0x00, 0x8E, 0x17, b'S', b'e', b'r', b'i']));
+        assert!(first.summary.contains("fragment first #0"), "{first:?}");
+        assert!(d.decode(&f(0x42C, &[0x80, 0xC0, 0x00])).summary.contains("fragment ack #0 status success"));
+        d.decode(&f(0x42B, &[0x80, 0x41, b'a', b'l', b'-', b'D', b'e', b'v']));
+        d.decode(&f(0x42B, &[0x80, 0x42, b'i', b'c', b'e', b'N', b'e', b't']));
+        d.decode(&f(0x42B, &[0x80, 0x43, b' ', b'B', b'r', b'i', b'd', b'g']));
+        let last = d.decode(&f(0x42B, &[0x80, 0x84, b'e']));
+        let msg = last.message.expect("complete");
+        assert!(msg.contains("attr 7 (product name) = \"Serial-DeviceNet Bridge\""), "{msg}");
+    }
+
+    #[test]
+    fn io_fragments_inferred_without_sizes() {
+        let mut d = Decoder::new();
+        let a = d.decode(&f(0x3C5, &[0x00, 1, 2, 3, 4, 5, 6, 7]));
+        assert!(a.summary.contains("inferred"), "{a:?}");
+        d.decode(&f(0x3C5, &[0x41, 8, 9, 10, 11, 12, 13, 14]));
+        let c = d.decode(&f(0x3C5, &[0x82, 15, 16, 17, 18]));
+        assert_eq!(
+            c.message.as_deref(),
+            Some("poll response from MAC 5, 18 bytes: 01 02 03 04 05 06 07 08 09 0A 0B 0C 0D 0E 0F 10 11 12")
+        );
+        // A short response is plain data.
+        assert_eq!(d.decode(&f(0x3C5, &[0x0F, 0x00])).summary, "poll response from MAC 5: 2 bytes 0F 00");
+    }
+
+    #[rstest]
+    #[case::not_supported(&[0x00, 0x94, 0x14, 0xFF], "Error_Response: attribute not supported (0x14), additional code 0xFF (no additional code)")]
+    #[case::conflict(&[0x00, 0x94, 0x0C, 0x01], "object state conflict (0x0C), additional code 0x01 (allocation conflict)")]
+    #[case::malformed(&[0x00, 0x0E], "malformed response")]
+    fn error_responses(#[case] data: &[u8], #[case] text: &str) {
+        let mut d = Decoder::new();
+        let out = d.decode(&f(0x42B, data)).text();
+        assert!(out.contains(text), "{out}");
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn any_frame_sequence_decodes(frames in proptest::collection::vec((0u16..=0x7FF, proptest::collection::vec(proptest::prelude::any::<u8>(), 0..=8)), 0..64)) {
+            let mut d = Decoder::new();
+            for (id, data) in frames {
+                let _ = d.decode(&f(id, &data));
+            }
+        }
+
+        #[test]
+        fn device_traffic_decodes(frames in proptest::collection::vec((0u16..8, proptest::collection::vec(proptest::prelude::any::<u8>(), 0..=8)), 0..64)) {
+            let mut d = Decoder::new();
+            for (msg, data) in frames {
+                let id = if msg == 0 { 0x3C5 } else { 0x428 | msg };
+                let _ = d.decode(&f(id, &data));
+            }
+        }
+    }
+}

@@ -1,0 +1,861 @@
+//! The master: network access, the bring-up of notes §2 decided frame by frame from the device's
+//! answers, explicit messaging and polling.
+//!
+//! ## Timing (the master's own choices, notes §9.1 and §9.4)
+//!
+//! | constant | value | what |
+//! |---|---|---|
+//! | [`DUP_MAC_INTERVAL`] | 1 s | between the master's two duplicate MAC ID requests, and from the second to on-line (notes §7.1) |
+//! | [`DEVICE_ONLINE_GRACE`] | 1 s | after going on-line, how long the master waits for the device's own duplicate MAC ID check before taking the device as already on-line |
+//! | [`UCMM_TIMEOUT`] | 500 ms | wait for a UCMM open response; the request is sent twice, then the device is taken as group-2-only |
+//! | `--timeout` | 1 s | explicit response timeout ([`crate::client::DEFAULT_RESPONSE_TIMEOUT`]) |
+//! | poll response timeout | the EPR, at least 100 ms | wait for a complete poll response |
+//!
+//! A device's duplicate MAC ID check is watched on the bus: after its first request it is on-line
+//! 2 s later, after its second 1 s later (notes §7.1).
+
+use crate::bus::{Hint, Origin};
+use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
+use crate::decode::{self, hex, PendingRequest};
+use crate::error::HarnessError;
+use crate::session::{is_from_device, Session, Verdict};
+use devicenet::explicit::{BodyFormat, Header, Request, ServiceCode};
+use devicenet::fragment::{io_fragments, IoFragment, IoReassembler};
+use devicenet::id::{Group1MessageId, Group3MessageId};
+use devicenet::messages::{
+    AllocateRequest, AllocationChoice, DuplicateMacCheck, GroupSelect, ReleaseRequest, UcmmCloseRequest,
+    UcmmOpenRequest, UcmmOpenResponse,
+};
+use devicenet::objects::class;
+use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use std::collections::HashMap;
+
+/// Between the two duplicate MAC ID requests, and from the second to on-line (notes §7.1).
+pub const DUP_MAC_INTERVAL: Duration = devicenet::slave::DUP_MAC_INTERVAL;
+/// How long the master waits, once on-line, for a device's duplicate MAC ID check to show.
+pub const DEVICE_ONLINE_GRACE: Duration = Duration::from_secs(1);
+/// How long the master waits for a UCMM open response (sent twice).
+pub const UCMM_TIMEOUT: Duration = Duration::from_millis(500);
+/// The shortest poll response timeout.
+pub const MIN_POLL_TIMEOUT: Duration = Duration::from_millis(100);
+
+/// The master's identity and timing.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MasterConfig {
+    /// The master's MAC ID (`--master-mac`).
+    pub mac: MacId,
+    /// Vendor ID sent in its duplicate MAC ID checks (notes §2: 0x0001).
+    pub vendor_id: u16,
+    /// Serial number sent in its duplicate MAC ID checks (notes §2: 0x01020304).
+    pub serial_number: u32,
+    /// Explicit response timeout (`--timeout`).
+    pub response_timeout: Duration,
+}
+
+impl Default for MasterConfig {
+    fn default() -> Self {
+        MasterConfig {
+            mac: MacId::from_low_bits(0),
+            vendor_id: 0x0001,
+            serial_number: 0x0102_0304,
+            response_timeout: client::DEFAULT_RESPONSE_TIMEOUT,
+        }
+    }
+}
+
+/// What the master saw of devices' duplicate MAC ID checks.
+#[derive(Clone, Debug, Default)]
+pub struct OnlineTracker {
+    /// Per MAC: requests seen, time of the last one, the key sent.
+    seen: HashMap<u8, (u8, Instant, DuplicateMacCheck)>,
+}
+
+impl OnlineTracker {
+    /// Notes a duplicate MAC ID request from `mac` at `at`; returns how many were seen.
+    pub fn note(&mut self, mac: u8, at: Instant, check: DuplicateMacCheck) -> u8 {
+        let e = self.seen.entry(mac).or_insert((0, at, check));
+        e.0 = e.0.saturating_add(1);
+        e.1 = at;
+        e.2 = check;
+        e.0
+    }
+
+    /// When `mac` is on-line, if its check was seen: 2 s after a first request, 1 s after a second.
+    pub fn online_at(&self, mac: u8) -> Option<Instant> {
+        self.seen.get(&mac).map(|&(n, at, _)| {
+            at + if n >= 2 { DUP_MAC_INTERVAL } else { DUP_MAC_INTERVAL + DUP_MAC_INTERVAL }
+        })
+    }
+
+    /// The vendor/serial `mac` announced.
+    pub fn announced(&self, mac: u8) -> Option<DuplicateMacCheck> {
+        self.seen.get(&mac).map(|&(_, _, c)| c)
+    }
+
+    /// MACs whose check was seen.
+    pub fn macs(&self) -> Vec<u8> {
+        let mut v: Vec<u8> = self.seen.keys().copied().collect();
+        v.sort_unstable();
+        v
+    }
+}
+
+/// What `connect` learned.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct DeviceSummary {
+    /// The device.
+    pub mac: u8,
+    /// `true` when the device answered UCMM (not group-2-only).
+    pub ucmm_capable: bool,
+    /// Identity attribute 1.
+    pub vendor_id: Option<u16>,
+    /// Identity attribute 2.
+    pub device_type: Option<u16>,
+    /// Identity attribute 3.
+    pub product_code: Option<u16>,
+    /// Connection 2 attribute 7.
+    pub produced_size: Option<u16>,
+    /// Connection 2 attribute 8.
+    pub consumed_size: Option<u16>,
+    /// The EPR the device applied.
+    pub expected_packet_rate_ms: Option<u16>,
+    /// The last poll response.
+    pub last_input: Option<Vec<u8>>,
+}
+
+/// Options of `connect`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ConnectOptions {
+    /// The device.
+    pub target: MacId,
+    /// Expected packet rate to set on the poll connection, ms (`--epr`).
+    pub epr_ms: u16,
+    /// Poll cycles after the connection is established (`--polls`).
+    pub polls: u32,
+    /// Poll output data (`--output`); `None`: the consumed size in zero bytes.
+    pub output: Option<Vec<u8>>,
+    /// Read the connections' states back after the polls and check the 4 × EPR watchdog
+    /// (`--verify-state`; adds frames after the bring-up).
+    pub verify_state: bool,
+}
+
+impl Default for ConnectOptions {
+    fn default() -> Self {
+        ConnectOptions {
+            target: MacId::from_low_bits(5),
+            epr_ms: 100,
+            polls: 1,
+            output: None,
+            verify_state: false,
+        }
+    }
+}
+
+/// The master on a session. See the [module docs](self).
+pub struct Master<'s, 'b> {
+    /// The session (bus + transcript).
+    pub session: &'s mut Session<'b>,
+    /// Identity and timing.
+    pub config: MasterConfig,
+    /// Devices' duplicate MAC ID checks seen.
+    pub tracker: OnlineTracker,
+    online_at: Option<Instant>,
+    /// The device under test, for judging unexpected frames.
+    device: Option<MacId>,
+    body_format: BodyFormat,
+    xid: bool,
+    last_record: Option<usize>,
+}
+
+/// The outcome of an explicit request, kept with its record.
+pub struct Answer {
+    /// The reply.
+    pub reply: Reply,
+    /// The record that completed it.
+    pub record: Option<usize>,
+}
+
+fn step_name(req: &Request<'_>) -> String {
+    decode::request_text(req)
+}
+
+impl<'s, 'b> Master<'s, 'b> {
+    /// A master on `session`.
+    pub fn new(session: &'s mut Session<'b>, config: MasterConfig) -> Self {
+        Master {
+            session,
+            config,
+            tracker: OnlineTracker::default(),
+            online_at: None,
+            device: None,
+            body_format: BodyFormat::Class8Instance8,
+            xid: false,
+            last_record: None,
+        }
+    }
+
+    /// Sets the device under test (frames from it that nothing expects are failures).
+    pub fn set_device(&mut self, mac: MacId) {
+        self.device = Some(mac);
+    }
+
+    /// When the master went on-line.
+    pub fn online_at(&self) -> Option<Instant> {
+        self.online_at
+    }
+
+    /// Judges a frame nobody waits for: devices' duplicate MAC ID checks are noted (and checked),
+    /// a check of the master's own MAC is answered (notes §7.1), frames from the device under test
+    /// are unexpected, everything else is other traffic.
+    pub(crate) fn other(&mut self, i: usize) -> Result<(), HarnessError> {
+        let rec = self.session.record(i).clone();
+        if rec.origin == Origin::Local {
+            return Ok(());
+        }
+        if let Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } =
+            Identifier::decode(rec.frame.id())
+        {
+            let check = match DuplicateMacCheck::parse(rec.frame.data()) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.session
+                        .set_verdict(i, Verdict::fail(format!("malformed duplicate MAC ID check: {e}")));
+                    return Ok(());
+                }
+            };
+            if mac == self.config.mac {
+                if check.response || self.online_at.is_none() {
+                    self.session.set_verdict(i, Verdict::fail("another node uses the master's MAC ID"));
+                    return Err(HarnessError::DuplicateMac {
+                        mac: mac.as_raw(),
+                        detail: format!(
+                            "a node with vendor 0x{:04X}, serial 0x{:08X} claims it",
+                            check.vendor_id, check.serial_number
+                        ),
+                    });
+                }
+                // On-line: answer, to keep the newcomer off the bus (notes §7.1 rule 3).
+                let response =
+                    DuplicateMacCheck::response(0, self.config.vendor_id, self.config.serial_number);
+                let id = Identifier::group2(self.config.mac, Group2Message::DuplicateMacCheck);
+                if let Ok(f) = CanFrame::new(id, &response.emit()) {
+                    self.session.send(&f)?;
+                }
+                self.session
+                    .set_verdict(i, Verdict::Info("a newcomer checks the master's MAC: answered".into()));
+                return Ok(());
+            }
+            if check.response {
+                let verdict = if Some(mac) == self.device {
+                    Verdict::fail("duplicate MAC ID response: another node holds the device's MAC ID")
+                } else {
+                    Verdict::Info("duplicate MAC ID response".into())
+                };
+                self.session.set_verdict(i, verdict);
+                return Ok(());
+            }
+            let n = self.tracker.note(mac.as_raw(), rec.at, check);
+            let note = format!(
+                "duplicate MAC ID check #{n} of MAC {mac}: vendor 0x{:04X}, serial 0x{:08X}",
+                check.vendor_id, check.serial_number
+            );
+            let verdict =
+                if n > 2 { Verdict::Ok(format!("{note} (check restarted)")) } else { Verdict::Ok(note) };
+            self.session.set_verdict(i, verdict);
+            return Ok(());
+        }
+        match self.device {
+            Some(d) => client::judge_other(self.session, i, d),
+            None => self.session.set_verdict(i, Verdict::Info("other traffic".into())),
+        }
+        Ok(())
+    }
+
+    /// Waits until `deadline`, judging what arrives.
+    pub fn idle_until(&mut self, deadline: Instant) -> Result<(), HarnessError> {
+        while let Some(i) = self.session.next(deadline)? {
+            self.other(i)?;
+        }
+        Ok(())
+    }
+
+    /// The master's own network access (notes §7.1): two duplicate MAC ID requests 1 s apart,
+    /// on-line 1 s after the second unless another node claims the MAC.
+    pub fn network_access(&mut self) -> Result<(), HarnessError> {
+        let check = DuplicateMacCheck::request(0, self.config.vendor_id, self.config.serial_number);
+        let id = Identifier::group2(self.config.mac, Group2Message::DuplicateMacCheck);
+        let frame = CanFrame::new(id, &check.emit()).map_err(|e| HarnessError::Usage(e.to_string()))?;
+        for _ in 0..2 {
+            let sent = self.session.now();
+            self.session.send(&frame)?;
+            self.idle_until(sent + DUP_MAC_INTERVAL)?;
+        }
+        let now = self.session.now();
+        self.online_at = Some(now);
+        self.session.hint(Hint::MasterOnline);
+        Ok(())
+    }
+
+    /// Waits until `mac` is on-line: until 1 s after its second duplicate MAC ID request when the
+    /// check shows on the bus, else for [`DEVICE_ONLINE_GRACE`].
+    pub fn await_online(&mut self, macs: &[MacId]) -> Result<(), HarnessError> {
+        let grace = self.online_at.unwrap_or(Instant::ZERO) + DEVICE_ONLINE_GRACE;
+        loop {
+            // A device whose check showed is on-line at its own time; one that did not show is
+            // waited for until the grace period ends.
+            let deadline = macs
+                .iter()
+                .map(|m| self.tracker.online_at(m.as_raw()).unwrap_or(grace))
+                .max()
+                .unwrap_or(grace);
+            if self.session.now() >= deadline {
+                return Ok(());
+            }
+            match self.session.next(deadline)? {
+                Some(i) => self.other(i)?,
+                None => return Ok(()),
+            }
+        }
+    }
+
+    /// UCMM open explicit connection to `target`, sent up to twice (notes §2 frames 4–5, §3.6).
+    /// Returns whether the device answered (UCMM-capable); a group-2-only device stays silent.
+    pub fn ucmm_probe(&mut self, target: MacId) -> Result<bool, HarnessError> {
+        let open = UcmmOpenRequest {
+            xid: false,
+            destination: target,
+            body_format: BodyFormat::Class8Instance8,
+            group_select: GroupSelect::Group3,
+            source_message_id: 4,
+        };
+        let id =
+            Identifier::Group3 { message: Group3MessageId::UNCONNECTED_REQUEST, source: self.config.mac }
+                .encode();
+        let response_id =
+            Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: target }.encode();
+        let frame = CanFrame::new(id, &open.emit()).map_err(|e| HarnessError::Usage(e.to_string()))?;
+        for _ in 0..2 {
+            let sent = self.session.now();
+            self.session.send(&frame)?;
+            let deadline = sent + UCMM_TIMEOUT;
+            while let Some(i) = self.session.next(deadline)? {
+                let rec = self.session.record(i).clone();
+                if rec.origin == Origin::Remote && rec.frame.id() == response_id {
+                    return self.ucmm_answered(i, target);
+                }
+                self.other(i)?;
+            }
+        }
+        Ok(false)
+    }
+
+    fn ucmm_answered(&mut self, i: usize, target: MacId) -> Result<bool, HarnessError> {
+        let rec = self.session.record(i).clone();
+        match UcmmOpenResponse::parse(rec.frame.data()) {
+            Ok(r) if r.destination == self.config.mac => {
+                self.session.set_verdict(
+                    i,
+                    Verdict::Ok("UCMM-capable device; closing, then the Group 2 Only port".into()),
+                );
+                let close = UcmmCloseRequest {
+                    xid: false,
+                    destination: target,
+                    connection_instance: r.connection_instance,
+                };
+                let id = Identifier::Group3 {
+                    message: Group3MessageId::UNCONNECTED_REQUEST,
+                    source: self.config.mac,
+                }
+                .encode();
+                if let Ok(f) = CanFrame::new(id, &close.emit()) {
+                    self.session.send(&f)?;
+                }
+                let response_id =
+                    Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: target }
+                        .encode();
+                let deadline = self.session.now() + UCMM_TIMEOUT;
+                while let Some(j) = self.session.next(deadline)? {
+                    let rec = self.session.record(j).clone();
+                    if rec.origin == Origin::Remote && rec.frame.id() == response_id {
+                        self.session.set_verdict(j, Verdict::Ok("UCMM close answered".into()));
+                        break;
+                    }
+                    self.other(j)?;
+                }
+            }
+            Ok(r) => self.session.set_verdict(
+                i,
+                Verdict::fail(format!("UCMM response addressed to MAC {}, not the master", r.destination)),
+            ),
+            Err(_) => {
+                self.session.set_verdict(i, Verdict::Ok("UCMM answered (error or unknown form)".into()))
+            }
+        }
+        Ok(true)
+    }
+
+    /// Sends `request` to `target` and waits for the complete answer (fragmented both ways as
+    /// needed). A timeout is an error naming the request and the timeout.
+    pub fn request(
+        &mut self,
+        target: MacId,
+        port: Port,
+        request: &Request<'_>,
+    ) -> Result<Answer, HarnessError> {
+        let what = step_name(request);
+        let format = if port == Port::Group2Only { BodyFormat::Class8Instance8 } else { self.body_format };
+        let mut tx = Transaction::new(
+            target,
+            self.config.mac,
+            port,
+            self.xid,
+            request,
+            format,
+            self.config.response_timeout,
+        )?;
+        let mut deferred: Vec<usize> = Vec::new();
+        let (outcome, record) = client::run(self.session, &mut tx, |_, i| deferred.push(i))?;
+        // Frames that were not part of the exchange are judged once it is over (in order).
+        for i in deferred {
+            self.other(i)?;
+        }
+        self.last_record = record;
+        match outcome {
+            Ok(reply) => Ok(Answer { reply, record }),
+            Err(ClientError::Timeout { name, after }) => {
+                Err(HarnessError::Timeout { what, mac: target.as_raw(), after, timeout: name })
+            }
+            Err(ClientError::RequestAborted(reason)) => Err(HarnessError::Protocol { what, reason }),
+        }
+    }
+
+    /// [`Master::request`], with an error response turned into [`HarnessError::ErrorResponse`]
+    /// (and the record's verdict a failure naming it).
+    pub fn request_ok(
+        &mut self,
+        target: MacId,
+        port: Port,
+        request: &Request<'_>,
+    ) -> Result<(Vec<u8>, Option<usize>), HarnessError> {
+        let answer = self.request(target, port, request)?;
+        match answer.reply.body {
+            ReplyBody::Success(data) => Ok((data, answer.record)),
+            ReplyBody::Error { general, additional } => {
+                let text = decode::error_text(general, additional);
+                if let Some(i) = answer.record {
+                    let v = self.session.record(i).verdict.clone();
+                    self.session.set_verdict(i, v.with_failures(vec![format!("error response: {text}")]));
+                }
+                Err(HarnessError::ErrorResponse {
+                    what: step_name(request),
+                    mac: target.as_raw(),
+                    general,
+                    additional,
+                    text,
+                })
+            }
+        }
+    }
+
+    /// Adds payload checks to record `i`: `failures` empty keeps its verdict, with `note` added.
+    pub fn judge(&mut self, i: Option<usize>, note: &str, failures: Vec<String>) {
+        if let Some(i) = i {
+            let v = match self.session.record(i).verdict.clone() {
+                Verdict::Ok(n) if !note.is_empty() => Verdict::Ok(format!("{n}; {note}")),
+                other => other,
+            };
+            self.session.set_verdict(i, v.with_failures(failures));
+        }
+    }
+
+    /// Allocate_Master/Slave_Connection_Set for `choice`, through `port` (notes §3.4). Returns the
+    /// announced message body format, which later requests use.
+    pub fn allocate(
+        &mut self,
+        target: MacId,
+        port: Port,
+        choice: AllocationChoice,
+    ) -> Result<Option<usize>, HarnessError> {
+        let data = AllocateRequest { choice, allocator: self.config.mac }.emit();
+        let req = Request {
+            service: ServiceCode::AllocateMasterSlave,
+            class: class::DEVICENET,
+            instance: 1,
+            data: &data,
+        };
+        let (data, i) = self.request_ok(target, port, &req)?;
+        let mut failures = Vec::new();
+        match data.as_slice() {
+            [fmt] => match BodyFormat::from_code(*fmt) {
+                f @ (BodyFormat::Class8Instance8
+                | BodyFormat::Class8Instance16
+                | BodyFormat::Class16Instance16
+                | BodyFormat::Class16Instance8) => self.body_format = f,
+                other => failures.push(format!(
+                    "body format {} is not one the master can use",
+                    decode::body_format_text(other)
+                )),
+            },
+            other => failures
+                .push(format!("allocate response data {} , expected 1 byte (body format)", hex(other))),
+        }
+        let note = format!("{choice} allocated");
+        self.judge(i, &note, failures);
+        Ok(i)
+    }
+
+    /// Release_Master/Slave_Connection_Set for `choice` through the explicit connection.
+    pub fn release(&mut self, target: MacId, choice: AllocationChoice) -> Result<(), HarnessError> {
+        let data = ReleaseRequest { choice }.emit();
+        let req = Request {
+            service: ServiceCode::ReleaseMasterSlave,
+            class: class::DEVICENET,
+            instance: 1,
+            data: &data,
+        };
+        let (data, i) = self.request_ok(target, Port::Explicit, &req)?;
+        let failures = if data.is_empty() {
+            Vec::new()
+        } else {
+            vec![format!("release response carries data {}", hex(&data))]
+        };
+        self.judge(i, "released", failures);
+        Ok(())
+    }
+
+    /// Get_Attribute_Single; returns the value bytes.
+    pub fn get(
+        &mut self,
+        target: MacId,
+        class_id: u16,
+        instance: u16,
+        attribute: u8,
+    ) -> Result<(Vec<u8>, Option<usize>), HarnessError> {
+        let data = [attribute];
+        let req =
+            Request { service: ServiceCode::GetAttributeSingle, class: class_id, instance, data: &data };
+        self.request_ok(target, Port::Explicit, &req)
+    }
+
+    /// Get_Attribute_Single of a UINT, checked to be 2 bytes.
+    pub fn get_u16(
+        &mut self,
+        target: MacId,
+        class_id: u16,
+        instance: u16,
+        attribute: u8,
+    ) -> Result<Option<u16>, HarnessError> {
+        let (data, i) = self.get(target, class_id, instance, attribute)?;
+        let value = match data.as_slice() {
+            [a, b] => Some(u16::from_le_bytes([*a, *b])),
+            _ => None,
+        };
+        let failures = match value {
+            Some(_) => Vec::new(),
+            None => vec![format!("value of {} bytes, a UINT has 2 (DLC 4 expected)", data.len())],
+        };
+        let p = PendingRequest {
+            service: ServiceCode::GetAttributeSingle,
+            class: class_id,
+            instance,
+            attribute: Some(attribute),
+        };
+        let note = format!(
+            "{} = {}",
+            decode::attribute_text(p.class, p.instance, attribute),
+            decode::value_text(class_id, instance, attribute, &data)
+        );
+        self.judge(i, &note, failures);
+        Ok(value)
+    }
+
+    /// Set_Attribute_Single; returns the response data.
+    pub fn set(
+        &mut self,
+        target: MacId,
+        class_id: u16,
+        instance: u16,
+        attribute: u8,
+        value: &[u8],
+    ) -> Result<(Vec<u8>, Option<usize>), HarnessError> {
+        let mut data = vec![attribute];
+        data.extend_from_slice(value);
+        let req =
+            Request { service: ServiceCode::SetAttributeSingle, class: class_id, instance, data: &data };
+        self.request_ok(target, Port::Explicit, &req)
+    }
+
+    /// The poll command frames for `output` on a connection consuming `consumed` bytes.
+    fn poll_frames(&self, target: MacId, output: &[u8], consumed: u16) -> Vec<CanFrame> {
+        let id = Identifier::group2(target, Group2Message::PollCommand);
+        if consumed > 8 {
+            io_fragments(output).filter_map(|p| CanFrame::new(id, &p).ok()).collect()
+        } else {
+            CanFrame::new(id, output).into_iter().collect()
+        }
+    }
+
+    /// One poll cycle: sends `output`, waits for the complete response (reassembled when the
+    /// produced size is over 8, notes §4.2) and checks every fragment. Returns the input data.
+    pub fn poll(
+        &mut self,
+        target: MacId,
+        output: &[u8],
+        produced: u16,
+        consumed: u16,
+        timeout: Duration,
+    ) -> Result<Vec<u8>, HarnessError> {
+        for f in self.poll_frames(target, output, consumed) {
+            self.session.send(&f)?;
+        }
+        let deadline = self.session.now() + timeout;
+        let response_id = Identifier::group1(Group1MessageId::POLL_RESPONSE, target);
+        let mut rx: Box<IoReassembler<{ decode::MAX_IO_MESSAGE }>> = Box::new(IoReassembler::new());
+        let fragmented = produced > 8;
+        let mut expected_len = usize::from(produced);
+        loop {
+            let Some(i) = self.session.next(deadline)? else {
+                return Err(HarnessError::Timeout {
+                    what: format!("poll of MAC {target}"),
+                    mac: target.as_raw(),
+                    after: timeout,
+                    timeout: "poll response timeout",
+                });
+            };
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if rec.frame.id() != response_id {
+                self.other(i)?;
+                continue;
+            }
+            let data = rec.frame.data();
+            if !fragmented {
+                let failures = if data.len() == usize::from(produced) {
+                    Vec::new()
+                } else {
+                    vec![format!("DLC {}, expected the produced size {produced}", data.len())]
+                };
+                self.session.set_verdict(
+                    i,
+                    Verdict::Ok(format!("poll response, {} bytes", data.len())).with_failures(failures),
+                );
+                return Ok(data.to_vec());
+            }
+            let mut failures = Vec::new();
+            let remaining = expected_len;
+            if let Ok(frag) = IoFragment::parse(data) {
+                let want = 1 + remaining.min(7);
+                if data.len() != want {
+                    failures.push(format!(
+                        "DLC {}, expected {want} ({} data bytes left)",
+                        data.len(),
+                        remaining
+                    ));
+                }
+                expected_len = remaining.saturating_sub(frag.data.len());
+            }
+            match rx.receive(data) {
+                Ok(Some(whole)) => {
+                    let whole = whole.to_vec();
+                    if whole.len() != usize::from(produced) {
+                        failures.push(format!(
+                            "reassembled {} bytes, expected the produced size {produced}",
+                            whole.len()
+                        ));
+                    }
+                    let note = format!("last fragment; {} bytes reassembled", whole.len());
+                    self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
+                    return Ok(whole);
+                }
+                Ok(None) => {
+                    self.session.set_verdict(
+                        i,
+                        Verdict::Ok("poll response fragment in sequence".into()).with_failures(failures),
+                    );
+                }
+                Err(e) => {
+                    failures.push(format!("fragment rejected: {e}"));
+                    self.session.set_verdict(i, Verdict::Fail(failures));
+                    expected_len = usize::from(produced);
+                }
+            }
+        }
+    }
+
+    /// The whole bring-up of notes §2 against `opts.target`. Every frame is recorded in the
+    /// session with its verdict; the result summarises what was learned.
+    pub fn connect(&mut self, opts: &ConnectOptions) -> Result<DeviceSummary, HarnessError> {
+        let target = opts.target;
+        if target == self.config.mac {
+            return Err(HarnessError::Usage(format!("the device's MAC {target} is the master's own MAC")));
+        }
+        self.set_device(target);
+        let mut summary = DeviceSummary { mac: target.as_raw(), ..DeviceSummary::default() };
+        self.network_access()?;
+        self.await_online(&[target])?;
+        summary.ucmm_capable = self.ucmm_probe(target)?;
+        self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+        // Explicit connection: watchdog timeout action = deferred delete (notes §5.4).
+        let (data, i) = self.set(target, class::CONNECTION, 1, 12, &[3])?;
+        let failures = if data.is_empty() {
+            Vec::new()
+        } else {
+            vec![format!("set response carries data {}", hex(&data))]
+        };
+        self.judge(i, "explicit watchdog action = deferred delete", failures);
+        summary.vendor_id = self.get_u16(target, class::IDENTITY, 1, 1)?;
+        if let (Some(v), Some(dup)) = (summary.vendor_id, self.tracker.announced(target.as_raw())) {
+            if v != dup.vendor_id {
+                let last = self.last_record;
+                self.judge(
+                    last,
+                    "",
+                    vec![format!(
+                        "vendor ID 0x{v:04X} differs from the duplicate MAC ID check's 0x{:04X}",
+                        dup.vendor_id
+                    )],
+                );
+            }
+        }
+        summary.device_type = self.get_u16(target, class::IDENTITY, 1, 2)?;
+        summary.product_code = self.get_u16(target, class::IDENTITY, 1, 3)?;
+        self.allocate(target, Port::Explicit, AllocationChoice::POLL)?;
+        summary.produced_size = self.get_u16(target, class::CONNECTION, 2, 7)?;
+        summary.consumed_size = self.get_u16(target, class::CONNECTION, 2, 8)?;
+        let produced = summary.produced_size.unwrap_or(0);
+        let consumed = summary.consumed_size.unwrap_or(0);
+        let (data, i) = self.set(target, class::CONNECTION, 2, 9, &opts.epr_ms.to_le_bytes())?;
+        let applied = match data.as_slice() {
+            [a, b] => {
+                let applied = u16::from_le_bytes([*a, *b]);
+                let failures = if applied >= opts.epr_ms {
+                    Vec::new()
+                } else {
+                    vec![format!(
+                        "EPR applied {applied} ms is below the {} ms requested (must round up)",
+                        opts.epr_ms
+                    )]
+                };
+                self.judge(
+                    i,
+                    &format!(
+                        "EPR {applied} ms applied; poll established, watchdog 4 x EPR = {} ms",
+                        u32::from(applied) * 4
+                    ),
+                    failures,
+                );
+                applied
+            }
+            [] => {
+                self.judge(i, "EPR set (no applied value returned)", Vec::new());
+                opts.epr_ms
+            }
+            other => {
+                self.judge(i, "", vec![format!("EPR response data {}, expected 2 bytes", hex(other))]);
+                opts.epr_ms
+            }
+        };
+        summary.expected_packet_rate_ms = Some(applied);
+        let output = match &opts.output {
+            Some(o) if o.len() > usize::from(consumed) => {
+                return Err(HarnessError::Usage(format!(
+                    "--output has {} bytes; the device consumes {consumed}",
+                    o.len()
+                )))
+            }
+            Some(o) => o.clone(),
+            None => vec![0; usize::from(consumed)],
+        };
+        let epr = Duration::from_millis(u64::from(applied.max(1)));
+        let timeout = if epr > MIN_POLL_TIMEOUT { epr } else { MIN_POLL_TIMEOUT };
+        let mut next_poll = self.session.now();
+        let mut last_poll = next_poll;
+        for _ in 0..opts.polls {
+            self.idle_until(next_poll)?;
+            last_poll = self.session.now();
+            let input = self.poll(target, &output, produced, consumed, timeout)?;
+            summary.last_input = Some(input);
+            next_poll = last_poll + epr;
+        }
+        if opts.verify_state {
+            self.verify_state(target, applied, last_poll, opts.polls > 0)?;
+        }
+        Ok(summary)
+    }
+
+    /// Reads the connection states back and checks the poll watchdog fires at 4 × EPR
+    /// (`--verify-state`).
+    fn verify_state(
+        &mut self,
+        target: MacId,
+        epr_ms: u16,
+        last_poll: Instant,
+        polled: bool,
+    ) -> Result<(), HarnessError> {
+        let expect = |m: &mut Self, inst: u16, attr: u8, want: u8, what: &str| -> Result<(), HarnessError> {
+            let (data, i) = m.get(target, class::CONNECTION, inst, attr)?;
+            let failures = if data.as_slice() == [want] {
+                Vec::new()
+            } else {
+                vec![format!("{what}: read {}, expected {want}", hex(&data))]
+            };
+            m.judge(i, what, failures);
+            Ok(())
+        };
+        expect(self, 1, 1, 3, "explicit connection established")?;
+        expect(self, 1, 12, 3, "explicit watchdog action deferred delete")?;
+        expect(self, 2, 1, 3, "poll connection established")?;
+        if polled {
+            let watchdog = Duration::from_millis(4 * u64::from(epr_ms));
+            let margin = Duration::from_millis(u64::from(epr_ms / 2).max(5));
+            let before = last_poll
+                + Duration::from_micros(watchdog.total_micros().saturating_sub(margin.total_micros()));
+            self.idle_until(before)?;
+            expect(self, 2, 1, 3, "poll still established just before 4 x EPR")?;
+            self.idle_until(last_poll + watchdog + margin)?;
+            expect(self, 2, 1, 4, "poll timed out just after 4 x EPR")?;
+        }
+        Ok(())
+    }
+
+    /// Gains an explicit connection to `target` for one-off requests: network access, wait for
+    /// the device, Allocate explicit through the Group 2 Only port. An explicit connection the
+    /// master already owns (0x0B already in requested state) is used as it is.
+    pub fn open_explicit(&mut self, target: MacId) -> Result<(), HarnessError> {
+        if target == self.config.mac {
+            return Err(HarnessError::Usage(format!("MAC {target} is the master's own MAC")));
+        }
+        self.set_device(target);
+        self.network_access()?;
+        self.await_online(&[target])?;
+        match self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT) {
+            Ok(_) => Ok(()),
+            Err(HarnessError::ErrorResponse {
+                general: devicenet::explicit::GeneralStatus::AlreadyInRequestedState,
+                ..
+            }) => {
+                // Ours already: use it. The record keeps the error in view but is not a failure.
+                if let Some(i) = self.session.records().iter().rposition(|r| r.origin == Origin::Remote) {
+                    self.session.set_verdict(
+                        i,
+                        Verdict::Ok("explicit connection already allocated to this master".into()),
+                    );
+                }
+                Ok(())
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The header the master puts on its requests.
+    pub fn header(&self) -> Header {
+        Header::new(self.xid, self.config.mac)
+    }
+
+    /// `true` when `frame` comes from `mac`.
+    pub fn is_from(frame: &CanFrame, mac: MacId) -> bool {
+        is_from_device(frame, mac)
+    }
+}

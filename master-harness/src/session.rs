@@ -1,0 +1,211 @@
+//! A session on a bus: every frame seen is recorded with its time, direction, decoded meaning and
+//! verdict, and written to the `--log` file as it comes.
+
+use crate::bus::{Bus, Hint, Origin};
+use crate::decode::Decoder;
+use crate::error::HarnessError;
+use crate::log::LogWriter;
+use devicenet::{CanFrame, Identifier, Instant, MacId};
+
+/// The verdict on one frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// Sent by this program.
+    Sent,
+    /// Checked and as the protocol requires; the note says what was verified.
+    Ok(String),
+    /// Checked and wrong: each reason.
+    Fail(Vec<String>),
+    /// Not part of the exchange under test (other traffic); not checked.
+    Info(String),
+    /// Not looked at (yet).
+    Unchecked,
+}
+
+impl Verdict {
+    /// A failure with one reason.
+    pub fn fail(reason: impl Into<String>) -> Verdict {
+        Verdict::Fail(vec![reason.into()])
+    }
+
+    /// Adds `reasons`: an empty list keeps the verdict, otherwise it becomes (or stays) a failure.
+    pub fn with_failures(self, reasons: Vec<String>) -> Verdict {
+        if reasons.is_empty() {
+            return self;
+        }
+        match self {
+            Verdict::Fail(mut r) => {
+                r.extend(reasons);
+                Verdict::Fail(r)
+            }
+            _ => Verdict::Fail(reasons),
+        }
+    }
+
+    /// `true` for [`Verdict::Fail`].
+    pub fn is_failure(&self) -> bool {
+        matches!(self, Verdict::Fail(_))
+    }
+
+    /// The short form shown in the table's verdict column.
+    pub fn label(&self) -> String {
+        match self {
+            Verdict::Sent => "sent".into(),
+            Verdict::Ok(_) => "ok".into(),
+            Verdict::Fail(r) => format!("FAIL: {}", r.join("; ")),
+            Verdict::Info(_) => "-".into(),
+            Verdict::Unchecked => "-".into(),
+        }
+    }
+}
+
+/// One frame seen on the bus.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Record {
+    /// 0-based position in the session.
+    pub index: usize,
+    /// When it completed on the bus.
+    pub at: Instant,
+    /// Who sent it.
+    pub origin: Origin,
+    /// The frame.
+    pub frame: CanFrame,
+    /// Its DeviceNet meaning.
+    pub meaning: String,
+    /// The verdict.
+    pub verdict: Verdict,
+}
+
+impl Record {
+    /// `M->` for this program's frames, `S->` for frames of `device`, `?->` for anyone else.
+    pub fn direction(&self, device: Option<MacId>) -> &'static str {
+        match self.origin {
+            Origin::Local => "M->",
+            Origin::Remote if device.is_some_and(|d| is_from_device(&self.frame, d)) => "S->",
+            Origin::Remote => "?->",
+        }
+    }
+}
+
+/// `true` for frames only device `mac` produces: its Group 1 messages, its Group 2 message 3
+/// (explicit/unconnected responses) and 7 (duplicate MAC ID checks), and Group 3 messages with it
+/// as the source.
+pub fn is_from_device(frame: &CanFrame, mac: MacId) -> bool {
+    match Identifier::decode(frame.id()) {
+        Identifier::Group1 { source, .. } | Identifier::Group3 { source, .. } => source == mac,
+        Identifier::Group2 { mac: m, message } => {
+            m == mac
+                && matches!(
+                    message,
+                    devicenet::Group2Message::ExplicitResponse | devicenet::Group2Message::DuplicateMacCheck
+                )
+        }
+        Identifier::Group4 { .. } | Identifier::Invalid(_) => false,
+    }
+}
+
+/// A bus with its transcript. See the [module docs](self).
+pub struct Session<'b> {
+    bus: &'b mut dyn Bus,
+    decoder: Decoder,
+    records: Vec<Record>,
+    log: Option<LogWriter>,
+}
+
+impl<'b> Session<'b> {
+    /// A session on `bus`, without a log file.
+    pub fn new(bus: &'b mut dyn Bus) -> Session<'b> {
+        Session { bus, decoder: Decoder::new(), records: Vec::new(), log: None }
+    }
+
+    /// Writes every frame to `log` as it is seen.
+    pub fn set_log(&mut self, log: LogWriter) {
+        self.log = Some(log);
+    }
+
+    /// The bus's clock.
+    pub fn now(&mut self) -> Instant {
+        self.bus.now()
+    }
+
+    /// The bus interface name.
+    pub fn bus_name(&self) -> &str {
+        self.bus.name()
+    }
+
+    /// Queues a frame; it is recorded when it comes back from the bus.
+    pub fn send(&mut self, frame: &CanFrame) -> Result<(), HarnessError> {
+        self.bus.send(frame)?;
+        Ok(())
+    }
+
+    /// Passes a hint to the bus.
+    pub fn hint(&mut self, hint: Hint) {
+        self.bus.hint(hint);
+    }
+
+    /// Waits for the next frame until `deadline`, records it and returns its index; `None` at the
+    /// deadline. This program's own frames are recorded with [`Verdict::Sent`].
+    pub fn next(&mut self, deadline: Instant) -> Result<Option<usize>, HarnessError> {
+        let Some(ev) = self.bus.recv(deadline)? else { return Ok(None) };
+        let meaning = self.decoder.decode(&ev.frame).text();
+        if let Some(log) = &mut self.log {
+            log.write(ev.at, self.bus.name(), &ev.frame)
+                .map_err(|source| HarnessError::Write { path: "the log file".into(), source })?;
+        }
+        let index = self.records.len();
+        let verdict = if ev.origin == Origin::Local { Verdict::Sent } else { Verdict::Unchecked };
+        self.records.push(Record { index, at: ev.at, origin: ev.origin, frame: ev.frame, meaning, verdict });
+        Ok(Some(index))
+    }
+
+    /// Waits until `deadline`, recording everything; frames not from this program are passed to
+    /// `other` to be judged.
+    pub fn idle_until(
+        &mut self,
+        deadline: Instant,
+        mut other: impl FnMut(&mut Session<'b>, usize) -> Result<(), HarnessError>,
+    ) -> Result<(), HarnessError> {
+        while let Some(i) = self.next(deadline)? {
+            if self.records[i].origin == Origin::Remote {
+                other(self, i)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Record `i`.
+    pub fn record(&self, i: usize) -> &Record {
+        &self.records[i]
+    }
+
+    /// Sets the verdict of record `i`.
+    pub fn set_verdict(&mut self, i: usize, verdict: Verdict) {
+        if let Some(r) = self.records.get_mut(i) {
+            r.verdict = verdict;
+        }
+    }
+
+    /// Every frame seen so far.
+    pub fn records(&self) -> &[Record] {
+        &self.records
+    }
+
+    /// Frames whose verdict is a failure.
+    pub fn failures(&self) -> usize {
+        self.records.iter().filter(|r| r.verdict.is_failure()).count()
+    }
+
+    /// The decoder (what it learned: connection sizes).
+    pub fn decoder(&mut self) -> &mut Decoder {
+        &mut self.decoder
+    }
+
+    /// Flushes the log file.
+    pub fn flush(&mut self) -> Result<(), HarnessError> {
+        if let Some(log) = &mut self.log {
+            log.flush().map_err(|source| HarnessError::Write { path: "the log file".into(), source })?;
+        }
+        Ok(())
+    }
+}
