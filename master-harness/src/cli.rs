@@ -66,6 +66,17 @@ pub fn parse_hex(s: &str) -> Result<Vec<u8>, String> {
         .collect()
 }
 
+/// Hex bytes given on the command line (`0201`, `02 01`, `02:01`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct HexBytes(pub Vec<u8>);
+
+impl std::str::FromStr for HexBytes {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        parse_hex(s).map(HexBytes)
+    }
+}
+
 /// When the simulated slaves power on (`--slave-power-on`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PowerOnArg(pub PowerOn);
@@ -140,8 +151,8 @@ pub enum Command {
         #[arg(long, default_value_t = 1)]
         polls: u32,
         /// Poll output data in hex (default: zeros of the consumed size).
-        #[arg(long, value_parser = parse_hex)]
-        output: Option<Vec<u8>>,
+        #[arg(long)]
+        output: Option<HexBytes>,
         /// Read the connection states back and check the 4 x EPR watchdog (adds frames).
         #[arg(long)]
         verify_state: bool,
@@ -199,8 +210,7 @@ pub enum Command {
         #[arg(value_parser = parse_u8)]
         attribute: u8,
         /// The value in hex.
-        #[arg(value_parser = parse_hex)]
-        value: Vec<u8>,
+        value: HexBytes,
     },
     /// Connect, then show the polled data decoded by the device profile.
     Monitor {
@@ -211,8 +221,8 @@ pub enum Command {
         #[arg(long, default_value_t = 100)]
         epr: u16,
         /// Poll output data in hex (e.g. 0201 closes the breaker).
-        #[arg(long, value_parser = parse_hex)]
-        output: Option<Vec<u8>>,
+        #[arg(long)]
+        output: Option<HexBytes>,
         /// Record every sample in FILE (CSV).
         #[arg(long, value_name = "FILE")]
         csv: Option<PathBuf>,
@@ -395,7 +405,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 target: *mac,
                 epr_ms: *epr,
                 polls: *polls,
-                output: output.clone(),
+                output: output.clone().map(|h| h.0),
                 verify_state: *verify_state,
             };
             let mut master = Master::new(&mut session, config);
@@ -429,7 +439,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
         }
         Command::Set { mac, class, instance, attribute, value } => {
             let mut master = Master::new(&mut session, config);
-            let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(value));
+            let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0));
             (r, Some(*mac))
         }
         Command::Monitor { mac, epr, output, csv, count, duration } => {
@@ -448,7 +458,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                     target: *mac,
                     epr_ms: *epr,
                     polls: 0,
-                    output: output.clone(),
+                    output: output.clone().map(|h| h.0),
                     verify_state: false,
                 },
                 count: *count,

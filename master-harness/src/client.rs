@@ -30,6 +30,9 @@ pub const MAX_MESSAGE: usize = 1024;
 /// matches the fragment acknowledge timeout of a conformance-tested slave (JB).
 pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(1);
 
+/// How long [`run`] waits, once a transaction is over, to see the master's last frames on the bus.
+pub const ECHO_WAIT: Duration = Duration::from_millis(100);
+
 /// Where a request is sent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Port {
@@ -452,11 +455,24 @@ pub fn run(
     let now = session.now();
     tx.start(now);
     let mut last = None;
+    // Own frames sent and not yet seen back from the bus.
+    let mut in_flight = 0usize;
     loop {
         while let Some(f) = tx.poll_transmit() {
             session.send(&f)?;
+            in_flight += 1;
         }
         if tx.is_done() {
+            // Record the master's last frames (the final fragment acknowledge) before returning.
+            let until = session.now() + ECHO_WAIT;
+            while in_flight > 0 {
+                let Some(i) = session.next(until)? else { break };
+                if session.record(i).origin == crate::bus::Origin::Local {
+                    in_flight -= 1;
+                } else {
+                    other(session, i);
+                }
+            }
             let outcome = tx.take_outcome().unwrap_or(Err(ClientError::Timeout {
                 name: "explicit response timeout",
                 after: Duration::ZERO,
@@ -469,6 +485,7 @@ pub fn run(
             Some(i) => {
                 let rec = session.record(i).clone();
                 if rec.origin == crate::bus::Origin::Local {
+                    in_flight = in_flight.saturating_sub(1);
                     continue;
                 }
                 match tx.handle_frame(&rec.frame, rec.at) {

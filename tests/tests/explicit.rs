@@ -1,0 +1,145 @@
+//! `get`/`set`: explicit messaging with fragmentation both ways, and error responses by name.
+
+use devicenet::explicit::GeneralStatus;
+use devicenet::messages::AllocationChoice;
+use master_harness::bus::Bitrate;
+use master_harness::client::{Port, ReplyBody};
+use master_harness::error::HarnessError;
+use master_harness::master::{Master, MasterConfig};
+use master_harness::session::Session;
+use system_tests::{mac, sim_bus};
+
+#[test]
+fn product_name_comes_fragmented_and_is_acknowledged() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let mut m = Master::new(&mut session, MasterConfig::default());
+    m.open_explicit(mac(5)).unwrap();
+    let (data, _) = m.get(mac(5), 1, 1, 7).unwrap();
+    assert_eq!(data[0], 23);
+    assert_eq!(&data[1..], b"Serial-DeviceNet Bridge");
+    // 26-byte message: 5 fragments of up to 6 body bytes, each acknowledged by the master.
+    let acks = session
+        .records()
+        .iter()
+        .filter(|r| r.frame.id().as_raw() == 0x42C && r.frame.data().len() == 3)
+        .count();
+    let fragments = session
+        .records()
+        .iter()
+        .filter(|r| r.frame.id().as_raw() == 0x42B && r.frame.data()[0] == 0x80)
+        .count();
+    assert_eq!((fragments, acks), (5, 5));
+    assert_eq!(session.failures(), 0);
+}
+
+#[test]
+fn fragmented_request_and_response() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let mut m = Master::new(&mut session, MasterConfig::default());
+    m.open_explicit(mac(5)).unwrap();
+    let value = [1, 2, 3, 4, 5, 6, 7, 8];
+    // Set output assembly 150 data: a 13-byte request, sent in two acknowledged fragments.
+    let (resp, _) = m.set(mac(5), 4, 150, 3, &value).unwrap();
+    assert!(resp.is_empty());
+    let answer = m
+        .request(
+            mac(5),
+            Port::Explicit,
+            &devicenet::explicit::Request {
+                service: devicenet::explicit::ServiceCode::GetAttributeSingle,
+                class: 4,
+                instance: 150,
+                data: &[3],
+            },
+        )
+        .unwrap();
+    assert!(answer.reply.fragmented);
+    assert_eq!(answer.reply.body, ReplyBody::Success(value.to_vec()));
+    let request_fragments = session
+        .records()
+        .iter()
+        .filter(|r| r.frame.id().as_raw() == 0x42C && r.frame.data().len() == 8)
+        .count();
+    assert_eq!(request_fragments, 2);
+    assert_eq!(session.failures(), 0);
+}
+
+fn expect_error(r: Result<(Vec<u8>, Option<usize>), HarnessError>, general: GeneralStatus, text: &str) {
+    match r {
+        Err(HarnessError::ErrorResponse { general: g, text: t, .. }) => {
+            assert_eq!(g, general);
+            assert!(t.contains(text), "{t}");
+        }
+        other => panic!("expected an error response, got {other:?}"),
+    }
+}
+
+#[test]
+fn error_responses_are_named() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let mut m = Master::new(&mut session, MasterConfig::default());
+    m.open_explicit(mac(5)).unwrap();
+    expect_error(
+        m.get(mac(5), 1, 1, 99),
+        GeneralStatus::AttributeNotSupported,
+        "attribute not supported (0x14)",
+    );
+    expect_error(
+        m.set(mac(5), 1, 1, 1, &[0, 0]),
+        GeneralStatus::AttributeNotSettable,
+        "attribute not settable (0x0E)",
+    );
+    expect_error(
+        m.get(mac(5), 0x99, 1, 1),
+        GeneralStatus::ObjectDoesNotExist,
+        "object does not exist (0x16)",
+    );
+    expect_error(
+        m.set(mac(5), 5, 1, 12, &[2]),
+        GeneralStatus::InvalidAttributeValue,
+        "invalid attribute value (0x09)",
+    );
+    let err = m.get(mac(5), 1, 1, 99).unwrap_err().to_string();
+    assert!(
+        err.contains("Get_Attribute_Single Identity(1) inst 1 attr 99: MAC 5 answered with an error: attribute not supported (0x14)"),
+        "{err}"
+    );
+    // The failing frames are marked in the transcript.
+    assert_eq!(session.failures(), 5);
+}
+
+#[test]
+fn a_second_master_gets_the_allocation_conflict_by_name() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    {
+        let mut first = Master::new(&mut session, MasterConfig { mac: mac(1), ..MasterConfig::default() });
+        first.open_explicit(mac(5)).unwrap();
+    }
+    let mut second =
+        Master::new(&mut session, MasterConfig { mac: mac(2), serial_number: 7, ..MasterConfig::default() });
+    second.network_access().unwrap();
+    let err = second.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap_err().to_string();
+    assert!(
+        err.contains("object state conflict (0x0C), additional code 0x01 (allocation conflict)"),
+        "{err}"
+    );
+}
+
+#[test]
+fn an_owned_connection_is_reused() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let mut m = Master::new(&mut session, MasterConfig::default());
+    m.open_explicit(mac(5)).unwrap();
+    // Allocating again answers 0x0B already in requested state: the master keeps using it.
+    let err = m.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap_err();
+    assert!(matches!(
+        err,
+        HarnessError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }
+    ));
+    assert_eq!(m.get_u16(mac(5), 1, 1, 1).unwrap(), Some(0x1234));
+}
