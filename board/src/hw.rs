@@ -1,0 +1,289 @@
+//! Peripheral set-up of the adapter board (target builds only).
+//!
+//! [`Board::take`] configures clocks, pins and peripherals and hands the application typed
+//! handles: the LEDs, the switch reading, the service port (USART1), the instrument port
+//! (USART2 + RS-485 driver enable), the bxCAN (real board only) and the settings flash.
+//!
+//! With the `emulated` feature RCC is left at reset (HSI, 16 MHz on every bus; QEMU models no
+//! PLL and would spin forever waiting for it) and CAN1 is not touched (QEMU has no bxCAN).
+
+use crate::clocks;
+use crate::leds;
+use crate::memory;
+use crate::settings::{FlashError, Sector, SettingsFlash};
+use crate::switches::SwitchReading;
+use devicenet::led::Leds;
+use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
+use stm32f4xx_hal::gpio::{Output, Pin, PushPull};
+use stm32f4xx_hal::pac;
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::rcc::Rcc;
+use stm32f4xx_hal::serial::{self, Serial};
+
+pub use stm32f4xx_hal::serial::Event as SerialEvent;
+
+/// The HAL's CAN1 wrapper (pins PB9 TX / PB8 RX configured), for `bxcan::Can::builder`.
+#[cfg(not(feature = "emulated"))]
+pub type Can1 = stm32f4xx_hal::can::Can<pac::CAN1>;
+
+/// The peripherals of the board, configured.
+pub struct Board {
+    /// The MS and NS LEDs.
+    pub leds: LedPins,
+    /// The DIP switches as read at reset.
+    pub switches: SwitchReading,
+    /// USART1, the service port (SLCAN in the emulated build), 115200 8N1.
+    pub service: Serial<pac::USART1>,
+    /// USART2 to the instrument, with the RS-485 driver enable.
+    pub instrument: Rs485,
+    /// CAN1, pins configured, not yet started (real board only).
+    #[cfg(not(feature = "emulated"))]
+    pub can: Can1,
+    /// The two settings sectors.
+    pub flash: InternalFlash,
+    /// The frequency SysTick counts at ([`clocks::SYSTICK_HZ`]).
+    pub systick_hz: u32,
+}
+
+/// Why the board could not be set up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum InitError {
+    /// A USART baud rate the clock cannot produce.
+    SerialConfig,
+}
+
+impl Board {
+    /// Sets the board up; `instrument_baud` is the instrument link's bit rate (8N1).
+    pub fn take(dp: pac::Peripherals, instrument_baud: u32) -> Result<Board, InitError> {
+        let mut rcc = clocks(dp.RCC);
+        let gpioa = dp.GPIOA.split(&mut rcc);
+        let gpiob = dp.GPIOB.split(&mut rcc);
+        let gpioc = dp.GPIOC.split(&mut rcc);
+
+        let leds = LedPins {
+            ms_green: gpioc.pc0.into_push_pull_output(),
+            ms_red: gpioc.pc1.into_push_pull_output(),
+            ns_green: gpioc.pc2.into_push_pull_output(),
+            ns_red: gpioc.pc3.into_push_pull_output(),
+        };
+
+        let switch_pins = [
+            gpiob.pb0.into_pull_up_input().erase(),
+            gpiob.pb1.into_pull_up_input().erase(),
+            gpiob.pb2.into_pull_up_input().erase(),
+            gpiob.pb3.into_pull_up_input().erase(),
+            gpiob.pb4.into_pull_up_input().erase(),
+            gpiob.pb5.into_pull_up_input().erase(),
+            gpiob.pb6.into_pull_up_input().erase(),
+            gpiob.pb7.into_pull_up_input().erase(),
+        ];
+        // Let the pull-ups charge the switch lines (tens of µs at most).
+        cortex_m::asm::delay(clocks::HSI_HZ / 10_000);
+        let port = switch_pins.iter().enumerate().fold(0u8, |acc, (i, p)| acc | (u8::from(p.is_high()) << i));
+
+        let service = dp
+            .USART1
+            .serial(
+                (gpioa.pa9, gpioa.pa10),
+                serial::Config::default().baudrate(clocks::SERVICE_BAUD.bps()),
+                &mut rcc,
+            )
+            .map_err(|_| InitError::SerialConfig)?;
+        let instrument = Rs485 {
+            serial: dp
+                .USART2
+                .serial(
+                    (gpioa.pa2, gpioa.pa3),
+                    serial::Config::default().baudrate(instrument_baud.bps()),
+                    &mut rcc,
+                )
+                .map_err(|_| InitError::SerialConfig)?,
+            de: gpioa.pa1.into_push_pull_output(),
+        };
+
+        #[cfg(not(feature = "emulated"))]
+        let can = dp.CAN1.can((gpiob.pb9, gpiob.pb8), &mut rcc);
+        #[cfg(feature = "emulated")]
+        let _ = (gpiob.pb8, gpiob.pb9, dp.CAN1);
+
+        Ok(Board {
+            leds,
+            switches: SwitchReading::from_port(port),
+            service,
+            instrument,
+            #[cfg(not(feature = "emulated"))]
+            can,
+            flash: InternalFlash { flash: LockedFlash::new(dp.FLASH) },
+            systick_hz: clocks::SYSTICK_HZ,
+        })
+    }
+}
+
+#[cfg(not(feature = "emulated"))]
+fn clocks(rcc: pac::RCC) -> Rcc {
+    use stm32f4xx_hal::rcc::Config;
+    rcc.freeze(
+        Config::hse(clocks::HSE_HZ.Hz())
+            .sysclk(clocks::SYSCLK_HZ.Hz())
+            .pclk1(clocks::PCLK1_HZ.Hz())
+            .pclk2(clocks::PCLK2_HZ.Hz()),
+    )
+}
+
+#[cfg(feature = "emulated")]
+fn clocks(rcc: pac::RCC) -> Rcc {
+    // Reset state: HSI on every bus. No register is written.
+    rcc.constrain()
+}
+
+/// The Module Status and Network Status LEDs (PC0–PC3, see [`crate::leds`]).
+pub struct LedPins {
+    ms_green: Pin<'C', 0, Output<PushPull>>,
+    ms_red: Pin<'C', 1, Output<PushPull>>,
+    ns_green: Pin<'C', 2, Output<PushPull>>,
+    ns_red: Pin<'C', 3, Output<PushPull>>,
+}
+
+impl LedPins {
+    /// Shows `leds`.
+    pub fn show(&mut self, leds: Leds) {
+        let [msg, msr, nsg, nsr] = leds::pin_levels(leds);
+        self.ms_green.set_state(msg.into());
+        self.ms_red.set_state(msr.into());
+        self.ns_green.set_state(nsg.into());
+        self.ns_red.set_state(nsr.into());
+    }
+}
+
+/// USART2 behind the RS-485 transceiver: the driver is enabled while bytes go out and released
+/// once the last stop bit has left (transmission complete), so the instrument can answer.
+pub struct Rs485 {
+    serial: Serial<pac::USART2>,
+    de: Pin<'A', 1, Output<PushPull>>,
+}
+
+impl Rs485 {
+    /// A received byte, if any (also clears overrun and framing errors).
+    pub fn read(&mut self) -> Option<u8> {
+        use stm32f4xx_hal::nb;
+        loop {
+            match self.serial.read() {
+                Ok(b) => return Some(b),
+                Err(nb::Error::WouldBlock) => return None,
+                // The error is cleared by the read; try the next byte.
+                Err(nb::Error::Other(_)) => continue,
+            }
+        }
+    }
+
+    /// Writes a byte if the transmit register is empty; enables the driver first.
+    pub fn try_write(&mut self, byte: u8) -> bool {
+        self.de.set_high();
+        self.serial.write(byte).is_ok()
+    }
+
+    /// Whether the last byte has completely left the shift register.
+    pub fn is_transmission_complete(&self) -> bool {
+        self.serial.flags().contains(serial::Flag::TransmissionComplete)
+    }
+
+    /// Releases the RS-485 driver (back to receive).
+    pub fn release_driver(&mut self) {
+        self.de.set_low();
+    }
+
+    /// Enables an interrupt.
+    pub fn listen(&mut self, event: SerialEvent) {
+        self.serial.listen(event);
+    }
+
+    /// Disables an interrupt.
+    pub fn unlisten(&mut self, event: SerialEvent) {
+        self.serial.unlisten(event);
+    }
+}
+
+/// The bxCAN error state, read from `CAN_ESR` (RM0090 §32.9.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BusState {
+    /// Error active (both error counters below 128).
+    ErrorActive,
+    /// Error passive (a counter at 128 or above).
+    ErrorPassive,
+    /// Bus-off (transmit error counter above 255).
+    BusOff,
+}
+
+/// Enables the bus-off and error-passive interrupts on the SCE vector (ERRIE + BOFIE + EPVIE);
+/// bxcan's builder offers only the summary bit.
+#[cfg(not(feature = "emulated"))]
+pub fn enable_can_error_interrupts() {
+    // SAFETY: a read-modify-write of CAN1_IER's error bits only; the bxcan driver touches the
+    // FIFO/mailbox bits of this register from the same priority level or with interrupts masked.
+    let can = unsafe { &*pac::CAN1::ptr() };
+    can.ier().modify(|_, w| w.errie().set_bit().bofie().set_bit().epvie().set_bit());
+}
+
+/// Reads the bus state and acknowledges the error interrupt (MSR.ERRI).
+#[cfg(not(feature = "emulated"))]
+pub fn can_bus_state() -> BusState {
+    // SAFETY: reading ESR has no side effect; MSR.ERRI is write-1-to-clear and the other MSR
+    // bits written as 0 have no effect.
+    let can = unsafe { &*pac::CAN1::ptr() };
+    let esr = can.esr().read();
+    can.msr().write(|w| w.erri().set_bit());
+    if esr.boff().bit_is_set() {
+        BusState::BusOff
+    } else if esr.epvf().bit_is_set() {
+        BusState::ErrorPassive
+    } else {
+        BusState::ErrorActive
+    }
+}
+
+/// The settings sectors 10 and 11 of the internal flash ([`memory`]), as a [`SettingsFlash`].
+///
+/// Erasing a 128 KiB sector stalls the CPU for 1–2 s (the code runs from the same bank); it happens
+/// once every 1024 saves.
+pub struct InternalFlash {
+    flash: LockedFlash,
+}
+
+impl InternalFlash {
+    fn offset(sector: Sector, offset: usize, len: usize) -> Result<usize, FlashError> {
+        let size = memory::SETTINGS_SECTOR_SIZE as usize;
+        match offset.checked_add(len) {
+            Some(end) if end <= size => {}
+            _ => return Err(FlashError::OutOfBounds),
+        }
+        let base = match sector {
+            Sector::A => memory::SETTINGS_A_BASE,
+            Sector::B => memory::SETTINGS_B_BASE,
+        };
+        Ok((base - memory::FLASH_BASE) as usize + offset)
+    }
+}
+
+impl SettingsFlash for InternalFlash {
+    fn sector_len(&self) -> usize {
+        memory::SETTINGS_SECTOR_SIZE as usize
+    }
+
+    fn read(&mut self, sector: Sector, offset: usize, buf: &mut [u8]) -> Result<(), FlashError> {
+        let at = Self::offset(sector, offset, buf.len())?;
+        buf.copy_from_slice(&self.flash.read()[at..at + buf.len()]);
+        Ok(())
+    }
+
+    fn erase(&mut self, sector: Sector) -> Result<(), FlashError> {
+        let number = memory::SETTINGS_SECTORS[sector.index()];
+        self.flash.unlocked().erase(number).map_err(|_| FlashError::Controller)
+    }
+
+    fn program(&mut self, sector: Sector, offset: usize, data: &[u8]) -> Result<(), FlashError> {
+        let at = Self::offset(sector, offset, data.len())?;
+        self.flash.unlocked().program(at, data.iter()).map_err(|_| FlashError::Controller)
+    }
+}

@@ -1,0 +1,51 @@
+//! # board
+//!
+//! The hardware facts of the STM32F405RG serial-to-DeviceNet adapter board, in one place
+//! (style.md practice 8): the firmware never names a pin, a clock or a register value.
+//!
+//! | module | what it holds | host-tested |
+//! |---|---|---|
+//! | [`clocks`] | 8 MHz HSE → 168 MHz SYSCLK, APB1 42 MHz; the emulated board's HSI | – |
+//! | [`pins`] | the pin assignment | yes |
+//! | [`bit_timing`] | `const fn` bxCAN bit timing (`CAN_BTR`) for 125k/250k/500k at 42 MHz | yes |
+//! | [`filters`] | the acceptance list: this node's Group 2 identifiers only | yes |
+//! | [`switches`] | DIP switch decoding and the MAC/baud/"changed" decision at reset | yes |
+//! | [`leds`] | MS/NS bicolour LED pin levels | yes |
+//! | [`settings`] | the power-safe settings journal (CRC-32, two sectors, sequence numbers) | yes |
+//! | [`crc32`] | CRC-32 for the settings records | yes |
+//! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
+//! | [`slcan`] | the SLCAN line codec: the emulated board's CAN "transceiver" | yes |
+//! | `hw` | peripheral set-up, the flash sector driver, CAN error status (`target_os = "none"` only) | – |
+//!
+//! ## Features
+//!
+//! | feature | effect |
+//! |---|---|
+//! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN |
+//! | `defmt` | `defmt::Format` on the value types |
+//!
+//! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
+//! does not offer (CAN error status, reading the settings sectors).
+#![no_std]
+#![warn(missing_docs)]
+#![deny(unsafe_op_in_unsafe_fn)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod bit_timing;
+pub mod clocks;
+pub mod crc32;
+pub mod filters;
+pub mod leds;
+pub mod memory;
+pub mod pins;
+pub mod settings;
+pub mod slcan;
+pub mod switches;
+
+#[cfg(target_os = "none")]
+pub mod hw;
+
+pub use settings::{Settings, SettingsStore};
+pub use switches::{Resolved, SwitchReading};

@@ -1,0 +1,481 @@
+//! SLCAN (Lawicel CAN232/CANUSB ASCII protocol): how the **emulated** board's CAN bus reaches the
+//! host. QEMU has no bxCAN, so the emulated firmware plays a serial CAN adapter on USART1: the host
+//! (`dnet-master --bus slcan:PTY`, `slcand`, python-can) opens it like a USB-CAN dongle, and the
+//! frames it sends are the bus traffic the node receives.
+//!
+//! This module is the pure part: a line assembler ([`LineBuffer`]), the line codec ([`parse`],
+//! [`frame_line`]) and the adapter's state machine ([`Adapter`]). It lives in the board crate
+//! because it *is* the emulated board's CAN transceiver, and because the host-side QEMU test
+//! needs the same codec.
+//!
+//! ## Supported lines (each ends with `\r`; a stray `\n` is ignored)
+//!
+//! | host sends | meaning | answer |
+//! |---|---|---|
+//! | `O` / `L` | open the channel (normal / listen-only) | `\r` (also when already open) |
+//! | `C` | close the channel | `\r` (also when already closed) |
+//! | `Sn` | bit rate, `n` = 0–8 (10k … 1M), only while closed | `\r`, or BEL while open |
+//! | `tIIILDD…` | standard data frame: 3 hex ID digits, DLC, data | `z\r`, or BEL while closed |
+//! | `TIIIIIIIILDD…`, `r…`, `R…` | extended or remote frame: not DeviceNet, dropped | `Z\r`/`z\r` |
+//! | `V`, `N`, `F` | version, serial number, status flags | `V1013\r`, `NDNET\r`, `F00\r` |
+//! | `Z0`, `M…`, `m…` | timestamps off, acceptance code/mask (ignored) | `\r` |
+//! | anything else, too long, bad hex | error | BEL (`\x07`) |
+//!
+//! Frames from the node go to the host as `tIIILDD…\r` (upper-case hex, no timestamp). While the
+//! channel is closed the adapter is off the bus: the node's frames stay pending, exactly as an
+//! unacknowledged frame stays in a bxCAN mailbox on a bus with no other node (notes §7.1.4),
+//! and go out once the host opens the channel. The bit rate is recorded but not enforced.
+//!
+//! ## No-panic contract
+//!
+//! Every function accepts any bytes; bad input gives an error value and a BEL answer, never a
+//! panic, and nothing allocates.
+
+use core::fmt;
+use devicenet::{CanFrame, CanId};
+
+/// Longest line accepted, without its `\r` (`T` + 8 + 1 + 16 digits + a 4-digit timestamp).
+pub const MAX_LINE: usize = 30;
+/// Longest frame line sent: `t` + 3 + 1 + 16 digits + `\r`.
+pub const MAX_FRAME_LINE: usize = 22;
+
+/// Answer to an accepted command.
+pub const OK: &[u8] = b"\r";
+/// Answer to a bad or refused command.
+pub const ERROR: &[u8] = b"\x07";
+/// Answer to an accepted standard frame (`t`, `r`).
+pub const TRANSMITTED: &[u8] = b"z\r";
+/// Answer to an accepted extended frame (`T`, `R`).
+pub const TRANSMITTED_EXTENDED: &[u8] = b"Z\r";
+
+/// Why a line was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SlcanError {
+    /// An empty line.
+    Empty,
+    /// The line exceeded [`MAX_LINE`] bytes.
+    TooLong,
+    /// An unknown command letter.
+    UnknownCommand(u8),
+    /// A character that should be a hex digit is not.
+    NotHex,
+    /// The line is shorter or longer than its command needs.
+    Length,
+    /// Identifier out of range (standard above 0x7FF, extended above 0x1FFF_FFFF).
+    Identifier,
+    /// DLC above 8.
+    Dlc,
+    /// `Sn` with `n` outside 0–8.
+    Bitrate,
+    /// An option this adapter does not offer (timestamps, `s` BTR values).
+    Unsupported,
+}
+
+impl fmt::Display for SlcanError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SlcanError::Empty => f.write_str("empty line"),
+            SlcanError::TooLong => write!(f, "line longer than {MAX_LINE} bytes"),
+            SlcanError::UnknownCommand(c) => write!(f, "unknown command 0x{c:02X}"),
+            SlcanError::NotHex => f.write_str("not a hex digit"),
+            SlcanError::Length => f.write_str("wrong line length for the command"),
+            SlcanError::Identifier => f.write_str("identifier out of range"),
+            SlcanError::Dlc => f.write_str("DLC above 8"),
+            SlcanError::Bitrate => f.write_str("bit rate code outside 0-8"),
+            SlcanError::Unsupported => f.write_str("option not supported"),
+        }
+    }
+}
+
+impl core::error::Error for SlcanError {}
+
+/// One parsed host line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Command {
+    /// `O`: open the channel.
+    Open,
+    /// `L`: open listen-only.
+    ListenOnly,
+    /// `C`: close the channel.
+    Close,
+    /// `Sn`: bit rate code 0–8 (10, 20, 50, 100, 125, 250, 500, 800, 1000 kbit/s).
+    Bitrate(u8),
+    /// `t`: a standard data frame to put on the bus.
+    Frame(CanFrame),
+    /// `T`: an extended data frame (not DeviceNet traffic).
+    ExtendedFrame,
+    /// `r`: a standard remote frame (not DeviceNet traffic).
+    RemoteFrame,
+    /// `R`: an extended remote frame (not DeviceNet traffic).
+    ExtendedRemoteFrame,
+    /// `V`: hardware/software version.
+    Version,
+    /// `N`: serial number.
+    SerialNumber,
+    /// `F`: status flags.
+    StatusFlags,
+    /// `Z0`: timestamps off.
+    TimestampsOff,
+    /// `Mxxxxxxxx` / `mxxxxxxxx`: acceptance code or mask (accepted, ignored).
+    Acceptance,
+}
+
+fn hex_digit(b: u8) -> Result<u8, SlcanError> {
+    match b {
+        b'0'..=b'9' => Ok(b - b'0'),
+        b'A'..=b'F' => Ok(b - b'A' + 10),
+        b'a'..=b'f' => Ok(b - b'a' + 10),
+        _ => Err(SlcanError::NotHex),
+    }
+}
+
+fn hex_value(digits: &[u8]) -> Result<u32, SlcanError> {
+    digits.iter().try_fold(0u32, |acc, &d| Ok(acc << 4 | u32::from(hex_digit(d)?)))
+}
+
+/// Checks a frame line after its letter: `id_digits` of identifier, a DLC, and (for data frames)
+/// the data. Returns the identifier, DLC and data bytes.
+fn frame_fields(rest: &[u8], id_digits: usize, remote: bool) -> Result<(u32, [u8; 8], usize), SlcanError> {
+    if rest.len() < id_digits + 1 {
+        return Err(SlcanError::Length);
+    }
+    let id = hex_value(&rest[..id_digits])?;
+    let dlc = usize::from(hex_digit(rest[id_digits])?);
+    if dlc > 8 {
+        return Err(SlcanError::Dlc);
+    }
+    let data_digits = &rest[id_digits + 1..];
+    let mut data = [0u8; 8];
+    if remote {
+        if !data_digits.is_empty() {
+            return Err(SlcanError::Length);
+        }
+    } else {
+        if data_digits.len() != 2 * dlc {
+            return Err(SlcanError::Length);
+        }
+        for (byte, pair) in data.iter_mut().zip(data_digits.chunks_exact(2)) {
+            *byte = (hex_digit(pair[0])? << 4) | hex_digit(pair[1])?;
+        }
+    }
+    Ok((id, data, dlc))
+}
+
+/// Parses one line, without its `\r`.
+pub fn parse(line: &[u8]) -> Result<Command, SlcanError> {
+    let (&letter, rest) = line.split_first().ok_or(SlcanError::Empty)?;
+    let bare = |cmd: Command| if rest.is_empty() { Ok(cmd) } else { Err(SlcanError::Length) };
+    match letter {
+        b'O' => bare(Command::Open),
+        b'L' => bare(Command::ListenOnly),
+        b'C' => bare(Command::Close),
+        b'V' => bare(Command::Version),
+        b'N' => bare(Command::SerialNumber),
+        b'F' => bare(Command::StatusFlags),
+        b'S' => match rest {
+            [d @ b'0'..=b'8'] => Ok(Command::Bitrate(d - b'0')),
+            [_] => Err(SlcanError::Bitrate),
+            _ => Err(SlcanError::Length),
+        },
+        b's' => Err(SlcanError::Unsupported),
+        b'Z' => match rest {
+            [b'0'] => Ok(Command::TimestampsOff),
+            [b'1'] => Err(SlcanError::Unsupported),
+            _ => Err(SlcanError::Length),
+        },
+        b'M' | b'm' => {
+            if rest.len() != 8 {
+                return Err(SlcanError::Length);
+            }
+            hex_value(rest)?;
+            Ok(Command::Acceptance)
+        }
+        b't' => {
+            let (id, data, dlc) = frame_fields(rest, 3, false)?;
+            let id = CanId::new(id as u16).filter(|_| id <= 0x7FF).ok_or(SlcanError::Identifier)?;
+            CanFrame::new(id, &data[..dlc]).map(Command::Frame).map_err(|_| SlcanError::Dlc)
+        }
+        b'r' => {
+            let (id, _, _) = frame_fields(rest, 3, true)?;
+            if id > 0x7FF {
+                return Err(SlcanError::Identifier);
+            }
+            Ok(Command::RemoteFrame)
+        }
+        b'T' | b'R' => {
+            let (id, _, _) = frame_fields(rest, 8, letter == b'R')?;
+            if id > 0x1FFF_FFFF {
+                return Err(SlcanError::Identifier);
+            }
+            Ok(if letter == b'T' { Command::ExtendedFrame } else { Command::ExtendedRemoteFrame })
+        }
+        other => Err(SlcanError::UnknownCommand(other)),
+    }
+}
+
+const HEX: &[u8; 16] = b"0123456789ABCDEF";
+
+/// The line that carries `frame` to the host: `tIIILDD…\r`.
+pub fn frame_line(frame: &CanFrame) -> heapless::Vec<u8, MAX_FRAME_LINE> {
+    let mut line = heapless::Vec::new();
+    let id = frame.id().as_raw();
+    let mut push = |b: u8| {
+        // At most 1 + 3 + 1 + 16 + 1 = 22 bytes: always fits.
+        let _ = line.push(b);
+    };
+    push(b't');
+    for shift in [8, 4, 0] {
+        push(HEX[usize::from((id >> shift) & 0xF)]);
+    }
+    push(HEX[frame.dlc()]);
+    for &b in frame.data() {
+        push(HEX[usize::from(b >> 4)]);
+        push(HEX[usize::from(b & 0xF)]);
+    }
+    push(b'\r');
+    line
+}
+
+/// Assembles host bytes into lines.
+#[derive(Clone, Debug, Default)]
+pub struct LineBuffer {
+    buf: [u8; MAX_LINE],
+    len: usize,
+    overflowed: bool,
+}
+
+impl LineBuffer {
+    /// An empty buffer.
+    pub const fn new() -> Self {
+        LineBuffer { buf: [0; MAX_LINE], len: 0, overflowed: false }
+    }
+
+    /// Adds one byte; at `\r` returns the finished line (without the `\r`), or
+    /// [`SlcanError::TooLong`] when it did not fit.
+    pub fn push(&mut self, byte: u8) -> Option<Result<&[u8], SlcanError>> {
+        match byte {
+            b'\r' => {
+                let len = core::mem::take(&mut self.len);
+                if core::mem::take(&mut self.overflowed) {
+                    Some(Err(SlcanError::TooLong))
+                } else {
+                    Some(Ok(&self.buf[..len]))
+                }
+            }
+            b'\n' => None,
+            _ => {
+                if self.len < MAX_LINE {
+                    self.buf[self.len] = byte;
+                    self.len += 1;
+                } else {
+                    self.overflowed = true;
+                }
+                None
+            }
+        }
+    }
+}
+
+/// What the adapter does with one host line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Response {
+    /// Bytes to send back to the host.
+    pub reply: &'static [u8],
+    /// A frame the host put on the bus, for the node.
+    pub frame: Option<CanFrame>,
+}
+
+/// The adapter's channel state (closed after reset).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Adapter {
+    open: bool,
+    listen_only: bool,
+    bitrate: Option<u8>,
+}
+
+impl Adapter {
+    /// A closed adapter.
+    pub const fn new() -> Self {
+        Adapter { open: false, listen_only: false, bitrate: None }
+    }
+
+    /// Whether the host opened the channel: only then do the node's frames go to the host.
+    pub const fn is_open(&self) -> bool {
+        self.open
+    }
+
+    /// The last `Sn` code the host set.
+    pub const fn bitrate(&self) -> Option<u8> {
+        self.bitrate
+    }
+
+    /// Handles one line from [`LineBuffer::push`].
+    pub fn handle_line(&mut self, line: Result<&[u8], SlcanError>) -> Response {
+        let reply = |reply: &'static [u8]| Response { reply, frame: None };
+        let command = match line.and_then(parse) {
+            Ok(c) => c,
+            Err(_) => return reply(ERROR),
+        };
+        match command {
+            Command::Open | Command::ListenOnly => {
+                self.open = true;
+                self.listen_only = command == Command::ListenOnly;
+                reply(OK)
+            }
+            Command::Close => {
+                self.open = false;
+                reply(OK)
+            }
+            Command::Bitrate(_) if self.open => reply(ERROR),
+            Command::Bitrate(code) => {
+                self.bitrate = Some(code);
+                reply(OK)
+            }
+            Command::Frame(_)
+            | Command::RemoteFrame
+            | Command::ExtendedFrame
+            | Command::ExtendedRemoteFrame
+                if !self.open || self.listen_only =>
+            {
+                reply(ERROR)
+            }
+            Command::Frame(frame) => Response { reply: TRANSMITTED, frame: Some(frame) },
+            Command::RemoteFrame => reply(TRANSMITTED),
+            Command::ExtendedFrame | Command::ExtendedRemoteFrame => reply(TRANSMITTED_EXTENDED),
+            Command::Version => reply(b"V1013\r"),
+            Command::SerialNumber => reply(b"NDNET\r"),
+            Command::StatusFlags => reply(b"F00\r"),
+            Command::TimestampsOff | Command::Acceptance => reply(OK),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+
+    fn frame(id: u16, data: &[u8]) -> CanFrame {
+        CanFrame::from_raw(id, data).unwrap()
+    }
+
+    #[rstest]
+    #[case::open(b"O", Command::Open)]
+    #[case::listen(b"L", Command::ListenOnly)]
+    #[case::close(b"C", Command::Close)]
+    #[case::bitrate_250k(b"S5", Command::Bitrate(5))]
+    #[case::allocate_explicit(b"t42E6004B03010100", Command::Frame(frame(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00])))]
+    #[case::lower_case_hex(b"t42c5000e010101", Command::Frame(frame(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01])))]
+    #[case::empty_poll(b"t42D0", Command::Frame(frame(0x42D, &[])))]
+    #[case::highest_id(b"t7FF0", Command::Frame(frame(0x7FF, &[])))]
+    #[case::extended(b"T1234567820102", Command::ExtendedFrame)]
+    #[case::remote(b"r42D0", Command::RemoteFrame)]
+    #[case::extended_remote(b"R123456780", Command::ExtendedRemoteFrame)]
+    #[case::version(b"V", Command::Version)]
+    #[case::timestamps_off(b"Z0", Command::TimestampsOff)]
+    #[case::acceptance_mask(b"mFFFFFFFF", Command::Acceptance)]
+    fn parse_good(#[case] line: &[u8], #[case] command: Command) {
+        assert_eq!(parse(line), Ok(command));
+    }
+
+    #[rstest]
+    #[case::empty(b"", SlcanError::Empty)]
+    #[case::unknown(b"X", SlcanError::UnknownCommand(b'X'))]
+    #[case::open_with_junk(b"O1", SlcanError::Length)]
+    #[case::bitrate_9(b"S9", SlcanError::Bitrate)]
+    #[case::bitrate_missing(b"S", SlcanError::Length)]
+    #[case::id_too_big(b"t8000", SlcanError::Identifier)]
+    #[case::dlc_9(b"t4259", SlcanError::Dlc)]
+    #[case::data_short(b"t42530000", SlcanError::Length)]
+    #[case::data_long(b"t42510000", SlcanError::Length)]
+    #[case::not_hex(b"t42G0", SlcanError::NotHex)]
+    #[case::not_hex_data(b"t4251ZZ", SlcanError::NotHex)]
+    #[case::truncated(b"t42", SlcanError::Length)]
+    #[case::extended_id_too_big(b"T200000000", SlcanError::Identifier)]
+    #[case::timestamps_on(b"Z1", SlcanError::Unsupported)]
+    #[case::btr(b"s031C", SlcanError::Unsupported)]
+    fn parse_bad(#[case] line: &[u8], #[case] err: SlcanError) {
+        assert_eq!(parse(line), Err(err));
+    }
+
+    #[rstest]
+    #[case::allocate_response(frame(0x42B, &[0x00, 0xCB, 0x00]), b"t42B300CB00\r")]
+    #[case::dup_mac(frame(0x42F, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12]), b"t42F7003412785634 12\r")]
+    #[case::empty(frame(0x005, &[]), b"t0050\r")]
+    #[case::eight_bytes(frame(0x3C5, &[0x41, 0, 0, 0x0F, 0, 0, 0, 0xFF]), b"t3C584100000F000000FF\r")]
+    fn format(#[case] f: CanFrame, #[case] line: &[u8]) {
+        let expected: std::vec::Vec<u8> = line.iter().copied().filter(|&b| b != b' ').collect();
+        assert_eq!(frame_line(&f).as_slice(), expected.as_slice());
+        // And back.
+        assert_eq!(parse(&expected[..expected.len() - 1]), Ok(Command::Frame(f)));
+    }
+
+    fn feed(lines: &mut LineBuffer, adapter: &mut Adapter, bytes: &[u8]) -> std::vec::Vec<Response> {
+        let mut out = std::vec::Vec::new();
+        for &b in bytes {
+            if let Some(line) = lines.push(b) {
+                out.push(adapter.handle_line(line));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn session() {
+        let mut lines = LineBuffer::new();
+        let mut adapter = Adapter::new();
+        let r = feed(&mut lines, &mut adapter, b"t42E6004B03010100\rS5\rO\r\nS4\rt42E6004B03010100\rC\r");
+        let replies: std::vec::Vec<&[u8]> = r.iter().map(|r| r.reply).collect();
+        assert_eq!(replies, [ERROR, OK, OK, ERROR, TRANSMITTED, OK]);
+        assert_eq!(r[4].frame, Some(frame(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00])));
+        assert!(r.iter().enumerate().all(|(i, r)| (i == 4) == r.frame.is_some()));
+        assert_eq!(adapter.bitrate(), Some(5));
+        assert!(!adapter.is_open());
+    }
+
+    #[test]
+    fn listen_only_refuses_frames() {
+        let mut lines = LineBuffer::new();
+        let mut adapter = Adapter::new();
+        let r = feed(&mut lines, &mut adapter, b"L\rt42D0\r");
+        assert_eq!(r[1].reply, ERROR);
+        assert!(adapter.is_open());
+    }
+
+    #[test]
+    fn overlong_line_is_an_error_and_the_next_line_works() {
+        let mut lines = LineBuffer::new();
+        let mut adapter = Adapter::new();
+        let mut input = std::vec![b'O'; 100];
+        input.extend_from_slice(b"\rO\r");
+        let r = feed(&mut lines, &mut adapter, &input);
+        assert_eq!(r.len(), 2);
+        assert_eq!((r[0].reply, r[1].reply), (ERROR, OK));
+    }
+
+    #[test]
+    fn no_panic_on_any_short_line() {
+        // Every line of up to two bytes over a small alphabet, and some random long ones.
+        let alphabet = b"OLCStTrRVNFZMm0189AFafGz\x00\xFF";
+        let mut adapter = Adapter::new();
+        for &a in alphabet {
+            for &b in alphabet {
+                let _ = adapter.handle_line(Ok(&[a]));
+                let _ = adapter.handle_line(Ok(&[a, b]));
+            }
+        }
+        let mut seed = 0x1234_5678u32;
+        for _ in 0..10_000 {
+            let mut line = [0u8; MAX_LINE];
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            let len = (seed % MAX_LINE as u32) as usize;
+            for (i, b) in line.iter_mut().enumerate() {
+                *b = alphabet[(seed.rotate_left(i as u32) as usize) % alphabet.len()];
+            }
+            let _ = adapter.handle_line(Ok(&line[..len]));
+        }
+    }
+}

@@ -1,0 +1,77 @@
+//! The emulated board's CAN driver: SLCAN lines on USART1 (QEMU has no bxCAN).
+//!
+//! The host side is a serial CAN adapter's user (`dnet-master --bus slcan:PTY`); the codec and
+//! the adapter state machine are `board::slcan`. Host lines are handled in the USART1 receive
+//! interrupt: commands are answered at once, frames for this node (the same acceptance list as the
+//! bxCAN filter) go to the node task. While the host has not opened the channel the transmitter
+//! reports [`Busy`], as a bxCAN mailbox stays pending on a bus with no other node.
+
+use crate::can::{Busy, CanDriver};
+use board::filters;
+use board::hw::BusState;
+use board::slcan::{self, Adapter, LineBuffer};
+use devicenet::{CanFrame, MacId};
+use stm32f4xx_hal::nb;
+use stm32f4xx_hal::pac::USART1;
+use stm32f4xx_hal::prelude::*;
+use stm32f4xx_hal::serial::{Event, Serial};
+
+/// The SLCAN "adapter" on USART1.
+pub struct Slcan {
+    serial: Serial<USART1>,
+    lines: LineBuffer,
+    adapter: Adapter,
+    mac: MacId,
+}
+
+impl Slcan {
+    /// The adapter for node `mac`, closed, with the receive interrupt on.
+    pub fn new(mut serial: Serial<USART1>, mac: MacId) -> Slcan {
+        serial.listen(Event::RxNotEmpty);
+        Slcan { serial, lines: LineBuffer::new(), adapter: Adapter::new(), mac }
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            // USART1 at 115200 bit/s; QEMU's transmitter is always ready.
+            let _ = nb::block!(self.serial.write(b));
+        }
+    }
+}
+
+impl CanDriver for Slcan {
+    fn try_transmit(&mut self, frame: &CanFrame) -> Result<(), Busy> {
+        if !self.adapter.is_open() {
+            return Err(Busy);
+        }
+        self.write(&slcan::frame_line(frame));
+        Ok(())
+    }
+
+    fn receive(&mut self) -> Option<CanFrame> {
+        loop {
+            let byte = match self.serial.read() {
+                Ok(b) => b,
+                Err(nb::Error::WouldBlock) => return None,
+                Err(nb::Error::Other(_)) => continue,
+            };
+            if let Some(line) = self.lines.push(byte) {
+                let response = self.adapter.handle_line(line);
+                self.write(response.reply);
+                if let Some(frame) = response.frame {
+                    if filters::accepts(self.mac, frame.id().as_raw()) {
+                        return Some(frame);
+                    }
+                }
+            }
+        }
+    }
+
+    fn bus_state(&mut self) -> BusState {
+        BusState::ErrorActive
+    }
+
+    fn clear_transmit_interrupt(&mut self) {}
+
+    fn restart(&mut self) {}
+}
