@@ -1,1 +1,114 @@
-fn main() {}
+//! Benchmarks of the harness, reported and never asserted (`cargo bench -p master-harness`):
+//!
+//! * `decode` throughput on a large generated `candump -L` log (frames per second), parsing and
+//!   decoding with fragment reassembly;
+//! * `scan` of 63 simulated devices (MAC 1..=63, master at 0) at 500 kbit/s, in simulated bus time.
+
+use devicenet::{Instant, MacId};
+use master_harness::bus::sim::{PowerOn, SimBus};
+use master_harness::bus::Bitrate;
+use master_harness::decode::Decoder;
+use master_harness::log::{format_line, parse_log};
+use master_harness::master::{ConnectOptions, Master, MasterConfig};
+use master_harness::scan::scan;
+use master_harness::session::Session;
+use master_harness::soft_slave::SoftSlave;
+use std::hint::black_box;
+
+/// A realistic exchange (bring-up, product name, 20 polls), repeated with shifted times to reach
+/// `frames` lines.
+fn generated_log(frames: usize) -> String {
+    let mut bus = SimBus::new(Bitrate::K250);
+    bus.attach(Box::new(SoftSlave::reference(MacId::from_low_bits(5))), PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    {
+        let mut m = Master::new(&mut session, MasterConfig::default());
+        let opts = ConnectOptions { polls: 20, ..ConnectOptions::default() };
+        m.connect(&opts).expect("bring-up on the simulated bus");
+        m.get(MacId::from_low_bits(5), 1, 1, 7).expect("product name");
+    }
+    let records = session.records().to_vec();
+    let span = records.last().map_or(1, |r| r.at.total_micros() + 1000);
+    let mut text = String::with_capacity(frames * 40);
+    let mut n = 0;
+    let mut round = 0u64;
+    while n < frames {
+        for r in &records {
+            if n == frames {
+                break;
+            }
+            let at = Instant::from_micros(r.at.total_micros() + round * span);
+            text.push_str(&format_line(at, "can0", &r.frame));
+            text.push('\n');
+            n += 1;
+        }
+        round += 1;
+    }
+    text
+}
+
+fn decode_bench() {
+    const FRAMES: usize = 1_000_000;
+    let text = generated_log(FRAMES);
+    let mut runs = Vec::new();
+    for _ in 0..3 {
+        let start = std::time::Instant::now();
+        let entries = parse_log(&text, "bench").expect("generated log parses");
+        let parsed = start.elapsed();
+        let mut decoder = Decoder::new();
+        let mut messages = 0usize;
+        for e in &entries {
+            if decoder.decode(&e.frame).message.is_some() {
+                messages += 1;
+            }
+        }
+        let total = start.elapsed();
+        black_box(messages);
+        runs.push((parsed, total, messages));
+    }
+    runs.sort_by_key(|r| r.1);
+    let (parsed, total, messages) = runs[1];
+    let per_s = |d: std::time::Duration| FRAMES as f64 / d.as_secs_f64();
+    println!(
+        "decode: {FRAMES} frames ({} MB of log, {messages} reassembled messages) in {:.0} ms: {:.2} M frames/s parse+decode (parse alone {:.2} M frames/s, decode alone {:.2} M frames/s); median of 3",
+        text.len() / 1_000_000,
+        total.as_secs_f64() * 1e3,
+        per_s(total) / 1e6,
+        per_s(parsed) / 1e6,
+        per_s(total - parsed) / 1e6
+    );
+}
+
+fn scan_bench() {
+    let mut bus = SimBus::new(Bitrate::K500);
+    for mac in 1..=63u8 {
+        bus.attach(Box::new(SoftSlave::reference(MacId::from_low_bits(mac))), PowerOn::WhenMasterOnline);
+    }
+    let wall = std::time::Instant::now();
+    let mut session = Session::new(&mut bus);
+    let report = scan(&mut Master::new(&mut session, MasterConfig::default()), 0, 63).expect("scan");
+    let wall = wall.elapsed();
+    let frames = session.records().len();
+    println!(
+        "scan: {} of 63 simulated devices found at 500 kbit/s in {:.1} ms of bus time ({:.1} ms with the master's duplicate MAC check and the devices' start-up); {frames} frames; {:.0} ms of wall time to simulate",
+        report.devices.len(),
+        report.scan_micros as f64 / 1e3,
+        report.total_micros as f64 / 1e3,
+        wall.as_secs_f64() * 1e3
+    );
+    let busy: u64 = session
+        .records()
+        .iter()
+        .filter(|r| r.at.total_micros() >= report.total_micros - report.scan_micros)
+        .map(|r| u64::from(master_harness::bus::sim::frame_bits(&r.frame)) * 2)
+        .sum();
+    println!(
+        "scan: bus load during the scan {:.0} %",
+        100.0 * busy as f64 / report.scan_micros.max(1) as f64
+    );
+}
+
+fn main() {
+    decode_bench();
+    scan_bench();
+}

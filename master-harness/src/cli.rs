@@ -98,7 +98,7 @@ impl std::str::FromStr for PowerOnArg {
 #[derive(Debug, Parser)]
 #[command(name = "dnet-master", version, about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes candump logs.", long_about = None)]
 pub struct Cli {
-    /// The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD].
+    /// The bus: `sim`, `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
     #[arg(long, global = true, default_value = "sim")]
     pub bus: BusSpec,
     /// The master's MAC ID.
@@ -586,11 +586,11 @@ fn scan_outcome(r: &ScanReport) -> Outcome {
         ));
     }
     text.push_str(&format!(
-        "{} device(s) found among {} MAC IDs; scan {}, {} with network access",
+        "{} device(s) found among {} MAC IDs; scan {:.1} ms of bus time, {:.1} ms with network access",
         r.devices.len(),
         r.asked,
-        Duration::from_micros(r.scan_micros),
-        Duration::from_micros(r.total_micros)
+        r.scan_micros as f64 / 1e3,
+        r.total_micros as f64 / 1e3
     ));
     Outcome { json: json!({ "scan": r }), text, code: 0 }
 }
@@ -631,7 +631,11 @@ fn explicit_command(
             };
             let frag = if answer.reply.fragmented { " (fragmented response)" } else { "" };
             Outcome {
-                text: format!("MAC {mac} {target}: {shown}{frag}\nhex: {}", decode::hex(&bytes)),
+                text: if bytes.is_empty() {
+                    format!("MAC {mac} {target}: {shown}{frag}")
+                } else {
+                    format!("MAC {mac} {target}: {shown}{frag}\nhex: {}", decode::hex(&bytes))
+                },
                 json: json!({ "request": what, "value": shown, "hex": decode::hex(&bytes).replace(' ', ""), "fragmented": answer.reply.fragmented }),
                 code: 0,
             }

@@ -1,6 +1,48 @@
 //! # master-harness
 //!
-//! The bench DeviceNet master `dnet-master`.
+//! The bench DeviceNet master `dnet-master`: it brings a device up the way a scanner does and
+//! checks every frame against the protocol, replays recorded transcripts as regression tests, scans
+//! a network, reads and writes attributes, monitors polled data and decodes `candump -L` logs. It
+//! is a real master, not a script of canned bytes: each next frame is decided from what the device
+//! answered. Protocol facts are those of `../shared/devicenet-notes.md`; every wire format comes
+//! from the [`devicenet`] core.
+//!
+//! ## Layers
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`bus`] | the one [`Bus`](bus::Bus) trait and its implementations: [`sim`](bus::sim) (virtual clock, arbitration, time on the wire, simulated devices), [`socketcan`](mod@bus::socketcan) (Linux), [`slcan`](bus::slcan) (Lawicel over a serial line) |
+//! | [`soft_slave`] | the simulated device: the core's `SlaveNode` and a built-in breaker model, behind [`SimDevice`](bus::sim::SimDevice) |
+//! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the `--log` file |
+//! | [`client`] | one explicit transaction as a sans-IO state machine: fragmentation both ways, every response frame checked |
+//! | [`master`] | network access, waiting for the device, UCMM probe, allocation, the bring-up of notes §2, polling |
+//! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
+//! | [`decode`] | DeviceNet meaning of frames, with reassembly (the `decode` command and the table's meaning column) |
+//! | [`log`] | `candump -L` lines: writing, and parsing with precise errors |
+//! | [`cli`] | the command line, reports and JSON |
+//! | [`error`] | [`HarnessError`](error::HarnessError): every failure named |
+//!
+//! ## Example: the bring-up on the simulated bus
+//!
+//! ```
+//! use master_harness::bus::{sim::{PowerOn, SimBus}, Bitrate};
+//! use master_harness::master::{ConnectOptions, Master, MasterConfig};
+//! use master_harness::session::Session;
+//! use master_harness::soft_slave::SoftSlave;
+//! use devicenet::{reference::BRING_UP, MacId};
+//!
+//! let mut bus = SimBus::new(Bitrate::K250);
+//! bus.attach(Box::new(SoftSlave::reference(MacId::new(5).unwrap())), PowerOn::WhenMasterOnline);
+//! let mut session = Session::new(&mut bus);
+//! Master::new(&mut session, MasterConfig::default()).connect(&ConnectOptions::default()).unwrap();
+//! assert_eq!(session.records().len(), BRING_UP.len());
+//! assert_eq!(session.failures(), 0);
+//! ```
+//!
+//! ## No-panic contract
+//!
+//! Transcripts, logs, command-line values and bus frames are untrusted: every parser returns a
+//! value or an error naming the file, line and column (or the frame), never a panic.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 

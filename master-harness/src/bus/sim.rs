@@ -383,12 +383,15 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// What a test device received, shared with the test.
+    type Received = std::rc::Rc<std::cell::RefCell<Vec<(Instant, CanFrame)>>>;
+
     /// A device that sends the frames it is given at power-on, and records what it receives.
     struct Talker {
         mac: MacId,
         script: Vec<CanFrame>,
         queue: VecDeque<CanFrame>,
-        received: std::rc::Rc<std::cell::RefCell<Vec<(Instant, CanFrame)>>>,
+        received: Received,
     }
 
     impl SimDevice for Talker {
@@ -414,10 +417,7 @@ mod tests {
         CanFrame::from_raw(id, data).unwrap()
     }
 
-    fn talker(
-        mac: u8,
-        script: Vec<CanFrame>,
-    ) -> (Box<Talker>, std::rc::Rc<std::cell::RefCell<Vec<(Instant, CanFrame)>>>) {
+    fn talker(mac: u8, script: Vec<CanFrame>) -> (Box<Talker>, Received) {
         let received = std::rc::Rc::default();
         let t = Talker {
             mac: MacId::new(mac).unwrap(),

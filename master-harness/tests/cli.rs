@@ -1,0 +1,174 @@
+//! The `dnet-master` binary: exit status, table, JSON, log files, and clear errors.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn dnet(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_dnet-master")).args(args).output().expect("run dnet-master")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dnet-master-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn connect_prints_the_table_and_exits_zero() {
+    let o = dnet(&["--bus", "sim", "connect", "--mac", "5"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let out = stdout(&o);
+    let rows: Vec<&str> = out.lines().filter(|l| l.contains(" M-> ") || l.contains(" S-> ")).collect();
+    assert_eq!(rows.len(), 28, "{out}");
+    assert!(rows[27].contains("3C5  82 00 00 00 00") && rows[27].ends_with("ok"), "{}", rows[27]);
+    assert!(out.contains("28 frames, every check holds"), "{out}");
+}
+
+#[test]
+fn log_is_candump_and_replays() {
+    let log = temp("connect.log");
+    let o = dnet(&["connect", "--log", log.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0));
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(text.lines().count(), 28);
+    assert!(text.lines().next().unwrap().ends_with(" sim 407#00010004030201"), "{text}");
+    let o = dnet(&["replay", log.to_str().unwrap(), "--mac", "5"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("replay held: 28 frames, 14 from the device compared byte for byte"));
+    // One wrong byte: exit 1 with the divergence report on stderr.
+    let bad = temp("bad.log");
+    std::fs::write(&bad, text.replace("42B#008E0100", "42B#008E0200")).unwrap();
+    let o = dnet(&["replay", bad.to_str().unwrap(), "--mac", "5"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    assert!(err.contains("replay diverged at transcript line 16"), "{err}");
+    assert!(err.contains("expected: 42B#008E0200") && err.contains("actual:   42B#008E0100"), "{err}");
+    assert!(err.contains("frames before it:"), "{err}");
+}
+
+#[test]
+fn json_result() {
+    let o = dnet(&["--json", "connect"]);
+    assert_eq!(o.status.code(), Some(0));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["ok"], true);
+    assert_eq!(v["frames"].as_array().unwrap().len(), 28);
+    assert_eq!(v["frames"][7]["data"], "00CB00");
+    assert_eq!(v["device"]["produced_size"], 18);
+}
+
+#[test]
+fn malformed_transcript_names_the_line() {
+    let bad = temp("malformed.log");
+    std::fs::write(
+        &bad,
+        "(0.000436) sim 407#00010004030201\n(1.000436) sim 407#000100040302\n(2.0) sim 42F\n",
+    )
+    .unwrap();
+    let o = dnet(&["replay", bad.to_str().unwrap(), "--mac", "5"]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(err.contains("malformed.log:3:11: invalid frame '42F': expected ID#DATA"), "{err}");
+}
+
+#[test]
+fn unknown_bus_is_a_usage_error() {
+    let o = dnet(&["--bus", "can0", "connect"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("unknown bus 'can0': expected sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD]")
+    );
+}
+
+#[test]
+fn missing_slcan_port_is_named() {
+    let o = dnet(&["--bus", "slcan:/nonexistent/ttyACM9", "scan"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("cannot open serial port '/nonexistent/ttyACM9'"), "{}", stderr(&o));
+}
+
+#[test]
+fn a_device_that_never_answers() {
+    let o = dnet(&["connect", "--mac", "9"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("no answer from MAC 9 within 1000ms (explicit response timeout)"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn get_fragmented_and_error_response() {
+    let o = dnet(&["get", "5", "1", "1", "7"]);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(stdout(&o).contains("\"Serial-DeviceNet Bridge\" (fragmented response)"), "{}", stdout(&o));
+    let o = dnet(&["get", "5", "0x01", "1", "99"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("attribute not supported (0x14), additional code 0xFF"), "{}", stderr(&o));
+    let o = dnet(&["set", "5", "4", "150", "3", "01 02 03 04 05 06 07 08", "--frames"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("fragment last #1"), "{}", stdout(&o));
+}
+
+#[test]
+fn scan_several_slaves() {
+    let o = dnet(&["--slave-mac", "2,5,40", "--bitrate", "500k", "scan", "--timeout", "200"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("3 device(s) found among 63 MAC IDs"), "{out}");
+    assert!(
+        out.contains(" 40  0x1234  0x000C        1  1.1    0x1234569B  Serial-DeviceNet Bridge"),
+        "{out}"
+    );
+}
+
+#[test]
+fn monitor_records_csv() {
+    let csv = temp("monitor.csv");
+    let o = dnet(&["monitor", "--count", "3", "--output", "0201", "--csv", csv.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(stdout(&o).lines().filter(|l| l.contains("switch")).count(), 3);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "time_s,phase_a,phase_b,phase_c,neutral,switch,raw");
+    assert_eq!(lines.len(), 4);
+    assert!(lines[3].contains(",closed,"), "{text}");
+}
+
+#[test]
+fn decode_a_log() {
+    let log = temp("decode.log");
+    let o = dnet(&["get", "5", "1", "1", "7", "--log", log.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0));
+    let o = dnet(&["decode", log.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(stdout(&o).contains("=> reassembled 26 bytes: Get_Attribute_Single response: Identity(1) inst 1 attr 7 (product name)"), "{}", stdout(&o));
+    let o = dnet(&["--json", "decode", log.to_str().unwrap()]);
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert!(v["frames"].as_array().unwrap().iter().any(|f| f["message"].is_string()));
+}
+
+#[test]
+fn slave_config_is_not_yet_supported() {
+    let o = dnet(&["--slave-config", "breaker.toml", "connect"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not supported yet"), "{}", stderr(&o));
+}
+
+#[test]
+fn help_everywhere() {
+    for sub in ["connect", "replay", "scan", "get", "set", "monitor", "decode"] {
+        let o = dnet(&[sub, "--help"]);
+        assert_eq!(o.status.code(), Some(0), "{sub}");
+        assert!(stdout(&o).contains("Usage: dnet-master"), "{sub}");
+    }
+}
