@@ -115,6 +115,9 @@ pub fn frame_duration(frame: &CanFrame, bitrate: Bitrate) -> Duration {
 /// The 3-bit intermission counted at the end of [`frame_bits`]; receivers see the frame before it.
 const INTERMISSION_BITS: u64 = 3;
 
+/// Steps the simulation may take at one instant before it reports a stalled device.
+const MAX_STEPS_PER_INSTANT: u32 = 100_000;
+
 /// Which node sent a frame: the master, or device `i`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Node {
@@ -333,6 +336,9 @@ impl Bus for SimBus {
     }
 
     fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError> {
+        // Steps taken without the clock moving; a device that keeps asking for the same instant
+        // would otherwise stall the simulation.
+        let mut still = 0u32;
         loop {
             if let Some(ev) = self.outbox.pop_front() {
                 return Ok(Some(ev));
@@ -342,6 +348,15 @@ impl Bus for SimBus {
                     if t > self.now {
                         self.pace(t);
                         self.now = t;
+                        still = 0;
+                    } else {
+                        still += 1;
+                        if still > MAX_STEPS_PER_INSTANT {
+                            return Err(BusError::Adapter(format!(
+                                "simulation stalled at {}: a simulated device keeps asking to be called at that instant",
+                                self.now
+                            )));
+                        }
                     }
                     self.step();
                 }
@@ -496,6 +511,32 @@ mod tests {
         assert!(frame_bits(&zeros) > 47 + 64 + 15);
         let f = frame(0x555, &[0x55; 8]);
         assert!(frame_bits(&f) <= f.worst_case_bits());
+    }
+
+    /// A device whose timer never advances.
+    struct Stuck;
+
+    impl SimDevice for Stuck {
+        fn mac(&self) -> MacId {
+            MacId::from_low_bits(9)
+        }
+        fn power_on(&mut self, _now: Instant) {}
+        fn handle_frame(&mut self, _frame: &CanFrame, _now: Instant) {}
+        fn handle_timeout(&mut self, _now: Instant) {}
+        fn poll_transmit(&mut self) -> Option<CanFrame> {
+            None
+        }
+        fn poll_at(&self) -> Option<Instant> {
+            Some(Instant::from_millis(5))
+        }
+    }
+
+    #[test]
+    fn a_stalled_device_is_reported_not_looped_on() {
+        let mut bus = SimBus::new(Bitrate::K250);
+        bus.attach(Box::new(Stuck), PowerOn::AtStart);
+        let err = bus.recv(Instant::from_secs(1)).unwrap_err();
+        assert!(err.to_string().contains("simulation stalled at 0.005000s"), "{err}");
     }
 
     proptest! {
