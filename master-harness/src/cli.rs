@@ -20,6 +20,8 @@ use devicenet::explicit::ServiceCode;
 use devicenet::{Duration, Instant, MacId};
 use serde::Serialize;
 use serde_json::json;
+use slave_fw::converter::ConverterConfig;
+use slave_fw::description::DeviceDescription;
 use std::ffi::OsString;
 use std::io::Write;
 use std::path::PathBuf;
@@ -122,10 +124,11 @@ pub struct Cli {
     /// sim: pace the simulation in real time.
     #[arg(long, global = true)]
     pub realtime: bool,
-    /// sim: MAC IDs of the simulated slaves (comma-separated).
-    #[arg(long, global = true, value_delimiter = ',', default_value = "5", value_parser = parse_mac)]
+    /// sim: MAC IDs of the simulated slaves (comma-separated) [default: 5, or the MAC of the
+    /// --slave-config description].
+    #[arg(long, global = true, value_delimiter = ',', value_parser = parse_mac)]
     pub slave_mac: Vec<MacId>,
-    /// sim: a device description file for the soft slave (not supported yet).
+    /// sim: a device description file (TOML) for the soft slaves instead of the reference device.
     #[arg(long, global = true, value_name = "FILE")]
     pub slave_config: Option<PathBuf>,
     /// sim: when the slaves power on: master-online (as in the capture), start, or a time in ms.
@@ -244,20 +247,38 @@ pub enum Command {
 pub fn open_bus(cli: &Cli) -> Result<Box<dyn Bus>, HarnessError> {
     match &cli.bus {
         BusSpec::Sim => {
-            if let Some(path) = &cli.slave_config {
-                return Err(HarnessError::Usage(format!(
-                    "--slave-config {}: device description files are not supported yet (they come with slave_fw::description); use --slave-mac",
-                    path.display()
-                )));
-            }
+            let config = match &cli.slave_config {
+                Some(path) => DeviceDescription::load(path)?.converter,
+                None => ConverterConfig::breaker_reference(),
+            };
+            let macs = match cli.slave_mac.as_slice() {
+                [] => vec![config.device.mac_id],
+                given => given.to_vec(),
+            };
             let mut bus = SimBus::new(cli.bitrate);
             let mut seen = Vec::new();
-            for &mac in &cli.slave_mac {
+            for &mac in &macs {
                 if seen.contains(&mac) {
                     return Err(HarnessError::Usage(format!("--slave-mac {mac} given twice")));
                 }
                 seen.push(mac);
-                bus.attach(Box::new(SoftSlave::reference(mac)), cli.slave_power_on.0);
+                let slave = if cli.slave_config.is_some() {
+                    let mut c = config.clone();
+                    if c.device.mac_id != mac {
+                        // Several copies of one description: give each its own serial number.
+                        c.device.identity.serial_number = c
+                            .device
+                            .identity
+                            .serial_number
+                            .wrapping_add(u32::from(mac.as_raw()))
+                            .wrapping_sub(u32::from(c.device.mac_id.as_raw()));
+                        c.device.mac_id = mac;
+                    }
+                    SoftSlave::new(c).map_err(|e| HarnessError::Usage(format!("--slave-config: {e}")))?
+                } else {
+                    SoftSlave::reference(mac)
+                };
+                bus.attach(Box::new(slave), cli.slave_power_on.0);
             }
             bus.set_realtime(cli.realtime);
             Ok(Box::new(bus))
@@ -341,7 +362,7 @@ struct Outcome {
 
 fn exit_code(e: &HarnessError) -> u8 {
     match e {
-        HarnessError::Usage(_) | HarnessError::Log(_) => 2,
+        HarnessError::Usage(_) | HarnessError::Log(_) | HarnessError::Description(_) => 2,
         _ => 1,
     }
 }

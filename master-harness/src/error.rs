@@ -60,6 +60,9 @@ pub enum HarnessError {
     /// A bad command-line value or option combination.
     #[error("{0}")]
     Usage(String),
+    /// The device description file given with `--slave-config` was refused.
+    #[error("{0}")]
+    Description(#[from] slave_fw::description::DescriptionError),
     /// A file could not be written.
     #[error("cannot write {path}: {source}")]
     Write {

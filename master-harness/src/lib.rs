@@ -12,7 +12,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`bus`] | the one [`Bus`](bus::Bus) trait and its implementations: [`sim`](bus::sim) (virtual clock, arbitration, time on the wire, simulated devices), [`socketcan`](mod@bus::socketcan) (Linux), [`slcan`](bus::slcan) (Lawicel over a serial line) |
-//! | [`soft_slave`] | the simulated device: the core's `SlaveNode` and a built-in breaker model, behind [`SimDevice`](bus::sim::SimDevice) |
+//! | [`soft_slave`] | the simulated device: the real converter (`slave_fw`) with a simulated breaker on a simulated serial line, behind [`SimDevice`](bus::sim::SimDevice) |
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the `--log` file |
 //! | [`client`] | one explicit transaction as a sans-IO state machine: fragmentation both ways, every response frame checked |
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation, the bring-up of notes §2, polling |

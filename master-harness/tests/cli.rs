@@ -134,14 +134,17 @@ fn scan_several_slaves() {
 #[test]
 fn monitor_records_csv() {
     let csv = temp("monitor.csv");
-    let o = dnet(&["monitor", "--count", "3", "--output", "0201", "--csv", csv.to_str().unwrap()]);
+    // The close command reaches the breaker at once; its next status frame (once a second)
+    // shows the switch closed and the load.
+    let o = dnet(&["monitor", "--count", "15", "--output", "0201", "--csv", csv.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    assert_eq!(stdout(&o).lines().filter(|l| l.contains("switch")).count(), 3);
+    assert_eq!(stdout(&o).lines().filter(|l| l.contains("switch")).count(), 15);
     let text = std::fs::read_to_string(&csv).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], "time_s,phase_a,phase_b,phase_c,neutral,switch,raw");
-    assert_eq!(lines.len(), 4);
-    assert!(lines[3].contains(",closed,"), "{text}");
+    assert_eq!(lines.len(), 16);
+    assert!(lines[1].contains(",open,"), "{text}");
+    assert!(lines[15].contains("120,118,121,3,closed,"), "{text}");
 }
 
 #[test]
@@ -158,10 +161,26 @@ fn decode_a_log() {
 }
 
 #[test]
-fn slave_config_is_not_yet_supported() {
-    let o = dnet(&["--slave-config", "breaker.toml", "connect"]);
+fn slave_config_descriptions() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../slave-fw/descriptions");
+    // The shipped breaker description is the reference device: the 28 frames hold.
+    let o = dnet(&["--slave-config", &format!("{dir}/breaker.toml"), "connect"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    // The Modbus gateway sits at MAC 7 and produces 14 bytes.
+    let o = dnet(&["--slave-config", &format!("{dir}/modbus-meter.toml"), "get", "7", "4", "101", "4"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("0E 00"), "{}", stdout(&o));
+    // A bad file: exit 2 with the file and the key.
+    let bad = temp("bad-device.toml");
+    let text =
+        std::fs::read_to_string(format!("{dir}/breaker.toml")).unwrap().replace("mac_id = 5", "mac_id = 99");
+    std::fs::write(&bad, text).unwrap();
+    let o = dnet(&["--slave-config", bad.to_str().unwrap(), "connect"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("not supported yet"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("bad-device.toml: network.mac_id: 99 is outside 0..=63"), "{}", stderr(&o));
+    let o = dnet(&["--slave-config", "/nonexistent.toml", "connect"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("cannot read"), "{}", stderr(&o));
 }
 
 #[test]

@@ -5,12 +5,18 @@
 
 use crate::converter::{Converter, ConverterConfig, ConverterConfigError};
 use crate::sim::SimulatedBreaker;
-use devicenet::{CanFrame, Duration, Instant};
+use devicenet::{CanFrame, Duration, Event, Instant};
 use std::collections::VecDeque;
+
+/// The delay between an Identity Reset response and the simulated power cycle.
+pub const RESET_DELAY: Duration = Duration::from_millis(10);
 
 /// A converter and its simulated breaker. Sans-IO on the CAN side, like the node.
 pub struct SoftSlave {
+    config: ConverterConfig,
     converter: Converter,
+    reset_at: Option<Instant>,
+    events: VecDeque<Event>,
     breaker: SimulatedBreaker,
     /// Bytes on the serial wire towards the breaker / the converter, with arrival times.
     to_breaker: VecDeque<(Instant, Vec<u8>)>,
@@ -24,7 +30,10 @@ impl SoftSlave {
     pub fn new(config: ConverterConfig, now: Instant) -> Result<SoftSlave, ConverterConfigError> {
         let char_time = config.profile.serial().char_time();
         Ok(SoftSlave {
-            converter: Converter::new(config, now)?,
+            converter: Converter::new(config.clone(), now)?,
+            config,
+            reset_at: None,
+            events: VecDeque::new(),
             breaker: SimulatedBreaker::new(now),
             to_breaker: VecDeque::new(),
             to_converter: VecDeque::new(),
@@ -44,7 +53,14 @@ impl SoftSlave {
 
     /// Power-on: the node starts its duplicate MAC ID check.
     pub fn power_on(&mut self, now: Instant) {
+        if self.powered {
+            // A second power-on is a power cycle: the converter starts afresh.
+            if let Ok(fresh) = Converter::new(self.config.clone(), now) {
+                self.converter = fresh;
+            }
+        }
         self.powered = true;
+        self.reset_at = None;
         self.converter.power_on(now);
     }
 
@@ -62,9 +78,28 @@ impl SoftSlave {
         self.run_serial(now);
     }
 
-    /// Runs both sides' timers and the serial wire up to `now`.
+    /// Runs both sides' timers and the serial wire up to `now`. An Identity Reset power-cycles
+    /// the converter [`RESET_DELAY`] after its response (the breaker keeps running).
     pub fn handle_timeout(&mut self, now: Instant) {
+        if self.reset_at.is_some_and(|at| at <= now) {
+            self.reset_at = None;
+            if let Ok(fresh) = Converter::new(self.config.clone(), now) {
+                self.converter = fresh;
+                self.converter.power_on(now);
+            }
+        }
         self.run_serial(now);
+    }
+
+    /// The configuration the converter runs with.
+    pub fn config(&self) -> &ConverterConfig {
+        &self.config
+    }
+
+    /// The converter's events (outputs received, settings changed, resets), oldest first; at most
+    /// the last 64 are kept.
+    pub fn poll_event(&mut self) -> Option<Event> {
+        self.events.pop_front()
     }
 
     /// The next CAN frame the node transmits.
@@ -77,6 +112,7 @@ impl SoftSlave {
         let node = if self.powered { self.converter.poll_at() } else { None };
         [
             node,
+            self.reset_at,
             self.breaker.poll_at(),
             self.to_breaker.front().map(|(at, _)| *at),
             self.to_converter.front().map(|(at, _)| *at),
@@ -138,6 +174,15 @@ impl SoftSlave {
                     }
                     moved = true;
                 }
+            }
+            while let Some(event) = self.converter.poll_event() {
+                if let Event::ResetRequested(_) = event {
+                    self.reset_at = Some(now + RESET_DELAY);
+                }
+                if self.events.len() == 64 {
+                    self.events.pop_front();
+                }
+                self.events.push_back(event);
             }
             if !moved {
                 return;

@@ -198,3 +198,15 @@ fn garbage_on_the_serial_line_is_counted_and_survived() {
     rig.advance(Duration::from_millis(1100));
     assert_eq!(rig.poll(&[0; 8])[0], 7, "still converting");
 }
+
+#[test]
+fn identity_reset_power_cycles_the_converter() {
+    let mut rig = Rig::new(ConverterConfig::breaker_reference());
+    rig.established();
+    assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x01, 0x01]), vec![(0x42B, vec![0x00, 0x85])]);
+    // 10 ms later the node restarts its duplicate MAC ID check, connections gone.
+    let after = rig.advance(Duration::from_millis(20));
+    assert_eq!(after, vec![(0x42F, vec![0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12])]);
+    assert_eq!(rig.slave.converter().node().poll_connection().state, ConnectionState::NonExistent);
+    assert!(std::iter::from_fn(|| rig.slave.poll_event()).any(|e| e == devicenet::Event::ResetRequested(0)));
+}

@@ -82,12 +82,15 @@ fn several_polls_at_the_expected_packet_rate_and_other_bitrates() {
 fn output_command_closes_the_simulated_breaker() {
     let mut bus = sim_bus(&[5], Bitrate::K250);
     let mut session = Session::new(&mut bus);
+    // 15 polls 100 ms apart: the close command goes out at once, the breaker's next status frame
+    // (once a second) shows it closed and carrying its load.
     let opts =
-        ConnectOptions { polls: 2, output: Some(vec![2, 1, 0, 0, 0, 0, 0, 0]), ..ConnectOptions::default() };
+        ConnectOptions { polls: 15, output: Some(vec![2, 1, 0, 0, 0, 0, 0, 0]), ..ConnectOptions::default() };
     let summary = Master::new(&mut session, MasterConfig::default()).connect(&opts).unwrap();
     let input = summary.last_input.unwrap();
     assert_eq!(input[9], 0xF0, "closed");
     assert!(input[0] > 100, "phase A current flows");
+    assert_eq!(session.failures(), 0);
 }
 
 #[test]

@@ -25,8 +25,8 @@ use std::collections::VecDeque;
 
 /// A simulated device on the bus: a sans-IO node, driven by the bus at the instants it asks for.
 ///
-/// The soft slave ([`crate::soft_slave::SoftSlave`]) implements it today; the converter (node plus
-/// serial profile) will replace it without touching the bus or the master.
+/// The soft slave ([`crate::soft_slave::SoftSlave`]: the converter and a simulated breaker)
+/// implements it; any other sans-IO device can be attached the same way.
 pub trait SimDevice {
     /// The device's MAC ID (to route [`Hint::PowerOn`]).
     fn mac(&self) -> MacId;
