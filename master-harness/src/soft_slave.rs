@@ -106,6 +106,11 @@ impl SimDevice for SoftSlave {
     fn poll_at(&self) -> Option<Instant> {
         self.inner.poll_at()
     }
+
+    fn handle_bus_off(&mut self, now: Instant) {
+        self.inner.handle_bus_off(now);
+        while self.inner.poll_event().is_some() {}
+    }
 }
 
 #[cfg(test)]
@@ -136,6 +141,23 @@ mod tests {
         run(&mut slave, Instant::ZERO + Duration::from_millis(100));
         assert_eq!(slave.node().input(), &INPUT_IMAGE);
         assert!(slave.converter().profile().stats().frames_received >= 1);
+    }
+
+    #[test]
+    fn bus_off_applies_the_bus_off_interrupt_setting() {
+        use devicenet::slave::{FaultReason, NetworkState};
+        let mut slave = SoftSlave::reference(MacId::new(5).unwrap());
+        slave.power_on(Instant::ZERO);
+        run(&mut slave, Instant::from_secs(3));
+        assert_eq!(slave.node().network_state(), NetworkState::Online);
+        slave.handle_bus_off(Instant::from_secs(3));
+        let expected = if slave.node().config().bus_off_interrupt {
+            matches!(slave.node().network_state(), NetworkState::DuplicateMacCheck { .. })
+        } else {
+            slave.node().network_state() == NetworkState::CommunicationFaulted(FaultReason::BusOff)
+        };
+        assert!(expected, "{:?}", slave.node().network_state());
+        assert_eq!(slave.node().bus_off_counter(), 1);
     }
 
     #[test]

@@ -78,6 +78,16 @@ impl SoftSlave {
         self.run_serial(now);
     }
 
+    /// The CAN controller went bus-off at `now` (devicenet-notes §7.2): the node applies its bus-off
+    /// interrupt setting (BOI 0: Communication Faulted; 1: restart the duplicate MAC ID check).
+    pub fn handle_bus_off(&mut self, now: Instant) {
+        self.run_serial(now);
+        if self.powered {
+            self.converter.handle_bus_off(now);
+        }
+        self.run_serial(now);
+    }
+
     /// Runs both sides' timers and the serial wire up to `now`. An Identity Reset power-cycles
     /// the converter [`RESET_DELAY`] after its response (the breaker keeps running).
     pub fn handle_timeout(&mut self, now: Instant) {

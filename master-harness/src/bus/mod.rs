@@ -8,6 +8,7 @@
 //! order the wire saw it. The protocol logic never asks which bus it runs on; the only
 //! simulation-specific input is [`Bus::hint`], which real buses ignore.
 
+pub mod fault;
 pub mod sim;
 pub mod slcan;
 #[cfg(target_os = "linux")]

@@ -15,10 +15,17 @@
 //! * **Power.** Each device powers on according to its [`PowerOn`] policy; by default when the
 //!   master reports it is on-line ([`Hint::MasterOnline`]), as in the source capture.
 //!
+//! * **Faults** (optional, [`SimBus::set_faults`]): a [`WireFaults`] model decides the fate of
+//!   each transmission (delivered, destroyed by a CRC error and retransmitted, received twice,
+//!   the sender driven bus-off) and of each delivery to each receiver (delivered, dropped, delayed);
+//!   the model and its implementations live in [`super::fault`]. Without a model the bus behaves
+//!   exactly as described above: the fault paths are never entered.
+//!
 //! Time is virtual: a 2 s duplicate MAC ID check costs no wall time. With
 //! [`SimBus::set_realtime`] the simulation waits for the wall clock to catch up with each instant
 //! it reaches.
 
+use super::fault::{FaultStats, RxFate, Station, TxFate, WireFaults};
 use super::{Bitrate, Bus, BusError, BusEvent, Hint, Origin};
 use devicenet::{CanFrame, Duration, Instant, MacId};
 use std::collections::VecDeque;
@@ -40,6 +47,10 @@ pub trait SimDevice {
     fn poll_transmit(&mut self) -> Option<CanFrame>;
     /// When [`SimDevice::handle_timeout`] must be called next.
     fn poll_at(&self) -> Option<Instant>;
+    /// The device's CAN controller went bus-off at `now` (fault injection, [`super::fault`]): the
+    /// frames it had queued are lost. The default ignores it (a device that does not model
+    /// bus-off); a DeviceNet device applies its bus-off interrupt setting (notes §7.2).
+    fn handle_bus_off(&mut self, _now: Instant) {}
 }
 
 /// When a simulated device is powered on.
@@ -118,6 +129,16 @@ const INTERMISSION_BITS: u64 = 3;
 /// Steps the simulation may take at one instant before it reports a stalled device.
 const MAX_STEPS_PER_INSTANT: u32 = 100_000;
 
+/// Bits an error adds after the stuffed region of a destroyed frame: CRC delimiter (1), error flag
+/// (6), the other nodes' superposed error flags (up to 6), error delimiter (8), intermission (3).
+const ERROR_FRAME_BITS: u64 = 1 + 6 + 6 + 8 + 3;
+
+/// Bits of the fixed tail counted in [`frame_bits`] after the stuffed region.
+const TAIL_BITS: u64 = 10 + 3;
+
+/// Bus-off recovery: 128 occurrences of 11 consecutive recessive bits (ISO 11898-1).
+const BUS_OFF_RECOVERY_BITS: u64 = 128 * 11;
+
 /// Which node sent a frame: the master, or device `i`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Node {
@@ -132,6 +153,14 @@ struct Attached {
     power_at: Option<Instant>,
     powered: bool,
     tx: VecDeque<(Instant, CanFrame)>,
+    /// Bus-off (fault injection): off the bus, neither sending nor receiving, until then.
+    off_until: Option<Instant>,
+}
+
+impl Attached {
+    fn on_bus(&self, now: Instant) -> bool {
+        self.powered && self.off_until.is_none_or(|t| t <= now)
+    }
 }
 
 struct OnWire {
@@ -139,6 +168,15 @@ struct OnWire {
     frame: CanFrame,
     /// End of frame: receivers get it now.
     end: Instant,
+    /// What the fault model decided for this transmission ([`TxFate::Deliver`] without one).
+    fate: TxFate,
+}
+
+/// A delivery the fault model delayed.
+struct Delayed {
+    at: Instant,
+    to: Node,
+    frame: CanFrame,
 }
 
 /// The simulated bus. See the [module docs](self) for the model.
@@ -154,6 +192,9 @@ pub struct SimBus {
     outbox: VecDeque<BusEvent>,
     realtime: Option<std::time::Instant>,
     frames: u64,
+    faults: Option<Box<dyn WireFaults>>,
+    delayed: Vec<Delayed>,
+    fault_stats: FaultStats,
 }
 
 impl SimBus {
@@ -170,6 +211,91 @@ impl SimBus {
             outbox: VecDeque::new(),
             realtime: None,
             frames: 0,
+            faults: None,
+            delayed: Vec::new(),
+            fault_stats: FaultStats::default(),
+        }
+    }
+
+    /// Installs (or, with `None`, removes) the fault model consulted for every transmission and
+    /// delivery from now on ([`super::fault`]). Deliveries it already delayed still happen.
+    pub fn set_faults(&mut self, faults: Option<Box<dyn WireFaults>>) {
+        self.faults = faults;
+    }
+
+    /// The faults applied so far.
+    pub fn fault_stats(&self) -> FaultStats {
+        self.fault_stats
+    }
+
+    /// Frames waiting anywhere in the bus: transmit queues, the master's receive queue and delayed
+    /// deliveries (to watch memory in long runs).
+    pub fn queued_frames(&self) -> usize {
+        self.devices.iter().map(|d| d.tx.len()).sum::<usize>()
+            + self.master_tx.len()
+            + self.outbox.len()
+            + self.delayed.len()
+    }
+
+    /// Drives the device at `mac` bus-off now (fault injection): its queued frames are lost, it is
+    /// told ([`SimDevice::handle_bus_off`]) and it stays off the bus for the bus-off recovery time
+    /// (128 × 11 bit times). Returns `false` when no powered device has that MAC.
+    pub fn force_bus_off(&mut self, mac: MacId) -> bool {
+        let now = self.now;
+        match self.devices.iter().position(|d| d.powered && d.device.mac() == mac) {
+            Some(i) => {
+                self.bus_off(i, now);
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn bus_off(&mut self, i: usize, now: Instant) {
+        let recovery = self.bit_time(BUS_OFF_RECOVERY_BITS);
+        let d = &mut self.devices[i];
+        d.tx.clear();
+        d.off_until = Some(now + recovery);
+        d.device.handle_bus_off(now);
+        self.fault_stats.bus_offs += 1;
+        self.drain_device(i, now);
+    }
+
+    fn station(&self, node: Node) -> Station {
+        match node {
+            Node::Master => Station::Master,
+            Node::Device(i) => Station::Device(self.devices[i].device.mac()),
+        }
+    }
+
+    /// Delivers `frame` to one receiver, as the fault model (if any) decides.
+    fn deliver(&mut self, sender: Node, to: Node, frame: &CanFrame, at: Instant) {
+        let fate = match self.faults.as_mut() {
+            None => RxFate::Deliver,
+            Some(_) => {
+                let (s, r) = (self.station(sender), self.station(to));
+                self.faults.as_mut().map_or(RxFate::Deliver, |f| f.receive(s, r, frame, at))
+            }
+        };
+        match fate {
+            RxFate::Deliver => self.hand_over(to, frame, at),
+            RxFate::Drop => self.fault_stats.dropped += 1,
+            RxFate::Delay(d) => {
+                self.fault_stats.delayed += 1;
+                self.delayed.push(Delayed { at: at + d, to, frame: *frame });
+            }
+        }
+    }
+
+    fn hand_over(&mut self, to: Node, frame: &CanFrame, at: Instant) {
+        match to {
+            Node::Master => self.outbox.push_back(BusEvent { at, frame: *frame, origin: Origin::Remote }),
+            Node::Device(i) => {
+                if self.devices[i].on_bus(at) {
+                    self.devices[i].device.handle_frame(frame, at);
+                    self.drain_device(i, at);
+                }
+            }
         }
     }
 
@@ -180,7 +306,14 @@ impl SimBus {
             PowerOn::At(at) => Some(at),
             PowerOn::WhenMasterOnline | PowerOn::OnHint => None,
         };
-        self.devices.push(Attached { device, power, power_at, powered: false, tx: VecDeque::new() });
+        self.devices.push(Attached {
+            device,
+            power,
+            power_at,
+            powered: false,
+            tx: VecDeque::new(),
+            off_until: None,
+        });
     }
 
     /// Builder form of [`SimBus::attach`].
@@ -240,12 +373,16 @@ impl SimBus {
             [timer, d.power_at].into_iter().flatten().min()
         });
         let arbitration = if self.on_wire.is_none() {
-            let heads = self.devices.iter().filter_map(|d| d.tx.front().map(|&(at, _)| at));
+            let heads = self
+                .devices
+                .iter()
+                .filter_map(|d| d.tx.front().map(|&(at, _)| d.off_until.map_or(at, |off| at.max(off))));
             heads.chain(self.master_tx.front().map(|&(at, _)| at)).min().map(|ready| ready.max(self.idle_at))
         } else {
             None
         };
-        [wire, arbitration].into_iter().flatten().chain(devices).min()
+        let delayed = self.delayed.iter().map(|d| d.at).min();
+        [wire, arbitration, delayed].into_iter().flatten().chain(devices).min()
     }
 
     /// Does everything due at `self.now`: completes the frame on the wire, powers devices on, runs
@@ -255,16 +392,15 @@ impl SimBus {
         let now = self.now;
         if self.on_wire.as_ref().is_some_and(|w| w.end <= now) {
             if let Some(w) = self.on_wire.take() {
-                self.frames += 1;
-                for i in 0..self.devices.len() {
-                    if w.sender != Node::Device(i) && self.devices[i].powered {
-                        self.devices[i].device.handle_frame(&w.frame, w.end);
-                        self.drain_device(i, w.end);
-                    }
+                if w.fate == TxFate::Deliver {
+                    self.complete(&w);
+                } else {
+                    self.complete_faulty(&w);
                 }
-                let origin = if w.sender == Node::Master { Origin::Local } else { Origin::Remote };
-                self.outbox.push_back(BusEvent { at: w.end, frame: w.frame, origin });
             }
+        }
+        if !self.delayed.is_empty() {
+            self.deliver_delayed(now);
         }
         for i in 0..self.devices.len() {
             if self.devices[i].power_at.is_some_and(|at| at <= now) {
@@ -272,6 +408,7 @@ impl SimBus {
                 d.power_at = None;
                 d.powered = true;
                 d.tx.clear();
+                d.off_until = None;
                 d.device.power_on(now);
                 self.drain_device(i, now);
             }
@@ -282,6 +419,63 @@ impl SimBus {
         }
         if self.on_wire.is_none() && self.idle_at <= now {
             self.arbitrate(now);
+        }
+    }
+
+    /// A frame completed without a fault: every other powered node receives it.
+    fn complete(&mut self, w: &OnWire) {
+        self.frames += 1;
+        for i in 0..self.devices.len() {
+            if w.sender != Node::Device(i) && self.devices[i].on_bus(w.end) {
+                if self.faults.is_none() {
+                    self.devices[i].device.handle_frame(&w.frame, w.end);
+                    self.drain_device(i, w.end);
+                } else {
+                    self.deliver(w.sender, Node::Device(i), &w.frame, w.end);
+                }
+            }
+        }
+        if w.sender == Node::Master {
+            self.outbox.push_back(BusEvent { at: w.end, frame: w.frame, origin: Origin::Local });
+        } else if self.faults.is_none() {
+            self.outbox.push_back(BusEvent { at: w.end, frame: w.frame, origin: Origin::Remote });
+        } else {
+            self.deliver(w.sender, Node::Master, &w.frame, w.end);
+        }
+    }
+
+    /// The end of a transmission the fault model interfered with.
+    fn complete_faulty(&mut self, w: &OnWire) {
+        match w.fate {
+            TxFate::Deliver => self.complete(w),
+            // The receivers rejected it; the sender's controller retransmits it (it is still at
+            // the head of its queue).
+            TxFate::Destroy | TxFate::BusOff => {}
+            TxFate::Duplicate => {
+                self.complete(w);
+                // The sender saw an error in the last bit of end-of-frame, after the receivers had
+                // accepted the frame: it sends it again.
+                let again = (w.end, w.frame);
+                match w.sender {
+                    Node::Master => self.master_tx.push_front(again),
+                    Node::Device(i) => self.devices[i].tx.push_front(again),
+                }
+            }
+        }
+    }
+
+    fn deliver_delayed(&mut self, now: Instant) {
+        let mut due: Vec<Delayed> = Vec::new();
+        let mut k = 0;
+        while k < self.delayed.len() {
+            if self.delayed[k].at <= now {
+                due.push(self.delayed.remove(k));
+            } else {
+                k += 1;
+            }
+        }
+        for d in due {
+            self.hand_over(d.to, &d.frame, d.at);
         }
     }
 
@@ -300,12 +494,20 @@ impl SimBus {
         }
         for (i, d) in self.devices.iter().enumerate() {
             if let Some(&(at, f)) = d.tx.front() {
-                if at <= now {
+                if at <= now && d.off_until.is_none_or(|t| t <= now) {
                     consider(f.id().as_raw(), Node::Device(i));
                 }
             }
         }
         let Some((_, node)) = winner else { return };
+        let fate = match self.faults.is_some() {
+            false => TxFate::Deliver,
+            true => self.transmit_fate(node, now),
+        };
+        if fate != TxFate::Deliver {
+            self.start_faulty(node, fate, now);
+            return;
+        }
         let popped = match node {
             Node::Master => self.master_tx.pop_front(),
             Node::Device(i) => self.devices[i].tx.pop_front(),
@@ -316,7 +518,63 @@ impl SimBus {
             let end =
                 now + Duration::from_micros(total.total_micros().saturating_sub(intermission.total_micros()));
             self.idle_at = now + total;
-            self.on_wire = Some(OnWire { sender: node, frame, end });
+            self.on_wire = Some(OnWire { sender: node, frame, end, fate });
+        }
+    }
+
+    /// What the fault model decides for the head frame of `node`. The master is never driven
+    /// bus-off: that fate is taken as a destroyed frame.
+    fn transmit_fate(&mut self, node: Node, now: Instant) -> TxFate {
+        let head = match node {
+            Node::Master => self.master_tx.front(),
+            Node::Device(i) => self.devices[i].tx.front(),
+        };
+        let Some(&(_, frame)) = head else { return TxFate::Deliver };
+        let station = self.station(node);
+        let fate = self.faults.as_mut().map_or(TxFate::Deliver, |f| f.transmit(station, &frame, now));
+        match (fate, node) {
+            (TxFate::BusOff, Node::Master) => TxFate::Destroy,
+            (fate, _) => fate,
+        }
+    }
+
+    /// Starts a transmission the fault model interferes with.
+    fn start_faulty(&mut self, node: Node, fate: TxFate, now: Instant) {
+        let head = match node {
+            Node::Master => self.master_tx.front().copied(),
+            Node::Device(i) => self.devices[i].tx.front().copied(),
+        };
+        let Some((_, frame)) = head else { return };
+        match fate {
+            TxFate::Deliver => {}
+            TxFate::Destroy | TxFate::BusOff => {
+                // The frame runs to its CRC, then an error frame: nobody receives it.
+                let stuffed = u64::from(frame_bits(&frame)).saturating_sub(TAIL_BITS);
+                let busy = self.bit_time(stuffed + ERROR_FRAME_BITS);
+                self.idle_at = now + busy;
+                self.on_wire = Some(OnWire { sender: node, frame, end: now + busy, fate });
+                if fate == TxFate::BusOff {
+                    if let Node::Device(i) = node {
+                        self.bus_off(i, now);
+                    }
+                } else {
+                    self.fault_stats.destroyed += 1;
+                }
+                return;
+            }
+            TxFate::Duplicate => self.fault_stats.duplicated += 1,
+        }
+        let popped = match node {
+            Node::Master => self.master_tx.pop_front(),
+            Node::Device(i) => self.devices[i].tx.pop_front(),
+        };
+        if let Some((_, frame)) = popped {
+            let total = frame_duration(&frame, self.bitrate);
+            let intermission = self.bit_time(INTERMISSION_BITS);
+            let end =
+                now + Duration::from_micros(total.total_micros().saturating_sub(intermission.total_micros()));
+            self.idle_at = now + total;
+            self.on_wire = Some(OnWire { sender: node, frame, end, fate });
         }
     }
 }
