@@ -1,8 +1,9 @@
 //! # eds
 //!
-//! DeviceNet Electronic Data Sheets (EDS): read real vendor files, check them, and write them
-//! deterministically. The `dnet-eds` command-line tool (`src/main.rs`) is a thin shell over
-//! this library.
+//! DeviceNet Electronic Data Sheets (EDS): read real vendor files, check them, write them
+//! deterministically, generate the EDS of our converter from its device description, and check a
+//! device on the bus against an EDS. The `dnet-eds` command-line tool (`src/main.rs`) is a thin
+//! shell over this library.
 //!
 //! ## Layers
 //!
@@ -13,10 +14,14 @@
 //! | raw sections | [`raw`] | tokens → [`RawEds`]: sections, entries, fields, every position kept |
 //! | typed model | [`model`] | [`RawEds`] → [`Eds`]: identity, I/O, parameters, enums, groups, unknowns kept |
 //! | checks | [`mod@check`] | [`Eds`] + [`RawEds`] → [`Report`] of [`Diagnostic`]s, errors vs warnings |
-//! | writer | [`mod@write`] | [`Eds`] → EDS text, deterministic (the generator's extension point) |
+//! | writer | [`mod@write`] | [`Eds`] → EDS text, deterministic |
+//! | generator | [`mod@generate`] | device description ([`slave_fw::description`]) → [`Eds`] → text |
+//! | device check | [`device`] | [`Eds`] + a device on a bus (through `master_harness`) → [`DeviceReport`] of disagreements |
 //!
 //! Each layer only depends on the ones above it; each can be used alone (a tool that only needs
-//! sections can stop at [`RawEds`]).
+//! sections can stop at [`RawEds`]). Only the last two depend on the rest of the workspace: the
+//! generator on `slave-fw` (the description and the converter's objects), the device check on
+//! `master-harness` (the buses and the master).
 //!
 //! ## Dialect coverage
 //!
@@ -42,17 +47,35 @@
 //! # Ok::<(), eds::ParseError>(())
 //! ```
 //!
+//! Generating the converter's EDS and checking it:
+//!
+//! ```
+//! use eds::generate::{generate_text, GenerateOptions};
+//! use slave_fw::description::DeviceDescription;
+//!
+//! let text = generate_text(&DeviceDescription::reference(), &GenerateOptions::default());
+//! assert!(!eds::check_str(&text).has_errors());
+//! let eds = eds::parse_str(&text)?;
+//! assert_eq!(eds.io_info.as_ref().and_then(|io| io.inputs[&1].size), Some(18));
+//! # Ok::<(), eds::ParseError>(())
+//! ```
+//!
 //! ## No-panic contract
 //!
 //! Every entry point accepts any bytes and returns a value or an error; no input makes the
 //! library panic, recurse without bound or allocate without bound ([`limits`]). A property test
-//! feeds arbitrary bytes through every layer.
+//! feeds arbitrary bytes through every layer. The generator takes a description validated by
+//! `slave_fw` and does only checked or saturating arithmetic on it; the device check treats every
+//! answer from the bus as untrusted (wrong lengths, error responses and malformed strings become
+//! findings, a silent device an error).
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod check;
+pub mod device;
 pub mod diag;
 pub mod error;
+pub mod generate;
 mod lexer;
 pub mod limits;
 pub mod model;
@@ -63,8 +86,10 @@ pub mod value;
 pub mod write;
 
 pub use check::{check, check_file, check_str, Report};
+pub use device::{check_device, DeviceReport, Finding};
 pub use diag::{Diagnostic, Rule, Severity, Span};
 pub use error::{EdsError, ParseError, SyntaxError};
+pub use generate::{generate, generate_text, GenerateOptions};
 pub use model::{Eds, EnumDialect, EnumEntry, Param, ParamEnum};
 pub use raw::{Field, FieldValue, RawEds, RawEntry, RawSection};
 pub use summary::Summary;

@@ -10,6 +10,29 @@ fn corpus(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(name).display().to_string()
 }
 
+fn description(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../slave-fw/descriptions")
+        .join(format!("{name}.toml"))
+        .display()
+        .to_string()
+}
+
+fn golden(name: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/golden")
+        .join(format!("{name}.eds"))
+        .display()
+        .to_string()
+}
+
+/// A fresh directory for one test's files.
+fn temp_dir(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("dnet-eds-cli-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 fn run(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_dnet-eds")).args(args).output().unwrap()
 }
@@ -24,9 +47,15 @@ fn stderr(output: &Output) -> String {
 
 #[test]
 fn help_everywhere() {
-    for args in
-        [&["--help"][..], &["parse", "--help"], &["check", "--help"], &["format", "--help"], &["help"]]
-    {
+    for args in [
+        &["--help"][..],
+        &["parse", "--help"],
+        &["check", "--help"],
+        &["format", "--help"],
+        &["generate", "--help"],
+        &["check-device", "--help"],
+        &["help"],
+    ] {
         let output = run(args);
         assert_eq!(output.status.code(), Some(0), "{args:?}");
         assert!(stdout(&output).contains("Usage: dnet-eds"), "{args:?}: {}", stdout(&output));
@@ -162,5 +191,175 @@ fn format_writes_canonical_text() {
     let output = run(&["format", &corpus("case_insensitive.eds"), "-o", out.to_str().unwrap()]);
     assert_eq!(output.status.code(), Some(0));
     assert_eq!(std::fs::read_to_string(&out).unwrap(), text);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn generate_prints_the_golden_file() {
+    for name in ["breaker", "modbus-meter"] {
+        let output = run(&["generate", &description(name)]);
+        assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+        assert_eq!(stdout(&output), std::fs::read_to_string(golden(name)).unwrap(), "{name}");
+    }
+}
+
+#[test]
+fn generate_writes_a_file_that_checks_clean() {
+    let dir = temp_dir("generate");
+    let out = dir.join("bridge.eds");
+    let output =
+        run(&["generate", &description("breaker"), "-o", out.to_str().unwrap(), "--date", "03-14-2026"]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    assert!(stdout(&output).is_empty());
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("CreateDate = 03-14-2026;") && text.contains("ModDate = 03-14-2026;"), "{text}");
+    let output = run(&["check", out.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(0));
+    assert!(stdout(&output).ends_with("0 errors, 0 warnings\n"), "{}", stdout(&output));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn generate_refuses_bad_input_with_exit_2() {
+    let output = run(&["generate", "/nonexistent/device.toml"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(
+        stderr(&output).starts_with("dnet-eds: /nonexistent/device.toml: cannot read the device description")
+    );
+
+    let dir = temp_dir("generate-bad");
+    let bad = dir.join("bad.toml");
+    let text = std::fs::read_to_string(description("breaker")).unwrap().replace("mac_id = 5", "mac_id = 64");
+    std::fs::write(&bad, text).unwrap();
+    let output = run(&["generate", bad.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("network.mac_id: 64 is outside 0..=63"), "{}", stderr(&output));
+
+    let output = run(&["generate", &description("breaker"), "--date", "2026-03-14"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("'2026-03-14' is not a date MM-DD-YYYY"), "{}", stderr(&output));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn check_device_agrees_on_the_simulated_bus() {
+    let output = run(&["check-device", "--eds", &golden("breaker"), "--mac", "5"]);
+    assert_eq!(output.status.code(), Some(0), "{}{}", stdout(&output), stderr(&output));
+    let text = stdout(&output);
+    assert!(text.contains("product code (ProdCode)"), "{text}");
+    assert!(text.ends_with("MAC 5: the device agrees with the EDS\n"), "{text}");
+
+    let output = run(&[
+        "check-device",
+        "--eds",
+        &golden("modbus-meter"),
+        "--mac",
+        "7",
+        "--slave-config",
+        &description("modbus-meter"),
+        "--params",
+        "--json",
+    ]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&output)).unwrap();
+    assert_eq!(json["ok"], true);
+    assert_eq!(json["report"]["mac"], 7);
+    let findings = json["report"]["findings"].as_array().unwrap();
+    assert!(findings.iter().any(|f| f["what"] == "Param1 \"Serial baud rate\"" && f["device"] == "19200"));
+}
+
+#[test]
+fn check_device_disagreement_exits_1_naming_the_field() {
+    let dir = temp_dir("check-device");
+    let wrong = dir.join("wrong.eds");
+    let text = std::fs::read_to_string(golden("breaker")).unwrap().replace("ProdCode = 1;", "ProdCode = 7;");
+    std::fs::write(&wrong, text).unwrap();
+    let output = run(&["check-device", "--eds", wrong.to_str().unwrap(), "--mac", "5"]);
+    assert_eq!(output.status.code(), Some(1));
+    let text = stdout(&output);
+    assert!(text.contains("disagreement: product code (ProdCode): EDS 7, device 1"), "{text}");
+    assert!(text.ends_with("MAC 5: 1 disagreement with the EDS\n"), "{text}");
+
+    // The modbus meter's EDS against the breaker: sizes and path too.
+    let output = run(&["check-device", "--eds", &golden("modbus-meter"), "--mac", "5", "--json"]);
+    assert_eq!(output.status.code(), Some(1));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&output)).unwrap();
+    assert_eq!(json["ok"], false);
+    let wrong: Vec<&str> = json["report"]["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["verdict"] == "disagree")
+        .map(|f| f["what"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        wrong,
+        [
+            "product code (ProdCode)",
+            "produced size (Input1)",
+            "produced path (Input1)",
+            "consumed size (Output1)"
+        ]
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn check_device_usage_and_file_errors_exit_2() {
+    let cases: [(&[&str], &str); 6] = [
+        (&["check-device", "--mac", "5"], "--eds <EDS>"),
+        (&["check-device", "--eds", "/nonexistent/x.eds", "--mac", "5"], "cannot read /nonexistent/x.eds"),
+        (&["check-device", "--eds", &corpus("syntax_error.eds"), "--mac", "5"], "syntax_error.eds:3:9"),
+        (&["check-device", "--eds", EXTENDED, "--mac", "64"], "MAC ID 64 is out of range 0..=63"),
+        (&["check-device", "--eds", EXTENDED, "--mac", "5", "--bus", "can0"], "unknown bus 'can0'"),
+        (
+            &[
+                "check-device",
+                "--eds",
+                EXTENDED,
+                "--mac",
+                "5",
+                "--bus",
+                "socketcan:can0",
+                "--slave-config",
+                "x.toml",
+            ],
+            "needs --bus sim",
+        ),
+    ];
+    for (args, message) in cases {
+        let output = run(args);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {}", stderr(&output));
+        assert!(stderr(&output).contains(message), "{args:?}: {}", stderr(&output));
+        assert!(!stderr(&output).contains("panicked"));
+    }
+}
+
+#[test]
+fn check_device_refuses_a_clash_or_a_bad_description_with_exit_2() {
+    // (A device that does not answer exits 1; the library test `no_device_is_an_error_not_a_
+    // disagreement` covers it, since the simulated bus always has the device at --mac.)
+    let output = run(&["check-device", "--eds", &golden("breaker"), "--mac", "5", "--master-mac", "5"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(stderr(&output).contains("the device's MAC 5 is the master's own MAC"), "{}", stderr(&output));
+
+    let dir = temp_dir("bad-description");
+    let empty = dir.join("empty.toml");
+    std::fs::write(&empty, "").unwrap();
+    let output = run(&[
+        "check-device",
+        "--eds",
+        &golden("breaker"),
+        "--mac",
+        "5",
+        "--slave-config",
+        empty.to_str().unwrap(),
+    ]);
+    assert_eq!(output.status.code(), Some(2));
+    let text = stderr(&output);
+    assert!(
+        text.contains("empty.toml: TOML parse error") && text.contains("missing field `identity`"),
+        "{text}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1,0 +1,848 @@
+//! The generator: the EDS of our converter, built from its device description
+//! ([`slave_fw::description::DeviceDescription`]), the same file the firmware and the soft slave
+//! run from (style.md practice 9).
+//!
+//! Everything in the EDS is derived from the description, and everything it names is something
+//! the device really serves:
+//!
+//! | section | content | where the device serves it |
+//! |---|---|---|
+//! | `[File]` | `DescText` from the product name; dates and revision from [`GenerateOptions`] | — |
+//! | `[Device]` | vendor, device type (and its CIP name), product code, revision, product name, catalog | Identity object (class 0x01) attributes 1–4, 7 |
+//! | `[Device Classification]` | `Class1 = DeviceNet` | — |
+//! | `[IO_Info]` | `Default` and `PollInfo` poll only (`0x0001`); `Input1` = produced size, path `20 04 24 <100 or 101> 30 03`; `Output1` = consumed size, path `20 04 24 96 30 03` | Connection 2 attributes 7, 8, 14, 16; Assembly (class 0x04) |
+//! | `[ParamClass]` | `MaxInst = 0`: the device has no Parameter object (class 0x0F); every parameter is reached through its link path | — |
+//! | `[Params]` 1–11 | the converter's settings, read-only: `ParamN` is attribute N | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]) |
+//! | `[Params]` 12–14 | MAC ID, data rate, bus-off interrupt | DeviceNet object, class 0x03 instance 1, attributes 1–3 |
+//! | `[Params]` 15–29 | serial link statistics and status, monitor parameters: `ParamN` is attribute N − 14 | serial link object, class 0x64 instance 1 ([`slave_fw::converter::SERIAL_LINK_CLASS`]) |
+//! | `[Params]` `EnumN` | the strings of every parameter that is a choice (the `EnumN` dialect only; no `[EnumPar]`) | — |
+//! | `[Groups]` | serial line, instrument link, I/O behaviour, DeviceNet, statistics | — |
+//!
+//! Only polled I/O is announced: the node refuses bit-strobe, multicast poll, change-of-state and
+//! cyclic allocations (devicenet `slave` module docs), so every connection mask is `0x0001`.
+//! Parameter defaults are the values of the description; ranges are those the description file
+//! accepts (the `validate` limits of `slave_fw`). A setting the device does not serve over the
+//! network (data bits, the Modbus poll period, byte order and scan list, the framing) is not a
+//! parameter: a configuration tool could neither read nor write it.
+//!
+//! The output is deterministic: the same description and options give the same bytes (golden
+//! files in `tests/golden/`). Nothing in it depends on the clock, the machine or the path of the
+//! description: the dates are [`GenerateOptions::date`] ([`DEFAULT_DATE`] unless given), and the
+//! header comment names the description by file name only.
+
+use crate::model::{
+    Device, DeviceClassification, Eds, EnumEntry, FileInfo, Group, GroupsSection, IoEntry, IoInfo,
+    ParamClass, ParamsSection, Scaling, ScalingLinks,
+};
+use crate::value::{ConnectionMask, DataType, Date, Descriptor, LinkPath, Revision, Time, Value};
+use crate::{Param, Writer};
+use devicenet::objects::class;
+use slave_fw::converter::{InputAssembly, OUTPUT_ASSEMBLY, SERIAL_LINK_CLASS, SETTINGS_CLASS};
+use slave_fw::description::DeviceDescription;
+use slave_fw::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry};
+use slave_fw::serial::{
+    HealthConfig, IdleAction, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
+};
+
+/// The `CreateDate` and `ModDate` written when [`GenerateOptions::date`] is not changed.
+pub const DEFAULT_DATE: Date = Date { year: 2025, month: 1, day: 1 };
+/// The `CreateTime` and `ModTime` written (midnight, so the file does not depend on the clock).
+pub const FILE_TIME: Time = Time { hour: 0, minute: 0, second: 0 };
+/// The `[File] Revision` written when [`GenerateOptions::revision`] is not changed.
+pub const DEFAULT_REVISION: Revision = Revision { major: 1, minor: 0 };
+
+/// Number of the first DeviceNet object parameter (MAC ID); 13 is the data rate, 14 the bus-off
+/// interrupt.
+pub const FIRST_DEVICENET_PARAM: u32 = 12;
+/// Number of the first serial link parameter: `ParamN` reads class 0x64 attribute
+/// `N - FIRST_LINK_PARAM + 1`.
+pub const FIRST_LINK_PARAM: u32 = 15;
+/// Number of settings parameters: `Param1` to `Param11` read class 0x65 attributes 1 to 11.
+pub const SETTINGS_PARAM_COUNT: u32 = 11;
+/// Number of serial link parameters (class 0x64 attributes 1 to 15).
+pub const LINK_PARAM_COUNT: u32 = 15;
+
+/// What the generated file says about itself.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GenerateOptions {
+    /// `CreateDate` and `ModDate`.
+    pub date: Date,
+    /// `[File] Revision`: the revision of the EDS file itself (not of the device).
+    pub revision: Revision,
+    /// The description's file name for the header comment (`breaker.toml`); `None` writes no
+    /// source line.
+    pub source: Option<String>,
+}
+
+impl Default for GenerateOptions {
+    /// [`DEFAULT_DATE`], [`DEFAULT_REVISION`], no source.
+    fn default() -> Self {
+        GenerateOptions { date: DEFAULT_DATE, revision: DEFAULT_REVISION, source: None }
+    }
+}
+
+/// The EDS model of the converter `description` describes; see the [module docs](self).
+pub fn generate(description: &DeviceDescription, options: &GenerateOptions) -> Eds {
+    let device = description.converter.device_config();
+    let id = &device.identity;
+    let product_name = id.product_name.as_str().to_string();
+    let params = parameters(description);
+    let mut params_section = ParamsSection::default();
+    for p in &params {
+        params_section.params.insert(p.number, p.to_param());
+        if !p.choices.is_empty() {
+            let entries = p
+                .choices
+                .iter()
+                .map(|(value, text)| EnumEntry { value: *value, text: text.clone() })
+                .collect();
+            params_section.enums.insert(p.number, entries);
+        }
+    }
+    Eds {
+        file: Some(FileInfo {
+            desc_text: Some(format!("{product_name}: serial-to-DeviceNet converter")),
+            create_date: Some(options.date),
+            create_time: Some(FILE_TIME),
+            mod_date: Some(options.date),
+            mod_time: Some(FILE_TIME),
+            revision: Some(options.revision),
+            home_url: None,
+            other: Vec::new(),
+        }),
+        device: Some(Device {
+            vend_code: Some(id.vendor_id),
+            vend_name: Some(description.vendor_name.clone()),
+            prod_type: Some(id.device_type),
+            prod_type_str: Some(device_type_name(id.device_type)),
+            prod_code: Some(id.product_code),
+            maj_rev: Some(id.major_revision),
+            min_rev: Some(id.minor_revision),
+            prod_name: Some(product_name),
+            catalog: Some(description.catalog.clone()).filter(|c| !c.is_empty()),
+            icon: None,
+            icon_contents: None,
+            other: Vec::new(),
+        }),
+        classification: Some(DeviceClassification {
+            classes: [(1, vec!["DeviceNet".to_string()])].into_iter().collect(),
+            other: Vec::new(),
+        }),
+        io_info: Some(io_info(description)),
+        param_class: Some(ParamClass {
+            max_inst: Some(0),
+            descriptor: Some(0),
+            cfg_assembly: Some(0),
+            other: Vec::new(),
+        }),
+        params: Some(params_section),
+        enum_par: None,
+        groups: Some(groups()),
+        other_sections: Vec::new(),
+    }
+}
+
+/// The EDS text of `description`: [`generate`] written by the [`Writer`] with a header comment
+/// naming the generator and [`GenerateOptions::source`].
+pub fn generate_text(description: &DeviceDescription, options: &GenerateOptions) -> String {
+    let mut writer = Writer::new().header_comment(match &options.source {
+        Some(source) => format!("Generated by dnet-eds from the device description {source}."),
+        None => "Generated by dnet-eds from a device description.".to_string(),
+    });
+    writer = writer.header_comment(
+        "Edit the description and run `dnet-eds generate` again rather than editing this file.",
+    );
+    writer.write(&generate(description, options))
+}
+
+/// The CIP name of a device type (CIP Vol 1 Table 5A-2.x device profiles), as EDS files write it
+/// in `ProdTypeStr`; `Vendor Specific` for 0x64..=0xC7, else `Device Type 0xNN`.
+pub fn device_type_name(device_type: u16) -> String {
+    let name = match device_type {
+        0x00 => "Generic Device",
+        0x02 => "AC Drive",
+        0x03 => "Motor Overload",
+        0x04 => "Limit Switch",
+        0x05 => "Inductive Proximity Switch",
+        0x06 => "Photoelectric Sensor",
+        0x07 => "General Purpose Discrete I/O",
+        0x09 => "Resolver",
+        0x0C => "Communications Adapter",
+        0x0E => "Programmable Logic Controller",
+        0x10 => "Position Controller",
+        0x13 => "DC Drive",
+        0x15 => "Contactor",
+        0x16 => "Motor Starter",
+        0x17 => "Soft Start",
+        0x18 => "Human-Machine Interface",
+        0x1A => "Mass Flow Controller",
+        0x1B => "Pneumatic Valve",
+        0x1C => "Vacuum Pressure Gauge",
+        0x22 => "Encoder",
+        0x64..=0xC7 => "Vendor Specific",
+        other => return format!("Device Type 0x{other:02X}"),
+    };
+    name.to_string()
+}
+
+fn io_info(description: &DeviceDescription) -> IoInfo {
+    let converter = &description.converter;
+    let device = converter.device_config();
+    let poll = ConnectionMask(ConnectionMask::POLL);
+    let (input_name, output_name) = match (&converter.profile, converter.input) {
+        (ProfileConfig::Framed(_), InputAssembly::Plain) => ("Instrument data", "Command"),
+        (ProfileConfig::Framed(_), InputAssembly::WithStatus) => {
+            ("Instrument data and link status", "Command")
+        }
+        (ProfileConfig::Modbus(_), InputAssembly::Plain) => ("Modbus inputs", "Modbus outputs"),
+        (ProfileConfig::Modbus(_), InputAssembly::WithStatus) => {
+            ("Modbus inputs and link status", "Modbus outputs")
+        }
+    };
+    let entry = |size: u16, name: &str, instance: u8, help: String| IoEntry {
+        size: Some(u32::from(size)),
+        bits: Some(u32::from(size) * 8),
+        mask: Some(poll),
+        name: name.to_string(),
+        path_size: Some(6),
+        path: Some(LinkPath::Bytes(assembly_data_path(instance).to_vec())),
+        help,
+        extra: Vec::new(),
+    };
+    IoInfo {
+        default: Some(poll),
+        poll: Some(crate::model::ConnectionInfo {
+            compatible: Some(poll),
+            default_input: Some(1),
+            default_output: Some(1),
+            extra: Vec::new(),
+        }),
+        strobe: None,
+        cos: None,
+        cyclic: None,
+        inputs: [(
+            1,
+            entry(device.produced_size, input_name, device.input_assembly, input_help(description)),
+        )]
+        .into_iter()
+        .collect(),
+        outputs: [(1, entry(device.consumed_size, output_name, OUTPUT_ASSEMBLY, output_help(description)))]
+            .into_iter()
+            .collect(),
+        other: Vec::new(),
+    }
+}
+
+/// The path to an assembly instance's data attribute: class 0x04, instance, attribute 3.
+pub fn assembly_data_path(instance: u8) -> [u8; 6] {
+    logical_path(class::ASSEMBLY, instance, 3)
+}
+
+/// `20 cc 24 ii 30 aa`: logical segments with an 8-bit class, instance and attribute (CIP Vol 1
+/// Appendix C-1.4.2). Every class named here is below 0x100.
+fn logical_path(class_id: u16, instance: u8, attribute: u8) -> [u8; 6] {
+    [0x20, u8::try_from(class_id).unwrap_or(u8::MAX), 0x24, instance, 0x30, attribute]
+}
+
+/// `bytes 0-7` or `byte 12`.
+fn bytes(start: usize, len: usize) -> String {
+    match len {
+        0 | 1 => format!("byte {start}"),
+        _ => format!("bytes {start}-{}", start.saturating_add(len - 1)),
+    }
+}
+
+fn modbus_item(e: &ScanEntry) -> String {
+    let (one, many) = match e.function.code() {
+        1 | 5 | 15 => ("coil", "coils"),
+        2 => ("discrete input", "discrete inputs"),
+        3 | 6 | 16 => ("holding register", "holding registers"),
+        _ => ("input register", "input registers"),
+    };
+    let items = if e.count == 1 {
+        format!("{one} {}", e.address)
+    } else {
+        format!("{many} {}-{}", e.address, (u32::from(e.address) + u32::from(e.count)).saturating_sub(1))
+    };
+    format!(
+        "{}: unit {} {items} (function {})",
+        bytes(usize::from(e.offset), e.image_len()),
+        e.unit,
+        e.function.code()
+    )
+}
+
+fn modbus_layout(m: &ModbusConfig, writes: bool) -> String {
+    let mut entries: Vec<&ScanEntry> = m.scan.iter().filter(|e| e.function.is_write() == writes).collect();
+    entries.sort_by_key(|e| e.offset);
+    let order = match m.byte_order {
+        ByteOrder::LittleEndian => "registers low byte first",
+        ByteOrder::BigEndian => "registers high byte first",
+    };
+    let list: Vec<String> = entries.into_iter().map(modbus_item).collect();
+    format!("{}; {order}", list.join("; "))
+}
+
+fn input_help(description: &DeviceDescription) -> String {
+    let converter = &description.converter;
+    let len = converter.profile.input_len();
+    let data = match &converter.profile {
+        ProfileConfig::Framed(_) => format!("{}: the data of the instrument's status frame", bytes(0, len)),
+        ProfileConfig::Modbus(m) => modbus_layout(m, false),
+    };
+    match converter.input {
+        InputAssembly::Plain => data,
+        InputAssembly::WithStatus => format!(
+            "{data}; byte {len}: link status (bit 0 link ok, 1 link timeout, 2 frame errors, 3 Modbus \
+             exception, 4-6 last command outcome, 7 request timeout); byte {}: freshness counter",
+            len + 1
+        ),
+    }
+}
+
+fn output_help(description: &DeviceDescription) -> String {
+    match &description.converter.profile {
+        ProfileConfig::Framed(_) => {
+            "byte 0: command code, byte 1: sequence number, bytes 2-7: arguments; \
+                                     a command is executed once, when the code or the sequence number changes"
+                .to_string()
+        }
+        ProfileConfig::Modbus(m) => format!("{}; written when they change", modbus_layout(m, true)),
+    }
+}
+
+/// One generated parameter, before it becomes a [`Param`].
+struct Spec {
+    number: u32,
+    path: [u8; 6],
+    descriptor: u16,
+    data_type: DataType,
+    name: &'static str,
+    units: &'static str,
+    help: String,
+    min: i128,
+    max: i128,
+    default: i128,
+    choices: Vec<(i128, String)>,
+}
+
+impl Spec {
+    fn to_param(&self) -> Param {
+        let descriptor = if self.choices.is_empty() {
+            self.descriptor
+        } else {
+            self.descriptor | Descriptor::ENUMERATED_STRINGS
+        };
+        Param {
+            reserved: Some(0),
+            link_path_size: Some(6),
+            link_path: Some(LinkPath::Bytes(self.path.to_vec())),
+            descriptor: Some(Descriptor(descriptor)),
+            data_type: Some(self.data_type),
+            data_size: self.data_type.fixed_size(),
+            name: self.name.to_string(),
+            units: self.units.to_string(),
+            help: self.help.clone(),
+            min: Some(Value::Int(self.min)),
+            max: Some(Value::Int(self.max)),
+            default: Some(Value::Int(self.default)),
+            // Scaling is off in the descriptor; the neutral values are written for tools that
+            // read the fields anyway.
+            scaling: Scaling { multiplier: Some(1), divisor: Some(1), base: Some(1), offset: Some(0) },
+            links: ScalingLinks { multiplier: Some(0), divisor: Some(0), base: Some(0), offset: Some(0) },
+            decimal_places: Some(0),
+            extra: Vec::new(),
+        }
+    }
+}
+
+/// An attribute of instance 1.
+fn attribute_path(class_id: u16, attribute: u8) -> [u8; 6] {
+    logical_path(class_id, 1, attribute)
+}
+
+fn choices(list: &[(i128, &str)]) -> Vec<(i128, String)> {
+    list.iter().map(|(v, t)| (*v, (*t).to_string())).collect()
+}
+
+/// The values the settings object serves, from the description (the converter's
+/// `settings_attribute` mapping; a test reads them back from the soft slave).
+struct Settings<'a> {
+    serial: &'a SerialSettings,
+    health: HealthConfig,
+    response_timeout_ms: u32,
+    max_response_timeout_ms: u32,
+    retries: u8,
+    max_retries: u8,
+    on_idle: &'a IdleAction,
+    on_fault: &'a IdleAction,
+    modbus: bool,
+}
+
+impl<'a> Settings<'a> {
+    fn of(profile: &'a ProfileConfig) -> Settings<'a> {
+        match profile {
+            ProfileConfig::Framed(c) => Settings {
+                serial: &c.serial,
+                health: c.health,
+                response_timeout_ms: c.sequencer.response_timeout_ms,
+                max_response_timeout_ms: SequencerConfig::MAX_RESPONSE_TIMEOUT_MS,
+                retries: c.sequencer.retries,
+                max_retries: SequencerConfig::MAX_RETRIES,
+                on_idle: &c.sequencer.on_idle,
+                on_fault: &c.sequencer.on_fault,
+                modbus: false,
+            },
+            ProfileConfig::Modbus(c) => Settings {
+                serial: &c.serial,
+                health: c.health,
+                response_timeout_ms: c.response_timeout_ms,
+                max_response_timeout_ms: ModbusConfig::MAX_RESPONSE_TIMEOUT_MS,
+                retries: c.retries,
+                max_retries: ModbusConfig::MAX_RETRIES,
+                on_idle: &c.on_idle,
+                on_fault: &c.on_fault,
+                modbus: true,
+            },
+        }
+    }
+}
+
+fn action_help(s: &Settings<'_>, action: &IdleAction, when: &str) -> String {
+    let what = if s.modbus { "Modbus request" } else { "frame" };
+    let configured = match action.frame() {
+        None => "nothing".to_string(),
+        Some(bytes) => {
+            let hex: Vec<String> = bytes.iter().map(|b| format!("{b:02X}")).collect();
+            if s.modbus {
+                format!("{} + CRC", hex.join(" "))
+            } else {
+                format!("data {}", hex.join(" "))
+            }
+        }
+    };
+    format!("What the converter sends the instrument once {when}: nothing, or the configured {what} (configured: {configured})")
+}
+
+const READ_ONLY: u16 = Descriptor::READ_ONLY;
+const MONITOR: u16 = Descriptor::READ_ONLY | Descriptor::MONITOR;
+
+fn parameters(description: &DeviceDescription) -> Vec<Spec> {
+    let converter = &description.converter;
+    let device = converter.device_config();
+    let s = Settings::of(&converter.profile);
+    let setting = |attribute: u8| attribute_path(SETTINGS_CLASS, attribute);
+    let input_len = converter.profile.input_len();
+    let mut specs = vec![
+        Spec {
+            number: 1,
+            path: setting(1),
+            descriptor: READ_ONLY,
+            data_type: DataType::Udint,
+            name: "Serial baud rate",
+            units: "baud",
+            help: "Bit rate of the serial line to the instrument".into(),
+            min: SerialSettings::MIN_BAUD.into(),
+            max: SerialSettings::MAX_BAUD.into(),
+            default: s.serial.baud.into(),
+            choices: Vec::new(),
+        },
+        Spec {
+            number: 2,
+            path: setting(2),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Serial parity",
+            units: "",
+            help: "Parity bit of every character on the serial line".into(),
+            min: 0,
+            max: 2,
+            default: match s.serial.parity {
+                Parity::None => 0,
+                Parity::Odd => 1,
+                Parity::Even => 2,
+            },
+            choices: choices(&[(0, "None"), (1, "Odd"), (2, "Even")]),
+        },
+        Spec {
+            number: 3,
+            path: setting(3),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Serial stop bits",
+            units: "",
+            help: "Stop bits of every character on the serial line".into(),
+            min: 1,
+            max: 2,
+            default: match s.serial.stop_bits {
+                StopBits::One => 1,
+                StopBits::Two => 2,
+            },
+            choices: choices(&[(1, "1 stop bit"), (2, "2 stop bits")]),
+        },
+        Spec {
+            number: 4,
+            path: setting(4),
+            descriptor: READ_ONLY,
+            data_type: DataType::Udint,
+            name: "Stale timeout",
+            units: "ms",
+            help: "Time without a good answer from the instrument after which the link is stale (Module \
+                   Status flashes red, the input data follows the stale policy)"
+                .into(),
+            min: 1,
+            max: HealthConfig::MAX_STALE_TIMEOUT_MS.into(),
+            default: s.health.stale_timeout_ms.into(),
+            choices: Vec::new(),
+        },
+        Spec {
+            number: 5,
+            path: setting(5),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Stale policy",
+            units: "",
+            help: "What the input data shows while the link is stale".into(),
+            min: 0,
+            max: 1,
+            default: match s.health.stale_policy {
+                StalePolicy::HoldLastValue => 0,
+                StalePolicy::Clear => 1,
+            },
+            choices: choices(&[(0, "Hold last value"), (1, "Clear to zero")]),
+        },
+        Spec {
+            number: 6,
+            path: setting(6),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Input assembly",
+            units: "",
+            help: "The assembly instance the poll connection produces".into(),
+            min: InputAssembly::Plain.instance().into(),
+            max: InputAssembly::WithStatus.instance().into(),
+            default: device.input_assembly.into(),
+            choices: vec![
+                (
+                    InputAssembly::Plain.instance().into(),
+                    format!("Instrument data ({} bytes)", InputAssembly::Plain.produced_size(input_len)),
+                ),
+                (
+                    InputAssembly::WithStatus.instance().into(),
+                    format!(
+                        "Instrument data and link status ({} bytes)",
+                        InputAssembly::WithStatus.produced_size(input_len)
+                    ),
+                ),
+            ],
+        },
+        Spec {
+            number: 7,
+            path: setting(7),
+            descriptor: READ_ONLY,
+            data_type: DataType::Udint,
+            name: "Response timeout",
+            units: "ms",
+            help: if s.modbus {
+                "Wait for a Modbus response, counted from the end of the request".into()
+            } else {
+                "Wait for the instrument's acknowledgement of a command, counted from the end of the command"
+                    .into()
+            },
+            min: 1,
+            max: s.max_response_timeout_ms.into(),
+            default: s.response_timeout_ms.into(),
+            choices: Vec::new(),
+        },
+        Spec {
+            number: 8,
+            path: setting(8),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Retries",
+            units: "",
+            help: if s.modbus {
+                "Repetitions of a Modbus request after a timeout or a corrupted answer".into()
+            } else {
+                "Retransmissions of a command after a timeout before it is reported failed".into()
+            },
+            min: 0,
+            max: s.max_retries.into(),
+            default: s.retries.into(),
+            choices: Vec::new(),
+        },
+        Spec {
+            number: 9,
+            path: setting(9),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Idle action",
+            units: "",
+            help: action_help(&s, s.on_idle, "the scanner goes idle (zero-length poll)"),
+            min: 0,
+            max: 1,
+            default: u8::from(s.on_idle.frame().is_some()).into(),
+            choices: choices(&[
+                (0, "Nothing"),
+                (1, if s.modbus { "Send Modbus request" } else { "Send frame" }),
+            ]),
+        },
+        Spec {
+            number: 10,
+            path: setting(10),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Fault action",
+            units: "",
+            help: action_help(&s, s.on_fault, "the poll connection times out"),
+            min: 0,
+            max: 1,
+            default: u8::from(s.on_fault.frame().is_some()).into(),
+            choices: choices(&[
+                (0, "Nothing"),
+                (1, if s.modbus { "Send Modbus request" } else { "Send frame" }),
+            ]),
+        },
+        Spec {
+            number: 11,
+            path: setting(11),
+            descriptor: READ_ONLY,
+            data_type: DataType::Usint,
+            name: "Serial profile",
+            units: "",
+            help: "The instrument protocol on the serial line".into(),
+            min: 0,
+            max: 1,
+            default: i128::from(s.modbus),
+            choices: choices(&[(0, "Framed serial"), (1, "Modbus RTU master")]),
+        },
+    ];
+    let programmable = device.switches.programmable;
+    let (switch_descriptor, switch_help) = if programmable {
+        (0, "; settable over the network (program position), in force after a reset")
+    } else {
+        (READ_ONLY, "; set by the DIP switches")
+    };
+    let devicenet = |attribute: u8| attribute_path(class::DEVICENET, attribute);
+    specs.extend([
+        Spec {
+            number: FIRST_DEVICENET_PARAM,
+            path: devicenet(1),
+            descriptor: switch_descriptor,
+            data_type: DataType::Usint,
+            name: "MAC ID",
+            units: "",
+            help: format!("The node address on DeviceNet{switch_help}"),
+            min: 0,
+            max: 63,
+            default: device.mac_id.as_raw().into(),
+            choices: Vec::new(),
+        },
+        Spec {
+            number: FIRST_DEVICENET_PARAM + 1,
+            path: devicenet(2),
+            descriptor: switch_descriptor,
+            data_type: DataType::Usint,
+            name: "Data rate",
+            units: "",
+            help: format!("The DeviceNet data rate{switch_help}"),
+            min: 0,
+            max: 2,
+            default: device.baud_rate.attribute_value().into(),
+            choices: choices(&[(0, "125 kbit/s"), (1, "250 kbit/s"), (2, "500 kbit/s")]),
+        },
+        Spec {
+            number: FIRST_DEVICENET_PARAM + 2,
+            path: devicenet(3),
+            descriptor: 0,
+            data_type: DataType::Bool,
+            name: "Bus-off interrupt",
+            units: "",
+            help: "What the CAN controller does on bus-off".into(),
+            min: 0,
+            max: 1,
+            default: u8::from(device.bus_off_interrupt).into(),
+            choices: choices(&[(0, "Hold in bus-off"), (1, "Reset and continue")]),
+        },
+    ]);
+    specs.extend(link_parameters());
+    specs
+}
+
+/// The serial link object's attributes as monitor parameters.
+fn link_parameters() -> Vec<Spec> {
+    const COUNTERS: [(&str, &str, &str); 12] = [
+        (
+            "Frames received",
+            "frames",
+            "Good frames received from the instrument (framing and checksum verified)",
+        ),
+        ("Checksum errors", "frames", "Frames discarded for a checksum or CRC mismatch"),
+        (
+            "Framing errors",
+            "frames",
+            "Frames discarded for bad framing, answers to nothing asked, bursts of stray bytes",
+        ),
+        ("Answer timeouts", "", "Expected answers that did not arrive in time (every attempt counts)"),
+        ("Commands sent", "", "Commands sent (first attempts); Modbus: writes of changed outputs"),
+        ("Commands retried", "", "Command retransmissions after a timeout or a corrupted answer"),
+        ("Commands failed", "", "Commands given up after all retries"),
+        (
+            "Commands rejected",
+            "",
+            "Commands the instrument refused (negative acknowledgement, Modbus exception)",
+        ),
+        ("Modbus exceptions", "", "Modbus exception responses, reads and writes"),
+        (
+            "Frames sent",
+            "frames",
+            "Frames written to the serial line, retries and idle/fault frames included",
+        ),
+        ("Discarded bytes", "bytes", "Bytes skipped outside any frame"),
+        ("Link timeouts", "", "Times the link went stale"),
+    ];
+    let link = |attribute: u8| attribute_path(SERIAL_LINK_CLASS, attribute);
+    let mut specs: Vec<Spec> = COUNTERS
+        .iter()
+        .zip(1u8..)
+        .map(|(&(name, units, help), attribute)| Spec {
+            number: FIRST_LINK_PARAM + u32::from(attribute) - 1,
+            path: link(attribute),
+            descriptor: MONITOR,
+            data_type: DataType::Udint,
+            name,
+            units,
+            help: format!("{help}; wraps at 2^32"),
+            min: 0,
+            max: u32::MAX.into(),
+            default: 0,
+            choices: Vec::new(),
+        })
+        .collect();
+    specs.extend([
+        Spec {
+            number: FIRST_LINK_PARAM + 12,
+            path: link(13),
+            descriptor: MONITOR,
+            data_type: DataType::Byte,
+            name: "Link status byte",
+            units: "",
+            help:
+                "Bit 0 link ok, 1 link timeout, 2 frame errors, 3 Modbus exception, 4-6 last command outcome \
+                   (0 none, 1 pending, 2 ok, 3 rejected, 4 failed, 5 unsupported), 7 request timeout"
+                    .into(),
+            min: 0,
+            max: 255,
+            default: 0,
+            choices: Vec::new(),
+        },
+        Spec {
+            number: FIRST_LINK_PARAM + 13,
+            path: link(14),
+            descriptor: MONITOR,
+            data_type: DataType::Usint,
+            name: "Freshness counter",
+            units: "",
+            help: "Counts good frames from the instrument, wrapping at 256".into(),
+            min: 0,
+            max: 255,
+            default: 0,
+            choices: Vec::new(),
+        },
+        Spec {
+            number: FIRST_LINK_PARAM + 14,
+            path: link(15),
+            descriptor: MONITOR,
+            data_type: DataType::Usint,
+            name: "Link state",
+            units: "",
+            help: "The instrument link: starting (nothing received yet), ok, or stale".into(),
+            min: 0,
+            max: 2,
+            default: 0,
+            choices: choices(&[(0, "Starting"), (1, "Ok"), (2, "Stale")]),
+        },
+    ]);
+    specs
+}
+
+fn groups() -> GroupsSection {
+    let link: Vec<u32> = (FIRST_LINK_PARAM..FIRST_LINK_PARAM + LINK_PARAM_COUNT).collect();
+    let list = [
+        ("Serial line", vec![11, 1, 2, 3]),
+        ("Instrument link", vec![4, 5, 7, 8]),
+        ("I/O behaviour", vec![6, 9, 10]),
+        ("DeviceNet", vec![FIRST_DEVICENET_PARAM, FIRST_DEVICENET_PARAM + 1, FIRST_DEVICENET_PARAM + 2]),
+        ("Serial link statistics", link),
+    ];
+    GroupsSection {
+        groups: list
+            .into_iter()
+            .zip(1u32..)
+            .map(|((name, params), n)| (n, Group { name: name.to_string(), params }))
+            .collect(),
+        other: Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+
+    #[rstest]
+    #[case::adapter(0x0C, "Communications Adapter")]
+    #[case::generic(0x00, "Generic Device")]
+    #[case::vendor(0x64, "Vendor Specific")]
+    #[case::unknown(0x0D, "Device Type 0x0D")]
+    #[case::wide(0x1234, "Device Type 0x1234")]
+    fn device_type_names(#[case] code: u16, #[case] name: &str) {
+        assert_eq!(device_type_name(code), name);
+    }
+
+    #[rstest]
+    #[case::one(12, 1, "byte 12")]
+    #[case::many(0, 8, "bytes 0-7")]
+    fn byte_ranges(#[case] start: usize, #[case] len: usize, #[case] text: &str) {
+        assert_eq!(bytes(start, len), text);
+    }
+
+    #[test]
+    fn reference_description_checks_clean() {
+        let text = generate_text(&DeviceDescription::reference(), &GenerateOptions::default());
+        let report = crate::check_str(&text);
+        assert!(report.diagnostics.is_empty(), "{report}");
+    }
+
+    #[test]
+    fn parameter_numbers_and_groups_cover_each_other() {
+        let eds = generate(&DeviceDescription::reference(), &GenerateOptions::default());
+        let params: Vec<u32> = eds.params().map(|(n, _)| n).collect();
+        let total = SETTINGS_PARAM_COUNT + 3 + LINK_PARAM_COUNT;
+        assert_eq!(params, (1..=total).collect::<Vec<_>>());
+        let mut grouped: Vec<u32> = eds.groups().flat_map(|(_, g)| g.params.clone()).collect();
+        grouped.sort_unstable();
+        assert_eq!(grouped, params, "every parameter is in exactly one group");
+    }
+
+    #[test]
+    fn settings_parameters_point_at_the_settings_object() {
+        let eds = generate(&DeviceDescription::reference(), &GenerateOptions::default());
+        for n in 1..=SETTINGS_PARAM_COUNT {
+            let path = eds.param(n).and_then(|p| p.link_path.as_ref()).and_then(LinkPath::attribute);
+            let path = path.unwrap();
+            assert_eq!((path.class, path.instance, path.attribute), (SETTINGS_CLASS, 1, Some(n as u16)));
+            assert!(eds.param(n).unwrap().descriptor.unwrap().read_only());
+        }
+    }
+
+    #[test]
+    fn programmable_switches_make_the_mac_id_settable() {
+        let mut description = DeviceDescription::reference();
+        description.converter.device.switches.programmable = true;
+        let eds = generate(&description, &GenerateOptions::default());
+        let mac = eds.param(FIRST_DEVICENET_PARAM).unwrap();
+        assert!(!mac.descriptor.unwrap().read_only());
+        assert!(mac.help.contains("program position"));
+    }
+}

@@ -1,0 +1,247 @@
+//! The generated EDS against the soft slave on the simulated bus: what the EDS says (identity,
+//! sizes, parameters) is what the device running the same description reports, and
+//! `check_device` names every field an edited EDS gets wrong.
+
+use devicenet::MacId;
+use eds::device::{check_device, check_on_bus, BusOptions, CheckOptions, Verdict};
+use eds::generate::{generate_text, GenerateOptions};
+use eds::Eds;
+use master_harness::bus::sim::{PowerOn, SimBus};
+use master_harness::bus::{Bitrate, BusSpec};
+use master_harness::error::HarnessError;
+use master_harness::master::{ConnectOptions, Master, MasterConfig};
+use master_harness::session::Session;
+use master_harness::soft_slave::SoftSlave;
+use rstest::rstest;
+use slave_fw::description::DeviceDescription;
+use std::path::PathBuf;
+
+fn description_path(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../slave-fw/descriptions").join(format!("{name}.toml"))
+}
+
+fn description(name: &str) -> DeviceDescription {
+    DeviceDescription::load(&description_path(name)).unwrap()
+}
+
+/// The generated EDS text of a shipped description.
+fn eds_text(name: &str) -> String {
+    generate_text(&description(name), &GenerateOptions::default())
+}
+
+/// The simulated bus with the soft slave running description `name` at its own MAC ID.
+fn sim(name: &str) -> BusOptions {
+    BusOptions {
+        bus: BusSpec::Sim,
+        bitrate: None,
+        mac: description(name).converter.device.mac_id,
+        slave_config: Some(description_path(name)),
+    }
+}
+
+fn check(eds: &Eds, name: &str, params: bool) -> eds::DeviceReport {
+    let options = CheckOptions { params, ..CheckOptions::default() };
+    check_on_bus(eds, &sim(name), &options, None).unwrap()
+}
+
+/// The bring-up of `dnet-master connect` (not the check's code) against the soft slave: the
+/// identity and sizes the device reports.
+#[rstest]
+#[case::breaker("breaker")]
+#[case::modbus_meter("modbus-meter")]
+fn generated_identity_and_sizes_equal_what_the_soft_slave_reports(#[case] name: &str) {
+    let d = description(name);
+    let mac = d.converter.device.mac_id;
+    let mut bus = SimBus::new(Bitrate::K250);
+    bus.attach(Box::new(SoftSlave::new(d.converter.clone()).unwrap()), PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let summary = Master::new(&mut session, MasterConfig::default())
+        .connect(&ConnectOptions { target: mac, polls: 1, ..ConnectOptions::default() })
+        .unwrap();
+    assert_eq!(session.failures(), 0);
+
+    let eds = eds::parse_str(&eds_text(name)).unwrap();
+    let device = eds.device.as_ref().unwrap();
+    let io = eds.io_info.as_ref().unwrap();
+    assert_eq!(summary.vendor_id, device.vend_code);
+    assert_eq!(summary.device_type, device.prod_type);
+    assert_eq!(summary.product_code, device.prod_code);
+    assert_eq!(summary.produced_size.map(u32::from), io.inputs[&1].size);
+    assert_eq!(summary.consumed_size.map(u32::from), io.outputs[&1].size);
+    assert_eq!(
+        summary.last_input.map(|i| i.len() as u32),
+        io.inputs[&1].size,
+        "the poll response has the EDS size"
+    );
+}
+
+#[rstest]
+#[case::breaker("breaker")]
+#[case::modbus_meter("modbus-meter")]
+fn check_device_agrees_with_the_generated_eds(#[case] name: &str) {
+    let eds = eds::parse_str(&eds_text(name)).unwrap();
+    let report = check(&eds, name, false);
+    assert!(report.agrees(), "{report}");
+    assert!(report.findings.iter().all(|f| f.verdict == Verdict::Agree), "not even a note:\n{report}");
+    for what in
+        ["vendor ID", "device type", "product code", "major revision", "produced size", "consumed size"]
+    {
+        assert!(report.finding(what).is_some(), "{what} is checked:\n{report}");
+    }
+}
+
+/// Every parameter's link path is an attribute the device serves, of the parameter's size, and
+/// holds the parameter's default (the description's value): the EDS and the device agree.
+#[rstest]
+#[case::breaker("breaker")]
+#[case::modbus_meter("modbus-meter")]
+fn every_parameter_is_served_with_its_default(#[case] name: &str) {
+    let eds = eds::parse_str(&eds_text(name)).unwrap();
+    let report = check(&eds, name, true);
+    for (n, _) in eds.params() {
+        let finding =
+            report.finding(&format!("Param{n} ")).unwrap_or_else(|| panic!("Param{n} read:\n{report}"));
+        assert_eq!(finding.verdict, Verdict::Agree, "Param{n}:\n{report}");
+    }
+    assert!(report.agrees(), "{report}");
+}
+
+#[rstest]
+#[case::product_code("        ProdCode = 1;", "        ProdCode = 7;", "product code (ProdCode)", "7", "1")]
+#[case::vendor(
+    "        VendCode = 4660;",
+    "        VendCode = 283;",
+    "vendor ID (VendCode)",
+    "0x011B",
+    "0x1234"
+)]
+#[case::device_type("        ProdType = 12;", "        ProdType = 0;", "device type (ProdType)", "0", "12")]
+#[case::major_revision("        MajRev = 1;", "        MajRev = 2;", "major revision (MajRev)", "2", "1")]
+#[case::produced_size(
+    "                18,                       $ size in bytes",
+    "                20,                       $ size in bytes",
+    "produced size (Input1)",
+    "20",
+    "18"
+)]
+#[case::consumed_size(
+    "                8,                        $ size in bytes",
+    "                6,                        $ size in bytes",
+    "consumed size (Output1)",
+    "6",
+    "8"
+)]
+#[case::produced_path(
+    "\"20 04 24 64 30 03\",      $ path",
+    "\"20 04 24 65 30 03\",      $ path",
+    "produced path (Input1)",
+    "\"20 04 24 65 30 03\" (assembly 101)",
+    "\"20 04 24 64 30 03\" (assembly 100)"
+)]
+fn an_edited_eds_fails_naming_the_field(
+    #[case] find: &str,
+    #[case] replace: &str,
+    #[case] what: &str,
+    #[case] eds_value: &str,
+    #[case] device_value: &str,
+) {
+    let text = eds_text("breaker");
+    assert_eq!(text.matches(find).count(), 1, "{find:?} is in the generated EDS once");
+    let eds = eds::parse_str(&text.replacen(find, replace, 1)).unwrap();
+    let report = check(&eds, "breaker", false);
+    assert!(!report.agrees());
+    let wrong: Vec<&str> = report.disagreements().map(|f| f.what.as_str()).collect();
+    assert_eq!(wrong, [what], "{report}");
+    let finding = report.finding(what).unwrap();
+    assert_eq!((finding.eds.as_str(), finding.device.as_str()), (eds_value, device_value));
+    assert!(
+        report.to_string().contains(&format!("disagreement: {what}: EDS {eds_value}, device {device_value}")),
+        "{report}"
+    );
+}
+
+#[test]
+fn a_missing_key_disagrees() {
+    let text = eds_text("breaker").replacen("        ProdCode = 1;\n", "", 1);
+    let report = check(&eds::parse_str(&text).unwrap(), "breaker", false);
+    let finding = report.finding("product code").unwrap();
+    assert_eq!((finding.eds.as_str(), finding.verdict), ("(missing)", Verdict::Disagree));
+}
+
+#[test]
+fn connection_types_the_device_refuses_disagree() {
+    let text = eds_text("breaker").replacen(
+        "        Default = 0x0001;",
+        "        Default = 0x0001;\n        StrobeInfo = 0x0001, 1, 0;",
+        1,
+    );
+    let report = check(&eds::parse_str(&text).unwrap(), "breaker", false);
+    let wrong: Vec<&str> = report.disagreements().map(|f| f.what.as_str()).collect();
+    assert_eq!(wrong, ["bit-strobe connection"], "{report}");
+    let finding = report.finding("bit-strobe").unwrap();
+    assert_eq!(finding.eds, "announced (StrobeInfo)");
+    assert!(finding.device.starts_with("refuses: resource unavailable"), "{}", finding.device);
+}
+
+#[test]
+fn a_vendor_eds_lists_every_disagreement() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/eds-corpus/hilscher_dns_v5_extended.eds");
+    let eds = eds::read_file(path).unwrap();
+    let report = check(&eds, "breaker", false);
+    let wrong: Vec<&str> = report.disagreements().map(|f| f.what.as_str()).collect();
+    assert_eq!(
+        wrong,
+        [
+            "vendor ID (VendCode)",
+            "product code (ProdCode)",
+            "major revision (MajRev)",
+            "produced size (Input1)",
+            "produced path (Input1)",
+            "consumed size (Output1)",
+            "consumed path (Output1)",
+            "bit-strobe connection",
+            "change-of-state connection",
+            "cyclic connection",
+        ],
+        "{report}"
+    );
+}
+
+#[test]
+fn no_device_is_an_error_not_a_disagreement() {
+    let eds = eds::parse_str(&eds_text("breaker")).unwrap();
+    let mut bus = SimBus::new(Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let error =
+        check_device(&mut master, MacId::new(5).unwrap(), &eds, &CheckOptions::default()).unwrap_err();
+    assert!(matches!(error, HarnessError::Timeout { mac: 5, .. }), "{error}");
+}
+
+#[test]
+fn the_master_mac_cannot_be_the_device_mac() {
+    let eds = Eds::default();
+    let bus = BusOptions { mac: MacId::new(0).unwrap(), ..sim("breaker") };
+    let error = check_on_bus(&eds, &bus, &CheckOptions::default(), None).unwrap_err();
+    assert!(matches!(error, HarnessError::Usage(_)), "{error}");
+}
+
+#[test]
+fn a_slave_config_needs_the_simulated_bus() {
+    let bus = BusOptions { bus: BusSpec::SocketCan { iface: "can0".into() }, ..sim("breaker") };
+    let error = check_on_bus(&Eds::default(), &bus, &CheckOptions::default(), None).unwrap_err();
+    assert!(error.to_string().contains("needs --bus sim"), "{error}");
+}
+
+#[test]
+fn the_log_records_every_frame() {
+    let dir = std::env::temp_dir().join(format!("dnet-eds-device-log-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("check.log");
+    let eds = eds::parse_str(&eds_text("breaker")).unwrap();
+    check_on_bus(&eds, &sim("breaker"), &CheckOptions::default(), Some(&log)).unwrap();
+    let lines = std::fs::read_to_string(&log).unwrap();
+    let frames = master_harness::log::read_log(&log).unwrap();
+    assert!(frames.len() > 20, "{lines}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
