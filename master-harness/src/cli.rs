@@ -241,6 +241,16 @@ pub enum Command {
         /// The log.
         logfile: PathBuf,
     },
+    /// The conformance suite against a group-2-only slave: network access, connection set,
+    /// explicit messaging, connections, timing (exit 0 only when no check fails).
+    Conformance {
+        /// The device's MAC ID.
+        #[arg(long, default_value = "5", value_parser = parse_mac)]
+        mac: MacId,
+        /// Also write a self-contained HTML report with a sequence diagram per check.
+        #[arg(long, value_name = "FILE")]
+        html: Option<PathBuf>,
+    },
 }
 
 /// Opens the bus the options name.
@@ -409,6 +419,9 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
         _ => None,
     };
     let mut bus = open_bus(cli)?;
+    if let Command::Conformance { mac, html } = &cli.command {
+        return crate::conformance::execute(cli, bus.as_mut(), *mac, html.as_deref(), out);
+    }
     let mut session = Session::new(bus.as_mut());
     if let Some(path) = &cli.log {
         let log = LogWriter::create(path)
@@ -508,7 +521,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
             });
             (r, Some(*mac))
         }
-        Command::Decode { .. } => unreachable!("handled above"),
+        Command::Decode { .. } | Command::Conformance { .. } => unreachable!("handled above"),
     };
     session.flush()?;
     let failures = session.failures();

@@ -11,10 +11,11 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`bus`] | the one [`Bus`](bus::Bus) trait and its implementations: [`sim`](bus::sim) (virtual clock, arbitration, time on the wire, simulated devices), [`socketcan`](mod@bus::socketcan) (Linux), [`slcan`](bus::slcan) (Lawicel over a serial line) |
+//! | [`bus`] | the one [`Bus`](bus::Bus) trait and its implementations: [`sim`](bus::sim) (virtual clock, arbitration, time on the wire, simulated devices, with [`fault`](bus::fault) injection), [`socketcan`](mod@bus::socketcan) (Linux), [`slcan`](bus::slcan) (Lawicel over a serial line) |
 //! | [`soft_slave`] | the simulated device: the real converter (`slave_fw`) with a simulated breaker on a simulated serial line, behind [`SimDevice`](bus::sim::SimDevice) |
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the `--log` file |
 //! | [`client`] | one explicit transaction as a sans-IO state machine: fragmentation both ways, every response frame checked |
+//! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports |
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation, the bring-up of notes §2, polling |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly (the `decode` command and the table's meaning column) |
@@ -49,6 +50,7 @@
 pub mod bus;
 pub mod cli;
 pub mod client;
+pub mod conformance;
 pub mod decode;
 pub mod error;
 pub mod log;

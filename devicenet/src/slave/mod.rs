@@ -840,7 +840,9 @@ impl SlaveNode {
                     let whole = self.explicit_rx.message();
                     let n = whole.len().min(MAX_EXPLICIT_SIZE);
                     message[..n].copy_from_slice(&whole[..n]);
-                    self.explicit_rx.reset();
+                    // The reassembler keeps its last answer (not reset here): a repeat of the last
+                    // fragment, whose ack the master missed, is acknowledged again and the request
+                    // is not served twice (notes §4.1, JB; found by the conformance suite).
                     self.serve(&message[..n], now, objects);
                 }
                 ExplicitReceive::Ignored(_) => {

@@ -505,6 +505,21 @@ fn fragmented_request_is_acked_and_served() {
 }
 
 #[test]
+fn repeated_last_fragment_is_acked_again_and_not_served_twice() {
+    let mut rig = Rig::explicit();
+    rig.send(0x42C, &[0x80, 0x00, 0x10, 0x04, 0x96, 0x03, 1, 2]);
+    let last = [0x80, 0x81, 3, 4, 5, 6, 7, 8];
+    let r = rig.send(0x42C, &last);
+    assert_eq!(r, std::vec![(0x42B, std::vec![0x80, 0xC1, 0x00]), (0x42B, std::vec![0x00, 0x90])]);
+    let served = rig.events().iter().filter(|e| **e == Event::OutputReceived).count();
+    // The master missed the ack and sends the last fragment again: acked, not served again.
+    assert_eq!(rig.send(0x42C, &last), tx(0x42B, &[0x80, 0xC1, 0x00]));
+    assert!(!rig.events().contains(&Event::OutputReceived), "served once ({served})");
+    // The next request starts afresh.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]), tx(0x42B, &[0x00, 0x8E, 0x34, 0x12]));
+}
+
+#[test]
 fn oversized_fragmented_request_is_rejected_with_too_much_data() {
     let mut rig = Rig::explicit();
     let mut acks = Vec::new();

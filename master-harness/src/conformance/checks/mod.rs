@@ -1,0 +1,23 @@
+//! The checks, one module per category, run in the order of [`super::Category::ALL`]. Each check
+//! prepares the state it needs itself (releasing and allocating connections through the protocol),
+//! so one failure does not cascade into the next check.
+
+mod connection_set;
+mod connections;
+mod explicit;
+mod network;
+mod timing;
+
+use super::runner::Runner;
+use crate::error::HarnessError;
+
+/// Runs every check, then leaves the device released.
+pub(crate) fn run_all(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
+    network::run(r)?;
+    connection_set::run(r)?;
+    explicit::run(r)?;
+    connections::run(r)?;
+    timing::run(r)?;
+    // Polite: give everything back.
+    r.release_all()
+}

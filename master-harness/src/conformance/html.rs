@@ -1,0 +1,334 @@
+//! The HTML report (`--html FILE`): one self-contained page (no external resources) with the
+//! verdict table and, for every check, its expectations, measurements and a sequence diagram of
+//! its frames as inline SVG. The bring-up of notes §2 is the first check, so its 28 frames are the
+//! first diagram.
+//!
+//! ## The diagrams
+//!
+//! Three lifelines: the master, the device under test, and every other node. Each frame is an
+//! arrow from its sender, labelled with identifier and data above and its DeviceNet meaning below,
+//! coloured by its verdict. Time runs downwards: each arrow sits at its time on the wire (shown on
+//! the left, from the start of the check); the gap between two frames is drawn in proportion up to
+//! 100 ms, and longer gaps are cut and marked with their length, so a 1 s acknowledge timeout does
+//! not stretch the page.
+
+use super::{Category, CheckResult, Grade, SuiteReport};
+use crate::bus::Origin;
+use crate::decode::hex;
+use crate::session::{is_from_device, Record, Verdict};
+use devicenet::{Identifier, Instant, MacId};
+use std::fmt::Write as _;
+
+/// Frames drawn per diagram; the rest are listed as a count (all are in the JSON report).
+pub const MAX_DRAWN: usize = 80;
+
+const WIDTH: f64 = 1060.0;
+const X_TIME: f64 = 12.0;
+const X_MASTER: f64 = 190.0;
+const X_DEVICE: f64 = 690.0;
+const X_OTHERS: f64 = 990.0;
+const TOP: f64 = 64.0;
+const MIN_STEP: f64 = 34.0;
+const PX_PER_MS: f64 = 0.6;
+/// Gaps longer than this are cut.
+const CUT_MS: f64 = 100.0;
+
+/// Escapes text for HTML and SVG.
+pub fn escape(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for ch in s.chars() {
+        match ch {
+            '&' => out.push_str("&amp;"),
+            '<' => out.push_str("&lt;"),
+            '>' => out.push_str("&gt;"),
+            '"' => out.push_str("&quot;"),
+            '\'' => out.push_str("&#39;"),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+fn grade_class(g: Grade) -> &'static str {
+    match g {
+        Grade::Pass => "pass",
+        Grade::Advisory => "advisory",
+        Grade::Fail => "fail",
+    }
+}
+
+/// Where a frame goes: from which lifeline to which.
+fn lanes(r: &Record, device: MacId) -> (f64, f64) {
+    match r.origin {
+        Origin::Local => {
+            let to_device = match Identifier::decode(r.frame.id()) {
+                Identifier::Group2 { mac, .. } => mac == device,
+                Identifier::Group3 { .. } => {
+                    r.frame.data().first().is_some_and(|b| b & 0x3F == device.as_raw())
+                }
+                _ => false,
+            };
+            (X_MASTER, if to_device { X_DEVICE } else { X_OTHERS })
+        }
+        Origin::Remote if is_from_device(&r.frame, device) => (X_DEVICE, X_MASTER),
+        Origin::Remote => (X_OTHERS, X_MASTER),
+    }
+}
+
+fn colour(v: &Verdict) -> (&'static str, &'static str) {
+    match v {
+        Verdict::Fail(_) => ("#c62828", "\u{2718}"),
+        Verdict::Ok(_) => ("#2e7d32", "\u{2714}"),
+        Verdict::Sent => ("#1f4e9c", ""),
+        Verdict::Info(_) | Verdict::Unchecked => ("#888888", "\u{00B7}"),
+    }
+}
+
+fn truncate(s: &str, n: usize) -> String {
+    if s.chars().count() <= n {
+        s.to_string()
+    } else {
+        let mut t: String = s.chars().take(n.saturating_sub(1)).collect();
+        t.push('\u{2026}');
+        t
+    }
+}
+
+/// The sequence diagram of `records` as an SVG element.
+pub fn diagram(records: &[Record], device: MacId) -> String {
+    let drawn = &records[..records.len().min(MAX_DRAWN)];
+    let start = drawn.first().map_or(Instant::ZERO, |r| r.at);
+    // Marker ids unique in the page: several diagrams share one document.
+    let marker = format!("ah{}", drawn.first().map_or(0, |r| r.index));
+    // Rows: y of each frame, and the cut gaps (y, length in ms).
+    let mut ys = Vec::with_capacity(drawn.len());
+    let mut cuts = Vec::new();
+    let mut y = TOP;
+    let mut prev: Option<Instant> = None;
+    for r in drawn {
+        if let Some(p) = prev {
+            let gap = (r.at - p).total_micros() as f64 / 1000.0;
+            if gap > CUT_MS {
+                cuts.push((y + MIN_STEP, gap));
+                y += MIN_STEP * 2.0;
+            } else {
+                y += MIN_STEP.max(gap * PX_PER_MS + MIN_STEP * 0.6);
+            }
+        }
+        ys.push(y);
+        prev = Some(r.at);
+    }
+    let height = y + if records.len() > drawn.len() { 70.0 } else { 40.0 };
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        r##"<svg xmlns="http://www.w3.org/2000/svg" class="seq" width="{WIDTH}" height="{height:.0}" viewBox="0 0 {WIDTH} {height:.0}" role="img" aria-label="sequence diagram">"##
+    );
+    let _ = write!(s, "<style>{SVG_STYLE}</style>");
+    s.push_str(
+        &format!(r##"<defs><marker id="{marker}" viewBox="0 0 10 10" refX="9" refY="5" markerWidth="7" markerHeight="7" orient="auto-start-reverse"><path d="M0,0 L10,5 L0,10 z" fill="context-stroke"/></marker></defs>"##),
+    );
+    for (x, label) in [
+        (X_MASTER, "master".to_string()),
+        (X_DEVICE, format!("device (MAC {device})")),
+        (X_OTHERS, "other nodes".to_string()),
+    ] {
+        let _ = write!(
+            s,
+            r##"<rect x="{:.0}" y="8" width="140" height="24" rx="4" class="head"/><text x="{x:.0}" y="25" text-anchor="middle" class="headt">{}</text><line x1="{x:.0}" y1="32" x2="{x:.0}" y2="{:.0}" class="life"/>"##,
+            x - 70.0,
+            escape(&label),
+            height - 10.0
+        );
+    }
+    let _ = write!(s, r##"<text x="{X_TIME}" y="50" class="axis">time from the check's start</text>"##);
+    for (cy, gap) in &cuts {
+        let _ = write!(
+            s,
+            r##"<line x1="{X_TIME}" y1="{cy:.0}" x2="{:.0}" y2="{cy:.0}" class="cut"/><text x="{:.0}" y="{:.0}" class="cutt">{:.3} s</text>"##,
+            WIDTH - 10.0,
+            (X_MASTER + X_DEVICE) / 2.0,
+            cy - 3.0,
+            gap / 1000.0
+        );
+    }
+    for (r, &y) in drawn.iter().zip(&ys) {
+        let (x1, x2) = lanes(r, device);
+        let (stroke, mark) = colour(&r.verdict);
+        let t = (r.at - start).total_micros() as f64 / 1e6;
+        let label = format!("{:03X}  {}", r.frame.id().as_raw(), hex(r.frame.data()));
+        let (lx, anchor) = ((x1 + x2) / 2.0, "middle");
+        let title = match &r.verdict {
+            Verdict::Fail(f) => format!("#{} FAIL: {}", r.index, f.join("; ")),
+            Verdict::Ok(n) | Verdict::Info(n) => format!("#{} {}", r.index, n),
+            Verdict::Sent | Verdict::Unchecked => format!("#{} sent", r.index),
+        };
+        let _ = write!(
+            s,
+            r##"<g><title>{}</title><text x="{X_TIME}" y="{:.0}" class="time">{t:.6} s  #{}</text><line x1="{x1:.0}" y1="{y:.0}" x2="{x2:.0}" y2="{y:.0}" stroke="{stroke}" class="arrow" marker-end="url(#{marker})"/><text x="{lx:.0}" y="{:.0}" text-anchor="{anchor}" class="frame">{}</text><text x="{lx:.0}" y="{:.0}" text-anchor="{anchor}" class="meaning">{}</text><text x="{:.0}" y="{:.0}" fill="{stroke}" class="mark">{mark}</text></g>"##,
+            escape(&title),
+            y + 4.0,
+            r.index,
+            y - 5.0,
+            escape(&label),
+            y + 13.0,
+            escape(&truncate(&r.meaning, 105)),
+            x2.max(x1) + 8.0,
+            y + 5.0,
+        );
+    }
+    if records.len() > drawn.len() {
+        let _ = write!(
+            s,
+            r##"<text x="{:.0}" y="{:.0}" text-anchor="middle" class="more">… {} more frames, not drawn (every frame is in the JSON report and the --log file)</text>"##,
+            (X_MASTER + X_DEVICE) / 2.0,
+            height - 30.0,
+            records.len() - drawn.len()
+        );
+    }
+    s.push_str("</svg>");
+    s
+}
+
+/// The diagrams' own style, inside each SVG so that a diagram copied out of the page still renders.
+const SVG_STYLE: &str = r#".head{fill:#eef2fb;stroke:#6b7fb3} .headt{font:bold 12px sans-serif;fill:#223}
+.life{stroke:#b8c0d8;stroke-dasharray:4 3} .arrow{stroke-width:1.6}
+.frame{font:11px ui-monospace,Menlo,Consolas,monospace;fill:#111} .meaning{font:10px sans-serif;fill:#555}
+.time{font:10px ui-monospace,Menlo,Consolas,monospace;fill:#777} .axis{font:italic 10px sans-serif;fill:#999}
+.cut{stroke:#bbb;stroke-dasharray:2 4} .cutt{font:italic 10px sans-serif;fill:#999;text-anchor:middle}
+.mark{font:bold 13px sans-serif} .more{font:italic 11px sans-serif;fill:#777}
+"#;
+
+const STYLE: &str = r#"
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em;color:#222;max-width:1200px}
+h1{font-size:1.5em} h2{margin-top:2em;border-bottom:1px solid #ccc} h3{font-size:1.05em;margin-bottom:.3em}
+table{border-collapse:collapse;margin:1em 0} td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;font-size:.9em;vertical-align:top}
+th{background:#f4f4f4} code,.mono{font-family:ui-monospace,Menlo,Consolas,monospace}
+.grade{font-weight:bold;padding:1px 6px;border-radius:3px;color:#fff;font-size:.85em}
+.pass{background:#2e7d32} .advisory{background:#ef8f00} .fail{background:#c62828}
+li.fail-e{color:#c62828} li.advisory-e{color:#a15c00} li.pass-e{color:#2e7d32}
+section.check{margin:1.5em 0 2.5em 0} .section{color:#666;font-size:.9em}
+svg.seq{border:1px solid #eee;background:#fcfcfc;margin-top:.5em}
+"#;
+
+fn check_section(s: &mut String, report: &SuiteReport, c: &CheckResult) {
+    let cls = grade_class(c.grade);
+    let _ = write!(
+        s,
+        r#"<section class="check" id="check-{id}"><h3><span class="grade {cls}">{}</span> <code>{id}</code> — {}</h3><div class="section">{} · {} frame(s)</div><ul>"#,
+        c.grade.label(),
+        escape(c.title),
+        escape(c.section),
+        c.frames.len(),
+        id = c.id,
+    );
+    for e in &c.expectations {
+        let basis = match e.basis {
+            super::Basis::Normative => "",
+            super::Basis::Unconfirmed => " <em>(UNCONFIRMED in the notes)</em>",
+            super::Basis::Free => " <em>(FREE in the notes)</em>",
+        };
+        let frame = e.frame.map_or_else(String::new, |f| format!(" <span class=\"mono\">#{f}</span>"));
+        let _ = write!(
+            s,
+            r#"<li class="{}-e">{}: {}{}{}</li>"#,
+            grade_class(e.grade),
+            e.grade.label().to_lowercase(),
+            escape(&e.text),
+            basis,
+            frame
+        );
+    }
+    s.push_str("</ul>");
+    if !c.measurements.is_empty() {
+        s.push_str("<table><tr><th>measured</th><th>value</th></tr>");
+        for m in &c.measurements {
+            let _ = write!(
+                s,
+                "<tr><td>{}</td><td class=\"mono\">{:.3} {}</td></tr>",
+                escape(&m.name),
+                m.value,
+                m.unit
+            );
+        }
+        s.push_str("</table>");
+    }
+    let frames = report.frames_of(c);
+    if frames.is_empty() {
+        s.push_str(
+            "<p class=\"section\">No frames of its own: it judges frames of the checks before it.</p>",
+        );
+    } else {
+        s.push_str(&diagram(frames, report.target));
+    }
+    s.push_str("</section>");
+}
+
+/// The whole page.
+pub fn render(report: &SuiteReport) -> String {
+    let mut s = String::new();
+    let title = format!("DeviceNet conformance: MAC {} on {}", report.target, report.bus);
+    let _ = write!(
+        s,
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>{STYLE}</style></head><body><h1>{}</h1>",
+        escape(&title),
+        escape(&title)
+    );
+    let overall = if report.failed() == 0 { Grade::Pass } else { Grade::Fail };
+    let _ = write!(
+        s,
+        "<p><span class=\"grade {}\">{}</span> {}</p><p class=\"section\">Grades: a normative rule broken fails; a deviation where <code>devicenet-notes.md</code> marks the rule UNCONFIRMED or the value FREE, or a check that could not be exercised, is advisory. Sections cited are those of <code>../shared/devicenet-notes.md</code>.</p>",
+        grade_class(overall),
+        if overall == Grade::Pass { "no check failed" } else { "checks failed" },
+        escape(&super::report::summary_line(report))
+    );
+    s.push_str("<h2>Verdicts</h2><table><tr><th>category</th><th>check</th><th>grade</th><th>what</th><th>notes</th><th>frames</th></tr>");
+    for c in &report.checks {
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td><a href=\"#check-{id}\"><code>{id}</code></a></td><td><span class=\"grade {}\">{}</span></td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            escape(c.category.title()),
+            grade_class(c.grade),
+            c.grade.label(),
+            escape(c.title),
+            escape(c.section),
+            c.frames.len(),
+            id = c.id
+        );
+    }
+    s.push_str("</table>");
+    for cat in Category::ALL {
+        let checks: Vec<&CheckResult> = report.checks.iter().filter(|c| c.category == cat).collect();
+        if checks.is_empty() {
+            continue;
+        }
+        let _ = write!(s, "<h2>{}</h2>", escape(cat.title()));
+        for c in checks {
+            check_section(&mut s, report, c);
+        }
+    }
+    s.push_str("</body></html>\n");
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn escaping() {
+        assert_eq!(escape("<a href=\"x\">&'"), "&lt;a href=&quot;x&quot;&gt;&amp;&#39;");
+    }
+
+    #[test]
+    fn truncation() {
+        assert_eq!(truncate("abcdef", 4), "abc\u{2026}");
+        assert_eq!(truncate("abc", 4), "abc");
+    }
+
+    #[test]
+    fn empty_diagram_is_valid_svg() {
+        let svg = diagram(&[], MacId::from_low_bits(5));
+        assert!(svg.starts_with("<svg") && svg.ends_with("</svg>"));
+    }
+}
