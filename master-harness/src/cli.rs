@@ -11,6 +11,7 @@ use crate::error::HarnessError;
 use crate::log::{format_line, read_log, LogWriter};
 use crate::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
 use crate::monitor::{self, MonitorOptions};
+use crate::pcap::{PcapBus, PcapWriter};
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
 use crate::session::{Record, Session, Verdict};
@@ -112,6 +113,9 @@ pub struct Cli {
     /// Write every frame seen to FILE in candump -L format.
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// Write every frame seen to FILE as a pcap capture (link type SocketCAN, for Wireshark).
+    #[arg(long, global = true, value_name = "FILE")]
+    pub pcap: Option<PathBuf>,
     /// Print a machine-readable JSON result instead of text.
     #[arg(long, global = true)]
     pub json: bool,
@@ -235,6 +239,9 @@ pub enum Command {
         /// Stop after this many seconds of monitoring (bus time; sim default 10 s unless --realtime).
         #[arg(long)]
         duration: Option<f64>,
+        /// Report a lost connection (bus error, poll unanswered) and reconnect instead of stopping.
+        #[arg(long)]
+        reconnect: bool,
     },
     /// Pretty-print a candump -L log as DeviceNet messages.
     Decode {
@@ -419,6 +426,11 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
         _ => None,
     };
     let mut bus = open_bus(cli)?;
+    if let Some(path) = &cli.pcap {
+        let pcap = PcapWriter::create(path)
+            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+        bus = Box::new(PcapBus::new(bus, pcap));
+    }
     if let Command::Conformance { mac, html } = &cli.command {
         return crate::conformance::execute(cli, bus.as_mut(), *mac, html.as_deref(), out);
     }
@@ -476,7 +488,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
             let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0));
             (r, Some(*mac))
         }
-        Command::Monitor { mac, epr, output, csv, count, duration } => {
+        Command::Monitor { mac, epr, output, csv, count, duration, reconnect } => {
             let duration = match duration {
                 Some(d) if !(d.is_finite() && *d >= 0.0) => {
                     return Err(HarnessError::Usage(format!("--duration {d}: expected seconds >= 0")))
@@ -498,6 +510,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 count: *count,
                 duration,
                 in_place: terminal && !cli.json,
+                reconnect: *reconnect,
             };
             let mut csv_file = match csv {
                 Some(p) => Some(std::io::BufWriter::new(

@@ -20,6 +20,7 @@
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly (the `decode` command and the table's meaning column) |
 //! | [`log`] | `candump -L` lines: writing, and parsing with precise errors |
+//! | [`pcap`] | `--pcap`: a SocketCAN pcap capture (link type 227) written by a wrapper around the bus |
 //! | [`cli`] | the command line, reports and JSON |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure named |
 //!
@@ -56,6 +57,7 @@ pub mod error;
 pub mod log;
 pub mod master;
 pub mod monitor;
+pub mod pcap;
 pub mod replay;
 pub mod scan;
 pub mod session;

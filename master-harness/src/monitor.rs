@@ -2,11 +2,24 @@
 //! polled data decoded by the device profile — for the breaker: the four phase currents and the
 //! switch state — refreshed in place on a terminal, one line per sample otherwise; `--csv FILE`
 //! records every sample.
+//!
+//! With `--reconnect` a lost connection does not end the run: a bus error (a SocketCAN interface
+//! taken down, an adapter unplugged) or a poll left unanswered is reported as `connection lost`,
+//! and the master tries every [`RECONNECT_INTERVAL`] to get the connections back without a new
+//! duplicate MAC ID check of its own: Allocate explicit through the Group 2 Only port (an
+//! explicit connection the device still holds for this master is used as it is), Release of a
+//! poll connection left over, Allocate poll, sizes and expected packet rate again, then polling
+//! goes on (`reconnected`). A device that restarted is simply asked until it is on-line again.
 
+use crate::client::Port;
 use crate::error::HarnessError;
 use crate::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
+use crate::session::Verdict;
 use crate::soft_slave::{SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
-use devicenet::{Duration, Instant};
+use devicenet::explicit::GeneralStatus;
+use devicenet::messages::AllocationChoice;
+use devicenet::objects::class;
+use devicenet::{Duration, Instant, MacId};
 use std::io::Write;
 
 /// The breaker profile's view of the 18-byte poll response.
@@ -46,6 +59,66 @@ pub struct MonitorOptions {
     pub duration: Option<Duration>,
     /// Refresh in place (terminal) instead of a line per sample.
     pub in_place: bool,
+    /// Report a lost connection and get it back instead of stopping (`--reconnect`).
+    pub reconnect: bool,
+}
+
+/// How often `--reconnect` tries to get a lost connection back.
+pub const RECONNECT_INTERVAL: Duration = Duration::from_secs(1);
+
+/// The poll connection as the device set it up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PollSetup {
+    produced: u16,
+    consumed: u16,
+    epr: Duration,
+}
+
+/// `true` for the failures `--reconnect` rides out: the bus failed, or the device did not answer.
+fn is_connection_loss(e: &HarnessError) -> bool {
+    matches!(e, HarnessError::Bus(_) | HarnessError::Timeout { .. })
+}
+
+/// Marks the last frame from the device, an error response the reconnection expected, as fine.
+fn accept_last_answer(master: &mut Master<'_, '_>, note: &str) {
+    if let Some(i) = master.session.records().iter().rposition(|r| r.origin == crate::bus::Origin::Remote) {
+        master.session.set_verdict(i, Verdict::Ok(note.into()));
+    }
+}
+
+/// One attempt to get the connections back (see the [module docs](self)).
+fn reestablish(master: &mut Master<'_, '_>, target: MacId, epr_ms: u16) -> Result<PollSetup, HarnessError> {
+    match master.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT) {
+        Ok(_) => {}
+        Err(HarnessError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
+            accept_last_answer(master, "explicit connection still allocated to this master");
+        }
+        Err(e) => return Err(e),
+    }
+    match master.release(target, AllocationChoice::POLL) {
+        Ok(()) => {}
+        Err(HarnessError::ErrorResponse { .. }) => accept_last_answer(master, "no poll connection left over"),
+        Err(e) => return Err(e),
+    }
+    master.allocate(target, Port::Explicit, AllocationChoice::POLL)?;
+    let produced = master.get_u16(target, class::CONNECTION, 2, 7)?.unwrap_or(0);
+    let consumed = master.get_u16(target, class::CONNECTION, 2, 8)?.unwrap_or(0);
+    let (data, _) = master.set(target, class::CONNECTION, 2, 9, &epr_ms.to_le_bytes())?;
+    let applied = match data.as_slice() {
+        [a, b] => u16::from_le_bytes([*a, *b]),
+        _ => epr_ms,
+    };
+    Ok(PollSetup { produced, consumed, epr: Duration::from_millis(u64::from(applied.max(1))) })
+}
+
+/// Waits until `deadline` on a bus that may be failing: errors are ridden out, with a short real
+/// pause so a bus that fails at once every time is not spun on.
+fn wait_through_errors(master: &mut Master<'_, '_>, deadline: Instant) {
+    while master.session.now() < deadline {
+        if master.idle_until(deadline).is_err() {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+    }
 }
 
 /// One sample.
@@ -79,8 +152,13 @@ pub fn csv_line(s: &Sample) -> String {
     }
 }
 
+/// Bus time in seconds with milliseconds: `5.100s`.
+fn seconds_text(us: u64) -> String {
+    format!("{}.{:03}s", us / 1_000_000, (us / 1000) % 1000)
+}
+
 fn display_line(s: &Sample) -> String {
-    let t = format!("{}.{:03}s", s.time_us / 1_000_000, (s.time_us / 1000) % 1000);
+    let t = seconds_text(s.time_us);
     match &s.status {
         Some(b) => format!(
             "{t:>10}  A {:>3} A  B {:>3} A  C {:>3} A  N {:>3} A  switch {}",
@@ -106,11 +184,13 @@ pub fn monitor(
     connect.polls = 0;
     connect.verify_state = false;
     let summary = master.connect(&connect)?;
-    let produced = summary.produced_size.unwrap_or(0);
     let consumed = summary.consumed_size.unwrap_or(0);
     let epr_ms = summary.expected_packet_rate_ms.unwrap_or(connect.epr_ms).max(1);
-    let epr = Duration::from_millis(u64::from(epr_ms));
-    let timeout = if epr > MIN_POLL_TIMEOUT { epr } else { MIN_POLL_TIMEOUT };
+    let mut setup = PollSetup {
+        produced: summary.produced_size.unwrap_or(0),
+        consumed,
+        epr: Duration::from_millis(u64::from(epr_ms)),
+    };
     let output = connect.output.clone().unwrap_or_else(|| vec![0; usize::from(consumed)]);
     let write_err = |source| HarnessError::Write { path: "the output".into(), source };
     if let Some(w) = csv.as_deref_mut() {
@@ -124,9 +204,53 @@ pub fn monitor(
         if opts.count.is_some_and(|c| samples.len() as u64 >= c) || end.is_some_and(|e| next > e) {
             break;
         }
-        master.idle_until(next)?;
-        let polled = master.session.now();
-        let raw = master.poll(target, &output, produced, consumed, timeout)?;
+        let timeout = if setup.epr > MIN_POLL_TIMEOUT { setup.epr } else { MIN_POLL_TIMEOUT };
+        let mut polled = master.session.now();
+        let cycle = master.idle_until(next).and_then(|()| {
+            polled = master.session.now();
+            master.poll(target, &output, setup.produced, setup.consumed, timeout)
+        });
+        let raw = match cycle {
+            Ok(raw) => raw,
+            Err(e) if opts.reconnect && is_connection_loss(&e) => {
+                let lost = master.session.now();
+                let at = |t: Instant| seconds_text(t.total_micros());
+                writeln!(
+                    out,
+                    "{}connection lost at {}: {e}",
+                    if opts.in_place { "\n" } else { "" },
+                    at(lost)
+                )
+                .map_err(write_err)?;
+                let mut attempts = 0u32;
+                loop {
+                    attempts += 1;
+                    let tried = master.session.now();
+                    if end.is_some_and(|e| tried > e) {
+                        writeln!(out, "not reconnected before the end of the run").map_err(write_err)?;
+                        return Ok(samples);
+                    }
+                    match reestablish(master, target, connect.epr_ms) {
+                        Ok(s) => {
+                            setup = s;
+                            break;
+                        }
+                        Err(e)
+                            if is_connection_loss(&e) || matches!(e, HarnessError::ErrorResponse { .. }) =>
+                        {
+                            wait_through_errors(master, tried + RECONNECT_INTERVAL);
+                        }
+                        Err(e) => return Err(e),
+                    }
+                }
+                let back = master.session.now();
+                writeln!(out, "reconnected at {} after {attempts} attempt(s)", at(back))
+                    .map_err(write_err)?;
+                next = back;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         let sample = Sample { time_us: polled.total_micros(), status: BreakerStatus::decode(&raw), raw };
         if opts.in_place {
             write!(out, "\r\x1b[2K{}", display_line(&sample)).map_err(write_err)?;
@@ -138,7 +262,7 @@ pub fn monitor(
             writeln!(w, "{}", csv_line(&sample)).map_err(write_err)?;
         }
         samples.push(sample);
-        next = polled + epr;
+        next = polled + setup.epr;
     }
     if opts.in_place {
         writeln!(out).map_err(write_err)?;
@@ -149,6 +273,7 @@ pub fn monitor(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bus::Bus;
     use devicenet::reference::INPUT_IMAGE;
 
     #[test]
@@ -157,6 +282,93 @@ mod tests {
         assert_eq!(s.currents, [0; 4]);
         assert_eq!(s.switch_text(), "open");
         assert_eq!(BreakerStatus::decode(&[0; 9]), None);
+    }
+
+    /// A bus whose interface goes down between `from` and `until`: sending fails, the first read
+    /// reports the error (as a SocketCAN socket does with ENETDOWN), frames do not pass.
+    struct Outage {
+        inner: crate::bus::sim::SimBus,
+        from: Instant,
+        until: Instant,
+        reported: bool,
+    }
+
+    impl Outage {
+        fn down(&mut self) -> bool {
+            let now = self.inner.now();
+            now >= self.from && now < self.until
+        }
+        fn error() -> crate::bus::BusError {
+            crate::bus::BusError::Io { what: "sim0".into(), source: std::io::Error::other("network is down") }
+        }
+    }
+
+    impl crate::bus::Bus for Outage {
+        fn name(&self) -> &str {
+            "sim0"
+        }
+        fn now(&mut self) -> Instant {
+            self.inner.now()
+        }
+        fn send(&mut self, frame: &devicenet::CanFrame) -> Result<(), crate::bus::BusError> {
+            if self.down() {
+                return Err(Outage::error());
+            }
+            self.inner.send(frame)
+        }
+        fn recv(&mut self, deadline: Instant) -> Result<Option<crate::bus::BusEvent>, crate::bus::BusError> {
+            if self.down() && !std::mem::replace(&mut self.reported, true) {
+                return Err(Outage::error());
+            }
+            self.inner.recv(deadline)
+        }
+        fn hint(&mut self, hint: crate::bus::Hint) {
+            self.inner.hint(hint);
+        }
+    }
+
+    fn monitor_through_outage(reconnect: bool) -> (Result<Vec<Sample>, HarnessError>, String, usize) {
+        use crate::bus::sim::{PowerOn, SimBus};
+        let mut sim = SimBus::new(crate::bus::Bitrate::K250);
+        sim.attach(
+            Box::new(crate::soft_slave::SoftSlave::reference(MacId::from_low_bits(5))),
+            PowerOn::WhenMasterOnline,
+        );
+        let mut bus =
+            Outage { inner: sim, from: Instant::from_secs(7), until: Instant::from_secs(9), reported: false };
+        let mut session = crate::session::Session::new(&mut bus);
+        let mut master = Master::new(&mut session, crate::master::MasterConfig::default());
+        let opts = MonitorOptions {
+            connect: ConnectOptions::default(),
+            count: None,
+            duration: Some(Duration::from_secs(8)),
+            in_place: false,
+            reconnect,
+        };
+        let mut out = Vec::new();
+        let r = monitor(&mut master, &opts, &mut out, None);
+        let failures = master.session.failures();
+        (r, String::from_utf8_lossy(&out).into_owned(), failures)
+    }
+
+    #[test]
+    fn reconnect_rides_out_an_outage() {
+        let (r, out, failures) = monitor_through_outage(true);
+        let samples = r.unwrap();
+        assert!(out.contains("connection lost at 7."), "{out}");
+        assert!(out.contains("reconnected at 9."), "{out}");
+        let after = samples.iter().filter(|s| s.time_us > 9_000_000).count();
+        assert!(after > 20, "polling goes on after the outage: {after} samples\n{out}");
+        assert!(samples.iter().all(|s| s.raw == INPUT_IMAGE), "{out}");
+        assert_eq!(failures, 0, "{out}");
+    }
+
+    #[test]
+    fn without_reconnect_the_loss_ends_the_run() {
+        let (r, out, _) = monitor_through_outage(false);
+        let e = r.unwrap_err();
+        assert!(matches!(e, HarnessError::Bus(_)), "{e}");
+        assert!(!out.contains("connection lost"), "{out}");
     }
 
     #[test]
