@@ -1,0 +1,318 @@
+//! [`Bridge`]: the converter between a CAN bus and the instrument's serial line, in real time.
+//!
+//! Each turn of [`Bridge::run`]:
+//!
+//! 1. serial bytes delivered by the reader thread go to
+//!    [`Converter::handle_serial`](slave_fw::converter::Converter::handle_serial) with the time they
+//!    arrived (never earlier than the last `now` the converter saw);
+//! 2. due timers run ([`Converter::handle_timeout`](slave_fw::converter::Converter::handle_timeout)
+//!    when [`poll_at`](slave_fw::converter::Converter::poll_at) has passed), and a pending Identity
+//!    Reset power-cycles the converter;
+//! 3. the converter is drained in the order its docs prescribe: CAN frames to the bus, serial
+//!    bytes to the writer thread, then events;
+//! 4. the bus is read until the converter's next deadline, at most [`POLL_SLICE`]; a frame from
+//!    another node goes to
+//!    [`Converter::handle_can_frame`](slave_fw::converter::Converter::handle_can_frame) at once.
+//!
+//! The bus reports this program's own frames back ([`Origin::Local`]); they are written to the
+//! log and otherwise ignored. Time is the [`Clock`]'s, the same for the bus side and the serial
+//! threads; bus timestamps are not used.
+
+use crate::clock::{format_instant, Clock};
+use crate::error::SoftSlaveError;
+use crate::serial::{SerialEvent, SerialLine};
+use devicenet::slave::{ConnectionKind, FaultReason};
+use devicenet::{CanFrame, Duration, Event, Instant};
+use master_harness::bus::{Bus, Origin};
+use master_harness::log::LogWriter;
+use slave_fw::converter::{Converter, ConverterConfig};
+use slave_fw::serial::{LinkState, Stats};
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The longest the loop waits on the bus before it looks at the serial line again.
+pub const POLL_SLICE: Duration = Duration::from_millis(2);
+
+/// How often the `candump -L` log is flushed while running.
+pub const LOG_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
+
+/// The delay between an Identity Reset response and the power cycle (the response must reach
+/// the bus first), the same as the simulated soft slave's.
+pub const RESET_DELAY: Duration = slave_fw::soft::RESET_DELAY;
+
+/// What a run did, for the closing report and for tests.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RunSummary {
+    /// How long the bridge ran.
+    pub elapsed: Duration,
+    /// Frames from other nodes handed to the converter.
+    pub can_received: u64,
+    /// Frames the converter sent.
+    pub can_sent: u64,
+    /// Bytes read from the instrument.
+    pub serial_bytes_received: u64,
+    /// Bytes written to the instrument.
+    pub serial_bytes_sent: u64,
+    /// Identity Resets carried out.
+    pub resets: u32,
+    /// The serial side's statistics at the end.
+    pub stats: Stats,
+}
+
+/// The converter, its bus, its serial line and its clock. See the [module docs](self).
+pub struct Bridge {
+    config: ConverterConfig,
+    converter: Converter,
+    bus: Box<dyn Bus>,
+    serial: SerialLine,
+    clock: Clock,
+    log: Option<(LogWriter, String)>,
+    report: Box<dyn Write>,
+    reset_at: Option<Instant>,
+    last_now: Instant,
+    link: LinkState,
+    summary: RunSummary,
+}
+
+impl Bridge {
+    /// A bridge for `config`; the converter is created now and powered on by [`Bridge::run`].
+    pub fn new(
+        config: ConverterConfig,
+        bus: Box<dyn Bus>,
+        serial: SerialLine,
+        clock: Clock,
+    ) -> Result<Bridge, SoftSlaveError> {
+        let now = clock.now();
+        let converter = Converter::new(config.clone(), now)?;
+        let link = converter.profile().status().state;
+        Ok(Bridge {
+            config,
+            converter,
+            bus,
+            serial,
+            clock,
+            log: None,
+            report: Box::new(std::io::sink()),
+            reset_at: None,
+            last_now: now,
+            link,
+            summary: RunSummary::default(),
+        })
+    }
+
+    /// Writes every frame seen (received and sent) to `path` in `candump -L` format.
+    pub fn set_log(&mut self, log: LogWriter, path: &str) {
+        self.log = Some((log, path.to_string()));
+    }
+
+    /// Where to report what happens (on-line, connections, link state, resets): stderr for the
+    /// binary, nothing by default.
+    pub fn set_report(&mut self, report: Box<dyn Write>) {
+        self.report = report;
+    }
+
+    /// The converter (tests and the closing report).
+    pub fn converter(&self) -> &Converter {
+        &self.converter
+    }
+
+    /// Powers the converter on and runs until `stop` is set or `duration` has passed. Returns
+    /// what the run did; an error when the bus or the serial port fails.
+    pub fn run(
+        &mut self,
+        stop: &AtomicBool,
+        duration: Option<Duration>,
+    ) -> Result<RunSummary, SoftSlaveError> {
+        let start = self.now();
+        let end = duration.map(|d| start + d);
+        self.converter.power_on(start);
+        let iface = self.bus.name().to_string();
+        self.note(start, &format!("started on {iface}, MAC {}", self.converter.node().mac_id()));
+        let mut next_flush = start + LOG_FLUSH_INTERVAL;
+        let result = loop {
+            let now = self.now();
+            if stop.load(Ordering::Relaxed) || end.is_some_and(|e| now >= e) {
+                break Ok(());
+            }
+            if let Err(e) = self.turn(now, end) {
+                break Err(e);
+            }
+            if now >= next_flush {
+                next_flush = now + LOG_FLUSH_INTERVAL;
+                if let Err(e) = self.flush_log() {
+                    break Err(e);
+                }
+            }
+        };
+        let flushed = self.flush_log();
+        let now = self.now();
+        self.summary.elapsed = now - start;
+        self.summary.stats = *self.converter.profile().stats();
+        result?;
+        flushed?;
+        Ok(self.summary.clone())
+    }
+
+    /// One turn of the loop (module docs, steps 1–4).
+    fn turn(&mut self, now: Instant, end: Option<Instant>) -> Result<(), SoftSlaveError> {
+        while let Some(event) = self.serial.try_event() {
+            match event {
+                SerialEvent::Bytes(at, bytes) => {
+                    let at = at.max(self.last_now);
+                    self.last_now = at;
+                    self.summary.serial_bytes_received += bytes.len() as u64;
+                    self.converter.handle_serial(&bytes, at);
+                }
+                SerialEvent::Failed(what, source) => {
+                    return Err(SoftSlaveError::SerialIo {
+                        path: self.serial.name().to_string(),
+                        what,
+                        source,
+                    })
+                }
+            }
+        }
+        let now = now.max(self.last_now);
+        self.last_now = now;
+        if self.reset_at.is_some_and(|at| at <= now) {
+            self.reset_at = None;
+            self.converter = Converter::new(self.config.clone(), now)?;
+            self.converter.power_on(now);
+            self.summary.resets += 1;
+            self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");
+        }
+        if self.converter.poll_at().is_some_and(|at| at <= now) {
+            self.converter.handle_timeout(now);
+        }
+        self.drain(now)?;
+        let mut deadline = now + POLL_SLICE;
+        for at in [self.converter.poll_at(), self.reset_at, end].into_iter().flatten() {
+            deadline = deadline.min(at.max(now));
+        }
+        // The bus's own clock is only used for its deadline.
+        let bus_now = self.bus.now();
+        let bus_deadline = bus_now + (deadline - now);
+        if let Some(ev) = self.bus.recv(bus_deadline)? {
+            let at = self.now().max(self.last_now);
+            self.last_now = at;
+            self.log_frame(at, &ev.frame)?;
+            if ev.origin == Origin::Remote {
+                self.summary.can_received += 1;
+                self.converter.handle_can_frame(&ev.frame, at);
+                self.drain(at)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Drains the converter: CAN frames, serial bytes, then events.
+    fn drain(&mut self, now: Instant) -> Result<(), SoftSlaveError> {
+        while let Some(frame) = self.converter.poll_can_transmit() {
+            self.bus.send(&frame)?;
+            self.summary.can_sent += 1;
+        }
+        while let Some(bytes) = self.converter.poll_serial_transmit(now) {
+            self.serial.write(bytes);
+            self.summary.serial_bytes_sent += bytes.len() as u64;
+        }
+        while let Some(event) = self.converter.poll_event() {
+            self.on_event(event, now);
+        }
+        let state = self.converter.profile().status().state;
+        if state != self.link {
+            self.link = state;
+            let s = *self.converter.profile().stats();
+            let text = match state {
+                LinkState::Ok => format!("instrument link ok ({} frames received)", s.frames_received),
+                LinkState::Timeout => {
+                    "instrument silent: input image stale, minor recoverable fault".to_string()
+                }
+                LinkState::Starting => "instrument link starting".to_string(),
+            };
+            self.note(now, &text);
+        }
+        Ok(())
+    }
+
+    fn on_event(&mut self, event: Event, now: Instant) {
+        if let Event::ResetRequested(_) = event {
+            self.reset_at = Some(now + RESET_DELAY);
+        }
+        if let Some(text) = event_text(&event) {
+            self.note(now, &text);
+        }
+    }
+
+    fn note(&mut self, at: Instant, text: &str) {
+        // Reporting is best effort: a closed stderr must not stop the converter.
+        let _ = writeln!(self.report, "[{:>12}] {text}", format_instant(at));
+    }
+
+    fn log_frame(&mut self, at: Instant, frame: &CanFrame) -> Result<(), SoftSlaveError> {
+        let iface = self.bus.name().to_string();
+        if let Some((log, path)) = &mut self.log {
+            log.write(at, &iface, frame)
+                .map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
+        }
+        Ok(())
+    }
+
+    fn flush_log(&mut self) -> Result<(), SoftSlaveError> {
+        if let Some((log, path)) = &mut self.log {
+            log.flush().map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
+        }
+        Ok(())
+    }
+
+    fn now(&self) -> Instant {
+        self.clock.now()
+    }
+}
+
+/// How an event reads in the report; `None` for the ones that come with every poll.
+pub fn event_text(event: &Event) -> Option<String> {
+    let kind = |k: &ConnectionKind| match k {
+        ConnectionKind::Explicit => "explicit",
+        ConnectionKind::Poll => "poll",
+    };
+    Some(match event {
+        Event::OutputReceived | Event::Idle => return None,
+        Event::Online => "on-line (duplicate MAC ID check passed)".into(),
+        Event::CommunicationFaulted(FaultReason::DuplicateMacId) => {
+            "communication faulted: another node has this MAC ID".into()
+        }
+        Event::CommunicationFaulted(FaultReason::BusOff) => "communication faulted: bus-off".into(),
+        Event::ResetCanController => "bus-off: the CAN controller restarts".into(),
+        Event::Allocated { choice, master } => format!("allocated to master MAC {master}: {choice}"),
+        Event::Released { choice, owned } => {
+            format!("released: {choice}{}", if *owned { "" } else { " (no connection left)" })
+        }
+        Event::ConnectionEstablished(k) => format!("{} connection established", kind(k)),
+        Event::ConnectionTimedOut(k) => format!("{} connection timed out", kind(k)),
+        Event::ConnectionDeleted(k) => format!("{} connection deleted by its watchdog", kind(k)),
+        Event::ResetRequested(t) => format!("Identity Reset (type {t}) requested"),
+        Event::SettingChanged(s) => {
+            format!("setting changed over the network: {s:?} (not kept by the soft slave)")
+        }
+        Event::ExplicitTransferAborted => "fragmented explicit response abandoned".into(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use devicenet::messages::AllocationChoice;
+    use devicenet::MacId;
+
+    #[test]
+    fn event_texts() {
+        let master = MacId::new(0).unwrap();
+        let text = event_text(&Event::Allocated { choice: AllocationChoice::POLL, master }).unwrap();
+        assert!(text.starts_with("allocated to master MAC 0: "), "{text}");
+        assert_eq!(
+            event_text(&Event::ConnectionTimedOut(ConnectionKind::Poll)).as_deref(),
+            Some("poll connection timed out")
+        );
+        assert_eq!(event_text(&Event::OutputReceived), None);
+    }
+}

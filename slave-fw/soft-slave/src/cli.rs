@@ -1,0 +1,390 @@
+//! The command lines of `dnet-soft-slave` and `dnet-sim-breaker` (clap), and the functions the
+//! binaries call. Exit status: 0 after a clean stop (SIGINT, SIGTERM or `--duration`), 1 when the
+//! bus or the serial port failed, 2 for a usage or configuration error.
+
+use crate::breaker::{BreakerOptions, BreakerRunner};
+use crate::bridge::{Bridge, RunSummary};
+use crate::clock::{from_secs_f64, Clock};
+use crate::error::SoftSlaveError;
+use crate::serial::{settings_text, SerialLine};
+use clap::Parser;
+use devicenet::slave::BaudRate;
+use devicenet::{Duration, MacId};
+use master_harness::bus::{Bitrate, Bus, BusSpec};
+use master_harness::log::LogWriter;
+use slave_fw::description::DeviceDescription;
+use slave_fw::serial::{ProfileConfig, SerialSettings};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+/// `dnet-soft-slave`: the converter as a Linux process.
+#[derive(Debug, Parser)]
+#[command(
+    name = "dnet-soft-slave",
+    version,
+    about = "The serial-to-DeviceNet converter as a Linux process: a group-2-only DeviceNet slave on a real CAN bus whose data comes from a serial instrument (the breaker profile or a Modbus RTU scan list) on a real serial port.",
+    after_help = "Stops cleanly on SIGINT or SIGTERM (the log is flushed). Exit status: 0 after a clean stop, 1 when the bus or the serial port failed, 2 for a usage or configuration error."
+)]
+pub struct SoftSlaveArgs {
+    /// The CAN bus: `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
+    #[arg(
+        long,
+        value_name = "BUS",
+        value_parser = parse_real_bus,
+        help = "The CAN bus: socketcan:IFACE (e.g. socketcan:can0) or slcan:PATH[@SERIALBAUD] (e.g. slcan:/dev/ttyACM0@115200). The CAN bit rate is the description's network.baud_rate"
+    )]
+    pub bus: BusSpec,
+    /// The instrument's serial port (e.g. /dev/ttyUSB0); baud rate, parity and stop bits come
+    /// from the description's profile.
+    #[arg(long, value_name = "PATH")]
+    pub serial: PathBuf,
+    /// The device description file (TOML) [default: the built-in reference converter: the
+    /// breaker at MAC 5, 250 kbit/s, 9600 8N1].
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Use this MAC ID instead of the description's.
+    #[arg(long, value_name = "N", value_parser = master_harness::cli::parse_mac)]
+    pub mac: Option<MacId>,
+    /// Write every CAN frame seen (received and sent) to FILE in candump -L format.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// Stop after this many seconds [default: run until SIGINT or SIGTERM].
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub duration: Option<Duration>,
+    /// Report nothing but errors (default: events and link changes on stderr).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// `dnet-sim-breaker`: the simulated breaker on a serial port.
+#[derive(Debug, Parser)]
+#[command(
+    name = "dnet-sim-breaker",
+    version,
+    about = "The simulated intelligent circuit breaker of the source paper on a serial port or pseudo-terminal: a status frame every second (0x68, 0x12, 18 data bytes, sum, 0x16), open/close/set-parameter/refresh commands obeyed and acknowledged.",
+    after_help = "Logs one line per event (status frames sent, commands received, faults injected) to stdout or --log. Stops cleanly on SIGINT or SIGTERM."
+)]
+pub struct SimBreakerArgs {
+    /// The serial port or pty to serve (e.g. /dev/pts/3 from socat, /dev/ttyUSB1).
+    #[arg(long, value_name = "PATH")]
+    pub serial: PathBuf,
+    /// Baud rate (8N1, the breaker's format).
+    #[arg(long, default_value_t = 9600, value_parser = clap::value_parser!(u32).range(300..=4_000_000))]
+    pub baud: u32,
+    /// Seconds between status frames.
+    #[arg(long, value_name = "SECONDS", default_value = "1", value_parser = parse_period)]
+    pub period: Duration,
+    /// Phase A, B, C, N currents reported while closed.
+    #[arg(long, value_name = "A,B,C,N", default_value = "120,118,121,3", value_parser = parse_load)]
+    pub load: [u8; 4],
+    /// Start closed (default: open, as the reference input image shows).
+    #[arg(long)]
+    pub closed: bool,
+    /// Stop sending after this many seconds (commands are still obeyed): a silent instrument.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub silent_after: Option<Duration>,
+    /// Every this many seconds send 6 bytes of garbage and spoil the next frame's checksum.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_period)]
+    pub garbage_every: Option<Duration>,
+    /// Write the event log to FILE instead of stdout.
+    #[arg(long, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// Stop after this many seconds [default: run until SIGINT or SIGTERM].
+    #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub duration: Option<Duration>,
+}
+
+/// `--bus`: a real bus; the simulated one lives inside `dnet-master`.
+pub fn parse_real_bus(s: &str) -> Result<BusSpec, String> {
+    match s.parse::<BusSpec>() {
+        Ok(BusSpec::Sim) => Err(
+            "the soft slave needs a real bus (socketcan:IFACE or slcan:PATH[@SERIALBAUD]); the simulated bus runs inside dnet-master (--bus sim)"
+                .into(),
+        ),
+        Ok(spec) => Ok(spec),
+        Err(e) => Err(e.replace("expected sim, ", "expected ")),
+    }
+}
+
+/// Seconds, `0` or more (`1.5`).
+pub fn parse_seconds(s: &str) -> Result<Duration, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .and_then(from_secs_f64)
+        .ok_or_else(|| format!("'{s}' is not a number of seconds >= 0"))
+}
+
+/// Seconds, at least one millisecond.
+pub fn parse_period(s: &str) -> Result<Duration, String> {
+    let d = parse_seconds(s)?;
+    if d.total_micros() < 1000 {
+        return Err(format!("'{s}': the period must be at least 0.001 s"));
+    }
+    Ok(d)
+}
+
+/// `A,B,C,N`: four currents, 0..=255 each.
+pub fn parse_load(s: &str) -> Result<[u8; 4], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let mut load = [0u8; 4];
+    if parts.len() != 4 {
+        return Err(format!("'{s}': expected four currents A,B,C,N (e.g. 120,118,121,3)"));
+    }
+    for (slot, p) in load.iter_mut().zip(&parts) {
+        *slot = p.parse().map_err(|_| format!("'{p}' in '{s}' is not a current of 0..=255 A"))?;
+    }
+    Ok(load)
+}
+
+/// The CAN bit rate of a description.
+pub fn bitrate(rate: BaudRate) -> Bitrate {
+    match rate {
+        BaudRate::Kbps125 => Bitrate::K125,
+        BaudRate::Kbps250 => Bitrate::K250,
+        BaudRate::Kbps500 => Bitrate::K500,
+    }
+}
+
+/// The description the arguments name, with the `--mac` override applied.
+pub fn load_description(args: &SoftSlaveArgs) -> Result<DeviceDescription, SoftSlaveError> {
+    let mut description = match &args.config {
+        Some(path) => DeviceDescription::load(path)?,
+        None => DeviceDescription::reference(),
+    };
+    if let Some(mac) = args.mac {
+        description.converter.device.mac_id = mac;
+    }
+    description.converter.validate()?;
+    Ok(description)
+}
+
+/// Opens the bus `spec` at `bitrate`.
+pub fn open_bus(spec: &BusSpec, rate: Bitrate) -> Result<Box<dyn Bus>, SoftSlaveError> {
+    match spec {
+        BusSpec::Sim => Err(SoftSlaveError::Usage(parse_real_bus("sim").err().unwrap_or_default())),
+        #[cfg(target_os = "linux")]
+        BusSpec::SocketCan { iface } => {
+            Ok(Box::new(master_harness::bus::socketcan::SocketCanBus::open(iface)?))
+        }
+        #[cfg(not(target_os = "linux"))]
+        BusSpec::SocketCan { .. } => {
+            Err(SoftSlaveError::Usage("SocketCAN is only available on Linux".into()))
+        }
+        BusSpec::Slcan { path, baud } => Ok(Box::new(master_harness::bus::slcan::open(path, *baud, rate)?)),
+    }
+}
+
+fn profile_name(p: &ProfileConfig) -> &'static str {
+    match p {
+        ProfileConfig::Framed(_) => "framed serial",
+        ProfileConfig::Modbus(_) => "Modbus RTU",
+    }
+}
+
+/// Runs the soft slave until `stop` is set or `--duration` has passed; events and the closing
+/// summary go to `report` unless `--quiet`.
+pub fn run_soft_slave(
+    args: &SoftSlaveArgs,
+    stop: &AtomicBool,
+    mut report: Box<dyn Write>,
+) -> Result<RunSummary, SoftSlaveError> {
+    if args.quiet {
+        report = Box::new(std::io::sink());
+    }
+    let description = load_description(args)?;
+    let config = description.converter;
+    let serial_settings: SerialSettings = *config.profile.serial();
+    let rate = bitrate(config.device.baud_rate);
+    let log = match &args.log {
+        Some(path) => Some((
+            LogWriter::create(path)
+                .map_err(|source| SoftSlaveError::Log { path: path.display().to_string(), source })?,
+            path.display().to_string(),
+        )),
+        None => None,
+    };
+    let clock = Clock::start();
+    let serial_path = args.serial.display().to_string();
+    let serial = SerialLine::open(&serial_path, &serial_settings, clock)?;
+    let bus = open_bus(&args.bus, rate)?;
+    let _ = writeln!(
+        report,
+        "dnet-soft-slave: MAC {} at {rate} on {}, {} profile on {serial_path} ({}), input assembly {}",
+        config.device.mac_id,
+        bus.name(),
+        profile_name(&config.profile),
+        settings_text(&serial_settings),
+        config.input.instance(),
+    );
+    let mut bridge = Bridge::new(config, bus, serial, clock)?;
+    if let Some((log, path)) = log {
+        bridge.set_log(log, &path);
+    }
+    bridge.set_report(report);
+    let summary = bridge.run(stop, args.duration)?;
+    Ok(summary)
+}
+
+/// The closing report of a run.
+pub fn summary_text(s: &RunSummary) -> String {
+    let st = &s.stats;
+    format!(
+        "dnet-soft-slave: stopped after {:.1} s: CAN {} frames received, {} sent; serial {} bytes received, {} sent; \
+         instrument frames {} received, {} checksum and {} framing errors, {} timeouts; commands {} sent, {} retried, {} failed, {} rejected; {} resets",
+        s.elapsed.total_micros() as f64 / 1e6,
+        s.can_received,
+        s.can_sent,
+        s.serial_bytes_received,
+        s.serial_bytes_sent,
+        st.frames_received,
+        st.checksum_errors,
+        st.framing_errors,
+        st.timeouts,
+        st.commands_sent,
+        st.commands_retried,
+        st.commands_failed,
+        st.commands_rejected,
+        s.resets,
+    )
+}
+
+/// Runs the simulated breaker until `stop` is set or `--duration` has passed; the event log goes
+/// to `--log` or `out`.
+pub fn run_sim_breaker(
+    args: &SimBreakerArgs,
+    stop: &AtomicBool,
+    out: Box<dyn Write>,
+) -> Result<(), SoftSlaveError> {
+    let log: Box<dyn Write> = match &args.log {
+        Some(path) => Box::new(
+            std::fs::File::create(path)
+                .map_err(|source| SoftSlaveError::Log { path: path.display().to_string(), source })?,
+        ),
+        None => out,
+    };
+    let path = args.serial.display().to_string();
+    let settings = SerialSettings::new_8n1(args.baud);
+    let port = crate::serial::port_builder(&path, &settings)
+        .timeout(std::time::Duration::from_millis(2))
+        .open()
+        .map_err(|source| SoftSlaveError::SerialOpen {
+            path: path.clone(),
+            settings: settings_text(&settings),
+            source,
+        })?;
+    let options = BreakerOptions {
+        period: args.period,
+        load: args.load,
+        closed: args.closed,
+        silent_after: args.silent_after,
+        garbage_every: args.garbage_every,
+    };
+    let mut runner = BreakerRunner::new(port, options, Clock::start(), log);
+    runner.run(stop, args.duration).map_err(|source| SoftSlaveError::SerialIo {
+        path,
+        what: "serving",
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+    use rstest::rstest;
+
+    #[test]
+    fn definitions_are_consistent() {
+        SoftSlaveArgs::command().debug_assert();
+        SimBreakerArgs::command().debug_assert();
+    }
+
+    #[rstest]
+    #[case::socketcan("socketcan:can0", BusSpec::SocketCan { iface: "can0".into() })]
+    #[case::slcan("slcan:/dev/ttyACM0@921600", BusSpec::Slcan { path: "/dev/ttyACM0".into(), baud: 921_600 })]
+    fn real_buses(#[case] text: &str, #[case] spec: BusSpec) {
+        assert_eq!(parse_real_bus(text), Ok(spec));
+    }
+
+    #[rstest]
+    #[case::sim("sim", "needs a real bus")]
+    #[case::unknown("vcan0", "expected socketcan:IFACE or slcan:PATH[@SERIALBAUD]")]
+    #[case::empty("socketcan:", "needs an interface name")]
+    fn refused_buses(#[case] text: &str, #[case] msg: &str) {
+        let e = parse_real_bus(text).unwrap_err();
+        assert!(e.contains(msg), "{e}");
+        assert!(!e.contains("expected sim"), "{e}");
+    }
+
+    #[rstest]
+    #[case::whole("2", Some(2_000_000))]
+    #[case::fraction("0.25", Some(250_000))]
+    #[case::negative("-1", None)]
+    #[case::word("soon", None)]
+    fn seconds(#[case] text: &str, #[case] micros: Option<u64>) {
+        assert_eq!(parse_seconds(text).ok().map(|d| d.total_micros()), micros);
+    }
+
+    #[test]
+    fn periods_are_not_zero() {
+        assert!(parse_period("0").unwrap_err().contains("at least 0.001 s"));
+        assert_eq!(parse_period("0.5").unwrap(), Duration::from_millis(500));
+    }
+
+    #[rstest]
+    #[case::ok("1,2,3,4", Ok([1, 2, 3, 4]))]
+    #[case::spaces(" 10, 20 ,30,40", Ok([10, 20, 30, 40]))]
+    #[case::three("1,2,3", Err("expected four currents"))]
+    #[case::big("1,2,3,400", Err("'400' in '1,2,3,400' is not a current"))]
+    fn loads(#[case] text: &str, #[case] want: Result<[u8; 4], &str>) {
+        match (parse_load(text), want) {
+            (Ok(got), Ok(w)) => assert_eq!(got, w),
+            (Err(e), Err(w)) => assert!(e.contains(w), "{e}"),
+            (got, w) => panic!("{got:?} vs {w:?}"),
+        }
+    }
+
+    #[test]
+    fn description_and_mac_override() {
+        let args = SoftSlaveArgs::try_parse_from([
+            "dnet-soft-slave",
+            "--bus",
+            "slcan:/dev/null",
+            "--serial",
+            "/dev/null",
+            "--mac",
+            "12",
+        ])
+        .unwrap();
+        let d = load_description(&args).unwrap();
+        assert_eq!(d.converter.device.mac_id.as_raw(), 12);
+        assert_eq!(bitrate(d.converter.device.baud_rate), Bitrate::K250);
+    }
+
+    #[test]
+    fn missing_description_is_a_usage_error_naming_the_file() {
+        let args = SoftSlaveArgs::try_parse_from([
+            "dnet-soft-slave",
+            "--bus",
+            "socketcan:can0",
+            "--serial",
+            "/dev/null",
+            "--config",
+            "/nonexistent/breaker.toml",
+        ])
+        .unwrap();
+        let e = load_description(&args).unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        assert!(e.to_string().starts_with("/nonexistent/breaker.toml: cannot read"), "{e}");
+    }
+
+    #[test]
+    fn summary_mentions_every_counter() {
+        let text = summary_text(&RunSummary::default());
+        for word in ["CAN", "serial", "checksum", "commands", "resets"] {
+            assert!(text.contains(word), "{text}");
+        }
+    }
+}
