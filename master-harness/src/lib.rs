@@ -16,6 +16,7 @@
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the `--log` file |
 //! | [`client`] | one explicit transaction as a sans-IO state machine: fragmentation both ways, every response frame checked |
 //! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports |
+//! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation, the bring-up of notes §2, polling |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly (the `decode` command and the table's meaning column) |
@@ -61,4 +62,5 @@ pub mod pcap;
 pub mod replay;
 pub mod scan;
 pub mod session;
+pub mod soak;
 pub mod soft_slave;
