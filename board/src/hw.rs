@@ -2,7 +2,8 @@
 //!
 //! [`Board::take`] configures clocks, pins and peripherals and hands the application typed
 //! handles: the LEDs, the switch reading, the service port (USART1), the instrument port
-//! (USART2 + RS-485 driver enable), the bxCAN (real board only) and the settings flash.
+//! (USART2 + RS-485 driver enable, opened later with the serial profile's [`LineFormat`] by
+//! [`InstrumentUart::open`]), the bxCAN (real board only) and the settings flash.
 //!
 //! With the `emulated` feature RCC is left at reset (HSI, 16 MHz on every bus; QEMU models no
 //! PLL and would spin forever waiting for it) and CAN1 is not touched (QEMU has no bxCAN).
@@ -12,10 +13,12 @@ use crate::leds;
 use crate::memory;
 use crate::settings::{FlashError, Sector, SettingsFlash};
 use crate::switches::SwitchReading;
+use crate::uart::{self, LineFormat, WordLength};
 use devicenet::led::Leds;
 use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Output, Pin, PushPull};
 use stm32f4xx_hal::pac;
+use stm32f4xx_hal::pac::USART2;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::Rcc;
 use stm32f4xx_hal::serial::{self, Serial};
@@ -34,8 +37,9 @@ pub struct Board {
     pub switches: SwitchReading,
     /// USART1, the service port (SLCAN in the emulated build), 115200 8N1.
     pub service: Serial<pac::USART1>,
-    /// USART2 to the instrument, with the RS-485 driver enable.
-    pub instrument: Rs485,
+    /// USART2 to the instrument, not yet opened: its line format comes from the serial profile,
+    /// which the application chooses after reading the switches and the stored settings.
+    pub instrument: InstrumentUart,
     /// CAN1, pins configured, not yet started (real board only).
     #[cfg(not(feature = "emulated"))]
     pub can: Can1,
@@ -43,6 +47,8 @@ pub struct Board {
     pub flash: InternalFlash,
     /// The frequency SysTick counts at ([`clocks::SYSTICK_HZ`]).
     pub systick_hz: u32,
+    /// The clock controller, frozen; [`InstrumentUart::open`] enables USART2 through it.
+    pub rcc: Rcc,
 }
 
 /// Why the board could not be set up.
@@ -51,11 +57,13 @@ pub struct Board {
 pub enum InitError {
     /// A USART baud rate the clock cannot produce.
     SerialConfig,
+    /// A character format the USART cannot make ([`uart::UnsupportedFormat`]).
+    SerialFormat,
 }
 
 impl Board {
-    /// Sets the board up; `instrument_baud` is the instrument link's bit rate (8N1).
-    pub fn take(dp: pac::Peripherals, instrument_baud: u32) -> Result<Board, InitError> {
+    /// Sets the board up.
+    pub fn take(dp: pac::Peripherals) -> Result<Board, InitError> {
         let mut rcc = clocks(dp.RCC);
         let gpioa = dp.GPIOA.split(&mut rcc);
         let gpiob = dp.GPIOB.split(&mut rcc);
@@ -90,15 +98,10 @@ impl Board {
                 &mut rcc,
             )
             .map_err(|_| InitError::SerialConfig)?;
-        let instrument = Rs485 {
-            serial: dp
-                .USART2
-                .serial(
-                    (gpioa.pa2, gpioa.pa3),
-                    serial::Config::default().baudrate(instrument_baud.bps()),
-                    &mut rcc,
-                )
-                .map_err(|_| InitError::SerialConfig)?,
+        let instrument = InstrumentUart {
+            usart: dp.USART2,
+            tx: gpioa.pa2,
+            rx: gpioa.pa3,
             de: gpioa.pa1.into_push_pull_output(),
         };
 
@@ -116,6 +119,7 @@ impl Board {
             can,
             flash: InternalFlash { flash: LockedFlash::new(dp.FLASH) },
             systick_hz: clocks::SYSTICK_HZ,
+            rcc,
         })
     }
 }
@@ -156,20 +160,56 @@ impl LedPins {
     }
 }
 
+/// USART2 and its pins, before the line format is known.
+pub struct InstrumentUart {
+    usart: USART2,
+    tx: Pin<'A', 2>,
+    rx: Pin<'A', 3>,
+    de: Pin<'A', 1, Output<PushPull>>,
+}
+
+impl InstrumentUart {
+    /// Opens the instrument port with `format` (the serial profile's line settings); the RS-485
+    /// driver starts released (receiving).
+    pub fn open(self, format: &LineFormat, rcc: &mut Rcc) -> Result<Rs485, InitError> {
+        let word = format.word_length().map_err(|_| InitError::SerialFormat)?;
+        let config = serial::Config::default().baudrate(format.baud.bps());
+        let config = match word {
+            WordLength::Eight => config.wordlength_8(),
+            WordLength::Nine => config.wordlength_9(),
+        };
+        let config = match format.parity {
+            uart::Parity::None => config.parity_none(),
+            uart::Parity::Even => config.parity_even(),
+            uart::Parity::Odd => config.parity_odd(),
+        };
+        let config = config.stopbits(match format.stop_bits {
+            uart::StopBits::One => serial::config::StopBits::STOP1,
+            uart::StopBits::Two => serial::config::StopBits::STOP2,
+        });
+        let serial =
+            self.usart.serial((self.tx, self.rx), config, rcc).map_err(|_| InitError::SerialConfig)?;
+        let mut de = self.de;
+        de.set_low();
+        Ok(Rs485 { serial, de, data_mask: format.data_mask() })
+    }
+}
+
 /// USART2 behind the RS-485 transceiver: the driver is enabled while bytes go out and released
 /// once the last stop bit has left (transmission complete), so the instrument can answer.
 pub struct Rs485 {
     serial: Serial<pac::USART2>,
     de: Pin<'A', 1, Output<PushPull>>,
+    data_mask: u8,
 }
 
 impl Rs485 {
-    /// A received byte, if any (also clears overrun and framing errors).
+    /// A received character, if any (also clears overrun and framing errors).
     pub fn read(&mut self) -> Option<u8> {
         use stm32f4xx_hal::nb;
         loop {
             match self.serial.read() {
-                Ok(b) => return Some(b),
+                Ok(b) => return Some(b & self.data_mask),
                 Err(nb::Error::WouldBlock) => return None,
                 // The error is cleared by the read; try the next byte.
                 Err(nb::Error::Other(_)) => continue,

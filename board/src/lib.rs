@@ -15,6 +15,7 @@
 //! | [`crc32`] | CRC-32 for the settings records | yes |
 //! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
 //! | [`slcan`] | the SLCAN line codec: the emulated board's CAN "transceiver" | yes |
+//! | [`uart`] | the instrument line's character formats the USART can make | yes |
 //! | `hw` | peripheral set-up, the flash sector driver, CAN error status (`target_os = "none"` only) | – |
 //!
 //! ## Features
@@ -43,6 +44,7 @@ pub mod pins;
 pub mod settings;
 pub mod slcan;
 pub mod switches;
+pub mod uart;
 
 #[cfg(target_os = "none")]
 pub mod hw;

@@ -12,9 +12,10 @@
 //! The firmware is built by the script beforehand rather than from inside the test, because a
 //! nested `cargo build` would wait for the build-directory lock the running `cargo test` holds.
 //!
-//! This is the smallest proof that the firmware, its SLCAN driver and QEMU's USART mapping work;
-//! the system test that runs `dnet-master --bus slcan:<USART1 pty> connect --mac 5` through all
-//! 28 frames, with the simulated breaker on USART2, replaces it once the harness exists.
+//! This is the smallest proof that the firmware, its SLCAN driver and QEMU's USART mapping work,
+//! and the one that checks the SLCAN adapter's own answers (bit rate while closed, a refused
+//! command, the acceptance filter). The end-to-end run, the bench master through all 28 frames
+//! with the simulated breaker on USART2, is the system test `tests/tests/qemu_firmware.rs`.
 
 use board::slcan::{self, Command};
 use devicenet::reference::{Direction, BRING_UP};

@@ -1,94 +1,54 @@
-//! The instrument side: what the converter library (`slave-fw`, serial profiles) will plug into.
+//! The instrument port: USART2 (through the RS-485 transceiver) with its transmit queue, shared by
+//! the converter task and the USART2 interrupt.
 //!
-//! Until it lands, [`ReferenceInstrument`] stands in: it keeps the reference input image
-//! (`devicenet::reference::INPUT_IMAGE`), ignores output data and serial bytes, and never sends.
-//! The USART2/RS-485 plumbing ([`InstrumentPort`]) is complete: received bytes reach
-//! [`Instrument::on_serial_byte`] from the interrupt through the node task's channel, and bytes
-//! from [`Instrument::poll_serial`] leave through an interrupt-driven queue that holds the RS-485
-//! driver on until the last stop bit is out.
+//! Received bytes go from the interrupt to the converter task's channel; the frames the serial
+//! profile returns from `Converter::poll_serial_transmit` are queued here whole and leave from the
+//! interrupt, which holds the RS-485 driver on until the last stop bit is out.
 
 use board::hw::{Rs485, SerialEvent};
-use devicenet::slave::ApplicationStatus;
-use devicenet::Instant;
 use heapless::Deque;
+use slave_fw::serial::modbus::ADU_CAPACITY;
+use slave_fw::serial::FRAME_CAPACITY;
 
-/// Bytes that may wait for the instrument's transmitter.
-pub const SERIAL_TX_LEN: usize = 64;
+/// Bytes that may wait for the transmitter: the longest frame either profile sends. A profile
+/// has one frame in flight at a time (a command awaiting its acknowledgement, a Modbus request
+/// awaiting its response), so one frame's room is enough.
+pub const SERIAL_TX_LEN: usize = if FRAME_CAPACITY > ADU_CAPACITY { FRAME_CAPACITY } else { ADU_CAPACITY };
 
-/// The converter's instrument side, as the node task drives it.
-pub trait Instrument {
-    /// A byte arrived from the instrument.
-    fn on_serial_byte(&mut self, byte: u8, now: Instant);
-    /// The master sent output data (poll command or Assembly set); `idle` for a zero-length
-    /// poll.
-    fn on_output(&mut self, data: &[u8], idle: bool, now: Instant);
-    /// Bytes to send to the instrument now, appended to `out`.
-    fn poll_serial(&mut self, now: Instant, out: &mut Deque<u8, SERIAL_TX_LEN>);
-    /// The input image every poll is answered with.
-    fn input_image(&self) -> &[u8];
-    /// Status flags for the Identity object and the Module Status LED.
-    fn status(&self) -> ApplicationStatus;
-    /// When the instrument side wants to be called again.
-    fn poll_at(&self) -> Option<Instant>;
-}
-
-/// The placeholder: the reference device's fixed input image.
-pub struct ReferenceInstrument {
-    image: [u8; devicenet::reference::INPUT_IMAGE.len()],
-}
-
-impl ReferenceInstrument {
-    /// The reference image (breaker "open": byte 9 = 0x0F).
-    pub const fn new() -> Self {
-        ReferenceInstrument { image: devicenet::reference::INPUT_IMAGE }
-    }
-}
-
-impl Instrument for ReferenceInstrument {
-    fn on_serial_byte(&mut self, _byte: u8, _now: Instant) {}
-
-    fn on_output(&mut self, _data: &[u8], _idle: bool, _now: Instant) {}
-
-    fn poll_serial(&mut self, _now: Instant, _out: &mut Deque<u8, SERIAL_TX_LEN>) {}
-
-    fn input_image(&self) -> &[u8] {
-        &self.image
-    }
-
-    fn status(&self) -> ApplicationStatus {
-        ApplicationStatus { configured: true, ..ApplicationStatus::default() }
-    }
-
-    fn poll_at(&self) -> Option<Instant> {
-        None
-    }
-}
-
-/// USART2 with its transmit queue, shared by the node task and the USART2 interrupt.
+/// USART2 and its transmit queue.
 pub struct InstrumentPort {
     rs485: Rs485,
     tx: Deque<u8, SERIAL_TX_LEN>,
     sending: bool,
+    dropped: u32,
 }
 
 impl InstrumentPort {
     /// The port, receive interrupt on.
     pub fn new(mut rs485: Rs485) -> Self {
         rs485.listen(SerialEvent::RxNotEmpty);
-        InstrumentPort { rs485, tx: Deque::new(), sending: false }
+        InstrumentPort { rs485, tx: Deque::new(), sending: false, dropped: 0 }
     }
 
-    /// Queues bytes (from [`Instrument::poll_serial`]) and starts sending.
-    pub fn send(&mut self, bytes: &mut Deque<u8, SERIAL_TX_LEN>) {
-        while let Some(b) = bytes.pop_front() {
-            if self.tx.push_back(b).is_err() {
-                break;
-            }
+    /// Queues a frame and starts sending at once. A frame that does not fit behind the bytes
+    /// still queued is dropped whole (counted in [`InstrumentPort::dropped`]): half a frame would
+    /// only confuse the instrument, and the profile retries a frame that gets no answer.
+    pub fn send(&mut self, frame: &[u8]) {
+        if self.tx.capacity() - self.tx.len() < frame.len() {
+            self.dropped = self.dropped.wrapping_add(1);
+            return;
         }
-        if !self.tx.is_empty() {
-            self.sending = true;
-            self.rs485.listen(SerialEvent::TxEmpty);
+        for &b in frame {
+            // Room was checked above.
+            let _ = self.tx.push_back(b);
         }
+        self.sending = !self.tx.is_empty();
+        self.pump();
+    }
+
+    /// Frames dropped because the queue was full.
+    pub fn dropped(&self) -> u32 {
+        self.dropped
     }
 
     /// The USART2 interrupt: received bytes go to `received`; the transmitter is refilled, and
@@ -97,11 +57,23 @@ impl InstrumentPort {
         while let Some(b) = self.rs485.read() {
             received(b);
         }
+        self.pump();
+    }
+
+    /// Moves queued bytes into the transmitter while it takes them, then waits for room (TXE
+    /// interrupt) or for the last stop bit (TC interrupt) and releases the RS-485 driver.
+    ///
+    /// Called from `send` too rather than left to the TXE interrupt: the first bytes leave
+    /// without an interrupt's delay, and QEMU's USART model raises no interrupt when TXEIE is set
+    /// while the transmitter is empty (it does on the chip), so the emulated board would
+    /// otherwise send only when a byte is received.
+    fn pump(&mut self) {
         if !self.sending {
             return;
         }
         while let Some(&b) = self.tx.front() {
             if !self.rs485.try_write(b) {
+                self.rs485.listen(SerialEvent::TxEmpty);
                 return;
             }
             self.tx.pop_front();

@@ -3,12 +3,15 @@
 //! The RTIC 2 application of the STM32F405 serial-to-DeviceNet adapter board.
 //!
 //! - Interrupt tasks only move data: CAN RX0/RX1 (or, emulated, USART1 SLCAN lines) → frames into
-//!   the node task's channel; CAN TX refills the controller from the transmit queue; CAN SCE reports
-//!   bus-off and error-passive; USART2 moves instrument bytes in and out.
-//! - One software task, [`app::node`], owns the [`devicenet::SlaveNode`] and the instrument side and
-//!   calls them with the time (SysTick monotonic, 1 kHz), drives the LEDs from `node.leds(now)`
-//!   (power-up test included), stores changed settings and performs resets.
-//! - Switches and stored settings are read at reset ([`config`]).
+//!   the converter task's channel; CAN TX refills the controller from the transmit queue; CAN SCE
+//!   reports bus-off and error-passive; USART2 moves instrument bytes in and out.
+//! - One software task, `app::converter_task`, owns the [`slave_fw::converter::Converter`] (the
+//!   DeviceNet slave node and the serial profile of the instrument) and calls it with the time
+//!   (SysTick monotonic, 1 kHz), drives the LEDs from `converter.leds(now)` (power-up test
+//!   included), stores changed settings and performs resets.
+//! - Switches and stored settings are read at reset ([`config`]); they choose the MAC ID, the data
+//!   rate and the instrument preset ([`presets`]: the breaker, or the Modbus meter gateway), whose
+//!   serial settings USART2 is opened with.
 //!
 //! The `emulated` feature swaps only the lowest layer (clock from HSI, CAN as SLCAN on USART1,
 //! MAC from `DNET_MAC`); see `README.md` "Firmware".
@@ -24,12 +27,14 @@ mod can;
 mod can_bxcan;
 #[cfg(all(target_os = "none", feature = "emulated"))]
 mod can_slcan;
-#[cfg(target_os = "none")]
+#[cfg(any(target_os = "none", test))]
 mod config;
 #[cfg(target_os = "none")]
 mod instrument;
 #[cfg(target_os = "none")]
 mod log;
+#[cfg(any(target_os = "none", test))]
+mod presets;
 
 #[cfg(all(target_os = "none", not(feature = "defmt")))]
 use panic_halt as _;
@@ -40,7 +45,7 @@ use {defmt_rtt as _, panic_probe as _};
 fn main() {
     println!(
         "slave-fw-firmware is the adapter board's firmware: build it with \
-         `cargo build -p slave-fw-firmware --release --target thumbv7em-none-eabihf` \
+         `cargo build -p slave-fw-firmware --profile firmware --target thumbv7em-none-eabihf` \
          (add `--features emulated` for QEMU); see README.md \"Firmware\"."
     );
 }
@@ -50,16 +55,16 @@ fn main() {
 mod app {
     use crate::can::CanPort;
     use crate::config;
-    use crate::instrument::{Instrument, InstrumentPort, ReferenceInstrument, SERIAL_TX_LEN};
+    use crate::instrument::InstrumentPort;
     use crate::log::{log_info as info, log_warn as warn};
     use board::hw::{Board, BusState, LedPins};
     use board::settings::{Settings, SettingsStore};
     use devicenet::slave::{Event, SettingChanged};
-    use devicenet::{CanFrame, Duration, Instant, SlaveNode};
-    use heapless::Deque;
+    use devicenet::{CanFrame, Duration, Instant};
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Receiver, Sender};
     use rtic_sync::make_channel;
+    use slave_fw::converter::Converter;
 
     #[cfg(not(feature = "emulated"))]
     type Driver = crate::can_bxcan::Bxcan;
@@ -74,7 +79,7 @@ mod app {
 
     systick_monotonic!(Mono, 1_000);
 
-    /// What interrupts hand to the node task.
+    /// What interrupts hand to the converter task.
     #[derive(Clone, Copy)]
     pub enum Input {
         /// A frame for this node.
@@ -85,28 +90,28 @@ mod app {
         InstrumentByte(u8),
     }
 
-    /// Capacity of the node task's input channel.
+    /// Capacity of the converter task's input channel.
     const INPUTS: usize = 64;
+    /// Instrument bytes handed to the converter in one call.
+    const SERIAL_BATCH: usize = 32;
     /// LED refresh period (flash half-period 500 ms, self-test steps 250 ms).
     const LED_PERIOD: Duration = Duration::from_millis(25);
     /// Delay between an Identity Reset request and the reset, so the response leaves first.
     const RESET_DELAY: Duration = Duration::from_millis(100);
-    /// Bit rate of the instrument link until the serial profile sets it.
-    const INSTRUMENT_BAUD: u32 = 9_600;
 
     #[shared]
     struct Shared {
-        /// CAN driver and its transmit queue: node task sends, TX/RX interrupts pump and drain.
+        /// CAN driver and its transmit queue: converter task sends, TX/RX interrupts pump and drain.
         can: CanPort<Driver>,
-        /// USART2 and its transmit queue: node task queues, USART2 interrupt moves bytes.
+        /// USART2 and its transmit queue: converter task queues, USART2 interrupt moves bytes.
         instrument_port: InstrumentPort,
     }
 
     #[local]
     struct Local {
-        /// The node, the instrument side and everything only the node task touches.
-        node: NodeTask,
-        /// Channel into the node task, one sender per interrupt: CAN RX0.
+        /// The converter and everything only the converter task touches.
+        state: ConverterTask,
+        /// Channel into the converter task, one sender per interrupt: CAN RX0.
         #[cfg(not(feature = "emulated"))]
         rx0_inputs: Sender<'static, Input, INPUTS>,
         /// SLCAN on USART1 (emulated CAN).
@@ -118,15 +123,15 @@ mod app {
         /// CAN SCE.
         #[cfg(not(feature = "emulated"))]
         sce_inputs: Sender<'static, Input, INPUTS>,
+        /// USART2 (instrument bytes).
         usart2_inputs: Sender<'static, Input, INPUTS>,
-        /// The node task's end of the channel.
+        /// The converter task's end of the channel.
         inputs: Receiver<'static, Input, INPUTS>,
     }
 
-    /// Everything the node task owns.
-    pub struct NodeTask {
-        node: SlaveNode,
-        instrument: ReferenceInstrument,
+    /// Everything the converter task owns.
+    pub struct ConverterTask {
+        converter: Converter,
         leds: LedPins,
         store: SettingsStore<Flash>,
         settings: Settings,
@@ -135,7 +140,7 @@ mod app {
 
     #[init]
     fn init(cx: init::Context) -> (Shared, Local) {
-        let Ok(board) = Board::take(cx.device, INSTRUMENT_BAUD) else {
+        let Ok(mut board) = Board::take(cx.device) else {
             panic!("board set-up failed");
         };
         Mono::start(cx.core.SYST, board.systick_hz);
@@ -155,17 +160,22 @@ mod app {
                 warn!("settings: could not store the switch reading");
             }
         }
+        let preset = config::preset(&settings);
         info!(
-            "MAC {=u8}, baud attribute {=u8}",
+            "MAC {=u8}, baud attribute {=u8}, {}",
             resolved.mac_id.as_raw(),
-            resolved.baud_rate.attribute_value()
+            resolved.baud_rate.attribute_value(),
+            preset
         );
 
-        let Ok(mut node) = SlaveNode::new(config::device_config(&resolved, &settings)) else {
-            panic!("invalid device configuration");
+        let converter_config = config::converter_config(preset, &resolved, &settings);
+        let line = config::line_format(converter_config.profile.serial());
+        let Ok(rs485) = board.instrument.open(&line, &mut board.rcc) else {
+            panic!("instrument port set-up failed");
         };
-        let instrument = ReferenceInstrument::new();
-        let _ = node.set_input(instrument.input_image());
+        let Ok(converter) = Converter::new(converter_config, now()) else {
+            panic!("invalid converter configuration");
+        };
 
         #[cfg(not(feature = "emulated"))]
         let driver = crate::can_bxcan::Bxcan::new(board.can, resolved.baud_rate, resolved.mac_id);
@@ -175,11 +185,11 @@ mod app {
         let _ = board.service;
 
         let (sender, inputs) = make_channel!(Input, INPUTS);
-        let _ = node_task::spawn();
+        let _ = converter_task::spawn();
         (
-            Shared { can: CanPort::new(driver), instrument_port: InstrumentPort::new(board.instrument) },
+            Shared { can: CanPort::new(driver), instrument_port: InstrumentPort::new(rs485) },
             Local {
-                node: NodeTask { node, instrument, leds: board.leds, store, settings, reset_at: None },
+                state: ConverterTask { converter, leds: board.leds, store, settings, reset_at: None },
                 #[cfg(not(feature = "emulated"))]
                 rx0_inputs: sender.clone(),
                 #[cfg(feature = "emulated")]
@@ -205,7 +215,7 @@ mod app {
         }
     }
 
-    /// CAN FIFO 0 (the acceptance list): frames to the node task.
+    /// CAN FIFO 0 (the acceptance list): frames to the converter task.
     #[cfg(not(feature = "emulated"))]
     #[task(binds = CAN1_RX0, shared = [can], local = [rx0_inputs], priority = 3)]
     fn can_rx0(mut cx: can_rx0::Context) {
@@ -226,7 +236,7 @@ mod app {
         cx.shared.can.lock(|can| can.on_transmit_interrupt());
     }
 
-    /// Status change: bus-off or error-passive, to the node task.
+    /// Status change: bus-off or error-passive, to the converter task.
     #[cfg(not(feature = "emulated"))]
     #[task(binds = CAN1_SCE, shared = [can], local = [sce_inputs], priority = 3)]
     fn can_sce(mut cx: can_sce::Context) {
@@ -234,8 +244,8 @@ mod app {
         let _ = cx.local.sce_inputs.try_send(Input::Bus(state));
     }
 
-    /// The emulated CAN bus: SLCAN lines from the host; frames to the node task, and frames held
-    /// while the channel was closed go out once it opens.
+    /// The emulated CAN bus: SLCAN lines from the host; frames to the converter task, and frames
+    /// held while the channel was closed go out once it opens.
     #[cfg(feature = "emulated")]
     #[task(binds = USART1, shared = [can], local = [slcan_inputs], priority = 3)]
     fn slcan_rx(mut cx: slcan_rx::Context) {
@@ -251,36 +261,36 @@ mod app {
         let inputs = cx.local.usart2_inputs;
         cx.shared.instrument_port.lock(|port| {
             port.on_interrupt(|b| {
+                // A full channel drops the byte, as an overrun would; the profile resynchronises.
                 let _ = inputs.try_send(Input::InstrumentByte(b));
             })
         });
     }
 
-    /// The one task that owns the node: inputs and timers in, frames, LEDs and settings out.
-    #[task(shared = [can, instrument_port], local = [node, inputs], priority = 1)]
-    async fn node_task(mut cx: node_task::Context) {
-        let t = cx.local.node;
+    /// The one task that owns the converter: inputs and timers in; frames, instrument bytes,
+    /// LEDs and settings out.
+    #[task(shared = [can, instrument_port], local = [state, inputs], priority = 1)]
+    async fn converter_task(mut cx: converter_task::Context) {
+        let t = cx.local.state;
         let inputs = cx.local.inputs;
         let start = now();
-        t.node.set_application_status(t.instrument.status(), start);
-        t.node.power_on(start);
+        t.converter.power_on(start);
         let mut next_led = start;
         loop {
             let now_ = now();
-            // Outputs of the last step: frames, events, instrument bytes, LEDs.
-            while let Some(frame) = t.node.poll_transmit() {
+            // Outputs of the last step, in the converter's drain order: frames, instrument bytes,
+            // events; then the LEDs.
+            while let Some(frame) = t.converter.poll_can_transmit() {
                 cx.shared.can.lock(|can| can.send(frame));
             }
-            while let Some(event) = t.node.poll_event() {
+            while let Some(bytes) = t.converter.poll_serial_transmit(now_) {
+                cx.shared.instrument_port.lock(|port| port.send(bytes));
+            }
+            while let Some(event) = t.converter.poll_event() {
                 t.on_event(event, now_, &mut cx.shared.can);
             }
-            let mut serial_out = Deque::<u8, SERIAL_TX_LEN>::new();
-            t.instrument.poll_serial(now_, &mut serial_out);
-            if !serial_out.is_empty() {
-                cx.shared.instrument_port.lock(|port| port.send(&mut serial_out));
-            }
             if now_ >= next_led {
-                t.leds.show(t.node.leds(now_));
+                t.leds.show(t.converter.leds(now_));
                 next_led = now_ + LED_PERIOD;
             }
             if t.reset_at.is_some_and(|at| now_ >= at) {
@@ -289,40 +299,69 @@ mod app {
             }
 
             // Sleep until an input arrives or the earliest deadline.
-            let deadline = [t.node.poll_at(), t.instrument.poll_at(), t.reset_at, Some(next_led)]
+            let deadline = [t.converter.poll_at(), t.reset_at, Some(next_led)]
                 .into_iter()
                 .flatten()
                 .min()
                 .unwrap_or(next_led);
             // Round up to the next millisecond tick.
             let ticks = deadline.total_micros().div_ceil(1000);
-            let input =
+            let first =
                 Mono::timeout_at(<Mono as Monotonic>::Instant::from_ticks(ticks), inputs.recv()).await;
-            let now_ = now();
-            match input {
-                Ok(Ok(Input::Frame(frame))) => t.node.handle_frame(&frame, now_),
-                Ok(Ok(Input::Bus(BusState::BusOff))) => {
-                    warn!("CAN bus-off");
-                    t.node.handle_bus_off(now_);
-                }
-                Ok(Ok(Input::Bus(state))) => info!("CAN {}", state),
-                Ok(Ok(Input::InstrumentByte(b))) => t.instrument.on_serial_byte(b, now_),
-                // Every sender lives in a task that never ends, so the channel never closes.
-                Ok(Err(_)) => {}
-                Err(_timeout) => {}
+            // Every sender lives in a task that never ends, so the channel never closes.
+            if let Ok(Ok(input)) = first {
+                t.take_inputs(input, inputs, now());
             }
-            t.node.handle_timeout(now());
+            t.converter.handle_timeout(now());
         }
     }
 
-    impl NodeTask {
+    impl ConverterTask {
+        /// Hands `first` and every input already waiting to the converter, consecutive
+        /// instrument bytes in one call.
+        fn take_inputs(&mut self, first: Input, inputs: &mut Receiver<'static, Input, INPUTS>, now: Instant) {
+            let mut serial = heapless::Vec::<u8, SERIAL_BATCH>::new();
+            let mut next = Some(first);
+            // Bounded: at most one channel's worth per wake-up, so timers are never starved.
+            for _ in 0..INPUTS {
+                let Some(input) = next else { break };
+                if let Input::InstrumentByte(b) = input {
+                    if serial.push(b).is_err() {
+                        self.converter.handle_serial(&serial, now);
+                        serial.clear();
+                        let _ = serial.push(b);
+                    }
+                } else {
+                    if !serial.is_empty() {
+                        self.converter.handle_serial(&serial, now);
+                        serial.clear();
+                    }
+                    self.handle(input, now);
+                }
+                next = inputs.try_recv().ok();
+            }
+            if !serial.is_empty() {
+                self.converter.handle_serial(&serial, now);
+            }
+        }
+
+        fn handle(&mut self, input: Input, now: Instant) {
+            match input {
+                Input::Frame(frame) => self.converter.handle_can_frame(&frame, now),
+                Input::Bus(BusState::BusOff) => {
+                    warn!("CAN bus-off");
+                    self.converter.handle_bus_off(now);
+                }
+                Input::Bus(state) => info!("CAN {}", state),
+                Input::InstrumentByte(b) => self.converter.handle_serial(&[b], now),
+            }
+        }
+
+        /// The application's part of the node's events; outputs, idle and connection faults
+        /// were already given to the serial profile by the converter.
         fn on_event(&mut self, event: Event, now: Instant, can: &mut impl rtic::Mutex<T = CanPort<Driver>>) {
             info!("event {}", event);
             match event {
-                Event::OutputReceived | Event::Idle => {
-                    self.instrument.on_output(self.node.output(), self.node.is_idle(), now);
-                    let _ = self.node.set_input(self.instrument.input_image());
-                }
                 Event::ResetCanController => can.lock(|c| c.restart()),
                 Event::ResetRequested(_) => self.reset_at = Some(now + RESET_DELAY),
                 Event::SettingChanged(change) => {
