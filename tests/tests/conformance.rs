@@ -29,7 +29,8 @@ fn the_soft_slave_passes() {
     assert_eq!(report.checks[0].grade, Grade::Pass);
     assert_eq!(report.frames_of(&report.checks[0]).len(), 28, "the 28-frame bring-up first");
     // The one advisory: the §3.4 row no master can provoke.
-    let advisory: Vec<&str> = report.checks.iter().filter(|c| c.grade == Grade::Advisory).map(|c| c.id).collect();
+    let advisory: Vec<&str> =
+        report.checks.iter().filter(|c| c.grade == Grade::Advisory).map(|c| c.id).collect();
     assert_eq!(advisory, ["alloc-resource-unavailable"]);
     // Every row of §3.4 has its check.
     for row in 1..=11 {
@@ -49,7 +50,12 @@ fn the_command_writes_text_json_and_html_and_exits_0() {
     let html = dir.join("report.html");
     let (mut out, mut err) = (Vec::new(), Vec::new());
     let args = ["dnet-master", "--bus", "sim", "--json", "conformance", "--mac", "5", "--html"];
-    let code = run(args.iter().map(|a| a.to_string()).chain([html.display().to_string()]), &mut out, &mut err, false);
+    let code = run(
+        args.iter().map(|a| a.to_string()).chain([html.display().to_string()]),
+        &mut out,
+        &mut err,
+        false,
+    );
     assert_eq!(code, 0, "{}", String::from_utf8_lossy(&err));
     let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
     assert_eq!(v["ok"], true);
@@ -67,7 +73,10 @@ fn the_command_writes_text_json_and_html_and_exits_0() {
     let (mut out, mut err) = (Vec::new(), Vec::new());
     assert_eq!(run(["dnet-master", "conformance", "--mac", "5"], &mut out, &mut err, false), 0);
     let text = String::from_utf8_lossy(&out);
-    assert!(text.contains("Predefined Master/Slave Connection Set") && text.contains("result: no check failed"), "{text}");
+    assert!(
+        text.contains("Predefined Master/Slave Connection Set") && text.contains("result: no check failed"),
+        "{text}"
+    );
 }
 
 #[test]
