@@ -21,7 +21,7 @@
 //! |---|---|---|---|
 //! | [`TxFate::Destroy`] | a transmission | the frame runs to its CRC, an error frame follows (the bus is busy for that time), no node receives it; it stays at the head of the sender's queue and contends again at the next idle bus | CRC (or stuff, form) error seen by a receiver |
 //! | [`TxFate::Duplicate`] | a transmission | every receiver gets the frame, then the sender sends it again | an error in the last bit of end-of-frame: receivers accepted, the transmitter retries (double reception) |
-//! | [`TxFate::BusOff`] | a transmission by a device | the frame and everything the device had queued are lost; the device is told ([`SimDevice::handle_bus_off`](super::sim::SimDevice::handle_bus_off)) and stays off the bus (sends and receives nothing) for the recovery time of 128 × 11 bits | transmit error counter above 255 after repeated errors; the master is never driven bus-off (taken as destroyed) |
+//! | [`TxFate::BusOff`] | a transmission by a device | the frame and everything the device had queued are lost; the device is told ([`SimDevice::handle_bus_off`]) and stays off the bus (sends and receives nothing) for the recovery time of 128 × 11 bits | transmit error counter above 255 after repeated errors; the master is never driven bus-off (taken as destroyed) |
 //! | [`RxFate::Drop`] | a delivery to one receiver | that node never gets the frame; the others do | a receive overrun at that node |
 //! | [`RxFate::Delay`] | a delivery to one receiver | that node gets the frame later; frames after it may overtake it | a slow receive path (interrupt latency, a busy task) |
 //!
