@@ -308,9 +308,9 @@ pub fn open_bus(cli: &Cli) -> Result<Box<dyn Bus>, HarnessError> {
     }
 }
 
-/// One record as JSON.
+/// One record as JSON (the `--json` output of every command and the conformance report).
 #[derive(Serialize)]
-struct RecordJson<'a> {
+pub(crate) struct RecordJson<'a> {
     index: usize,
     time_us: u64,
     direction: &'a str,
@@ -324,7 +324,7 @@ struct RecordJson<'a> {
     failures: Vec<&'a str>,
 }
 
-fn record_json<'a>(r: &'a Record, device: Option<MacId>) -> RecordJson<'a> {
+pub(crate) fn record_json<'a>(r: &'a Record, device: Option<MacId>) -> RecordJson<'a> {
     let (verdict, note, failures) = match &r.verdict {
         Verdict::Sent => ("sent", None, Vec::new()),
         Verdict::Ok(n) => ("ok", Some(n.as_str()), Vec::new()),

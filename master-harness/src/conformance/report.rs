@@ -3,54 +3,15 @@
 
 use super::{Category, CheckResult, Grade, SuiteOptions, SuiteReport};
 use crate::bus::Bus;
-use crate::cli::{print_table, Cli};
-use crate::decode::hex;
+use crate::cli::{print_table, record_json, Cli, RecordJson};
 use crate::error::HarnessError;
 use crate::log::LogWriter;
 use crate::master::MasterConfig;
-use crate::session::{Record, Session, Verdict};
+use crate::session::Session;
 use devicenet::{Duration, MacId};
-use serde::Serialize;
 use serde_json::json;
 use std::io::{self, Write};
 use std::path::Path;
-
-/// One frame in the JSON report.
-#[derive(Serialize)]
-struct FrameJson<'a> {
-    index: usize,
-    time_us: u64,
-    direction: &'a str,
-    id: String,
-    data: String,
-    meaning: &'a str,
-    verdict: &'static str,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    note: Option<&'a str>,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    failures: Vec<&'a str>,
-}
-
-fn frame_json(r: &Record, device: MacId) -> FrameJson<'_> {
-    let (verdict, note, failures) = match &r.verdict {
-        Verdict::Sent => ("sent", None, Vec::new()),
-        Verdict::Ok(n) => ("ok", Some(n.as_str()), Vec::new()),
-        Verdict::Fail(f) => ("fail", None, f.iter().map(String::as_str).collect()),
-        Verdict::Info(n) => ("info", Some(n.as_str()), Vec::new()),
-        Verdict::Unchecked => ("unchecked", None, Vec::new()),
-    };
-    FrameJson {
-        index: r.index,
-        time_us: r.at.total_micros(),
-        direction: r.direction(Some(device)),
-        id: format!("{:03X}", r.frame.id().as_raw()),
-        data: hex(r.frame.data()).replace(' ', ""),
-        meaning: &r.meaning,
-        verdict,
-        note,
-        failures,
-    }
-}
 
 /// The whole report as JSON: summary, every check with its expectations, measurements and frames.
 pub fn report_json(report: &SuiteReport) -> serde_json::Value {
@@ -59,8 +20,8 @@ pub fn report_json(report: &SuiteReport) -> serde_json::Value {
         .iter()
         .map(|c| {
             let mut v = serde_json::to_value(c).unwrap_or_else(|_| json!({}));
-            let frames: Vec<FrameJson<'_>> =
-                report.frames_of(c).iter().map(|r| frame_json(r, report.target)).collect();
+            let frames: Vec<RecordJson<'_>> =
+                report.frames_of(c).iter().map(|r| record_json(r, Some(report.target))).collect();
             v["frames"] = json!(frames);
             v
         })
