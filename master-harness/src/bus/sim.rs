@@ -508,6 +508,12 @@ impl SimBus {
             self.start_faulty(node, fate, now);
             return;
         }
+        self.put_on_wire(node, fate, now);
+    }
+
+    /// Takes `node`'s head frame off its queue and puts it on the wire at `now` with `fate`; it
+    /// completes one intermission before the bus is idle again.
+    fn put_on_wire(&mut self, node: Node, fate: TxFate, now: Instant) {
         let popped = match node {
             Node::Master => self.master_tx.pop_front(),
             Node::Device(i) => self.devices[i].tx.pop_front(),
@@ -564,18 +570,7 @@ impl SimBus {
             }
             TxFate::Duplicate => self.fault_stats.duplicated += 1,
         }
-        let popped = match node {
-            Node::Master => self.master_tx.pop_front(),
-            Node::Device(i) => self.devices[i].tx.pop_front(),
-        };
-        if let Some((_, frame)) = popped {
-            let total = frame_duration(&frame, self.bitrate);
-            let intermission = self.bit_time(INTERMISSION_BITS);
-            let end =
-                now + Duration::from_micros(total.total_micros().saturating_sub(intermission.total_micros()));
-            self.idle_at = now + total;
-            self.on_wire = Some(OnWire { sender: node, frame, end, fate });
-        }
+        self.put_on_wire(node, fate, now);
     }
 }
 
