@@ -14,7 +14,6 @@
 //! | [`settings`] | the power-safe settings journal (CRC-32, two sectors, sequence numbers) | yes |
 //! | [`crc32`] | CRC-32 for the settings records | yes |
 //! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
-//! | [`slcan`] | the SLCAN line codec: the emulated board's CAN "transceiver" | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make | yes |
 //! | `hw` | peripheral set-up, the flash sector driver, CAN error status (`target_os = "none"` only) | – |
 //!
@@ -22,7 +21,7 @@
 //!
 //! | feature | effect |
 //! |---|---|
-//! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN |
+//! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
 //!
 //! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
@@ -42,7 +41,6 @@ pub mod leds;
 pub mod memory;
 pub mod pins;
 pub mod settings;
-pub mod slcan;
 pub mod switches;
 pub mod uart;
 

@@ -17,7 +17,7 @@
 //! command, the acceptance filter). The end-to-end run, the bench master through all 28 frames
 //! with the simulated breaker on USART2, is the system test `tests/tests/qemu_firmware.rs`.
 
-use board::slcan::{self, Command};
+use can_io::slcan::{self, Command};
 use devicenet::reference::{Direction, BRING_UP};
 use devicenet::CanFrame;
 use std::io::{BufRead, BufReader, Read, Write};

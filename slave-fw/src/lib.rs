@@ -22,9 +22,7 @@
 //! | [`serial::modbus`] | Modbus RTU: the ADU codec ([`Request`](serial::modbus::Request), [`Response`](serial::modbus::Response)) and the scan-list [`ModbusMaster`](serial::modbus::ModbusMaster) |
 //! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
 //! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the vendor objects |
-//! | `sim` (feature `std`) | `SimulatedBreaker`: test equipment speaking the breaker protocol, sans-IO |
 //! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
-//! | `soft` (feature `std`) | `SoftSlave`: a converter wired to a simulated breaker on a virtual clock |
 //!
 //! The converter application (later) owns a [`Profile`](serial::Profile) next to the DeviceNet
 //! slave node: consumed poll data goes to [`Profile::set_outputs`](serial::Profile::set_outputs),
@@ -35,7 +33,7 @@
 //!
 //! | feature | default | what it adds |
 //! |---|---|---|
-//! | `std` | yes | the `sim` module and `std::error::Error` on the error types; build the firmware with `--no-default-features` |
+//! | `std` | yes | `std::error::Error` on the error types; build the firmware with `--no-default-features` |
 //! | `serde` | no | `Serialize`/`Deserialize` on every configuration type, for the device description file |
 //!
 //! ## No-panic contract
@@ -56,12 +54,6 @@ extern crate std;
 
 pub mod converter;
 pub mod serial;
-
-#[cfg(feature = "std")]
-pub mod sim;
-
-#[cfg(feature = "std")]
-pub mod soft;
 
 #[cfg(feature = "description")]
 pub mod description;

@@ -1,7 +1,7 @@
 //! The emulated board's CAN driver: SLCAN lines on USART1 (QEMU has no bxCAN).
 //!
 //! The host side is a serial CAN adapter's user (`dnet-master --bus slcan:PTY`); the codec and
-//! the adapter state machine are `board::slcan`. Host lines are handled in the USART1 receive
+//! the adapter state machine are `can_io::slcan` (the one codec, shared with the host). Host lines are handled in the USART1 receive
 //! interrupt: commands are answered at once, frames for this node (the same acceptance list as the
 //! bxCAN filter) go to the node task. While the host has not opened the channel the transmitter
 //! reports [`Busy`], as a bxCAN mailbox stays pending on a bus with no other node.
@@ -9,7 +9,7 @@
 use crate::can::{Busy, CanDriver};
 use board::filters;
 use board::hw::BusState;
-use board::slcan::{self, Adapter, LineBuffer};
+use can_io::slcan::{self, Adapter, LineBuffer};
 use devicenet::{CanFrame, MacId};
 use stm32f4xx_hal::nb;
 use stm32f4xx_hal::pac::USART1;

@@ -1,20 +1,19 @@
-//! The one bus trait the master runs on, and its three implementations: the simulated bus
-//! ([`sim`]), Linux SocketCAN ([`socketcan`](mod@self::socketcan)) and SLCAN over a serial line
-//! ([`slcan`]).
+//! The one bus trait every host program runs on, and its implementations: Linux SocketCAN
+//! ([`socketcan`](mod@self::socketcan)), SLCAN over a serial line ([`slcan`]) and, with the
+//! feature `sim`, the simulated bus ([`crate::sim`]).
 //!
 //! A bus has its own clock ([`Bus::now`]): virtual time on the simulated bus, time since the bus
 //! was opened on a real one. Every frame that completes on the bus comes back from [`Bus::recv`],
-//! the master's own frames included (with [`Origin::Local`]), so a transcript holds the bus in the
-//! order the wire saw it. The protocol logic never asks which bus it runs on; the only
-//! simulation-specific input is [`Bus::hint`], which real buses ignore.
+//! this program's own frames included (with [`Origin::Local`]), so a transcript holds the bus in
+//! the order the wire saw it. The protocol logic never asks which bus it runs on, and nothing
+//! simulation-specific passes through the trait. [`BusSpec`] is what `--bus` names;
+//! [`BusSpec::open`] opens the real ones.
 
-pub mod fault;
-pub mod sim;
 pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
 
-use devicenet::{CanFrame, Instant, MacId};
+use devicenet::{CanFrame, Instant};
 use std::fmt;
 use std::str::FromStr;
 
@@ -39,23 +38,6 @@ pub struct BusEvent {
     pub origin: Origin,
 }
 
-/// A hint from the protocol layer that the simulated bus uses to run its devices the way the
-/// source capture shows; real buses ignore hints.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Hint {
-    /// The master finished its duplicate MAC ID check and is on-line (notes §2: the device was
-    /// powered on then).
-    MasterOnline,
-    /// Power the device at `mac` on at `at` (replay: the recorded time of its first duplicate
-    /// MAC ID check).
-    PowerOn {
-        /// The device.
-        mac: MacId,
-        /// When, on the bus's clock.
-        at: Instant,
-    },
-}
-
 /// Why a bus operation failed.
 #[derive(Debug, thiserror::Error)]
 pub enum BusError {
@@ -78,6 +60,10 @@ pub enum BusError {
     /// The adapter answered with an error or something unintelligible.
     #[error("{0}")]
     Adapter(String),
+    /// The bus cannot be opened here: `sim` outside a program that simulates devices, or
+    /// SocketCAN off Linux.
+    #[error("{0}")]
+    Unavailable(String),
 }
 
 /// A CAN bus the master can send on and listen to.
@@ -95,9 +81,6 @@ pub trait Bus {
     /// The next frame that completes on the bus, waiting at most until `deadline`; `None` when the
     /// deadline passed first (the bus clock then reads at least `deadline`).
     fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError>;
-
-    /// A hint for a simulated bus; real buses ignore it.
-    fn hint(&mut self, _hint: Hint) {}
 }
 
 /// A CAN bit rate of DeviceNet: 125, 250 or 500 kbit/s.
@@ -199,6 +182,30 @@ impl FromStr for BusSpec {
             return Ok(BusSpec::Slcan { path: path.to_string(), baud });
         }
         Err(format!("unknown bus '{s}': {EXPECTED}"))
+    }
+}
+
+impl BusSpec {
+    /// Opens a real bus: the SocketCAN interface, or the SLCAN adapter set up for `bitrate` (on
+    /// SocketCAN the bit rate belongs to the interface: `ip link set can0 type can bitrate ...`).
+    ///
+    /// The simulated bus has devices only a program that simulates them can attach; `sim` gives
+    /// [`BusError::Unavailable`] here (the master harness and the EDS tool open it through
+    /// `converter_sim::open_bus`, which attaches the simulated converters and calls this for the
+    /// real buses).
+    pub fn open(&self, bitrate: Bitrate) -> Result<Box<dyn Bus>, BusError> {
+        match self {
+            BusSpec::Sim => Err(BusError::Unavailable(
+                "the simulated bus runs inside dnet-master and dnet-eds (--bus sim); this program needs a real bus (socketcan:IFACE or slcan:PATH[@SERIALBAUD])".into(),
+            )),
+            #[cfg(target_os = "linux")]
+            BusSpec::SocketCan { iface } => Ok(Box::new(socketcan::SocketCanBus::open(iface)?)),
+            #[cfg(not(target_os = "linux"))]
+            BusSpec::SocketCan { .. } => {
+                Err(BusError::Unavailable("SocketCAN is only available on Linux".into()))
+            }
+            BusSpec::Slcan { path, baud } => Ok(Box::new(slcan::open(path, *baud, bitrate)?)),
+        }
     }
 }
 

@@ -5,7 +5,7 @@
 use devicenet::{Duration, Instant};
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState, SWITCH_CLOSED, SWITCH_OPEN};
 use slave_fw::serial::{CommandOutcome, LinkState, Profile, ProfileConfig, StatusByte};
-use slave_fw::sim::SimulatedBreaker;
+use converter_sim::SimulatedBreaker;
 
 /// The converter's serial side and a breaker on one virtual clock.
 struct Bench {

@@ -1,4 +1,4 @@
-//! Fault injection on the simulated bus: the model a [`SimBus`](super::sim::SimBus) consults
+//! Fault injection on the simulated bus: the model a [`SimBus`](super::SimBus) consults
 //! ([`WireFaults`]), two models (random faults at given rates from a seeded generator,
 //! [`RandomFaults`]; faults by pattern, [`PatternFaults`]), and [`SharedDevice`], which keeps a
 //! handle on a device attached to the bus so a test can inspect it and inject faults into it (the
@@ -6,7 +6,7 @@
 //! `send_garbage(..)`).
 //!
 //! Fault injection wraps the bus's behaviour instead of changing it: the bus asks the model at two
-//! points and, without a model ([`SimBus::set_faults`](super::sim::SimBus::set_faults) with
+//! points and, without a model ([`SimBus::set_faults`](super::SimBus::set_faults) with
 //! `None`, the default), never enters a fault path.
 //!
 //! ## What each fault means (a decision)
@@ -25,13 +25,13 @@
 //! | [`RxFate::Drop`] | a delivery to one receiver | that node never gets the frame; the others do | a receive overrun at that node |
 //! | [`RxFate::Delay`] | a delivery to one receiver | that node gets the frame later; frames after it may overtake it | a slow receive path (interrupt latency, a busy task) |
 //!
-//! The master's own frames always come back to it ([`Origin::Local`](super::Origin::Local)) when
+//! The master's own frames always come back to it ([`Origin::Local`](crate::bus::Origin::Local)) when
 //! they complete on the wire, once per time on the wire (a duplicated frame shows twice).
 //!
 //! Everything is deterministic: random faults come from a seeded generator ([`Rng`]), so a run is
 //! reproduced from its seed.
 
-use super::sim::SimDevice;
+use super::device::SimDevice;
 use devicenet::{CanFrame, Duration, Instant, MacId};
 use std::cell::RefCell;
 use std::ops::RangeInclusive;
@@ -422,7 +422,7 @@ impl<D: SimDevice> SimDevice for SharedDevice<D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bus::sim::{frame_bits, PowerOn, SimBus};
+    use crate::sim::{frame_bits, PowerOn, SimBus};
     use crate::bus::{Bitrate, Bus, BusEvent, Origin};
     use std::collections::VecDeque;
 

@@ -1,10 +1,10 @@
 //! Test equipment (feature `std`): a simulated intelligent circuit breaker.
 //!
-//! [`SimulatedBreaker`] speaks the source paper's protocol ([`crate::serial::breaker`]) and is
+//! [`SimulatedBreaker`] speaks the source paper's protocol ([`slave_fw::serial::breaker`]) and is
 //! sans-IO like the profiles: bytes in with [`on_bytes`](SimulatedBreaker::on_bytes), bytes out
 //! with [`poll_transmit`](SimulatedBreaker::poll_transmit), next deadline from
 //! [`poll_at`](SimulatedBreaker::poll_at). It runs on a virtual clock next to a
-//! [`Profile`](crate::serial::Profile) in tests, or behind a real pseudo-terminal in a process
+//! [`Profile`](slave_fw::serial::Profile) in tests, or behind a real pseudo-terminal in a process
 //! that feeds it `std::time` instants.
 //!
 //! Behaviour:
@@ -22,8 +22,8 @@
 //!   [`corrupt_next_frames`](SimulatedBreaker::corrupt_next_frames) (bad checksums),
 //!   [`send_garbage`](SimulatedBreaker::send_garbage), [`set_load`](SimulatedBreaker::set_load).
 
-use crate::serial::breaker::{self, Ack, BreakerCommand, StatusData, SwitchState};
-use crate::serial::{FrameCounters, FrameParser};
+use slave_fw::serial::breaker::{self, Ack, BreakerCommand, StatusData, SwitchState};
+use slave_fw::serial::{FrameCounters, FrameParser};
 use devicenet::{Duration, Instant};
 use std::collections::VecDeque;
 use std::vec::Vec;
@@ -256,7 +256,7 @@ impl SimulatedBreaker {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::serial::breaker::Message;
+    use slave_fw::serial::breaker::Message;
 
     fn ms(n: u64) -> Instant {
         Instant::from_millis(n)

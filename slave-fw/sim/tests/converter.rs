@@ -8,7 +8,7 @@ use devicenet::{CanFrame, Duration, Instant};
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
 use slave_fw::serial::{HealthConfig, ProfileConfig, StalePolicy};
-use slave_fw::soft::SoftSlave;
+use converter_sim::SoftSlave;
 
 struct Rig {
     slave: SoftSlave,
@@ -19,7 +19,7 @@ type Tx = Vec<(u16, Vec<u8>)>;
 
 impl Rig {
     fn new(config: ConverterConfig) -> Rig {
-        Rig { slave: SoftSlave::new(config, Instant::ZERO).unwrap(), now: Instant::ZERO }
+        Rig { slave: SoftSlave::new(config).unwrap(), now: Instant::ZERO }
     }
 
     fn advance(&mut self, d: Duration) -> Tx {

@@ -13,59 +13,33 @@
 //! * **Devices** are sans-IO ([`SimDevice`]): the bus calls them at the instants they ask for
 //!   ([`SimDevice::poll_at`]) and when a frame completes, and queues what they transmit.
 //! * **Power.** Each device powers on according to its [`PowerOn`] policy; by default when the
-//!   master reports it is on-line ([`Hint::MasterOnline`]), as in the source capture.
+//!   master goes on-line, as in the source capture: 1 s after the master queued its second
+//!   duplicate MAC ID check request (notes §7.1). The bus reads that from the master's own frames;
+//!   nothing simulation-specific passes through the [`Bus`] trait.
 //!
 //! * **Faults** (optional, [`SimBus::set_faults`]): a [`WireFaults`] model decides the fate of
 //!   each transmission (delivered, destroyed by a CRC error and retransmitted, received twice,
 //!   the sender driven bus-off) and of each delivery to each receiver (delivered, dropped, delayed);
-//!   the model and its implementations live in [`super::fault`]. Without a model the bus behaves
+//!   the model and its implementations live in [`fault`]. Without a model the bus behaves
 //!   exactly as described above: the fault paths are never entered.
 //!
 //! Time is virtual: a 2 s duplicate MAC ID check costs no wall time. With
 //! [`SimBus::set_realtime`] the simulation waits for the wall clock to catch up with each instant
 //! it reaches.
 
-use super::fault::{FaultStats, RxFate, Station, TxFate, WireFaults};
-use super::{Bitrate, Bus, BusError, BusEvent, Hint, Origin};
-use devicenet::{CanFrame, Duration, Instant, MacId};
+mod device;
+pub mod fault;
+
+pub use device::{PowerOn, SimDevice};
+
+use crate::bus::{Bitrate, Bus, BusError, BusEvent, Origin};
+use devicenet::messages::DuplicateMacCheck;
+use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use fault::{FaultStats, RxFate, Station, TxFate, WireFaults};
 use std::collections::VecDeque;
 
-/// A simulated device on the bus: a sans-IO node, driven by the bus at the instants it asks for.
-///
-/// The soft slave ([`crate::soft_slave::SoftSlave`]: the converter and a simulated breaker)
-/// implements it; any other sans-IO device can be attached the same way.
-pub trait SimDevice {
-    /// The device's MAC ID (to route [`Hint::PowerOn`]).
-    fn mac(&self) -> MacId;
-    /// Power-on at `now`.
-    fn power_on(&mut self, now: Instant);
-    /// A frame another node put on the bus, received at `now`.
-    fn handle_frame(&mut self, frame: &CanFrame, now: Instant);
-    /// Runs the device's timers due at `now`.
-    fn handle_timeout(&mut self, now: Instant);
-    /// The next frame the device wants to transmit.
-    fn poll_transmit(&mut self) -> Option<CanFrame>;
-    /// When [`SimDevice::handle_timeout`] must be called next.
-    fn poll_at(&self) -> Option<Instant>;
-    /// The device's CAN controller went bus-off at `now` (fault injection, [`super::fault`]): the
-    /// frames it had queued are lost. The default ignores it (a device that does not model
-    /// bus-off); a DeviceNet device applies its bus-off interrupt setting (notes §7.2).
-    fn handle_bus_off(&mut self, _now: Instant) {}
-}
-
-/// When a simulated device is powered on.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum PowerOn {
-    /// When the master reports it is on-line ([`Hint::MasterOnline`]), as in the source capture.
-    #[default]
-    WhenMasterOnline,
-    /// At the start of the simulation.
-    AtStart,
-    /// At a fixed instant.
-    At(Instant),
-    /// Only when a [`Hint::PowerOn`] asks for it.
-    OnHint,
-}
+/// The duplicate MAC ID check's request interval and on-line wait (notes §7.1: 1 s).
+const DUP_MAC_INTERVAL: Duration = Duration::from_secs(1);
 
 /// The bits a CAN 2.0A data frame occupies on the wire, intermission included: the stuffed region
 /// (SOF, identifier, RTR, IDE, r0, DLC, data, CRC) with the stuff bits this frame's bit pattern
@@ -149,7 +123,7 @@ enum Node {
 struct Attached {
     device: Box<dyn SimDevice>,
     power: PowerOn,
-    /// A power-on that is due (from the policy or a hint) and not yet done.
+    /// A power-on that is due (from the policy) and not yet done.
     power_at: Option<Instant>,
     powered: bool,
     tx: VecDeque<(Instant, CanFrame)>,
@@ -195,6 +169,8 @@ pub struct SimBus {
     faults: Option<Box<dyn WireFaults>>,
     delayed: Vec<Delayed>,
     fault_stats: FaultStats,
+    /// Duplicate MAC ID check requests the master has queued (to see it go on-line).
+    master_checks: u32,
 }
 
 impl SimBus {
@@ -214,6 +190,7 @@ impl SimBus {
             faults: None,
             delayed: Vec::new(),
             fault_stats: FaultStats::default(),
+            master_checks: 0,
         }
     }
 
@@ -304,7 +281,7 @@ impl SimBus {
         let power_at = match power {
             PowerOn::AtStart => Some(self.now),
             PowerOn::At(at) => Some(at),
-            PowerOn::WhenMasterOnline | PowerOn::OnHint => None,
+            PowerOn::WhenMasterOnline => None,
         };
         self.devices.push(Attached {
             device,
@@ -320,6 +297,27 @@ impl SimBus {
     pub fn with_device(mut self, device: Box<dyn SimDevice>, power: PowerOn) -> SimBus {
         self.attach(device, power);
         self
+    }
+
+    /// Notes the master's duplicate MAC ID check requests: 1 s after it queued its second one the
+    /// master is on-line (notes §7.1), and the devices waiting for that are powered on then.
+    fn watch_master(&mut self, frame: &CanFrame) {
+        let is_check_request = matches!(
+            Identifier::decode(frame.id()),
+            Identifier::Group2 { message: Group2Message::DuplicateMacCheck, .. }
+        ) && DuplicateMacCheck::parse(frame.data()).is_ok_and(|c| !c.response);
+        if !is_check_request {
+            return;
+        }
+        self.master_checks += 1;
+        if self.master_checks == 2 {
+            let online = self.now + DUP_MAC_INTERVAL;
+            for d in &mut self.devices {
+                if d.power == PowerOn::WhenMasterOnline && !d.powered && d.power_at.is_none() {
+                    d.power_at = Some(online);
+                }
+            }
+        }
     }
 
     /// Paces the simulation against the wall clock (`--realtime`).
@@ -585,6 +583,7 @@ impl Bus for SimBus {
 
     fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
         self.master_tx.push_back((self.now, *frame));
+        self.watch_master(frame);
         Ok(())
     }
 
@@ -619,27 +618,6 @@ impl Bus for SimBus {
                         self.now = deadline;
                     }
                     return Ok(None);
-                }
-            }
-        }
-    }
-
-    fn hint(&mut self, hint: Hint) {
-        let now = self.now;
-        match hint {
-            Hint::MasterOnline => {
-                for d in &mut self.devices {
-                    if d.power == PowerOn::WhenMasterOnline && !d.powered && d.power_at.is_none() {
-                        d.power_at = Some(now);
-                    }
-                }
-            }
-            Hint::PowerOn { mac, at } => {
-                for d in &mut self.devices {
-                    if d.device.mac() == mac {
-                        d.power = PowerOn::OnHint;
-                        d.power_at = Some(at.max(now));
-                    }
                 }
             }
         }
@@ -732,26 +710,44 @@ mod tests {
         assert_eq!(bus.now(), Instant::from_secs(1));
     }
 
-    #[test]
-    fn devices_power_on_when_the_master_is_online() {
-        let mut bus = SimBus::new(Bitrate::K500);
-        let (a, _) = talker(5, vec![frame(0x42F, &[0; 7])]);
-        bus.attach(a, PowerOn::WhenMasterOnline);
-        assert!(drain(&mut bus, Instant::from_secs(2)).is_empty());
-        bus.hint(Hint::MasterOnline);
-        let events = drain(&mut bus, Instant::from_secs(3));
-        assert_eq!(events.len(), 1);
-        assert!(events[0].at > Instant::from_secs(2));
-        assert_eq!(events[0].origin, Origin::Remote);
+    /// The master's duplicate MAC ID check request (MAC 0, vendor 1, serial 1).
+    fn master_check() -> CanFrame {
+        let id = Identifier::group2(MacId::new(0).unwrap(), Group2Message::DuplicateMacCheck);
+        CanFrame::new(id, &DuplicateMacCheck::request(0, 1, 1).emit()).unwrap()
     }
 
     #[test]
-    fn power_on_hint_at_a_recorded_time() {
+    fn devices_power_on_one_second_after_the_masters_second_check() {
+        let mut bus = SimBus::new(Bitrate::K500);
+        let (a, _) = talker(5, vec![frame(0x42F, &[0; 7])]);
+        bus.attach(a, PowerOn::WhenMasterOnline);
+        bus.send(&master_check()).unwrap();
+        let first = drain(&mut bus, Instant::from_secs(1));
+        assert_eq!(first.len(), 1, "only the master's own check: the device is still off");
+        bus.send(&master_check()).unwrap();
+        let events = drain(&mut bus, Instant::from_secs(3));
+        assert_eq!(events.len(), 2, "{events:?}");
+        assert_eq!(events[0].origin, Origin::Local);
+        assert_eq!(events[1].origin, Origin::Remote);
+        assert!(events[1].at > Instant::from_secs(2) && events[1].at < Instant::from_millis(2001));
+    }
+
+    #[test]
+    fn one_check_or_other_traffic_does_not_power_devices_on() {
+        let mut bus = SimBus::new(Bitrate::K500);
+        let (a, _) = talker(5, vec![frame(0x42F, &[0; 7])]);
+        bus.attach(a, PowerOn::WhenMasterOnline);
+        bus.send(&master_check()).unwrap();
+        bus.send(&frame(0x406, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00])).unwrap();
+        let events = drain(&mut bus, Instant::from_secs(5));
+        assert!(events.iter().all(|e| e.origin == Origin::Local), "{events:?}");
+    }
+
+    #[test]
+    fn power_on_at_a_recorded_time() {
         let mut bus = SimBus::new(Bitrate::K250);
         let (a, _) = talker(7, vec![frame(0x43F, &[0; 7])]);
-        bus.attach(a, PowerOn::WhenMasterOnline);
-        bus.hint(Hint::PowerOn { mac: MacId::new(7).unwrap(), at: Instant::from_millis(1500) });
-        bus.hint(Hint::MasterOnline); // no effect any more: the hint decided
+        bus.attach(a, PowerOn::At(Instant::from_millis(1500)));
         let events = drain(&mut bus, Instant::from_secs(3));
         assert_eq!(events.len(), 1);
         assert!(events[0].at > Instant::from_millis(1500) && events[0].at < Instant::from_millis(1501));

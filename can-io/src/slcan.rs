@@ -1,12 +1,11 @@
-//! SLCAN (Lawicel CAN232/CANUSB ASCII protocol): how the **emulated** board's CAN bus reaches the
-//! host. QEMU has no bxCAN, so the emulated firmware plays a serial CAN adapter on USART1: the host
-//! (`dnet-master --bus slcan:PTY`, `slcand`, python-can) opens it like a USB-CAN dongle, and the
-//! frames it sends are the bus traffic the node receives.
+//! SLCAN (Lawicel CAN232/CANUSB ASCII protocol), the one line codec of the project (`no_std`, no
+//! allocation). Both ends use it: the **emulated** board plays a serial CAN adapter on USART1 (QEMU
+//! has no bxCAN; the host — `dnet-master --bus slcan:PTY`, `slcand`, python-can — opens it like a
+//! USB-CAN dongle), and the host side ([`crate::bus::slcan`], feature `std`) talks to real
+//! adapters and to that firmware.
 //!
-//! This module is the pure part: a line assembler ([`LineBuffer`]), the line codec ([`parse`],
-//! [`frame_line`]) and the adapter's state machine ([`Adapter`]). It lives in the board crate
-//! because it *is* the emulated board's CAN transceiver, and because the host-side QEMU test
-//! needs the same codec.
+//! The parts: a line assembler ([`LineBuffer`]), the line codec ([`parse`], [`parse_received`],
+//! [`frame_line`], [`bitrate_code`]) and the adapter's state machine ([`Adapter`]).
 //!
 //! ## Supported lines (each ends with `\r`; a stray `\n` is ignored)
 //!
@@ -39,6 +38,8 @@ pub const MAX_LINE: usize = 30;
 /// Longest frame line sent: `t` + 3 + 1 + 16 digits + `\r`.
 pub const MAX_FRAME_LINE: usize = 22;
 
+/// The BEL byte an adapter answers a refused command with.
+pub const BEL: u8 = 0x07;
 /// Answer to an accepted command.
 pub const OK: &[u8] = b"\r";
 /// Answer to a bad or refused command.
@@ -211,6 +212,39 @@ pub fn parse(line: &[u8]) -> Result<Command, SlcanError> {
             Ok(if letter == b'T' { Command::ExtendedFrame } else { Command::ExtendedRemoteFrame })
         }
         other => Err(SlcanError::UnknownCommand(other)),
+    }
+}
+
+/// Parses a line an adapter sent to the host (without its `\r`): as [`parse`], and a data frame may
+/// carry a 4-digit timestamp after its data (adapters with timestamps on, `Z1`).
+pub fn parse_received(line: &[u8]) -> Result<Command, SlcanError> {
+    match parse(line) {
+        Err(SlcanError::Length) if matches!(line.first(), Some(b't' | b'T')) && line.len() > 4 => {
+            let (frame, stamp) = line.split_at(line.len() - 4);
+            if stamp.iter().all(u8::is_ascii_hexdigit) {
+                parse(frame)
+            } else {
+                Err(SlcanError::Length)
+            }
+        }
+        other => other,
+    }
+}
+
+/// The `Sn` code of a bit rate in bit/s (`S4` 125k, `S5` 250k, `S6` 500k ...), or `None` for a rate
+/// SLCAN has no code for.
+pub const fn bitrate_code(bits_per_second: u32) -> Option<u8> {
+    match bits_per_second {
+        10_000 => Some(0),
+        20_000 => Some(1),
+        50_000 => Some(2),
+        100_000 => Some(3),
+        125_000 => Some(4),
+        250_000 => Some(5),
+        500_000 => Some(6),
+        800_000 => Some(7),
+        1_000_000 => Some(8),
+        _ => None,
     }
 }
 

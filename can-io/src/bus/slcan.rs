@@ -1,5 +1,6 @@
-//! SLCAN (Lawicel) over a serial line (`slcan:PATH[@SERIALBAUD]`): the ASCII protocol of cheap
-//! USB-CAN adapters, and the way the emulated firmware will be reached.
+//! SLCAN (Lawicel) over a serial line (`slcan:PATH[@SERIALBAUD]`), the host side: cheap USB-CAN
+//! adapters, and the emulated firmware on QEMU. The line codec is the one in [`crate::slcan`],
+//! shared with the firmware that plays the adapter.
 //!
 //! | command | meaning |
 //! |---|---|
@@ -11,36 +12,24 @@
 //! The adapter answers commands with `\r` (ok) or BEL (`\x07`, error), confirms transmissions with
 //! `z\r` on some firmwares, and reports received frames as `tIIILDD..` lines, optionally followed
 //! by a 4-digit timestamp. Extended (`T`) and remote (`r`, `R`) frames are not DeviceNet traffic
-//! and are skipped. The codec ([`encode_frame`], [`LineParser`]) is pure; [`SlcanBus`] runs it over
-//! any [`SerialLink`].
+//! and are skipped. [`Receiver`] turns the adapter's byte stream into [`AdapterLine`]s;
+//! [`SlcanBus`] runs it over any [`SerialLink`].
 
 use super::{Bitrate, Bus, BusError, BusEvent, Origin};
+use crate::slcan::{self, Command, LineBuffer};
 use devicenet::{CanFrame, Instant};
 use std::collections::VecDeque;
 use std::io::{Read, Write};
 
 /// The `Sn` command for a bit rate.
-pub fn bitrate_command(bitrate: Bitrate) -> &'static str {
-    match bitrate.bits_per_second() {
-        125_000 => "S4\r",
-        500_000 => "S6\r",
-        _ => "S5\r",
-    }
+pub fn bitrate_command(bitrate: Bitrate) -> [u8; 3] {
+    let code = slcan::bitrate_code(bitrate.bits_per_second()).unwrap_or(5);
+    [b'S', b'0' + code, b'\r']
 }
 
-/// The transmit command for `frame`: `t42B3` `00CB00` `\r`.
-pub fn encode_frame(frame: &CanFrame) -> String {
-    let mut s = format!("t{:03X}{}", frame.id().as_raw(), frame.dlc());
-    for b in frame.data() {
-        s.push_str(&format!("{b:02X}"));
-    }
-    s.push('\r');
-    s
-}
-
-/// One thing the adapter said.
+/// One line the adapter sent.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub enum SlcanMessage {
+pub enum AdapterLine {
     /// A received standard data frame.
     Frame(CanFrame),
     /// `\r`: the last command was accepted.
@@ -49,76 +38,48 @@ pub enum SlcanMessage {
     Transmitted,
     /// BEL: the last command was refused.
     Error,
-    /// A line that is not a standard data frame (extended, remote, version, status...).
+    /// A line that is not a standard data frame (extended, remote, version, status, noise).
     Other(String),
 }
 
-/// Parses a received line (without its `\r`).
-pub fn parse_line(line: &str) -> SlcanMessage {
-    let Some(rest) = line.strip_prefix('t') else {
-        return match line {
-            "" => SlcanMessage::Ok,
-            "z" | "Z" => SlcanMessage::Transmitted,
-            other => SlcanMessage::Other(other.to_string()),
-        };
-    };
-    let parsed = (|| {
-        let id = u16::from_str_radix(rest.get(..3)?, 16).ok()?;
-        let dlc = usize::from(rest.as_bytes().get(3)?.wrapping_sub(b'0'));
-        if dlc > 8 {
-            return None;
-        }
-        let hexdata = rest.get(4..4 + 2 * dlc)?;
-        let tail = &rest[4 + 2 * dlc..];
-        // Optional 4-digit timestamp.
-        if !(tail.is_empty() || (tail.len() == 4 && tail.bytes().all(|b| b.is_ascii_hexdigit()))) {
-            return None;
-        }
-        let mut data = Vec::with_capacity(dlc);
-        for i in 0..dlc {
-            data.push(u8::from_str_radix(hexdata.get(2 * i..2 * i + 2)?, 16).ok()?);
-        }
-        CanFrame::from_raw(id, &data).ok()
-    })();
-    match parsed {
-        Some(f) => SlcanMessage::Frame(f),
-        None => SlcanMessage::Other(line.to_string()),
+/// Classifies one line from the adapter (without its `\r`).
+pub fn classify(line: &[u8]) -> AdapterLine {
+    match line {
+        b"" => AdapterLine::Ok,
+        b"z" | b"Z" => AdapterLine::Transmitted,
+        _ => match slcan::parse_received(line) {
+            Ok(Command::Frame(frame)) => AdapterLine::Frame(frame),
+            _ => AdapterLine::Other(String::from_utf8_lossy(line).into_owned()),
+        },
     }
 }
 
-/// Splits the adapter's byte stream into messages.
+/// Splits the adapter's byte stream into [`AdapterLine`]s: lines end at `\r` (a `\n` is ignored),
+/// BEL is an answer of its own, an over-long line is dropped as noise.
 #[derive(Clone, Debug, Default)]
-pub struct LineParser {
-    buf: Vec<u8>,
+pub struct Receiver {
+    line: LineBuffer,
 }
 
-/// Longest line kept; anything longer is noise and is dropped.
-const MAX_LINE: usize = 64;
-
-impl LineParser {
-    /// An empty parser.
-    pub fn new() -> LineParser {
-        LineParser::default()
+impl Receiver {
+    /// An empty receiver.
+    pub fn new() -> Receiver {
+        Receiver::default()
     }
 
-    /// Feeds bytes; returns the complete messages they finish.
-    pub fn feed(&mut self, bytes: &[u8]) -> Vec<SlcanMessage> {
+    /// Feeds bytes; returns the complete lines they finish.
+    pub fn feed(&mut self, bytes: &[u8]) -> Vec<AdapterLine> {
         let mut out = Vec::new();
         for &b in bytes {
-            match b {
-                b'\r' | b'\n' => {
-                    if b == b'\r' || !self.buf.is_empty() {
-                        let line = String::from_utf8_lossy(&self.buf).into_owned();
-                        out.push(parse_line(&line));
-                    }
-                    self.buf.clear();
-                }
-                0x07 => {
-                    self.buf.clear();
-                    out.push(SlcanMessage::Error);
-                }
-                _ if self.buf.len() < MAX_LINE => self.buf.push(b),
-                _ => self.buf.clear(),
+            if b == slcan::BEL {
+                self.line = LineBuffer::new();
+                out.push(AdapterLine::Error);
+                continue;
+            }
+            match self.line.push(b) {
+                Some(Ok(line)) => out.push(classify(line)),
+                Some(Err(_)) => out.push(AdapterLine::Other("(line too long)".into())),
+                None => {}
             }
         }
         out
@@ -142,7 +103,7 @@ pub struct SlcanBus<L: SerialLink> {
     link: L,
     name: String,
     opened: std::time::Instant,
-    parser: LineParser,
+    receiver: Receiver,
     pending: VecDeque<BusEvent>,
 }
 
@@ -163,15 +124,17 @@ impl<L: SerialLink> SlcanBus<L> {
     /// Sets the adapter up on `link`: close, bit rate, open. The adapter's answers are not
     /// required (some adapters stay silent); a BEL is an error.
     pub fn new(mut link: L, bitrate: Bitrate) -> Result<SlcanBus<L>, BusError> {
-        let setup = format!("C\r{}O\r", bitrate_command(bitrate));
-        link.write_all(setup.as_bytes())
+        let mut setup = b"C\r".to_vec();
+        setup.extend_from_slice(&bitrate_command(bitrate));
+        setup.extend_from_slice(b"O\r");
+        link.write_all(&setup)
             .and_then(|()| link.flush())
             .map_err(|source| BusError::Io { what: "setting the SLCAN adapter up".into(), source })?;
         Ok(SlcanBus {
             link,
             name: "slcan0".into(),
             opened: std::time::Instant::now(),
-            parser: LineParser::new(),
+            receiver: Receiver::new(),
             pending: VecDeque::new(),
         })
     }
@@ -196,7 +159,7 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
     }
 
     fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
-        self.link.write_all(encode_frame(frame).as_bytes()).and_then(|()| self.link.flush()).map_err(
+        self.link.write_all(&slcan::frame_line(frame)).and_then(|()| self.link.flush()).map_err(
             |source| BusError::Io { what: format!("writing {frame} to the SLCAN adapter"), source },
         )?;
         let at = self.clock();
@@ -236,15 +199,15 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                 }
             };
             let at = self.clock();
-            for msg in self.parser.feed(&buf[..n]) {
+            for msg in self.receiver.feed(&buf[..n]) {
                 match msg {
-                    SlcanMessage::Frame(frame) => {
+                    AdapterLine::Frame(frame) => {
                         self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote })
                     }
-                    SlcanMessage::Error => {
+                    AdapterLine::Error => {
                         return Err(BusError::Adapter("the SLCAN adapter refused a command (BEL)".into()))
                     }
-                    SlcanMessage::Ok | SlcanMessage::Transmitted | SlcanMessage::Other(_) => {}
+                    AdapterLine::Ok | AdapterLine::Transmitted | AdapterLine::Other(_) => {}
                 }
             }
         }
@@ -300,34 +263,34 @@ mod tests {
     #[case::empty(f(0x42D, &[]), "t42D0\r")]
     #[case::low_id(f(0x005, &[0xFF]), "t0051FF\r")]
     fn encode(#[case] frame: CanFrame, #[case] text: &str) {
-        assert_eq!(encode_frame(&frame), text);
-        assert_eq!(parse_line(text.trim_end_matches('\r')), SlcanMessage::Frame(frame));
+        assert_eq!(&slcan::frame_line(&frame)[..], text.as_bytes());
+        assert_eq!(classify(text.trim_end_matches('\r').as_bytes()), AdapterLine::Frame(frame));
     }
 
     #[rstest]
-    #[case::timestamp("t42B300CB001A2B", SlcanMessage::Frame(f(0x42B, &[0x00, 0xCB, 0x00])))]
-    #[case::ok("", SlcanMessage::Ok)]
-    #[case::tx("z", SlcanMessage::Transmitted)]
-    #[case::extended("T1234567810", SlcanMessage::Other("T1234567810".into()))]
-    #[case::remote("r42B0", SlcanMessage::Other("r42B0".into()))]
-    #[case::bad_dlc("t42B9", SlcanMessage::Other("t42B9".into()))]
-    #[case::short("t42B300CB", SlcanMessage::Other("t42B300CB".into()))]
-    #[case::bad_hex("t42B1GG", SlcanMessage::Other("t42B1GG".into()))]
-    #[case::big_id("t8001FF", SlcanMessage::Other("t8001FF".into()))]
-    fn lines(#[case] line: &str, #[case] msg: SlcanMessage) {
-        assert_eq!(parse_line(line), msg);
+    #[case::timestamp("t42B300CB001A2B", AdapterLine::Frame(f(0x42B, &[0x00, 0xCB, 0x00])))]
+    #[case::ok("", AdapterLine::Ok)]
+    #[case::tx("z", AdapterLine::Transmitted)]
+    #[case::extended("T1234567810", AdapterLine::Other("T1234567810".into()))]
+    #[case::remote("r42B0", AdapterLine::Other("r42B0".into()))]
+    #[case::bad_dlc("t42B9", AdapterLine::Other("t42B9".into()))]
+    #[case::short("t42B300CB", AdapterLine::Other("t42B300CB".into()))]
+    #[case::bad_hex("t42B1GG", AdapterLine::Other("t42B1GG".into()))]
+    #[case::big_id("t8001FF", AdapterLine::Other("t8001FF".into()))]
+    fn lines(#[case] line: &str, #[case] msg: AdapterLine) {
+        assert_eq!(classify(line.as_bytes()), msg);
     }
 
     #[test]
     fn parser_splits_the_stream() {
-        let mut p = LineParser::new();
+        let mut p = Receiver::new();
         assert!(p.feed(b"t42B3").is_empty());
         assert_eq!(
             p.feed(b"00CB00\r\x07z\r"),
             vec![
-                SlcanMessage::Frame(f(0x42B, &[0x00, 0xCB, 0x00])),
-                SlcanMessage::Error,
-                SlcanMessage::Transmitted
+                AdapterLine::Frame(f(0x42B, &[0x00, 0xCB, 0x00])),
+                AdapterLine::Error,
+                AdapterLine::Transmitted
             ]
         );
     }
@@ -360,7 +323,7 @@ mod tests {
     proptest::proptest! {
         #[test]
         fn parser_never_panics(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200)) {
-            let _ = LineParser::new().feed(&bytes);
+            let _ = Receiver::new().feed(&bytes);
         }
     }
 }
