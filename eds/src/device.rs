@@ -20,20 +20,18 @@
 
 use crate::model::{ConnectionInfo, Eds, IoEntry, Param};
 use crate::value::{AttributePath, ConnectionMask, DataType, LinkPath, Value};
+use can_io::bus::{Bitrate, Bus, BusSpec};
+use can_io::log::LogWriter;
+use converter_sim::{OpenError, SimSetup};
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
-use devicenet::slave::BaudRate;
 use devicenet::{Duration, MacId};
-use master_harness::bus::sim::{PowerOn, SimBus};
-use master_harness::bus::{Bitrate, Bus, BusSpec};
 use master_harness::client::{Port, ReplyBody};
 use master_harness::decode;
 use master_harness::error::HarnessError;
-use master_harness::log::LogWriter;
 use master_harness::master::{Master, MasterConfig};
 use master_harness::session::Session;
-use master_harness::soft_slave::SoftSlave;
 use serde::Serialize;
 use slave_fw::description::DeviceDescription;
 use std::fmt;
@@ -140,17 +138,9 @@ pub struct BusOptions {
     pub slave_config: Option<PathBuf>,
 }
 
-/// The CAN bit rate of a DeviceNet data rate.
-fn bitrate_of(rate: BaudRate) -> Bitrate {
-    match rate {
-        BaudRate::Kbps125 => Bitrate::K125,
-        BaudRate::Kbps250 => Bitrate::K250,
-        BaudRate::Kbps500 => Bitrate::K500,
-    }
-}
-
 /// Opens the bus `options` name. On the simulated bus one soft slave runs the description at
-/// `options.mac`, powered on when the master is on-line, as `dnet-master --bus sim` does.
+/// `options.mac`, powered on when the master is on-line, as `dnet-master --bus sim` does
+/// ([`converter_sim::open_bus`], the one way every program opens a bus).
 ///
 /// # Errors
 ///
@@ -163,33 +153,19 @@ pub fn open_bus(options: &BusOptions) -> Result<Box<dyn Bus>, HarnessError> {
             "--slave-config describes the simulated device; it needs --bus sim".to_string(),
         ));
     }
-    match &options.bus {
-        BusSpec::Sim => {
-            let description = match &options.slave_config {
-                Some(path) => DeviceDescription::load(path)?,
-                None => DeviceDescription::reference(),
-            };
-            let mut config = description.converter;
-            config.device.mac_id = options.mac;
-            let bitrate = options.bitrate.unwrap_or_else(|| bitrate_of(config.device.baud_rate));
-            let slave = SoftSlave::new(config)
-                .map_err(|e| HarnessError::Usage(format!("the simulated device's configuration: {e}")))?;
-            let mut bus = SimBus::new(bitrate);
-            bus.attach(Box::new(slave), PowerOn::WhenMasterOnline);
-            Ok(Box::new(bus))
-        }
-        #[cfg(target_os = "linux")]
-        BusSpec::SocketCan { iface } => {
-            Ok(Box::new(master_harness::bus::socketcan::SocketCanBus::open(iface)?))
-        }
-        #[cfg(not(target_os = "linux"))]
-        BusSpec::SocketCan { .. } => Err(HarnessError::Usage("SocketCAN is only available on Linux".into())),
-        BusSpec::Slcan { path, baud } => Ok(Box::new(master_harness::bus::slcan::open(
-            path,
-            *baud,
-            options.bitrate.unwrap_or(Bitrate::K250),
-        )?)),
-    }
+    let mut setup = match &options.slave_config {
+        Some(path) => SimSetup::described(DeviceDescription::load(path)?.converter),
+        None => SimSetup::reference(),
+    };
+    setup.macs = vec![options.mac];
+    let bitrate = match options.bus {
+        BusSpec::Sim => options.bitrate.unwrap_or_else(|| Bitrate::from(setup.config.device.baud_rate)),
+        _ => options.bitrate.unwrap_or(Bitrate::K250),
+    };
+    converter_sim::open_bus(&options.bus, bitrate, &setup).map_err(|e| match e {
+        OpenError::Setup(msg) => HarnessError::Usage(msg),
+        OpenError::Bus(e) => HarnessError::Bus(e),
+    })
 }
 
 /// The master's side of the check, and what to check beyond the key.

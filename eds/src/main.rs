@@ -6,13 +6,13 @@
 //! (`check-device`), 2 usage errors, unreadable or malformed input files, a bus that cannot be
 //! opened.
 
+use can_io::bus::{Bitrate, BusSpec};
 use clap::{Parser, Subcommand};
 use devicenet::{Duration, MacId};
 use eds::device::{check_on_bus, BusOptions, CheckOptions};
 use eds::generate::{generate_text, GenerateOptions, DEFAULT_DATE, DEFAULT_REVISION};
 use eds::value::{Date, Revision};
 use eds::{check_file, read_file, EdsError, Summary, Writer};
-use master_harness::bus::{Bitrate, BusSpec};
 use master_harness::error::HarnessError;
 use slave_fw::description::DeviceDescription;
 use std::io::Write as _;
@@ -221,7 +221,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 Err(
                     e @ (HarnessError::Usage(_)
                     | HarnessError::Description(_)
-                    | HarnessError::Bus(master_harness::bus::BusError::Open { .. })),
+                    | HarnessError::Bus(can_io::bus::BusError::Open { .. })),
                 ) => return Err(e.to_string()),
                 Err(e) => {
                     if json {

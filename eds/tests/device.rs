@@ -2,16 +2,16 @@
 //! sizes, parameters) is what the device running the same description reports, and
 //! `check_device` names every field an edited EDS gets wrong.
 
+use can_io::bus::{Bitrate, BusSpec};
+use can_io::sim::{PowerOn, SimBus};
+use converter_sim::device::SoftSlave;
 use devicenet::MacId;
 use eds::device::{check_device, check_on_bus, BusOptions, CheckOptions, Verdict};
 use eds::generate::{generate_text, GenerateOptions};
 use eds::Eds;
-use master_harness::bus::sim::{PowerOn, SimBus};
-use master_harness::bus::{Bitrate, BusSpec};
 use master_harness::error::HarnessError;
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::session::Session;
-use master_harness::soft_slave::SoftSlave;
 use rstest::rstest;
 use slave_fw::description::DeviceDescription;
 use std::path::PathBuf;
@@ -241,7 +241,7 @@ fn the_log_records_every_frame() {
     let eds = eds::parse_str(&eds_text("breaker")).unwrap();
     check_on_bus(&eds, &sim("breaker"), &CheckOptions::default(), Some(&log)).unwrap();
     let lines = std::fs::read_to_string(&log).unwrap();
-    let frames = master_harness::log::read_log(&log).unwrap();
+    let frames = can_io::log::read_log(&log).unwrap();
     assert!(frames.len() > 20, "{lines}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -4,7 +4,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use master_harness::decode::Decoder;
-use master_harness::log::{format_line, parse_log};
+use can_io::log::{format_line, parse_log};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };

@@ -4,15 +4,15 @@
 //!   decoding with fragment reassembly;
 //! * `scan` of 63 simulated devices (MAC 1..=63, master at 0) at 500 kbit/s, in simulated bus time.
 
+use can_io::bus::Bitrate;
+use can_io::log::{format_line, parse_log};
+use can_io::sim::{PowerOn, SimBus};
+use converter_sim::device::SoftSlave;
 use devicenet::{Instant, MacId};
-use master_harness::bus::sim::{PowerOn, SimBus};
-use master_harness::bus::Bitrate;
 use master_harness::decode::Decoder;
-use master_harness::log::{format_line, parse_log};
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::scan::scan;
 use master_harness::session::Session;
-use master_harness::soft_slave::SoftSlave;
 use std::hint::black_box;
 
 /// A realistic exchange (bring-up, product name, 20 polls), repeated with shifted times to reach
@@ -100,7 +100,7 @@ fn scan_bench() {
         .records()
         .iter()
         .filter(|r| r.at.total_micros() >= report.total_micros - report.scan_micros)
-        .map(|r| u64::from(master_harness::bus::sim::frame_bits(&r.frame)) * 2)
+        .map(|r| u64::from(can_io::sim::frame_bits(&r.frame)) * 2)
         .sum();
     println!(
         "scan: bus load during the scan {:.0} %",

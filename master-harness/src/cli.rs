@@ -3,25 +3,24 @@
 //! Exit status: 0 when every check holds, 1 when a check failed, the device diverged, timed out
 //! or answered with an error, 2 for a usage error (bad option, unknown bus, bad file).
 
-use crate::bus::sim::{PowerOn, SimBus};
-use crate::bus::{Bitrate, Bus, BusSpec};
 use crate::client::ReplyBody;
 use crate::decode::{self, Decoder};
 use crate::error::HarnessError;
-use crate::log::{format_line, read_log, LogWriter};
 use crate::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
 use crate::monitor::{self, MonitorOptions};
-use crate::pcap::{PcapBus, PcapWriter};
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
 use crate::session::{Record, Session, Verdict};
-use crate::soft_slave::SoftSlave;
+use can_io::bus::{Bitrate, Bus, BusSpec};
+use can_io::log::{format_line, read_log, LogWriter};
+use can_io::pcap::{PcapBus, PcapWriter};
+use can_io::sim::PowerOn;
 use clap::{Parser, Subcommand};
+use converter_sim::{OpenError, SimSetup};
 use devicenet::explicit::ServiceCode;
 use devicenet::{Duration, Instant, MacId};
 use serde::Serialize;
 use serde_json::json;
-use slave_fw::converter::ConverterConfig;
 use slave_fw::description::DeviceDescription;
 use std::ffi::OsString;
 use std::io::Write;
@@ -260,52 +259,25 @@ pub enum Command {
     },
 }
 
-/// Opens the bus the options name.
-pub fn open_bus(cli: &Cli) -> Result<Box<dyn Bus>, HarnessError> {
-    match &cli.bus {
-        BusSpec::Sim => {
-            let config = match &cli.slave_config {
-                Some(path) => DeviceDescription::load(path)?.converter,
-                None => ConverterConfig::breaker_reference(),
-            };
-            let macs = match cli.slave_mac.as_slice() {
-                [] => vec![config.device.mac_id],
-                given => given.to_vec(),
-            };
-            let mut bus = SimBus::new(cli.bitrate);
-            let mut seen = Vec::new();
-            for &mac in &macs {
-                if seen.contains(&mac) {
-                    return Err(HarnessError::Usage(format!("--slave-mac {mac} given twice")));
-                }
-                seen.push(mac);
-                let slave = if cli.slave_config.is_some() {
-                    let mut c = config.clone();
-                    if c.device.mac_id != mac {
-                        // Several copies of one description: give each its own serial number.
-                        c.device.identity.serial_number = c
-                            .device
-                            .identity
-                            .serial_number
-                            .wrapping_add(u32::from(mac.as_raw()))
-                            .wrapping_sub(u32::from(c.device.mac_id.as_raw()));
-                        c.device.mac_id = mac;
-                    }
-                    SoftSlave::new(c).map_err(|e| HarnessError::Usage(format!("--slave-config: {e}")))?
-                } else {
-                    SoftSlave::reference(mac)
-                };
-                bus.attach(Box::new(slave), cli.slave_power_on.0);
-            }
-            bus.set_realtime(cli.realtime);
-            Ok(Box::new(bus))
-        }
-        #[cfg(target_os = "linux")]
-        BusSpec::SocketCan { iface } => Ok(Box::new(crate::bus::socketcan::SocketCanBus::open(iface)?)),
-        #[cfg(not(target_os = "linux"))]
-        BusSpec::SocketCan { .. } => Err(HarnessError::Usage("SocketCAN is only available on Linux".into())),
-        BusSpec::Slcan { path, baud } => Ok(Box::new(crate::bus::slcan::open(path, *baud, cli.bitrate)?)),
-    }
+/// Opens the bus the options name: on `sim`, the simulated converters of `--slave-config` /
+/// `--slave-mac` / `--slave-power-on` ([`converter_sim::open_bus`], the one way every program opens
+/// a bus). `replay_power_on` is when a replayed transcript's device powered on: a simulated device
+/// with the default power-on policy is powered on then.
+pub fn open_bus(cli: &Cli, replay_power_on: Option<Duration>) -> Result<Box<dyn Bus>, HarnessError> {
+    let mut setup = match &cli.slave_config {
+        Some(path) => SimSetup::described(DeviceDescription::load(path)?.converter),
+        None => SimSetup::reference(),
+    };
+    setup.macs = cli.slave_mac.clone();
+    setup.power_on = match (cli.slave_power_on.0, replay_power_on) {
+        (PowerOn::WhenMasterOnline, Some(after)) => PowerOn::At(Instant::ZERO + after),
+        (policy, _) => policy,
+    };
+    setup.realtime = cli.realtime;
+    converter_sim::open_bus(&cli.bus, cli.bitrate, &setup).map_err(|e| match e {
+        OpenError::Setup(msg) => HarnessError::Usage(msg),
+        OpenError::Bus(e) => HarnessError::Bus(e),
+    })
 }
 
 /// One record as JSON (the `--json` output of every command and the conformance report).
@@ -425,7 +397,11 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
         Command::Replay { transcript, .. } => Some(read_log(transcript)?),
         _ => None,
     };
-    let mut bus = open_bus(cli)?;
+    let replay_power_on = match (&cli.command, &transcript) {
+        (Command::Replay { mac, .. }, Some(entries)) => Some(replay::device_power_on(entries, *mac)),
+        _ => None,
+    };
+    let mut bus = open_bus(cli, replay_power_on)?;
     if let Some(path) = &cli.pcap {
         let pcap = PcapWriter::create(path)
             .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;

@@ -467,7 +467,7 @@ pub fn run(
             let until = session.now() + ECHO_WAIT;
             while in_flight > 0 {
                 let Some(i) = session.next(until)? else { break };
-                if session.record(i).origin == crate::bus::Origin::Local {
+                if session.record(i).origin == can_io::bus::Origin::Local {
                     in_flight -= 1;
                 } else {
                     other(session, i);
@@ -484,7 +484,7 @@ pub fn run(
         match session.next(deadline)? {
             Some(i) => {
                 let rec = session.record(i).clone();
-                if rec.origin == crate::bus::Origin::Local {
+                if rec.origin == can_io::bus::Origin::Local {
                     in_flight = in_flight.saturating_sub(1);
                     continue;
                 }

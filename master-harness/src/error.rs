@@ -1,8 +1,8 @@
 //! The harness's error type: every failure named, with its context (MAC, request, timeout name,
 //! file and line), never a panic.
 
-use crate::bus::BusError;
-use crate::log::LogError;
+use can_io::bus::BusError;
+use can_io::log::LogError;
 use devicenet::explicit::GeneralStatus;
 use devicenet::Duration;
 

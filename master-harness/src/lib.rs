@@ -9,10 +9,11 @@
 //!
 //! ## Layers
 //!
+//! The buses, logs and captures are `can_io`'s; the simulated device (the converter with a simulated
+//! breaker) is `converter_sim`'s. This crate is the master: nothing of the product depends on it.
+//!
 //! | module | what it holds |
 //! |---|---|
-//! | [`bus`] | the one [`Bus`](bus::Bus) trait and its implementations: [`sim`](bus::sim) (virtual clock, arbitration, time on the wire, simulated devices, with [`fault`](bus::fault) injection), [`socketcan`](mod@bus::socketcan) (Linux), [`slcan`](bus::slcan) (Lawicel over a serial line) |
-//! | [`soft_slave`] | the simulated device: the real converter (`slave_fw`) with a simulated breaker on a simulated serial line, behind [`SimDevice`](bus::sim::SimDevice) |
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the `--log` file |
 //! | [`client`] | one explicit transaction as a sans-IO state machine: fragmentation both ways, every response frame checked |
 //! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports |
@@ -20,18 +21,17 @@
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation, the bring-up of notes §2, polling |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly (the `decode` command and the table's meaning column) |
-//! | [`log`] | `candump -L` lines: writing, and parsing with precise errors |
-//! | [`pcap`] | `--pcap`: a SocketCAN pcap capture (link type 227) written by a wrapper around the bus |
 //! | [`cli`] | the command line, reports and JSON |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure named |
 //!
 //! ## Example: the bring-up on the simulated bus
 //!
 //! ```
-//! use master_harness::bus::{sim::{PowerOn, SimBus}, Bitrate};
+//! use can_io::bus::Bitrate;
+//! use can_io::sim::{PowerOn, SimBus};
+//! use converter_sim::SoftSlave;
 //! use master_harness::master::{ConnectOptions, Master, MasterConfig};
 //! use master_harness::session::Session;
-//! use master_harness::soft_slave::SoftSlave;
 //! use devicenet::{reference::BRING_UP, MacId};
 //!
 //! let mut bus = SimBus::new(Bitrate::K250);
@@ -49,18 +49,14 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod bus;
 pub mod cli;
 pub mod client;
 pub mod conformance;
 pub mod decode;
 pub mod error;
-pub mod log;
 pub mod master;
 pub mod monitor;
-pub mod pcap;
 pub mod replay;
 pub mod scan;
 pub mod session;
 pub mod soak;
-pub mod soft_slave;

@@ -14,11 +14,11 @@
 //! A device's duplicate MAC ID check is watched on the bus: after its first request it is on-line
 //! 2 s later, after its second 1 s later (notes §7.1).
 
-use crate::bus::{Hint, Origin};
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
 use crate::decode::{self, hex, PendingRequest};
 use crate::error::HarnessError;
 use crate::session::{is_from_device, Session, Verdict};
+use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, Header, Request, ServiceCode};
 use devicenet::fragment::{io_fragments, IoFragment, IoReassembler};
 use devicenet::id::{Group1MessageId, Group3MessageId};
@@ -292,7 +292,6 @@ impl<'s, 'b> Master<'s, 'b> {
         }
         let now = self.session.now();
         self.online_at = Some(now);
-        self.session.hint(Hint::MasterOnline);
         Ok(())
     }
 

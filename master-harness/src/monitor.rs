@@ -15,7 +15,7 @@ use crate::client::Port;
 use crate::error::HarnessError;
 use crate::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
 use crate::session::Verdict;
-use crate::soft_slave::{SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
+use converter_sim::device::{SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::explicit::GeneralStatus;
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
@@ -81,7 +81,7 @@ fn is_connection_loss(e: &HarnessError) -> bool {
 
 /// Marks the last frame from the device, an error response the reconnection expected, as fine.
 fn accept_last_answer(master: &mut Master<'_, '_>, note: &str) {
-    if let Some(i) = master.session.records().iter().rposition(|r| r.origin == crate::bus::Origin::Remote) {
+    if let Some(i) = master.session.records().iter().rposition(|r| r.origin == can_io::bus::Origin::Remote) {
         master.session.set_verdict(i, Verdict::Ok(note.into()));
     }
 }
@@ -273,7 +273,7 @@ pub fn monitor(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bus::Bus;
+    use can_io::bus::Bus;
     use devicenet::reference::INPUT_IMAGE;
 
     #[test]
@@ -287,7 +287,7 @@ mod tests {
     /// A bus whose interface goes down between `from` and `until`: sending fails, the first read
     /// reports the error (as a SocketCAN socket does with ENETDOWN), frames do not pass.
     struct Outage {
-        inner: crate::bus::sim::SimBus,
+        inner: can_io::sim::SimBus,
         from: Instant,
         until: Instant,
         reported: bool,
@@ -298,40 +298,43 @@ mod tests {
             let now = self.inner.now();
             now >= self.from && now < self.until
         }
-        fn error() -> crate::bus::BusError {
-            crate::bus::BusError::Io { what: "sim0".into(), source: std::io::Error::other("network is down") }
+        fn error() -> can_io::bus::BusError {
+            can_io::bus::BusError::Io {
+                what: "sim0".into(),
+                source: std::io::Error::other("network is down"),
+            }
         }
     }
 
-    impl crate::bus::Bus for Outage {
+    impl can_io::bus::Bus for Outage {
         fn name(&self) -> &str {
             "sim0"
         }
         fn now(&mut self) -> Instant {
             self.inner.now()
         }
-        fn send(&mut self, frame: &devicenet::CanFrame) -> Result<(), crate::bus::BusError> {
+        fn send(&mut self, frame: &devicenet::CanFrame) -> Result<(), can_io::bus::BusError> {
             if self.down() {
                 return Err(Outage::error());
             }
             self.inner.send(frame)
         }
-        fn recv(&mut self, deadline: Instant) -> Result<Option<crate::bus::BusEvent>, crate::bus::BusError> {
+        fn recv(
+            &mut self,
+            deadline: Instant,
+        ) -> Result<Option<can_io::bus::BusEvent>, can_io::bus::BusError> {
             if self.down() && !std::mem::replace(&mut self.reported, true) {
                 return Err(Outage::error());
             }
             self.inner.recv(deadline)
         }
-        fn hint(&mut self, hint: crate::bus::Hint) {
-            self.inner.hint(hint);
-        }
     }
 
     fn monitor_through_outage(reconnect: bool) -> (Result<Vec<Sample>, HarnessError>, String, usize) {
-        use crate::bus::sim::{PowerOn, SimBus};
-        let mut sim = SimBus::new(crate::bus::Bitrate::K250);
+        use can_io::sim::{PowerOn, SimBus};
+        let mut sim = SimBus::new(can_io::bus::Bitrate::K250);
         sim.attach(
-            Box::new(crate::soft_slave::SoftSlave::reference(MacId::from_low_bits(5))),
+            Box::new(converter_sim::device::SoftSlave::reference(MacId::from_low_bits(5))),
             PowerOn::WhenMasterOnline,
         );
         let mut bus =

@@ -8,17 +8,18 @@
 //! transcript does not have at that point, including after its end (within `settle`), is a
 //! divergence too.
 //!
-//! On the simulated bus the device powers on at the recorded time of its first duplicate MAC ID
-//! request in the transcript, or at the start when there is none ([`Hint::PowerOn`]).
+//! On the simulated bus the device is attached to power on at the recorded time of its first
+//! duplicate MAC ID request in the transcript, or at the start when there is none
+//! ([`device_power_on`], used by the command line when it builds the simulated bus).
 //!
 //! On the first divergence the replay stops with a [`Divergence`]: expected and actual frames, both
 //! decoded, and the transcript frames before it.
 
-use crate::bus::{Hint, Origin};
 use crate::decode::Decoder;
 use crate::error::HarnessError;
-use crate::log::{format_line, LogEntry};
 use crate::session::{is_from_device, Session, Verdict};
+use can_io::bus::Origin;
+use can_io::log::{format_line, LogEntry};
 use devicenet::messages::DuplicateMacCheck;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use std::fmt;
@@ -124,6 +125,20 @@ fn time_text(at: Instant) -> String {
     format!("{}.{:06}s", us / 1_000_000, us % 1_000_000)
 }
 
+/// When, after the transcript's first frame, the device at `device` powered on: the recorded time
+/// of its first duplicate MAC ID request, or zero when the transcript has none. A simulated device
+/// replayed from the start of a fresh bus is attached with this instant.
+pub fn device_power_on(entries: &[LogEntry], device: MacId) -> Duration {
+    let Some(first) = entries.first() else { return Duration::ZERO };
+    let dup_id = Identifier::group2(device, Group2Message::DuplicateMacCheck);
+    entries
+        .iter()
+        .find(|e| {
+            e.frame.id() == dup_id && DuplicateMacCheck::parse(e.frame.data()).is_ok_and(|c| !c.response)
+        })
+        .map_or(Duration::ZERO, |e| e.at - first.at)
+}
+
 /// Replays `entries` on `session`. See the [module docs](self).
 pub fn replay(
     session: &mut Session<'_>,
@@ -137,14 +152,6 @@ pub fn replay(
     let t0 = first.at;
     let start = session.now();
     let rel = |at: Instant| start + (at - t0);
-    let dup_id = Identifier::group2(device, Group2Message::DuplicateMacCheck);
-    let power_at = entries
-        .iter()
-        .find(|e| {
-            e.frame.id() == dup_id && DuplicateMacCheck::parse(e.frame.data()).is_ok_and(|c| !c.response)
-        })
-        .map_or(start, |e| rel(e.at));
-    session.hint(Hint::PowerOn { mac: device, at: power_at });
 
     let mut expected_decoder = Decoder::new();
     let shown_entry = |dec: &mut Decoder, e: &LogEntry| ShownFrame {

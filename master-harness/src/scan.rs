@@ -11,11 +11,11 @@
 //! A device that refuses poll (0x02 resource unavailable) is allocated explicit only; a device
 //! owned by another master (0x0C / 0x01) is reported as such.
 
-use crate::bus::Origin;
 use crate::client::{ClientError, Handled, Port, ReplyBody, Transaction};
 use crate::decode::{self, short_string};
 use crate::error::HarnessError;
 use crate::master::Master;
+use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;

@@ -1,10 +1,10 @@
 //! A session on a bus: every frame seen is recorded with its time, direction, decoded meaning and
 //! verdict, and written to the `--log` file as it comes.
 
-use crate::bus::{Bus, Hint, Origin};
 use crate::decode::Decoder;
 use crate::error::HarnessError;
-use crate::log::LogWriter;
+use can_io::bus::{Bus, Origin};
+use can_io::log::LogWriter;
 use devicenet::{CanFrame, Identifier, Instant, MacId};
 
 /// The verdict on one frame.
@@ -137,11 +137,6 @@ impl<'b> Session<'b> {
     pub fn send(&mut self, frame: &CanFrame) -> Result<(), HarnessError> {
         self.bus.send(frame)?;
         Ok(())
-    }
-
-    /// Passes a hint to the bus.
-    pub fn hint(&mut self, hint: Hint) {
-        self.bus.hint(hint);
     }
 
     /// Waits for the next frame until `deadline`, records it and returns its index; `None` at the

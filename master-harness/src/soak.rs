@@ -29,13 +29,13 @@
 //! | memory stays bounded | the frames queued anywhere in the bus never exceed a small bound; the scanner keeps no per-frame history; the converter and node are fixed-size by construction; the process's resident memory is reported at the start and the end |
 //! | no panic | the run completes |
 
-use crate::bus::fault::{FaultRates, FaultStats, RandomFaults, Rng, SharedDevice};
-use crate::bus::sim::{PowerOn, SimBus};
-use crate::bus::{Bitrate, Bus, Origin};
 use crate::client::{Port, ReplyBody, Transaction};
 use crate::decode;
 use crate::error::HarnessError;
-use crate::soft_slave::SoftSlave;
+use can_io::bus::{Bitrate, Bus, Origin};
+use can_io::sim::fault::{FaultRates, FaultStats, RandomFaults, Rng, SharedDevice};
+use can_io::sim::{PowerOn, SimBus};
+use converter_sim::device::SoftSlave;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::fragment::IoReassembler;
 use devicenet::id::Group1MessageId;

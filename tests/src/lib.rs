@@ -4,12 +4,12 @@
 //!
 //! The tests live in `tests/`, one file per feature; this library holds their shared helpers.
 
+use can_io::bus::Bitrate;
+use can_io::log::format_line;
+use can_io::sim::{PowerOn, SimBus};
+use converter_sim::device::SoftSlave;
 use devicenet::{Instant, MacId};
-use master_harness::bus::sim::{PowerOn, SimBus};
-use master_harness::bus::Bitrate;
-use master_harness::log::format_line;
 use master_harness::session::Record;
-use master_harness::soft_slave::SoftSlave;
 
 /// A MAC ID from a literal (test helper: panics on an invalid literal).
 pub fn mac(n: u8) -> MacId {

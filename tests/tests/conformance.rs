@@ -1,18 +1,18 @@
 //! The conformance suite against the soft slave passes; deliberately broken devices fail the check
 //! that names their fault.
 
+use can_io::bus::Bitrate;
+use can_io::sim::{PowerOn, SimBus, SimDevice};
+use converter_sim::device::SoftSlave;
 use devicenet::{CanFrame, Instant, MacId};
-use master_harness::bus::sim::{PowerOn, SimBus, SimDevice};
-use master_harness::bus::Bitrate;
 use master_harness::cli::run;
 use master_harness::conformance::{self, Category, Grade, SuiteOptions, SuiteReport};
 use master_harness::master::MasterConfig;
 use master_harness::session::Session;
-use master_harness::soft_slave::SoftSlave;
 use std::collections::VecDeque;
 use system_tests::{mac, sim_bus};
 
-fn suite(bus: &mut master_harness::bus::sim::SimBus, target: MacId) -> SuiteReport {
+fn suite(bus: &mut can_io::sim::SimBus, target: MacId) -> SuiteReport {
     let mut session = Session::new(bus);
     conformance::run(&mut session, MasterConfig::default(), &SuiteOptions::new(target)).unwrap()
 }

@@ -1,8 +1,8 @@
 //! `connect` on the simulated bus reproduces the 28 frames of devicenet-notes §2 byte for byte,
 //! deciding each frame from the answers, with every check holding.
 
+use can_io::bus::{Bitrate, Origin};
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
-use master_harness::bus::{Bitrate, Origin};
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::session::{Session, Verdict};
 use system_tests::{mac, sim_bus};

@@ -1,9 +1,9 @@
 //! `decode` on logs with fragmented explicit and I/O messages: fragments reassembled, services,
 //! objects and error codes named.
 
-use master_harness::bus::Bitrate;
+use can_io::bus::Bitrate;
+use can_io::log::parse_log;
 use master_harness::decode::Decoder;
-use master_harness::log::parse_log;
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::session::Session;
 use system_tests::{log_text, mac, sim_bus};

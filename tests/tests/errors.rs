@@ -1,7 +1,7 @@
 //! Clear errors, never panics: a device that never answers (the timeout named), an error
 //! response (by name), a duplicate of the master's MAC, unknown buses, bad files.
 
-use master_harness::bus::{Bitrate, BusSpec};
+use can_io::bus::{Bitrate, BusSpec};
 use master_harness::error::HarnessError;
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::session::Session;
@@ -46,10 +46,10 @@ fn an_error_response_stops_connect_by_name() {
 #[test]
 fn another_node_with_the_masters_mac() {
     // A soft slave at MAC 0 is on-line before the master: it answers the master's check.
-    let mut bus = master_harness::bus::sim::SimBus::new(Bitrate::K250);
+    let mut bus = can_io::sim::SimBus::new(Bitrate::K250);
     bus.attach(
-        Box::new(master_harness::soft_slave::SoftSlave::reference(mac(0))),
-        master_harness::bus::sim::PowerOn::At(devicenet::Instant::ZERO),
+        Box::new(converter_sim::device::SoftSlave::reference(mac(0))),
+        can_io::sim::PowerOn::At(devicenet::Instant::ZERO),
     );
     let mut session = Session::new(&mut bus);
     // Let the slave go on-line first (its checks, seen before the master starts, are just recorded).
@@ -67,6 +67,6 @@ fn unknown_bus_is_named() {
 
 #[test]
 fn a_missing_transcript_is_named() {
-    let err = master_harness::log::read_log(std::path::Path::new("/nonexistent/t.log")).unwrap_err();
+    let err = can_io::log::read_log(std::path::Path::new("/nonexistent/t.log")).unwrap_err();
     assert!(err.to_string().starts_with("/nonexistent/t.log:0:0: cannot read the file"), "{err}");
 }

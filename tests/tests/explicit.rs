@@ -1,8 +1,8 @@
 //! `get`/`set`: explicit messaging with fragmentation both ways, and error responses by name.
 
+use can_io::bus::Bitrate;
 use devicenet::explicit::GeneralStatus;
 use devicenet::messages::AllocationChoice;
-use master_harness::bus::Bitrate;
 use master_harness::client::{Port, ReplyBody};
 use master_harness::error::HarnessError;
 use master_harness::master::{Master, MasterConfig};

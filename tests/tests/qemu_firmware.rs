@@ -18,8 +18,9 @@
 //! master's two duplicate MAC ID checks (frames 0–1), then the slave's (2–3). A board running
 //! before the master connects would send its checks first. So QEMU starts paused, the board
 //! unpowered (`scripts/qemu-firmware --paused`), and [`PowerOnAtMasterOnline`] powers it on
-//! (`cont` on QEMU's monitor) when the master reports it is on-line ([`Hint::MasterOnline`]),
-//! as the simulated bus does by default (`--slave-power-on master-online`). Until then the master
+//! (`cont` on QEMU's monitor) when the master goes on-line (1 s after its second duplicate MAC ID
+//! check request, seen by [`MasterOnlineWatch`]), as the simulated bus does by default
+//! (`--slave-power-on master-online`). Until then the master
 //! is alone on its bus and its frames go nowhere. The firmware is not changed for the test: it
 //! starts its duplicate MAC ID check at power-on, and its SLCAN adapter holds frames until the
 //! host opens the channel, as a bxCAN mailbox holds a frame nobody acknowledges.
@@ -31,20 +32,19 @@
 //! bounded by [`RUN_LIMIT`] (also QEMU's time limit); on failure the test prints the frame table,
 //! the breaker's serial transcript and QEMU's log (guest errors).
 
+use can_io::bus::slcan::SlcanBus;
+use can_io::bus::{Bitrate, Bus, BusError, BusEvent, Origin};
+use can_io::sim::MasterOnlineWatch;
+use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN, LOAD, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
+use converter_sim::SimulatedBreaker;
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
 use devicenet::{CanFrame, Duration, Instant};
-use master_harness::bus::slcan::SlcanBus;
-use master_harness::bus::{Bitrate, Bus, BusError, BusEvent, Hint, Origin};
 use master_harness::cli::print_table;
 use master_harness::error::HarnessError;
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::session::{Session, Verdict};
-use master_harness::soft_slave::{
-    COMMAND_CLOSE, COMMAND_OPEN, LOAD, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN,
-};
 use serialport::SerialPort;
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
-use slave_fw::sim::SimulatedBreaker;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
 use std::process::{Child, Command, Stdio};
@@ -229,6 +229,10 @@ struct PowerOnAtMasterOnline {
     power_error: Option<String>,
     /// When the board was powered on, on this bus's clock.
     powered_at: Option<Instant>,
+    /// Sees the master go on-line from its own frames.
+    watch: MasterOnlineWatch,
+    /// When the master goes on-line: the board is powered on then.
+    power_at: Option<Instant>,
 }
 
 impl PowerOnAtMasterOnline {
@@ -239,6 +243,8 @@ impl PowerOnAtMasterOnline {
             monitor: monitor.to_string(),
             slcan: None,
             echoes: Default::default(),
+            watch: MasterOnlineWatch::default(),
+            power_at: None,
             power_error: None,
             powered_at: None,
         }
@@ -290,6 +296,10 @@ impl Bus for PowerOnAtMasterOnline {
         if let Some(e) = &self.power_error {
             return Err(BusError::Adapter(e.clone()));
         }
+        let now = self.clock();
+        if let Some(online) = self.watch.sent(frame, now) {
+            self.power_at = Some(online);
+        }
         match &mut self.slcan {
             Some((bus, _)) => bus.send(frame),
             None => {
@@ -301,6 +311,14 @@ impl Bus for PowerOnAtMasterOnline {
     }
 
     fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError> {
+        if self.slcan.is_none()
+            && self.power_error.is_none()
+            && self.power_at.is_some_and(|at| self.clock() >= at)
+        {
+            if let Err(e) = self.power_on() {
+                self.power_error = Some(e);
+            }
+        }
         if let Some(e) = &self.power_error {
             return Err(BusError::Adapter(e.clone()));
         }
@@ -320,14 +338,6 @@ impl Bus for PowerOnAtMasterOnline {
                     std::thread::sleep(StdDuration::from_micros((deadline - now).total_micros()));
                 }
                 Ok(None)
-            }
-        }
-    }
-
-    fn hint(&mut self, hint: Hint) {
-        if hint == Hint::MasterOnline && self.slcan.is_none() && self.power_error.is_none() {
-            if let Err(e) = self.power_on() {
-                self.power_error = Some(e);
             }
         }
     }

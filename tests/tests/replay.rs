@@ -2,10 +2,10 @@
 //! frame is a divergence reported with expected and actual frames, both decoded, and the frames
 //! before it; malformed transcripts are refused with their line.
 
+use can_io::bus::Bitrate;
+use can_io::log::{format_line, parse_log, LogEntry};
 use devicenet::reference::BRING_UP;
-use master_harness::bus::Bitrate;
 use master_harness::error::HarnessError;
-use master_harness::log::{format_line, parse_log, LogEntry};
 use master_harness::master::{ConnectOptions, Master, MasterConfig};
 use master_harness::replay::{replay, Divergence, ReplayOptions};
 use master_harness::session::Session;

@@ -1,11 +1,11 @@
 //! Untrusted input never panics: random transcripts replayed on the simulated bus, random answers
 //! thrown at an explicit transaction, random log text.
 
+use can_io::bus::Bitrate;
+use can_io::log::{format_line, parse_log};
 use devicenet::explicit::{BodyFormat, Request, ServiceCode};
 use devicenet::{CanFrame, Duration, Instant};
-use master_harness::bus::Bitrate;
 use master_harness::client::{Port, Transaction};
-use master_harness::log::{format_line, parse_log};
 use master_harness::replay::{replay, ReplayOptions};
 use master_harness::session::Session;
 use proptest::prelude::*;

@@ -1,8 +1,8 @@
 //! `scan` with several simulated slaves at different MAC IDs: every device found with its
 //! identity and I/O sizes, the requests overlapped.
 
+use can_io::bus::Bitrate;
 use devicenet::Duration;
-use master_harness::bus::Bitrate;
 use master_harness::master::{Master, MasterConfig};
 use master_harness::scan::scan;
 use master_harness::session::Session;

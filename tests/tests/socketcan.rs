@@ -14,12 +14,12 @@
 //! captures, the processes' output) is kept in `$DNET_VCAN_OUT/<test>` when that is set (the
 //! runner shares it with the host), else in a temporary directory.
 
+use can_io::bus::socketcan::SocketCanBus;
+use can_io::bus::Bus;
+use can_io::log::{read_log, LogEntry};
+use can_io::pcap::PcapWriter;
 use devicenet::reference::BRING_UP;
 use devicenet::{CanFrame, Identifier, MacId};
-use master_harness::bus::socketcan::SocketCanBus;
-use master_harness::bus::Bus;
-use master_harness::log::{read_log, LogEntry};
-use master_harness::pcap::PcapWriter;
 use master_harness::session::is_from_device;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};

@@ -422,8 +422,8 @@ impl<D: SimDevice> SimDevice for SharedDevice<D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{frame_bits, PowerOn, SimBus};
     use crate::bus::{Bitrate, Bus, BusEvent, Origin};
+    use crate::sim::{frame_bits, PowerOn, SimBus};
     use std::collections::VecDeque;
 
     type Log = Rc<RefCell<Vec<(Instant, CanFrame)>>>;

@@ -41,6 +41,31 @@ use std::collections::VecDeque;
 /// The duplicate MAC ID check's request interval and on-line wait (notes §7.1: 1 s).
 const DUP_MAC_INTERVAL: Duration = Duration::from_secs(1);
 
+/// Sees a master go on-line from the frames it sends, as the wire shows it: a master that sent its
+/// second duplicate MAC ID check request at `t` and heard no answer is on-line at `t` + 1 s (notes
+/// §7.1). The simulated bus powers its [`PowerOn::WhenMasterOnline`] devices then; a test bus
+/// around real equipment can do the same.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MasterOnlineWatch {
+    checks: u32,
+}
+
+impl MasterOnlineWatch {
+    /// The master queued `frame` at `now`; returns the instant it goes on-line when this frame was
+    /// its second duplicate MAC ID check request.
+    pub fn sent(&mut self, frame: &CanFrame, now: Instant) -> Option<Instant> {
+        let is_check_request = matches!(
+            Identifier::decode(frame.id()),
+            Identifier::Group2 { message: Group2Message::DuplicateMacCheck, .. }
+        ) && DuplicateMacCheck::parse(frame.data()).is_ok_and(|c| !c.response);
+        if !is_check_request {
+            return None;
+        }
+        self.checks = self.checks.saturating_add(1);
+        (self.checks == 2).then_some(now + DUP_MAC_INTERVAL)
+    }
+}
+
 /// The bits a CAN 2.0A data frame occupies on the wire, intermission included: the stuffed region
 /// (SOF, identifier, RTR, IDE, r0, DLC, data, CRC) with the stuff bits this frame's bit pattern
 /// needs, then CRC delimiter, ACK slot and delimiter, 7-bit end of frame and 3-bit intermission.
@@ -169,8 +194,8 @@ pub struct SimBus {
     faults: Option<Box<dyn WireFaults>>,
     delayed: Vec<Delayed>,
     fault_stats: FaultStats,
-    /// Duplicate MAC ID check requests the master has queued (to see it go on-line).
-    master_checks: u32,
+    /// Sees the master go on-line from its own frames.
+    master_online: MasterOnlineWatch,
 }
 
 impl SimBus {
@@ -190,7 +215,7 @@ impl SimBus {
             faults: None,
             delayed: Vec::new(),
             fault_stats: FaultStats::default(),
-            master_checks: 0,
+            master_online: MasterOnlineWatch::default(),
         }
     }
 
@@ -299,19 +324,10 @@ impl SimBus {
         self
     }
 
-    /// Notes the master's duplicate MAC ID check requests: 1 s after it queued its second one the
-    /// master is on-line (notes §7.1), and the devices waiting for that are powered on then.
+    /// Devices waiting for the master to be on-line are powered on when
+    /// [`MasterOnlineWatch`] sees it go on-line.
     fn watch_master(&mut self, frame: &CanFrame) {
-        let is_check_request = matches!(
-            Identifier::decode(frame.id()),
-            Identifier::Group2 { message: Group2Message::DuplicateMacCheck, .. }
-        ) && DuplicateMacCheck::parse(frame.data()).is_ok_and(|c| !c.response);
-        if !is_check_request {
-            return;
-        }
-        self.master_checks += 1;
-        if self.master_checks == 2 {
-            let online = self.now + DUP_MAC_INTERVAL;
+        if let Some(online) = self.master_online.sent(frame, self.now) {
             for d in &mut self.devices {
                 if d.power == PowerOn::WhenMasterOnline && !d.powered && d.power_at.is_none() {
                     d.power_at = Some(online);

@@ -17,13 +17,13 @@ mod steps;
 
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
 use devicenet::MacId;
-use master_harness::bus::sim::{PowerOn, SimBus};
-use master_harness::bus::{Bitrate, Origin};
+use can_io::sim::{PowerOn, SimBus};
+use can_io::bus::{Bitrate, Origin};
 use master_harness::conformance::{self, SuiteOptions};
-use master_harness::log::format_line;
+use can_io::log::format_line;
 use master_harness::master::MasterConfig;
 use master_harness::session::{Record, Session};
-use master_harness::soft_slave::SoftSlave;
+use converter_sim::device::SoftSlave;
 use slave_fw::serial::breaker::{Ack, StatusData, SwitchState, FRAMING};
 use slave_fw::serial::checksum::crc16_modbus;
 use std::path::{Path, PathBuf};

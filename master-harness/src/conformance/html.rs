@@ -13,9 +13,9 @@
 //! not stretch the page.
 
 use super::{Category, CheckResult, Grade, SuiteReport};
-use crate::bus::Origin;
 use crate::decode::hex;
 use crate::session::{is_from_device, Record, Verdict};
+use can_io::bus::Origin;
 use devicenet::{Identifier, Instant, MacId};
 use std::fmt::Write as _;
 

@@ -25,11 +25,12 @@
 //! ## Running it
 //!
 //! ```
-//! use master_harness::bus::{sim::{PowerOn, SimBus}, Bitrate};
+//! use can_io::bus::Bitrate;
+//! use can_io::sim::{PowerOn, SimBus};
 //! use master_harness::conformance::{self, SuiteOptions};
 //! use master_harness::master::MasterConfig;
 //! use master_harness::session::Session;
-//! use master_harness::soft_slave::SoftSlave;
+//! use converter_sim::device::SoftSlave;
 //! use devicenet::MacId;
 //!
 //! let mut bus = SimBus::new(Bitrate::K250);

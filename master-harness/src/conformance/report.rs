@@ -2,12 +2,12 @@
 //! `dnet-master` that runs the suite and writes them (and the HTML page, [`super::html`]).
 
 use super::{Category, CheckResult, Grade, SuiteOptions, SuiteReport};
-use crate::bus::Bus;
 use crate::cli::{print_table, record_json, Cli, RecordJson};
 use crate::error::HarnessError;
-use crate::log::LogWriter;
 use crate::master::MasterConfig;
 use crate::session::Session;
+use can_io::bus::Bus;
+use can_io::log::LogWriter;
 use devicenet::{Duration, MacId};
 use serde_json::json;
 use std::io::{self, Write};

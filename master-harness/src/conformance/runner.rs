@@ -5,11 +5,11 @@
 
 use super::{Basis, CheckResult, Expectation, Grade, Measurement, SuiteOptions};
 use super::{Category, HarnessError};
-use crate::bus::Origin;
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
 use crate::decode::{self, hex};
 use crate::master::{Answer, Master, MasterConfig};
 use crate::session::{is_from_device, Session, Verdict};
+use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use devicenet::fragment::{next_count, FragmentByte, FragmentKind, IoReassembler};
 use devicenet::id::Group1MessageId;

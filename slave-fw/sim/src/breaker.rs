@@ -22,9 +22,9 @@
 //!   [`corrupt_next_frames`](SimulatedBreaker::corrupt_next_frames) (bad checksums),
 //!   [`send_garbage`](SimulatedBreaker::send_garbage), [`set_load`](SimulatedBreaker::set_load).
 
+use devicenet::{Duration, Instant};
 use slave_fw::serial::breaker::{self, Ack, BreakerCommand, StatusData, SwitchState};
 use slave_fw::serial::{FrameCounters, FrameParser};
-use devicenet::{Duration, Instant};
 use std::collections::VecDeque;
 use std::vec::Vec;
 

@@ -12,8 +12,6 @@ use slave_fw::converter::ConverterConfig;
 pub struct SimSetup {
     /// The device configuration (from a description file, or the reference converter).
     pub config: ConverterConfig,
-    /// `true` when `config` is the built-in reference converter (no description file given).
-    pub reference: bool,
     /// The MAC IDs to place a device at; empty: one device at the configuration's own MAC.
     pub macs: Vec<MacId>,
     /// When the devices power on.
@@ -27,7 +25,6 @@ impl SimSetup {
     pub fn reference() -> SimSetup {
         SimSetup {
             config: ConverterConfig::breaker_reference(),
-            reference: true,
             macs: Vec::new(),
             power_on: PowerOn::WhenMasterOnline,
             realtime: false,
@@ -36,7 +33,7 @@ impl SimSetup {
 
     /// One device running `config` at its own MAC, powered on when the master is on-line.
     pub fn described(config: ConverterConfig) -> SimSetup {
-        SimSetup { config, reference: false, ..SimSetup::reference() }
+        SimSetup { config, ..SimSetup::reference() }
     }
 
     /// The simulated devices. A single device is placed at its MAC with the configuration's
@@ -65,8 +62,7 @@ impl SimSetup {
                 config.device.mac_id = mac;
             }
             devices.push(
-                SoftSlave::new(config)
-                    .map_err(|e| format!("the simulated device's configuration: {e}"))?,
+                SoftSlave::new(config).map_err(|e| format!("the simulated device's configuration: {e}"))?,
             );
         }
         Ok(devices)

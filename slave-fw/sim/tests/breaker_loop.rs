@@ -2,10 +2,10 @@
 //! issue's acceptance tests, without a pty. Bytes cross the "wire" instantly; polls are simulated
 //! by calling `set_outputs` the way the converter will.
 
+use converter_sim::SimulatedBreaker;
 use devicenet::{Duration, Instant};
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState, SWITCH_CLOSED, SWITCH_OPEN};
 use slave_fw::serial::{CommandOutcome, LinkState, Profile, ProfileConfig, StatusByte};
-use converter_sim::SimulatedBreaker;
 
 /// The converter's serial side and a breaker on one virtual clock.
 struct Bench {

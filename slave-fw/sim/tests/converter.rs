@@ -2,13 +2,13 @@
 //! the 28-frame bring-up with the breaker's real data, commands through the poll output executed
 //! exactly once, stale detection reported to the scanner, and the vendor objects.
 
+use converter_sim::SoftSlave;
 use devicenet::reference::{Direction, BRING_UP};
 use devicenet::slave::ConnectionState;
 use devicenet::{CanFrame, Duration, Instant};
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
 use slave_fw::serial::{HealthConfig, ProfileConfig, StalePolicy};
-use converter_sim::SoftSlave;
 
 struct Rig {
     slave: SoftSlave,

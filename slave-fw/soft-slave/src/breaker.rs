@@ -14,10 +14,10 @@
 //! | `line blocked: N bytes lost` | nobody drains the line (the other end of a pty is not open) |
 
 use crate::clock::{format_instant, Clock};
+use converter_sim::SimulatedBreaker;
 use devicenet::{Duration, Instant};
 use slave_fw::serial::breaker::{self, BreakerCommand, Message, SwitchState};
 use slave_fw::serial::FrameParser;
-use slave_fw::sim::SimulatedBreaker;
 use std::io::{ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -27,7 +27,7 @@ pub const GARBAGE: [u8; 6] = [0x68, 0x99, 0x01, 0x16, 0xFF, 0x00];
 
 /// The currents the breaker reports while closed unless told otherwise, the same as the
 /// simulated bus's soft slave (`dnet-master --bus sim`).
-pub const DEFAULT_LOAD: [u8; 4] = master_harness::soft_slave::LOAD;
+pub const DEFAULT_LOAD: [u8; 4] = converter_sim::device::LOAD;
 
 /// How the simulated breaker behaves.
 #[derive(Clone, Debug, PartialEq)]

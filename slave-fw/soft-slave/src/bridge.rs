@@ -21,10 +21,10 @@
 use crate::clock::{format_instant, Clock};
 use crate::error::SoftSlaveError;
 use crate::serial::{SerialEvent, SerialLine};
+use can_io::bus::{Bus, Origin};
+use can_io::log::LogWriter;
 use devicenet::slave::{ConnectionKind, FaultReason};
 use devicenet::{CanFrame, Duration, Event, Instant};
-use master_harness::bus::{Bus, Origin};
-use master_harness::log::LogWriter;
 use slave_fw::converter::{Converter, ConverterConfig};
 use slave_fw::serial::{LinkState, Stats};
 use std::io::Write;
@@ -38,7 +38,7 @@ pub const LOG_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 
 /// The delay between an Identity Reset response and the power cycle (the response must reach
 /// the bus first), the same as the simulated soft slave's.
-pub const RESET_DELAY: Duration = slave_fw::soft::RESET_DELAY;
+pub const RESET_DELAY: Duration = converter_sim::device::RESET_DELAY;
 
 /// What a run did, for the closing report and for tests.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

@@ -7,11 +7,10 @@ use crate::bridge::{Bridge, RunSummary};
 use crate::clock::{from_secs_f64, Clock};
 use crate::error::SoftSlaveError;
 use crate::serial::{settings_text, SerialLine};
+use can_io::bus::{Bitrate, BusSpec};
+use can_io::log::LogWriter;
 use clap::Parser;
-use devicenet::slave::BaudRate;
 use devicenet::{Duration, MacId};
-use master_harness::bus::{Bitrate, Bus, BusSpec};
-use master_harness::log::LogWriter;
 use slave_fw::description::DeviceDescription;
 use slave_fw::serial::{ProfileConfig, SerialSettings};
 use std::io::Write;
@@ -44,7 +43,7 @@ pub struct SoftSlaveArgs {
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Use this MAC ID instead of the description's.
-    #[arg(long, value_name = "N", value_parser = master_harness::cli::parse_mac)]
+    #[arg(long, value_name = "N", value_parser = parse_mac)]
     pub mac: Option<MacId>,
     /// Write every CAN frame seen (received and sent) to FILE in candump -L format.
     #[arg(long, value_name = "FILE")]
@@ -107,6 +106,15 @@ pub fn parse_real_bus(s: &str) -> Result<BusSpec, String> {
     }
 }
 
+/// A MAC ID, `0..=63`.
+pub fn parse_mac(s: &str) -> Result<MacId, String> {
+    s.trim()
+        .parse::<u8>()
+        .ok()
+        .and_then(MacId::new)
+        .ok_or_else(|| format!("MAC ID '{s}' is not a number of 0..=63"))
+}
+
 /// Seconds, `0` or more (`1.5`).
 pub fn parse_seconds(s: &str) -> Result<Duration, String> {
     s.trim()
@@ -138,15 +146,6 @@ pub fn parse_load(s: &str) -> Result<[u8; 4], String> {
     Ok(load)
 }
 
-/// The CAN bit rate of a description.
-pub fn bitrate(rate: BaudRate) -> Bitrate {
-    match rate {
-        BaudRate::Kbps125 => Bitrate::K125,
-        BaudRate::Kbps250 => Bitrate::K250,
-        BaudRate::Kbps500 => Bitrate::K500,
-    }
-}
-
 /// The description the arguments name, with the `--mac` override applied.
 pub fn load_description(args: &SoftSlaveArgs) -> Result<DeviceDescription, SoftSlaveError> {
     let mut description = match &args.config {
@@ -158,22 +157,6 @@ pub fn load_description(args: &SoftSlaveArgs) -> Result<DeviceDescription, SoftS
     }
     description.converter.validate()?;
     Ok(description)
-}
-
-/// Opens the bus `spec` at `bitrate`.
-pub fn open_bus(spec: &BusSpec, rate: Bitrate) -> Result<Box<dyn Bus>, SoftSlaveError> {
-    match spec {
-        BusSpec::Sim => Err(SoftSlaveError::Usage(parse_real_bus("sim").err().unwrap_or_default())),
-        #[cfg(target_os = "linux")]
-        BusSpec::SocketCan { iface } => {
-            Ok(Box::new(master_harness::bus::socketcan::SocketCanBus::open(iface)?))
-        }
-        #[cfg(not(target_os = "linux"))]
-        BusSpec::SocketCan { .. } => {
-            Err(SoftSlaveError::Usage("SocketCAN is only available on Linux".into()))
-        }
-        BusSpec::Slcan { path, baud } => Ok(Box::new(master_harness::bus::slcan::open(path, *baud, rate)?)),
-    }
 }
 
 fn profile_name(p: &ProfileConfig) -> &'static str {
@@ -196,7 +179,7 @@ pub fn run_soft_slave(
     let description = load_description(args)?;
     let config = description.converter;
     let serial_settings: SerialSettings = *config.profile.serial();
-    let rate = bitrate(config.device.baud_rate);
+    let rate = Bitrate::from(config.device.baud_rate);
     let log = match &args.log {
         Some(path) => Some((
             LogWriter::create(path)
@@ -208,7 +191,7 @@ pub fn run_soft_slave(
     let clock = Clock::start();
     let serial_path = args.serial.display().to_string();
     let serial = SerialLine::open(&serial_path, &serial_settings, clock)?;
-    let bus = open_bus(&args.bus, rate)?;
+    let bus = args.bus.open(rate)?;
     let _ = writeln!(
         report,
         "dnet-soft-slave: MAC {} at {rate} on {}, {} profile on {serial_path} ({}), input assembly {}",
@@ -360,7 +343,7 @@ mod tests {
         .unwrap();
         let d = load_description(&args).unwrap();
         assert_eq!(d.converter.device.mac_id.as_raw(), 12);
-        assert_eq!(bitrate(d.converter.device.baud_rate), Bitrate::K250);
+        assert_eq!(Bitrate::from(d.converter.device.baud_rate), Bitrate::K250);
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Every way the soft slave and the simulated breaker can fail, each naming what it was about.
 
-use master_harness::bus::BusError;
+use can_io::bus::BusError;
 use slave_fw::converter::ConverterConfigError;
 use slave_fw::description::DescriptionError;
 

@@ -2,10 +2,10 @@
 //!
 //! The serial-to-DeviceNet converter as a Linux process: `dnet-soft-slave` runs the same
 //! [`Converter`](slave_fw::converter::Converter) as the adapter board's firmware, between a real
-//! CAN bus (SocketCAN or an SLCAN adapter, through the master harness's [`Bus`] implementations)
+//! CAN bus (SocketCAN or an SLCAN adapter, through `can_io`'s [`Bus`] implementations)
 //! and a real serial port (the `serialport` crate) where the instrument is. `dnet-sim-breaker`
 //! is its bench companion: the simulated intelligent circuit breaker
-//! ([`SimulatedBreaker`](slave_fw::sim::SimulatedBreaker)) on a serial port or pseudo-terminal.
+//! ([`SimulatedBreaker`](converter_sim::SimulatedBreaker)) on a serial port or pseudo-terminal.
 //!
 //! The converter is sans-IO (style.md practice 1); this crate is the one small adapter for time
 //! and one for frames that a host needs around it:
@@ -37,7 +37,7 @@
 //! use slave_fw::converter::ConverterConfig;
 //! use std::os::unix::net::UnixStream;
 //! use std::sync::atomic::AtomicBool;
-//! # use master_harness::bus::{Bus, BusError, BusEvent};
+//! # use can_io::bus::{Bus, BusError, BusEvent};
 //! # use devicenet::{CanFrame, Instant};
 //! # struct Quiet(Clock);
 //! # impl Bus for Quiet {
@@ -74,4 +74,4 @@ pub mod clock;
 pub mod error;
 pub mod serial;
 
-pub use master_harness::bus::Bus;
+pub use can_io::bus::Bus;

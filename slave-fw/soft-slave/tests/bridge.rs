@@ -4,9 +4,9 @@
 
 mod common;
 
+use can_io::log::{read_log, LogWriter};
 use common::{bring_up, link_attribute, poll_until, ChannelBus};
 use devicenet::Duration;
-use master_harness::log::{read_log, LogWriter};
 use master_harness::master::{Master, MasterConfig};
 use master_harness::session::Session;
 use slave_fw::converter::ConverterConfig;
@@ -126,9 +126,7 @@ fn identity_reset_restarts_the_converter() {
         .session
         .records()
         .iter()
-        .filter(|r| {
-            r.at > start && r.frame.id().as_raw() == 0x42F && r.origin == master_harness::bus::Origin::Remote
-        })
+        .filter(|r| r.at > start && r.frame.id().as_raw() == 0x42F && r.origin == can_io::bus::Origin::Remote)
         .count();
     assert_eq!(announced, 1, "the restarted node's first duplicate MAC ID check");
     drop(master);

@@ -9,8 +9,8 @@
 
 mod common;
 
+use can_io::log::read_log;
 use common::{require_socat, PtyRig};
-use master_harness::log::read_log;
 
 /// `dnet-master --bus slcan:PTY monitor --output HEX --epr 300 --count 10 --csv FILE`; returns the
 /// CSV rows. (EPR 300 ms: the poll response timeout is the EPR, and a loaded CI machine can take

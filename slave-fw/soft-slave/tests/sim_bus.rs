@@ -5,13 +5,13 @@
 
 mod common;
 
+use can_io::bus::Bitrate;
+use can_io::sim::{PowerOn, SimBus};
 use common::{bring_up, mac, poll_until};
+use converter_sim::device::{SoftSlave, LOAD, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::Duration;
-use master_harness::bus::sim::{PowerOn, SimBus};
-use master_harness::bus::Bitrate;
 use master_harness::master::{Master, MasterConfig};
 use master_harness::session::Session;
-use master_harness::soft_slave::{SoftSlave, LOAD, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 
 #[test]
 fn close_open_close_through_the_poll_output() {

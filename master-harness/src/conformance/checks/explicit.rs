@@ -597,7 +597,7 @@ fn await_device(
     let mut out = Vec::new();
     while let Some(i) = r.m.session.next(until)? {
         let rec = r.m.session.record(i);
-        if rec.origin == crate::bus::Origin::Local {
+        if rec.origin == can_io::bus::Origin::Local {
             continue;
         }
         if crate::session::is_from_device(&rec.frame, dut) {

@@ -4,10 +4,10 @@
 
 use super::super::runner::{g2, Check, Runner};
 use super::super::{Basis, Category};
-use crate::bus::Origin;
 use crate::error::HarnessError;
 use crate::master::ConnectOptions;
 use crate::session::Verdict;
+use can_io::bus::Origin;
 use devicenet::explicit::BodyFormat;
 use devicenet::id::Group3MessageId;
 use devicenet::messages::{DuplicateMacCheck, GroupSelect, UcmmCloseRequest, UcmmOpenRequest};

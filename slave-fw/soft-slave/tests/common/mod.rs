@@ -3,8 +3,8 @@
 //! server's Python, and a master that polls until a condition holds.
 #![allow(dead_code)]
 
+use can_io::bus::{Bus, BusError, BusEvent, Origin};
 use devicenet::{CanFrame, Duration, Instant, MacId};
-use master_harness::bus::{Bus, BusError, BusEvent, Origin};
 use master_harness::master::{ConnectOptions, DeviceSummary, Master};
 use soft_slave::clock::Clock;
 use std::collections::VecDeque;
@@ -422,8 +422,8 @@ impl PtyRig {
     }
 
     /// The master's end of the CAN link.
-    pub fn master_bus(&self) -> master_harness::bus::slcan::SlcanBus<Box<dyn serialport::SerialPort>> {
-        master_harness::bus::slcan::open(&self.can.b, 115_200, master_harness::bus::Bitrate::K250)
+    pub fn master_bus(&self) -> can_io::bus::slcan::SlcanBus<Box<dyn serialport::SerialPort>> {
+        can_io::bus::slcan::open(&self.can.b, 115_200, can_io::bus::Bitrate::K250)
             .unwrap_or_else(|e| panic!("opening the master's end {}: {e}", self.can.b))
     }
 
