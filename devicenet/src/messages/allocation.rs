@@ -276,9 +276,13 @@ mod tests {
     fn allocate_inside_explicit_request() {
         // Frame 6 of the capture: `00 4B 03 01 01 00` on 0x42E.
         use crate::explicit::{split_message, Request, ServiceCode};
+        use crate::objects::class;
         let (_, body) = split_message(&[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]).unwrap();
         let req = Request::parse(body, BodyFormat::Class8Instance8).unwrap();
-        assert_eq!((req.service, req.class, req.instance), (ServiceCode::AllocateMasterSlave, 3, 1));
+        assert_eq!(
+            (req.service, req.class, req.instance),
+            (ServiceCode::AllocateMasterSlave, class::DEVICENET, 1)
+        );
         assert_eq!(
             AllocateRequest::parse(req.data),
             Ok(AllocateRequest { choice: AllocationChoice::EXPLICIT, allocator: mac(0) })

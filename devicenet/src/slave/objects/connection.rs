@@ -7,6 +7,7 @@ use super::class_revision;
 use crate::explicit::{Request, ServiceCode};
 use crate::id::{Group1MessageId, Group2Message, Identifier};
 use crate::messages::AllocationChoice;
+use crate::objects::class;
 use crate::slave::connection::{Expiry, MAX_EPR_MS};
 use crate::slave::{
     Connection, ConnectionKind, ConnectionState, Event, Reply, ServiceError, SlaveNode, MAX_EXPLICIT_SIZE,
@@ -68,7 +69,9 @@ impl SlaveNode {
     ) -> Result<(), ServiceError> {
         let mac = self.config.mac_id;
         let explicit = conn.kind == ConnectionKind::Explicit;
-        let path = |asm: u8| [0x20, 0x04, 0x24, asm, 0x30, 0x03];
+        // Attributes 14 and 16 (notes §5.1): logical class segment (Assembly), instance segment
+        // (the assembly), attribute segment 3 (data).
+        let path = |asm: u8| [0x20, class::ASSEMBLY as u8, 0x24, asm, 0x30, 0x03];
         match attr {
             1 => reply.u8(conn.state.attribute_value()),
             2 => reply.u8(if explicit { 0 } else { 1 }),
