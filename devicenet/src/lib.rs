@@ -46,10 +46,13 @@
 //! ## No-panic contract
 //!
 //! Every parser in this crate accepts any input and returns a value or an error; no bus input can
-//! make the core panic, allocate, or grow without bound.
+//! make the core panic, allocate, or grow without bound. Indexing and slicing that could panic are
+//! denied by lint outside tests (`clippy::indexing_slicing`): access is checked (`get`,
+//! `split_first`, slice patterns) or the bound is in the type (fixed-size arrays).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 #[cfg(test)]
 extern crate std;

@@ -6,9 +6,7 @@
 //! node offers the explicit and poll connections only ([`SUPPORTED`]).
 
 use super::{ConnectionKind, Event, ServiceError, SlaveNode};
-use crate::explicit::{
-    additional, split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode,
-};
+use crate::explicit::{additional, split_message, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use crate::id::MacId;
 use crate::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use crate::objects::class;
@@ -22,9 +20,11 @@ impl SlaveNode {
     /// Allocate and Release of the DeviceNet object are served; the response goes out at once.
     pub(super) fn on_group2_only(&mut self, data: &[u8], now: Instant) {
         let Ok((header, body)) = split_message(data) else { return };
-        if header.fragmented || body[0] & 0x80 != 0 {
+        let Some(&service_byte) = body.first() else { return };
+        if header.fragmented || service_byte & 0x80 != 0 {
             return; // unconnected messages are never fragmented; responses are not for us
         }
+        let service = ServiceCode::from(service_byte);
         let result = match Request::parse(body, BodyFormat::Class8Instance8) {
             Ok(req) => match req.service {
                 ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave
@@ -36,35 +36,24 @@ impl SlaveNode {
                 ServiceCode::ReleaseMasterSlave => self.release(header.mac, req.data),
                 _ => Err(invalid_group2_only_request()),
             },
-            Err(_) => match ServiceCode::from(body[0]) {
+            Err(_) => match service {
                 ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => {
                     Err(ServiceError::NOT_ENOUGH_DATA)
                 }
                 _ => Err(invalid_group2_only_request()),
             },
         };
-        let service = ServiceCode::from(body[0]);
-        let mut buf = [0u8; 4];
-        let n = match result {
-            Ok(body_format) => {
-                buf[1] = 0x80 | service.as_raw();
-                match body_format {
-                    Some(fmt) => {
-                        buf[2] = fmt;
-                        3
-                    }
-                    None => 2,
-                }
-            }
-            Err(e) => {
-                let resp = Response::Error { general: e.general, additional: e.additional };
-                let _ = resp.emit(&mut buf[1..]);
-                4
-            }
-        };
-        buf[0] = Header::new(header.xid, header.mac).to_byte();
+        let header = Header::new(header.xid, header.mac).to_byte();
         let id = self.response_id();
-        self.queue_data(id, &buf[..n]);
+        match result {
+            // Allocate answers with its body format byte, Release with no data (notes §3.4).
+            Ok(Some(body_format)) => self.queue_data(id, &[header, 0x80 | service.as_raw(), body_format]),
+            Ok(None) => self.queue_data(id, &[header, 0x80 | service.as_raw()]),
+            Err(e) => {
+                let error = 0x80 | ServiceCode::ErrorResponse.as_raw();
+                self.queue_data(id, &[header, error, e.general.as_raw(), e.additional]);
+            }
+        }
     }
 
     /// Allocate_Master/Slave_Connection_Set (notes §3.4), validation in JB's order. Returns the

@@ -26,7 +26,8 @@ impl SlaveNode {
         self.explicit.restart_timer(now);
         let id = self.response_id();
         if header.fragmented {
-            if FragmentByte::from_byte(data[1]).kind == FragmentKind::Ack {
+            // `data` holds at least the header and the fragmentation byte (checked above).
+            if data.get(1).is_some_and(|&b| FragmentByte::from_byte(b).kind == FragmentKind::Ack) {
                 self.explicit_tx.handle_ack(data, now);
                 self.pump_explicit(now);
                 return;
@@ -39,14 +40,16 @@ impl SlaveNode {
                 }
                 ExplicitReceive::Complete(ack) => {
                     self.queue_data(id, &ack);
-                    let mut message = [0u8; MAX_EXPLICIT_SIZE];
+                    // A copy, so the request can be served while the reassembler keeps its state;
+                    // the reassembler holds at most MAX_EXPLICIT_SIZE bytes, so it always fits.
                     let whole = self.explicit_rx.message();
-                    let n = whole.len().min(MAX_EXPLICIT_SIZE);
-                    message[..n].copy_from_slice(&whole[..n]);
+                    let Ok(message) = heapless::Vec::<u8, MAX_EXPLICIT_SIZE>::from_slice(whole) else {
+                        return;
+                    };
                     // The reassembler keeps its last answer (not reset here): a repeat of the last
                     // fragment, whose ack the master missed, is acknowledged again and the request
                     // is not served twice (notes §4.1, JB; found by the conformance suite).
-                    self.serve(&message[..n], now, objects);
+                    self.serve(&message, now, objects);
                 }
                 ExplicitReceive::Ignored(_) => {
                     self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
@@ -63,6 +66,7 @@ impl SlaveNode {
     /// Serves one whole explicit request message (header + body) and queues the response.
     fn serve<H: ObjectHandler>(&mut self, message: &[u8], now: Instant, objects: &mut H) {
         let Ok((header, body)) = split_message(message) else { return };
+        let Some(&service_byte) = body.first() else { return };
         let mut out = [0u8; MAX_EXPLICIT_SIZE];
         out[0] = Header::new(header.xid, header.mac).to_byte();
         let (result, service) = match Request::parse(body, BodyFormat::Class8Instance8) {
@@ -75,7 +79,7 @@ impl SlaveNode {
                 self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
                 return;
             }
-            Err(_) => (Err(ServiceError::NOT_ENOUGH_DATA), ServiceCode::from(body[0])),
+            Err(_) => (Err(ServiceError::NOT_ENOUGH_DATA), ServiceCode::from(service_byte)),
         };
         let len = match result {
             Ok(n) => {
@@ -89,10 +93,12 @@ impl SlaveNode {
                 4
             }
         };
+        // The reply is bounded by `out`, so the response always fits.
+        let Some(response) = out.get(..len) else { return };
         if len <= 8 {
             let id = self.response_id();
-            self.queue_data(id, &out[..len]);
-        } else if self.explicit_tx.start(&out[..len], now).is_ok() {
+            self.queue_data(id, response);
+        } else if self.explicit_tx.start(response, now).is_ok() {
             self.pump_explicit(now);
         }
     }

@@ -2,7 +2,7 @@
 //! output image (a zero-length one means the master is idle) and is answered at once with the
 //! input image, both fragmented above 8 bytes.
 
-use super::{Event, SlaveNode, MAX_IO_SIZE};
+use super::{Event, SlaveNode};
 use crate::fragment::io_fragments;
 use crate::time::Instant;
 
@@ -15,37 +15,33 @@ impl SlaveNode {
             return;
         }
         let consumed = usize::from(self.config.consumed_size);
-        let mut command = [0u8; MAX_IO_SIZE];
-        let len = if consumed > 8 {
+        // A copy: the reassembled command borrows the reassembler. validate() bounds the consumed
+        // size by MAX_IO_SIZE, so an accepted command always fits.
+        let command = if consumed > 8 {
             match self.poll_rx.receive(data) {
-                Ok(Some(whole)) if whole.len() <= consumed => {
-                    command[..whole.len()].copy_from_slice(whole);
-                    whole.len()
-                }
+                Ok(Some(whole)) if whole.len() <= consumed => heapless::Vec::from_slice(whole).ok(),
                 Ok(None) => {
                     self.poll.restart_timer(now);
                     return;
                 }
-                Ok(Some(_)) | Err(_) => {
-                    self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
-                    return;
-                }
+                Ok(Some(_)) | Err(_) => None,
             }
         } else if data.len() <= consumed {
-            command[..data.len()].copy_from_slice(data);
-            data.len()
+            heapless::Vec::from_slice(data).ok()
         } else {
+            None
+        };
+        let Some(command) = command else {
             self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
             return;
         };
         self.poll.restart_timer(now);
-        if len == 0 {
+        if command.is_empty() {
             self.io_idle = true;
             self.push_event(Event::Idle);
         } else {
             self.io_idle = false;
-            self.output.clear();
-            let _ = self.output.extend_from_slice(&command[..len]);
+            self.output = command;
             self.push_event(Event::OutputReceived);
         }
         self.send_poll_response();

@@ -27,9 +27,9 @@ impl SlaveNode {
         let is_input = req.instance == input;
         match req.service {
             ServiceCode::GetAttributeSingle => {
-                ServiceError::expect_len(req.data, 1)?;
+                let [attr] = ServiceError::expect_array(req.data)?;
                 let data: &[u8] = if is_input { &self.input } else { &self.output };
-                match req.data[0] {
+                match attr {
                     3 => reply.bytes(data),
                     4 => {
                         let size =

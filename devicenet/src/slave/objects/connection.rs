@@ -34,8 +34,8 @@ impl SlaveNode {
         };
         match req.service {
             ServiceCode::GetAttributeSingle => {
-                ServiceError::expect_len(req.data, 1)?;
-                self.connection_attribute(&conn, req.data[0], reply)
+                let [attr] = ServiceError::expect_array(req.data)?;
+                self.connection_attribute(&conn, attr, reply)
             }
             ServiceCode::SetAttributeSingle => {
                 let (&attr, value) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
@@ -114,8 +114,7 @@ impl SlaveNode {
         let resolution = self.config.epr_resolution_ms;
         match attr {
             9 => {
-                ServiceError::expect_len(value, 2)?;
-                let requested = u16::from_le_bytes([value[0], value[1]]);
+                let requested = u16::from_le_bytes(ServiceError::expect_array(value)?);
                 if requested > MAX_EPR_MS {
                     return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
                 }
@@ -131,8 +130,8 @@ impl SlaveNode {
                 reply.u16(applied)
             }
             12 => {
-                ServiceError::expect_len(value, 1)?;
-                let action = kind.parse_action(value[0]).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                let [value] = ServiceError::expect_array(value)?;
+                let action = kind.parse_action(value).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
                 let conn = if kind == ConnectionKind::Explicit { &mut self.explicit } else { &mut self.poll };
                 conn.watchdog_action = action;
                 Ok(())

@@ -33,8 +33,8 @@ impl SlaveNode {
             (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 2, reply),
             (0, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             (1, ServiceCode::GetAttributeSingle) => {
-                ServiceError::expect_len(req.data, 1)?;
-                self.devicenet_attribute(req.data[0], reply)
+                let [attr] = ServiceError::expect_array(req.data)?;
+                self.devicenet_attribute(attr, reply)
             }
             (1, ServiceCode::SetAttributeSingle) => self.set_devicenet_attribute(req.data),
             (1, ServiceCode::AllocateMasterSlave) => match self.allocate(req.data, now)? {
@@ -79,8 +79,7 @@ impl SlaveNode {
         let changed = match attr {
             1 | 2 if !programmable => return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
             1..=4 => {
-                ServiceError::expect_len(value, 1)?;
-                let v = value[0];
+                let [v] = ServiceError::expect_array(value)?;
                 match attr {
                     1 => {
                         let mac = MacId::new(v).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;

@@ -49,8 +49,8 @@ impl SlaveNode {
             (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 1, reply),
             (0, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             (1, ServiceCode::GetAttributeSingle) => {
-                ServiceError::expect_len(req.data, 1)?;
-                self.identity_attribute(req.data[0], reply)
+                let [attr] = ServiceError::expect_array(req.data)?;
+                self.identity_attribute(attr, reply)
             }
             (1, ServiceCode::GetAttributesAll) => {
                 for attr in 1..=7 {

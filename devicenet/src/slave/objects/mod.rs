@@ -24,9 +24,8 @@ use super::{Reply, ServiceError};
 
 /// Class attribute 1 (revision), the only class attribute served.
 fn class_revision(data: &[u8], revision: u16, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
-    ServiceError::expect_len(data, 1)?;
-    match data[0] {
-        1 => reply.u16(revision),
+    match ServiceError::expect_array(data)? {
+        [1] => reply.u16(revision),
         _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
     }
 }
