@@ -385,6 +385,15 @@ impl BodyFormat {
     }
 }
 
+/// Writes `bytes` to the front of `buf`; the caller has checked that they fit (an emit's
+/// `BufferTooSmall` check), so none is dropped.
+fn write_front(buf: &mut [u8], bytes: impl IntoIterator<Item = u8>) {
+    for (out, byte) in buf.iter_mut().zip(bytes) {
+        *out = byte;
+    }
+}
+
+/// A little-endian class or instance ID of 1 or 2 bytes.
 fn read_le(bytes: &[u8]) -> u16 {
     match bytes {
         [a] => u16::from(*a),
@@ -416,16 +425,10 @@ impl<'a> Request<'a> {
         let service = ServiceCode::from(service);
         match format.widths() {
             Some((cw, iw)) => {
-                let needed = 1 + cw + iw;
-                if body.len() < needed {
-                    return Err(ExplicitError::Truncated { needed, got: body.len() });
-                }
-                Ok(Request {
-                    service,
-                    class: read_le(&rest[..cw]),
-                    instance: read_le(&rest[cw..cw + iw]),
-                    data: &rest[cw + iw..],
-                })
+                let truncated = ExplicitError::Truncated { needed: 1 + cw + iw, got: body.len() };
+                let (class, rest) = rest.split_at_checked(cw).ok_or(truncated)?;
+                let (instance, data) = rest.split_at_checked(iw).ok_or(truncated)?;
+                Ok(Request { service, class: read_le(class), instance: read_le(instance), data })
             }
             None => match format {
                 BodyFormat::CipPath => Self::parse_path(service, rest),
@@ -446,9 +449,9 @@ impl<'a> Request<'a> {
         let mut class = None;
         let mut instance = None;
         while let Some((&seg, tail)) = segments.split_first() {
-            let (value, used) = match (seg, tail) {
-                (0x20 | 0x24, [v, ..]) => (u16::from(*v), 1),
-                (0x21 | 0x25, [_pad, lo, hi, ..]) => (u16::from_le_bytes([*lo, *hi]), 3),
+            let (value, rest) = match (seg, tail) {
+                (0x20 | 0x24, [v, rest @ ..]) => (u16::from(*v), rest),
+                (0x21 | 0x25, [_pad, lo, hi, rest @ ..]) => (u16::from_le_bytes([*lo, *hi]), rest),
                 _ => return Err(ExplicitError::UnsupportedPath),
             };
             match seg {
@@ -456,7 +459,7 @@ impl<'a> Request<'a> {
                 0x24 | 0x25 if class.is_some() && instance.is_none() => instance = Some(value),
                 _ => return Err(ExplicitError::UnsupportedPath),
             }
-            segments = &tail[used..];
+            segments = rest;
         }
         match (class, instance) {
             (Some(class), Some(instance)) => Ok(Request { service, class, instance, data }),
@@ -482,10 +485,13 @@ impl<'a> Request<'a> {
         if buf.len() < needed {
             return Err(ExplicitError::BufferTooSmall { needed, got: buf.len() });
         }
-        buf[0] = self.service.as_raw() & 0x7F;
-        buf[1..1 + cw].copy_from_slice(&self.class.to_le_bytes()[..cw]);
-        buf[1 + cw..1 + cw + iw].copy_from_slice(&self.instance.to_le_bytes()[..iw]);
-        buf[1 + cw + iw..needed].copy_from_slice(self.data);
+        // Service, then the low `cw` bytes of the class and `iw` of the instance, then the data.
+        let body = [self.service.as_raw() & 0x7F]
+            .into_iter()
+            .chain(self.class.to_le_bytes().into_iter().take(cw))
+            .chain(self.instance.to_le_bytes().into_iter().take(iw))
+            .chain(self.data.iter().copied());
+        write_front(buf, body);
         Ok(needed)
     }
 }
@@ -548,13 +554,11 @@ impl<'a> Response<'a> {
         }
         match self {
             Response::Success { service, data } => {
-                buf[0] = 0x80 | service.as_raw();
-                buf[1..needed].copy_from_slice(data);
+                write_front(buf, [0x80 | service.as_raw()].into_iter().chain(data.iter().copied()));
             }
             Response::Error { general, additional } => {
-                buf[0] = 0x80 | ServiceCode::ErrorResponse.as_raw();
-                buf[1] = general.as_raw();
-                buf[2] = *additional;
+                let error = 0x80 | ServiceCode::ErrorResponse.as_raw();
+                write_front(buf, [error, general.as_raw(), *additional]);
             }
         }
         Ok(needed)

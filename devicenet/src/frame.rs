@@ -77,11 +77,8 @@ pub struct CanFrame {
 impl CanFrame {
     /// A frame with `id` and `data`; fails when `data` is longer than 8 bytes.
     pub fn new(id: CanId, data: &[u8]) -> Result<CanFrame, FrameError> {
-        if data.len() > 8 {
-            return Err(FrameError::TooLong(data.len()));
-        }
         let mut buf = [0u8; 8];
-        buf[..data.len()].copy_from_slice(data);
+        buf.get_mut(..data.len()).ok_or(FrameError::TooLong(data.len()))?.copy_from_slice(data);
         Ok(CanFrame { id, len: data.len() as u8, data: buf })
     }
 
@@ -103,7 +100,8 @@ impl CanFrame {
 
     /// The data bytes.
     pub fn data(&self) -> &[u8] {
-        &self.data[..self.len as usize]
+        // `len` is at most 8 by construction, so the whole `len` bytes are returned.
+        self.data.get(..usize::from(self.len)).unwrap_or_default()
     }
 
     /// The number of bits this frame occupies on the wire, stuff bits included in the worst

@@ -11,16 +11,40 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`time`] | the core's own microsecond [`Instant`](time::Instant) and [`Duration`](time::Duration) |
-//! | [`frame`] | [`CanFrame`](frame::CanFrame): 11-bit identifier + 0..=8 bytes, to and from `embedded_can::Frame` |
-//! | [`id`] | the identifier codec: [`MacId`](id::MacId), message groups 1–4 and their message IDs |
+//! | [`time`] | the core's own microsecond [`Instant`] and [`Duration`] |
+//! | [`frame`] | [`CanFrame`]: 11-bit identifier + 0..=8 bytes, to and from `embedded_can::Frame` |
+//! | [`id`] | the identifier codec: [`MacId`], message groups 1–4 and their message IDs |
 //! | [`explicit`] | explicit message header, service codes, body formats, requests, (error) responses |
 //! | [`fragment`] | explicit (acknowledged) and I/O (unacknowledged) fragmentation: senders and reassemblers |
-//! | [`objects`] | object class IDs and the names of classes, attributes, connection states and watchdog actions |
-//! | [`messages`] | fixed-layout bodies: duplicate MAC check, allocate/release, UCMM open/close, heartbeat/shutdown, Offline Connection Set |
-//! | [`slave`] | the group-2-only [`SlaveNode`](slave::SlaveNode): network access, Predefined Master/Slave Connection Set, objects, connections |
+//! | [`objects`] | the object class IDs ([`objects::class`], their one definition) and the names of classes, attributes, connection states and watchdog actions |
+//! | [`messages`] | fixed-layout bodies, one file per family (below) |
+//! | [`slave`] | the group-2-only [`SlaveNode`], one file per concern (below) |
 //! | [`led`] | Module/Network Status LED indications, flashing and the power-up test |
-//! | [`reference`] | the reference 28-frame bring-up of notes §2, the golden transcript every test compares with |
+//! | [`reference`](mod@reference) | the reference 28-frame bring-up of notes §2, the golden transcript every test compares with |
+//!
+//! [`messages`] holds one file per message family, every type re-exported as
+//! `devicenet::messages::Name`:
+//!
+//! | file | messages |
+//! |---|---|
+//! | `messages/duplicate_mac.rs` | the duplicate MAC ID check (notes §3.5) |
+//! | `messages/allocation.rs` | allocation choice, Allocate/Release service data, allocation information (notes §3.4) |
+//! | `messages/ucmm.rs` | UCMM open/close requests and responses (notes §3.6) |
+//! | `messages/heartbeat.rs` | device heartbeat and shutdown (notes §3.7) |
+//! | `messages/offline.rs` | the Group 4 Offline Connection Set (notes §3.8) |
+//!
+//! [`slave`] keeps [`SlaveNode`], its inputs and outputs in `slave/mod.rs`, and the rest as
+//! `impl SlaveNode` blocks, one file per concern:
+//!
+//! | file | what it holds |
+//! |---|---|
+//! | `slave/network.rs` | network access: duplicate MAC ID check, Communication Faulted (notes §7.1, §7.2) |
+//! | `slave/allocation.rs` | Allocate/Release of the Predefined Master/Slave Connection Set, the Group 2 Only port (notes §3.4) |
+//! | `slave/explicit_messaging.rs` | the explicit connection: owner check, fragmentation, serving a request (notes §3.1, §4.1) |
+//! | `slave/polled_io.rs` | poll commands and responses (notes §4.2) |
+//! | `slave/objects/{router,identity,devicenet,assembly,connection}.rs` | the Message Router and the Identity, DeviceNet, Assembly and Connection objects, one class each (notes §5, §6) |
+//! | `slave/indications.rs` | the Module and Network Status LEDs (notes §7.3) |
+//! | [`slave::config`], [`slave::connection`], [`slave::reply`] | the device configuration, one Connection instance's state machine, response data and [`ServiceError`](slave::ServiceError) |
 //!
 //! ## Driving the slave
 //!
@@ -46,10 +70,13 @@
 //! ## No-panic contract
 //!
 //! Every parser in this crate accepts any input and returns a value or an error; no bus input can
-//! make the core panic, allocate, or grow without bound.
+//! make the core panic, allocate, or grow without bound. Indexing and slicing that could panic are
+//! denied by lint outside tests (`clippy::indexing_slicing`): access is checked (`get`,
+//! `split_first`, slice patterns) or the bound is in the type (fixed-size arrays).
 #![no_std]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
+#![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 #[cfg(test)]
 extern crate std;

@@ -1,6 +1,9 @@
 //! Object class IDs of a group-2-only device and the names of their attributes (devicenet-notes
 //! §5.1, §6.1, §6.2), for decoders, tools and logs.
 //!
+//! [`class`] is the one definition of the class IDs: the slave's Message Router, the master
+//! harness and the EDS generator all name classes through it.
+//!
 //! Names follow the notes' tables. Class attribute 1 (instance 0) is the revision for every class.
 //! Lookups never fail loudly: an unknown class or attribute gives `None`, and the caller shows the
 //! number.
@@ -17,9 +20,9 @@ pub mod class {
     pub const ASSEMBLY: u16 = 0x04;
     /// Connection object (notes §5).
     pub const CONNECTION: u16 = 0x05;
-    /// Parameter object.
+    /// Parameter object (notes §II.4).
     pub const PARAMETER: u16 = 0x0F;
-    /// Acknowledge Handler object.
+    /// Acknowledge Handler object (notes §II.2.4).
     pub const ACKNOWLEDGE_HANDLER: u16 = 0x2B;
 }
 

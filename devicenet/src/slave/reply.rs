@@ -54,6 +54,18 @@ impl ServiceError {
             _ => Ok(()),
         }
     }
+
+    /// `data` as exactly `N` bytes (0x13 / 0x15 otherwise, as [`ServiceError::expect_len`]): the
+    /// attribute ID of a Get_Attribute_Single, a USINT or UINT attribute value.
+    pub fn expect_array<const N: usize>(data: &[u8]) -> Result<[u8; N], ServiceError> {
+        <[u8; N]>::try_from(data).map_err(|_| {
+            if data.len() < N {
+                ServiceError::NOT_ENOUGH_DATA
+            } else {
+                ServiceError::TOO_MUCH_DATA
+            }
+        })
+    }
 }
 
 impl fmt::Display for ServiceError {
@@ -157,5 +169,8 @@ mod tests {
         assert_eq!(ServiceError::expect_len(&[1], 2), Err(ServiceError::NOT_ENOUGH_DATA));
         assert_eq!(ServiceError::expect_len(&[1, 2, 3], 2), Err(ServiceError::TOO_MUCH_DATA));
         assert_eq!(ServiceError::expect_len(&[1, 2], 2), Ok(()));
+        assert_eq!(ServiceError::expect_array::<2>(&[1]), Err(ServiceError::NOT_ENOUGH_DATA));
+        assert_eq!(ServiceError::expect_array::<2>(&[1, 2, 3]), Err(ServiceError::TOO_MUCH_DATA));
+        assert_eq!(ServiceError::expect_array(&[1, 2]), Ok([1, 2]));
     }
 }

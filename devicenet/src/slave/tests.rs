@@ -2,7 +2,10 @@
 //! objects, connections and fragmentation, driven on a virtual clock.
 
 use super::*;
+use crate::explicit::ServiceCode;
+use crate::led;
 use crate::reference::INPUT_IMAGE;
+use crate::time::Duration;
 use rstest::rstest;
 use std::vec::Vec;
 

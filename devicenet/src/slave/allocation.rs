@@ -1,0 +1,153 @@
+//! The Predefined Master/Slave Connection Set (devicenet-notes §3.4): Allocate and Release,
+//! through the Group 2 Only Unconnected Explicit Request port or through the explicit connection
+//! (DeviceNet object, class 3 instance 1).
+//!
+//! Requests are validated in JB's order and answered with the error codes of notes §3.4. This
+//! node offers the explicit and poll connections only ([`SUPPORTED`]).
+
+use super::{ConnectionKind, Event, ServiceError, SlaveNode};
+use crate::explicit::{additional, split_message, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
+use crate::id::MacId;
+use crate::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
+use crate::objects::class;
+use crate::time::Instant;
+
+/// The connection types this node offers.
+pub(super) const SUPPORTED: AllocationChoice = AllocationChoice::EXPLICIT.union(AllocationChoice::POLL);
+
+impl SlaveNode {
+    /// A request on the Group 2 Only Unconnected Explicit Request port (notes §3.4): only
+    /// Allocate and Release of the DeviceNet object are served; the response goes out at once.
+    pub(super) fn on_group2_only(&mut self, data: &[u8], now: Instant) {
+        let Ok((header, body)) = split_message(data) else { return };
+        let Some(&service_byte) = body.first() else { return };
+        if header.fragmented || service_byte & 0x80 != 0 {
+            return; // unconnected messages are never fragmented; responses are not for us
+        }
+        let service = ServiceCode::from(service_byte);
+        let result = match Request::parse(body, BodyFormat::Class8Instance8) {
+            Ok(req) => match req.service {
+                ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave
+                    if (req.class, req.instance) != (class::DEVICENET, 1) =>
+                {
+                    Err(ServiceError::OBJECT_DOES_NOT_EXIST)
+                }
+                ServiceCode::AllocateMasterSlave => self.allocate(req.data, now),
+                ServiceCode::ReleaseMasterSlave => self.release(header.mac, req.data),
+                _ => Err(invalid_group2_only_request()),
+            },
+            Err(_) => match service {
+                ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => {
+                    Err(ServiceError::NOT_ENOUGH_DATA)
+                }
+                _ => Err(invalid_group2_only_request()),
+            },
+        };
+        let header = Header::new(header.xid, header.mac).to_byte();
+        let id = self.response_id();
+        match result {
+            // Allocate answers with its body format byte, Release with no data (notes §3.4).
+            Ok(Some(body_format)) => self.queue_data(id, &[header, 0x80 | service.as_raw(), body_format]),
+            Ok(None) => self.queue_data(id, &[header, 0x80 | service.as_raw()]),
+            Err(e) => {
+                let error = 0x80 | ServiceCode::ErrorResponse.as_raw();
+                self.queue_data(id, &[header, error, e.general.as_raw(), e.additional]);
+            }
+        }
+    }
+
+    /// Allocate_Master/Slave_Connection_Set (notes §3.4), validation in JB's order. Returns the
+    /// body format byte of the success response.
+    pub(super) fn allocate(&mut self, data: &[u8], now: Instant) -> Result<Option<u8>, ServiceError> {
+        ServiceError::expect_len(data, 2)?;
+        let req = AllocateRequest::parse(data).map_err(|_| invalid_choice())?;
+        let choice = req.choice;
+        if self.master.is_some_and(|m| m != req.allocator) {
+            return Err(ServiceError::with_additional(
+                GeneralStatus::ObjectStateConflict,
+                additional::ALLOCATION_CONFLICT,
+            ));
+        }
+        if choice.is_empty() {
+            return Err(invalid_choice());
+        }
+        let cos_or_cyclic = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
+        if choice.contains(AllocationChoice::ACK_SUPPRESSION) && !choice.intersects(cos_or_cyclic) {
+            return Err(invalid_choice());
+        }
+        if !SUPPORTED.contains(choice) {
+            return Err(ServiceError::with_additional(
+                GeneralStatus::ResourceUnavailable,
+                additional::INVALID_CHOICE,
+            ));
+        }
+        if !choice.contains(AllocationChoice::EXPLICIT) && !self.explicit.exists() {
+            return Err(invalid_choice());
+        }
+        if choice.intersects(self.allocation) {
+            return Err(ServiceError::with_additional(
+                GeneralStatus::AlreadyInRequestedState,
+                additional::INVALID_CHOICE,
+            ));
+        }
+        self.master = Some(req.allocator);
+        self.allocation = self.allocation.union(choice);
+        if choice.contains(AllocationChoice::EXPLICIT) {
+            self.explicit.allocate(now);
+            self.push_event(Event::ConnectionEstablished(ConnectionKind::Explicit));
+        }
+        if choice.contains(AllocationChoice::POLL) {
+            self.poll.allocate(now);
+        }
+        self.push_event(Event::Allocated { choice, master: req.allocator });
+        // Our explicit connection uses message body format 0 (8/8).
+        Ok(Some(BodyFormat::Class8Instance8.code()))
+    }
+
+    /// Release_Master/Slave_Connection_Set (notes §3.4).
+    pub(super) fn release(&mut self, requester: MacId, data: &[u8]) -> Result<Option<u8>, ServiceError> {
+        ServiceError::expect_len(data, 1)?;
+        let req = ReleaseRequest::parse(data).map_err(|_| invalid_choice())?;
+        let choice = req.choice;
+        if self.master.is_some_and(|m| m != requester) {
+            return Err(ServiceError::with_additional(
+                GeneralStatus::ObjectStateConflict,
+                additional::ALLOCATION_CONFLICT,
+            ));
+        }
+        if choice.is_empty() || choice.contains(AllocationChoice::ACK_SUPPRESSION) {
+            return Err(invalid_choice());
+        }
+        if !SUPPORTED.contains(choice) {
+            return Err(ServiceError::with_additional(
+                GeneralStatus::ResourceUnavailable,
+                additional::INVALID_CHOICE,
+            ));
+        }
+        if !self.allocation.contains(choice) {
+            return Err(ServiceError::with_additional(
+                GeneralStatus::AlreadyInRequestedState,
+                additional::INVALID_CHOICE,
+            ));
+        }
+        if choice.contains(AllocationChoice::POLL) {
+            self.delete_connection(ConnectionKind::Poll);
+        }
+        if choice.contains(AllocationChoice::EXPLICIT) {
+            self.delete_connection(ConnectionKind::Explicit);
+        }
+        self.push_event(Event::Released { choice, owned: self.master.is_some() });
+        Ok(None)
+    }
+}
+
+/// An allocation choice that is malformed or inconsistent: 0x09 / 0x02 (notes §3.4).
+fn invalid_choice() -> ServiceError {
+    ServiceError::with_additional(GeneralStatus::InvalidAttributeValue, additional::INVALID_CHOICE)
+}
+
+/// Any service but Allocate/Release on the Group 2 Only port: 0x02 / 0x03 (JB, notes §3.4 and
+/// §9.6).
+fn invalid_group2_only_request() -> ServiceError {
+    ServiceError::with_additional(GeneralStatus::ResourceUnavailable, additional::INVALID_GROUP2_ONLY_REQUEST)
+}

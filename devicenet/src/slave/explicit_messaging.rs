@@ -1,0 +1,113 @@
+//! The explicit messaging connection (Connection instance 1; devicenet-notes §3.1, §4.1): only
+//! the owning master may use it, every message consumed restarts its watchdog, fragmented
+//! requests are reassembled and long responses are sent in acknowledged fragments.
+//!
+//! A whole request goes to the Message Router ([`objects`](super::objects)), which answers it.
+
+use super::{ConnectionState, ObjectHandler, Reply, ServiceError, SlaveNode, MAX_EXPLICIT_SIZE};
+use crate::explicit::{split_message, BodyFormat, ExplicitError, Header, Request, ServiceCode};
+use crate::fragment::{ExplicitReceive, FragmentByte, FragmentKind};
+use crate::time::Instant;
+
+impl SlaveNode {
+    /// A frame on our Group 2 explicit request identifier.
+    pub(super) fn on_explicit<H: ObjectHandler>(&mut self, data: &[u8], now: Instant, objects: &mut H) {
+        let Some(&first) = data.first() else { return };
+        let header = Header::from_byte(first);
+        let live =
+            matches!(self.explicit.state, ConnectionState::Established | ConnectionState::DeferredDelete);
+        // Only the owning master may use the explicit connection (notes §8, JB).
+        if !live || Some(header.mac) != self.master || data.len() < 2 {
+            self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
+            return;
+        }
+        // Any message consumed restarts the inactivity timer; deferred delete -> established.
+        self.explicit.state = ConnectionState::Established;
+        self.explicit.restart_timer(now);
+        let id = self.response_id();
+        if header.fragmented {
+            // `data` holds at least the header and the fragmentation byte (checked above).
+            if data.get(1).is_some_and(|&b| FragmentByte::from_byte(b).kind == FragmentKind::Ack) {
+                self.explicit_tx.handle_ack(data, now);
+                self.pump_explicit(now);
+                return;
+            }
+            match self.explicit_rx.receive(data) {
+                ExplicitReceive::Ack(ack)
+                | ExplicitReceive::Duplicate(ack)
+                | ExplicitReceive::Rejected(ack) => {
+                    self.queue_data(id, &ack);
+                }
+                ExplicitReceive::Complete(ack) => {
+                    self.queue_data(id, &ack);
+                    // A copy, so the request can be served while the reassembler keeps its state;
+                    // the reassembler holds at most MAX_EXPLICIT_SIZE bytes, so it always fits.
+                    let whole = self.explicit_rx.message();
+                    let Ok(message) = heapless::Vec::<u8, MAX_EXPLICIT_SIZE>::from_slice(whole) else {
+                        return;
+                    };
+                    // The reassembler keeps its last answer (not reset here): a repeat of the last
+                    // fragment, whose ack the master missed, is acknowledged again and the request
+                    // is not served twice (notes §4.1, JB; found by the conformance suite).
+                    self.serve(&message, now, objects);
+                }
+                ExplicitReceive::Ignored(_) => {
+                    self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
+                }
+            }
+        } else {
+            // An unfragmented request resets both directions' fragmentation (JB, notes §4.1).
+            self.explicit_rx.reset();
+            self.explicit_tx.reset();
+            self.serve(data, now, objects);
+        }
+    }
+
+    /// Serves one whole explicit request message (header + body) and queues the response.
+    fn serve<H: ObjectHandler>(&mut self, message: &[u8], now: Instant, objects: &mut H) {
+        let Ok((header, body)) = split_message(message) else { return };
+        let Some(&service_byte) = body.first() else { return };
+        let mut out = [0u8; MAX_EXPLICIT_SIZE];
+        out[0] = Header::new(header.xid, header.mac).to_byte();
+        let (result, service) = match Request::parse(body, BodyFormat::Class8Instance8) {
+            Ok(req) => {
+                let mut reply = Reply::new(&mut out[2..]);
+                let r = self.dispatch(&req, &mut reply, now, objects).map(|()| reply.len());
+                (r, req.service)
+            }
+            Err(ExplicitError::NotARequest) => {
+                self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
+                return;
+            }
+            Err(_) => (Err(ServiceError::NOT_ENOUGH_DATA), ServiceCode::from(service_byte)),
+        };
+        let len = match result {
+            Ok(n) => {
+                out[1] = 0x80 | service.as_raw();
+                2 + n
+            }
+            Err(e) => {
+                out[1] = 0x80 | ServiceCode::ErrorResponse.as_raw();
+                out[2] = e.general.as_raw();
+                out[3] = e.additional;
+                4
+            }
+        };
+        // The reply is bounded by `out`, so the response always fits.
+        let Some(response) = out.get(..len) else { return };
+        if len <= 8 {
+            let id = self.response_id();
+            self.queue_data(id, response);
+        } else if self.explicit_tx.start(response, now).is_ok() {
+            self.pump_explicit(now);
+        }
+    }
+
+    /// Queues the explicit fragments due at `now`.
+    pub(super) fn pump_explicit(&mut self, now: Instant) {
+        let id = self.response_id();
+        while let Some(payload) = self.explicit_tx.poll_transmit(now) {
+            self.queue_data(id, &payload);
+        }
+    }
+}

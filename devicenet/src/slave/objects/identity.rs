@@ -1,0 +1,98 @@
+//! The Identity object (class 0x01, devicenet-notes §6.2): the device's identity from its
+//! configuration, the status word and state drawn from the connections and the application's
+//! fault flags, and the Reset service.
+
+use super::class_revision;
+use crate::explicit::{Request, ServiceCode};
+use crate::slave::{ConnectionState, Event, Reply, ServiceError, SlaveNode};
+
+impl SlaveNode {
+    /// The Identity status word, attribute 5 (notes §6.2).
+    pub fn identity_status(&self) -> u16 {
+        let s = &self.app_status;
+        let extended: u16 = if self.poll.state == ConnectionState::TimedOut {
+            0b0010 // at least one faulted I/O connection
+        } else if !self.poll.is_established() {
+            0b0011 // no I/O connection established
+        } else if self.io_idle {
+            0b0111 // I/O connection established, all idle
+        } else {
+            0b0110 // at least one I/O connection in run mode
+        };
+        u16::from(self.master.is_some())
+            | u16::from(s.configured) << 2
+            | extended << 4
+            | u16::from(s.minor_recoverable_fault) << 8
+            | u16::from(s.minor_unrecoverable_fault) << 9
+            | u16::from(s.major_recoverable_fault) << 10
+            | u16::from(s.major_unrecoverable_fault) << 11
+    }
+
+    /// Identity state, attribute 8.
+    fn identity_state(&self) -> u8 {
+        if self.app_status.major_unrecoverable_fault {
+            5
+        } else if self.app_status.major_recoverable_fault {
+            4
+        } else {
+            3
+        }
+    }
+
+    /// Identity services: Get_Attribute_Single/All, Set_Attribute_Single (nothing is settable), Reset.
+    pub(super) fn identity_service(
+        &mut self,
+        req: &Request<'_>,
+        reply: &mut Reply<'_>,
+    ) -> Result<(), ServiceError> {
+        match (req.instance, req.service) {
+            (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 1, reply),
+            (0, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            (1, ServiceCode::GetAttributeSingle) => {
+                let [attr] = ServiceError::expect_array(req.data)?;
+                self.identity_attribute(attr, reply)
+            }
+            (1, ServiceCode::GetAttributesAll) => {
+                for attr in 1..=7 {
+                    self.identity_attribute(attr, reply)?;
+                }
+                Ok(())
+            }
+            (1, ServiceCode::SetAttributeSingle) => {
+                let (&attr, _) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
+                match attr {
+                    1..=8 => Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
+                    _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+                }
+            }
+            (1, ServiceCode::Reset) => {
+                let kind = match req.data {
+                    [] => 0,
+                    [k @ (0 | 1)] => *k,
+                    [_] => return Err(ServiceError::INVALID_PARAMETER),
+                    _ => return Err(ServiceError::TOO_MUCH_DATA),
+                };
+                self.push_event(Event::ResetRequested(kind));
+                Ok(())
+            }
+            (1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
+        }
+    }
+
+    /// Instance attribute `attr` (notes §6.2 table).
+    fn identity_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+        let id = &self.config.identity;
+        match attr {
+            1 => reply.u16(id.vendor_id),
+            2 => reply.u16(id.device_type),
+            3 => reply.u16(id.product_code),
+            4 => reply.bytes(&[id.major_revision, id.minor_revision]),
+            5 => reply.u16(self.identity_status()),
+            6 => reply.u32(id.serial_number),
+            7 => reply.short_string(&id.product_name),
+            8 => reply.u8(self.identity_state()),
+            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        }
+    }
+}

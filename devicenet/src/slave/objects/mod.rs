@@ -1,0 +1,31 @@
+//! The objects the core implements (devicenet-notes §5, §6), one file per class, each an
+//! `impl SlaveNode` block with the class's services and attributes:
+//!
+//! | file | class |
+//! |---|---|
+//! | `router.rs` | the Message Router (class 0x02): routes a request to its class, then its own attributes |
+//! | `identity.rs` | Identity (class 0x01, notes §6.2) |
+//! | `devicenet.rs` | DeviceNet (class 0x03, notes §6.1), Allocate/Release included |
+//! | `assembly.rs` | Assembly (class 0x04): the poll connection's input and output images |
+//! | `connection.rs` | Connection (class 0x05, notes §5): attributes, Reset, watchdogs and deletion |
+//!
+//! Requests for any other class go to the application's [`ObjectHandler`](super::ObjectHandler).
+//! Class IDs come from [`crate::objects::class`].
+
+mod assembly;
+mod connection;
+mod devicenet;
+mod identity;
+mod router;
+
+pub use devicenet::SettingChanged;
+
+use super::{Reply, ServiceError};
+
+/// Class attribute 1 (revision), the only class attribute served.
+fn class_revision(data: &[u8], revision: u16, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+    match ServiceError::expect_array(data)? {
+        [1] => reply.u16(revision),
+        _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+    }
+}

@@ -1,0 +1,62 @@
+//! Polled I/O (Connection instance 2; devicenet-notes §4.2, §5.2): a poll command replaces the
+//! output image (a zero-length one means the master is idle) and is answered at once with the
+//! input image, both fragmented above 8 bytes.
+
+use super::{Event, SlaveNode};
+use crate::fragment::io_fragments;
+use crate::time::Instant;
+
+impl SlaveNode {
+    /// A frame on our Group 2 poll command identifier.
+    pub(super) fn on_poll(&mut self, data: &[u8], now: Instant) {
+        // A poll command in any state other than established is ignored (JB).
+        if !self.poll.is_established() {
+            self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
+            return;
+        }
+        let consumed = usize::from(self.config.consumed_size);
+        // A copy: the reassembled command borrows the reassembler. validate() bounds the consumed
+        // size by MAX_IO_SIZE, so an accepted command always fits.
+        let command = if consumed > 8 {
+            match self.poll_rx.receive(data) {
+                Ok(Some(whole)) if whole.len() <= consumed => heapless::Vec::from_slice(whole).ok(),
+                Ok(None) => {
+                    self.poll.restart_timer(now);
+                    return;
+                }
+                Ok(Some(_)) | Err(_) => None,
+            }
+        } else if data.len() <= consumed {
+            heapless::Vec::from_slice(data).ok()
+        } else {
+            None
+        };
+        let Some(command) = command else {
+            self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
+            return;
+        };
+        self.poll.restart_timer(now);
+        if command.is_empty() {
+            self.io_idle = true;
+            self.push_event(Event::Idle);
+        } else {
+            self.io_idle = false;
+            self.output = command;
+            self.push_event(Event::OutputReceived);
+        }
+        self.send_poll_response();
+    }
+
+    /// Answers at once from the input image, fragmented when the produced size exceeds 8.
+    fn send_poll_response(&mut self) {
+        let id = self.poll_response_id();
+        let input = self.input.clone();
+        if input.len() > 8 {
+            for payload in io_fragments(&input) {
+                self.queue_data(id, &payload);
+            }
+        } else {
+            self.queue_data(id, &input);
+        }
+    }
+}
