@@ -10,7 +10,7 @@
 //! | PC0–PC3 | MS green, MS red, NS green, NS red ([`crate::leds`]) | push-pull output, high = lit |
 //!
 //! The RS-232 variant of the board leaves PA1 unconnected; driving it is harmless. The typed
-//! pins are taken in [`crate::hw`] (target builds only); the application never names a pin.
+//! pins are taken in `board::hw` (target builds only); the application never names a pin.
 
 /// A GPIO port.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -220,7 +220,7 @@ impl SimBus {
     }
 
     /// Installs (or, with `None`, removes) the fault model consulted for every transmission and
-    /// delivery from now on ([`super::fault`]). Deliveries it already delayed still happen.
+    /// delivery from now on ([`fault`]). Deliveries it already delayed still happen.
     pub fn set_faults(&mut self, faults: Option<Box<dyn WireFaults>>) {
         self.faults = faults;
     }
