@@ -9,11 +9,11 @@
 use can_io::bus::{Bitrate, BusSpec};
 use clap::{Parser, Subcommand};
 use devicenet::{Duration, MacId};
-use eds::device::{check_on_bus, BusOptions, CheckOptions};
+use eds::device::{check_on_bus, BusOptions, CheckOptions, DeviceError};
 use eds::generate::{generate_text, GenerateOptions, DEFAULT_DATE, DEFAULT_REVISION};
 use eds::value::{Date, Revision};
 use eds::{check_file, read_file, EdsError, Summary, Writer};
-use master_harness::error::HarnessError;
+use master_core::error::MasterError;
 use slave_fw::description::DeviceDescription;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -219,9 +219,11 @@ fn run(command: Command) -> Result<ExitCode, String> {
             let report = match check_on_bus(&model, &bus, &options, log.as_deref()) {
                 Ok(report) => report,
                 Err(
-                    e @ (HarnessError::Usage(_)
-                    | HarnessError::Description(_)
-                    | HarnessError::Bus(can_io::bus::BusError::Open { .. })),
+                    e @ (DeviceError::Usage(_)
+                    | DeviceError::Description(_)
+                    | DeviceError::Master(
+                        MasterError::Invalid(_) | MasterError::Bus(can_io::bus::BusError::Open { .. }),
+                    )),
                 ) => return Err(e.to_string()),
                 Err(e) => {
                     if json {

@@ -3,14 +3,10 @@
 //! Exit status: 0 when every check holds, 1 when a check failed, the device diverged, timed out
 //! or answered with an error, 2 for a usage error (bad option, unknown bus, bad file).
 
-use crate::client::ReplyBody;
-use crate::decode::{self, Decoder};
 use crate::error::HarnessError;
-use crate::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
 use crate::monitor::{self, MonitorOptions};
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
-use crate::session::{Record, Session, Verdict};
 use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::log::{format_line, read_log, LogWriter};
 use can_io::pcap::{PcapBus, PcapWriter};
@@ -19,6 +15,11 @@ use clap::{Parser, Subcommand};
 use converter_sim::{OpenError, SimSetup};
 use devicenet::explicit::ServiceCode;
 use devicenet::{Duration, Instant, MacId};
+use master_core::client::ReplyBody;
+use master_core::decode::{self, Decoder};
+use master_core::error::MasterError;
+use master_core::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
+use master_core::session::{Record, Session, Verdict};
 use serde::Serialize;
 use serde_json::json;
 use slave_fw::description::DeviceDescription;
@@ -276,7 +277,7 @@ pub fn open_bus(cli: &Cli, replay_power_on: Option<Duration>) -> Result<Box<dyn 
     setup.realtime = cli.realtime;
     converter_sim::open_bus(&cli.bus, cli.bitrate, &setup).map_err(|e| match e {
         OpenError::Setup(msg) => HarnessError::Usage(msg),
-        OpenError::Bus(e) => HarnessError::Bus(e),
+        OpenError::Bus(e) => HarnessError::from(e),
     })
 }
 
@@ -431,7 +432,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 verify_state: *verify_state,
             };
             let mut master = Master::new(&mut session, config);
-            (master.connect(&opts).map(|s| connect_outcome(&s)), Some(*mac))
+            (master.connect(&opts).map(|s| connect_outcome(&s)).map_err(HarnessError::from), Some(*mac))
         }
         Command::Replay { mac, tolerance, settle, .. } => {
             let opts = ReplayOptions {
@@ -637,7 +638,7 @@ fn explicit_command(
     };
     let req = devicenet::explicit::Request { service, class: class_id, instance, data: &data };
     let what = decode::request_text(&req);
-    let answer = master.request(mac, crate::client::Port::Explicit, &req)?;
+    let answer = master.request(mac, master_core::client::Port::Explicit, &req)?;
     // Polite: give the explicit connection back.
     let released = master.release(mac, devicenet::messages::AllocationChoice::EXPLICIT);
     let target = format!(
@@ -669,7 +670,9 @@ fn explicit_command(
                 let v = master.session.record(i).verdict.clone();
                 master.session.set_verdict(i, v.with_failures(vec![format!("error response: {text}")]));
             }
-            return Err(HarnessError::ErrorResponse { what, mac: mac.as_raw(), general, additional, text });
+            return Err(
+                MasterError::ErrorResponse { what, mac: mac.as_raw(), general, additional, text }.into()
+            );
         }
     };
     released?;

@@ -15,13 +15,13 @@
 //! On the first divergence the replay stops with a [`Divergence`]: expected and actual frames, both
 //! decoded, and the transcript frames before it.
 
-use crate::decode::Decoder;
 use crate::error::HarnessError;
-use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use can_io::log::{format_line, LogEntry};
 use devicenet::messages::DuplicateMacCheck;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use master_core::decode::Decoder;
+use master_core::session::{is_from_device, Session, Verdict};
 use std::fmt;
 
 /// Frames of the transcript shown before a divergence.

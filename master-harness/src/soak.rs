@@ -29,8 +29,6 @@
 //! | memory stays bounded | the frames queued anywhere in the bus never exceed a small bound; the scanner keeps no per-frame history; the converter and node are fixed-size by construction; the process's resident memory is reported at the start and the end |
 //! | no panic | the run completes |
 
-use crate::client::{Port, ReplyBody, Transaction};
-use crate::decode;
 use crate::error::HarnessError;
 use can_io::bus::{Bitrate, Bus, Origin};
 use can_io::sim::fault::{FaultRates, FaultStats, RandomFaults, Rng, SharedDevice};
@@ -42,6 +40,8 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use master_core::client::{Port, ReplyBody, Transaction};
+use master_core::decode;
 use serde::Serialize;
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::serial::breaker::BreakerCommand;

@@ -28,8 +28,8 @@
 //! use can_io::bus::Bitrate;
 //! use can_io::sim::{PowerOn, SimBus};
 //! use master_harness::conformance::{self, SuiteOptions};
-//! use master_harness::master::MasterConfig;
-//! use master_harness::session::Session;
+//! use master_core::master::MasterConfig;
+//! use master_core::session::Session;
 //! use converter_sim::device::SoftSlave;
 //! use devicenet::MacId;
 //!
@@ -46,9 +46,9 @@ pub mod report;
 mod runner;
 
 use crate::error::HarnessError;
-use crate::master::MasterConfig;
-use crate::session::{Record, Session};
 use devicenet::{Duration, MacId};
+use master_core::master::MasterConfig;
+use master_core::session::{Record, Session};
 use serde::Serialize;
 use std::ops::Range;
 

@@ -4,11 +4,11 @@
 use super::{Category, CheckResult, Grade, SuiteOptions, SuiteReport};
 use crate::cli::{print_table, record_json, Cli, RecordJson};
 use crate::error::HarnessError;
-use crate::master::MasterConfig;
-use crate::session::Session;
 use can_io::bus::Bus;
 use can_io::log::LogWriter;
 use devicenet::{Duration, MacId};
+use master_core::master::MasterConfig;
+use master_core::session::Session;
 use serde_json::json;
 use std::io::{self, Write};
 use std::path::Path;

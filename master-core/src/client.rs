@@ -12,7 +12,7 @@
 //! [`Transaction::poll_at`] and call [`Transaction::handle_timeout`].
 
 use crate::decode::hex;
-use crate::error::HarnessError;
+use crate::error::MasterError;
 use crate::session::{is_from_device, Session, Verdict};
 use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
 use devicenet::fragment::{
@@ -140,15 +140,15 @@ impl Transaction {
         request: &Request<'_>,
         format: BodyFormat,
         timeout: Duration,
-    ) -> Result<Transaction, HarnessError> {
+    ) -> Result<Transaction, MasterError> {
         let len = request.buffer_len(format).unwrap_or(0);
         let mut message = vec![0u8; 1 + len];
         message[0] = Header::new(xid, master).to_byte();
         request
             .emit(format, &mut message[1..])
-            .map_err(|e| HarnessError::Usage(format!("cannot build the request: {e}")))?;
+            .map_err(|e| MasterError::Invalid(format!("cannot build the request: {e}")))?;
         if message.len() > MAX_MESSAGE {
-            return Err(HarnessError::Usage(format!(
+            return Err(MasterError::Invalid(format!(
                 "the request is {} bytes; the master sends at most {MAX_MESSAGE}",
                 message.len()
             )));
@@ -451,7 +451,7 @@ pub fn run(
     session: &mut Session<'_>,
     tx: &mut Transaction,
     mut other: impl FnMut(&mut Session<'_>, usize),
-) -> Result<(Result<Reply, ClientError>, Option<usize>), HarnessError> {
+) -> Result<(Result<Reply, ClientError>, Option<usize>), MasterError> {
     let now = session.now();
     tx.start(now);
     let mut last = None;
