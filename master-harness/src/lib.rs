@@ -21,6 +21,7 @@
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`cli`] | the command line, reports and JSON |
+//! | [`table`] | the frame-by-frame table and the JSON form of a record |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
 //!
 //! ## Example: the bring-up on the simulated bus
@@ -55,3 +56,4 @@ pub mod monitor;
 pub mod replay;
 pub mod scan;
 pub mod soak;
+pub mod table;

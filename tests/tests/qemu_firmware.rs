@@ -42,7 +42,7 @@ use devicenet::{CanFrame, Duration, Instant};
 use master_core::error::MasterError;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::{Session, Verdict};
-use master_harness::cli::print_table;
+use master_harness::table::print_table;
 use serialport::SerialPort;
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
 use std::io::{BufRead, BufReader, Read, Write};

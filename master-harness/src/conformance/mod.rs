@@ -41,6 +41,7 @@
 //! ```
 
 mod checks;
+pub mod command;
 pub mod html;
 pub mod report;
 mod runner;
@@ -52,7 +53,7 @@ use master_core::session::{Record, Session};
 use serde::Serialize;
 use std::ops::Range;
 
-pub use report::{execute, report_json, write_text};
+pub use report::{report_json, write_text};
 
 /// The categories of the suite, in the order they run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
