@@ -69,8 +69,8 @@ enum Command {
         /// the day it is generated; give the release date when publishing.
         #[arg(long, value_name = "MM-DD-YYYY", default_value_t = DEFAULT_DATE, value_parser = parse_date)]
         date: Date,
-        /// [File] Revision of the EDS file itself, MAJOR.MINOR.
-        #[arg(long, value_name = "MAJOR.MINOR", default_value_t = DEFAULT_REVISION, value_parser = parse_revision)]
+        /// `[File]` Revision of the EDS file itself, MAJOR.MINOR.
+        #[arg(long, help = "[File] Revision of the EDS file itself, MAJOR.MINOR", value_name = "MAJOR.MINOR", default_value_t = DEFAULT_REVISION, value_parser = parse_revision)]
         revision: Revision,
     },
     /// Read a device's identity and poll connection sizes over the bus and report every
@@ -85,8 +85,8 @@ enum Command {
         /// The device's MAC ID (0..=63).
         #[arg(long, value_parser = parse_mac)]
         mac: MacId,
-        /// The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD].
-        #[arg(long, default_value = "sim")]
+        /// The bus: sim, socketcan:IFACE or `slcan:PATH[@SERIALBAUD]`.
+        #[arg(long, help = "The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD]", default_value = "sim")]
         bus: BusSpec,
         /// CAN bit rate, 125k, 250k or 500k [default: sim: the simulated device's; slcan: 250k].
         #[arg(long)]
