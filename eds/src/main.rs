@@ -86,7 +86,11 @@ enum Command {
         #[arg(long, value_parser = parse_mac)]
         mac: MacId,
         /// The bus: sim, socketcan:IFACE or `slcan:PATH[@SERIALBAUD]`.
-        #[arg(long, help = "The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD]", default_value = "sim")]
+        #[arg(
+            long,
+            help = "The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD]",
+            default_value = "sim"
+        )]
         bus: BusSpec,
         /// CAN bit rate, 125k, 250k or 500k [default: sim: the simulated device's; slcan: 250k].
         #[arg(long)]
