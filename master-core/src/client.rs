@@ -460,12 +460,8 @@ pub trait Link {
     /// once on the wire.
     fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError>;
 
-    /// Waits until `deadline` for the next frame: its handle, origin, the frame and when it
-    /// completed; `None` at the deadline.
-    fn recv(
-        &mut self,
-        deadline: Instant,
-    ) -> Result<Option<(Self::Seen, Origin, CanFrame, Instant)>, MasterError>;
+    /// Waits until `deadline` for the next frame; `None` at the deadline.
+    fn recv(&mut self, deadline: Instant) -> Result<Option<Received<Self::Seen>>, MasterError>;
 
     /// The transaction's verdict on `seen`, a frame that belonged to it.
     fn judged(&mut self, seen: Self::Seen, verdict: Verdict);
@@ -480,12 +476,25 @@ pub trait Link {
     }
 }
 
+/// A frame a [`Link`] received.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Received<S> {
+    /// Its handle (a transcript index, or nothing).
+    pub seen: S,
+    /// Who sent it.
+    pub origin: Origin,
+    /// The frame.
+    pub frame: CanFrame,
+    /// When it completed on the bus.
+    pub at: Instant,
+}
+
+/// How a transaction ended, and the handle of the frame that completed it.
+pub type Outcome<S> = (Result<Reply, ClientError>, Option<S>);
+
 /// Drives one transaction to its end on `link`; returns the reply and the handle of the frame that
 /// completed it. The one driver of a [`Transaction`]: [`run`] is it on a [`Session`].
-pub fn drive<L: Link>(
-    link: &mut L,
-    tx: &mut Transaction,
-) -> Result<(Result<Reply, ClientError>, Option<L::Seen>), MasterError> {
+pub fn drive<L: Link>(link: &mut L, tx: &mut Transaction) -> Result<Outcome<L::Seen>, MasterError> {
     let now = link.now();
     tx.start(now);
     let mut last = None;
@@ -501,11 +510,11 @@ pub fn drive<L: Link>(
             if let Some(wait) = link.echo_wait() {
                 let until = link.now() + wait;
                 while in_flight > 0 {
-                    let Some((seen, origin, _, _)) = link.recv(until)? else { break };
-                    if origin == Origin::Local {
+                    let Some(r) = link.recv(until)? else { break };
+                    if r.origin == Origin::Local {
                         in_flight -= 1;
                     } else {
-                        link.other(seen);
+                        link.other(r.seen);
                     }
                 }
             }
@@ -518,13 +527,13 @@ pub fn drive<L: Link>(
         let now = link.now();
         let deadline = tx.poll_at().unwrap_or(now);
         match link.recv(deadline)? {
-            Some((_, Origin::Local, _, _)) => in_flight = in_flight.saturating_sub(1),
-            Some((seen, Origin::Remote, frame, at)) => match tx.handle_frame(&frame, at) {
+            Some(r) if r.origin == Origin::Local => in_flight = in_flight.saturating_sub(1),
+            Some(r) => match tx.handle_frame(&r.frame, r.at) {
                 Handled::Frame(v) => {
-                    link.judged(seen, v);
-                    last = Some(seen);
+                    link.judged(r.seen, v);
+                    last = Some(r.seen);
                 }
-                Handled::NotMine => link.other(seen),
+                Handled::NotMine => link.other(r.seen),
             },
             None => {
                 let now = link.now();
@@ -552,10 +561,10 @@ impl<F: FnMut(&mut Session<'_>, usize)> Link for SessionLink<'_, '_, F> {
         self.session.send(frame)
     }
 
-    fn recv(&mut self, deadline: Instant) -> Result<Option<(usize, Origin, CanFrame, Instant)>, MasterError> {
+    fn recv(&mut self, deadline: Instant) -> Result<Option<Received<usize>>, MasterError> {
         Ok(self.session.next(deadline)?.map(|i| {
             let r = self.session.record(i);
-            (i, r.origin, r.frame, r.at)
+            Received { seen: i, origin: r.origin, frame: r.frame, at: r.at }
         }))
     }
 
@@ -574,6 +583,6 @@ pub fn run(
     session: &mut Session<'_>,
     tx: &mut Transaction,
     other: impl FnMut(&mut Session<'_>, usize),
-) -> Result<(Result<Reply, ClientError>, Option<usize>), MasterError> {
+) -> Result<Outcome<usize>, MasterError> {
     drive(&mut SessionLink { session, other }, tx)
 }

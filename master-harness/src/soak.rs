@@ -40,7 +40,7 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
-use master_core::client::{self, Link, Port, ReplyBody, Transaction};
+use master_core::client::{self, Link, Port, Received, ReplyBody, Transaction};
 use master_core::decode;
 use master_core::error::MasterError;
 use master_core::session::Verdict;
@@ -698,9 +698,14 @@ impl Link for Soak {
         Ok(self.bus.send(frame)?)
     }
 
-    fn recv(&mut self, deadline: Instant) -> Result<Option<((), Origin, CanFrame, Instant)>, MasterError> {
+    fn recv(&mut self, deadline: Instant) -> Result<Option<Received<()>>, MasterError> {
         self.sample_queues();
-        Ok(self.bus.recv(deadline)?.map(|ev| ((), ev.origin, ev.frame, ev.at)))
+        Ok(self.bus.recv(deadline)?.map(|ev| Received {
+            seen: (),
+            origin: ev.origin,
+            frame: ev.frame,
+            at: ev.at,
+        }))
     }
 
     fn judged(&mut self, (): (), _verdict: Verdict) {}
