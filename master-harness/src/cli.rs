@@ -293,7 +293,10 @@ struct Outcome {
 
 fn exit_code(e: &HarnessError) -> u8 {
     match e {
-        HarnessError::Usage(_) | HarnessError::Log(_) | HarnessError::Description(_) => 2,
+        HarnessError::Usage(_)
+        | HarnessError::Log(_)
+        | HarnessError::Description(_)
+        | HarnessError::Master(MasterError::Invalid(_)) => 2,
         _ => 1,
     }
 }
