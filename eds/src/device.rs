@@ -2,7 +2,7 @@
 //!
 //! A scanner refuses a device whose identity or I/O sizes disagree with the EDS it was configured
 //! with, the most common DeviceNet field fault. [`check_device`] reads over the bus, through the
-//! master of `master-harness`, what a scanner compares, and lists every disagreement:
+//! master of `master-core`, what a scanner compares, and lists every disagreement:
 //!
 //! | what | EDS | device |
 //! |---|---|---|
@@ -27,11 +27,11 @@ use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, MacId};
-use master_harness::client::{Port, ReplyBody};
-use master_harness::decode;
-use master_harness::error::HarnessError;
-use master_harness::master::{Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::client::{Port, ReplyBody};
+use master_core::decode;
+use master_core::error::MasterError;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 use serde::Serialize;
 use slave_fw::description::DeviceDescription;
 use std::fmt;
@@ -138,18 +138,41 @@ pub struct BusOptions {
     pub slave_config: Option<PathBuf>,
 }
 
+/// Why [`check_on_bus`] could not check the device.
+#[derive(Debug, thiserror::Error)]
+pub enum DeviceError {
+    /// The exchange with the device stopped: the bus, a timeout, an error response where none is
+    /// allowed, a broken protocol, a duplicate MAC ID.
+    #[error(transparent)]
+    Master(#[from] MasterError),
+    /// A bad option or option combination.
+    #[error("{0}")]
+    Usage(String),
+    /// The device description given with `slave_config` was refused.
+    #[error("{0}")]
+    Description(#[from] slave_fw::description::DescriptionError),
+    /// A file could not be written.
+    #[error("cannot write {path}: {source}")]
+    Write {
+        /// The file.
+        path: String,
+        /// The OS error.
+        source: std::io::Error,
+    },
+}
+
 /// Opens the bus `options` name. On the simulated bus one soft slave runs the description at
 /// `options.mac`, powered on when the master is on-line, as `dnet-master --bus sim` does
 /// ([`converter_sim::open_bus`], the one way every program opens a bus).
 ///
 /// # Errors
 ///
-/// [`HarnessError::Description`] for a bad description file, [`HarnessError::Usage`] for
-/// `slave_config` on a real bus, [`HarnessError::Bus`] when the interface or port cannot be
+/// [`DeviceError::Description`] for a bad description file, [`DeviceError::Usage`] for
+/// `slave_config` on a real bus, [`MasterError::Bus`] when the interface or port cannot be
 /// opened.
-pub fn open_bus(options: &BusOptions) -> Result<Box<dyn Bus>, HarnessError> {
+pub fn open_bus(options: &BusOptions) -> Result<Box<dyn Bus>, DeviceError> {
     if options.slave_config.is_some() && options.bus != BusSpec::Sim {
-        return Err(HarnessError::Usage(
+        return Err(DeviceError::Usage(
             "--slave-config describes the simulated device; it needs --bus sim".to_string(),
         ));
     }
@@ -163,8 +186,8 @@ pub fn open_bus(options: &BusOptions) -> Result<Box<dyn Bus>, HarnessError> {
         _ => options.bitrate.unwrap_or(Bitrate::K250),
     };
     converter_sim::open_bus(&options.bus, bitrate, &setup).map_err(|e| match e {
-        OpenError::Setup(msg) => HarnessError::Usage(msg),
-        OpenError::Bus(e) => HarnessError::Bus(e),
+        OpenError::Setup(msg) => DeviceError::Usage(msg),
+        OpenError::Bus(e) => DeviceError::Master(MasterError::Bus(e)),
     })
 }
 
@@ -355,7 +378,7 @@ type Read = Result<Vec<u8>, String>;
 
 /// Sends `request` on the explicit connection; an error response is a value (`Err(text)`), a
 /// timeout or bus failure an error.
-fn ask(master: &mut Master<'_, '_>, target: MacId, request: &Request<'_>) -> Result<Read, HarnessError> {
+fn ask(master: &mut Master<'_, '_>, target: MacId, request: &Request<'_>) -> Result<Read, MasterError> {
     let answer = master.request(target, Port::Explicit, request)?;
     Ok(match answer.reply.body {
         ReplyBody::Success(data) => Ok(data),
@@ -373,7 +396,7 @@ fn get(
     class_id: u16,
     instance: u16,
     attribute: u8,
-) -> Result<Read, HarnessError> {
+) -> Result<Read, MasterError> {
     let data = [attribute];
     ask(
         master,
@@ -386,7 +409,7 @@ fn allocate(
     master: &mut Master<'_, '_>,
     target: MacId,
     choice: AllocationChoice,
-) -> Result<Read, HarnessError> {
+) -> Result<Read, MasterError> {
     let data = devicenet::messages::AllocateRequest { choice, allocator: master.config.mac }.emit();
     let request = Request {
         service: ServiceCode::AllocateMasterSlave,
@@ -398,7 +421,7 @@ fn allocate(
 }
 
 /// Releases what this check allocated; a refusal breaks the protocol (the master owns it).
-fn release(master: &mut Master<'_, '_>, target: MacId, choice: AllocationChoice) -> Result<(), HarnessError> {
+fn release(master: &mut Master<'_, '_>, target: MacId, choice: AllocationChoice) -> Result<(), MasterError> {
     let data = devicenet::messages::ReleaseRequest { choice }.emit();
     let request = Request {
         service: ServiceCode::ReleaseMasterSlave,
@@ -406,7 +429,7 @@ fn release(master: &mut Master<'_, '_>, target: MacId, choice: AllocationChoice)
         instance: 1,
         data: &data,
     };
-    ask(master, target, &request)?.map(|_| ()).map_err(|reason| HarnessError::Protocol {
+    ask(master, target, &request)?.map(|_| ()).map_err(|reason| MasterError::Protocol {
         what: format!("Release_Master/Slave_Connection_Set 0x{:02X} at MAC {target}", choice.bits()),
         reason: format!("the device refused to release what it had allocated: {reason}"),
     })
@@ -459,7 +482,7 @@ fn note(what: &str, eds: String, device: String, same: bool) -> Finding {
 ///
 /// # Errors
 ///
-/// A [`HarnessError`] when the exchange cannot be completed: the device does not answer, the bus
+/// A [`MasterError`] when the exchange cannot be completed: the device does not answer, the bus
 /// fails, another master owns the device, or an answer breaks the protocol. Values the device
 /// refuses to give are findings, not errors.
 pub fn check_device(
@@ -467,7 +490,7 @@ pub fn check_device(
     target: MacId,
     eds: &Eds,
     options: &CheckOptions,
-) -> Result<DeviceReport, HarnessError> {
+) -> Result<DeviceReport, MasterError> {
     let expected = Expected::of(eds);
     master.open_explicit(target)?;
     let mut findings = Vec::new();
@@ -582,28 +605,28 @@ pub fn check_device(
 ///
 /// # Errors
 ///
-/// Those of [`open_bus`] and [`check_device`], and [`HarnessError::Write`] when the log cannot be
-/// written.
+/// Those of [`open_bus`] and [`check_device`], [`DeviceError::Usage`] when the device is at the
+/// master's own MAC, and [`DeviceError::Write`] when the log file cannot be created.
 pub fn check_on_bus(
     eds: &Eds,
     bus: &BusOptions,
     options: &CheckOptions,
     log: Option<&std::path::Path>,
-) -> Result<DeviceReport, HarnessError> {
+) -> Result<DeviceReport, DeviceError> {
     if bus.mac == options.master_mac {
-        return Err(HarnessError::Usage(format!("the device's MAC {} is the master's own MAC", bus.mac)));
+        return Err(DeviceError::Usage(format!("the device's MAC {} is the master's own MAC", bus.mac)));
     }
     let mut open = open_bus(bus)?;
     let mut session = Session::new(open.as_mut());
     if let Some(path) = log {
         let writer = LogWriter::create(path)
-            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+            .map_err(|source| DeviceError::Write { path: path.display().to_string(), source })?;
         session.set_log(writer);
     }
     let mut master = Master::new(&mut session, options.master_config());
     let report = check_device(&mut master, bus.mac, eds, options);
     session.flush()?;
-    report
+    Ok(report?)
 }
 
 /// Reads parameter `n`'s attribute and compares it with the parameter's size and default.
@@ -612,7 +635,7 @@ fn param_finding(
     target: MacId,
     n: u32,
     param: &Param,
-) -> Result<Finding, HarnessError> {
+) -> Result<Finding, MasterError> {
     let what = format!("Param{n} {:?}", param.name);
     let address = param.link_path.as_ref().and_then(LinkPath::attribute);
     let Some(AttributePath { class: class_id, instance, attribute: Some(attribute) }) = address else {

@@ -9,11 +9,11 @@
 use can_io::bus::{Bitrate, BusSpec};
 use clap::{Parser, Subcommand};
 use devicenet::{Duration, MacId};
-use eds::device::{check_on_bus, BusOptions, CheckOptions};
+use eds::device::{check_on_bus, BusOptions, CheckOptions, DeviceError};
 use eds::generate::{generate_text, GenerateOptions, DEFAULT_DATE, DEFAULT_REVISION};
 use eds::value::{Date, Revision};
 use eds::{check_file, read_file, EdsError, Summary, Writer};
-use master_harness::error::HarnessError;
+use master_core::error::MasterError;
 use slave_fw::description::DeviceDescription;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -69,8 +69,8 @@ enum Command {
         /// the day it is generated; give the release date when publishing.
         #[arg(long, value_name = "MM-DD-YYYY", default_value_t = DEFAULT_DATE, value_parser = parse_date)]
         date: Date,
-        /// [File] Revision of the EDS file itself, MAJOR.MINOR.
-        #[arg(long, value_name = "MAJOR.MINOR", default_value_t = DEFAULT_REVISION, value_parser = parse_revision)]
+        /// `[File]` Revision of the EDS file itself, MAJOR.MINOR.
+        #[arg(long, help = "[File] Revision of the EDS file itself, MAJOR.MINOR", value_name = "MAJOR.MINOR", default_value_t = DEFAULT_REVISION, value_parser = parse_revision)]
         revision: Revision,
     },
     /// Read a device's identity and poll connection sizes over the bus and report every
@@ -85,8 +85,12 @@ enum Command {
         /// The device's MAC ID (0..=63).
         #[arg(long, value_parser = parse_mac)]
         mac: MacId,
-        /// The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD].
-        #[arg(long, default_value = "sim")]
+        /// The bus: sim, socketcan:IFACE or `slcan:PATH[@SERIALBAUD]`.
+        #[arg(
+            long,
+            help = "The bus: sim, socketcan:IFACE or slcan:PATH[@SERIALBAUD]",
+            default_value = "sim"
+        )]
         bus: BusSpec,
         /// CAN bit rate, 125k, 250k or 500k [default: sim: the simulated device's; slcan: 250k].
         #[arg(long)]
@@ -219,9 +223,11 @@ fn run(command: Command) -> Result<ExitCode, String> {
             let report = match check_on_bus(&model, &bus, &options, log.as_deref()) {
                 Ok(report) => report,
                 Err(
-                    e @ (HarnessError::Usage(_)
-                    | HarnessError::Description(_)
-                    | HarnessError::Bus(can_io::bus::BusError::Open { .. })),
+                    e @ (DeviceError::Usage(_)
+                    | DeviceError::Description(_)
+                    | DeviceError::Master(
+                        MasterError::Invalid(_) | MasterError::Bus(can_io::bus::BusError::Open { .. }),
+                    )),
                 ) => return Err(e.to_string()),
                 Err(e) => {
                     if json {

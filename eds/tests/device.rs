@@ -6,12 +6,13 @@ use can_io::bus::{Bitrate, BusSpec};
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
 use devicenet::MacId;
+use eds::device::DeviceError;
 use eds::device::{check_device, check_on_bus, BusOptions, CheckOptions, Verdict};
 use eds::generate::{generate_text, GenerateOptions};
 use eds::Eds;
-use master_harness::error::HarnessError;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::error::MasterError;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
 use rstest::rstest;
 use slave_fw::description::DeviceDescription;
 use std::path::PathBuf;
@@ -215,7 +216,7 @@ fn no_device_is_an_error_not_a_disagreement() {
     let mut master = Master::new(&mut session, MasterConfig::default());
     let error =
         check_device(&mut master, MacId::new(5).unwrap(), &eds, &CheckOptions::default()).unwrap_err();
-    assert!(matches!(error, HarnessError::Timeout { mac: 5, .. }), "{error}");
+    assert!(matches!(error, MasterError::Timeout { mac: 5, .. }), "{error}");
 }
 
 #[test]
@@ -223,7 +224,7 @@ fn the_master_mac_cannot_be_the_device_mac() {
     let eds = Eds::default();
     let bus = BusOptions { mac: MacId::new(0).unwrap(), ..sim("breaker") };
     let error = check_on_bus(&eds, &bus, &CheckOptions::default(), None).unwrap_err();
-    assert!(matches!(error, HarnessError::Usage(_)), "{error}");
+    assert!(matches!(error, DeviceError::Usage(_)), "{error}");
 }
 
 #[test]

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use master_harness::decode::Decoder;
+use master_core::decode::Decoder;
 use can_io::log::{format_line, parse_log};
 
 fuzz_target!(|data: &[u8]| {

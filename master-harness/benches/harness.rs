@@ -9,10 +9,10 @@ use can_io::log::{format_line, parse_log};
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
 use devicenet::{Instant, MacId};
-use master_harness::decode::Decoder;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
+use master_core::decode::Decoder;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
 use master_harness::scan::scan;
-use master_harness::session::Session;
 use std::hint::black_box;
 
 /// A realistic exchange (bring-up, product name, 20 polls), repeated with shifted times to reach

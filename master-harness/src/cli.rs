@@ -3,14 +3,12 @@
 //! Exit status: 0 when every check holds, 1 when a check failed, the device diverged, timed out
 //! or answered with an error, 2 for a usage error (bad option, unknown bus, bad file).
 
-use crate::client::ReplyBody;
-use crate::decode::{self, Decoder};
+use crate::conformance::command::ConformanceCommand;
 use crate::error::HarnessError;
-use crate::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
 use crate::monitor::{self, MonitorOptions};
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
-use crate::session::{Record, Session, Verdict};
+use crate::table::{print_table, record_json, RecordJson};
 use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::log::{format_line, read_log, LogWriter};
 use can_io::pcap::{PcapBus, PcapWriter};
@@ -19,7 +17,11 @@ use clap::{Parser, Subcommand};
 use converter_sim::{OpenError, SimSetup};
 use devicenet::explicit::ServiceCode;
 use devicenet::{Duration, Instant, MacId};
-use serde::Serialize;
+use master_core::client::ReplyBody;
+use master_core::decode::{self, Decoder};
+use master_core::error::MasterError;
+use master_core::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
+use master_core::session::Session;
 use serde_json::json;
 use slave_fw::description::DeviceDescription;
 use std::ffi::OsString;
@@ -276,68 +278,8 @@ pub fn open_bus(cli: &Cli, replay_power_on: Option<Duration>) -> Result<Box<dyn 
     setup.realtime = cli.realtime;
     converter_sim::open_bus(&cli.bus, cli.bitrate, &setup).map_err(|e| match e {
         OpenError::Setup(msg) => HarnessError::Usage(msg),
-        OpenError::Bus(e) => HarnessError::Bus(e),
+        OpenError::Bus(e) => HarnessError::from(e),
     })
-}
-
-/// One record as JSON (the `--json` output of every command and the conformance report).
-#[derive(Serialize)]
-pub(crate) struct RecordJson<'a> {
-    index: usize,
-    time_us: u64,
-    direction: &'a str,
-    id: String,
-    data: String,
-    meaning: &'a str,
-    verdict: &'static str,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    note: Option<&'a str>,
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    failures: Vec<&'a str>,
-}
-
-pub(crate) fn record_json<'a>(r: &'a Record, device: Option<MacId>) -> RecordJson<'a> {
-    let (verdict, note, failures) = match &r.verdict {
-        Verdict::Sent => ("sent", None, Vec::new()),
-        Verdict::Ok(n) => ("ok", Some(n.as_str()), Vec::new()),
-        Verdict::Fail(f) => ("fail", None, f.iter().map(String::as_str).collect()),
-        Verdict::Info(n) => ("info", Some(n.as_str()), Vec::new()),
-        Verdict::Unchecked => ("unchecked", None, Vec::new()),
-    };
-    RecordJson {
-        index: r.index,
-        time_us: r.at.total_micros(),
-        direction: r.direction(device),
-        id: format!("{:03X}", r.frame.id().as_raw()),
-        data: decode::hex(r.frame.data()).replace(' ', ""),
-        meaning: &r.meaning,
-        verdict,
-        note,
-        failures,
-    }
-}
-
-/// Prints the frame-by-frame table: index, time, direction, identifier, data, meaning, verdict.
-pub fn print_table(out: &mut dyn Write, records: &[Record], device: Option<MacId>) -> std::io::Result<()> {
-    writeln!(
-        out,
-        "{:>4}  {:>14}  {:<3}  {:<3}  {:<23}  {:<70}  verdict",
-        "#", "time", "dir", "id", "data", "meaning"
-    )?;
-    for r in records {
-        writeln!(
-            out,
-            "{:>4}  {:>14}  {:<3}  {:03X}  {:<23}  {:<70}  {}",
-            r.index,
-            r.at.to_string(),
-            r.direction(device),
-            r.frame.id().as_raw(),
-            decode::hex(r.frame.data()),
-            r.meaning,
-            r.verdict.label()
-        )?;
-    }
-    Ok(())
 }
 
 /// What a command produced, for printing.
@@ -351,7 +293,10 @@ struct Outcome {
 
 fn exit_code(e: &HarnessError) -> u8 {
     match e {
-        HarnessError::Usage(_) | HarnessError::Log(_) | HarnessError::Description(_) => 2,
+        HarnessError::Usage(_)
+        | HarnessError::Log(_)
+        | HarnessError::Description(_)
+        | HarnessError::Master(MasterError::Invalid(_)) => 2,
         _ => 1,
     }
 }
@@ -408,7 +353,15 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
         bus = Box::new(PcapBus::new(bus, pcap));
     }
     if let Command::Conformance { mac, html } = &cli.command {
-        return crate::conformance::execute(cli, bus.as_mut(), *mac, html.as_deref(), out);
+        let run = ConformanceCommand {
+            log: cli.log.as_deref(),
+            master_mac: cli.master_mac,
+            response_timeout: Duration::from_millis(cli.timeout.max(1)),
+            json: cli.json,
+            frames: cli.frames,
+            html: html.as_deref(),
+        };
+        return crate::conformance::command::execute(&run, bus.as_mut(), *mac, out);
     }
     let mut session = Session::new(bus.as_mut());
     if let Some(path) = &cli.log {
@@ -431,7 +384,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 verify_state: *verify_state,
             };
             let mut master = Master::new(&mut session, config);
-            (master.connect(&opts).map(|s| connect_outcome(&s)), Some(*mac))
+            (master.connect(&opts).map(|s| connect_outcome(&s)).map_err(HarnessError::from), Some(*mac))
         }
         Command::Replay { mac, tolerance, settle, .. } => {
             let opts = ReplayOptions {
@@ -637,7 +590,7 @@ fn explicit_command(
     };
     let req = devicenet::explicit::Request { service, class: class_id, instance, data: &data };
     let what = decode::request_text(&req);
-    let answer = master.request(mac, crate::client::Port::Explicit, &req)?;
+    let answer = master.request(mac, master_core::client::Port::Explicit, &req)?;
     // Polite: give the explicit connection back.
     let released = master.release(mac, devicenet::messages::AllocationChoice::EXPLICIT);
     let target = format!(
@@ -669,7 +622,9 @@ fn explicit_command(
                 let v = master.session.record(i).verdict.clone();
                 master.session.set_verdict(i, v.with_failures(vec![format!("error response: {text}")]));
             }
-            return Err(HarnessError::ErrorResponse { what, mac: mac.as_raw(), general, additional, text });
+            return Err(
+                MasterError::ErrorResponse { what, mac: mac.as_raw(), general, additional, text }.into()
+            );
         }
     };
     released?;

@@ -1,62 +1,21 @@
-//! The harness's error type: every failure named, with its context (MAC, request, timeout name,
-//! file and line), never a panic.
+//! The harness's error type: every failure of a command named, with its context (file and line,
+//! frame index), never a panic. The master's own failures (MAC, request, timeout name) are
+//! [`MasterError`]s, carried as they are.
 
 use can_io::bus::BusError;
 use can_io::log::LogError;
-use devicenet::explicit::GeneralStatus;
-use devicenet::Duration;
+use master_core::error::MasterError;
+use std::fmt;
 
 /// Everything that can stop a command.
 #[derive(Debug, thiserror::Error)]
 pub enum HarnessError {
-    /// The bus failed.
-    #[error("bus error: {0}")]
-    Bus(#[from] BusError),
+    /// An operation of the master stopped: bus, timeout, error response, protocol, duplicate MAC.
+    #[error(transparent)]
+    Master(#[from] MasterError),
     /// A log or transcript file is malformed or unreadable.
     #[error("{0}")]
     Log(#[from] LogError),
-    /// Nothing arrived in time.
-    #[error("{what}: no answer from MAC {mac} within {after} ({timeout})")]
-    Timeout {
-        /// What the master was waiting for.
-        what: String,
-        /// The device.
-        mac: u8,
-        /// How long it waited.
-        after: Duration,
-        /// The name of the timeout that expired.
-        timeout: &'static str,
-    },
-    /// The device answered with an error response.
-    #[error("{what}: MAC {mac} answered with an error: {text}")]
-    ErrorResponse {
-        /// The request.
-        what: String,
-        /// The device.
-        mac: u8,
-        /// General status.
-        general: GeneralStatus,
-        /// Additional code.
-        additional: u8,
-        /// Both by name.
-        text: String,
-    },
-    /// An answer broke the protocol so the sequence cannot go on.
-    #[error("{what}: {reason}")]
-    Protocol {
-        /// The step.
-        what: String,
-        /// What was wrong.
-        reason: String,
-    },
-    /// Another node uses a MAC ID we need.
-    #[error("duplicate MAC ID {mac}: {detail}")]
-    DuplicateMac {
-        /// The MAC in conflict.
-        mac: u8,
-        /// Who answered.
-        detail: String,
-    },
     /// A bad command-line value or option combination.
     #[error("{0}")]
     Usage(String),
@@ -76,5 +35,75 @@ pub enum HarnessError {
     ChecksFailed(usize),
     /// A replay diverged from its transcript.
     #[error("{0}")]
-    Divergence(Box<crate::replay::Divergence>),
+    Divergence(Box<Divergence>),
+}
+
+impl From<BusError> for HarnessError {
+    fn from(e: BusError) -> HarnessError {
+        HarnessError::Master(MasterError::Bus(e))
+    }
+}
+
+/// A frame with its text.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct ShownFrame {
+    /// Transcript line (for expected and context frames).
+    pub line: Option<usize>,
+    /// Time: recorded (transcript) or seen (actual), seconds.
+    pub time: String,
+    /// `ID#DATA`.
+    pub frame: String,
+    /// Decoded meaning.
+    pub meaning: String,
+}
+
+/// Where and how a replay (`crate::replay`) left its transcript.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Divergence {
+    /// 0-based index of the transcript frame at which it happened.
+    pub index: usize,
+    /// Frames in the transcript.
+    pub total: usize,
+    /// What happened.
+    pub reason: String,
+    /// The transcript frame expected (or the stimulus that was next).
+    pub expected: Option<ShownFrame>,
+    /// What the device sent instead (`None`: nothing).
+    pub actual: Option<ShownFrame>,
+    /// The transcript frames before it.
+    pub before: Vec<ShownFrame>,
+}
+
+impl fmt::Display for Divergence {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let line =
+            self.expected.as_ref().and_then(|e| e.line).map_or_else(String::new, |l| format!("line {l}, "));
+        writeln!(
+            f,
+            "replay diverged at transcript {line}frame {} of {}: {}",
+            self.index + 1,
+            self.total,
+            self.reason
+        )?;
+        let show = |f: &mut fmt::Formatter<'_>, label: &str, s: &Option<ShownFrame>| match s {
+            Some(s) => writeln!(f, "  {label:<9} {:<28} {} ({})", s.frame, s.meaning, s.time),
+            None => writeln!(f, "  {label:<9} nothing"),
+        };
+        show(f, "expected:", &self.expected)?;
+        show(f, "actual:", &self.actual)?;
+        if !self.before.is_empty() {
+            writeln!(f, "frames before it:")?;
+            for b in &self.before {
+                writeln!(
+                    f,
+                    "  line {:>4}  {:>14}  {:<28} {}",
+                    b.line.unwrap_or(0),
+                    b.time,
+                    b.frame,
+                    b.meaning
+                )?;
+            }
+        }
+        Ok(())
+    }
 }

@@ -10,19 +10,19 @@
 //! ## Layers
 //!
 //! The buses, logs and captures are `can_io`'s; the simulated device (the converter with a simulated
-//! breaker) is `converter_sim`'s. This crate is the master: nothing of the product depends on it.
+//! breaker) is `converter_sim`'s. The master's protocol layer (the session and its transcript, the
+//! explicit client, network access, allocation, requests, polling, the bring-up, the meaning of
+//! frames) is [`master_core`]'s, which the EDS tool's device check uses too. This crate is the bench
+//! built on it: nothing of the product depends on it.
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the `--log` file |
-//! | [`client`] | one explicit transaction as a sans-IO state machine: fragmentation both ways, every response frame checked |
 //! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports |
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
-//! | [`master`] | network access, waiting for the device, UCMM probe, allocation, the bring-up of notes §2, polling |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
-//! | [`decode`] | DeviceNet meaning of frames, with reassembly (the `decode` command and the table's meaning column) |
 //! | [`cli`] | the command line, reports and JSON |
-//! | [`error`] | [`HarnessError`](error::HarnessError): every failure named |
+//! | [`table`] | the frame-by-frame table and the JSON form of a record |
+//! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
 //!
 //! ## Example: the bring-up on the simulated bus
 //!
@@ -30,8 +30,8 @@
 //! use can_io::bus::Bitrate;
 //! use can_io::sim::{PowerOn, SimBus};
 //! use converter_sim::SoftSlave;
-//! use master_harness::master::{ConnectOptions, Master, MasterConfig};
-//! use master_harness::session::Session;
+//! use master_core::master::{ConnectOptions, Master, MasterConfig};
+//! use master_core::session::Session;
 //! use devicenet::{reference::BRING_UP, MacId};
 //!
 //! let mut bus = SimBus::new(Bitrate::K250);
@@ -50,13 +50,10 @@
 #![warn(missing_docs)]
 
 pub mod cli;
-pub mod client;
 pub mod conformance;
-pub mod decode;
 pub mod error;
-pub mod master;
 pub mod monitor;
 pub mod replay;
 pub mod scan;
-pub mod session;
 pub mod soak;
+pub mod table;

@@ -11,15 +11,16 @@
 //! poll connection left over, Allocate poll, sizes and expected packet rate again, then polling
 //! goes on (`reconnected`). A device that restarted is simply asked until it is on-line again.
 
-use crate::client::Port;
 use crate::error::HarnessError;
-use crate::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
-use crate::session::Verdict;
 use converter_sim::device::{SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::explicit::GeneralStatus;
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, Instant, MacId};
+use master_core::client::Port;
+use master_core::error::MasterError;
+use master_core::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
+use master_core::session::Verdict;
 use std::io::Write;
 
 /// The breaker profile's view of the 18-byte poll response.
@@ -75,8 +76,8 @@ struct PollSetup {
 }
 
 /// `true` for the failures `--reconnect` rides out: the bus failed, or the device did not answer.
-fn is_connection_loss(e: &HarnessError) -> bool {
-    matches!(e, HarnessError::Bus(_) | HarnessError::Timeout { .. })
+fn is_connection_loss(e: &MasterError) -> bool {
+    matches!(e, MasterError::Bus(_) | MasterError::Timeout { .. })
 }
 
 /// Marks the last frame from the device, an error response the reconnection expected, as fine.
@@ -87,17 +88,17 @@ fn accept_last_answer(master: &mut Master<'_, '_>, note: &str) {
 }
 
 /// One attempt to get the connections back (see the [module docs](self)).
-fn reestablish(master: &mut Master<'_, '_>, target: MacId, epr_ms: u16) -> Result<PollSetup, HarnessError> {
+fn reestablish(master: &mut Master<'_, '_>, target: MacId, epr_ms: u16) -> Result<PollSetup, MasterError> {
     match master.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT) {
         Ok(_) => {}
-        Err(HarnessError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
+        Err(MasterError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
             accept_last_answer(master, "explicit connection still allocated to this master");
         }
         Err(e) => return Err(e),
     }
     match master.release(target, AllocationChoice::POLL) {
         Ok(()) => {}
-        Err(HarnessError::ErrorResponse { .. }) => accept_last_answer(master, "no poll connection left over"),
+        Err(MasterError::ErrorResponse { .. }) => accept_last_answer(master, "no poll connection left over"),
         Err(e) => return Err(e),
     }
     master.allocate(target, Port::Explicit, AllocationChoice::POLL)?;
@@ -137,7 +138,7 @@ pub const CSV_HEADER: &str = "time_s,phase_a,phase_b,phase_c,neutral,switch,raw"
 
 /// One CSV line for a sample.
 pub fn csv_line(s: &Sample) -> String {
-    let raw = crate::decode::hex(&s.raw).replace(' ', "");
+    let raw = master_core::decode::hex(&s.raw).replace(' ', "");
     let t = format!("{}.{:06}", s.time_us / 1_000_000, s.time_us % 1_000_000);
     match &s.status {
         Some(b) => format!(
@@ -168,7 +169,7 @@ fn display_line(s: &Sample) -> String {
             b.currents[3],
             b.switch_text()
         ),
-        None => format!("{t:>10}  {} (not the breaker profile)", crate::decode::hex(&s.raw)),
+        None => format!("{t:>10}  {} (not the breaker profile)", master_core::decode::hex(&s.raw)),
     }
 }
 
@@ -236,11 +237,11 @@ pub fn monitor(
                             break;
                         }
                         Err(e)
-                            if is_connection_loss(&e) || matches!(e, HarnessError::ErrorResponse { .. }) =>
+                            if is_connection_loss(&e) || matches!(e, MasterError::ErrorResponse { .. }) =>
                         {
                             wait_through_errors(master, tried + RECONNECT_INTERVAL);
                         }
-                        Err(e) => return Err(e),
+                        Err(e) => return Err(e.into()),
                     }
                 }
                 let back = master.session.now();
@@ -249,7 +250,7 @@ pub fn monitor(
                 next = back;
                 continue;
             }
-            Err(e) => return Err(e),
+            Err(e) => return Err(e.into()),
         };
         let sample = Sample { time_us: polled.total_micros(), status: BreakerStatus::decode(&raw), raw };
         if opts.in_place {
@@ -339,8 +340,8 @@ mod tests {
         );
         let mut bus =
             Outage { inner: sim, from: Instant::from_secs(7), until: Instant::from_secs(9), reported: false };
-        let mut session = crate::session::Session::new(&mut bus);
-        let mut master = Master::new(&mut session, crate::master::MasterConfig::default());
+        let mut session = master_core::session::Session::new(&mut bus);
+        let mut master = Master::new(&mut session, master_core::master::MasterConfig::default());
         let opts = MonitorOptions {
             connect: ConnectOptions::default(),
             count: None,
@@ -370,7 +371,7 @@ mod tests {
     fn without_reconnect_the_loss_ends_the_run() {
         let (r, out, _) = monitor_through_outage(false);
         let e = r.unwrap_err();
-        assert!(matches!(e, HarnessError::Bus(_)), "{e}");
+        assert!(matches!(e, HarnessError::Master(MasterError::Bus(_))), "{e}");
         assert!(!out.contains("connection lost"), "{out}");
     }
 

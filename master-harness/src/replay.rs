@@ -15,14 +15,13 @@
 //! On the first divergence the replay stops with a [`Divergence`]: expected and actual frames, both
 //! decoded, and the transcript frames before it.
 
-use crate::decode::Decoder;
-use crate::error::HarnessError;
-use crate::session::{is_from_device, Session, Verdict};
+use crate::error::{Divergence, HarnessError, ShownFrame};
 use can_io::bus::Origin;
 use can_io::log::{format_line, LogEntry};
 use devicenet::messages::DuplicateMacCheck;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
-use std::fmt;
+use master_core::decode::Decoder;
+use master_core::session::{is_from_device, Session, Verdict};
 
 /// Frames of the transcript shown before a divergence.
 pub const CONTEXT_FRAMES: usize = 8;
@@ -42,70 +41,6 @@ impl ReplayOptions {
     /// Defaults for `device`.
     pub fn new(device: MacId) -> ReplayOptions {
         ReplayOptions { device, tolerance: Duration::from_secs(1), settle: Duration::from_millis(500) }
-    }
-}
-
-/// A frame with its text.
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct ShownFrame {
-    /// Transcript line (for expected and context frames).
-    pub line: Option<usize>,
-    /// Time: recorded (transcript) or seen (actual), seconds.
-    pub time: String,
-    /// `ID#DATA`.
-    pub frame: String,
-    /// Decoded meaning.
-    pub meaning: String,
-}
-
-/// Where and how a replay left its transcript.
-#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
-pub struct Divergence {
-    /// 0-based index of the transcript frame at which it happened.
-    pub index: usize,
-    /// Frames in the transcript.
-    pub total: usize,
-    /// What happened.
-    pub reason: String,
-    /// The transcript frame expected (or the stimulus that was next).
-    pub expected: Option<ShownFrame>,
-    /// What the device sent instead (`None`: nothing).
-    pub actual: Option<ShownFrame>,
-    /// The transcript frames before it.
-    pub before: Vec<ShownFrame>,
-}
-
-impl fmt::Display for Divergence {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let line =
-            self.expected.as_ref().and_then(|e| e.line).map_or_else(String::new, |l| format!("line {l}, "));
-        writeln!(
-            f,
-            "replay diverged at transcript {line}frame {} of {}: {}",
-            self.index + 1,
-            self.total,
-            self.reason
-        )?;
-        let show = |f: &mut fmt::Formatter<'_>, label: &str, s: &Option<ShownFrame>| match s {
-            Some(s) => writeln!(f, "  {label:<9} {:<28} {} ({})", s.frame, s.meaning, s.time),
-            None => writeln!(f, "  {label:<9} nothing"),
-        };
-        show(f, "expected:", &self.expected)?;
-        show(f, "actual:", &self.actual)?;
-        if !self.before.is_empty() {
-            writeln!(f, "frames before it:")?;
-            for b in &self.before {
-                writeln!(
-                    f,
-                    "  line {:>4}  {:>14}  {:<28} {}",
-                    b.line.unwrap_or(0),
-                    b.time,
-                    b.frame,
-                    b.meaning
-                )?;
-            }
-        }
-        Ok(())
     }
 }
 

@@ -11,15 +11,15 @@
 //! A device that refuses poll (0x02 resource unavailable) is allocated explicit only; a device
 //! owned by another master (0x0C / 0x01) is reported as such.
 
-use crate::client::{ClientError, Handled, Port, ReplyBody, Transaction};
-use crate::decode::{self, short_string};
 use crate::error::HarnessError;
-use crate::master::Master;
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Identifier, Instant, MacId};
+use master_core::client::{ClientError, Handled, Port, ReplyBody, Transaction};
+use master_core::decode::{self, short_string};
+use master_core::master::Master;
 use std::collections::VecDeque;
 
 /// One device found.
@@ -123,7 +123,7 @@ impl Node {
     }
 
     /// Takes the outcome of the current step; returns whether the node goes on.
-    fn finish_step(&mut self, outcome: Result<crate::client::Reply, ClientError>) {
+    fn finish_step(&mut self, outcome: Result<master_core::client::Reply, ClientError>) {
         let Some(step) = self.steps.pop_front() else { return };
         let reply = match outcome {
             Ok(r) => r,

@@ -29,8 +29,6 @@
 //! | memory stays bounded | the frames queued anywhere in the bus never exceed a small bound; the scanner keeps no per-frame history; the converter and node are fixed-size by construction; the process's resident memory is reported at the start and the end |
 //! | no panic | the run completes |
 
-use crate::client::{Port, ReplyBody, Transaction};
-use crate::decode;
 use crate::error::HarnessError;
 use can_io::bus::{Bitrate, Bus, Origin};
 use can_io::sim::fault::{FaultRates, FaultStats, RandomFaults, Rng, SharedDevice};
@@ -42,6 +40,10 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use master_core::client::{self, Link, Port, Received, ReplyBody, Transaction};
+use master_core::decode;
+use master_core::error::MasterError;
+use master_core::session::Verdict;
 use serde::Serialize;
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::serial::breaker::BreakerCommand;
@@ -433,32 +435,8 @@ impl Soak {
             BodyFormat::Class8Instance8,
             EXPLICIT_TIMEOUT,
         )?;
-        let start = self.now();
-        tx.start(start);
-        loop {
-            while let Some(f) = tx.poll_transmit() {
-                self.bus.send(&f)?;
-            }
-            if tx.is_done() {
-                return Ok(match tx.take_outcome() {
-                    Some(Ok(reply)) => Some(reply.body),
-                    _ => None,
-                });
-            }
-            let now = self.now();
-            let deadline = tx.poll_at().unwrap_or(now);
-            self.sample_queues();
-            match self.bus.recv(deadline)? {
-                Some(ev) if ev.origin == Origin::Remote => {
-                    let _ = tx.handle_frame(&ev.frame, ev.at);
-                }
-                Some(_) => {}
-                None => {
-                    let now = self.now();
-                    tx.handle_timeout(now);
-                }
-            }
-        }
+        let (outcome, _) = client::drive(self, &mut tx)?;
+        Ok(outcome.ok().map(|reply| reply.body))
     }
 
     fn allocate(&mut self, port: Port, choice: AllocationChoice) -> Result<Option<ReplyBody>, HarnessError> {
@@ -704,6 +682,38 @@ impl Soak {
                 self.check(false, at, || format!("command {k} ({command:?}): outcome {other} in the status byte {:.1} s after it was confirmed", (sent - confirmed).total_micros() as f64 / 1e6));
             }
         }
+    }
+}
+
+/// The soak's bare bus as a [`Link`] for the shared transaction driver: no transcript, no verdicts,
+/// no waiting for the master's own last frames; the bus queue is sampled before every wait.
+impl Link for Soak {
+    type Seen = ();
+
+    fn now(&mut self) -> Instant {
+        self.bus.now()
+    }
+
+    fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError> {
+        Ok(self.bus.send(frame)?)
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Option<Received<()>>, MasterError> {
+        self.sample_queues();
+        Ok(self.bus.recv(deadline)?.map(|ev| Received {
+            seen: (),
+            origin: ev.origin,
+            frame: ev.frame,
+            at: ev.at,
+        }))
+    }
+
+    fn judged(&mut self, (): (), _verdict: Verdict) {}
+
+    fn other(&mut self, (): ()) {}
+
+    fn echo_wait(&self) -> Option<Duration> {
+        None
     }
 }
 

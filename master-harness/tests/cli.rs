@@ -89,6 +89,13 @@ fn unknown_bus_is_a_usage_error() {
 }
 
 #[test]
+fn the_device_at_the_masters_mac_is_a_usage_error() {
+    let o = dnet(&["--bus", "sim", "connect", "--mac", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("the device's MAC 0 is the master's own MAC"), "{}", stderr(&o));
+}
+
+#[test]
 fn missing_slcan_port_is_named() {
     let o = dnet(&["--bus", "slcan:/nonexistent/ttyACM9", "scan"]);
     assert_eq!(o.status.code(), Some(1));

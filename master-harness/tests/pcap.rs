@@ -7,8 +7,8 @@ use can_io::sim::{PowerOn, SimBus};
 use converter_sim::SoftSlave;
 use devicenet::reference::BRING_UP;
 use devicenet::MacId;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
 use std::io::{self, Write};
 use std::sync::{Arc, Mutex};
 

@@ -9,7 +9,7 @@ use can_io::log::format_line;
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
 use devicenet::{Instant, MacId};
-use master_harness::session::Record;
+use master_core::session::Record;
 
 /// A MAC ID from a literal (test helper: panics on an invalid literal).
 pub fn mac(n: u8) -> MacId {

@@ -5,10 +5,10 @@ use can_io::bus::Bitrate;
 use can_io::sim::{PowerOn, SimBus, SimDevice};
 use converter_sim::device::SoftSlave;
 use devicenet::{CanFrame, Instant, MacId};
+use master_core::master::MasterConfig;
+use master_core::session::Session;
 use master_harness::cli::run;
 use master_harness::conformance::{self, Category, Grade, SuiteOptions, SuiteReport};
-use master_harness::master::MasterConfig;
-use master_harness::session::Session;
 use std::collections::VecDeque;
 use system_tests::{mac, sim_bus};
 

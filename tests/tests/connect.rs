@@ -3,8 +3,8 @@
 
 use can_io::bus::{Bitrate, Origin};
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::session::{Session, Verdict};
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::{Session, Verdict};
 use system_tests::{mac, sim_bus};
 
 fn direction(origin: Origin) -> Direction {

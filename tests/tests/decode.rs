@@ -3,9 +3,9 @@
 
 use can_io::bus::Bitrate;
 use can_io::log::parse_log;
-use master_harness::decode::Decoder;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::decode::Decoder;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
 use system_tests::{log_text, mac, sim_bus};
 
 fn session_log(f: impl FnOnce(&mut Master<'_, '_>)) -> String {

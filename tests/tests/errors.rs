@@ -2,9 +2,9 @@
 //! response (by name), a duplicate of the master's MAC, unknown buses, bad files.
 
 use can_io::bus::{Bitrate, BusSpec};
-use master_harness::error::HarnessError;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::error::MasterError;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
 use system_tests::{mac, sim_bus};
 
 #[test]
@@ -14,7 +14,7 @@ fn a_device_that_never_answers_names_the_timeout() {
     let opts = ConnectOptions { target: mac(9), ..ConnectOptions::default() };
     let err = Master::new(&mut session, MasterConfig::default()).connect(&opts).unwrap_err();
     match &err {
-        HarnessError::Timeout { mac, timeout, .. } => {
+        MasterError::Timeout { mac, timeout, .. } => {
             assert_eq!((*mac, *timeout), (9, "explicit response timeout"));
         }
         other => panic!("{other:?}"),
@@ -56,7 +56,7 @@ fn another_node_with_the_masters_mac() {
     while session.next(devicenet::Instant::from_secs(3)).unwrap().is_some() {}
     let mut m = Master::new(&mut session, MasterConfig::default());
     let err = m.network_access().unwrap_err();
-    assert!(matches!(err, HarnessError::DuplicateMac { mac: 0, .. }), "{err:?}");
+    assert!(matches!(err, MasterError::DuplicateMac { mac: 0, .. }), "{err:?}");
 }
 
 #[test]

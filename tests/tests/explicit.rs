@@ -3,10 +3,10 @@
 use can_io::bus::Bitrate;
 use devicenet::explicit::GeneralStatus;
 use devicenet::messages::AllocationChoice;
-use master_harness::client::{Port, ReplyBody};
-use master_harness::error::HarnessError;
-use master_harness::master::{Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::client::{Port, ReplyBody};
+use master_core::error::MasterError;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 use system_tests::{mac, sim_bus};
 
 #[test]
@@ -66,9 +66,9 @@ fn fragmented_request_and_response() {
     assert_eq!(session.failures(), 0);
 }
 
-fn expect_error(r: Result<(Vec<u8>, Option<usize>), HarnessError>, general: GeneralStatus, text: &str) {
+fn expect_error(r: Result<(Vec<u8>, Option<usize>), MasterError>, general: GeneralStatus, text: &str) {
     match r {
-        Err(HarnessError::ErrorResponse { general: g, text: t, .. }) => {
+        Err(MasterError::ErrorResponse { general: g, text: t, .. }) => {
             assert_eq!(g, general);
             assert!(t.contains(text), "{t}");
         }
@@ -139,7 +139,7 @@ fn an_owned_connection_is_reused() {
     let err = m.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap_err();
     assert!(matches!(
         err,
-        HarnessError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }
+        MasterError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }
     ));
     assert_eq!(m.get_u16(mac(5), 1, 1, 1).unwrap(), Some(0x1234));
 }

@@ -39,10 +39,10 @@ use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN, LOAD, SWITCH_BYTE, SWIT
 use converter_sim::SimulatedBreaker;
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
 use devicenet::{CanFrame, Duration, Instant};
-use master_harness::cli::print_table;
-use master_harness::error::HarnessError;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::session::{Session, Verdict};
+use master_core::error::MasterError;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::{Session, Verdict};
+use master_harness::table::print_table;
 use serialport::SerialPort;
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
 use std::io::{BufRead, BufReader, Read, Write};
@@ -427,7 +427,7 @@ fn emulated_converter_brought_up_and_breaker_operated() {
 /// The bring-up, then close and open. Errors carry what went wrong; the caller prints the rest.
 fn run(session: &mut Session<'_>, breaker: &BreakerRig) -> Result<(), String> {
     let mut master = Master::new(session, MasterConfig::default());
-    let summary = master.connect(&ConnectOptions::default()).map_err(|e: HarnessError| e.to_string())?;
+    let summary = master.connect(&ConnectOptions::default()).map_err(|e: MasterError| e.to_string())?;
 
     // The 28 frames of notes §2, byte for byte and in order, every check holding.
     let records = master.session.records();

@@ -5,10 +5,11 @@
 use can_io::bus::Bitrate;
 use can_io::log::{format_line, parse_log, LogEntry};
 use devicenet::reference::BRING_UP;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
+use master_harness::error::Divergence;
 use master_harness::error::HarnessError;
-use master_harness::master::{ConnectOptions, Master, MasterConfig};
-use master_harness::replay::{replay, Divergence, ReplayOptions};
-use master_harness::session::Session;
+use master_harness::replay::{replay, ReplayOptions};
 use system_tests::{log_text, mac, sim_bus};
 
 fn connect_transcript() -> String {

@@ -5,9 +5,9 @@ use can_io::bus::Bitrate;
 use can_io::log::{format_line, parse_log};
 use devicenet::explicit::{BodyFormat, Request, ServiceCode};
 use devicenet::{CanFrame, Duration, Instant};
-use master_harness::client::{Port, Transaction};
+use master_core::client::{Port, Transaction};
+use master_core::session::Session;
 use master_harness::replay::{replay, ReplayOptions};
-use master_harness::session::Session;
 use proptest::prelude::*;
 use system_tests::{mac, sim_bus};
 

@@ -3,9 +3,9 @@
 
 use can_io::bus::Bitrate;
 use devicenet::Duration;
-use master_harness::master::{Master, MasterConfig};
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 use master_harness::scan::scan;
-use master_harness::session::Session;
 use system_tests::sim_bus;
 
 #[test]

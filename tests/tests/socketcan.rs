@@ -20,7 +20,7 @@ use can_io::log::{read_log, LogEntry};
 use can_io::pcap::PcapWriter;
 use devicenet::reference::BRING_UP;
 use devicenet::{CanFrame, Identifier, MacId};
-use master_harness::session::is_from_device;
+use master_core::session::is_from_device;
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};

@@ -13,10 +13,10 @@
 //! not stretch the page.
 
 use super::{Category, CheckResult, Grade, SuiteReport};
-use crate::decode::hex;
-use crate::session::{is_from_device, Record, Verdict};
 use can_io::bus::Origin;
 use devicenet::{Identifier, Instant, MacId};
+use master_core::decode::hex;
+use master_core::session::{is_from_device, Record, Verdict};
 use std::fmt::Write as _;
 
 /// Frames drawn per diagram; the rest are listed as a count (all are in the JSON report).

@@ -28,8 +28,8 @@
 //! use can_io::bus::Bitrate;
 //! use can_io::sim::{PowerOn, SimBus};
 //! use master_harness::conformance::{self, SuiteOptions};
-//! use master_harness::master::MasterConfig;
-//! use master_harness::session::Session;
+//! use master_core::master::MasterConfig;
+//! use master_core::session::Session;
 //! use converter_sim::device::SoftSlave;
 //! use devicenet::MacId;
 //!
@@ -41,18 +41,19 @@
 //! ```
 
 mod checks;
+pub mod command;
 pub mod html;
 pub mod report;
 mod runner;
 
 use crate::error::HarnessError;
-use crate::master::MasterConfig;
-use crate::session::{Record, Session};
 use devicenet::{Duration, MacId};
+use master_core::master::MasterConfig;
+use master_core::session::{Record, Session};
 use serde::Serialize;
 use std::ops::Range;
 
-pub use report::{execute, report_json, write_text};
+pub use report::{report_json, write_text};
 
 /// The categories of the suite, in the order they run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]

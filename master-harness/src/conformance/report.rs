@@ -1,17 +1,11 @@
-//! The suite's reports: the terminal report, the JSON document, and the `conformance` command of
-//! `dnet-master` that runs the suite and writes them (and the HTML page, [`super::html`]).
+//! The suite's reports: the terminal report and the JSON document (the HTML page is
+//! [`super::html`]'s; the command that writes them is [`super::command`]'s).
 
-use super::{Category, CheckResult, Grade, SuiteOptions, SuiteReport};
-use crate::cli::{print_table, record_json, Cli, RecordJson};
-use crate::error::HarnessError;
-use crate::master::MasterConfig;
-use crate::session::Session;
-use can_io::bus::Bus;
-use can_io::log::LogWriter;
-use devicenet::{Duration, MacId};
+use super::{Category, CheckResult, Grade, SuiteReport};
+use crate::table::{print_table, record_json, RecordJson};
+use devicenet::Duration;
 use serde_json::json;
 use std::io::{self, Write};
-use std::path::Path;
 
 /// The whole report as JSON: summary, every check with its expectations, measurements and frames.
 pub fn report_json(report: &SuiteReport) -> serde_json::Value {
@@ -113,43 +107,4 @@ pub fn write_text(out: &mut dyn Write, report: &SuiteReport, frames: bool) -> io
             report.checks.iter().filter(|c| c.grade == Grade::Fail).map(|c| c.id).collect();
         writeln!(out, "result: {failed} check(s) failed: {}", names.join(", "))
     }
-}
-
-/// `dnet-master conformance --mac N [--html FILE]` on the bus the options opened: runs the suite
-/// (with `--log`), prints the report (text, or JSON with `--json`), writes the HTML page. Returns
-/// the exit status: 0 when no check failed, 1 otherwise.
-pub fn execute(
-    cli: &Cli,
-    bus: &mut dyn Bus,
-    mac: MacId,
-    html: Option<&Path>,
-    out: &mut dyn Write,
-) -> Result<u8, HarnessError> {
-    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
-    let mut session = Session::new(bus);
-    if let Some(path) = &cli.log {
-        let log = LogWriter::create(path)
-            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
-        session.set_log(log);
-    }
-    let config = MasterConfig {
-        mac: cli.master_mac,
-        response_timeout: Duration::from_millis(cli.timeout.max(1)),
-        ..MasterConfig::default()
-    };
-    let report = super::run(&mut session, config, &SuiteOptions::new(mac))?;
-    session.flush()?;
-    if let Some(path) = html {
-        std::fs::write(path, super::html::render(&report))
-            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
-    }
-    if cli.json {
-        writeln!(out, "{}", report_json(&report)).map_err(werr)?;
-    } else {
-        write_text(out, &report, cli.frames).map_err(werr)?;
-        if let Some(path) = html {
-            writeln!(out, "HTML report: {}", path.display()).map_err(werr)?;
-        }
-    }
-    Ok(u8::from(report.failed() > 0))
 }

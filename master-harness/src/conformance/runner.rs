@@ -5,10 +5,6 @@
 
 use super::{Basis, CheckResult, Expectation, Grade, Measurement, SuiteOptions};
 use super::{Category, HarnessError};
-use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
-use crate::decode::{self, hex};
-use crate::master::{Answer, Master, MasterConfig};
-use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use devicenet::fragment::{next_count, FragmentByte, FragmentKind, IoReassembler};
@@ -16,6 +12,11 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, CanId, Duration, Group2Message, Identifier, Instant, MacId};
+use master_core::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
+use master_core::decode::{self, hex};
+use master_core::error::MasterError;
+use master_core::master::{Answer, Master, MasterConfig};
+use master_core::session::{is_from_device, Session, Verdict};
 
 /// A value read, with the record of the response that carried it.
 pub(crate) type Value = Option<(Vec<u8>, Option<usize>)>;
@@ -154,7 +155,7 @@ impl<'s, 'b> Runner<'s, 'b> {
         let mut c = Check { expectations: Vec::new(), measurements: Vec::new(), start: self.mark() };
         match body(self, &mut c) {
             Ok(()) => {}
-            Err(HarnessError::Bus(e)) => return Err(HarnessError::Bus(e)),
+            Err(HarnessError::Master(MasterError::Bus(e))) => return Err(e.into()),
             Err(e) => {
                 c.firm(false, format!("stopped: {e}"), None);
             }
@@ -193,7 +194,7 @@ impl<'s, 'b> Runner<'s, 'b> {
     /// Sends a frame as built.
     pub fn send(&mut self, id: CanId, data: &[u8]) -> Result<(), HarnessError> {
         let f = CanFrame::new(id, data).map_err(|e| HarnessError::Usage(e.to_string()))?;
-        self.m.session.send(&f)
+        Ok(self.m.session.send(&f)?)
     }
 
     /// Collects the frames the device sends until `until`, for the caller to judge; other nodes'
@@ -268,7 +269,7 @@ impl<'s, 'b> Runner<'s, 'b> {
         data: &[u8],
     ) -> Result<Answer, HarnessError> {
         let req = Request { service, class: class_id, instance, data };
-        self.m.request(self.dut(), port, &req)
+        Ok(self.m.request(self.dut(), port, &req)?)
     }
 
     /// Get_Attribute_Single through the explicit connection.
@@ -419,10 +420,10 @@ impl<'s, 'b> Runner<'s, 'b> {
     pub fn outcome(r: Result<Answer, HarnessError>) -> Result<Outcome, HarnessError> {
         match r {
             Ok(a) => Ok((Ok(a.reply), a.record)),
-            Err(HarnessError::Timeout { timeout, after, .. }) => {
+            Err(HarnessError::Master(MasterError::Timeout { timeout, after, .. })) => {
                 Ok((Err(ClientError::Timeout { name: timeout, after }), None))
             }
-            Err(HarnessError::Protocol { reason, .. }) => {
+            Err(HarnessError::Master(MasterError::Protocol { reason, .. })) => {
                 Ok((Err(ClientError::RequestAborted(reason)), None))
             }
             Err(e) => Err(e),
@@ -524,7 +525,7 @@ impl<'s, 'b> Runner<'s, 'b> {
     pub fn poll(&mut self, output: &[u8], timeout: Duration) -> Result<Vec<u8>, HarnessError> {
         let (p, c) = (self.facts.produced.unwrap_or(0), self.facts.consumed.unwrap_or(0));
         let dut = self.dut();
-        self.m.poll(dut, output, p, c, timeout)
+        Ok(self.m.poll(dut, output, p, c, timeout)?)
     }
 
     /// The poll command frames for `output`.

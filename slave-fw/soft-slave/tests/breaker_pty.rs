@@ -12,8 +12,8 @@ mod common;
 use can_io::log::read_log;
 use common::{bring_up, link_attribute, poll_until, require_socat, PtyRig};
 use devicenet::Duration;
-use master_harness::master::{Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 use slave_fw::serial::breaker::{SWITCH_CLOSED, SWITCH_OPEN};
 use slave_fw::serial::StatusByte;
 

@@ -7,8 +7,8 @@ mod common;
 use can_io::log::{read_log, LogWriter};
 use common::{bring_up, link_attribute, poll_until, ChannelBus};
 use devicenet::Duration;
-use master_harness::master::{Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 use slave_fw::converter::ConverterConfig;
 use slave_fw::serial::breaker::{BreakerCommand, SWITCH_CLOSED, SWITCH_OPEN};
 use soft_slave::breaker::{BreakerOptions, BreakerRunner};
@@ -109,7 +109,7 @@ fn identity_reset_restarts_the_converter() {
     let (data, _) = master
         .request_ok(
             common::mac(),
-            master_harness::client::Port::Explicit,
+            master_core::client::Port::Explicit,
             &devicenet::explicit::Request {
                 service: devicenet::explicit::ServiceCode::Reset,
                 class: 1,

@@ -11,8 +11,8 @@ mod common;
 
 use common::{bring_up, link_attribute, poll_until, require_pymodbus, require_socat, PtyRig};
 use devicenet::Duration;
-use master_harness::master::{Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 use slave_fw::serial::StatusByte;
 
 /// Input registers 0..3 of the server, little-endian in the image.

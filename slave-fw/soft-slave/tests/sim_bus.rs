@@ -10,8 +10,8 @@ use can_io::sim::{PowerOn, SimBus};
 use common::{bring_up, mac, poll_until};
 use converter_sim::device::{SoftSlave, LOAD, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::Duration;
-use master_harness::master::{Master, MasterConfig};
-use master_harness::session::Session;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
 
 #[test]
 fn close_open_close_through_the_poll_output() {

@@ -4,12 +4,12 @@
 
 use super::super::runner::{Check, Runner};
 use super::super::{Basis, Category};
-use crate::client::{Port, Reply, ReplyBody};
-use crate::decode;
 use crate::error::HarnessError;
 use devicenet::explicit::{additional, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
+use master_core::client::{Port, Reply, ReplyBody};
+use master_core::decode;
 
 const CS: Category = Category::ConnectionSet;
 

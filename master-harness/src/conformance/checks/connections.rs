@@ -5,15 +5,15 @@
 
 use super::super::runner::{g2, Check, Runner};
 use super::super::{Basis, Category};
-use crate::client::{Port, Reply, ReplyBody};
-use crate::decode::hex;
 use crate::error::HarnessError;
-use crate::session::Verdict;
 use devicenet::explicit::{additional, GeneralStatus, Request, ServiceCode};
 use devicenet::fragment::FragmentByte;
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Instant};
+use master_core::client::{Port, Reply, ReplyBody};
+use master_core::decode::hex;
+use master_core::session::Verdict;
 
 const CN: Category = Category::Connections;
 

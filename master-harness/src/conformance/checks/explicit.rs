@@ -5,15 +5,15 @@
 
 use super::super::runner::{parse_ack, Check, Runner, Value};
 use super::super::{Basis, Category};
-use crate::client::{Port, Reply, ReplyBody};
-use crate::decode::{self, hex};
 use crate::error::HarnessError;
-use crate::session::Verdict;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
 use devicenet::fragment::{FragmentByte, FragmentKind};
 use devicenet::id::Group1MessageId;
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant};
+use master_core::client::{Port, Reply, ReplyBody};
+use master_core::decode::{self, hex};
+use master_core::session::Verdict;
 
 const EX: Category = Category::Explicit;
 
@@ -600,7 +600,7 @@ fn await_device(
         if rec.origin == can_io::bus::Origin::Local {
             continue;
         }
-        if crate::session::is_from_device(&rec.frame, dut) {
+        if master_core::session::is_from_device(&rec.frame, dut) {
             let f = rec.frame;
             out.push(i);
             if done(&f) {

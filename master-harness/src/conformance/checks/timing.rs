@@ -6,6 +6,7 @@ use super::super::{Basis, Category};
 use crate::error::HarnessError;
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message};
+use master_core::error::MasterError;
 
 const TM: Category = Category::Timing;
 
@@ -82,7 +83,7 @@ fn poll_latency(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessErro
         let start = r.mark();
         match r.poll(&output, limit) {
             Ok(_) => {}
-            Err(HarnessError::Timeout { .. }) => {
+            Err(HarnessError::Master(MasterError::Timeout { .. })) => {
                 missing += 1;
                 continue;
             }

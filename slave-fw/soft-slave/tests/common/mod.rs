@@ -5,7 +5,7 @@
 
 use can_io::bus::{Bus, BusError, BusEvent, Origin};
 use devicenet::{CanFrame, Duration, Instant, MacId};
-use master_harness::master::{ConnectOptions, DeviceSummary, Master};
+use master_core::master::{ConnectOptions, DeviceSummary, Master};
 use soft_slave::clock::Clock;
 use std::collections::VecDeque;
 use std::io::{BufRead, BufReader, Read};

@@ -2,7 +2,7 @@
 //! verdict, and written to the `--log` file as it comes.
 
 use crate::decode::Decoder;
-use crate::error::HarnessError;
+use crate::error::MasterError;
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
 use devicenet::{CanFrame, Identifier, Instant, MacId};
@@ -134,19 +134,19 @@ impl<'b> Session<'b> {
     }
 
     /// Queues a frame; it is recorded when it comes back from the bus.
-    pub fn send(&mut self, frame: &CanFrame) -> Result<(), HarnessError> {
+    pub fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError> {
         self.bus.send(frame)?;
         Ok(())
     }
 
     /// Waits for the next frame until `deadline`, records it and returns its index; `None` at the
     /// deadline. This program's own frames are recorded with [`Verdict::Sent`].
-    pub fn next(&mut self, deadline: Instant) -> Result<Option<usize>, HarnessError> {
+    pub fn next(&mut self, deadline: Instant) -> Result<Option<usize>, MasterError> {
         let Some(ev) = self.bus.recv(deadline)? else { return Ok(None) };
         let meaning = self.decoder.decode(&ev.frame).text();
         if let Some(log) = &mut self.log {
             log.write(ev.at, self.bus.name(), &ev.frame)
-                .map_err(|source| HarnessError::Write { path: "the log file".into(), source })?;
+                .map_err(|source| MasterError::LogWrite { source })?;
         }
         let index = self.records.len();
         let verdict = if ev.origin == Origin::Local { Verdict::Sent } else { Verdict::Unchecked };
@@ -159,8 +159,8 @@ impl<'b> Session<'b> {
     pub fn idle_until(
         &mut self,
         deadline: Instant,
-        mut other: impl FnMut(&mut Session<'b>, usize) -> Result<(), HarnessError>,
-    ) -> Result<(), HarnessError> {
+        mut other: impl FnMut(&mut Session<'b>, usize) -> Result<(), MasterError>,
+    ) -> Result<(), MasterError> {
         while let Some(i) = self.next(deadline)? {
             if self.records[i].origin == Origin::Remote {
                 other(self, i)?;
@@ -197,9 +197,9 @@ impl<'b> Session<'b> {
     }
 
     /// Flushes the log file.
-    pub fn flush(&mut self) -> Result<(), HarnessError> {
+    pub fn flush(&mut self) -> Result<(), MasterError> {
         if let Some(log) = &mut self.log {
-            log.flush().map_err(|source| HarnessError::Write { path: "the log file".into(), source })?;
+            log.flush().map_err(|source| MasterError::LogWrite { source })?;
         }
         Ok(())
     }

@@ -16,7 +16,7 @@
 
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
 use crate::decode::{self, hex, PendingRequest};
-use crate::error::HarnessError;
+use crate::error::MasterError;
 use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, Header, Request, ServiceCode};
@@ -207,7 +207,7 @@ impl<'s, 'b> Master<'s, 'b> {
     /// Judges a frame nobody waits for: devices' duplicate MAC ID checks are noted (and checked),
     /// a check of the master's own MAC is answered (notes §7.1), frames from the device under test
     /// are unexpected, everything else is other traffic.
-    pub(crate) fn other(&mut self, i: usize) -> Result<(), HarnessError> {
+    pub fn other(&mut self, i: usize) -> Result<(), MasterError> {
         let rec = self.session.record(i).clone();
         if rec.origin == Origin::Local {
             return Ok(());
@@ -226,7 +226,7 @@ impl<'s, 'b> Master<'s, 'b> {
             if mac == self.config.mac {
                 if check.response || self.online_at.is_none() {
                     self.session.set_verdict(i, Verdict::fail("another node uses the master's MAC ID"));
-                    return Err(HarnessError::DuplicateMac {
+                    return Err(MasterError::DuplicateMac {
                         mac: mac.as_raw(),
                         detail: format!(
                             "a node with vendor 0x{:04X}, serial 0x{:08X} claims it",
@@ -272,7 +272,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Waits until `deadline`, judging what arrives.
-    pub fn idle_until(&mut self, deadline: Instant) -> Result<(), HarnessError> {
+    pub fn idle_until(&mut self, deadline: Instant) -> Result<(), MasterError> {
         while let Some(i) = self.session.next(deadline)? {
             self.other(i)?;
         }
@@ -281,10 +281,10 @@ impl<'s, 'b> Master<'s, 'b> {
 
     /// The master's own network access (notes §7.1): two duplicate MAC ID requests 1 s apart,
     /// on-line 1 s after the second unless another node claims the MAC.
-    pub fn network_access(&mut self) -> Result<(), HarnessError> {
+    pub fn network_access(&mut self) -> Result<(), MasterError> {
         let check = DuplicateMacCheck::request(0, self.config.vendor_id, self.config.serial_number);
         let id = Identifier::group2(self.config.mac, Group2Message::DuplicateMacCheck);
-        let frame = CanFrame::new(id, &check.emit()).map_err(|e| HarnessError::Usage(e.to_string()))?;
+        let frame = CanFrame::new(id, &check.emit()).map_err(|e| MasterError::Invalid(e.to_string()))?;
         for _ in 0..2 {
             let sent = self.session.now();
             self.session.send(&frame)?;
@@ -297,7 +297,7 @@ impl<'s, 'b> Master<'s, 'b> {
 
     /// Waits until `mac` is on-line: until 1 s after its second duplicate MAC ID request when the
     /// check shows on the bus, else for [`DEVICE_ONLINE_GRACE`].
-    pub fn await_online(&mut self, macs: &[MacId]) -> Result<(), HarnessError> {
+    pub fn await_online(&mut self, macs: &[MacId]) -> Result<(), MasterError> {
         let grace = self.online_at.unwrap_or(Instant::ZERO) + DEVICE_ONLINE_GRACE;
         loop {
             // A device whose check showed is on-line at its own time; one that did not show is
@@ -319,7 +319,7 @@ impl<'s, 'b> Master<'s, 'b> {
 
     /// UCMM open explicit connection to `target`, sent up to twice (notes §2 frames 4–5, §3.6).
     /// Returns whether the device answered (UCMM-capable); a group-2-only device stays silent.
-    pub fn ucmm_probe(&mut self, target: MacId) -> Result<bool, HarnessError> {
+    pub fn ucmm_probe(&mut self, target: MacId) -> Result<bool, MasterError> {
         let open = UcmmOpenRequest {
             xid: false,
             destination: target,
@@ -332,7 +332,7 @@ impl<'s, 'b> Master<'s, 'b> {
                 .encode();
         let response_id =
             Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: target }.encode();
-        let frame = CanFrame::new(id, &open.emit()).map_err(|e| HarnessError::Usage(e.to_string()))?;
+        let frame = CanFrame::new(id, &open.emit()).map_err(|e| MasterError::Invalid(e.to_string()))?;
         for _ in 0..2 {
             let sent = self.session.now();
             self.session.send(&frame)?;
@@ -348,7 +348,7 @@ impl<'s, 'b> Master<'s, 'b> {
         Ok(false)
     }
 
-    fn ucmm_answered(&mut self, i: usize, target: MacId) -> Result<bool, HarnessError> {
+    fn ucmm_answered(&mut self, i: usize, target: MacId) -> Result<bool, MasterError> {
         let rec = self.session.record(i).clone();
         match UcmmOpenResponse::parse(rec.frame.data()) {
             Ok(r) if r.destination == self.config.mac => {
@@ -400,7 +400,7 @@ impl<'s, 'b> Master<'s, 'b> {
         target: MacId,
         port: Port,
         request: &Request<'_>,
-    ) -> Result<Answer, HarnessError> {
+    ) -> Result<Answer, MasterError> {
         let what = step_name(request);
         let format = if port == Port::Group2Only { BodyFormat::Class8Instance8 } else { self.body_format };
         let mut tx = Transaction::new(
@@ -422,20 +422,20 @@ impl<'s, 'b> Master<'s, 'b> {
         match outcome {
             Ok(reply) => Ok(Answer { reply, record }),
             Err(ClientError::Timeout { name, after }) => {
-                Err(HarnessError::Timeout { what, mac: target.as_raw(), after, timeout: name })
+                Err(MasterError::Timeout { what, mac: target.as_raw(), after, timeout: name })
             }
-            Err(ClientError::RequestAborted(reason)) => Err(HarnessError::Protocol { what, reason }),
+            Err(ClientError::RequestAborted(reason)) => Err(MasterError::Protocol { what, reason }),
         }
     }
 
-    /// [`Master::request`], with an error response turned into [`HarnessError::ErrorResponse`]
+    /// [`Master::request`], with an error response turned into [`MasterError::ErrorResponse`]
     /// (and the record's verdict a failure naming it).
     pub fn request_ok(
         &mut self,
         target: MacId,
         port: Port,
         request: &Request<'_>,
-    ) -> Result<(Vec<u8>, Option<usize>), HarnessError> {
+    ) -> Result<(Vec<u8>, Option<usize>), MasterError> {
         let answer = self.request(target, port, request)?;
         match answer.reply.body {
             ReplyBody::Success(data) => Ok((data, answer.record)),
@@ -445,7 +445,7 @@ impl<'s, 'b> Master<'s, 'b> {
                     let v = self.session.record(i).verdict.clone();
                     self.session.set_verdict(i, v.with_failures(vec![format!("error response: {text}")]));
                 }
-                Err(HarnessError::ErrorResponse {
+                Err(MasterError::ErrorResponse {
                     what: step_name(request),
                     mac: target.as_raw(),
                     general,
@@ -474,7 +474,7 @@ impl<'s, 'b> Master<'s, 'b> {
         target: MacId,
         port: Port,
         choice: AllocationChoice,
-    ) -> Result<Option<usize>, HarnessError> {
+    ) -> Result<Option<usize>, MasterError> {
         let data = AllocateRequest { choice, allocator: self.config.mac }.emit();
         let req = Request {
             service: ServiceCode::AllocateMasterSlave,
@@ -504,7 +504,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Release_Master/Slave_Connection_Set for `choice` through the explicit connection.
-    pub fn release(&mut self, target: MacId, choice: AllocationChoice) -> Result<(), HarnessError> {
+    pub fn release(&mut self, target: MacId, choice: AllocationChoice) -> Result<(), MasterError> {
         let data = ReleaseRequest { choice }.emit();
         let req = Request {
             service: ServiceCode::ReleaseMasterSlave,
@@ -529,7 +529,7 @@ impl<'s, 'b> Master<'s, 'b> {
         class_id: u16,
         instance: u16,
         attribute: u8,
-    ) -> Result<(Vec<u8>, Option<usize>), HarnessError> {
+    ) -> Result<(Vec<u8>, Option<usize>), MasterError> {
         let data = [attribute];
         let req =
             Request { service: ServiceCode::GetAttributeSingle, class: class_id, instance, data: &data };
@@ -543,7 +543,7 @@ impl<'s, 'b> Master<'s, 'b> {
         class_id: u16,
         instance: u16,
         attribute: u8,
-    ) -> Result<Option<u16>, HarnessError> {
+    ) -> Result<Option<u16>, MasterError> {
         let (data, i) = self.get(target, class_id, instance, attribute)?;
         let value = match data.as_slice() {
             [a, b] => Some(u16::from_le_bytes([*a, *b])),
@@ -576,7 +576,7 @@ impl<'s, 'b> Master<'s, 'b> {
         instance: u16,
         attribute: u8,
         value: &[u8],
-    ) -> Result<(Vec<u8>, Option<usize>), HarnessError> {
+    ) -> Result<(Vec<u8>, Option<usize>), MasterError> {
         let mut data = vec![attribute];
         data.extend_from_slice(value);
         let req =
@@ -603,7 +603,7 @@ impl<'s, 'b> Master<'s, 'b> {
         produced: u16,
         consumed: u16,
         timeout: Duration,
-    ) -> Result<Vec<u8>, HarnessError> {
+    ) -> Result<Vec<u8>, MasterError> {
         for f in self.poll_frames(target, output, consumed) {
             self.session.send(&f)?;
         }
@@ -614,7 +614,7 @@ impl<'s, 'b> Master<'s, 'b> {
         let mut expected_len = usize::from(produced);
         loop {
             let Some(i) = self.session.next(deadline)? else {
-                return Err(HarnessError::Timeout {
+                return Err(MasterError::Timeout {
                     what: format!("poll of MAC {target}"),
                     mac: target.as_raw(),
                     after: timeout,
@@ -685,10 +685,10 @@ impl<'s, 'b> Master<'s, 'b> {
 
     /// The whole bring-up of notes §2 against `opts.target`. Every frame is recorded in the
     /// session with its verdict; the result summarises what was learned.
-    pub fn connect(&mut self, opts: &ConnectOptions) -> Result<DeviceSummary, HarnessError> {
+    pub fn connect(&mut self, opts: &ConnectOptions) -> Result<DeviceSummary, MasterError> {
         let target = opts.target;
         if target == self.config.mac {
-            return Err(HarnessError::Usage(format!("the device's MAC {target} is the master's own MAC")));
+            return Err(MasterError::Invalid(format!("the device's MAC {target} is the master's own MAC")));
         }
         self.set_device(target);
         let mut summary = DeviceSummary { mac: target.as_raw(), ..DeviceSummary::default() };
@@ -759,7 +759,7 @@ impl<'s, 'b> Master<'s, 'b> {
         summary.expected_packet_rate_ms = Some(applied);
         let output = match &opts.output {
             Some(o) if o.len() > usize::from(consumed) => {
-                return Err(HarnessError::Usage(format!(
+                return Err(MasterError::Invalid(format!(
                     "--output has {} bytes; the device consumes {consumed}",
                     o.len()
                 )))
@@ -792,8 +792,8 @@ impl<'s, 'b> Master<'s, 'b> {
         epr_ms: u16,
         last_poll: Instant,
         polled: bool,
-    ) -> Result<(), HarnessError> {
-        let expect = |m: &mut Self, inst: u16, attr: u8, want: u8, what: &str| -> Result<(), HarnessError> {
+    ) -> Result<(), MasterError> {
+        let expect = |m: &mut Self, inst: u16, attr: u8, want: u8, what: &str| -> Result<(), MasterError> {
             let (data, i) = m.get(target, class::CONNECTION, inst, attr)?;
             let failures = if data.as_slice() == [want] {
                 Vec::new()
@@ -822,16 +822,16 @@ impl<'s, 'b> Master<'s, 'b> {
     /// Gains an explicit connection to `target` for one-off requests: network access, wait for
     /// the device, Allocate explicit through the Group 2 Only port. An explicit connection the
     /// master already owns (0x0B already in requested state) is used as it is.
-    pub fn open_explicit(&mut self, target: MacId) -> Result<(), HarnessError> {
+    pub fn open_explicit(&mut self, target: MacId) -> Result<(), MasterError> {
         if target == self.config.mac {
-            return Err(HarnessError::Usage(format!("MAC {target} is the master's own MAC")));
+            return Err(MasterError::Invalid(format!("MAC {target} is the master's own MAC")));
         }
         self.set_device(target);
         self.network_access()?;
         self.await_online(&[target])?;
         match self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT) {
             Ok(_) => Ok(()),
-            Err(HarnessError::ErrorResponse {
+            Err(MasterError::ErrorResponse {
                 general: devicenet::explicit::GeneralStatus::AlreadyInRequestedState,
                 ..
             }) => {

@@ -5,15 +5,16 @@
 //! byte (`request | 0x80`, or `0x94` for an error response).
 //!
 //! Several transactions with different devices can run at once (`scan` does); a blocking driver for
-//! one transaction is [`run`].
+//! one transaction is [`drive`], on any [`Link`]; [`run`] is it on a [`Session`].
 //!
 //! Calling order, as for the core's state machines: after [`Transaction::start`] and after every
 //! input, drain [`Transaction::poll_transmit`], then check [`Transaction::is_done`], then wait until
 //! [`Transaction::poll_at`] and call [`Transaction::handle_timeout`].
 
 use crate::decode::hex;
-use crate::error::HarnessError;
+use crate::error::MasterError;
 use crate::session::{is_from_device, Session, Verdict};
+use can_io::bus::Origin;
 use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
 use devicenet::fragment::{
     AbortReason, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter, FragmentKind,
@@ -140,15 +141,15 @@ impl Transaction {
         request: &Request<'_>,
         format: BodyFormat,
         timeout: Duration,
-    ) -> Result<Transaction, HarnessError> {
+    ) -> Result<Transaction, MasterError> {
         let len = request.buffer_len(format).unwrap_or(0);
         let mut message = vec![0u8; 1 + len];
         message[0] = Header::new(xid, master).to_byte();
         request
             .emit(format, &mut message[1..])
-            .map_err(|e| HarnessError::Usage(format!("cannot build the request: {e}")))?;
+            .map_err(|e| MasterError::Invalid(format!("cannot build the request: {e}")))?;
         if message.len() > MAX_MESSAGE {
-            return Err(HarnessError::Usage(format!(
+            return Err(MasterError::Invalid(format!(
                 "the request is {} bytes; the master sends at most {MAX_MESSAGE}",
                 message.len()
             )));
@@ -445,32 +446,76 @@ pub fn judge_other(session: &mut Session<'_>, index: usize, device: MacId) {
     session.set_verdict(index, verdict);
 }
 
-/// Runs one transaction to its end on `session`; returns the reply and the index of the record
-/// that completed it. `other` judges every frame that is not part of it.
-pub fn run(
-    session: &mut Session<'_>,
-    tx: &mut Transaction,
-    mut other: impl FnMut(&mut Session<'_>, usize),
-) -> Result<(Result<Reply, ClientError>, Option<usize>), HarnessError> {
-    let now = session.now();
+/// Where [`drive`] runs a transaction: a clock, a way to send, and a way to wait for the next frame
+/// and to hand over what the transaction made of it. A [`Session`] is one (through [`run`]); a
+/// program on a bare bus, like the soak, is another.
+pub trait Link {
+    /// What identifies a received frame afterwards (a transcript index, or nothing).
+    type Seen: Copy;
+
+    /// The link's clock.
+    fn now(&mut self) -> Instant;
+
+    /// Queues `frame` for transmission; it comes back from [`Link::recv`] as [`Origin::Local`]
+    /// once on the wire.
+    fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError>;
+
+    /// Waits until `deadline` for the next frame; `None` at the deadline.
+    fn recv(&mut self, deadline: Instant) -> Result<Option<Received<Self::Seen>>, MasterError>;
+
+    /// The transaction's verdict on `seen`, a frame that belonged to it.
+    fn judged(&mut self, seen: Self::Seen, verdict: Verdict);
+
+    /// `seen` is not part of the transaction (from another node, or unexpected).
+    fn other(&mut self, seen: Self::Seen);
+
+    /// How long to wait, once the transaction is over, to see the master's last frames come back
+    /// (the final fragment acknowledge); `None`: do not wait.
+    fn echo_wait(&self) -> Option<Duration> {
+        Some(ECHO_WAIT)
+    }
+}
+
+/// A frame a [`Link`] received.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Received<S> {
+    /// Its handle (a transcript index, or nothing).
+    pub seen: S,
+    /// Who sent it.
+    pub origin: Origin,
+    /// The frame.
+    pub frame: CanFrame,
+    /// When it completed on the bus.
+    pub at: Instant,
+}
+
+/// How a transaction ended, and the handle of the frame that completed it.
+pub type Outcome<S> = (Result<Reply, ClientError>, Option<S>);
+
+/// Drives one transaction to its end on `link`; returns the reply and the handle of the frame that
+/// completed it. The one driver of a [`Transaction`]: [`run`] is it on a [`Session`].
+pub fn drive<L: Link>(link: &mut L, tx: &mut Transaction) -> Result<Outcome<L::Seen>, MasterError> {
+    let now = link.now();
     tx.start(now);
     let mut last = None;
     // Own frames sent and not yet seen back from the bus.
     let mut in_flight = 0usize;
     loop {
         while let Some(f) = tx.poll_transmit() {
-            session.send(&f)?;
+            link.send(&f)?;
             in_flight += 1;
         }
         if tx.is_done() {
             // Record the master's last frames (the final fragment acknowledge) before returning.
-            let until = session.now() + ECHO_WAIT;
-            while in_flight > 0 {
-                let Some(i) = session.next(until)? else { break };
-                if session.record(i).origin == can_io::bus::Origin::Local {
-                    in_flight -= 1;
-                } else {
-                    other(session, i);
+            if let Some(wait) = link.echo_wait() {
+                let until = link.now() + wait;
+                while in_flight > 0 {
+                    let Some(r) = link.recv(until)? else { break };
+                    if r.origin == Origin::Local {
+                        in_flight -= 1;
+                    } else {
+                        link.other(r.seen);
+                    }
                 }
             }
             let outcome = tx.take_outcome().unwrap_or(Err(ClientError::Timeout {
@@ -479,27 +524,65 @@ pub fn run(
             }));
             return Ok((outcome, last));
         }
-        let now = session.now();
+        let now = link.now();
         let deadline = tx.poll_at().unwrap_or(now);
-        match session.next(deadline)? {
-            Some(i) => {
-                let rec = session.record(i).clone();
-                if rec.origin == can_io::bus::Origin::Local {
-                    in_flight = in_flight.saturating_sub(1);
-                    continue;
+        match link.recv(deadline)? {
+            Some(r) if r.origin == Origin::Local => in_flight = in_flight.saturating_sub(1),
+            Some(r) => match tx.handle_frame(&r.frame, r.at) {
+                Handled::Frame(v) => {
+                    link.judged(r.seen, v);
+                    last = Some(r.seen);
                 }
-                match tx.handle_frame(&rec.frame, rec.at) {
-                    Handled::Frame(v) => {
-                        session.set_verdict(i, v);
-                        last = Some(i);
-                    }
-                    Handled::NotMine => other(session, i),
-                }
-            }
+                Handled::NotMine => link.other(r.seen),
+            },
             None => {
-                let now = session.now();
+                let now = link.now();
                 tx.handle_timeout(now);
             }
         }
     }
+}
+
+/// A [`Session`] as a [`Link`]: every frame recorded, verdicts set on the transcript, frames not
+/// part of the transaction passed to `other`.
+struct SessionLink<'s, 'b, F> {
+    session: &'s mut Session<'b>,
+    other: F,
+}
+
+impl<F: FnMut(&mut Session<'_>, usize)> Link for SessionLink<'_, '_, F> {
+    type Seen = usize;
+
+    fn now(&mut self) -> Instant {
+        self.session.now()
+    }
+
+    fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError> {
+        self.session.send(frame)
+    }
+
+    fn recv(&mut self, deadline: Instant) -> Result<Option<Received<usize>>, MasterError> {
+        Ok(self.session.next(deadline)?.map(|i| {
+            let r = self.session.record(i);
+            Received { seen: i, origin: r.origin, frame: r.frame, at: r.at }
+        }))
+    }
+
+    fn judged(&mut self, seen: usize, verdict: Verdict) {
+        self.session.set_verdict(seen, verdict);
+    }
+
+    fn other(&mut self, seen: usize) {
+        (self.other)(self.session, seen);
+    }
+}
+
+/// Runs one transaction to its end on `session` ([`drive`] on the session); returns the reply and
+/// the index of the record that completed it. `other` judges every frame that is not part of it.
+pub fn run(
+    session: &mut Session<'_>,
+    tx: &mut Transaction,
+    other: impl FnMut(&mut Session<'_>, usize),
+) -> Result<Outcome<usize>, MasterError> {
+    drive(&mut SessionLink { session, other }, tx)
 }

@@ -1,0 +1,54 @@
+//! # master-core
+//!
+//! The protocol layer of the bench DeviceNet master: what a program needs to talk to a device the
+//! way a scanner does, and to check every frame it answers. The `dnet-master` tool
+//! (`master-harness`) and the EDS tool's live device check (`eds`, `check-device`) are both built
+//! on it. Protocol facts are those of `../shared/devicenet-notes.md`; every wire format comes from
+//! the [`devicenet`] core, every bus from `can_io`.
+//!
+//! ## What it owns
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the log file |
+//! | [`client`] | one explicit transaction as a sans-IO state machine ([`Transaction`](client::Transaction)): fragmentation both ways, every response frame checked; [`drive`](client::drive) and [`run`](client::run), the one way to drive it |
+//! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of notes §2 |
+//! | [`decode`] | DeviceNet meaning of frames, with reassembly |
+//! | [`error`] | [`MasterError`](error::MasterError): why an operation stopped |
+//!
+//! ## What it must not depend on
+//!
+//! Not `master-harness` (the conformance suite, soak, replay, scan, monitor and command line are
+//! built on this crate, not the other way round), not `eds`, and not the simulated device
+//! (`converter-sim`, only in its tests): a product crate that checks a device over the bus pulls in
+//! this crate and nothing of the bench.
+//!
+//! ## Example: the bring-up on the simulated bus
+//!
+//! ```
+//! use can_io::bus::Bitrate;
+//! use can_io::sim::{PowerOn, SimBus};
+//! use converter_sim::SoftSlave;
+//! use master_core::master::{ConnectOptions, Master, MasterConfig};
+//! use master_core::session::Session;
+//! use devicenet::{reference::BRING_UP, MacId};
+//!
+//! let mut bus = SimBus::new(Bitrate::K250);
+//! bus.attach(Box::new(SoftSlave::reference(MacId::new(5).unwrap())), PowerOn::WhenMasterOnline);
+//! let mut session = Session::new(&mut bus);
+//! Master::new(&mut session, MasterConfig::default()).connect(&ConnectOptions::default()).unwrap();
+//! assert_eq!(session.records().len(), BRING_UP.len());
+//! assert_eq!(session.failures(), 0);
+//! ```
+//!
+//! ## No-panic contract
+//!
+//! Bus frames are untrusted: every frame is decoded and judged, never a panic.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod client;
+pub mod decode;
+pub mod error;
+pub mod master;
+pub mod session;
