@@ -16,7 +16,7 @@
 //! | checks | [`mod@check`] | [`Eds`] + [`RawEds`] → [`Report`] of [`Diagnostic`]s, errors vs warnings |
 //! | writer | [`mod@write`] | [`Eds`] → EDS text, deterministic |
 //! | generator | [`mod@generate`] | device description ([`slave_fw::description`]) → [`Eds`] → text |
-//! | device check | [`device`] | [`Eds`] + a device on a bus (through `master_harness`) → [`DeviceReport`] of disagreements |
+//! | device check | [`device`] | [`Eds`] + a device on a bus (through `master_core`, the master's protocol layer; never the harness) → [`DeviceReport`] of disagreements |
 //!
 //! Each layer only depends on the ones above it; each can be used alone (a tool that only needs
 //! sections can stop at [`RawEds`]). Only the last two depend on the rest of the workspace: the
