@@ -335,10 +335,8 @@ impl Converter {
                 Event::ConnectionTimedOut(ConnectionKind::Poll)
                 | Event::ConnectionDeleted(ConnectionKind::Poll)
                 | Event::CommunicationFaulted(_) => self.profile.connection_fault(now),
-                Event::ResetRequested(kind) => {
-                    if self.reset.is_none() {
-                        self.reset = Some((now + RESET_DELAY, ResetKind::from_raw(kind)));
-                    }
+                Event::ResetRequested(kind) if self.reset.is_none() => {
+                    self.reset = Some((now + RESET_DELAY, ResetKind::from_raw(kind)));
                 }
                 _ => {}
             }
