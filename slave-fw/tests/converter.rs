@@ -225,7 +225,7 @@ fn bare_established() -> (Converter, Instant) {
         while c.poll_can_transmit().is_some() {}
     }
     for f in BRING_UP.iter().filter(|f| f.direction == Direction::MasterToSlave).skip(2) {
-        now = now + Duration::from_millis(10);
+        now += Duration::from_millis(10);
         c.handle_can_frame(&CanFrame::from_raw(f.id, f.data).unwrap(), now);
         while c.poll_can_transmit().is_some() {}
     }
@@ -259,7 +259,7 @@ fn polls_are_consumed_not_passed_on_as_events() {
     while c.poll_can_transmit().is_some() {}
     while c.poll_event().is_some() {}
     for n in 0..100u8 {
-        now = now + Duration::from_millis(10);
+        now += Duration::from_millis(10);
         let data = if n % 10 == 0 { vec![] } else { vec![0; 8] };
         c.handle_can_frame(&CanFrame::from_raw(0x42D, &data).unwrap(), now);
         assert_eq!(
