@@ -323,13 +323,11 @@ impl Converter {
 
     fn sync(&mut self, now: Instant) {
         while let Some(event) = self.node.poll_event() {
+            // The per-poll events are the converter's alone; the rest go on to the application.
             match event {
-                Event::OutputReceived => {
-                    self.profile.set_outputs(self.node.output(), now);
-                    continue;
-                }
-                Event::Idle => {
-                    self.profile.set_outputs(&[], now);
+                Event::OutputReceived | Event::Idle => {
+                    let outputs = if event == Event::Idle { &[] } else { self.node.output() };
+                    self.profile.set_outputs(outputs, now);
                     continue;
                 }
                 Event::ConnectionTimedOut(ConnectionKind::Poll)
@@ -366,5 +364,13 @@ impl Converter {
         let mut app = ApplicationStatus { configured: true, ..ApplicationStatus::default() };
         app.minor_recoverable_fault = stale;
         self.node.set_application_status(app, now);
+    }
+}
+
+/// The earlier of two optional deadlines.
+fn earliest(a: Option<Instant>, b: Option<Instant>) -> Option<Instant> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
     }
 }

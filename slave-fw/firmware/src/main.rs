@@ -101,12 +101,8 @@ mod app {
 
     #[local]
     struct Local {
-        /// The converter and the settings in force.
-        state: ConverterTask,
-        /// The MS/NS LEDs.
-        leds: LedPins,
-        /// The settings flash.
-        store: SettingsStore<Flash>,
+        /// Everything only the converter task touches.
+        state: TaskState,
         /// Channel into the converter task, one sender per interrupt: CAN RX0.
         #[cfg(not(feature = "emulated"))]
         rx0_inputs: Sender<'static, Input, INPUTS>,
@@ -123,6 +119,16 @@ mod app {
         usart2_inputs: Sender<'static, Input, INPUTS>,
         /// The converter task's end of the channel.
         inputs: Receiver<'static, Input, INPUTS>,
+    }
+
+    /// The converter task's own resources.
+    pub struct TaskState {
+        /// The converter and the settings in force.
+        task: ConverterTask,
+        /// The MS/NS LEDs.
+        leds: LedPins,
+        /// The settings flash.
+        store: SettingsStore<Flash>,
     }
 
     #[init]
@@ -176,9 +182,7 @@ mod app {
         (
             Shared { can: CanPort::new(driver), instrument_port: InstrumentPort::new(rs485) },
             Local {
-                state: ConverterTask::new(converter, settings),
-                leds: board.leds,
-                store,
+                state: TaskState { task: ConverterTask::new(converter, settings), leds: board.leds, store },
                 #[cfg(not(feature = "emulated"))]
                 rx0_inputs: sender.clone(),
                 #[cfg(feature = "emulated")]
@@ -300,13 +304,20 @@ mod app {
 
     /// The one task that owns the converter: inputs and timers in; frames, instrument bytes,
     /// LEDs and settings out ([`crate::task`]).
-    #[task(shared = [can, instrument_port], local = [state, leds, store, inputs], priority = 1)]
+    #[task(shared = [can, instrument_port], local = [state, inputs], priority = 1)]
     async fn converter_task(cx: converter_task::Context) {
-        let converter_task::LocalResources { state: task, leds, store, inputs, .. } = cx.local;
+        let converter_task::LocalResources { state, inputs, .. } = cx.local;
+        let TaskState { task, leds, store } = state;
         let converter_task::SharedResources { mut can, mut instrument_port, .. } = cx.shared;
-        let mut io = Io { can: &mut can, instrument_port: &mut instrument_port, store };
+        // The board's side is borrowed for each step, not held across the wait: the task's
+        // future stays small.
+        macro_rules! io {
+            () => {
+                &mut Io { can: &mut can, instrument_port: &mut instrument_port, store: &mut *store }
+            };
+        }
         let start = now();
-        task.power_on(start, &mut io);
+        task.power_on(start, io!());
         let mut next_led = start;
         loop {
             let now_ = now();
@@ -322,9 +333,9 @@ mod app {
                 Mono::timeout_at(<Mono as Monotonic>::Instant::from_ticks(ticks), inputs.recv()).await;
             // Every sender lives in a task that never ends, so the channel never closes.
             if let Ok(Ok(input)) = first {
-                task.take_inputs(input, || inputs.try_recv().ok(), now(), &mut io);
+                task.take_inputs(input, || inputs.try_recv().ok(), now(), io!());
             }
-            task.handle_timeout(now(), &mut io);
+            task.handle_timeout(now(), io!());
         }
     }
 }

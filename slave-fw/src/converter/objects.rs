@@ -140,8 +140,27 @@ impl LinkAttribute {
     ];
 
     /// The attribute with id `id`, if the object has one.
-    pub fn from_id(id: u8) -> Option<LinkAttribute> {
-        LinkAttribute::ALL.into_iter().find(|a| a.id() == id)
+    pub const fn from_id(id: u8) -> Option<LinkAttribute> {
+        use LinkAttribute as A;
+        // The identity on 1..=15: compiled to a range check (tested against `ALL`).
+        Some(match id {
+            1 => A::FramesReceived,
+            2 => A::ChecksumErrors,
+            3 => A::FramingErrors,
+            4 => A::AnswerTimeouts,
+            5 => A::CommandsSent,
+            6 => A::CommandsRetried,
+            7 => A::CommandsFailed,
+            8 => A::CommandsRejected,
+            9 => A::ModbusExceptions,
+            10 => A::FramesSent,
+            11 => A::DiscardedBytes,
+            12 => A::LinkTimeouts,
+            13 => A::StatusByte,
+            14 => A::Freshness,
+            15 => A::LinkState,
+            _ => return None,
+        })
     }
 
     /// The attribute id.
@@ -261,8 +280,23 @@ impl SettingsAttribute {
     ];
 
     /// The attribute with id `id`, if the object has one.
-    pub fn from_id(id: u8) -> Option<SettingsAttribute> {
-        SettingsAttribute::ALL.into_iter().find(|a| a.id() == id)
+    pub const fn from_id(id: u8) -> Option<SettingsAttribute> {
+        use SettingsAttribute as A;
+        // The identity on 1..=11: compiled to a range check (tested against `ALL`).
+        Some(match id {
+            1 => A::SerialBaud,
+            2 => A::SerialParity,
+            3 => A::SerialStopBits,
+            4 => A::StaleTimeout,
+            5 => A::StalePolicy,
+            6 => A::InputAssembly,
+            7 => A::ResponseTimeout,
+            8 => A::Retries,
+            9 => A::IdleAction,
+            10 => A::FaultAction,
+            11 => A::SerialProfile,
+            _ => return None,
+        })
     }
 
     /// The attribute id.
@@ -425,38 +459,48 @@ pub(super) struct VendorObjects<'a> {
 }
 
 impl VendorObjects<'_> {
-    /// The value and type of instance attribute `id` of `class` (one of ours).
-    fn attribute(&self, class: u16, id: u8) -> Result<(AttributeType, u32), ServiceError> {
-        let value = if class == SERIAL_LINK_CLASS {
-            LinkAttribute::from_id(id)
-                .map(|a| (a.data_type(), a.read(self.profile.stats(), &self.profile.status())))
+    /// Get_Attribute_Single of instance attribute `id` of `class` (one of ours).
+    fn get(&self, class: u16, id: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+        let (data_type, value) = if class == SERIAL_LINK_CLASS {
+            let a = LinkAttribute::from_id(id).ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)?;
+            (a.data_type(), a.read(self.profile.stats(), &self.profile.status()))
         } else {
-            SettingsAttribute::from_id(id)
-                .map(|a| (a.data_type(), a.read(&SettingsValues::of_profile(self.profile, self.input))))
+            let a = SettingsAttribute::from_id(id).ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)?;
+            (a.data_type(), a.read(&SettingsValues::of_profile(self.profile, self.input)))
         };
-        value.ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)
+        match data_type {
+            AttributeType::Udint => reply.u32(value),
+            // One-byte types: the value fits by construction of `read` (tested).
+            AttributeType::Usint | AttributeType::Byte => reply.u8(value as u8),
+        }
     }
 }
 
 impl ObjectHandler for VendorObjects<'_> {
     fn handle(&mut self, req: &Request<'_>, reply: &mut Reply<'_>) -> Option<Result<(), ServiceError>> {
-        if req.class != SERIAL_LINK_CLASS && req.class != SETTINGS_CLASS {
-            return None;
-        }
+        let link = match req.class {
+            SERIAL_LINK_CLASS => true,
+            SETTINGS_CLASS => false,
+            _ => return None,
+        };
+        let known = |id| {
+            if link {
+                LinkAttribute::from_id(id).is_some()
+            } else {
+                SettingsAttribute::from_id(id).is_some()
+            }
+        };
         Some(match (req.instance, req.service, req.data) {
             (0, ServiceCode::GetAttributeSingle, [1]) => reply.u16(1),
             (0, ServiceCode::GetAttributeSingle, [_]) => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
             (0 | 1, ServiceCode::GetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
             (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => Err(ServiceError::TOO_MUCH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [attr]) => match self.attribute(req.class, *attr) {
-                Ok((AttributeType::Udint, value)) => reply.u32(value),
-                // One-byte types: the value fits by construction of `read`.
-                Ok((AttributeType::Usint | AttributeType::Byte, value)) => reply.u8(value as u8),
-                Err(e) => Err(e),
-            },
-            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => {
-                self.attribute(req.class, *attr).and(Err(ServiceError::ATTRIBUTE_NOT_SETTABLE))
-            }
+            (1, ServiceCode::GetAttributeSingle, [attr]) => self.get(req.class, *attr, reply),
+            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => Err(if known(*attr) {
+                ServiceError::ATTRIBUTE_NOT_SETTABLE
+            } else {
+                ServiceError::ATTRIBUTE_NOT_SUPPORTED
+            }),
             (1, ServiceCode::SetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
             (0 | 1, _, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
@@ -483,6 +527,7 @@ mod tests {
         }
         assert_eq!(LinkAttribute::from_id(0), None);
         assert_eq!(LinkAttribute::from_id(16), None);
+        assert_eq!(SettingsAttribute::from_id(0), None);
         assert_eq!(SettingsAttribute::from_id(12), None);
     }
 
