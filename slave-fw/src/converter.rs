@@ -300,10 +300,7 @@ impl Converter {
     /// The earliest instant [`Converter::handle_timeout`] (and [`Converter::poll_reset`]) must
     /// run: the node's and the profile's timers and a pending reset.
     pub fn poll_at(&self) -> Option<Instant> {
-        [self.node.poll_at(), self.profile.poll_at(), self.reset.map(|(at, _)| at)]
-            .into_iter()
-            .flatten()
-            .min()
+        earliest(earliest(self.node.poll_at(), self.profile.poll_at()), self.reset.map(|(at, _)| at))
     }
 
     /// The LEDs at `now`.
