@@ -127,12 +127,14 @@ impl ConverterTask {
         self.converter.leds(now)
     }
 
-    /// The converter.
+    /// The converter (the tests look into it).
+    #[cfg(test)]
     pub fn converter(&self) -> &Converter {
         &self.converter
     }
 
-    /// The settings in force, with the changes made over the network.
+    /// The settings in force, with the changes made over the network (the tests look at them).
+    #[cfg(test)]
     pub fn settings(&self) -> &Settings {
         &self.settings
     }
