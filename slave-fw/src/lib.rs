@@ -21,7 +21,8 @@
 //! | [`serial::framed_profile`] | [`FramedProfile`](serial::FramedProfile): framing + sequencer + health for the breaker and similar instruments |
 //! | [`serial::modbus`] | Modbus RTU: the ADU codec ([`Request`](serial::modbus::Request), [`Response`](serial::modbus::Response)) and the scan-list [`ModbusMaster`](serial::modbus::ModbusMaster) |
 //! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
-//! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the vendor objects |
+//! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the Identity Reset's delay ([`RESET_DELAY`](converter::RESET_DELAY), [`poll_reset`](converter::Converter::poll_reset)) |
+//! | [`converter::objects`] | the vendor objects 0x64 (serial link) and 0x65 (settings): one attribute table each, served by the converter and written into the EDS by `eds::generate` |
 //! | `sim` (feature `std`) | `SimulatedBreaker`: test equipment speaking the breaker protocol, sans-IO |
 //! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
 //! | `soft` (feature `std`) | `SoftSlave`: a converter wired to a simulated breaker on a virtual clock |
