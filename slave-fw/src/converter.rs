@@ -12,7 +12,7 @@
 //!   connection timeout; the profile's idle/fault actions say what the instrument is told.
 //! - Input assembly 100 is the instrument's image as it is (the plain 18 bytes of the breaker);
 //!   assembly 101 appends the status byte and the freshness counter
-//!   ([`LinkStatus::to_bytes`]). The description chooses which one the poll connection produces.
+//!   ([`LinkStatus::to_bytes`](crate::serial::LinkStatus::to_bytes)). The description chooses which one the poll connection produces.
 //! - While the instrument is silent the Identity status reports a minor recoverable fault and the
 //!   Module Status LED flashes red (devicenet-notes §6.2, §7.3).
 //! - Two vendor-specific objects serve the serial side over explicit messaging:
