@@ -12,9 +12,9 @@
 //! | `[Device Classification]` | `Class1 = DeviceNet` | — |
 //! | `[IO_Info]` | `Default` and `PollInfo` poll only (`0x0001`); `Input1` = produced size, path `20 04 24 <100 or 101> 30 03`; `Output1` = consumed size, path `20 04 24 96 30 03` | Connection 2 attributes 7, 8, 14, 16; Assembly (class 0x04) |
 //! | `[ParamClass]` | `MaxInst = 0`: the device has no Parameter object (class 0x0F); every parameter is reached through its link path | — |
-//! | `[Params]` 1–11 | the converter's settings, read-only: `ParamN` is attribute N | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]) |
+//! | `[Params]` 1–11 | the converter's settings, read-only: `ParamN` is attribute N | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]); names, units, types, access and defaults from its attribute table, [`SettingsAttribute`] |
 //! | `[Params]` 12–14 | MAC ID, data rate, bus-off interrupt | DeviceNet object, class 0x03 instance 1, attributes 1–3 |
-//! | `[Params]` 15–29 | serial link statistics and status, monitor parameters: `ParamN` is attribute N − 14 | serial link object, class 0x64 instance 1 ([`slave_fw::converter::SERIAL_LINK_CLASS`]) |
+//! | `[Params]` 15–29 | serial link statistics and status, monitor parameters: `ParamN` is attribute N − 14 | serial link object, class 0x64 instance 1 ([`slave_fw::converter::SERIAL_LINK_CLASS`]); names, units, types and access from its attribute table, [`LinkAttribute`] |
 //! | `[Params]` `EnumN` | the strings of every parameter that is a choice (the `EnumN` dialect only; no `[EnumPar]`) | — |
 //! | `[Groups]` | serial line, instrument link, I/O behaviour, DeviceNet, statistics | — |
 //!
@@ -37,12 +37,13 @@ use crate::model::{
 use crate::value::{ConnectionMask, DataType, Date, Descriptor, LinkPath, Revision, Time, Value};
 use crate::{Param, Writer};
 use devicenet::objects::class;
-use slave_fw::converter::{InputAssembly, OUTPUT_ASSEMBLY, SERIAL_LINK_CLASS, SETTINGS_CLASS};
+use slave_fw::converter::objects::{
+    Access, AttributeSpec, AttributeType, LinkAttribute, SettingsAttribute, SettingsValues,
+};
+use slave_fw::converter::{InputAssembly, OUTPUT_ASSEMBLY};
 use slave_fw::description::DeviceDescription;
 use slave_fw::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry};
-use slave_fw::serial::{
-    HealthConfig, IdleAction, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
-};
+use slave_fw::serial::{HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings};
 
 /// The `CreateDate` and `ModDate` written when [`GenerateOptions::date`] is not changed.
 pub const DEFAULT_DATE: Date = Date { year: 2025, month: 1, day: 1 };
@@ -57,10 +58,11 @@ pub const FIRST_DEVICENET_PARAM: u32 = 12;
 /// Number of the first serial link parameter: `ParamN` reads class 0x64 attribute
 /// `N - FIRST_LINK_PARAM + 1`.
 pub const FIRST_LINK_PARAM: u32 = 15;
-/// Number of settings parameters: `Param1` to `Param11` read class 0x65 attributes 1 to 11.
-pub const SETTINGS_PARAM_COUNT: u32 = 11;
-/// Number of serial link parameters (class 0x64 attributes 1 to 15).
-pub const LINK_PARAM_COUNT: u32 = 15;
+/// Number of settings parameters: `Param1` to `Param11` read class 0x65 attributes 1 to 11
+/// ([`SettingsAttribute::ALL`]).
+pub const SETTINGS_PARAM_COUNT: u32 = SettingsAttribute::ALL.len() as u32;
+/// Number of serial link parameters (class 0x64 attributes 1 to 15, [`LinkAttribute::ALL`]).
+pub const LINK_PARAM_COUNT: u32 = LinkAttribute::ALL.len() as u32;
 
 /// What the generated file says about itself.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -365,14 +367,10 @@ fn choices(list: &[(i128, &str)]) -> Vec<(i128, String)> {
     list.iter().map(|(v, t)| (*v, (*t).to_string())).collect()
 }
 
-/// The values the settings object serves, from the description (the converter's
-/// `settings_attribute` mapping; a test reads them back from the soft slave).
+/// What the settings parameters' help and ranges depend on beyond the values (which come from
+/// [`SettingsValues`]): the profile's limits and its idle and fault frames.
 struct Settings<'a> {
-    serial: &'a SerialSettings,
-    health: HealthConfig,
-    response_timeout_ms: u32,
     max_response_timeout_ms: u32,
-    retries: u8,
     max_retries: u8,
     on_idle: &'a IdleAction,
     on_fault: &'a IdleAction,
@@ -383,22 +381,14 @@ impl<'a> Settings<'a> {
     fn of(profile: &'a ProfileConfig) -> Settings<'a> {
         match profile {
             ProfileConfig::Framed(c) => Settings {
-                serial: &c.serial,
-                health: c.health,
-                response_timeout_ms: c.sequencer.response_timeout_ms,
                 max_response_timeout_ms: SequencerConfig::MAX_RESPONSE_TIMEOUT_MS,
-                retries: c.sequencer.retries,
                 max_retries: SequencerConfig::MAX_RETRIES,
                 on_idle: &c.sequencer.on_idle,
                 on_fault: &c.sequencer.on_fault,
                 modbus: false,
             },
             ProfileConfig::Modbus(c) => Settings {
-                serial: &c.serial,
-                health: c.health,
-                response_timeout_ms: c.response_timeout_ms,
                 max_response_timeout_ms: ModbusConfig::MAX_RESPONSE_TIMEOUT_MS,
-                retries: c.retries,
                 max_retries: ModbusConfig::MAX_RETRIES,
                 on_idle: &c.on_idle,
                 on_fault: &c.on_fault,
@@ -431,192 +421,15 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
     let converter = &description.converter;
     let device = converter.device_config();
     let s = Settings::of(&converter.profile);
-    let setting = |attribute: u8| attribute_path(SETTINGS_CLASS, attribute);
     let input_len = converter.profile.input_len();
-    let mut specs = vec![
-        Spec {
-            number: 1,
-            path: setting(1),
-            descriptor: READ_ONLY,
-            data_type: DataType::Udint,
-            name: "Serial baud rate",
-            units: "baud",
-            help: "Bit rate of the serial line to the instrument".into(),
-            min: SerialSettings::MIN_BAUD.into(),
-            max: SerialSettings::MAX_BAUD.into(),
-            default: s.serial.baud.into(),
-            choices: Vec::new(),
-        },
-        Spec {
-            number: 2,
-            path: setting(2),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Serial parity",
-            units: "",
-            help: "Parity bit of every character on the serial line".into(),
-            min: 0,
-            max: 2,
-            default: match s.serial.parity {
-                Parity::None => 0,
-                Parity::Odd => 1,
-                Parity::Even => 2,
-            },
-            choices: choices(&[(0, "None"), (1, "Odd"), (2, "Even")]),
-        },
-        Spec {
-            number: 3,
-            path: setting(3),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Serial stop bits",
-            units: "",
-            help: "Stop bits of every character on the serial line".into(),
-            min: 1,
-            max: 2,
-            default: match s.serial.stop_bits {
-                StopBits::One => 1,
-                StopBits::Two => 2,
-            },
-            choices: choices(&[(1, "1 stop bit"), (2, "2 stop bits")]),
-        },
-        Spec {
-            number: 4,
-            path: setting(4),
-            descriptor: READ_ONLY,
-            data_type: DataType::Udint,
-            name: "Stale timeout",
-            units: "ms",
-            help: "Time without a good answer from the instrument after which the link is stale (Module \
-                   Status flashes red, the input data follows the stale policy)"
-                .into(),
-            min: 1,
-            max: HealthConfig::MAX_STALE_TIMEOUT_MS.into(),
-            default: s.health.stale_timeout_ms.into(),
-            choices: Vec::new(),
-        },
-        Spec {
-            number: 5,
-            path: setting(5),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Stale policy",
-            units: "",
-            help: "What the input data shows while the link is stale".into(),
-            min: 0,
-            max: 1,
-            default: match s.health.stale_policy {
-                StalePolicy::HoldLastValue => 0,
-                StalePolicy::Clear => 1,
-            },
-            choices: choices(&[(0, "Hold last value"), (1, "Clear to zero")]),
-        },
-        Spec {
-            number: 6,
-            path: setting(6),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Input assembly",
-            units: "",
-            help: "The assembly instance the poll connection produces".into(),
-            min: InputAssembly::Plain.instance().into(),
-            max: InputAssembly::WithStatus.instance().into(),
-            default: device.input_assembly.into(),
-            choices: vec![
-                (
-                    InputAssembly::Plain.instance().into(),
-                    format!("Instrument data ({} bytes)", InputAssembly::Plain.produced_size(input_len)),
-                ),
-                (
-                    InputAssembly::WithStatus.instance().into(),
-                    format!(
-                        "Instrument data and link status ({} bytes)",
-                        InputAssembly::WithStatus.produced_size(input_len)
-                    ),
-                ),
-            ],
-        },
-        Spec {
-            number: 7,
-            path: setting(7),
-            descriptor: READ_ONLY,
-            data_type: DataType::Udint,
-            name: "Response timeout",
-            units: "ms",
-            help: if s.modbus {
-                "Wait for a Modbus response, counted from the end of the request".into()
-            } else {
-                "Wait for the instrument's acknowledgement of a command, counted from the end of the command"
-                    .into()
-            },
-            min: 1,
-            max: s.max_response_timeout_ms.into(),
-            default: s.response_timeout_ms.into(),
-            choices: Vec::new(),
-        },
-        Spec {
-            number: 8,
-            path: setting(8),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Retries",
-            units: "",
-            help: if s.modbus {
-                "Repetitions of a Modbus request after a timeout or a corrupted answer".into()
-            } else {
-                "Retransmissions of a command after a timeout before it is reported failed".into()
-            },
-            min: 0,
-            max: s.max_retries.into(),
-            default: s.retries.into(),
-            choices: Vec::new(),
-        },
-        Spec {
-            number: 9,
-            path: setting(9),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Idle action",
-            units: "",
-            help: action_help(&s, s.on_idle, "the scanner goes idle (zero-length poll)"),
-            min: 0,
-            max: 1,
-            default: u8::from(s.on_idle.frame().is_some()).into(),
-            choices: choices(&[
-                (0, "Nothing"),
-                (1, if s.modbus { "Send Modbus request" } else { "Send frame" }),
-            ]),
-        },
-        Spec {
-            number: 10,
-            path: setting(10),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Fault action",
-            units: "",
-            help: action_help(&s, s.on_fault, "the poll connection times out"),
-            min: 0,
-            max: 1,
-            default: u8::from(s.on_fault.frame().is_some()).into(),
-            choices: choices(&[
-                (0, "Nothing"),
-                (1, if s.modbus { "Send Modbus request" } else { "Send frame" }),
-            ]),
-        },
-        Spec {
-            number: 11,
-            path: setting(11),
-            descriptor: READ_ONLY,
-            data_type: DataType::Usint,
-            name: "Serial profile",
-            units: "",
-            help: "The instrument protocol on the serial line".into(),
-            min: 0,
-            max: 1,
-            default: i128::from(s.modbus),
-            choices: choices(&[(0, "Framed serial"), (1, "Modbus RTU master")]),
-        },
-    ];
+    let values = SettingsValues::of_config(&converter.profile, converter.input);
+    let mut specs: Vec<Spec> = SettingsAttribute::ALL
+        .into_iter()
+        .map(|a| {
+            let shown = setting_presentation(a, &s, input_len);
+            attribute_param(u32::from(a.id()), a.spec(), a.read(&values), shown)
+        })
+        .collect();
     let programmable = device.switches.programmable;
     let (switch_descriptor, switch_help) = if programmable {
         (0, "; settable over the network (program position), in force after a reset")
@@ -669,101 +482,167 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
     specs
 }
 
-/// The serial link object's attributes as monitor parameters.
+/// The serial link object's attributes as monitor parameters, from
+/// [`slave_fw::converter::objects::LinkAttribute`]; each starts at 0.
 fn link_parameters() -> Vec<Spec> {
-    const COUNTERS: [(&str, &str, &str); 12] = [
-        (
-            "Frames received",
-            "frames",
-            "Good frames received from the instrument (framing and checksum verified)",
-        ),
-        ("Checksum errors", "frames", "Frames discarded for a checksum or CRC mismatch"),
-        (
-            "Framing errors",
-            "frames",
-            "Frames discarded for bad framing, answers to nothing asked, bursts of stray bytes",
-        ),
-        ("Answer timeouts", "", "Expected answers that did not arrive in time (every attempt counts)"),
-        ("Commands sent", "", "Commands sent (first attempts); Modbus: writes of changed outputs"),
-        ("Commands retried", "", "Command retransmissions after a timeout or a corrupted answer"),
-        ("Commands failed", "", "Commands given up after all retries"),
-        (
-            "Commands rejected",
-            "",
-            "Commands the instrument refused (negative acknowledgement, Modbus exception)",
-        ),
-        ("Modbus exceptions", "", "Modbus exception responses, reads and writes"),
-        (
-            "Frames sent",
-            "frames",
-            "Frames written to the serial line, retries and idle/fault frames included",
-        ),
-        ("Discarded bytes", "bytes", "Bytes skipped outside any frame"),
-        ("Link timeouts", "", "Times the link went stale"),
-    ];
-    let link = |attribute: u8| attribute_path(SERIAL_LINK_CLASS, attribute);
-    let mut specs: Vec<Spec> = COUNTERS
-        .iter()
-        .zip(1u8..)
-        .map(|(&(name, units, help), attribute)| Spec {
-            number: FIRST_LINK_PARAM + u32::from(attribute) - 1,
-            path: link(attribute),
-            descriptor: MONITOR,
-            data_type: DataType::Udint,
-            name,
-            units,
-            help: format!("{help}; wraps at 2^32"),
-            min: 0,
-            max: u32::MAX.into(),
-            default: 0,
-            choices: Vec::new(),
-        })
-        .collect();
-    specs.extend([
-        Spec {
-            number: FIRST_LINK_PARAM + 12,
-            path: link(13),
-            descriptor: MONITOR,
-            data_type: DataType::Byte,
-            name: "Link status byte",
-            units: "",
-            help:
-                "Bit 0 link ok, 1 link timeout, 2 frame errors, 3 Modbus exception, 4-6 last command outcome \
-                   (0 none, 1 pending, 2 ok, 3 rejected, 4 failed, 5 unsupported), 7 request timeout"
-                    .into(),
-            min: 0,
-            max: 255,
-            default: 0,
-            choices: Vec::new(),
+    LinkAttribute::ALL
+        .into_iter()
+        .map(|a| attribute_param(FIRST_LINK_PARAM + u32::from(a.id()) - 1, a.spec(), 0, link_presentation(a)))
+        .collect()
+}
+
+/// What the EDS says about an attribute beyond the converter's table
+/// ([`slave_fw::converter::objects`]): help text, range and the strings of a choice.
+struct Presentation {
+    help: String,
+    min: i128,
+    max: i128,
+    choices: Vec<(i128, String)>,
+}
+
+impl Presentation {
+    fn new(help: impl Into<String>, min: impl Into<i128>, max: impl Into<i128>) -> Presentation {
+        Presentation { help: help.into(), min: min.into(), max: max.into(), choices: Vec::new() }
+    }
+
+    fn choices(mut self, list: &[(i128, &str)]) -> Presentation {
+        self.choices = choices(list);
+        self
+    }
+}
+
+/// Parameter `number` for the vendor attribute `spec` (instance 1), with the value `default`.
+fn attribute_param(number: u32, spec: AttributeSpec, default: u32, shown: Presentation) -> Spec {
+    Spec {
+        number,
+        path: attribute_path(spec.class, spec.id),
+        descriptor: match spec.access {
+            Access::Get => READ_ONLY,
+            Access::GetMonitor => MONITOR,
         },
-        Spec {
-            number: FIRST_LINK_PARAM + 13,
-            path: link(14),
-            descriptor: MONITOR,
-            data_type: DataType::Usint,
-            name: "Freshness counter",
-            units: "",
-            help: "Counts good frames from the instrument, wrapping at 256".into(),
-            min: 0,
-            max: 255,
-            default: 0,
-            choices: Vec::new(),
+        data_type: match spec.data_type {
+            AttributeType::Usint => DataType::Usint,
+            AttributeType::Udint => DataType::Udint,
+            AttributeType::Byte => DataType::Byte,
         },
-        Spec {
-            number: FIRST_LINK_PARAM + 14,
-            path: link(15),
-            descriptor: MONITOR,
-            data_type: DataType::Usint,
-            name: "Link state",
-            units: "",
-            help: "The instrument link: starting (nothing received yet), ok, or stale".into(),
-            min: 0,
-            max: 2,
-            default: 0,
-            choices: choices(&[(0, "Starting"), (1, "Ok"), (2, "Stale")]),
+        name: spec.name,
+        units: spec.units,
+        help: shown.help,
+        min: shown.min,
+        max: shown.max,
+        default: default.into(),
+        choices: shown.choices,
+    }
+}
+
+/// Help, range and choices of a settings attribute for the described profile.
+fn setting_presentation(a: SettingsAttribute, s: &Settings<'_>, input_len: usize) -> Presentation {
+    use SettingsAttribute as A;
+    let send = if s.modbus { "Send Modbus request" } else { "Send frame" };
+    match a {
+        A::SerialBaud => Presentation::new(
+            "Bit rate of the serial line to the instrument",
+            SerialSettings::MIN_BAUD,
+            SerialSettings::MAX_BAUD,
+        ),
+        A::SerialParity => Presentation::new("Parity bit of every character on the serial line", 0, 2)
+            .choices(&[(0, "None"), (1, "Odd"), (2, "Even")]),
+        A::SerialStopBits => Presentation::new("Stop bits of every character on the serial line", 1, 2)
+            .choices(&[(1, "1 stop bit"), (2, "2 stop bits")]),
+        A::StaleTimeout => Presentation::new(
+            "Time without a good answer from the instrument after which the link is stale (Module \
+             Status flashes red, the input data follows the stale policy)",
+            1,
+            HealthConfig::MAX_STALE_TIMEOUT_MS,
+        ),
+        A::StalePolicy => Presentation::new("What the input data shows while the link is stale", 0, 1)
+            .choices(&[(0, "Hold last value"), (1, "Clear to zero")]),
+        A::InputAssembly => Presentation {
+            choices: vec![
+                (
+                    InputAssembly::Plain.instance().into(),
+                    format!("Instrument data ({} bytes)", InputAssembly::Plain.produced_size(input_len)),
+                ),
+                (
+                    InputAssembly::WithStatus.instance().into(),
+                    format!(
+                        "Instrument data and link status ({} bytes)",
+                        InputAssembly::WithStatus.produced_size(input_len)
+                    ),
+                ),
+            ],
+            ..Presentation::new(
+                "The assembly instance the poll connection produces",
+                InputAssembly::Plain.instance(),
+                InputAssembly::WithStatus.instance(),
+            )
         },
-    ]);
-    specs
+        A::ResponseTimeout => Presentation::new(
+            if s.modbus {
+                "Wait for a Modbus response, counted from the end of the request"
+            } else {
+                "Wait for the instrument's acknowledgement of a command, counted from the end of the command"
+            },
+            1,
+            s.max_response_timeout_ms,
+        ),
+        A::Retries => Presentation::new(
+            if s.modbus {
+                "Repetitions of a Modbus request after a timeout or a corrupted answer"
+            } else {
+                "Retransmissions of a command after a timeout before it is reported failed"
+            },
+            0,
+            s.max_retries,
+        ),
+        A::IdleAction => {
+            Presentation::new(action_help(s, s.on_idle, "the scanner goes idle (zero-length poll)"), 0, 1)
+                .choices(&[(0, "Nothing"), (1, send)])
+        }
+        A::FaultAction => {
+            Presentation::new(action_help(s, s.on_fault, "the poll connection times out"), 0, 1)
+                .choices(&[(0, "Nothing"), (1, send)])
+        }
+        A::SerialProfile => Presentation::new("The instrument protocol on the serial line", 0, 1)
+            .choices(&[(0, "Framed serial"), (1, "Modbus RTU master")]),
+    }
+}
+
+/// Help, range and choices of a serial link attribute.
+fn link_presentation(a: LinkAttribute) -> Presentation {
+    use LinkAttribute as A;
+    let counter = |help: &str| Presentation::new(format!("{help}; wraps at 2^32"), 0, u32::MAX);
+    match a {
+        A::FramesReceived => {
+            counter("Good frames received from the instrument (framing and checksum verified)")
+        }
+        A::ChecksumErrors => counter("Frames discarded for a checksum or CRC mismatch"),
+        A::FramingErrors => {
+            counter("Frames discarded for bad framing, answers to nothing asked, bursts of stray bytes")
+        }
+        A::AnswerTimeouts => counter("Expected answers that did not arrive in time (every attempt counts)"),
+        A::CommandsSent => counter("Commands sent (first attempts); Modbus: writes of changed outputs"),
+        A::CommandsRetried => counter("Command retransmissions after a timeout or a corrupted answer"),
+        A::CommandsFailed => counter("Commands given up after all retries"),
+        A::CommandsRejected => {
+            counter("Commands the instrument refused (negative acknowledgement, Modbus exception)")
+        }
+        A::ModbusExceptions => counter("Modbus exception responses, reads and writes"),
+        A::FramesSent => counter("Frames written to the serial line, retries and idle/fault frames included"),
+        A::DiscardedBytes => counter("Bytes skipped outside any frame"),
+        A::LinkTimeouts => counter("Times the link went stale"),
+        A::StatusByte => Presentation::new(
+            "Bit 0 link ok, 1 link timeout, 2 frame errors, 3 Modbus exception, 4-6 last command outcome \
+             (0 none, 1 pending, 2 ok, 3 rejected, 4 failed, 5 unsupported), 7 request timeout",
+            0,
+            255,
+        ),
+        A::Freshness => Presentation::new("Counts good frames from the instrument, wrapping at 256", 0, 255),
+        A::LinkState => {
+            Presentation::new("The instrument link: starting (nothing received yet), ok, or stale", 0, 2)
+                .choices(&[(0, "Starting"), (1, "Ok"), (2, "Stale")])
+        }
+    }
 }
 
 fn groups() -> GroupsSection {
@@ -789,6 +668,7 @@ fn groups() -> GroupsSection {
 mod tests {
     use super::*;
     use rstest::rstest;
+    use slave_fw::converter::SETTINGS_CLASS;
 
     #[rstest]
     #[case::adapter(0x0C, "Communications Adapter")]
@@ -844,5 +724,21 @@ mod tests {
         let mac = eds.param(FIRST_DEVICENET_PARAM).unwrap();
         assert!(!mac.descriptor.unwrap().read_only());
         assert!(mac.help.contains("program position"));
+    }
+
+    #[test]
+    fn vendor_parameters_are_the_attribute_tables() {
+        let eds = generate(&DeviceDescription::reference(), &GenerateOptions::default());
+        let settings = SettingsAttribute::ALL.map(|a| (u32::from(a.id()), a.spec()));
+        let link = LinkAttribute::ALL.map(|a| (FIRST_LINK_PARAM + u32::from(a.id()) - 1, a.spec()));
+        for (n, spec) in settings.into_iter().chain(link) {
+            let param = eds.param(n).unwrap();
+            assert_eq!((param.name.as_str(), param.units.as_str()), (spec.name, spec.units), "Param{n}");
+            let path = param.link_path.as_ref().and_then(LinkPath::attribute).unwrap();
+            assert_eq!((path.class, path.attribute), (spec.class, Some(u16::from(spec.id))));
+            assert_eq!(param.data_size, Some(spec.data_type.size() as u32), "Param{n}");
+            let monitor = param.descriptor.unwrap().0 & Descriptor::MONITOR != 0;
+            assert_eq!(monitor, spec.access == Access::GetMonitor, "Param{n}");
+        }
     }
 }

@@ -12,28 +12,45 @@
 //!   connection timeout; the profile's idle/fault actions say what the instrument is told.
 //! - Input assembly 100 is the instrument's image as it is (the plain 18 bytes of the breaker);
 //!   assembly 101 appends the status byte and the freshness counter
-//!   ([`LinkStatus::to_bytes`]). The description chooses which one the poll connection produces.
+//!   ([`LinkStatus::to_bytes`](crate::serial::LinkStatus::to_bytes)). The description chooses which one the poll connection produces.
 //! - While the instrument is silent the Identity status reports a minor recoverable fault and the
 //!   Module Status LED flashes red (devicenet-notes §6.2, §7.3).
 //! - Two vendor-specific objects serve the serial side over explicit messaging:
 //!   [`SERIAL_LINK_CLASS`] (statistics and link status) and [`SETTINGS_CLASS`] (the
-//!   configuration in force, which the EDS parameters point at).
+//!   configuration in force, which the EDS parameters point at). Their attributes are described
+//!   once, in [`objects`], for the object handler and the EDS generator alike.
+//! - An Identity Reset is carried out [`RESET_DELAY`] after the request, so that the response has
+//!   left; the converter keeps the deadline and says when the reset is due
+//!   ([`Converter::poll_reset`]). The firmware resets the chip then, a host power-cycles its
+//!   simulated device; neither keeps a delay of its own.
 //!
-//! Drain order after any input: [`Converter::poll_can_transmit`], then
-//! [`Converter::poll_serial_transmit`], then [`Converter::poll_event`]; call
-//! [`Converter::handle_timeout`] at [`Converter::poll_at`] at the latest.
+//! ## Driving it
+//!
+//! Like the node's (`devicenet::slave`), the contract is: after **every** input
+//! ([`Converter::handle_can_frame`], [`Converter::handle_serial`], [`Converter::handle_bus_off`],
+//! [`Converter::handle_timeout`], [`Converter::power_on`]) drain, in this order,
+//!
+//! 1. [`Converter::poll_can_transmit`] until `None` (frames for the bus);
+//! 2. [`Converter::poll_serial_transmit`] until `None` (bytes for the instrument's UART);
+//! 3. [`Converter::poll_event`] until `None` (what the application acts on);
+//! 4. [`Converter::poll_reset`]: when it returns a [`ResetKind`], reset now;
+//!
+//! and call [`Converter::handle_timeout`] at [`Converter::poll_at`] at the latest. The queues
+//! behind the first and third are small (the node's 16 frames, 8 events): a caller that hands
+//! several inputs over before draining loses frames and events.
 
-use crate::serial::{
-    ConfigError, IdleAction, LinkState, Parity, Profile, ProfileConfig, StalePolicy, StopBits, IMAGE_CAPACITY,
-};
-use devicenet::explicit::{Request, ServiceCode};
+use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig, IMAGE_CAPACITY};
 use devicenet::led::Leds;
 use devicenet::slave::{
-    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, DeviceConfig, Event, ObjectHandler,
-    Reply, ServiceError,
+    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, DeviceConfig, Event,
 };
-use devicenet::{CanFrame, Instant, SlaveNode};
+use devicenet::{CanFrame, Duration, Instant, SlaveNode};
 use heapless::Deque;
+
+pub mod objects;
+
+use objects::VendorObjects;
+pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
 
 /// Input assembly instance with the instrument's image only.
 pub const PLAIN_INPUT_ASSEMBLY: u8 = 100;
@@ -43,10 +60,47 @@ pub const STATUS_INPUT_ASSEMBLY: u8 = 101;
 pub const OUTPUT_ASSEMBLY: u8 = 150;
 /// The consumed size for a framed (command) instrument: code, sequence, six argument bytes.
 pub const COMMAND_SIZE: u16 = 8;
-/// Vendor-specific class of the serial link object: statistics and status, instance 1.
-pub const SERIAL_LINK_CLASS: u16 = 0x64;
-/// Vendor-specific class of the settings object: the configuration in force, instance 1.
-pub const SETTINGS_CLASS: u16 = 0x65;
+/// The time from an Identity Reset request to the reset ([`Converter::poll_reset`]).
+///
+/// The node queues the success response when it takes the request (devicenet-notes §3.2: respond
+/// before resetting); the reset must wait until that frame has left the CAN controller, or the
+/// master sees a timeout instead of a response. One frame takes under 1.1 ms at 125 kbit/s, but it
+/// may wait behind queued frames, lose arbitration and be retransmitted after errors; 100 ms
+/// covers that with a wide margin (the adapter board has always waited this long), and is short
+/// against the master's explicit message timeout and a power cycle's own duplicate MAC ID check
+/// (2 s, devicenet-notes §7.1).
+pub const RESET_DELAY: Duration = Duration::from_millis(100);
+
+/// What an Identity Reset asks for (the Reset service's type byte, devicenet-notes §3.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ResetKind {
+    /// Type 0 (or no type byte): emulate a power cycle.
+    PowerCycle,
+    /// Type 1: return to the out-of-box configuration, then power cycle.
+    OutOfBox,
+    /// Another type byte (the node refuses these, so a converter never reports one).
+    Unknown(u8),
+}
+
+impl ResetKind {
+    /// The kind the Reset service's type byte selects.
+    pub const fn from_raw(raw: u8) -> ResetKind {
+        match raw {
+            0 => ResetKind::PowerCycle,
+            1 => ResetKind::OutOfBox,
+            other => ResetKind::Unknown(other),
+        }
+    }
+
+    /// The type byte.
+    pub const fn as_raw(self) -> u8 {
+        match self {
+            ResetKind::PowerCycle => 0,
+            ResetKind::OutOfBox => 1,
+            ResetKind::Unknown(raw) => raw,
+        }
+    }
+}
 
 /// Which input assembly the poll connection produces.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -155,6 +209,8 @@ pub struct Converter {
     input: InputAssembly,
     events: Deque<Event, 8>,
     last_image: heapless::Vec<u8, { IMAGE_CAPACITY + 2 }>,
+    /// An accepted Identity Reset: when it is due, and its kind.
+    reset: Option<(Instant, ResetKind)>,
 }
 
 impl Converter {
@@ -169,6 +225,7 @@ impl Converter {
             input: config.input,
             events: Deque::new(),
             last_image: heapless::Vec::new(),
+            reset: None,
         };
         converter.refresh_image(now);
         Ok(converter)
@@ -214,18 +271,36 @@ impl Converter {
         self.profile.poll_transmit(now)
     }
 
-    /// Node events the application acts on (reset requested, settings changed, …). Poll data,
-    /// idle and connection faults are already handled by the converter and are passed on too.
+    /// Node events for the application: settings changed (store them), a CAN controller reset
+    /// after bus-off, the reset request (for the log: [`Converter::poll_reset`] says when to
+    /// reset), connections and faults. The converter consumes the per-poll events
+    /// ([`Event::OutputReceived`], [`Event::Idle`]) and does not pass them on; connection faults
+    /// it has acted on (the profile's fault action) are passed on for the application's log.
+    ///
+    /// At most 8 events wait; beyond that the oldest is dropped. Drained after every input, as
+    /// the [module docs](self) say, the queue never fills.
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
     }
 
-    /// The earliest instant [`Converter::handle_timeout`] must run.
-    pub fn poll_at(&self) -> Option<Instant> {
-        match (self.node.poll_at(), self.profile.poll_at()) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
+    /// The Identity Reset that is due at `now`, once: the caller resets at once (the firmware
+    /// resets the chip; a host replaces the converter with a new one and powers it on). The
+    /// converter schedules it [`RESET_DELAY`] after the request, and [`Converter::poll_at`]
+    /// includes that deadline. A second request while one is pending does not postpone it.
+    pub fn poll_reset(&mut self, now: Instant) -> Option<ResetKind> {
+        match self.reset {
+            Some((at, kind)) if at <= now => {
+                self.reset = None;
+                Some(kind)
+            }
+            _ => None,
         }
+    }
+
+    /// The earliest instant [`Converter::handle_timeout`] (and [`Converter::poll_reset`]) must
+    /// run: the node's and the profile's timers and a pending reset.
+    pub fn poll_at(&self) -> Option<Instant> {
+        earliest(earliest(self.node.poll_at(), self.profile.poll_at()), self.reset.map(|(at, _)| at))
     }
 
     /// The LEDs at `now`.
@@ -245,12 +320,19 @@ impl Converter {
 
     fn sync(&mut self, now: Instant) {
         while let Some(event) = self.node.poll_event() {
+            // The per-poll events are the converter's alone; the rest go on to the application.
             match event {
-                Event::OutputReceived => self.profile.set_outputs(self.node.output(), now),
-                Event::Idle => self.profile.set_outputs(&[], now),
+                Event::OutputReceived | Event::Idle => {
+                    let outputs = if event == Event::Idle { &[] } else { self.node.output() };
+                    self.profile.set_outputs(outputs, now);
+                    continue;
+                }
                 Event::ConnectionTimedOut(ConnectionKind::Poll)
                 | Event::ConnectionDeleted(ConnectionKind::Poll)
                 | Event::CommunicationFaulted(_) => self.profile.connection_fault(now),
+                Event::ResetRequested(kind) if self.reset.is_none() => {
+                    self.reset = Some((now + RESET_DELAY, ResetKind::from_raw(kind)));
+                }
                 _ => {}
             }
             if self.events.is_full() {
@@ -282,116 +364,10 @@ impl Converter {
     }
 }
 
-/// The vendor-specific objects, borrowing the serial side while the node serves a request.
-struct VendorObjects<'a> {
-    profile: &'a Profile,
-    input: InputAssembly,
-}
-
-impl ObjectHandler for VendorObjects<'_> {
-    fn handle(&mut self, req: &Request<'_>, reply: &mut Reply<'_>) -> Option<Result<(), ServiceError>> {
-        let serve: fn(&Self, u8, &mut Reply<'_>) -> Result<(), ServiceError> = match req.class {
-            SERIAL_LINK_CLASS => Self::link_attribute,
-            SETTINGS_CLASS => Self::settings_attribute,
-            _ => return None,
-        };
-        Some(match (req.instance, req.service, req.data) {
-            (0, ServiceCode::GetAttributeSingle, [1]) => reply.u16(1),
-            (0, ServiceCode::GetAttributeSingle, [_]) => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-            (0 | 1, ServiceCode::GetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
-            (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => Err(ServiceError::TOO_MUCH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [attr]) => serve(self, *attr, reply),
-            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => {
-                // Probe the attribute: known ones are read-only (configuration comes from the
-                // description and the non-volatile settings), unknown ones are not supported.
-                let mut scratch = [0u8; 8];
-                match serve(self, *attr, &mut Reply::new(&mut scratch)) {
-                    Ok(()) => Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
-                    Err(e) => Err(e),
-                }
-            }
-            (1, ServiceCode::SetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
-            (0 | 1, _, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
-            _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
-        })
-    }
-}
-
-impl VendorObjects<'_> {
-    /// Serial link object (class 0x64) instance 1 attributes.
-    fn link_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
-        let s = self.profile.stats();
-        let status = self.profile.status();
-        match attr {
-            1 => reply.u32(s.frames_received),
-            2 => reply.u32(s.checksum_errors),
-            3 => reply.u32(s.framing_errors),
-            4 => reply.u32(s.timeouts),
-            5 => reply.u32(s.commands_sent),
-            6 => reply.u32(s.commands_retried),
-            7 => reply.u32(s.commands_failed),
-            8 => reply.u32(s.commands_rejected),
-            9 => reply.u32(s.modbus_exceptions),
-            10 => reply.u32(s.frames_sent),
-            11 => reply.u32(s.discarded_bytes),
-            12 => reply.u32(s.link_timeouts),
-            13 => reply.u8(status.to_bytes()[0]),
-            14 => reply.u8(status.freshness),
-            15 => reply.u8(match status.state {
-                LinkState::Starting => 0,
-                LinkState::Ok => 1,
-                LinkState::Timeout => 2,
-            }),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-        }
-    }
-
-    /// Settings object (class 0x65) instance 1 attributes: the configuration in force.
-    fn settings_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
-        let (health, response_timeout_ms, retries, on_idle, on_fault) = match self.profile {
-            Profile::Framed(p) => {
-                let c = p.config();
-                (
-                    c.health,
-                    c.sequencer.response_timeout_ms,
-                    c.sequencer.retries,
-                    &c.sequencer.on_idle,
-                    &c.sequencer.on_fault,
-                )
-            }
-            Profile::Modbus(p) => {
-                let c = p.config();
-                (c.health, c.response_timeout_ms, c.retries, &c.on_idle, &c.on_fault)
-            }
-        };
-        let serial = self.profile.serial_settings();
-        let action = |a: &IdleAction| u8::from(matches!(a, IdleAction::Send(_)));
-        match attr {
-            1 => reply.u32(serial.baud),
-            2 => reply.u8(match serial.parity {
-                Parity::None => 0,
-                Parity::Odd => 1,
-                Parity::Even => 2,
-            }),
-            3 => reply.u8(match serial.stop_bits {
-                StopBits::One => 1,
-                StopBits::Two => 2,
-            }),
-            4 => reply.u32(health.stale_timeout_ms),
-            5 => reply.u8(match health.stale_policy {
-                StalePolicy::HoldLastValue => 0,
-                StalePolicy::Clear => 1,
-            }),
-            6 => reply.u8(self.input.instance()),
-            7 => reply.u32(response_timeout_ms),
-            8 => reply.u8(retries),
-            9 => reply.u8(action(on_idle)),
-            10 => reply.u8(action(on_fault)),
-            11 => reply.u8(match self.profile {
-                Profile::Framed(_) => 0,
-                Profile::Modbus(_) => 1,
-            }),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-        }
+/// The earlier of two optional deadlines.
+fn earliest(a: Option<Instant>, b: Option<Instant>) -> Option<Instant> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
     }
 }

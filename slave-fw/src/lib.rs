@@ -21,13 +21,20 @@
 //! | [`serial::framed_profile`] | [`FramedProfile`](serial::FramedProfile): framing + sequencer + health for the breaker and similar instruments |
 //! | [`serial::modbus`] | Modbus RTU: the ADU codec ([`Request`](serial::modbus::Request), [`Response`](serial::modbus::Response)) and the scan-list [`ModbusMaster`](serial::modbus::ModbusMaster) |
 //! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
-//! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the vendor objects |
+//! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the Identity Reset's delay ([`RESET_DELAY`](converter::RESET_DELAY), [`poll_reset`](converter::Converter::poll_reset)) |
+//! | [`converter::objects`] | the vendor objects 0x64 (serial link) and 0x65 (settings): one attribute table each, served by the converter and written into the EDS by `eds::generate` |
 //! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
 //!
-//! The converter application (later) owns a [`Profile`](serial::Profile) next to the DeviceNet
+//! The [`Converter`](converter::Converter) owns a [`Profile`](serial::Profile) next to the DeviceNet
 //! slave node: consumed poll data goes to [`Profile::set_outputs`](serial::Profile::set_outputs),
 //! the produced data is [`Profile::input_image`](serial::Profile::input_image) plus, in the
 //! extended assembly, [`LinkStatus::to_bytes`](serial::LinkStatus::to_bytes).
+//!
+//! ## What it must not depend on
+//!
+//! The core (`devicenet`) and `heapless` only (and `serde`/`toml` behind the host-only
+//! `description` feature): no CAN I/O, no simulated equipment (that is `converter-sim`), no
+//! harness. The firmware and the soft slave run it as it is.
 //!
 //! ## Features
 //!

@@ -6,9 +6,12 @@
 //!   the converter task's channel; CAN TX refills the controller from the transmit queue; CAN SCE
 //!   reports bus-off and error-passive; USART2 moves instrument bytes in and out.
 //! - One software task, `app::converter_task`, owns the [`slave_fw::converter::Converter`] (the
-//!   DeviceNet slave node and the serial profile of the instrument) and calls it with the time
-//!   (SysTick monotonic, 1 kHz), drives the LEDs from `converter.leds(now)` (power-up test
-//!   included), stores changed settings and performs resets.
+//!   DeviceNet slave node and the serial profile of the instrument) through a
+//!   [`task::ConverterTask`]: it waits for inputs or the next deadline (SysTick monotonic, 1 kHz),
+//!   hands them over one at a time, draining the converter after each, drives the LEDs from
+//!   `converter.leds(now)` (power-up test included), stores changed settings and resets the chip
+//!   when the converter says the Identity Reset is due. Its work is in [`task`], target
+//!   independent and tested on the host; the peripherals are behind [`task::Hardware`].
 //! - Switches and stored settings are read at reset ([`config`]); they choose the MAC ID, the data
 //!   rate and the instrument preset ([`presets`]: the breaker, or the Modbus meter gateway), whose
 //!   serial settings USART2 is opened with.
@@ -31,10 +34,12 @@ mod can_slcan;
 mod config;
 #[cfg(target_os = "none")]
 mod instrument;
-#[cfg(target_os = "none")]
+#[cfg(any(target_os = "none", test))]
 mod log;
 #[cfg(any(target_os = "none", test))]
 mod presets;
+#[cfg(any(target_os = "none", test))]
+mod task;
 
 #[cfg(all(target_os = "none", not(feature = "defmt")))]
 use panic_halt as _;
@@ -57,14 +62,18 @@ mod app {
     use crate::config;
     use crate::instrument::InstrumentPort;
     use crate::log::{log_info as info, log_warn as warn};
-    use board::hw::{Board, BusState, LedPins};
+    use crate::task::{ConverterTask, Hardware, Input, INPUTS};
+    #[cfg(not(feature = "emulated"))]
+    use board::hw::BusState;
+    use board::hw::{Board, LedPins};
     use board::settings::{Settings, SettingsStore};
-    use devicenet::slave::{Event, SettingChanged};
+    use devicenet::slave::Event;
     use devicenet::{CanFrame, Duration, Instant};
+    use rtic::Mutex;
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Receiver, Sender};
     use rtic_sync::make_channel;
-    use slave_fw::converter::Converter;
+    use slave_fw::converter::{Converter, ResetKind};
 
     #[cfg(not(feature = "emulated"))]
     type Driver = crate::can_bxcan::Bxcan;
@@ -79,25 +88,8 @@ mod app {
 
     systick_monotonic!(Mono, 1_000);
 
-    /// What interrupts hand to the converter task.
-    #[derive(Clone, Copy)]
-    pub enum Input {
-        /// A frame for this node.
-        Frame(CanFrame),
-        /// The CAN controller's error state changed.
-        Bus(BusState),
-        /// A byte from the instrument.
-        InstrumentByte(u8),
-    }
-
-    /// Capacity of the converter task's input channel.
-    const INPUTS: usize = 64;
-    /// Instrument bytes handed to the converter in one call.
-    const SERIAL_BATCH: usize = 32;
     /// LED refresh period (flash half-period 500 ms, self-test steps 250 ms).
     const LED_PERIOD: Duration = Duration::from_millis(25);
-    /// Delay between an Identity Reset request and the reset, so the response leaves first.
-    const RESET_DELAY: Duration = Duration::from_millis(100);
 
     #[shared]
     struct Shared {
@@ -109,8 +101,8 @@ mod app {
 
     #[local]
     struct Local {
-        /// The converter and everything only the converter task touches.
-        state: ConverterTask,
+        /// Everything only the converter task touches.
+        state: TaskState,
         /// Channel into the converter task, one sender per interrupt: CAN RX0.
         #[cfg(not(feature = "emulated"))]
         rx0_inputs: Sender<'static, Input, INPUTS>,
@@ -129,13 +121,14 @@ mod app {
         inputs: Receiver<'static, Input, INPUTS>,
     }
 
-    /// Everything the converter task owns.
-    pub struct ConverterTask {
-        converter: Converter,
+    /// The converter task's own resources.
+    pub struct TaskState {
+        /// The converter and the settings in force.
+        task: ConverterTask,
+        /// The MS/NS LEDs.
         leds: LedPins,
+        /// The settings flash.
         store: SettingsStore<Flash>,
-        settings: Settings,
-        reset_at: Option<Instant>,
     }
 
     #[init]
@@ -189,7 +182,7 @@ mod app {
         (
             Shared { can: CanPort::new(driver), instrument_port: InstrumentPort::new(rs485) },
             Local {
-                state: ConverterTask { converter, leds: board.leds, store, settings, reset_at: None },
+                state: TaskState { task: ConverterTask::new(converter, settings), leds: board.leds, store },
                 #[cfg(not(feature = "emulated"))]
                 rx0_inputs: sender.clone(),
                 #[cfg(feature = "emulated")]
@@ -240,8 +233,12 @@ mod app {
     #[cfg(not(feature = "emulated"))]
     #[task(binds = CAN1_SCE, shared = [can], local = [sce_inputs], priority = 3)]
     fn can_sce(mut cx: can_sce::Context) {
-        let state = cx.shared.can.lock(|can| can.bus_state());
-        let _ = cx.local.sce_inputs.try_send(Input::Bus(state));
+        match cx.shared.can.lock(|can| can.bus_state()) {
+            BusState::BusOff => {
+                let _ = cx.local.sce_inputs.try_send(Input::BusOff);
+            }
+            state => info!("CAN {}", state),
+        }
     }
 
     /// The emulated CAN bus: SLCAN lines from the host; frames to the converter task, and frames
@@ -267,115 +264,78 @@ mod app {
         });
     }
 
+    /// The board's side of the converter task: the shared CAN and instrument ports, the settings
+    /// flash, the reset.
+    struct Io<'a, C, P> {
+        can: &'a mut C,
+        instrument_port: &'a mut P,
+        store: &'a mut SettingsStore<Flash>,
+    }
+
+    impl<C, P> Hardware for Io<'_, C, P>
+    where
+        C: Mutex<T = crate::can::CanPort<Driver>>,
+        P: Mutex<T = InstrumentPort>,
+    {
+        fn send_frame(&mut self, frame: CanFrame) {
+            self.can.lock(|can| can.send(frame));
+        }
+
+        fn send_serial(&mut self, bytes: &[u8]) {
+            self.instrument_port.lock(|port| port.send(bytes));
+        }
+
+        fn restart_can(&mut self) {
+            self.can.lock(|can| can.restart());
+        }
+
+        fn save_settings(&mut self, settings: &Settings) -> bool {
+            self.store.save(settings).is_ok()
+        }
+
+        fn reset(&mut self, _kind: ResetKind) {
+            cortex_m::peripheral::SCB::sys_reset();
+        }
+
+        fn event(&mut self, event: &Event) {
+            info!("event {}", event);
+        }
+    }
+
     /// The one task that owns the converter: inputs and timers in; frames, instrument bytes,
-    /// LEDs and settings out.
+    /// LEDs and settings out ([`crate::task`]).
     #[task(shared = [can, instrument_port], local = [state, inputs], priority = 1)]
-    async fn converter_task(mut cx: converter_task::Context) {
-        let t = cx.local.state;
-        let inputs = cx.local.inputs;
+    async fn converter_task(cx: converter_task::Context) {
+        let converter_task::LocalResources { state, inputs, .. } = cx.local;
+        let TaskState { task, leds, store } = state;
+        let converter_task::SharedResources { mut can, mut instrument_port, .. } = cx.shared;
+        // The board's side is borrowed for each step, not held across the wait: the task's
+        // future stays small.
+        macro_rules! io {
+            () => {
+                &mut Io { can: &mut can, instrument_port: &mut instrument_port, store: &mut *store }
+            };
+        }
         let start = now();
-        t.converter.power_on(start);
+        task.power_on(start, io!());
         let mut next_led = start;
         loop {
             let now_ = now();
-            // Outputs of the last step, in the converter's drain order: frames, instrument bytes,
-            // events; then the LEDs.
-            while let Some(frame) = t.converter.poll_can_transmit() {
-                cx.shared.can.lock(|can| can.send(frame));
-            }
-            while let Some(bytes) = t.converter.poll_serial_transmit(now_) {
-                cx.shared.instrument_port.lock(|port| port.send(bytes));
-            }
-            while let Some(event) = t.converter.poll_event() {
-                t.on_event(event, now_, &mut cx.shared.can);
-            }
             if now_ >= next_led {
-                t.leds.show(t.converter.leds(now_));
+                leds.show(task.leds(now_));
                 next_led = now_ + LED_PERIOD;
             }
-            if t.reset_at.is_some_and(|at| now_ >= at) {
-                info!("reset");
-                cortex_m::peripheral::SCB::sys_reset();
-            }
-
-            // Sleep until an input arrives or the earliest deadline.
-            let deadline = [t.converter.poll_at(), t.reset_at, Some(next_led)]
-                .into_iter()
-                .flatten()
-                .min()
-                .unwrap_or(next_led);
+            // Sleep until an input arrives or the earliest deadline (a due reset included).
+            let deadline = task.poll_at().map_or(next_led, |at| at.min(next_led));
             // Round up to the next millisecond tick.
             let ticks = deadline.total_micros().div_ceil(1000);
             let first =
                 Mono::timeout_at(<Mono as Monotonic>::Instant::from_ticks(ticks), inputs.recv()).await;
             // Every sender lives in a task that never ends, so the channel never closes.
             if let Ok(Ok(input)) = first {
-                t.take_inputs(input, inputs, now());
+                task.take_inputs(input, || inputs.try_recv().ok(), now(), io!());
             }
-            t.converter.handle_timeout(now());
-        }
-    }
-
-    impl ConverterTask {
-        /// Hands `first` and every input already waiting to the converter, consecutive
-        /// instrument bytes in one call.
-        fn take_inputs(&mut self, first: Input, inputs: &mut Receiver<'static, Input, INPUTS>, now: Instant) {
-            let mut serial = heapless::Vec::<u8, SERIAL_BATCH>::new();
-            let mut next = Some(first);
-            // Bounded: at most one channel's worth per wake-up, so timers are never starved.
-            for _ in 0..INPUTS {
-                let Some(input) = next else { break };
-                if let Input::InstrumentByte(b) = input {
-                    if serial.push(b).is_err() {
-                        self.converter.handle_serial(&serial, now);
-                        serial.clear();
-                        let _ = serial.push(b);
-                    }
-                } else {
-                    if !serial.is_empty() {
-                        self.converter.handle_serial(&serial, now);
-                        serial.clear();
-                    }
-                    self.handle(input, now);
-                }
-                next = inputs.try_recv().ok();
-            }
-            if !serial.is_empty() {
-                self.converter.handle_serial(&serial, now);
-            }
-        }
-
-        fn handle(&mut self, input: Input, now: Instant) {
-            match input {
-                Input::Frame(frame) => self.converter.handle_can_frame(&frame, now),
-                Input::Bus(BusState::BusOff) => {
-                    warn!("CAN bus-off");
-                    self.converter.handle_bus_off(now);
-                }
-                Input::Bus(state) => info!("CAN {}", state),
-                Input::InstrumentByte(b) => self.converter.handle_serial(&[b], now),
-            }
-        }
-
-        /// The application's part of the node's events; outputs, idle and connection faults
-        /// were already given to the serial profile by the converter.
-        fn on_event(&mut self, event: Event, now: Instant, can: &mut impl rtic::Mutex<T = CanPort<Driver>>) {
-            info!("event {}", event);
-            match event {
-                Event::ResetCanController => can.lock(|c| c.restart()),
-                Event::ResetRequested(_) => self.reset_at = Some(now + RESET_DELAY),
-                Event::SettingChanged(change) => {
-                    match change {
-                        SettingChanged::MacId(mac) => self.settings.mac_id = mac,
-                        SettingChanged::BaudRate(rate) => self.settings.baud_rate = rate,
-                        SettingChanged::BusOffInterrupt(boi) => self.settings.bus_off_interrupt = boi,
-                    }
-                    if self.store.save(&self.settings).is_err() {
-                        warn!("settings: save failed");
-                    }
-                }
-                _ => {}
-            }
+            task.handle_timeout(now(), io!());
         }
     }
 }

@@ -34,15 +34,15 @@ pub const COMMAND_CLOSE: u8 = 2;
 /// The currents the simulated breaker reports while closed (A, B, C, N).
 pub const LOAD: [u8; 4] = [120, 118, 121, 3];
 
-/// The delay between an Identity Reset response and the simulated power cycle.
-pub const RESET_DELAY: Duration = Duration::from_millis(10);
+/// The delay between an Identity Reset response and the simulated power cycle: the converter's
+/// own ([`Converter::poll_reset`] says when), the same as the board's.
+pub use slave_fw::converter::RESET_DELAY;
 
 /// The converter as a simulated device: a [`Converter`] and its [`SimulatedBreaker`] on one
 /// virtual clock. See the [module docs](self).
 pub struct SoftSlave {
     config: ConverterConfig,
     converter: Converter,
-    reset_at: Option<Instant>,
     events: VecDeque<Event>,
     breaker: SimulatedBreaker,
     /// Bytes on the serial wire towards the breaker / the converter, with arrival times.
@@ -63,7 +63,6 @@ impl SoftSlave {
         Ok(SoftSlave {
             converter: Converter::new(config.clone(), now)?,
             config,
-            reset_at: None,
             events: VecDeque::new(),
             breaker,
             to_breaker: VecDeque::new(),
@@ -102,7 +101,6 @@ impl SoftSlave {
             }
         }
         self.powered = true;
-        self.reset_at = None;
         self.converter.power_on(now);
     }
 
@@ -131,15 +129,9 @@ impl SoftSlave {
     }
 
     /// Runs both sides' timers and the serial wire up to `now`. An Identity Reset power-cycles
-    /// the converter [`RESET_DELAY`] after its response (the breaker keeps running).
+    /// the converter when it says the reset is due ([`RESET_DELAY`] after its response; the
+    /// breaker keeps running).
     pub fn handle_timeout(&mut self, now: Instant) {
-        if self.reset_at.is_some_and(|at| at <= now) {
-            self.reset_at = None;
-            if let Ok(fresh) = Converter::new(self.config.clone(), now) {
-                self.converter = fresh;
-                self.converter.power_on(now);
-            }
-        }
         self.run_serial(now);
     }
 
@@ -148,8 +140,8 @@ impl SoftSlave {
         &self.config
     }
 
-    /// The converter's events (outputs received, settings changed, resets), oldest first; at most
-    /// the last 64 are kept.
+    /// The converter's events (settings changed, reset requested, connection faults), oldest
+    /// first; at most the last 64 are kept.
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
     }
@@ -164,7 +156,6 @@ impl SoftSlave {
         let node = if self.powered { self.converter.poll_at() } else { None };
         [
             node,
-            self.reset_at,
             self.breaker.poll_at(),
             self.to_breaker.front().map(|(at, _)| *at),
             self.to_converter.front().map(|(at, _)| *at),
@@ -228,13 +219,17 @@ impl SoftSlave {
                 }
             }
             while let Some(event) = self.converter.poll_event() {
-                if let Event::ResetRequested(_) = event {
-                    self.reset_at = Some(now + RESET_DELAY);
-                }
                 if self.events.len() == 64 {
                     self.events.pop_front();
                 }
                 self.events.push_back(event);
+            }
+            if self.powered && self.converter.poll_reset(now).is_some() {
+                if let Ok(fresh) = Converter::new(self.config.clone(), now) {
+                    self.converter = fresh;
+                    self.converter.power_on(now);
+                    moved = true;
+                }
             }
             if !moved {
                 return;

@@ -1,12 +1,13 @@
 //! The converter (slave node + breaker profile) against the simulated breaker on a virtual clock:
 //! the 28-frame bring-up with the breaker's real data, commands through the poll output executed
-//! exactly once, stale detection reported to the scanner, and the vendor objects.
+//! exactly once, stale detection reported to the scanner, the vendor objects, and the Identity
+//! Reset the converter schedules.
 
 use converter_sim::SoftSlave;
 use devicenet::reference::{Direction, BRING_UP};
 use devicenet::slave::ConnectionState;
 use devicenet::{CanFrame, Duration, Instant};
-use slave_fw::converter::{ConverterConfig, InputAssembly};
+use slave_fw::converter::{Converter, ConverterConfig, InputAssembly, ResetKind, RESET_DELAY};
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
 use slave_fw::serial::{HealthConfig, ProfileConfig, StalePolicy};
 
@@ -209,4 +210,71 @@ fn identity_reset_power_cycles_the_converter() {
     assert_eq!(after, vec![(0x42F, vec![0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12])]);
     assert_eq!(rig.slave.converter().node().poll_connection().state, ConnectionState::NonExistent);
     assert!(std::iter::from_fn(|| rig.slave.poll_event()).any(|e| e == devicenet::Event::ResetRequested(0)));
+}
+
+/// A bare converter (no instrument) brought up as in devicenet-notes §2, with its explicit and
+/// poll connections established; returns it with the time and its drained frames.
+fn bare_established() -> (Converter, Instant) {
+    let mut c = Converter::new(ConverterConfig::breaker_reference(), Instant::ZERO).unwrap();
+    let mut now = Instant::from_millis(2000);
+    c.power_on(now);
+    let end = now + Duration::from_secs(2);
+    while let Some(at) = c.poll_at().filter(|&at| at <= end) {
+        now = at.max(now);
+        c.handle_timeout(now);
+        while c.poll_can_transmit().is_some() {}
+    }
+    for f in BRING_UP.iter().filter(|f| f.direction == Direction::MasterToSlave).skip(2) {
+        now += Duration::from_millis(10);
+        c.handle_can_frame(&CanFrame::from_raw(f.id, f.data).unwrap(), now);
+        while c.poll_can_transmit().is_some() {}
+    }
+    while c.poll_event().is_some() {}
+    (c, now)
+}
+
+#[test]
+fn identity_reset_is_due_reset_delay_after_the_request_and_once() {
+    let (mut c, now) = bare_established();
+    c.handle_can_frame(&CanFrame::from_raw(0x42C, &[0x00, 0x05, 0x01, 0x01]).unwrap(), now);
+    let response: Vec<_> = std::iter::from_fn(|| c.poll_can_transmit()).collect();
+    assert_eq!(response, vec![CanFrame::from_raw(0x42B, &[0x00, 0x85]).unwrap()], "the response first");
+    assert_eq!(c.poll_event(), Some(devicenet::Event::ResetRequested(0)));
+    let due = now + RESET_DELAY;
+    assert!(c.poll_at().is_some_and(|at| at <= due), "poll_at includes the reset");
+    assert_eq!(c.poll_reset(now), None);
+    // A second request does not postpone the reset.
+    let later = now + Duration::from_millis(50);
+    c.handle_can_frame(&CanFrame::from_raw(0x42C, &[0x00, 0x05, 0x01, 0x01, 0x01]).unwrap(), later);
+    assert_eq!(c.poll_reset(now + Duration::from_micros(RESET_DELAY.total_micros() - 1)), None);
+    assert_eq!(c.poll_reset(due), Some(ResetKind::PowerCycle));
+    assert_eq!(c.poll_reset(due + RESET_DELAY), None, "reported once");
+}
+
+#[test]
+fn polls_are_consumed_not_passed_on_as_events() {
+    let (mut c, mut now) = bare_established();
+    // EPR 5 s, then a hundred polls: not one event, the queue stays free for the ones that matter.
+    c.handle_can_frame(&CanFrame::from_raw(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x88, 0x13]).unwrap(), now);
+    while c.poll_can_transmit().is_some() {}
+    while c.poll_event().is_some() {}
+    for n in 0..100u8 {
+        now += Duration::from_millis(10);
+        let data = if n % 10 == 0 { vec![] } else { vec![0; 8] };
+        c.handle_can_frame(&CanFrame::from_raw(0x42D, &data).unwrap(), now);
+        assert_eq!(
+            std::iter::from_fn(|| c.poll_can_transmit()).count(),
+            3,
+            "an 18-byte response, fragmented"
+        );
+        assert_eq!(c.poll_event(), None);
+    }
+}
+
+#[test]
+fn reset_kinds_keep_their_type_byte() {
+    for raw in 0..=255u8 {
+        assert_eq!(ResetKind::from_raw(raw).as_raw(), raw);
+    }
+    assert_eq!(ResetKind::from_raw(1), ResetKind::OutOfBox);
 }

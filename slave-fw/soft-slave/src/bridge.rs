@@ -37,8 +37,8 @@ pub const POLL_SLICE: Duration = Duration::from_millis(2);
 pub const LOG_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
 
 /// The delay between an Identity Reset response and the power cycle (the response must reach
-/// the bus first), the same as the simulated soft slave's.
-pub const RESET_DELAY: Duration = converter_sim::device::RESET_DELAY;
+/// the bus first): the converter's own, the same on the board and in the simulation.
+pub use slave_fw::converter::RESET_DELAY;
 
 /// What a run did, for the closing report and for tests.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -68,7 +68,6 @@ pub struct Bridge {
     clock: Clock,
     log: Option<(LogWriter, String)>,
     report: Box<dyn Write>,
-    reset_at: Option<Instant>,
     last_now: Instant,
     link: LinkState,
     summary: RunSummary,
@@ -93,7 +92,6 @@ impl Bridge {
             clock,
             log: None,
             report: Box::new(std::io::sink()),
-            reset_at: None,
             last_now: now,
             link,
             summary: RunSummary::default(),
@@ -174,19 +172,12 @@ impl Bridge {
         }
         let now = now.max(self.last_now);
         self.last_now = now;
-        if self.reset_at.is_some_and(|at| at <= now) {
-            self.reset_at = None;
-            self.converter = Converter::new(self.config.clone(), now)?;
-            self.converter.power_on(now);
-            self.summary.resets += 1;
-            self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");
-        }
         if self.converter.poll_at().is_some_and(|at| at <= now) {
             self.converter.handle_timeout(now);
         }
         self.drain(now)?;
         let mut deadline = now + POLL_SLICE;
-        for at in [self.converter.poll_at(), self.reset_at, end].into_iter().flatten() {
+        for at in [self.converter.poll_at(), end].into_iter().flatten() {
             deadline = deadline.min(at.max(now));
         }
         // The bus's own clock is only used for its deadline.
@@ -218,6 +209,15 @@ impl Bridge {
         while let Some(event) = self.converter.poll_event() {
             self.on_event(event, now);
         }
+        // Last in the converter's drain order: the Identity Reset it says is due (RESET_DELAY after
+        // the response), carried out as the board's power cycle.
+        if self.converter.poll_reset(now).is_some() {
+            self.converter = Converter::new(self.config.clone(), now)?;
+            self.converter.power_on(now);
+            self.summary.resets += 1;
+            self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");
+            return Ok(());
+        }
         let state = self.converter.profile().status().state;
         if state != self.link {
             self.link = state;
@@ -235,9 +235,6 @@ impl Bridge {
     }
 
     fn on_event(&mut self, event: Event, now: Instant) {
-        if let Event::ResetRequested(_) = event {
-            self.reset_at = Some(now + RESET_DELAY);
-        }
         if let Some(text) = event_text(&event) {
             self.note(now, &text);
         }

@@ -258,6 +258,13 @@ impl Message {
     }
 }
 
+impl FramedProfileConfig {
+    /// The breaker of the source paper ([`profile_config`]).
+    pub fn breaker() -> Self {
+        profile_config()
+    }
+}
+
 /// The breaker as a [`FramedProfileConfig`]: 9600 8N1, the framing above, 18-byte status frames
 /// as the input image, acknowledgements `cmd | 0x80, status` with 0 = ok, commands 1–4 mapped to
 /// wire codes 1–4 (set parameter takes 3 argument bytes), 500 ms response timeout with 2 retries,
@@ -361,5 +368,284 @@ mod tests {
     #[test]
     fn preset_is_valid() {
         profile_config().validate().unwrap();
+    }
+}
+
+/// The framed profile driven with the breaker's configuration: status frames, commands and their
+/// acknowledgements, retries, idle frames, stale policy, and configuration checks.
+#[cfg(test)]
+mod profile_tests {
+    use super::{self as breaker, StatusData, SwitchState};
+    use crate::serial::checksum::Checksum;
+    use crate::serial::framed::{FramedConfig, LengthField};
+    use crate::serial::framed_profile::{AckFormat, CommandFormat, FramedProfile, FramedProfileConfig};
+    use crate::serial::{
+        CommandOutcome, HealthConfig, IdleAction, LinkState, Problem, SequencerConfig, SerialSettings,
+        StalePolicy, StatusByte,
+    };
+    use devicenet::Instant;
+    use heapless::Vec;
+    use proptest::prelude::*;
+    use rstest::rstest;
+    use std::vec::Vec as StdVec;
+
+    fn ms(n: u64) -> Instant {
+        Instant::from_millis(n)
+    }
+
+    fn frame(data: &[u8]) -> StdVec<u8> {
+        let mut out = [0u8; 64];
+        let n = breaker::FRAMING.encode(data, &mut out).unwrap();
+        out[..n].to_vec()
+    }
+
+    fn status(currents: [u8; 4], switch: SwitchState) -> StdVec<u8> {
+        frame(StatusData::new(currents, switch).as_bytes())
+    }
+
+    fn breaker_profile(policy: StalePolicy) -> FramedProfile {
+        let mut c = breaker::profile_config();
+        c.health.stale_policy = policy;
+        FramedProfile::new(c, ms(0)).unwrap()
+    }
+
+    fn drain(p: &mut FramedProfile, now: Instant) -> StdVec<StdVec<u8>> {
+        let mut out = StdVec::new();
+        while let Some(f) = p.poll_transmit(now) {
+            out.push(f.to_vec());
+            assert!(out.len() < 10);
+        }
+        out
+    }
+
+    #[test]
+    fn status_frame_fills_the_image() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        assert_eq!(p.input_image(), &[0u8; 18]);
+        assert_eq!(p.status().state, LinkState::Starting);
+        p.on_bytes(&status([10, 11, 12, 1], SwitchState::Closed), ms(5));
+        assert_eq!(&p.input_image()[..4], &[10, 11, 12, 1]);
+        assert_eq!(p.input_image()[9], 0xF0);
+        let s = p.status();
+        assert_eq!((s.state, s.freshness), (LinkState::Ok, 1));
+        assert_eq!(s.status_byte().as_raw(), StatusByte::LINK_OK);
+        assert_eq!(p.stats().frames_received, 1);
+    }
+
+    #[test]
+    fn open_command_sent_once_for_a_hundred_polls_and_acked() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        let mut sent = StdVec::new();
+        for i in 0..100u64 {
+            p.set_outputs(&[1, 1, 0, 0, 0, 0, 0, 0], ms(i * 10));
+            sent.extend(drain(&mut p, ms(i * 10)));
+            if i == 2 {
+                p.on_bytes(&frame(&[0x81, 0x00]), ms(i * 10 + 5));
+            }
+        }
+        assert_eq!(sent, std::vec![std::vec![0x68, 0x01, 0x01, 0x01, 0x16]]);
+        assert_eq!(p.status().command, CommandOutcome::Ok);
+        assert_eq!(p.stats().commands_sent, 1);
+        assert_eq!(p.stats().frames_sent, 1);
+    }
+
+    #[test]
+    fn set_parameter_carries_its_arguments() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[3, 1, 2, 0x34, 0x12, 0xEE, 0xEE, 0xEE], ms(0));
+        assert_eq!(
+            drain(&mut p, ms(0)),
+            std::vec![std::vec![0x68, 0x04, 0x03, 0x02, 0x34, 0x12, 0x4B, 0x16]]
+        );
+    }
+
+    #[rstest]
+    #[case::accepted(0x00, CommandOutcome::Ok)]
+    #[case::refused(0x02, CommandOutcome::Rejected(2))]
+    fn ack_status(#[case] status: u8, #[case] outcome: CommandOutcome) {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[2, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        drain(&mut p, ms(0));
+        p.on_bytes(&frame(&[0x82, status]), ms(10));
+        assert_eq!(p.status().command, outcome);
+    }
+
+    #[test]
+    fn ack_for_another_command_is_ignored() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[2, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        drain(&mut p, ms(0));
+        p.on_bytes(&frame(&[0x81, 0x00]), ms(10));
+        assert_eq!(p.status().command, CommandOutcome::Pending);
+        assert_eq!(p.input_image(), &[0u8; 18], "an ack is not status data");
+        assert_eq!(p.status().freshness, 1, "but it is a good frame");
+    }
+
+    #[test]
+    fn unanswered_command_retries_then_fails() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[1, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        let mut frames = 0;
+        let mut t = ms(0);
+        for _ in 0..20 {
+            frames += drain(&mut p, t).len();
+            match p.poll_at() {
+                Some(next) => t = next,
+                None => break,
+            }
+        }
+        assert_eq!(frames, 3, "1 + 2 retries");
+        assert_eq!(p.status().command, CommandOutcome::Failed);
+        assert_eq!(p.status().status_byte().command_code(), 4);
+        let s = p.stats();
+        assert_eq!((s.commands_sent, s.commands_retried, s.commands_failed, s.timeouts), (1, 2, 1, 3));
+    }
+
+    #[test]
+    fn unknown_command_code_is_unsupported() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.set_outputs(&[9, 1, 0, 0, 0, 0, 0, 0], ms(0));
+        assert!(drain(&mut p, ms(0)).is_empty());
+        assert_eq!(p.status().command, CommandOutcome::Unsupported);
+    }
+
+    #[test]
+    fn idle_poll_never_sends_a_command_and_idle_frame_goes_once() {
+        let mut c = breaker::profile_config();
+        c.sequencer.on_idle = IdleAction::send(&[0x04]).unwrap();
+        let mut p = FramedProfile::new(c, ms(0)).unwrap();
+        let mut sent = StdVec::new();
+        for i in 0..100 {
+            p.set_outputs(&[], ms(i));
+            sent.extend(drain(&mut p, ms(i)));
+        }
+        assert_eq!(sent, std::vec![std::vec![0x68, 0x01, 0x04, 0x04, 0x16]]);
+        assert_eq!(p.stats().commands_sent, 0);
+    }
+
+    #[rstest]
+    #[case::hold(StalePolicy::HoldLastValue, 10)]
+    #[case::clear(StalePolicy::Clear, 0)]
+    fn stale_policy_and_status(#[case] policy: StalePolicy, #[case] current_after: u8) {
+        let mut p = breaker_profile(policy);
+        p.on_bytes(&status([10, 10, 10, 0], SwitchState::Closed), ms(1000));
+        drain(&mut p, ms(3999));
+        assert_eq!(p.status().state, LinkState::Ok);
+        assert_eq!(p.poll_at(), Some(ms(4000)));
+        drain(&mut p, ms(4000));
+        let s = p.status();
+        assert_eq!(s.state, LinkState::Timeout);
+        assert_eq!(s.status_byte().as_raw() & 0x03, StatusByte::LINK_TIMEOUT);
+        assert_eq!(s.freshness, 1, "no new frame");
+        assert_eq!(p.input_image()[0], current_after);
+        assert_eq!(p.stats().link_timeouts, 1);
+        p.on_bytes(&status([20, 20, 20, 0], SwitchState::Closed), ms(5000));
+        assert_eq!((p.status().state, p.status().freshness, p.input_image()[0]), (LinkState::Ok, 2, 20));
+    }
+
+    #[test]
+    fn garbage_and_bad_checksums_are_counted_and_survived() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        let mut bad = status([1, 2, 3, 4], SwitchState::Open);
+        let n = bad.len();
+        bad[n - 2] ^= 0xFF;
+        let mut bytes = std::vec![0x00, 0x55, 0x68, 0x30];
+        bytes.extend_from_slice(&bad);
+        p.on_bytes(&bytes, ms(10));
+        let s = p.status();
+        assert!(s.frame_errors);
+        assert_eq!(s.status_byte().as_raw() & StatusByte::FRAME_ERRORS, StatusByte::FRAME_ERRORS);
+        assert_eq!(p.stats().checksum_errors, 1);
+        assert_eq!(p.stats().framing_errors, 1, "0x68 0x30: bad length");
+        assert!(p.stats().discarded_bytes >= 3);
+        p.on_bytes(&status([5, 6, 7, 8], SwitchState::Open), ms(20));
+        assert_eq!(&p.input_image()[..4], &[5, 6, 7, 8]);
+        assert!(!p.status().frame_errors);
+        assert_eq!(p.parser_counters().bad_checksum, 1);
+    }
+
+    #[test]
+    fn unexpected_frames_are_counted() {
+        let mut p = breaker_profile(StalePolicy::HoldLastValue);
+        p.on_bytes(&frame(&[1, 2, 3]), ms(0));
+        assert_eq!(p.stats().unexpected_frames, 1);
+        assert_eq!(p.status().state, LinkState::Ok);
+    }
+
+    #[test]
+    fn instrument_without_acks_and_fixed_framing() {
+        let c = FramedProfileConfig {
+            serial: SerialSettings::new_8n1(19200),
+            framing: FramedConfig {
+                start: 0x02,
+                length: LengthField::Fixed(4),
+                end: Some(0x03),
+                checksum: Checksum::Xor8,
+                max_len: 4,
+            },
+            status_len: 4,
+            ack: None,
+            commands: Vec::from_slice(&[CommandFormat { code: 1, wire: b'O', args: 1 }]).unwrap(),
+            sequencer: SequencerConfig::default(),
+            health: HealthConfig::default(),
+        };
+        let mut p = FramedProfile::new(c, ms(0)).unwrap();
+        p.set_outputs(&[1, 7, 0x55, 0, 0, 0, 0, 0], ms(0));
+        // 'O' 0x55 padded to 4 bytes, XOR = 0x4F ^ 0x55 = 0x1A.
+        assert_eq!(drain(&mut p, ms(0)), std::vec![std::vec![0x02, b'O', 0x55, 0, 0, 0x1A, 0x03]]);
+        assert_eq!(p.status().command, CommandOutcome::Ok);
+        p.on_bytes(&[0x02, 1, 2, 3, 4, 4, 0x03], ms(1));
+        assert_eq!(p.input_image(), &[1, 2, 3, 4]);
+    }
+
+    fn breaker_with(f: impl FnOnce(&mut FramedProfileConfig)) -> FramedProfileConfig {
+        let mut c = breaker::profile_config();
+        f(&mut c);
+        c
+    }
+
+    #[rstest]
+    #[case::status_len_zero(breaker_with(|c| c.status_len = 0), "status_len", None)]
+    #[case::status_len_too_long(breaker_with(|c| c.status_len = 19), "status_len", None)]
+    #[case::ack_len(breaker_with(|c| c.ack = Some(AckFormat { data_len: 30, flag: 0x80, ok_status: 0 })), "ack.data_len", None)]
+    #[case::ack_flag(breaker_with(|c| c.ack = Some(AckFormat { data_len: 2, flag: 0, ok_status: 0 })), "ack.flag", None)]
+    #[case::command_code_zero(breaker_with(|c| c.commands[1].code = 0), "commands.code", Some(1))]
+    #[case::command_args(breaker_with(|c| c.commands[2].args = 7), "commands.args", Some(2))]
+    #[case::duplicate(breaker_with(|c| c.commands[3].code = 1), "commands.code", Some(3))]
+    #[case::idle_frame_too_long(breaker_with(|c| c.sequencer.on_idle = IdleAction::send(&[0; 19]).unwrap()), "sequencer.on_idle", None)]
+    #[case::framing(breaker_with(|c| c.framing.max_len = 0), "framing.max_len", None)]
+    #[case::serial(breaker_with(|c| c.serial.baud = 1), "serial.baud", None)]
+    #[case::health(breaker_with(|c| c.health.stale_timeout_ms = 0), "health.stale_timeout_ms", None)]
+    #[case::sequencer(breaker_with(|c| c.sequencer.retries = 200), "sequencer.retries", None)]
+    fn validate_rejects(#[case] c: FramedProfileConfig, #[case] field: &str, #[case] index: Option<u16>) {
+        let e = c.validate().unwrap_err();
+        assert_eq!((e.field, e.index), (field, index), "{e}");
+        assert!(FramedProfile::new(c, ms(0)).is_err());
+    }
+
+    #[test]
+    fn duplicate_names_the_first_entry() {
+        let e = breaker_with(|c| c.commands[3].code = 1).validate().unwrap_err();
+        assert_eq!(e.problem, Problem::Duplicate { other: 0 });
+    }
+
+    proptest! {
+        #[test]
+        fn arbitrary_bytes_and_outputs_never_panic(
+            chunks in proptest::collection::vec((proptest::collection::vec(any::<u8>(), 0..64), proptest::collection::vec(any::<u8>(), 0..10), 0u64..2000), 0..40)
+        ) {
+            let mut p = breaker_profile(StalePolicy::Clear);
+            let mut now = ms(0);
+            for (bytes, outputs, dt) in chunks {
+                now += devicenet::Duration::from_millis(dt);
+                p.on_bytes(&bytes, now);
+                p.set_outputs(&outputs, now);
+                drain(&mut p, now);
+                prop_assert_eq!(p.input_image().len(), 18);
+                if let Some(t) = p.poll_at() {
+                    prop_assert!(t >= ms(0));
+                }
+            }
+        }
     }
 }

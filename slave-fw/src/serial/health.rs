@@ -22,6 +22,7 @@
 //! The freshness counter (the second byte) increments, wrapping, on every good frame from the
 //! instrument, so the scanner can tell new data from held data.
 
+use super::counter::bump;
 use super::error::ConfigError;
 use super::sequencer::CommandOutcome;
 use devicenet::{Duration, Instant};
@@ -117,11 +118,6 @@ pub struct Stats {
     pub commands_rejected: u32,
     /// Modbus exception responses, reads and writes.
     pub modbus_exceptions: u32,
-}
-
-/// Adds one to a wrapping counter.
-pub(crate) fn bump(counter: &mut u32) {
-    *counter = counter.wrapping_add(1);
 }
 
 /// The status byte of the extended input assembly; the bit layout is in the [module docs](self).

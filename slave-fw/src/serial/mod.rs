@@ -20,6 +20,7 @@
 
 pub mod breaker;
 pub mod checksum;
+mod counter;
 pub mod error;
 pub mod framed;
 pub mod framed_profile;

@@ -22,8 +22,8 @@
 //! After a restart the first outputs with a non-zero code are executed unless
 //! [`SequencerConfig::execute_first`] is `false`, in which case they only set the baseline.
 
+use super::counter::bump;
 use super::error::{as_u32, ConfigError};
-use super::health::bump;
 use super::IDLE_FRAME_CAPACITY;
 use devicenet::{Duration, Instant};
 use heapless::Vec;

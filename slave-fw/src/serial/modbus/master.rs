@@ -33,8 +33,9 @@
 //! and ignored on writes; a single coil is bit 0).
 
 use super::pdu::{self, CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};
+use crate::serial::counter::bump;
 use crate::serial::error::{as_u32, ConfigError, Problem};
-use crate::serial::health::{bump, HealthConfig, LinkHealth, LinkStatus, Stats};
+use crate::serial::health::{HealthConfig, LinkHealth, LinkStatus, Stats};
 use crate::serial::line::{DataBits, SerialSettings};
 use crate::serial::sequencer::{check_idle_frame, CommandOutcome, IdleAction, OutputMode};
 use crate::serial::{IDLE_FRAME_CAPACITY, IMAGE_CAPACITY};

@@ -1,0 +1,361 @@
+//! The converter task's work, apart from RTIC and the peripherals, so that the host tests run it.
+//!
+//! `app::converter_task` (main.rs) waits for an input or the next deadline, then hands what it got
+//! to a [`ConverterTask`]: [`ConverterTask::take_inputs`] for the inputs waiting in the channel,
+//! [`ConverterTask::handle_timeout`] for the timers. The board's side of every output (the CAN
+//! transmit queue, USART2, the settings flash, the reset) is behind the [`Hardware`] trait.
+//!
+//! Every input is followed by a full drain, in the converter's order (frames, instrument bytes,
+//! events, a due reset; `slave_fw::converter` module docs), before the next input is handed over:
+//! the node queues at most 16 frames and the converter 8 events, and a burst of inputs taken
+//! without draining would push responses and a `ResetRequested` or `SettingChanged` out of them.
+//! Consecutive instrument bytes are one input (up to [`SERIAL_BATCH`] bytes in one
+//! `handle_serial` call).
+
+use crate::log::{log_info as info, log_warn as warn};
+use board::settings::Settings;
+use devicenet::led::Leds;
+use devicenet::slave::{Event, SettingChanged};
+use devicenet::{CanFrame, Instant};
+use slave_fw::converter::{Converter, ResetKind};
+
+/// Capacity of the converter task's input channel, and the most inputs taken per wake-up.
+pub const INPUTS: usize = 64;
+/// Instrument bytes handed to the converter in one call.
+pub const SERIAL_BATCH: usize = 32;
+
+/// What interrupts hand to the converter task.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Input {
+    /// A frame for this node.
+    Frame(CanFrame),
+    /// The CAN controller went bus-off.
+    BusOff,
+    /// A byte from the instrument.
+    InstrumentByte(u8),
+}
+
+/// The board's side of the converter task's outputs.
+pub trait Hardware {
+    /// Queues `frame` for the CAN controller.
+    fn send_frame(&mut self, frame: CanFrame);
+    /// Queues `bytes` (one frame) for the instrument's UART.
+    fn send_serial(&mut self, bytes: &[u8]);
+    /// Resets the CAN controller after bus-off (bus-off interrupt setting 1, devicenet-notes §7.2).
+    fn restart_can(&mut self);
+    /// Stores `settings` in non-volatile memory; `false` when that failed.
+    fn save_settings(&mut self, settings: &Settings) -> bool;
+    /// Resets the device (Identity Reset, devicenet-notes §3.2); on the board this does not return.
+    fn reset(&mut self, kind: ResetKind);
+    /// Sees every event the converter passes on, before the task acts on it (the log).
+    fn event(&mut self, _event: &Event) {}
+}
+
+/// The converter and the settings in force: everything the converter task owns besides the LEDs.
+pub struct ConverterTask {
+    converter: Converter,
+    settings: Settings,
+}
+
+impl ConverterTask {
+    /// The task for `converter`, running with the stored `settings`.
+    pub fn new(converter: Converter, settings: Settings) -> ConverterTask {
+        ConverterTask { converter, settings }
+    }
+
+    /// Powers the converter on at `now` and drains.
+    pub fn power_on(&mut self, now: Instant, hw: &mut impl Hardware) {
+        self.converter.power_on(now);
+        self.drain(now, hw);
+    }
+
+    /// Hands `first` and then the inputs `next` yields (at most [`INPUTS`] in all, so timers are
+    /// never starved) to the converter, draining after each; consecutive instrument bytes go as
+    /// one input.
+    pub fn take_inputs(
+        &mut self,
+        first: Input,
+        mut next: impl FnMut() -> Option<Input>,
+        now: Instant,
+        hw: &mut impl Hardware,
+    ) {
+        let mut serial = heapless::Vec::<u8, SERIAL_BATCH>::new();
+        let mut current = first;
+        for taken in 1..=INPUTS {
+            match current {
+                Input::InstrumentByte(b) => {
+                    if serial.is_full() {
+                        self.serial(&mut serial, now, hw);
+                    }
+                    // Room was made above.
+                    let _ = serial.push(b);
+                }
+                Input::Frame(frame) => {
+                    self.serial(&mut serial, now, hw);
+                    self.converter.handle_can_frame(&frame, now);
+                    self.drain(now, hw);
+                }
+                Input::BusOff => {
+                    self.serial(&mut serial, now, hw);
+                    warn!("CAN bus-off");
+                    self.converter.handle_bus_off(now);
+                    self.drain(now, hw);
+                }
+            }
+            // Never take an input beyond the bound: it would be lost.
+            match (taken < INPUTS).then(&mut next).flatten() {
+                Some(input) => current = input,
+                None => break,
+            }
+        }
+        self.serial(&mut serial, now, hw);
+    }
+
+    /// Runs the timers due at `now` and drains (a due reset included).
+    pub fn handle_timeout(&mut self, now: Instant, hw: &mut impl Hardware) {
+        self.converter.handle_timeout(now);
+        self.drain(now, hw);
+    }
+
+    /// When [`ConverterTask::handle_timeout`] must run next.
+    pub fn poll_at(&self) -> Option<Instant> {
+        self.converter.poll_at()
+    }
+
+    /// The LEDs at `now`.
+    pub fn leds(&self, now: Instant) -> Leds {
+        self.converter.leds(now)
+    }
+
+    /// The converter (the tests look into it).
+    #[cfg(test)]
+    pub fn converter(&self) -> &Converter {
+        &self.converter
+    }
+
+    /// The settings in force, with the changes made over the network (the tests look at them).
+    #[cfg(test)]
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Hands the batched instrument bytes over, if any, and drains.
+    fn serial(&mut self, batch: &mut heapless::Vec<u8, SERIAL_BATCH>, now: Instant, hw: &mut impl Hardware) {
+        if !batch.is_empty() {
+            self.converter.handle_serial(batch, now);
+            batch.clear();
+            self.drain(now, hw);
+        }
+    }
+
+    /// The converter's outputs, in its drain order: frames, instrument bytes, events, a due reset.
+    fn drain(&mut self, now: Instant, hw: &mut impl Hardware) {
+        while let Some(frame) = self.converter.poll_can_transmit() {
+            hw.send_frame(frame);
+        }
+        while let Some(bytes) = self.converter.poll_serial_transmit(now) {
+            hw.send_serial(bytes);
+        }
+        while let Some(event) = self.converter.poll_event() {
+            hw.event(&event);
+            self.on_event(event, hw);
+        }
+        if let Some(kind) = self.converter.poll_reset(now) {
+            info!("reset, type {=u8}", kind.as_raw());
+            hw.reset(kind);
+        }
+    }
+
+    /// The application's part of an event: outputs, idle polls and connection faults are the
+    /// converter's, and so is the reset's timing.
+    fn on_event(&mut self, event: Event, hw: &mut impl Hardware) {
+        match event {
+            Event::ResetCanController => hw.restart_can(),
+            Event::SettingChanged(change) => {
+                match change {
+                    SettingChanged::MacId(mac) => self.settings.mac_id = mac,
+                    SettingChanged::BaudRate(rate) => self.settings.baud_rate = rate,
+                    SettingChanged::BusOffInterrupt(boi) => self.settings.bus_off_interrupt = boi,
+                }
+                if !hw.save_settings(&self.settings) {
+                    warn!("settings: save failed");
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use devicenet::reference::{Direction, BRING_UP};
+    use devicenet::Duration;
+    use slave_fw::converter::{ConverterConfig, RESET_DELAY};
+
+    /// The board as a recorder.
+    #[derive(Default)]
+    struct Recorder {
+        frames: Vec<CanFrame>,
+        serial: Vec<Vec<u8>>,
+        events: Vec<Event>,
+        saved: Vec<Settings>,
+        resets: Vec<(usize, ResetKind)>,
+        restarts: usize,
+    }
+
+    impl Hardware for Recorder {
+        fn send_frame(&mut self, frame: CanFrame) {
+            self.frames.push(frame);
+        }
+        fn send_serial(&mut self, bytes: &[u8]) {
+            self.serial.push(bytes.to_vec());
+        }
+        fn restart_can(&mut self) {
+            self.restarts += 1;
+        }
+        fn save_settings(&mut self, settings: &Settings) -> bool {
+            self.saved.push(settings.clone());
+            true
+        }
+        fn reset(&mut self, kind: ResetKind) {
+            // Where in the frame stream the reset came.
+            self.resets.push((self.frames.len(), kind));
+        }
+        fn event(&mut self, event: &Event) {
+            self.events.push(*event);
+        }
+    }
+
+    fn frame(id: u16, data: &[u8]) -> CanFrame {
+        CanFrame::from_raw(id, data).unwrap()
+    }
+
+    /// The reference converter powered on at 2 s and brought up by the master's side of
+    /// devicenet-notes §2, one input per wake-up; then a 5 s EPR on the poll connection.
+    fn established(hw: &mut Recorder) -> (ConverterTask, Instant) {
+        let converter = Converter::new(ConverterConfig::breaker_reference(), Instant::ZERO).unwrap();
+        let mut task = ConverterTask::new(converter, Settings::default());
+        let mut now = Instant::from_millis(2000);
+        task.power_on(now, hw);
+        let online = now + Duration::from_secs(2);
+        while let Some(at) = task.poll_at().filter(|&at| at <= online) {
+            now = at.max(now);
+            task.handle_timeout(now, hw);
+        }
+        let master = BRING_UP.iter().filter(|f| f.direction == Direction::MasterToSlave).skip(2);
+        for f in master {
+            now += Duration::from_millis(10);
+            task.take_inputs(Input::Frame(frame(f.id, f.data)), || None, now, hw);
+        }
+        task.take_inputs(
+            Input::Frame(frame(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x88, 0x13])),
+            || None,
+            now,
+            hw,
+        );
+        assert_eq!(hw.frames.last(), Some(&frame(0x42B, &[0x00, 0x90, 0x88, 0x13])), "EPR set");
+        hw.frames.clear();
+        hw.events.clear();
+        (task, now)
+    }
+
+    /// 64 inputs at once, as a channel full of them after a busy spell: polls, instrument bytes,
+    /// a Set of the bus-off interrupt (a stored setting) and an Identity Reset in the middle.
+    #[test]
+    fn burst_of_64_inputs_with_a_reset_in_the_middle_loses_no_frame_and_no_event() {
+        let mut hw = Recorder::default();
+        let (mut task, now) = established(&mut hw);
+        let set_boi = frame(0x42C, &[0x00, 0x10, 0x03, 0x01, 0x03, 0x01]);
+        let reset = frame(0x42C, &[0x00, 0x05, 0x01, 0x01]);
+        let poll = frame(0x42D, &[0; 8]);
+        let burst: Vec<Input> = (0..INPUTS)
+            .map(|n| match n {
+                20 => Input::Frame(set_boi),
+                32 => Input::Frame(reset),
+                n if n % 4 == 3 => Input::InstrumentByte(0xFF),
+                _ => Input::Frame(poll),
+            })
+            .collect();
+        let polls = burst.iter().filter(|i| **i == Input::Frame(poll)).count();
+        let mut rest = burst[1..].iter().copied();
+        task.take_inputs(burst[0], || rest.next(), now, &mut hw);
+        assert_eq!(rest.next(), None, "all 64 taken in one wake-up");
+
+        // Every poll answered: 18 bytes, three fragments each (devicenet-notes §4.2).
+        let responses: Vec<&CanFrame> = hw.frames.iter().filter(|f| f.id().as_raw() == 0x3C5).collect();
+        assert_eq!(responses.len(), 3 * polls, "{polls} polls");
+        assert_eq!(responses.iter().filter(|f| f.data()[0] == 0x00).count(), polls, "first fragments");
+        // Both explicit requests answered, in their place among the poll responses.
+        let explicit: Vec<&CanFrame> = hw.frames.iter().filter(|f| f.id().as_raw() == 0x42B).collect();
+        assert_eq!(explicit, [&frame(0x42B, &[0x00, 0x90]), &frame(0x42B, &[0x00, 0x85])]);
+        let stats = task.converter().node().stats();
+        assert_eq!((stats.tx_overflows, stats.event_overflows), (0, 0));
+
+        // Both events reached the task, and it acted on them.
+        assert!(hw.events.contains(&Event::ResetRequested(0)), "{:?}", hw.events);
+        assert!(hw.events.contains(&Event::SettingChanged(SettingChanged::BusOffInterrupt(true))));
+        assert_eq!(hw.saved.len(), 1);
+        assert!(hw.saved[0].bus_off_interrupt && task.settings().bus_off_interrupt);
+
+        // The reset comes RESET_DELAY after the request, after every response, and once.
+        assert!(hw.resets.is_empty());
+        let due = now + RESET_DELAY;
+        assert!(task.poll_at().is_some_and(|at| at <= due));
+        task.handle_timeout(now + Duration::from_millis(99), &mut hw);
+        assert!(hw.resets.is_empty());
+        task.handle_timeout(due, &mut hw);
+        assert_eq!(hw.resets, [(hw.frames.len(), ResetKind::PowerCycle)]);
+        task.handle_timeout(due + RESET_DELAY, &mut hw);
+        assert_eq!(hw.resets.len(), 1);
+    }
+
+    #[test]
+    fn instrument_bytes_are_batched_across_frames() {
+        use slave_fw::serial::breaker::{StatusData, SwitchState, FRAMING};
+        let mut hw = Recorder::default();
+        let (mut task, now) = established(&mut hw);
+        let mut wire = Vec::new();
+        for n in 0..3u8 {
+            let mut out = [0u8; 32];
+            let len = FRAMING
+                .encode(StatusData::new([n, 0, 0, 0], SwitchState::Open).as_bytes(), &mut out)
+                .unwrap();
+            wire.extend_from_slice(&out[..len]);
+        }
+        assert!(wire.len() > 2 * SERIAL_BATCH, "frames cross batch boundaries");
+        let before = task.converter().profile().stats().frames_received;
+        let mut bytes = wire.iter().map(|&b| Input::InstrumentByte(b));
+        let mut wake_ups = 0;
+        while let Some(first) = bytes.next() {
+            task.take_inputs(first, || bytes.next(), now, &mut hw);
+            wake_ups += 1;
+        }
+        assert_eq!(wake_ups, wire.len().div_ceil(INPUTS), "at most {INPUTS} inputs per wake-up");
+        assert_eq!(task.converter().profile().stats().frames_received - before, 3);
+        assert_eq!(task.converter().profile().input_image()[0], 2, "the last frame's image");
+    }
+
+    #[test]
+    fn bus_off_with_boi_restarts_the_controller() {
+        let mut hw = Recorder::default();
+        let converter = Converter::new(
+            ConverterConfig {
+                device: devicenet::slave::DeviceConfig {
+                    bus_off_interrupt: true,
+                    ..ConverterConfig::breaker_reference().device
+                },
+                ..ConverterConfig::breaker_reference()
+            },
+            Instant::ZERO,
+        )
+        .unwrap();
+        let mut task = ConverterTask::new(converter, Settings::default());
+        task.power_on(Instant::ZERO, &mut hw);
+        task.take_inputs(Input::BusOff, || None, Instant::from_millis(5), &mut hw);
+        assert_eq!(hw.restarts, 1);
+        let self_test_over = Instant::from_secs(2);
+        assert_eq!(task.leds(self_test_over).network, devicenet::led::Lit::Off, "duplicate MAC check again");
+        assert!(hw.events.contains(&Event::ResetCanController));
+    }
+}

@@ -1,0 +1,554 @@
+//! The converter's two vendor-specific objects, described once: the attribute tables the node's
+//! object handler serves from and the EDS generator (`eds::generate`) writes its `[Params]` from.
+//!
+//! | class | instance 1 attributes | table |
+//! |---|---|---|
+//! | [`SERIAL_LINK_CLASS`] 0x64 | statistics and link status, live values | [`LinkAttribute`] |
+//! | [`SETTINGS_CLASS`] 0x65 | the configuration in force | [`SettingsAttribute`] |
+//!
+//! Each table is an enum with one variant per attribute, its discriminant the attribute id; what
+//! an attribute is (name, units, CIP data type, access: [`LinkAttribute::spec`],
+//! [`SettingsAttribute::spec`]) and how its value is read from the converter's state
+//! ([`LinkAttribute::read`] from the profile's [`Stats`] and [`LinkStatus`],
+//! [`SettingsAttribute::read`] from [`SettingsValues`]) are `match`es on it, so adding an attribute
+//! fails to compile until every side says what it is. The firmware calls only `from_id`,
+//! `data_type` and `read`: the names stay out of its flash.
+//!
+//! Services (both classes): Get_Attribute_Single on instance 1 and on the class (attribute 1,
+//! revision 1). Every instance attribute is read-only: the configuration comes from the
+//! description and the non-volatile settings, so Set_Attribute_Single answers 0x0E attribute not
+//! settable for a known attribute and 0x14 attribute not supported for an unknown one (error codes:
+//! devicenet-notes §3.3).
+
+use super::InputAssembly;
+use crate::serial::modbus::ModbusConfig;
+use crate::serial::{
+    FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile, ProfileConfig,
+    StalePolicy, Stats, StopBits,
+};
+use devicenet::explicit::{Request, ServiceCode};
+use devicenet::slave::{ObjectHandler, Reply, ServiceError};
+
+/// Vendor-specific class of the serial link object: statistics and status, instance 1.
+pub const SERIAL_LINK_CLASS: u16 = 0x64;
+/// Vendor-specific class of the settings object: the configuration in force, instance 1.
+pub const SETTINGS_CLASS: u16 = 0x65;
+
+/// The CIP elementary data type an attribute is served as (little-endian on the wire).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AttributeType {
+    /// USINT, one byte, unsigned.
+    Usint,
+    /// UDINT, four bytes, unsigned.
+    Udint,
+    /// BYTE, a one-byte bit string.
+    Byte,
+}
+
+impl AttributeType {
+    /// Bytes on the wire.
+    pub const fn size(self) -> usize {
+        match self {
+            AttributeType::Usint | AttributeType::Byte => 1,
+            AttributeType::Udint => 4,
+        }
+    }
+}
+
+/// How an attribute may be accessed. Every vendor attribute is Get only; the difference is what
+/// it shows (the EDS marks a live value as a monitor parameter).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Access {
+    /// Get only: configuration, constant while the converter runs.
+    Get,
+    /// Get only: a live value (a counter, the link status) that a tool should poll.
+    GetMonitor,
+}
+
+/// What a tool needs to know about one attribute of instance 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct AttributeSpec {
+    /// The object class ([`SERIAL_LINK_CLASS`] or [`SETTINGS_CLASS`]).
+    pub class: u16,
+    /// The attribute id.
+    pub id: u8,
+    /// A short name (the EDS parameter name).
+    pub name: &'static str,
+    /// Units, empty when the value has none.
+    pub units: &'static str,
+    /// The data type it is served as.
+    pub data_type: AttributeType,
+    /// Its access.
+    pub access: Access,
+}
+
+/// The attributes of the serial link object ([`SERIAL_LINK_CLASS`]), instance 1; the
+/// discriminant is the attribute id. The counters wrap at 2^32.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum LinkAttribute {
+    /// Good frames received from the instrument ([`Stats::frames_received`]).
+    FramesReceived = 1,
+    /// Frames discarded for a checksum or CRC mismatch ([`Stats::checksum_errors`]).
+    ChecksumErrors = 2,
+    /// Frames discarded for bad framing ([`Stats::framing_errors`]).
+    FramingErrors = 3,
+    /// Expected answers that did not arrive in time ([`Stats::timeouts`]).
+    AnswerTimeouts = 4,
+    /// Commands sent, first attempts ([`Stats::commands_sent`]).
+    CommandsSent = 5,
+    /// Command retransmissions ([`Stats::commands_retried`]).
+    CommandsRetried = 6,
+    /// Commands given up after all retries ([`Stats::commands_failed`]).
+    CommandsFailed = 7,
+    /// Commands the instrument refused ([`Stats::commands_rejected`]).
+    CommandsRejected = 8,
+    /// Modbus exception responses ([`Stats::modbus_exceptions`]).
+    ModbusExceptions = 9,
+    /// Frames written to the serial line ([`Stats::frames_sent`]).
+    FramesSent = 10,
+    /// Bytes skipped outside any frame ([`Stats::discarded_bytes`]).
+    DiscardedBytes = 11,
+    /// Times the link went stale ([`Stats::link_timeouts`]).
+    LinkTimeouts = 12,
+    /// The status byte of input assembly 101 ([`LinkStatus::to_bytes`], byte 0).
+    StatusByte = 13,
+    /// The freshness counter ([`LinkStatus::freshness`]).
+    Freshness = 14,
+    /// The link state: 0 starting, 1 ok, 2 stale ([`LinkState`]).
+    LinkState = 15,
+}
+
+impl LinkAttribute {
+    /// Every attribute, in id order.
+    pub const ALL: [LinkAttribute; 15] = [
+        LinkAttribute::FramesReceived,
+        LinkAttribute::ChecksumErrors,
+        LinkAttribute::FramingErrors,
+        LinkAttribute::AnswerTimeouts,
+        LinkAttribute::CommandsSent,
+        LinkAttribute::CommandsRetried,
+        LinkAttribute::CommandsFailed,
+        LinkAttribute::CommandsRejected,
+        LinkAttribute::ModbusExceptions,
+        LinkAttribute::FramesSent,
+        LinkAttribute::DiscardedBytes,
+        LinkAttribute::LinkTimeouts,
+        LinkAttribute::StatusByte,
+        LinkAttribute::Freshness,
+        LinkAttribute::LinkState,
+    ];
+
+    /// The attribute with id `id`, if the object has one.
+    pub const fn from_id(id: u8) -> Option<LinkAttribute> {
+        use LinkAttribute as A;
+        // The identity on 1..=15: compiled to a range check (tested against `ALL`).
+        Some(match id {
+            1 => A::FramesReceived,
+            2 => A::ChecksumErrors,
+            3 => A::FramingErrors,
+            4 => A::AnswerTimeouts,
+            5 => A::CommandsSent,
+            6 => A::CommandsRetried,
+            7 => A::CommandsFailed,
+            8 => A::CommandsRejected,
+            9 => A::ModbusExceptions,
+            10 => A::FramesSent,
+            11 => A::DiscardedBytes,
+            12 => A::LinkTimeouts,
+            13 => A::StatusByte,
+            14 => A::Freshness,
+            15 => A::LinkState,
+            _ => return None,
+        })
+    }
+
+    /// The attribute id.
+    pub const fn id(self) -> u8 {
+        self as u8
+    }
+
+    /// The data type it is served as.
+    pub const fn data_type(self) -> AttributeType {
+        match self {
+            LinkAttribute::StatusByte => AttributeType::Byte,
+            LinkAttribute::Freshness | LinkAttribute::LinkState => AttributeType::Usint,
+            _ => AttributeType::Udint,
+        }
+    }
+
+    /// Name, units, type and access.
+    pub const fn spec(self) -> AttributeSpec {
+        use LinkAttribute as A;
+        let (name, units) = match self {
+            A::FramesReceived => ("Frames received", "frames"),
+            A::ChecksumErrors => ("Checksum errors", "frames"),
+            A::FramingErrors => ("Framing errors", "frames"),
+            A::AnswerTimeouts => ("Answer timeouts", ""),
+            A::CommandsSent => ("Commands sent", ""),
+            A::CommandsRetried => ("Commands retried", ""),
+            A::CommandsFailed => ("Commands failed", ""),
+            A::CommandsRejected => ("Commands rejected", ""),
+            A::ModbusExceptions => ("Modbus exceptions", ""),
+            A::FramesSent => ("Frames sent", "frames"),
+            A::DiscardedBytes => ("Discarded bytes", "bytes"),
+            A::LinkTimeouts => ("Link timeouts", ""),
+            A::StatusByte => ("Link status byte", ""),
+            A::Freshness => ("Freshness counter", ""),
+            A::LinkState => ("Link state", ""),
+        };
+        AttributeSpec {
+            class: SERIAL_LINK_CLASS,
+            id: self.id(),
+            name,
+            units,
+            data_type: self.data_type(),
+            access: Access::GetMonitor,
+        }
+    }
+
+    /// The value served, from the profile's statistics and status.
+    pub fn read(self, stats: &Stats, status: &LinkStatus) -> u32 {
+        use LinkAttribute as A;
+        match self {
+            A::FramesReceived => stats.frames_received,
+            A::ChecksumErrors => stats.checksum_errors,
+            A::FramingErrors => stats.framing_errors,
+            A::AnswerTimeouts => stats.timeouts,
+            A::CommandsSent => stats.commands_sent,
+            A::CommandsRetried => stats.commands_retried,
+            A::CommandsFailed => stats.commands_failed,
+            A::CommandsRejected => stats.commands_rejected,
+            A::ModbusExceptions => stats.modbus_exceptions,
+            A::FramesSent => stats.frames_sent,
+            A::DiscardedBytes => stats.discarded_bytes,
+            A::LinkTimeouts => stats.link_timeouts,
+            A::StatusByte => status.to_bytes()[0].into(),
+            A::Freshness => status.freshness.into(),
+            A::LinkState => match status.state {
+                LinkState::Starting => 0,
+                LinkState::Ok => 1,
+                LinkState::Timeout => 2,
+            },
+        }
+    }
+}
+
+/// The attributes of the settings object ([`SETTINGS_CLASS`]), instance 1: the configuration in
+/// force; the discriminant is the attribute id.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum SettingsAttribute {
+    /// The serial bit rate, baud.
+    SerialBaud = 1,
+    /// The serial parity: 0 none, 1 odd, 2 even.
+    SerialParity = 2,
+    /// Stop bits: 1 or 2.
+    SerialStopBits = 3,
+    /// The stale timeout, ms.
+    StaleTimeout = 4,
+    /// The stale policy: 0 hold last value, 1 clear to zero.
+    StalePolicy = 5,
+    /// The produced input assembly instance (100 or 101).
+    InputAssembly = 6,
+    /// The response timeout, ms.
+    ResponseTimeout = 7,
+    /// Retries after a timeout.
+    Retries = 8,
+    /// The idle action: 0 nothing, 1 send the configured frame.
+    IdleAction = 9,
+    /// The fault action: 0 nothing, 1 send the configured frame.
+    FaultAction = 10,
+    /// The serial profile: 0 framed serial, 1 Modbus RTU master.
+    SerialProfile = 11,
+}
+
+impl SettingsAttribute {
+    /// Every attribute, in id order.
+    pub const ALL: [SettingsAttribute; 11] = [
+        SettingsAttribute::SerialBaud,
+        SettingsAttribute::SerialParity,
+        SettingsAttribute::SerialStopBits,
+        SettingsAttribute::StaleTimeout,
+        SettingsAttribute::StalePolicy,
+        SettingsAttribute::InputAssembly,
+        SettingsAttribute::ResponseTimeout,
+        SettingsAttribute::Retries,
+        SettingsAttribute::IdleAction,
+        SettingsAttribute::FaultAction,
+        SettingsAttribute::SerialProfile,
+    ];
+
+    /// The attribute with id `id`, if the object has one.
+    pub const fn from_id(id: u8) -> Option<SettingsAttribute> {
+        use SettingsAttribute as A;
+        // The identity on 1..=11: compiled to a range check (tested against `ALL`).
+        Some(match id {
+            1 => A::SerialBaud,
+            2 => A::SerialParity,
+            3 => A::SerialStopBits,
+            4 => A::StaleTimeout,
+            5 => A::StalePolicy,
+            6 => A::InputAssembly,
+            7 => A::ResponseTimeout,
+            8 => A::Retries,
+            9 => A::IdleAction,
+            10 => A::FaultAction,
+            11 => A::SerialProfile,
+            _ => return None,
+        })
+    }
+
+    /// The attribute id.
+    pub const fn id(self) -> u8 {
+        self as u8
+    }
+
+    /// The data type it is served as.
+    pub const fn data_type(self) -> AttributeType {
+        match self {
+            SettingsAttribute::SerialBaud
+            | SettingsAttribute::StaleTimeout
+            | SettingsAttribute::ResponseTimeout => AttributeType::Udint,
+            _ => AttributeType::Usint,
+        }
+    }
+
+    /// Name, units, type and access.
+    pub const fn spec(self) -> AttributeSpec {
+        use SettingsAttribute as A;
+        let (name, units) = match self {
+            A::SerialBaud => ("Serial baud rate", "baud"),
+            A::SerialParity => ("Serial parity", ""),
+            A::SerialStopBits => ("Serial stop bits", ""),
+            A::StaleTimeout => ("Stale timeout", "ms"),
+            A::StalePolicy => ("Stale policy", ""),
+            A::InputAssembly => ("Input assembly", ""),
+            A::ResponseTimeout => ("Response timeout", "ms"),
+            A::Retries => ("Retries", ""),
+            A::IdleAction => ("Idle action", ""),
+            A::FaultAction => ("Fault action", ""),
+            A::SerialProfile => ("Serial profile", ""),
+        };
+        AttributeSpec {
+            class: SETTINGS_CLASS,
+            id: self.id(),
+            name,
+            units,
+            data_type: self.data_type(),
+            access: Access::Get,
+        }
+    }
+
+    /// The value served, from the configuration in force.
+    pub fn read(self, s: &SettingsValues) -> u32 {
+        use SettingsAttribute as A;
+        match self {
+            A::SerialBaud => s.baud,
+            A::SerialParity => match s.parity {
+                Parity::None => 0,
+                Parity::Odd => 1,
+                Parity::Even => 2,
+            },
+            A::SerialStopBits => match s.stop_bits {
+                StopBits::One => 1,
+                StopBits::Two => 2,
+            },
+            A::StaleTimeout => s.health.stale_timeout_ms,
+            A::StalePolicy => match s.health.stale_policy {
+                StalePolicy::HoldLastValue => 0,
+                StalePolicy::Clear => 1,
+            },
+            A::InputAssembly => s.input.instance().into(),
+            A::ResponseTimeout => s.response_timeout_ms,
+            A::Retries => s.retries.into(),
+            A::IdleAction => s.idle_frame.into(),
+            A::FaultAction => s.fault_frame.into(),
+            A::SerialProfile => s.modbus.into(),
+        }
+    }
+}
+
+/// The configuration the settings object reports, gathered from either profile: from a running
+/// [`Profile`] ([`SettingsValues::of_profile`], the device) or from a [`ProfileConfig`]
+/// ([`SettingsValues::of_config`], the EDS generator's defaults), so both read the same values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SettingsValues {
+    /// Serial bit rate.
+    pub baud: u32,
+    /// Serial parity.
+    pub parity: Parity,
+    /// Serial stop bits.
+    pub stop_bits: StopBits,
+    /// Stale timeout and policy.
+    pub health: HealthConfig,
+    /// The produced input assembly.
+    pub input: InputAssembly,
+    /// The response timeout, ms.
+    pub response_timeout_ms: u32,
+    /// Retries after a timeout.
+    pub retries: u8,
+    /// Whether an idle poll sends a frame.
+    pub idle_frame: bool,
+    /// Whether a poll connection fault sends a frame.
+    pub fault_frame: bool,
+    /// `true` for the Modbus RTU master, `false` for a framed instrument.
+    pub modbus: bool,
+}
+
+impl SettingsValues {
+    /// The values of a configuration.
+    pub fn of_config(profile: &ProfileConfig, input: InputAssembly) -> SettingsValues {
+        match profile {
+            ProfileConfig::Framed(c) => SettingsValues::framed(c, input),
+            ProfileConfig::Modbus(c) => SettingsValues::modbus(c, input),
+        }
+    }
+
+    /// The values a running profile was configured with.
+    pub fn of_profile(profile: &Profile, input: InputAssembly) -> SettingsValues {
+        match profile {
+            Profile::Framed(p) => SettingsValues::framed(p.config(), input),
+            Profile::Modbus(p) => SettingsValues::modbus(p.config(), input),
+        }
+    }
+
+    fn framed(c: &FramedProfileConfig, input: InputAssembly) -> SettingsValues {
+        let s = &c.sequencer;
+        SettingsValues {
+            baud: c.serial.baud,
+            parity: c.serial.parity,
+            stop_bits: c.serial.stop_bits,
+            health: c.health,
+            input,
+            response_timeout_ms: s.response_timeout_ms,
+            retries: s.retries,
+            idle_frame: sends(&s.on_idle),
+            fault_frame: sends(&s.on_fault),
+            modbus: false,
+        }
+    }
+
+    fn modbus(c: &ModbusConfig, input: InputAssembly) -> SettingsValues {
+        SettingsValues {
+            baud: c.serial.baud,
+            parity: c.serial.parity,
+            stop_bits: c.serial.stop_bits,
+            health: c.health,
+            input,
+            response_timeout_ms: c.response_timeout_ms,
+            retries: c.retries,
+            idle_frame: sends(&c.on_idle),
+            fault_frame: sends(&c.on_fault),
+            modbus: true,
+        }
+    }
+}
+
+fn sends(action: &IdleAction) -> bool {
+    matches!(action, IdleAction::Send(_))
+}
+
+/// The vendor objects' request handler, borrowing the serial side while the node serves a
+/// request.
+pub(super) struct VendorObjects<'a> {
+    /// The running profile.
+    pub(super) profile: &'a Profile,
+    /// The produced assembly.
+    pub(super) input: InputAssembly,
+}
+
+impl VendorObjects<'_> {
+    /// Get_Attribute_Single of instance attribute `id` of `class` (one of ours).
+    fn get(&self, class: u16, id: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+        let (data_type, value) = if class == SERIAL_LINK_CLASS {
+            let a = LinkAttribute::from_id(id).ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)?;
+            (a.data_type(), a.read(self.profile.stats(), &self.profile.status()))
+        } else {
+            let a = SettingsAttribute::from_id(id).ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)?;
+            (a.data_type(), a.read(&SettingsValues::of_profile(self.profile, self.input)))
+        };
+        match data_type {
+            AttributeType::Udint => reply.u32(value),
+            // One-byte types: the value fits by construction of `read` (tested).
+            AttributeType::Usint | AttributeType::Byte => reply.u8(value as u8),
+        }
+    }
+}
+
+impl ObjectHandler for VendorObjects<'_> {
+    fn handle(&mut self, req: &Request<'_>, reply: &mut Reply<'_>) -> Option<Result<(), ServiceError>> {
+        let link = match req.class {
+            SERIAL_LINK_CLASS => true,
+            SETTINGS_CLASS => false,
+            _ => return None,
+        };
+        let known = |id| {
+            if link {
+                LinkAttribute::from_id(id).is_some()
+            } else {
+                SettingsAttribute::from_id(id).is_some()
+            }
+        };
+        Some(match (req.instance, req.service, req.data) {
+            (0, ServiceCode::GetAttributeSingle, [1]) => reply.u16(1),
+            (0, ServiceCode::GetAttributeSingle, [_]) => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+            (0 | 1, ServiceCode::GetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
+            (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => Err(ServiceError::TOO_MUCH_DATA),
+            (1, ServiceCode::GetAttributeSingle, [attr]) => self.get(req.class, *attr, reply),
+            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => Err(if known(*attr) {
+                ServiceError::ATTRIBUTE_NOT_SETTABLE
+            } else {
+                ServiceError::ATTRIBUTE_NOT_SUPPORTED
+            }),
+            (1, ServiceCode::SetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
+            (0 | 1, _, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::converter::ConverterConfig;
+
+    #[test]
+    fn ids_are_dense_and_from_id_inverts_id() {
+        for (n, a) in LinkAttribute::ALL.into_iter().enumerate() {
+            assert_eq!(usize::from(a.id()), n + 1);
+            assert_eq!(LinkAttribute::from_id(a.id()), Some(a));
+            assert_eq!(a.spec().id, a.id());
+        }
+        for (n, a) in SettingsAttribute::ALL.into_iter().enumerate() {
+            assert_eq!(usize::from(a.id()), n + 1);
+            assert_eq!(SettingsAttribute::from_id(a.id()), Some(a));
+            assert_eq!(a.spec().id, a.id());
+        }
+        assert_eq!(LinkAttribute::from_id(0), None);
+        assert_eq!(LinkAttribute::from_id(16), None);
+        assert_eq!(SettingsAttribute::from_id(0), None);
+        assert_eq!(SettingsAttribute::from_id(12), None);
+    }
+
+    #[test]
+    fn one_byte_values_fit_their_type() {
+        let config = ConverterConfig::breaker_reference();
+        let values = SettingsValues::of_config(&config.profile, config.input);
+        for a in SettingsAttribute::ALL {
+            if a.data_type().size() == 1 {
+                assert!(a.read(&values) <= 0xFF, "{a:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn running_profile_and_configuration_report_the_same_settings() {
+        let config = ConverterConfig::breaker_reference();
+        let profile = Profile::new(config.profile.clone(), devicenet::Instant::ZERO).unwrap();
+        assert_eq!(
+            SettingsValues::of_profile(&profile, config.input),
+            SettingsValues::of_config(&config.profile, config.input)
+        );
+    }
+}
