@@ -24,6 +24,9 @@
 //! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
 //!
+//! It depends on the protocol core only (for the MAC ID and data rate types); the SLCAN codec the
+//! emulated board speaks is `can_io::slcan`, shared with the host.
+//!
 //! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
 //! does not offer (CAN error status, reading the settings sectors).
 #![no_std]

@@ -205,8 +205,10 @@ fn identity_reset_power_cycles_the_converter() {
     let mut rig = Rig::new(ConverterConfig::breaker_reference());
     rig.established();
     assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x01, 0x01]), vec![(0x42B, vec![0x00, 0x85])]);
-    // 10 ms later the node restarts its duplicate MAC ID check, connections gone.
-    let after = rig.advance(Duration::from_millis(20));
+    // RESET_DELAY later the node restarts its duplicate MAC ID check, connections gone.
+    let before = rig.advance(Duration::from_micros(slave_fw::converter::RESET_DELAY.total_micros() - 1000));
+    assert_eq!(before, vec![], "nothing before the converter's reset delay");
+    let after = rig.advance(Duration::from_millis(10));
     assert_eq!(after, vec![(0x42F, vec![0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12])]);
     assert_eq!(rig.slave.converter().node().poll_connection().state, ConnectionState::NonExistent);
     assert!(std::iter::from_fn(|| rig.slave.poll_event()).any(|e| e == devicenet::Event::ResetRequested(0)));

@@ -19,6 +19,13 @@
 //! | [`cli`] | the two command lines (clap) and their `run` functions |
 //! | [`error`] | [`SoftSlaveError`](error::SoftSlaveError): every failure named, with its exit status |
 //!
+//! ## What it must not depend on
+//!
+//! The converter (`slave-fw`), `can-io` (its buses and logs) and `converter-sim` (the simulated
+//! breaker of `dnet-sim-breaker`): never the master harness, which its tests use as a
+//! dev-dependency only. The Identity Reset's delay is the converter's
+//! ([`Converter::poll_reset`](slave_fw::converter::Converter::poll_reset)), the same as on the board.
+//!
 //! ## The main loop
 //!
 //! One thread owns the bus and the converter. Each turn it feeds the converter the serial bytes
