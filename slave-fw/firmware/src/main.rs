@@ -7,13 +7,13 @@
 //!   reports bus-off and error-passive; USART2 moves instrument bytes in and out.
 //! - One software task, `app::converter_task`, owns the [`slave_fw::converter::Converter`] (the
 //!   DeviceNet slave node and the serial profile of the instrument) through a
-//!   [`task::ConverterTask`]: it waits for inputs or the next deadline (SysTick monotonic, 1 kHz),
+//!   `task::ConverterTask`: it waits for inputs or the next deadline (SysTick monotonic, 1 kHz),
 //!   hands them over one at a time, draining the converter after each, drives the LEDs from
 //!   `converter.leds(now)` (power-up test included), stores changed settings and resets the chip
-//!   when the converter says the Identity Reset is due. Its work is in [`task`], target
-//!   independent and tested on the host; the peripherals are behind [`task::Hardware`].
-//! - Switches and stored settings are read at reset ([`config`]); they choose the MAC ID, the data
-//!   rate and the instrument preset ([`presets`]: the breaker, or the Modbus meter gateway), whose
+//!   when the converter says the Identity Reset is due. Its work is in `task`, target
+//!   independent and tested on the host; the peripherals are behind `task::Hardware`.
+//! - Switches and stored settings are read at reset (`config`); they choose the MAC ID, the data
+//!   rate and the instrument preset (`presets`: the breaker, or the Modbus meter gateway), whose
 //!   serial settings USART2 is opened with.
 //!
 //! The `emulated` feature swaps only the lowest layer (clock from HSI, CAN as SLCAN on USART1,
