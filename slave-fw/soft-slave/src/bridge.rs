@@ -248,7 +248,10 @@ impl Bridge {
     fn log_frame(&mut self, at: Instant, frame: &CanFrame) -> Result<(), SoftSlaveError> {
         let iface = self.bus.name().to_string();
         if let Some((log, path)) = &mut self.log {
+            // Flushed frame by frame: whoever reads the log while the soft slave runs (a test, a
+            // user's `tail -f`) sees every frame it has handled, not the last flush interval's.
             log.write(at, &iface, frame)
+                .and_then(|()| log.flush())
                 .map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
         }
         Ok(())
