@@ -19,7 +19,7 @@ use crate::error::{Divergence, HarnessError, ShownFrame};
 use can_io::bus::Origin;
 use can_io::log::{format_line, LogEntry};
 use devicenet::messages::DuplicateMacCheck;
-use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use devicenet::{CanFrame, Duration, Instant, MacId};
 use master_core::decode::Decoder;
 use master_core::session::{is_from_device, Session, Verdict};
 
@@ -65,12 +65,9 @@ fn time_text(at: Instant) -> String {
 /// replayed from the start of a fresh bus is attached with this instant.
 pub fn device_power_on(entries: &[LogEntry], device: MacId) -> Duration {
     let Some(first) = entries.first() else { return Duration::ZERO };
-    let dup_id = Identifier::group2(device, Group2Message::DuplicateMacCheck);
     entries
         .iter()
-        .find(|e| {
-            e.frame.id() == dup_id && DuplicateMacCheck::parse(e.frame.data()).is_ok_and(|c| !c.response)
-        })
+        .find(|e| DuplicateMacCheck::request_in(&e.frame) == Some(device))
         .map_or(Duration::ZERO, |e| e.at - first.at)
 }
 

@@ -104,11 +104,7 @@ impl Bitrate {
 impl From<devicenet::slave::BaudRate> for Bitrate {
     /// The CAN bit rate of a DeviceNet data rate (DeviceNet object attribute 2).
     fn from(rate: devicenet::slave::BaudRate) -> Bitrate {
-        match rate {
-            devicenet::slave::BaudRate::Kbps125 => Bitrate::K125,
-            devicenet::slave::BaudRate::Kbps250 => Bitrate::K250,
-            devicenet::slave::BaudRate::Kbps500 => Bitrate::K500,
-        }
+        Bitrate(rate.bits_per_second())
     }
 }
 

@@ -34,12 +34,10 @@ pub use device::{PowerOn, SimDevice};
 
 use crate::bus::{Bitrate, Bus, BusError, BusEvent, Origin};
 use devicenet::messages::DuplicateMacCheck;
-use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use devicenet::slave::DUP_MAC_INTERVAL;
+use devicenet::{CanFrame, Duration, Instant, MacId};
 use fault::{FaultStats, RxFate, Station, TxFate, WireFaults};
 use std::collections::VecDeque;
-
-/// The duplicate MAC ID check's request interval and on-line wait (notes §7.1: 1 s).
-const DUP_MAC_INTERVAL: Duration = Duration::from_secs(1);
 
 /// Sees a master go on-line from the frames it sends, as the wire shows it: a master that sent its
 /// second duplicate MAC ID check request at `t` and heard no answer is on-line at `t` + 1 s (notes
@@ -54,13 +52,7 @@ impl MasterOnlineWatch {
     /// The master queued `frame` at `now`; returns the instant it goes on-line when this frame was
     /// its second duplicate MAC ID check request.
     pub fn sent(&mut self, frame: &CanFrame, now: Instant) -> Option<Instant> {
-        let is_check_request = matches!(
-            Identifier::decode(frame.id()),
-            Identifier::Group2 { message: Group2Message::DuplicateMacCheck, .. }
-        ) && DuplicateMacCheck::parse(frame.data()).is_ok_and(|c| !c.response);
-        if !is_check_request {
-            return None;
-        }
+        DuplicateMacCheck::request_in(frame)?;
         self.checks = self.checks.saturating_add(1);
         (self.checks == 2).then_some(now + DUP_MAC_INTERVAL)
     }
@@ -728,7 +720,10 @@ mod tests {
 
     /// The master's duplicate MAC ID check request (MAC 0, vendor 1, serial 1).
     fn master_check() -> CanFrame {
-        let id = Identifier::group2(MacId::new(0).unwrap(), Group2Message::DuplicateMacCheck);
+        let id = devicenet::Identifier::group2(
+            MacId::new(0).unwrap(),
+            devicenet::Group2Message::DuplicateMacCheck,
+        );
         CanFrame::new(id, &DuplicateMacCheck::request(0, 1, 1).emit()).unwrap()
     }
 

@@ -3,6 +3,8 @@
 //! MAC ID answers with a response (notes §7.1).
 
 use super::{exact, fixed_length, DeviceKey, MessageError};
+use crate::frame::CanFrame;
+use crate::id::{Group2Message, Identifier, MacId};
 
 /// Duplicate MAC ID check message body (notes §3.5): always 7 bytes, sent on Group 2 message 7
 /// with the checked MAC in the identifier.
@@ -49,6 +51,17 @@ impl DuplicateMacCheck {
         })
     }
 
+    /// The checked MAC ID when `frame` is a duplicate MAC ID check *request* (Group 2 message 7,
+    /// R/R bit clear, notes §3.5); `None` for a response or any other frame.
+    pub fn request_in(frame: &CanFrame) -> Option<MacId> {
+        match Identifier::decode(frame.id()) {
+            Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } => {
+                DuplicateMacCheck::parse(frame.data()).ok().filter(|c| !c.response).map(|_| mac)
+            }
+            _ => None,
+        }
+    }
+
     /// The 7 data bytes.
     pub fn emit(&self) -> [u8; 7] {
         let [k0, k1, k2, k3, k4, k5] = self.device_key().to_bytes();
@@ -63,6 +76,21 @@ mod tests {
     use super::*;
     use crate::messages::testing::{MASTER, SLAVE};
     use rstest::rstest;
+
+    #[test]
+    fn request_in_names_the_checked_mac_of_requests_only() {
+        let frame = |mac: u8, data: &[u8]| {
+            let id = Identifier::group2(MacId::new(mac).unwrap(), Group2Message::DuplicateMacCheck);
+            CanFrame::new(id, data).unwrap()
+        };
+        let request = [0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+        let response = [0x80, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+        assert_eq!(DuplicateMacCheck::request_in(&frame(5, &request)), MacId::new(5));
+        assert_eq!(DuplicateMacCheck::request_in(&frame(5, &response)), None);
+        assert_eq!(DuplicateMacCheck::request_in(&frame(5, &request[..6])), None);
+        let other = Identifier::group2(MacId::new(5).unwrap(), Group2Message::ExplicitRequest);
+        assert_eq!(DuplicateMacCheck::request_in(&CanFrame::new(other, &request).unwrap()), None);
+    }
 
     #[rstest]
     #[case::frame0_master_request(&[0x00, 0x01, 0x00, 0x04, 0x03, 0x02, 0x01], DuplicateMacCheck::request(0, 0x0001, 0x0102_0304))]

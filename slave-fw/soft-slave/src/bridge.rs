@@ -33,9 +33,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 /// The longest the loop waits on the bus before it looks at the serial line again.
 pub const POLL_SLICE: Duration = Duration::from_millis(2);
 
-/// How often the `candump -L` log is flushed while running.
-pub const LOG_FLUSH_INTERVAL: Duration = Duration::from_secs(1);
-
 /// The delay between an Identity Reset response and the power cycle (the response must reach
 /// the bus first): the converter's own, the same on the board and in the simulation.
 pub use slave_fw::converter::RESET_DELAY;
@@ -126,7 +123,6 @@ impl Bridge {
         self.converter.power_on(start);
         let iface = self.bus.name().to_string();
         self.note(start, &format!("started on {iface}, MAC {}", self.converter.node().mac_id()));
-        let mut next_flush = start + LOG_FLUSH_INTERVAL;
         let result = loop {
             let now = self.now();
             if stop.load(Ordering::Relaxed) || end.is_some_and(|e| now >= e) {
@@ -134,12 +130,6 @@ impl Bridge {
             }
             if let Err(e) = self.turn(now, end) {
                 break Err(e);
-            }
-            if now >= next_flush {
-                next_flush = now + LOG_FLUSH_INTERVAL;
-                if let Err(e) = self.flush_log() {
-                    break Err(e);
-                }
             }
         };
         let flushed = self.flush_log();
@@ -249,7 +239,7 @@ impl Bridge {
         let iface = self.bus.name().to_string();
         if let Some((log, path)) = &mut self.log {
             // Flushed frame by frame: whoever reads the log while the soft slave runs (a test, a
-            // user's `tail -f`) sees every frame it has handled, not the last flush interval's.
+            // user's `tail -f`) sees every frame it has handled.
             log.write(at, &iface, frame)
                 .and_then(|()| log.flush())
                 .map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
