@@ -58,6 +58,20 @@ pub enum MasterError {
     /// too long, a device at the master's own MAC, options that contradict each other.
     #[error("{0}")]
     Invalid(String),
+    /// The device's connection set is allocated to another master (0x0C / 0x01, notes §3.4).
+    #[error("MAC {mac} is allocated to another master{}: a device serves one master at a time; release it there, or reset the device", owner.map_or_else(|| " (its MAC was not seen on the bus)".to_string(), |m| format!(" (MAC {m})")))]
+    AllocationConflict {
+        /// The device.
+        mac: u8,
+        /// The other master's MAC, when its traffic was seen.
+        owner: Option<u8>,
+    },
+    /// A stop was asked for (SIGINT, SIGTERM) while the operation waited on the bus.
+    #[error("interrupted by {}", crate::stop::signal_name(*signal))]
+    Interrupted {
+        /// The signal's number.
+        signal: i32,
+    },
     /// The session's log file could not be written.
     #[error("cannot write the log file: {source}")]
     LogWrite {

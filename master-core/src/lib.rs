@@ -15,6 +15,7 @@
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of notes §2 |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly |
 //! | [`error`] | [`MasterError`](error::MasterError): why an operation stopped |
+//! | [`stop`] | [`Stop`](stop::Stop): a stop asked for by a signal, seen by the session while it waits |
 //!
 //! ## What it must not depend on
 //!
@@ -52,3 +53,4 @@ pub mod decode;
 pub mod error;
 pub mod master;
 pub mod session;
+pub mod stop;

@@ -19,7 +19,7 @@ use crate::decode::{self, hex, PendingRequest};
 use crate::error::MasterError;
 use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
-use devicenet::explicit::{BodyFormat, Header, Request, ServiceCode};
+use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use devicenet::fragment::{io_fragments, IoFragment, IoReassembler};
 use devicenet::id::{Group1MessageId, Group3MessageId};
 use devicenet::messages::{
@@ -165,6 +165,10 @@ pub struct Master<'s, 'b> {
     body_format: BodyFormat,
     xid: bool,
     last_record: Option<usize>,
+    /// What this master holds allocated, per device (allocations minus releases).
+    held: HashMap<u8, AllocationChoice>,
+    /// What the user should know about how the command went (re-allocations).
+    notices: Vec<String>,
 }
 
 /// The outcome of an explicit request, kept with its record.
@@ -191,6 +195,8 @@ impl<'s, 'b> Master<'s, 'b> {
             body_format: BodyFormat::Class8Instance8,
             xid: false,
             last_record: None,
+            held: HashMap::new(),
+            notices: Vec::new(),
         }
     }
 
@@ -468,8 +474,43 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Allocate_Master/Slave_Connection_Set for `choice`, through `port` (notes §3.4). Returns the
-    /// announced message body format, which later requests use.
+    /// record of the response; the announced message body format is used by later requests.
+    ///
+    /// A device that answers 0x0B (already in requested state: the set is allocated to this very
+    /// master, by an earlier run that kept it) is released and allocated again, as a scanner
+    /// coming back to its device does; the answer's record says so and a [notice](Self::notices)
+    /// is left. 0x0C / 0x01 (allocated to another master) is
+    /// [`MasterError::AllocationConflict`], with that master's MAC when its traffic was seen.
     pub fn allocate(
+        &mut self,
+        target: MacId,
+        port: Port,
+        choice: AllocationChoice,
+    ) -> Result<Option<usize>, MasterError> {
+        match self.allocate_once(target, port, choice) {
+            Err(MasterError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
+                self.mark_last_answer(
+                    target,
+                    &format!("{choice} already allocated to this master: released and allocated again"),
+                );
+                self.notices.push(format!(
+                    "MAC {target}: {choice} was still allocated to this master (an earlier run kept it): released and allocated again"
+                ));
+                self.release_through(target, port, choice)?;
+                self.allocate_once(target, port, choice)
+            }
+            Err(MasterError::ErrorResponse {
+                general: GeneralStatus::ObjectStateConflict,
+                additional: additional::ALLOCATION_CONFLICT,
+                ..
+            }) => {
+                Err(MasterError::AllocationConflict { mac: target.as_raw(), owner: self.owner_seen(target) })
+            }
+            other => other,
+        }
+    }
+
+    fn allocate_once(
         &mut self,
         target: MacId,
         port: Port,
@@ -483,6 +524,8 @@ impl<'s, 'b> Master<'s, 'b> {
             data: &data,
         };
         let (data, i) = self.request_ok(target, port, &req)?;
+        let held = self.held.entry(target.as_raw()).or_insert(AllocationChoice::empty());
+        *held = held.union(choice);
         let mut failures = Vec::new();
         match data.as_slice() {
             [fmt] => match BodyFormat::from_code(*fmt) {
@@ -503,8 +546,56 @@ impl<'s, 'b> Master<'s, 'b> {
         Ok(i)
     }
 
+    /// The last answer from `target` is an expected error: its verdict becomes `note`.
+    fn mark_last_answer(&mut self, target: MacId, note: &str) {
+        let last = self
+            .session
+            .records()
+            .iter()
+            .rposition(|r| r.origin == Origin::Remote && is_from_device(&r.frame, target));
+        if let Some(i) = last {
+            self.session.set_verdict(i, Verdict::Ok(note.to_string()));
+        }
+    }
+
+    /// The MAC of another master seen talking to `target` in this session: the source MAC in the
+    /// header of an explicit or Group 2 Only request to it (notes §3.1), or the destination in the
+    /// header of its responses, when it is not this master.
+    fn owner_seen(&self, target: MacId) -> Option<u8> {
+        self.session.records().iter().rev().find_map(|r| {
+            if r.origin != Origin::Remote {
+                return None;
+            }
+            let Identifier::Group2 { mac, message } = Identifier::decode(r.frame.id()) else { return None };
+            let relevant = mac == target
+                && matches!(
+                    message,
+                    Group2Message::ExplicitRequest
+                        | Group2Message::UnconnectedExplicitRequest
+                        | Group2Message::ExplicitResponse
+                );
+            let other = r.frame.data().first().map(|h| h & 0x3F).filter(|&m| m != self.config.mac.as_raw());
+            if relevant {
+                other
+            } else {
+                None
+            }
+        })
+    }
+
     /// Release_Master/Slave_Connection_Set for `choice` through the explicit connection.
     pub fn release(&mut self, target: MacId, choice: AllocationChoice) -> Result<(), MasterError> {
+        self.release_through(target, Port::Explicit, choice)
+    }
+
+    /// Release_Master/Slave_Connection_Set for `choice` through `port` (the Group 2 Only port
+    /// serves Release as well as Allocate, notes §3.4).
+    pub fn release_through(
+        &mut self,
+        target: MacId,
+        port: Port,
+        choice: AllocationChoice,
+    ) -> Result<(), MasterError> {
         let data = ReleaseRequest { choice }.emit();
         let req = Request {
             service: ServiceCode::ReleaseMasterSlave,
@@ -512,7 +603,10 @@ impl<'s, 'b> Master<'s, 'b> {
             instance: 1,
             data: &data,
         };
-        let (data, i) = self.request_ok(target, Port::Explicit, &req)?;
+        let (data, i) = self.request_ok(target, port, &req)?;
+        if let Some(held) = self.held.get_mut(&target.as_raw()) {
+            *held = held.difference(choice);
+        }
         let failures = if data.is_empty() {
             Vec::new()
         } else {
@@ -520,6 +614,67 @@ impl<'s, 'b> Master<'s, 'b> {
         };
         self.judge(i, "released", failures);
         Ok(())
+    }
+
+    /// Records that `target` holds `choice` for this master (allocated by frames the master sent
+    /// as they were recorded, as a replay does), so that [`Master::release_held`] gives it back.
+    pub fn note_held(&mut self, target: MacId, choice: AllocationChoice) {
+        let held = self.held.entry(target.as_raw()).or_insert(AllocationChoice::empty());
+        *held = held.union(choice);
+    }
+
+    /// What this master holds allocated at `target` (allocations minus releases in this run).
+    pub fn held(&self, target: MacId) -> AllocationChoice {
+        self.held.get(&target.as_raw()).copied().unwrap_or(AllocationChoice::empty())
+    }
+
+    /// Releases everything this master holds, device by device, through the Group 2 Only port
+    /// (which serves Release whatever state the explicit connection is in, notes §3.4). A device
+    /// that already dropped a connection (its watchdog fired) answers 0x0B; then each connection
+    /// is released alone, and the ones it no longer has are taken as released. Returns the devices
+    /// released.
+    pub fn release_held(&mut self) -> Result<Vec<MacId>, MasterError> {
+        let mut held: Vec<(u8, AllocationChoice)> =
+            self.held.iter().filter(|(_, c)| !c.is_empty()).map(|(m, c)| (*m, *c)).collect();
+        held.sort_by_key(|(m, _)| *m);
+        let mut released = Vec::new();
+        for (mac, choice) in held {
+            let target = MacId::from_low_bits(mac);
+            match self.release_through(target, Port::Group2Only, choice) {
+                Ok(()) => {}
+                Err(MasterError::ErrorResponse {
+                    general: GeneralStatus::AlreadyInRequestedState, ..
+                }) => {
+                    self.mark_last_answer(target, "part of the set was already gone: released one by one");
+                    for bit in (0..8).map(|b| AllocationChoice::from_bits(1 << b)) {
+                        if !choice.contains(bit) || bit.is_empty() {
+                            continue;
+                        }
+                        match self.release_through(target, Port::Group2Only, bit) {
+                            Ok(()) => {}
+                            Err(MasterError::ErrorResponse {
+                                general: GeneralStatus::AlreadyInRequestedState,
+                                ..
+                            }) => {
+                                self.mark_last_answer(target, &format!("{bit} was already gone"));
+                                if let Some(h) = self.held.get_mut(&mac) {
+                                    *h = h.difference(bit);
+                                }
+                            }
+                            Err(e) => return Err(e),
+                        }
+                    }
+                }
+                Err(e) => return Err(e),
+            }
+            released.push(target);
+        }
+        Ok(released)
+    }
+
+    /// What the user should know about how the command went (a set released and allocated again).
+    pub fn notices(&self) -> &[String] {
+        &self.notices
     }
 
     /// Get_Attribute_Single; returns the value bytes.
@@ -820,8 +975,8 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Gains an explicit connection to `target` for one-off requests: network access, wait for
-    /// the device, Allocate explicit through the Group 2 Only port. An explicit connection the
-    /// master already owns (0x0B already in requested state) is used as it is.
+    /// the device, Allocate explicit through the Group 2 Only port (an explicit connection still
+    /// allocated to this master is released and allocated again, [`Master::allocate`]).
     pub fn open_explicit(&mut self, target: MacId) -> Result<(), MasterError> {
         if target == self.config.mac {
             return Err(MasterError::Invalid(format!("MAC {target} is the master's own MAC")));
@@ -829,23 +984,8 @@ impl<'s, 'b> Master<'s, 'b> {
         self.set_device(target);
         self.network_access()?;
         self.await_online(&[target])?;
-        match self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT) {
-            Ok(_) => Ok(()),
-            Err(MasterError::ErrorResponse {
-                general: devicenet::explicit::GeneralStatus::AlreadyInRequestedState,
-                ..
-            }) => {
-                // Ours already: use it. The record keeps the error in view but is not a failure.
-                if let Some(i) = self.session.records().iter().rposition(|r| r.origin == Origin::Remote) {
-                    self.session.set_verdict(
-                        i,
-                        Verdict::Ok("explicit connection already allocated to this master".into()),
-                    );
-                }
-                Ok(())
-            }
-            Err(e) => Err(e),
-        }
+        self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+        Ok(())
     }
 
     /// The header the master puts on its requests.

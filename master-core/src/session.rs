@@ -3,9 +3,14 @@
 
 use crate::decode::Decoder;
 use crate::error::MasterError;
+use crate::stop::Stop;
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
-use devicenet::{CanFrame, Identifier, Instant, MacId};
+use devicenet::{CanFrame, Duration, Identifier, Instant, MacId};
+
+/// How long the session waits on the bus at a time while a [`Stop`] is set, so a stop is seen
+/// within this time even in a long wait.
+pub const STOP_CHECK: Duration = Duration::from_millis(50);
 
 /// The verdict on one frame.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -110,17 +115,34 @@ pub struct Session<'b> {
     decoder: Decoder,
     records: Vec<Record>,
     log: Option<LogWriter>,
+    stop: Option<Stop>,
 }
 
 impl<'b> Session<'b> {
     /// A session on `bus`, without a log file.
     pub fn new(bus: &'b mut dyn Bus) -> Session<'b> {
-        Session { bus, decoder: Decoder::new(), records: Vec::new(), log: None }
+        Session { bus, decoder: Decoder::new(), records: Vec::new(), log: None, stop: None }
     }
 
     /// Writes every frame to `log` as it is seen.
     pub fn set_log(&mut self, log: LogWriter) {
         self.log = Some(log);
+    }
+
+    /// Ends every wait on the bus with [`MasterError::Interrupted`] once `stop` is requested.
+    pub fn set_stop(&mut self, stop: Stop) {
+        self.stop = Some(stop);
+    }
+
+    /// Removes the stop request watch (to release the device and flush after an interruption);
+    /// returns it.
+    pub fn take_stop(&mut self) -> Option<Stop> {
+        self.stop.take()
+    }
+
+    /// The signal that asked this session to stop, if one did.
+    pub fn stop_requested(&self) -> Option<i32> {
+        self.stop.as_ref().and_then(Stop::requested)
     }
 
     /// The bus's clock.
@@ -141,8 +163,26 @@ impl<'b> Session<'b> {
 
     /// Waits for the next frame until `deadline`, records it and returns its index; `None` at the
     /// deadline. This program's own frames are recorded with [`Verdict::Sent`].
+    /// With a [`Stop`] set, the wait is cut in [`STOP_CHECK`] slices and ends with
+    /// [`MasterError::Interrupted`] when a stop is requested.
     pub fn next(&mut self, deadline: Instant) -> Result<Option<usize>, MasterError> {
-        let Some(ev) = self.bus.recv(deadline)? else { return Ok(None) };
+        let ev = loop {
+            let Some(stop) = &self.stop else {
+                match self.bus.recv(deadline)? {
+                    Some(ev) => break ev,
+                    None => return Ok(None),
+                }
+            };
+            if let Some(signal) = stop.requested() {
+                return Err(MasterError::Interrupted { signal });
+            }
+            let slice = (self.bus.now() + STOP_CHECK).min(deadline);
+            match self.bus.recv(slice)? {
+                Some(ev) => break ev,
+                None if slice >= deadline => return Ok(None),
+                None => {}
+            }
+        };
         let meaning = self.decoder.decode(&ev.frame).text();
         if let Some(log) = &mut self.log {
             log.write(ev.at, self.bus.name(), &ev.frame)

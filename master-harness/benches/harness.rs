@@ -86,7 +86,13 @@ fn scan_bench() {
     }
     let wall = std::time::Instant::now();
     let mut session = Session::new(&mut bus);
-    let report = scan(&mut Master::new(&mut session, MasterConfig::default()), 0, 63).expect("scan");
+    let report = scan(
+        &mut Master::new(&mut session, MasterConfig::default()),
+        0,
+        63,
+        &mut master_harness::console::Progress::off(),
+    )
+    .expect("scan");
     let wall = wall.elapsed();
     let frames = session.records().len();
     println!(

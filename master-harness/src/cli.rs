@@ -4,13 +4,14 @@
 //! or answered with an error, 2 for a usage error (bad option, unknown bus, bad file).
 
 use crate::conformance::command::ConformanceCommand;
+use crate::console::{Console, Progress};
 use crate::error::HarnessError;
 use crate::monitor::{self, MonitorOptions};
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
 use crate::table::{print_table, record_json, RecordJson};
 use can_io::bus::{Bitrate, Bus, BusSpec};
-use can_io::log::{format_line, read_log, LogWriter};
+use can_io::log::{format_line, read_log, LogEntry, LogWriter};
 use can_io::pcap::{PcapBus, PcapWriter};
 use can_io::sim::PowerOn;
 use clap::{Parser, Subcommand};
@@ -100,14 +101,14 @@ impl std::str::FromStr for PowerOnArg {
 
 /// `dnet-master`: a bench DeviceNet master.
 #[derive(Debug, Parser)]
-#[command(name = "dnet-master", version, about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes candump logs.", long_about = None)]
+#[command(name = "dnet-master", version = crate::version(), about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes candump logs.", long_about = None)]
 pub struct Cli {
     /// The bus: `sim`, `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
     #[arg(long, global = true, default_value = "sim")]
     pub bus: BusSpec,
-    /// The master's MAC ID.
-    #[arg(long, global = true, default_value = "0", value_parser = parse_mac)]
-    pub master_mac: MacId,
+    /// The master's MAC ID [default: 0; replay: the transcript's master].
+    #[arg(long, global = true, value_parser = parse_mac)]
+    pub master_mac: Option<MacId>,
     /// CAN bit rate: 125k, 250k or 500k (sim and slcan).
     #[arg(long, global = true, default_value = "250k")]
     pub bitrate: Bitrate,
@@ -126,11 +127,15 @@ pub struct Cli {
     /// Explicit response timeout in ms.
     #[arg(long, global = true, default_value_t = 1000, value_name = "MS")]
     pub timeout: u64,
+    /// Leave the connections this command allocated in place when it ends (by default every
+    /// command releases what it allocated).
+    #[arg(long, global = true)]
+    pub keep: bool,
     /// sim: pace the simulation in real time.
     #[arg(long, global = true)]
     pub realtime: bool,
-    /// sim: MAC IDs of the simulated slaves (comma-separated) [default: 5, or the MAC of the
-    /// --slave-config description].
+    /// sim: MAC IDs of the simulated slaves (comma-separated) [default: one device at the
+    /// command's --mac].
     #[arg(long, global = true, value_delimiter = ',', value_parser = parse_mac)]
     pub slave_mac: Vec<MacId>,
     /// sim: a device description file (TOML) for the soft slaves instead of the reference device.
@@ -149,9 +154,9 @@ pub struct Cli {
 pub enum Command {
     /// The full bring-up of devicenet-notes §2, every frame checked.
     Connect {
-        /// The device's MAC ID.
-        #[arg(long, default_value = "5", value_parser = parse_mac)]
-        mac: MacId,
+        /// The device's MAC ID [default: the --slave-config description's, else 5].
+        #[arg(long, value_parser = parse_mac)]
+        mac: Option<MacId>,
         /// Expected packet rate of the poll connection, ms.
         #[arg(long, default_value_t = 100)]
         epr: u16,
@@ -169,9 +174,9 @@ pub enum Command {
     Replay {
         /// The transcript (candump -L).
         transcript: PathBuf,
-        /// The device under test.
+        /// The device under test [default: the transcript's device, when it has just one].
         #[arg(long, value_parser = parse_mac)]
-        mac: MacId,
+        mac: Option<MacId>,
         /// How late an expected frame may be, ms.
         #[arg(long, default_value_t = 1000)]
         tolerance: u64,
@@ -222,9 +227,9 @@ pub enum Command {
     },
     /// Connect, then show the polled data decoded by the device profile.
     Monitor {
-        /// The device's MAC ID.
-        #[arg(long, default_value = "5", value_parser = parse_mac)]
-        mac: MacId,
+        /// The device's MAC ID [default: the --slave-config description's, else 5].
+        #[arg(long, value_parser = parse_mac)]
+        mac: Option<MacId>,
         /// Poll period (expected packet rate), ms.
         #[arg(long, default_value_t = 100)]
         epr: u16,
@@ -252,9 +257,9 @@ pub enum Command {
     /// The conformance suite against a group-2-only slave: network access, connection set,
     /// explicit messaging, connections, timing (exit 0 only when no check fails).
     Conformance {
-        /// The device's MAC ID.
-        #[arg(long, default_value = "5", value_parser = parse_mac)]
-        mac: MacId,
+        /// The device's MAC ID [default: the --slave-config description's, else 5].
+        #[arg(long, value_parser = parse_mac)]
+        mac: Option<MacId>,
         /// Also write a self-contained HTML report with a sequence diagram per check.
         #[arg(long, value_name = "FILE")]
         html: Option<PathBuf>,
@@ -263,14 +268,22 @@ pub enum Command {
 
 /// Opens the bus the options name: on `sim`, the simulated converters of `--slave-config` /
 /// `--slave-mac` / `--slave-power-on` ([`converter_sim::open_bus`], the one way every program opens
-/// a bus). `replay_power_on` is when a replayed transcript's device powered on: a simulated device
-/// with the default power-on policy is powered on then.
-pub fn open_bus(cli: &Cli, replay_power_on: Option<Duration>) -> Result<Box<dyn Bus>, HarnessError> {
+/// a bus); with no `--slave-mac`, one device at `device` (the command's `--mac`). `replay_power_on`
+/// is when a replayed transcript's device powered on: a simulated device with the default power-on
+/// policy is powered on then.
+pub fn open_bus(
+    cli: &Cli,
+    device: Option<MacId>,
+    replay_power_on: Option<Duration>,
+) -> Result<Box<dyn Bus>, HarnessError> {
     let mut setup = match &cli.slave_config {
         Some(path) => SimSetup::described(DeviceDescription::load(path)?.converter),
         None => SimSetup::reference(),
     };
-    setup.macs = cli.slave_mac.clone();
+    setup.macs = match (cli.slave_mac.is_empty(), device) {
+        (true, Some(mac)) => vec![mac],
+        _ => cli.slave_mac.clone(),
+    };
     setup.power_on = match (cli.slave_power_on.0, replay_power_on) {
         (PowerOn::WhenMasterOnline, Some(after)) => PowerOn::At(Instant::ZERO + after),
         (policy, _) => policy,
@@ -291,19 +304,44 @@ struct Outcome {
     code: u8,
 }
 
+/// The exit status for an error: 2 for usage and configuration errors (bad option or file, a
+/// description refused, an output file that cannot be written), 128 + the signal for an
+/// interruption, 1 for everything the device or the bus did.
 fn exit_code(e: &HarnessError) -> u8 {
     match e {
         HarnessError::Usage(_)
         | HarnessError::Log(_)
         | HarnessError::Description(_)
+        | HarnessError::Write { .. }
         | HarnessError::Master(MasterError::Invalid(_)) => 2,
+        HarnessError::Master(MasterError::Interrupted { signal }) => master_core::stop::exit_status(*signal),
         _ => 1,
     }
 }
 
+/// The signal that interrupted a command, if one did.
+fn interruption(e: &HarnessError) -> Option<i32> {
+    match e {
+        HarnessError::Master(MasterError::Interrupted { signal }) => Some(*signal),
+        _ => None,
+    }
+}
+
 /// Runs `dnet-master` with `args` (the program name first), writing to `out` and `err`; returns
-/// the exit status. `terminal` says whether `out` is a terminal (monitor refreshes in place).
+/// the exit status. `terminal` says whether `out` is a terminal (monitor refreshes in place). No
+/// progress lines, and only [`Stop::request`](master_core::stop::Stop::request) stops it: see
+/// [`run_with`].
 pub fn run<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write, terminal: bool) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<OsString> + Clone,
+{
+    run_with(args, out, err, &Console { stdout_terminal: terminal, ..Console::plain() })
+}
+
+/// Runs `dnet-master` in `console` (the binary: terminals as they are, SIGINT / SIGTERM setting
+/// its stop).
+pub fn run_with<I, T>(args: I, out: &mut dyn Write, err: &mut dyn Write, console: &Console) -> u8
 where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
@@ -317,7 +355,7 @@ where
             return code;
         }
     };
-    match execute(&cli, out, terminal) {
+    match execute(&cli, out, err, console) {
         Ok(code) => code,
         Err(e) => {
             if cli.json {
@@ -329,7 +367,77 @@ where
     }
 }
 
-fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, HarnessError> {
+/// The device a command addresses when `--mac` is left out: the `--slave-config` description's
+/// MAC, else 5 (the reference converter's).
+fn default_device(cli: &Cli) -> Result<MacId, HarnessError> {
+    match &cli.slave_config {
+        Some(path) => Ok(DeviceDescription::load(path)?.converter.device.mac_id),
+        None => Ok(MacId::from_low_bits(5)),
+    }
+}
+
+/// The device the command addresses, with the defaults resolved.
+fn command_device(cli: &Cli, transcript: Option<&[LogEntry]>) -> Result<Option<MacId>, HarnessError> {
+    Ok(match &cli.command {
+        Command::Connect { mac, .. } | Command::Monitor { mac, .. } | Command::Conformance { mac, .. } => {
+            Some(match mac {
+                Some(m) => *m,
+                None => default_device(cli)?,
+            })
+        }
+        Command::Get { mac, .. } | Command::Set { mac, .. } => Some(*mac),
+        Command::Replay { mac: Some(m), .. } => Some(*m),
+        Command::Replay { mac: None, transcript: path, .. } => {
+            let devices = replay::transcript_devices(transcript.unwrap_or_default());
+            match devices.as_slice() {
+                [one] => Some(*one),
+                [] => {
+                    return Err(HarnessError::Usage(format!(
+                        "{}: the transcript has no device frames; give the device with --mac",
+                        path.display()
+                    )))
+                }
+                many => {
+                    return Err(HarnessError::Usage(format!(
+                        "{}: the transcript has several devices (MAC {}); choose one with --mac",
+                        path.display(),
+                        many.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+                    )))
+                }
+            }
+        }
+        Command::Scan { .. } | Command::Decode { .. } => None,
+    })
+}
+
+/// The master's MAC: `--master-mac`, else (replay) the transcript's master, else 0. A replay sends
+/// the transcript's frames as recorded, so a `--master-mac` that differs from the transcript's
+/// master is refused.
+fn master_mac(cli: &Cli, transcript: Option<&[LogEntry]>) -> Result<MacId, HarnessError> {
+    let recorded = transcript.and_then(replay::transcript_master);
+    match (cli.master_mac, recorded) {
+        (Some(given), Some(rec)) if given != rec => Err(HarnessError::Usage(format!(
+            "--master-mac {given}: the transcript's master is MAC {rec}, and a replay sends its frames as recorded; leave --master-mac out or give {rec}"
+        ))),
+        (Some(given), _) => Ok(given),
+        (None, Some(rec)) => Ok(rec),
+        (None, None) => Ok(MacId::from_low_bits(0)),
+    }
+}
+
+/// Creates an output file before the command touches the bus, so a path that cannot be written is
+/// an error at once, not after the run.
+fn create_output(path: &std::path::Path) -> Result<std::fs::File, HarnessError> {
+    std::fs::File::create(path)
+        .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })
+}
+
+fn execute(
+    cli: &Cli,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+    console: &Console,
+) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     if let Command::Decode { logfile } = &cli.command {
         return decode_command(cli, logfile, out).map_err(|e| match e {
@@ -337,63 +445,87 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
             other => other,
         });
     }
-    // Read input files before touching the bus.
+    // Read input files and resolve the defaults before touching the bus.
     let transcript = match &cli.command {
         Command::Replay { transcript, .. } => Some(read_log(transcript)?),
         _ => None,
     };
-    let replay_power_on = match (&cli.command, &transcript) {
-        (Command::Replay { mac, .. }, Some(entries)) => Some(replay::device_power_on(entries, *mac)),
+    let device = command_device(cli, transcript.as_deref())?;
+    let master_mac = master_mac(cli, transcript.as_deref())?;
+    if device == Some(master_mac) {
+        return Err(HarnessError::Usage(format!(
+            "the device's MAC {master_mac} is the master's own MAC (--master-mac)"
+        )));
+    }
+    let replay_power_on = match (device, &transcript) {
+        (Some(mac), Some(entries)) => Some(replay::device_power_on(entries, mac)),
         _ => None,
     };
-    let mut bus = open_bus(cli, replay_power_on)?;
+    let mut bus = open_bus(cli, device, replay_power_on)?;
     if let Some(path) = &cli.pcap {
         let pcap = PcapWriter::create(path)
             .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
         bus = Box::new(PcapBus::new(bus, pcap));
     }
-    if let Command::Conformance { mac, html } = &cli.command {
+    let progress =
+        if console.stderr_terminal && !cli.json { Progress::on(&mut *err) } else { Progress::off() };
+    if let Command::Conformance { html, .. } = &cli.command {
         let run = ConformanceCommand {
             log: cli.log.as_deref(),
-            master_mac: cli.master_mac,
+            master_mac,
             response_timeout: Duration::from_millis(cli.timeout.max(1)),
             json: cli.json,
             frames: cli.frames,
             html: html.as_deref(),
+            keep: cli.keep,
+            transport: cli.bus.to_string(),
+            stop: console.stop.clone(),
         };
-        return crate::conformance::command::execute(&run, bus.as_mut(), *mac, out);
+        let mac = device.unwrap_or(MacId::from_low_bits(5));
+        return crate::conformance::command::execute(&run, bus.as_mut(), mac, out, progress);
     }
     let mut session = Session::new(bus.as_mut());
+    session.set_stop(console.stop.clone());
     if let Some(path) = &cli.log {
         let log = LogWriter::create(path)
             .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
         session.set_log(log);
     }
+    let mut csv_file = match &cli.command {
+        Command::Monitor { csv: Some(p), .. } => Some(std::io::BufWriter::new(create_output(p)?)),
+        _ => None,
+    };
     let config = MasterConfig {
-        mac: cli.master_mac,
+        mac: master_mac,
         response_timeout: Duration::from_millis(cli.timeout.max(1)),
         ..MasterConfig::default()
     };
-    let (result, device): (Result<Outcome, HarnessError>, Option<MacId>) = match &cli.command {
-        Command::Connect { mac, epr, polls, output, verify_state } => {
+    let mut master = Master::new(&mut session, config);
+    let mut progress = progress;
+    let target = device.unwrap_or(MacId::from_low_bits(5));
+    let result: Result<Outcome, HarnessError> = match &cli.command {
+        Command::Connect { epr, polls, output, verify_state, .. } => {
             let opts = ConnectOptions {
-                target: *mac,
+                target,
                 epr_ms: *epr,
                 polls: *polls,
                 output: output.clone().map(|h| h.0),
                 verify_state: *verify_state,
             };
-            let mut master = Master::new(&mut session, config);
-            (master.connect(&opts).map(|s| connect_outcome(&s)).map_err(HarnessError::from), Some(*mac))
+            progress.show(&format!("connect: bringing up MAC {target} ..."));
+            let r = master.connect(&opts).map(|s| connect_outcome(&s)).map_err(HarnessError::from);
+            progress.clear();
+            r
         }
-        Command::Replay { mac, tolerance, settle, .. } => {
+        Command::Replay { tolerance, settle, .. } => {
             let opts = ReplayOptions {
-                device: *mac,
+                device: target,
                 tolerance: Duration::from_millis(*tolerance),
                 settle: Duration::from_millis(*settle),
             };
             let entries = transcript.unwrap_or_default();
-            let r = replay::replay(&mut session, &entries, &opts).map(|s| Outcome {
+            progress.show(&format!("replay: {} frames against MAC {target} ...", entries.len()));
+            let r = replay::replay(master.session, &entries, &opts).map(|s| Outcome {
                 text: format!(
                     "replay held: {} frames, {} from the device compared byte for byte, {} stimulus frames sent",
                     s.frames, s.expected, s.stimulus
@@ -401,23 +533,24 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 json: json!({ "summary": s }),
                 code: 0,
             });
-            (r, Some(*mac))
+            progress.clear();
+            // What the transcript allocated stays with the device: released below like any
+            // command's.
+            if !matches!(r, Err(HarnessError::NothingCompared(_))) {
+                master.note_held(target, replay::held_after(&entries, target));
+            }
+            r
         }
         Command::Scan { from, to } => {
-            let mut master = Master::new(&mut session, config);
-            (scan::scan(&mut master, *from, *to).map(|r| scan_outcome(&r)), None)
+            scan::scan(&mut master, *from, *to, &mut progress).map(|r| scan_outcome(&r))
         }
         Command::Get { mac, class, instance, attribute } => {
-            let mut master = Master::new(&mut session, config);
-            let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, None);
-            (r, Some(*mac))
+            explicit_command(&mut master, *mac, *class, *instance, *attribute, None)
         }
         Command::Set { mac, class, instance, attribute, value } => {
-            let mut master = Master::new(&mut session, config);
-            let r = explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0));
-            (r, Some(*mac))
+            explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0))
         }
-        Command::Monitor { mac, epr, output, csv, count, duration, reconnect } => {
+        Command::Monitor { epr, output, count, duration, reconnect, .. } => {
             let duration = match duration {
                 Some(d) if !(d.is_finite() && *d >= 0.0) => {
                     return Err(HarnessError::Usage(format!("--duration {d}: expected seconds >= 0")))
@@ -430,7 +563,7 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
             };
             let opts = MonitorOptions {
                 connect: ConnectOptions {
-                    target: *mac,
+                    target,
                     epr_ms: *epr,
                     polls: 0,
                     output: output.clone().map(|h| h.0),
@@ -438,34 +571,55 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 },
                 count: *count,
                 duration,
-                in_place: terminal && !cli.json,
+                in_place: console.stdout_terminal && !cli.json,
                 reconnect: *reconnect,
             };
-            let mut csv_file = match csv {
-                Some(p) => Some(std::io::BufWriter::new(
-                    std::fs::File::create(p)
-                        .map_err(|source| HarnessError::Write { path: p.display().to_string(), source })?,
-                )),
-                None => None,
-            };
-            let mut master = Master::new(&mut session, config);
             let mut sink = std::io::sink();
-            let screen: &mut dyn Write = if cli.json { &mut sink } else { out };
+            let screen: &mut dyn Write = if cli.json { &mut sink } else { &mut *out };
+            progress.show(&format!("monitor: bringing up MAC {target} ..."));
             let r =
                 monitor::monitor(&mut master, &opts, screen, csv_file.as_mut().map(|f| f as &mut dyn Write));
-            if let Some(f) = &mut csv_file {
-                f.flush().map_err(|source| HarnessError::Write { path: "the CSV file".into(), source })?;
-            }
-            let r = r.map(|samples| Outcome {
+            progress.clear();
+            r.map(|samples| Outcome {
                 text: format!("{} samples", samples.len()),
                 json: json!({ "samples": samples }),
                 code: 0,
-            });
-            (r, Some(*mac))
+            })
         }
         Command::Decode { .. } | Command::Conformance { .. } => unreachable!("handled above"),
     };
-    session.flush()?;
+    drop(progress);
+    // Whatever happened, what was recorded is kept: the device gets back what this command
+    // allocated (unless --keep, or the bus itself failed), then the CSV and the log are flushed.
+    let interrupted = result.as_ref().err().and_then(interruption);
+    master.session.take_stop();
+    let mut finish_errors: Vec<HarnessError> = Vec::new();
+    let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
+    let mut released_text = String::new();
+    if cli.keep {
+        if let Some(d) = device.filter(|d| !master.held(*d).is_empty()) {
+            released_text =
+                format!("MAC {d}: {} kept allocated to master MAC {master_mac} (--keep)", master.held(d));
+        }
+    } else if !bus_failed {
+        match master.release_held() {
+            Ok(released) if !released.is_empty() && interrupted.is_some() => {
+                let macs: Vec<String> = released.iter().map(ToString::to_string).collect();
+                released_text = format!("released MAC {}", macs.join(", "));
+            }
+            Ok(_) => {}
+            Err(e) => finish_errors.push(HarnessError::Release(Box::new(e))),
+        }
+    }
+    let notices: Vec<String> = master.notices().to_vec();
+    if let Some(f) = &mut csv_file {
+        if let Err(source) = f.flush() {
+            finish_errors.push(HarnessError::Write { path: "the CSV file".into(), source });
+        }
+    }
+    if let Err(e) = session.flush() {
+        finish_errors.push(e.into());
+    }
     let failures = session.failures();
     let show_table = cli.frames || matches!(cli.command, Command::Connect { .. } | Command::Replay { .. });
     let records = session.records();
@@ -476,9 +630,23 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
     if failures > 0 && code == 0 {
         code = 1;
     }
+    if code == 0 {
+        if let Some(e) = finish_errors.first() {
+            code = exit_code(e);
+        }
+    }
+    for n in &notices {
+        writeln!(err, "note: {n}").map_err(werr)?;
+    }
     if cli.json {
         let frames: Vec<RecordJson<'_>> = records.iter().map(|r| record_json(r, device)).collect();
-        let mut v = json!({ "ok": code == 0, "failures": failures, "frames": frames });
+        let mut v = json!({
+            "ok": code == 0,
+            "failures": failures,
+            "frames": frames,
+            "version": crate::version(),
+            "notices": notices,
+        });
         if let Some(p) = &payload {
             if let (Some(obj), Some(extra)) = (v.as_object_mut(), p.json.as_object()) {
                 for (k, val) in extra {
@@ -486,11 +654,17 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
                 }
             }
         }
+        if let Some(signal) = interrupted {
+            v["interrupted"] = json!(master_core::stop::signal_name(signal));
+        }
         if let Some(e) = &error_text {
             v["error"] = json!(e.to_string());
             if let HarnessError::Divergence(d) = e {
                 v["divergence"] = json!(d);
             }
+        }
+        if !finish_errors.is_empty() {
+            v["cleanup_errors"] = json!(finish_errors.iter().map(ToString::to_string).collect::<Vec<_>>());
         }
         writeln!(out, "{v}").map_err(werr)?;
     } else {
@@ -511,11 +685,26 @@ fn execute(cli: &Cli, out: &mut dyn Write, terminal: bool) -> Result<u8, Harness
         } else if error_text.is_none() && show_table {
             writeln!(out, "{} frames, every check holds", records.len()).map_err(werr)?;
         }
+        if !released_text.is_empty() {
+            writeln!(err, "{released_text}").map_err(werr)?;
+        }
+        for e in &finish_errors {
+            writeln!(err, "error: {e}").map_err(werr)?;
+        }
+        if let Some(signal) = interrupted {
+            writeln!(
+                err,
+                "interrupted by {}: {} frames recorded{}",
+                master_core::stop::signal_name(signal),
+                records.len(),
+                if cli.log.is_some() { ", log flushed" } else { "" }
+            )
+            .map_err(werr)?;
+        }
     }
     match error_text {
-        Some(e) if !cli.json => Err(e),
-        Some(_) => Ok(code),
-        None => Ok(code),
+        Some(e) if !cli.json && interrupted.is_none() => Err(e),
+        _ => Ok(code),
     }
 }
 
@@ -591,8 +780,6 @@ fn explicit_command(
     let req = devicenet::explicit::Request { service, class: class_id, instance, data: &data };
     let what = decode::request_text(&req);
     let answer = master.request(mac, master_core::client::Port::Explicit, &req)?;
-    // Polite: give the explicit connection back.
-    let released = master.release(mac, devicenet::messages::AllocationChoice::EXPLICIT);
     let target = format!(
         "{} inst {instance} {}",
         decode::class_text(class_id),
@@ -627,7 +814,6 @@ fn explicit_command(
             );
         }
     };
-    released?;
     Ok(outcome)
 }
 

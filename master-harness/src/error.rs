@@ -33,6 +33,12 @@ pub enum HarnessError {
     /// The exchange finished but some frame checks failed (see the table).
     #[error("{0} check(s) failed")]
     ChecksFailed(usize),
+    /// A check that would have compared nothing of the device under test: failed, never passed.
+    #[error("nothing compared: {0}")]
+    NothingCompared(String),
+    /// The command ended, but what it allocated could not be released.
+    #[error("could not release the device's connections: {0}")]
+    Release(Box<MasterError>),
     /// A replay diverged from its transcript.
     #[error("{0}")]
     Divergence(Box<Divergence>),

@@ -21,6 +21,7 @@
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`cli`] | the command line, reports and JSON |
+//! | [`console`] | progress lines on a terminal, the stop asked for by SIGINT / SIGTERM |
 //! | [`table`] | the frame-by-frame table and the JSON form of a record |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
 //!
@@ -49,8 +50,23 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+/// The git commit this program was built from (`-modified` when the tree had changes), or
+/// `unknown commit` outside a git checkout.
+pub const GIT_COMMIT: &str = git_version::git_version!(
+    args = ["--always", "--dirty=-modified", "--abbrev=12"],
+    fallback = "unknown commit"
+);
+
+/// The version of `dnet-master` and of its reports: the package version and the git commit,
+/// `0.1.0 (1a2b3c4d5e6f)`.
+pub fn version() -> &'static str {
+    static VERSION: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    VERSION.get_or_init(|| format!("{} ({GIT_COMMIT})", env!("CARGO_PKG_VERSION")))
+}
+
 pub mod cli;
 pub mod conformance;
+pub mod console;
 pub mod error;
 pub mod monitor;
 pub mod replay;

@@ -12,14 +12,19 @@
 //! duplicate MAC ID request in the transcript, or at the start when there is none
 //! ([`device_power_on`], used by the command line when it builds the simulated bus).
 //!
+//! A replay that would compare nothing of the device (the transcript has no frame from MAC N: the
+//! wrong `--mac`) fails before it starts, naming the transcript's device: the master would
+//! otherwise transmit the device's recorded answers itself and call that a pass.
+//!
 //! On the first divergence the replay stops with a [`Divergence`]: expected and actual frames, both
 //! decoded, and the transcript frames before it.
 
 use crate::error::{Divergence, HarnessError, ShownFrame};
 use can_io::bus::Origin;
 use can_io::log::{format_line, LogEntry};
-use devicenet::messages::DuplicateMacCheck;
-use devicenet::{CanFrame, Duration, Instant, MacId};
+use devicenet::explicit::ServiceCode;
+use devicenet::messages::{AllocationChoice, DuplicateMacCheck};
+use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use master_core::decode::Decoder;
 use master_core::session::{is_from_device, Session, Verdict};
 
@@ -71,6 +76,76 @@ pub fn device_power_on(entries: &[LogEntry], device: MacId) -> Duration {
         .map_or(Duration::ZERO, |e| e.at - first.at)
 }
 
+/// The devices of a transcript: the MACs that sent a device's frames (Group 1 messages, explicit
+/// responses, Group 2 message 3), in order of first appearance. Duplicate MAC ID checks are left
+/// out: masters send them too.
+pub fn transcript_devices(entries: &[LogEntry]) -> Vec<MacId> {
+    let mut macs: Vec<MacId> = Vec::new();
+    for e in entries {
+        let mac = match Identifier::decode(e.frame.id()) {
+            Identifier::Group1 { source, .. } => Some(source),
+            Identifier::Group2 { mac, message: Group2Message::ExplicitResponse } => Some(mac),
+            _ => None,
+        };
+        if let Some(m) = mac.filter(|m| !macs.contains(m)) {
+            macs.push(m);
+        }
+    }
+    macs
+}
+
+/// The master of a transcript: the source MAC in the header of its first request through the
+/// Group 2 Only port or an explicit connection (notes §3.1: a request's header carries the
+/// requester's MAC).
+pub fn transcript_master(entries: &[LogEntry]) -> Option<MacId> {
+    entries.iter().find_map(|e| match Identifier::decode(e.frame.id()) {
+        Identifier::Group2 {
+            message: Group2Message::ExplicitRequest | Group2Message::UnconnectedExplicitRequest,
+            ..
+        } => e.frame.data().first().map(|h| MacId::from_low_bits(h & 0x3F)),
+        _ => None,
+    })
+}
+
+/// What the transcript leaves allocated at `device`: the choices of its Allocate requests the
+/// device answered with success, less those of its successful Releases (notes §3.4). A replay
+/// releases this when it ends, as every command does.
+pub fn held_after(entries: &[LogEntry], device: MacId) -> AllocationChoice {
+    let mut held = AllocationChoice::empty();
+    let mut pending: Option<(ServiceCode, AllocationChoice)> = None;
+    for e in entries {
+        let data = e.frame.data();
+        match Identifier::decode(e.frame.id()) {
+            Identifier::Group2 {
+                mac,
+                message: Group2Message::ExplicitRequest | Group2Message::UnconnectedExplicitRequest,
+            } if mac == device => {
+                // Unfragmented [hdr] service class instance choice ... (8/8 body, notes §3.4).
+                pending = match data {
+                    [h, service, 0x03, 0x01, choice, ..] if h & 0x80 == 0 => {
+                        let service = ServiceCode::from(*service);
+                        matches!(service, ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave)
+                            .then(|| (service, AllocationChoice::from_bits(*choice)))
+                    }
+                    _ => None,
+                };
+            }
+            Identifier::Group2 { mac, message: Group2Message::ExplicitResponse } if mac == device => {
+                if let (Some((service, choice)), [_, reply, ..]) = (pending.take(), data) {
+                    if *reply == 0x80 | service.as_raw() {
+                        held = match service {
+                            ServiceCode::AllocateMasterSlave => held.union(choice),
+                            _ => held.difference(choice),
+                        };
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    held
+}
+
 /// Replays `entries` on `session`. See the [module docs](self).
 pub fn replay(
     session: &mut Session<'_>,
@@ -81,6 +156,21 @@ pub fn replay(
     let Some(first) = entries.first() else {
         return Err(HarnessError::Usage("the transcript holds no frame".into()));
     };
+    let from_device = entries.iter().filter(|e| is_from_device(&e.frame, device)).count();
+    if from_device == 0 {
+        let devices = transcript_devices(entries);
+        let whose = match devices.as_slice() {
+            [] => "the transcript has no device frames at all".to_string(),
+            [one] => format!("the transcript's device is MAC {one} (--mac {one})"),
+            many => format!(
+                "the transcript's devices are MAC {}",
+                many.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+            ),
+        };
+        return Err(HarnessError::NothingCompared(format!(
+            "the transcript has no frame from MAC {device}, so replaying it would compare nothing of the device under test: {whose}"
+        )));
+    }
     let t0 = first.at;
     let start = session.now();
     let rel = |at: Instant| start + (at - t0);
@@ -205,6 +295,9 @@ pub fn replay(
         if rec.origin == Origin::Remote {
             session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
         }
+    }
+    if summary.expected == 0 {
+        return Err(HarnessError::NothingCompared(format!("no frame from MAC {device} was compared")));
     }
     Ok(summary)
 }

@@ -11,6 +11,7 @@
 //! A device that refuses poll (0x02 resource unavailable) is allocated explicit only; a device
 //! owned by another master (0x0C / 0x01) is reported as such.
 
+use crate::console::Progress;
 use crate::error::HarnessError;
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
@@ -212,14 +213,22 @@ impl Node {
 }
 
 /// Scans MAC IDs `from..=to` (the master's own MAC excluded). See the [module docs](self).
-pub fn scan(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<ScanReport, HarnessError> {
+pub fn scan(
+    master: &mut Master<'_, '_>,
+    from: u8,
+    to: u8,
+    progress: &mut Progress<'_>,
+) -> Result<ScanReport, HarnessError> {
     if from > to || to > 63 {
         return Err(HarnessError::Usage(format!("invalid MAC range {from}..={to}: MAC IDs are 0..=63")));
     }
     let begin = master.session.now();
     let macs: Vec<MacId> = (from..=to).filter_map(MacId::new).filter(|&m| m != master.config.mac).collect();
+    progress.show("scan: network access (duplicate MAC ID check, 2 s) ...");
     master.network_access()?;
+    progress.show("scan: waiting for devices to come on-line ...");
     master.await_online(&macs)?;
+    progress.show(&format!("scan: asking MAC {from}..={to} ..."));
     let scan_start = master.session.now();
     let mut nodes: Vec<Node> = macs
         .iter()

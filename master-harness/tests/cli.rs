@@ -27,15 +27,27 @@ fn connect_prints_the_table_and_exits_zero() {
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let out = stdout(&o);
     let rows: Vec<&str> = out.lines().filter(|l| l.contains(" M-> ") || l.contains(" S-> ")).collect();
-    assert_eq!(rows.len(), 28, "{out}");
+    // The 28 frames of notes §2, then the connections given back through the Group 2 Only port.
+    assert_eq!(rows.len(), 30, "{out}");
     assert!(rows[27].contains("3C5  82 00 00 00 00") && rows[27].ends_with("ok"), "{}", rows[27]);
-    assert!(out.contains("28 frames, every check holds"), "{out}");
+    assert!(rows[28].contains("42E  00 4C 03 01 03") && rows[28].ends_with("sent"), "{}", rows[28]);
+    assert!(rows[29].contains("42B  00 CC") && rows[29].ends_with("ok"), "{}", rows[29]);
+    assert!(out.contains("30 frames, every check holds"), "{out}");
+    // --keep: exactly the 28 frames, the device left allocated (and said so).
+    let o = dnet(&["--bus", "sim", "--keep", "connect", "--mac", "5"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("28 frames, every check holds"), "{}", stdout(&o));
+    assert!(
+        stderr(&o).contains("MAC 5: explicit|poll kept allocated to master MAC 0 (--keep)"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]
 fn log_is_candump_and_replays() {
     let log = temp("connect.log");
-    let o = dnet(&["connect", "--log", log.to_str().unwrap()]);
+    let o = dnet(&["--keep", "connect", "--log", log.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0));
     let text = std::fs::read_to_string(&log).unwrap();
     assert_eq!(text.lines().count(), 28);
@@ -60,7 +72,8 @@ fn json_result() {
     assert_eq!(o.status.code(), Some(0));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(v["ok"], true);
-    assert_eq!(v["frames"].as_array().unwrap().len(), 28);
+    assert_eq!(v["frames"].as_array().unwrap().len(), 30);
+    assert!(v["version"].as_str().unwrap().starts_with("0.1.0 ("), "{v}");
     assert_eq!(v["frames"][7]["data"], "00CB00");
     assert_eq!(v["device"]["produced_size"], 18);
 }
@@ -104,7 +117,8 @@ fn missing_slcan_port_is_named() {
 
 #[test]
 fn a_device_that_never_answers() {
-    let o = dnet(&["connect", "--mac", "9"]);
+    // The simulated device stays at 5; nothing answers at 9.
+    let o = dnet(&["--slave-mac", "5", "connect", "--mac", "9"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(
         stderr(&o).contains("no answer from MAC 9 within 1000ms (explicit response timeout)"),

@@ -5,6 +5,7 @@ use can_io::bus::Bitrate;
 use devicenet::Duration;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
+use master_harness::console::Progress;
 use master_harness::scan::scan;
 use system_tests::sim_bus;
 
@@ -12,7 +13,8 @@ use system_tests::sim_bus;
 fn finds_every_device_with_identity_and_sizes() {
     let mut bus = sim_bus(&[3, 5, 12, 63], Bitrate::K250);
     let mut session = Session::new(&mut bus);
-    let report = scan(&mut Master::new(&mut session, MasterConfig::default()), 0, 63).unwrap();
+    let report =
+        scan(&mut Master::new(&mut session, MasterConfig::default()), 0, 63, &mut Progress::off()).unwrap();
     let macs: Vec<u8> = report.devices.iter().map(|d| d.mac).collect();
     assert_eq!(macs, vec![3, 5, 12, 63]);
     assert_eq!(report.asked, 63);
@@ -34,7 +36,7 @@ fn absent_nodes_share_one_timeout() {
     let mut bus = sim_bus(&[5, 6], Bitrate::K250);
     let mut session = Session::new(&mut bus);
     let config = MasterConfig { response_timeout: Duration::from_millis(200), ..MasterConfig::default() };
-    let report = scan(&mut Master::new(&mut session, config), 0, 63).unwrap();
+    let report = scan(&mut Master::new(&mut session, config), 0, 63, &mut Progress::off()).unwrap();
     assert_eq!(report.devices.len(), 2);
     // 61 silent MAC IDs: one shared 200 ms window, not 61 of them.
     let scan_time = Duration::from_micros(report.scan_micros);
@@ -45,7 +47,8 @@ fn absent_nodes_share_one_timeout() {
 fn requests_to_different_devices_overlap() {
     let mut bus = sim_bus(&[1, 2, 3, 4], Bitrate::K500);
     let mut session = Session::new(&mut bus);
-    let report = scan(&mut Master::new(&mut session, MasterConfig::default()), 1, 4).unwrap();
+    let report =
+        scan(&mut Master::new(&mut session, MasterConfig::default()), 1, 4, &mut Progress::off()).unwrap();
     assert_eq!(report.devices.len(), 4);
     // All four allocations are on the bus before the master's first Get to any device: the
     // requests overlap instead of waiting node by node.
@@ -62,7 +65,8 @@ fn requests_to_different_devices_overlap() {
 fn an_empty_network() {
     let mut bus = sim_bus(&[], Bitrate::K250);
     let mut session = Session::new(&mut bus);
-    let report = scan(&mut Master::new(&mut session, MasterConfig::default()), 10, 20).unwrap();
+    let report =
+        scan(&mut Master::new(&mut session, MasterConfig::default()), 10, 20, &mut Progress::off()).unwrap();
     assert!(report.devices.is_empty());
     assert_eq!(report.asked, 11);
 }

@@ -192,6 +192,17 @@ impl FromStr for BusSpec {
     }
 }
 
+impl fmt::Display for BusSpec {
+    /// The `--bus` form: `sim`, `socketcan:IFACE`, `slcan:PATH@SERIALBAUD`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BusSpec::Sim => write!(f, "sim"),
+            BusSpec::SocketCan { iface } => write!(f, "socketcan:{iface}"),
+            BusSpec::Slcan { path, baud } => write!(f, "slcan:{path}@{baud}"),
+        }
+    }
+}
+
 impl BusSpec {
     /// Opens a real bus: the SocketCAN interface, or the SLCAN adapter set up for `bitrate` (on
     /// SocketCAN the bit rate belongs to the interface: `ip link set can0 type can bitrate ...`).

@@ -3,17 +3,19 @@
 //! line it needs ([`ConformanceCommand`]), not the command line itself.
 
 use super::{html, report, SuiteOptions};
+use crate::console::Progress;
 use crate::error::HarnessError;
 use can_io::bus::Bus;
 use can_io::log::LogWriter;
 use devicenet::{Duration, MacId};
 use master_core::master::MasterConfig;
 use master_core::session::Session;
+use master_core::stop::Stop;
 use std::io::Write;
 use std::path::Path;
 
 /// What the `conformance` command was asked to do, besides the device.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct ConformanceCommand<'a> {
     /// `--log`: every frame to this file (`candump -L`).
     pub log: Option<&'a Path>,
@@ -27,6 +29,12 @@ pub struct ConformanceCommand<'a> {
     pub frames: bool,
     /// `--html FILE`: the HTML page.
     pub html: Option<&'a Path>,
+    /// `--keep`: leave the device's connections allocated at the end.
+    pub keep: bool,
+    /// The bus, in `--bus` form (for the reports).
+    pub transport: String,
+    /// Set by SIGINT / SIGTERM.
+    pub stop: Stop,
 }
 
 /// `dnet-master conformance --mac N [--html FILE]` on `bus`: runs the suite (with `--log`), prints
@@ -37,6 +45,7 @@ pub fn execute(
     bus: &mut dyn Bus,
     mac: MacId,
     out: &mut dyn Write,
+    _progress: Progress<'_>,
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     let mut session = Session::new(bus);

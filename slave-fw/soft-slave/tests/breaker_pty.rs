@@ -28,7 +28,7 @@ fn data_reaches_the_poll_response_and_commands_run_exactly_once() {
         return;
     }
     let mut rig = PtyRig::breaker("exactly-once", &["--closed", "--period", "0.2"], None);
-    let mut bus = rig.master_bus();
+    let mut bus = common::master_bus(&rig);
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let summary = bring_up(&mut master);
@@ -78,7 +78,7 @@ fn a_silent_breaker_is_reported_stale_within_the_configured_timeout() {
     let config = common::description("breaker-with-status.toml");
     let rig =
         PtyRig::breaker("stale", &["--closed", "--period", "0.2", "--silent-after", "6"], Some(&config));
-    let mut bus = rig.master_bus();
+    let mut bus = common::master_bus(&rig);
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let summary = bring_up(&mut master);
@@ -130,7 +130,7 @@ fn garbage_and_bad_checksums_are_counted_and_survived() {
     let config = common::description("breaker-with-status.toml");
     let rig =
         PtyRig::breaker("garbage", &["--closed", "--period", "0.2", "--garbage-every", "0.5"], Some(&config));
-    let mut bus = rig.master_bus();
+    let mut bus = common::master_bus(&rig);
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let summary = bring_up(&mut master);

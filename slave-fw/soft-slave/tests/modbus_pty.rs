@@ -30,7 +30,7 @@ fn reads_land_in_the_poll_response_and_writes_reach_the_registers() {
         return;
     };
     let rig = PtyRig::modbus("modbus-ok", &python, &common::description("modbus-gateway.toml"));
-    let mut bus = rig.master_bus();
+    let mut bus = common::master_bus(&rig);
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let summary = bring_up(&mut master);
@@ -77,7 +77,7 @@ fn an_exception_and_a_timeout_are_reported() {
     // Scan list: a good read, holding register 2000 (not on the server: exception 02), unit 9 (no
     // such slave: no answer), and a write of output bytes 0..1 to holding register 16.
     let rig = PtyRig::modbus("modbus-faults", &python, &common::description("modbus-faults.toml"));
-    let mut bus = rig.master_bus();
+    let mut bus = common::master_bus(&rig);
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let summary = bring_up(&mut master);
