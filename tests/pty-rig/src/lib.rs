@@ -146,6 +146,32 @@ impl Proc {
         self.child.as_mut().is_some_and(|c| c.try_wait().ok().flatten().is_none())
     }
 
+    /// Sends `signal` (`"INT"`, `"TERM"`, ...) and leaves the process running.
+    pub fn signal(&self, signal: &str) {
+        if let Some(child) = &self.child {
+            let _ = Command::new("kill").args([&format!("-{signal}"), &child.id().to_string()]).status();
+        }
+    }
+
+    /// Waits up to `timeout` for the process to end; its exit status, or `None` while it still
+    /// runs (it is left running).
+    pub fn wait(&mut self, timeout: std::time::Duration) -> Option<ExitStatus> {
+        let end = std::time::Instant::now() + timeout;
+        let child = self.child.as_mut()?;
+        loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                // Let the collector threads take the last lines.
+                std::thread::sleep(std::time::Duration::from_millis(50));
+                self.child = None;
+                return Some(status);
+            }
+            if std::time::Instant::now() >= end {
+                return None;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+    }
+
     /// SIGTERM, then the exit status (SIGKILL after 5 s).
     pub fn terminate(&mut self) -> Option<ExitStatus> {
         let mut child = self.child.take()?;
