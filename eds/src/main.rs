@@ -1,10 +1,10 @@
 //! `dnet-eds`: generate, parse, check and normalize DeviceNet EDS files, and check a device on
 //! the bus against its EDS.
 //!
-//! Exit status: 0 success, 1 the file has errors (syntax errors for `parse`/`format`, any error
-//! diagnostic for `check`) or the device disagrees with the EDS or could not be checked
-//! (`check-device`), 2 usage errors, unreadable or malformed input files, a bus that cannot be
-//! opened.
+//! Exit status, as for every program of this project (README "Exit status"): 0 success; 1 a failed
+//! check (syntax errors for `parse`/`format`, any error diagnostic for `check`, a device that
+//! disagrees with the EDS) or a device or bus error (no answer, a bus that cannot be opened); 2 a
+//! usage or configuration error (bad option, unreadable input file, refused description).
 
 use can_io::bus::{Bitrate, BusSpec};
 use clap::{Parser, Subcommand};
@@ -19,10 +19,18 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+/// The package version and the git commit it was built from.
+const VERSION: &str = git_version::git_version!(
+    prefix = "0.1.0 (",
+    suffix = ")",
+    args = ["--always", "--dirty=-modified", "--abbrev=12"],
+    fallback = "0.1.0 (unknown commit)"
+);
+
 /// Generate, parse, check and normalize DeviceNet Electronic Data Sheets (EDS); check a device
 /// against its EDS.
 #[derive(Debug, Parser)]
-#[command(name = "dnet-eds", version, about, long_about = None)]
+#[command(name = "dnet-eds", version = VERSION, about, long_about = None)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -225,9 +233,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 Err(
                     e @ (DeviceError::Usage(_)
                     | DeviceError::Description(_)
-                    | DeviceError::Master(
-                        MasterError::Invalid(_) | MasterError::Bus(can_io::bus::BusError::Open { .. }),
-                    )),
+                    | DeviceError::Master(MasterError::Invalid(_))),
                 ) => return Err(e.to_string()),
                 Err(e) => {
                     if json {

@@ -363,3 +363,23 @@ fn check_device_refuses_a_clash_or_a_bad_description_with_exit_2() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn version_names_the_package_version_and_the_commit() {
+    let output = run(&["--version"]);
+    assert_eq!(output.status.code(), Some(0));
+    let text = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(text.starts_with(concat!("dnet-eds ", env!("CARGO_PKG_VERSION"), " (")), "{text}");
+}
+
+#[test]
+fn a_bus_that_cannot_be_opened_is_a_bus_error_exit_1() {
+    let dir = temp_dir("bus-open");
+    let eds = dir.join("breaker.eds");
+    let output = run(&["generate", &description("breaker"), "-o", eds.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(0));
+    let output = run(&["check-device", "--eds", eds.to_str().unwrap(), "--mac", "5", "--bus", "slcan:/nonexistent/ttyACM9"]);
+    assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
+    assert!(stderr(&output).contains("/nonexistent/ttyACM9"), "{}", stderr(&output));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

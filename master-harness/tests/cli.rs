@@ -212,3 +212,12 @@ fn help_everywhere() {
         assert!(stdout(&o).contains("Usage: dnet-master"), "{sub}");
     }
 }
+
+#[test]
+fn version_names_the_package_version_and_the_commit() {
+    let o = dnet(&["--version"]);
+    assert_eq!(o.status.code(), Some(0));
+    let text = stdout(&o);
+    assert!(text.starts_with(concat!("dnet-master ", env!("CARGO_PKG_VERSION"), " (")), "{text}");
+    assert_eq!(text.trim_end(), format!("dnet-master {}", master_harness::version()));
+}

@@ -21,7 +21,7 @@ use std::sync::atomic::AtomicBool;
 #[derive(Debug, Parser)]
 #[command(
     name = "dnet-soft-slave",
-    version,
+    version = crate::VERSION,
     about = "The serial-to-DeviceNet converter as a Linux process: a group-2-only DeviceNet slave on a real CAN bus whose data comes from a serial instrument (the breaker profile or a Modbus RTU scan list) on a real serial port.",
     after_help = "Stops cleanly on SIGINT or SIGTERM (the log is flushed). Exit status: 0 after a clean stop, 1 when the bus or the serial port failed, 2 for a usage or configuration error."
 )]
@@ -60,7 +60,7 @@ pub struct SoftSlaveArgs {
 #[derive(Debug, Parser)]
 #[command(
     name = "dnet-sim-breaker",
-    version,
+    version = crate::VERSION,
     about = "The simulated intelligent circuit breaker of the source paper on a serial port or pseudo-terminal: a status frame every second (0x68, 0x12, 18 data bytes, sum, 0x16), open/close/set-parameter/refresh commands obeyed and acknowledged.",
     after_help = "Logs one line per event (status frames sent, commands received, faults injected) to stdout or --log. Stops cleanly on SIGINT or SIGTERM."
 )]

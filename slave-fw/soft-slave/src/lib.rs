@@ -74,6 +74,14 @@
 #![warn(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+/// The package version and the git commit `dnet-soft-slave` and `dnet-sim-breaker` were built from.
+pub const VERSION: &str = git_version::git_version!(
+    prefix = "0.1.0 (",
+    suffix = ")",
+    args = ["--always", "--dirty=-modified", "--abbrev=12"],
+    fallback = "0.1.0 (unknown commit)"
+);
+
 pub mod breaker;
 pub mod bridge;
 pub mod cli;
@@ -82,3 +90,11 @@ pub mod error;
 pub mod serial;
 
 pub use can_io::bus::Bus;
+
+#[cfg(test)]
+mod version_tests {
+    #[test]
+    fn the_version_is_the_package_version_and_a_commit() {
+        assert!(super::VERSION.starts_with(concat!(env!("CARGO_PKG_VERSION"), " (")), "{}", super::VERSION);
+    }
+}

@@ -33,7 +33,12 @@ fn help_everywhere() {
     for option in ["--serial", "--silent-after", "--garbage-every", "--log", "--closed", "--load"] {
         assert!(text.contains(option), "{option} in\n{text}");
     }
-    assert_eq!(soft(&["--version"]).status.code(), Some(0));
+    for o in [soft(&["--version"]), breaker(&["--version"])] {
+        assert_eq!(o.status.code(), Some(0));
+        // The package version and the git commit it was built from.
+        let text = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(text.contains(concat!(" ", env!("CARGO_PKG_VERSION"), " (")), "{text}");
+    }
 }
 
 #[test]
