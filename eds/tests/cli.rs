@@ -378,7 +378,15 @@ fn a_bus_that_cannot_be_opened_is_a_bus_error_exit_1() {
     let eds = dir.join("breaker.eds");
     let output = run(&["generate", &description("breaker"), "-o", eds.to_str().unwrap()]);
     assert_eq!(output.status.code(), Some(0));
-    let output = run(&["check-device", "--eds", eds.to_str().unwrap(), "--mac", "5", "--bus", "slcan:/nonexistent/ttyACM9"]);
+    let output = run(&[
+        "check-device",
+        "--eds",
+        eds.to_str().unwrap(),
+        "--mac",
+        "5",
+        "--bus",
+        "slcan:/nonexistent/ttyACM9",
+    ]);
     assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
     assert!(stderr(&output).contains("/nonexistent/ttyACM9"), "{}", stderr(&output));
     std::fs::remove_dir_all(&dir).unwrap();

@@ -221,3 +221,108 @@ fn version_names_the_package_version_and_the_commit() {
     assert!(text.starts_with(concat!("dnet-master ", env!("CARGO_PKG_VERSION"), " (")), "{text}");
     assert_eq!(text.trim_end(), format!("dnet-master {}", master_harness::version()));
 }
+
+fn workspace_file(path: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(path).to_str().unwrap().to_string()
+}
+
+#[test]
+fn the_simulated_device_is_where_the_command_asks() {
+    // At --mac 63, keeping the reference identity (serial 0x12345678).
+    let o = dnet(&["--bus", "sim", "get", "63", "1", "1", "6"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("0x12345678"), "{}", stdout(&o));
+    // --slave-config without --mac: the description's MAC (7 for the meter).
+    let meter = workspace_file("slave-fw/descriptions/modbus-meter.toml");
+    let o = dnet(&["--bus", "sim", "--slave-config", &meter, "connect"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("device MAC 7:"), "{}", stdout(&o));
+}
+
+#[test]
+fn replay_takes_the_device_and_master_from_the_transcript() {
+    let log = temp("mac63.log");
+    let o = dnet(&[
+        "--bus",
+        "sim",
+        "--master-mac",
+        "2",
+        "connect",
+        "--mac",
+        "63",
+        "--log",
+        log.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    // No --mac, no --master-mac: both from the transcript; the simulated device is placed at 63.
+    let o = dnet(&["--bus", "sim", "replay", log.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("replay held: 30 frames, 15 from the device compared"), "{}", stdout(&o));
+    let o = dnet(&["--bus", "sim", "replay", log.to_str().unwrap(), "--mac", "63"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+}
+
+#[test]
+fn a_replay_that_compares_nothing_fails() {
+    let log = temp("mac5.log");
+    let o = dnet(&["--keep", "connect", "--log", log.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0));
+    let o = dnet(&["--json", "replay", log.to_str().unwrap(), "--mac", "7"]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["ok"], false);
+    let error = v["error"].as_str().unwrap();
+    assert!(error.contains("nothing compared: the transcript has no frame from MAC 7"), "{error}");
+    assert!(error.contains("the transcript's device is MAC 5 (--mac 5)"), "{error}");
+}
+
+#[test]
+fn an_unwritable_csv_is_refused_before_the_bus_is_touched() {
+    let log = temp("unwritable-csv.log");
+    let o =
+        dnet(&["monitor", "--count", "2", "--csv", "/nonexistent/dir/x.csv", "--log", log.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot write /nonexistent/dir/x.csv"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&log).unwrap_or_default(), "", "no frame was sent");
+}
+
+#[test]
+fn a_stop_request_ends_the_command_with_everything_kept() {
+    use master_harness::console::Console;
+    let console = Console::plain();
+    let stop = console.stop.clone();
+    let log = temp("stopped.log");
+    let asker = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(3500));
+        stop.request(master_core::stop::SIGTERM);
+    });
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let args = [
+        "dnet-master",
+        "--json",
+        "--realtime",
+        "--slave-power-on",
+        "start",
+        "--log",
+        log.to_str().unwrap(),
+        "connect",
+        "--polls",
+        "1000000",
+    ];
+    let code = master_harness::cli::run_with(args, &mut out, &mut err, &console);
+    asker.join().unwrap();
+    let out = String::from_utf8_lossy(&out);
+    assert_eq!(code, 143, "{out}{}", String::from_utf8_lossy(&err));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["interrupted"], "SIGTERM");
+    let frames = v["frames"].as_array().unwrap();
+    assert!(frames.len() > 28, "polls were recorded: {}", frames.len());
+    assert_eq!(
+        std::fs::read_to_string(&log).unwrap().lines().count(),
+        frames.len(),
+        "the log holds every frame"
+    );
+    // The last exchange gives the device back.
+    assert_eq!(frames[frames.len() - 2]["data"], "004C030103");
+    assert_eq!(frames[frames.len() - 1]["data"], "00CC");
+}

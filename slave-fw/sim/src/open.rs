@@ -36,9 +36,10 @@ impl SimSetup {
         SimSetup { config, ..SimSetup::reference() }
     }
 
-    /// The simulated devices. A single device is placed at its MAC with the configuration's
-    /// identity untouched; when several share the bus, each gets the configuration's serial
-    /// number + (its MAC − the configuration's MAC), so that every one has its own.
+    /// The simulated devices. A single device keeps the configuration's identity (serial number
+    /// included) at whatever MAC it is placed; when several share the bus, each gets the
+    /// configuration's serial number + (its MAC − the configuration's MAC), so that every one has
+    /// its own.
     ///
     /// # Errors
     ///
@@ -52,14 +53,14 @@ impl SimSetup {
                 return Err(format!("MAC {mac} is given twice for the simulated devices"));
             }
             let mut config = self.config.clone();
-            if mac != own {
+            config.device.mac_id = mac;
+            if mac != own && macs.len() > 1 {
                 config.device.identity.serial_number = config
                     .device
                     .identity
                     .serial_number
                     .wrapping_add(u32::from(mac.as_raw()))
                     .wrapping_sub(u32::from(own.as_raw()));
-                config.device.mac_id = mac;
             }
             devices.push(
                 SoftSlave::new(config).map_err(|e| format!("the simulated device's configuration: {e}"))?,
@@ -107,10 +108,13 @@ mod tests {
     #[test]
     fn one_device_keeps_the_configured_identity_at_any_mac() {
         let mut setup = SimSetup::reference();
-        setup.macs = vec![mac(5)];
-        let devices = setup.devices().unwrap();
-        assert_eq!(devices.len(), 1);
-        assert_eq!(devices[0].node().config().identity.serial_number, 0x1234_5678);
+        for at in [5, 0, 63] {
+            setup.macs = vec![mac(at)];
+            let devices = setup.devices().unwrap();
+            assert_eq!(devices.len(), 1);
+            assert_eq!(devices[0].node().config().mac_id, mac(at));
+            assert_eq!(devices[0].node().config().identity.serial_number, 0x1234_5678, "at MAC {at}");
+        }
     }
 
     #[test]
