@@ -183,3 +183,43 @@ fn replay_compares_the_device_or_fails() {
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("the transcript's master is MAC 3"), "{err}");
 }
+
+/// Runs `dnet-master --bus slcan:PTY ARGS` on a terminal (`script` gives it a pty); everything it
+/// printed there, stdout and stderr together.
+fn on_terminal(rig: &PtyRig, args: &[&str]) -> (i32, String) {
+    let mut line = format!("{} --bus {}", env!("CARGO_BIN_EXE_dnet-master"), rig.master_bus_arg());
+    for a in args {
+        line.push(' ');
+        line.push_str(a);
+    }
+    let o = std::process::Command::new("script")
+        .args(["-qec", &line, "/dev/null"])
+        .stdin(std::process::Stdio::null())
+        .output()
+        .expect("run script (bsdutils)");
+    (o.status.code().unwrap_or(-1), String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
+#[test]
+#[ignore = "needs socat: run by scripts/check"]
+fn progress_on_a_terminal_only() {
+    if !require_socat() {
+        return;
+    }
+    let rig = rig("progress");
+    // A scan waits 2 s for its own network access, then for the devices: progress shows why.
+    let (code, text) = on_terminal(&rig, &["scan", "--from", "4", "--to", "6"]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("\r\x1b[2Kscan: network access"), "{text:?}");
+    assert!(text.contains("1 device(s) found"), "{text:?}");
+    let (code, text) = on_terminal(&rig, &["connect", "--mac", "5", "--epr", "300"]);
+    assert_eq!(code, 0, "{text}");
+    assert!(text.contains("\r\x1b[2Kconnect: bringing up MAC 5"), "{text:?}");
+    // --json on a terminal, or output to a pipe: no progress.
+    let (code, text) = on_terminal(&rig, &["--json", "scan", "--from", "4", "--to", "6"]);
+    assert_eq!(code, 0, "{text}");
+    assert!(!text.contains('\x1b'), "{text:?}");
+    let (code, out, err) = dnet(&rig, &["scan", "--from", "4", "--to", "6"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!out.contains('\x1b') && !err.contains('\x1b'), "{out:?} {err:?}");
+}
