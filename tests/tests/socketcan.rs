@@ -402,7 +402,7 @@ fn bring_up_over_vcan_is_notes_section_2_byte_for_byte_recorded_by_candump_and_d
     let mut listener = SocketCanBus::open(IFACE).expect("a listening socket on vcan0");
     let mut master = rig.master(
         "master",
-        &["--log", &rig.path("master.log"), "--pcap", &rig.path("master.pcap"), "connect", "--mac", "5"],
+        &["--keep", "--log", &rig.path("master.log"), "--pcap", &rig.path("master.pcap"), "connect", "--mac", "5"],
     );
     await_master_second_check(&mut listener, Duration::from_secs(30));
     let mut slave = rig.soft_slave("slave");
@@ -453,7 +453,7 @@ fn candump_recording_replays_against_a_fresh_soft_slave_and_decodes() {
     // Record a bring-up with candump, as a user would on the bench.
     let mut candump = capture(&rig, "candump", Command::new("candump").args(["-L", IFACE]), "");
     let mut listener = SocketCanBus::open(IFACE).expect("a listening socket on vcan0");
-    let mut master = rig.master("master", &["connect", "--mac", "5"]);
+    let mut master = rig.master("master", &["--keep", "connect", "--mac", "5"]);
     await_master_second_check(&mut listener, Duration::from_secs(30));
     let mut slave = rig.soft_slave("slave");
     assert!(master.wait(Duration::from_secs(60)).success(), "{}", master.stdout.text());
