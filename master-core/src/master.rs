@@ -623,6 +623,12 @@ impl<'s, 'b> Master<'s, 'b> {
         *held = held.union(choice);
     }
 
+    /// Sets what `target` holds for this master, for a command that allocates through its own
+    /// transactions (the overlapping `scan`).
+    pub fn set_held(&mut self, target: MacId, choice: AllocationChoice) {
+        self.held.insert(target.as_raw(), choice);
+    }
+
     /// What this master holds allocated at `target` (allocations minus releases in this run).
     pub fn held(&self, target: MacId) -> AllocationChoice {
         self.held.get(&target.as_raw()).copied().unwrap_or(AllocationChoice::empty())

@@ -747,7 +747,7 @@ fn scan_outcome(r: &ScanReport) -> Outcome {
             d.serial_number.map_or_else(|| "-".into(), |v| format!("0x{v:08X}")),
             d.product_name.clone().unwrap_or_else(|| "-".into()),
             io,
-            d.status
+            d.note.as_ref().map_or_else(|| d.status.clone(), |n| format!("{} ({n})", d.status))
         ));
     }
     text.push_str(&format!(

@@ -9,7 +9,9 @@
 //! device, all devices in parallel, the bus arbitrating between them.
 //!
 //! A device that refuses poll (0x02 resource unavailable) is allocated explicit only; a device
-//! owned by another master (0x0C / 0x01) is reported as such.
+//! owned by another master (0x0C / 0x01) is reported as such; a device still allocated to this
+//! master (0x0B: an earlier run kept it) is released through the Group 2 Only port and allocated
+//! again, and its row says so.
 
 use crate::console::Progress;
 use crate::error::HarnessError;
@@ -30,6 +32,9 @@ pub struct ScannedDevice {
     pub mac: u8,
     /// `ok`, or why it could not be read fully.
     pub status: String,
+    /// What else happened (a set of this master's released and allocated again).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
     /// Identity attribute 1.
     pub vendor_id: Option<u16>,
     /// Identity attribute 2.
@@ -66,6 +71,8 @@ enum Step {
     Allocate(AllocationChoice),
     Get(u16, u16, u8),
     Release,
+    /// Release through the Group 2 Only port: a set an earlier run of this master kept.
+    ReleaseKept(AllocationChoice),
 }
 
 struct Node {
@@ -74,6 +81,8 @@ struct Node {
     tx: Option<Transaction>,
     allocated: AllocationChoice,
     found: bool,
+    /// The set was still allocated to this master and has been released and allocated again.
+    reallocated: bool,
     device: ScannedDevice,
 }
 
@@ -96,6 +105,10 @@ fn request_for(
         Step::Release => {
             buf.extend_from_slice(&ReleaseRequest { choice: allocated }.emit());
             (Port::Explicit, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
+        }
+        Step::ReleaseKept(choice) => {
+            buf.extend_from_slice(&ReleaseRequest { choice }.emit());
+            (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
         }
     }
 }
@@ -156,6 +169,21 @@ impl Node {
             }
             (
                 Step::Allocate(choice),
+                ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. },
+            ) if !self.reallocated => {
+                // Still allocated to this master (an earlier run kept it): release what it
+                // holds of the choice (explicit alone when poll is gone), allocate again.
+                self.reallocated = true;
+                self.device.note =
+                    Some("was still allocated to this master: released and allocated again".into());
+                self.steps.push_front(Step::Allocate(choice));
+                self.steps.push_front(Step::ReleaseKept(AllocationChoice::EXPLICIT));
+                if choice.contains(AllocationChoice::POLL) {
+                    self.steps.push_front(Step::ReleaseKept(AllocationChoice::POLL));
+                }
+            }
+            (
+                Step::Allocate(choice),
                 ReplyBody::Error { general: GeneralStatus::ResourceUnavailable, .. },
             ) if choice.contains(AllocationChoice::POLL) => {
                 // No poll connection: identity only.
@@ -207,7 +235,10 @@ impl Node {
                     );
                 }
             }
-            (Step::Release, _) => {}
+            (Step::Release, ReplyBody::Success(_)) => self.allocated = AllocationChoice::empty(),
+            (Step::Release, ReplyBody::Error { .. }) => {}
+            // A kept poll connection may be gone already (its watchdog fired): 0x0B is fine.
+            (Step::ReleaseKept(_), _) => {}
         }
     }
 }
@@ -238,6 +269,7 @@ pub fn scan(
             tx: None,
             allocated: AllocationChoice::empty(),
             found: false,
+            reallocated: false,
             device: ScannedDevice { mac: mac.as_raw(), status: "ok".into(), ..ScannedDevice::default() },
         })
         .collect();
@@ -258,6 +290,8 @@ pub fn scan(
         for n in &mut nodes {
             if let Some(outcome) = n.tx.as_mut().filter(|t| t.is_done()).and_then(|t| t.take_outcome()) {
                 n.finish_step(outcome);
+                // The master knows what each device holds, so an interrupted scan gives it back.
+                master.set_held(n.mac, n.allocated);
                 n.start_next(master, now)?;
                 if let Some(tx) = &mut n.tx {
                     while let Some(f) = tx.poll_transmit() {

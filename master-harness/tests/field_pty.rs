@@ -77,7 +77,15 @@ fn keep_then_the_same_master_reallocates_and_another_master_is_refused() {
     assert_eq!(code, 1, "{err}");
     assert!(err.contains("MAC 5 is allocated to another master"), "{err}");
 
-    // The same master again: released and allocated again, and said so.
+    // A scan by the same master finds the set still its own: released, allocated again, said so;
+    // and given back at the end of the scan.
+    let (out, _) = ok(&rig, &["scan", "--from", "4", "--to", "6"]);
+    assert!(out.contains("ok (was still allocated to this master: released and allocated again)"), "{out}");
+    let (out, _) = ok(&rig, &["--master-mac", "1", "get", "5", "1", "1", "1"]);
+    assert!(out.contains("MAC 5 Identity"), "{out}");
+
+    // Kept again; the same master's connect: released and allocated again, and said so.
+    ok(&rig, &["--keep", "connect", "--mac", "5", "--epr", "10000"]);
     let (out, err) = ok(&rig, &["connect", "--mac", "5", "--epr", "300"]);
     assert!(err.contains("note: MAC 5: explicit was still allocated to this master"), "{err}");
     assert!(err.contains("note: MAC 5: poll was still allocated to this master"), "{err}");
