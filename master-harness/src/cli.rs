@@ -1,7 +1,14 @@
 //! The `dnet-master` command line: options, bus opening, and the human and JSON reports.
 //!
 //! Exit status: 0 when every check holds, 1 when a check failed, the device diverged, timed out
-//! or answered with an error, 2 for a usage error (bad option, unknown bus, bad file).
+//! or answered with an error, or a replay compared nothing; 2 for a usage or configuration error
+//! (bad option, unknown bus, bad or unwritable file); 130 / 143 when SIGINT / SIGTERM stopped the
+//! command ([`crate::console`]).
+//!
+//! Every command ends the same way, however it ended: the connections it allocated are released
+//! through the Group 2 Only port (not with `--keep`; not when the bus itself failed), then the CSV
+//! and the log are flushed and the result printed (with `"interrupted"` in the JSON when a signal
+//! stopped it). Output files are created before the bus is touched.
 
 use crate::conformance::command::ConformanceCommand;
 use crate::console::{Console, Progress};
