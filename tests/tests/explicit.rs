@@ -122,24 +122,41 @@ fn a_second_master_gets_the_allocation_conflict_by_name() {
     let mut second =
         Master::new(&mut session, MasterConfig { mac: mac(2), serial_number: 7, ..MasterConfig::default() });
     second.network_access().unwrap();
-    let err = second.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap_err().to_string();
-    assert!(
-        err.contains("object state conflict (0x0C), additional code 0x01 (allocation conflict)"),
-        "{err}"
-    );
+    let err = second.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap_err();
+    // 0x0C / 0x01, named as the conflict it is, with the owner seen on the bus (master 1's requests
+    // carry its MAC in their header).
+    assert!(matches!(err, MasterError::AllocationConflict { mac: 5, owner: Some(1) }), "{err}");
+    assert!(err.to_string().contains("MAC 5 is allocated to another master (MAC 1)"), "{err}");
+    let answer = second.session.records().last().unwrap();
+    assert!(answer.verdict.label().contains("object state conflict (0x0C)"), "{}", answer.verdict.label());
 }
 
 #[test]
-fn an_owned_connection_is_reused() {
+fn an_owned_connection_is_released_and_allocated_again() {
     let mut bus = sim_bus(&[5], Bitrate::K250);
     let mut session = Session::new(&mut bus);
     let mut m = Master::new(&mut session, MasterConfig::default());
     m.open_explicit(mac(5)).unwrap();
-    // Allocating again answers 0x0B already in requested state: the master keeps using it.
-    let err = m.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap_err();
-    assert!(matches!(
-        err,
-        MasterError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }
-    ));
+    let before = m.session.records().len();
+    // Allocating again: the device answers 0x0B already in requested state; the master releases
+    // and allocates again, as a scanner coming back does, and leaves a notice.
+    m.allocate(mac(5), Port::Group2Only, AllocationChoice::EXPLICIT).unwrap();
+    let data: Vec<Vec<u8>> = m.session.records()[before..].iter().map(|r| r.frame.data().to_vec()).collect();
+    assert_eq!(
+        data,
+        [
+            vec![0x00, 0x4B, 0x03, 0x01, 0x01, 0x00],
+            vec![0x00, 0x94, 0x0B, 0x02],
+            vec![0x00, 0x4C, 0x03, 0x01, 0x01],
+            vec![0x00, 0xCC],
+            vec![0x00, 0x4B, 0x03, 0x01, 0x01, 0x00],
+            vec![0x00, 0xCB, 0x00],
+        ]
+    );
+    assert_eq!(m.session.failures(), 0, "the 0x0B answer is expected, not a failure");
+    assert_eq!(m.notices().len(), 1, "{:?}", m.notices());
     assert_eq!(m.get_u16(mac(5), 1, 1, 1).unwrap(), Some(0x1234));
+    assert_eq!(m.held(mac(5)), AllocationChoice::EXPLICIT);
+    m.release_held().unwrap();
+    assert_eq!(m.held(mac(5)), AllocationChoice::empty());
 }
