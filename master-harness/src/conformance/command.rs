@@ -142,7 +142,8 @@ pub fn execute(
         response_timeout: run.response_timeout,
         ..MasterConfig::default()
     };
-    let opts = SuiteOptions { transport: Some(run.transport.clone()), keep: run.keep, ..SuiteOptions::new(mac) };
+    let opts =
+        SuiteOptions { transport: Some(run.transport.clone()), keep: run.keep, ..SuiteOptions::new(mac) };
     let timestamps = super::Timestamps::of_transport(&run.transport);
     if !run.json {
         report::write_header(out, mac, run.master_mac, &run.transport, timestamps).map_err(werr)?;
@@ -183,7 +184,9 @@ pub fn execute(
         return Err(werr(e));
     }
     let no_device = match &suite.stopped {
-        Some(Stopped::NoDevice { mac, detail }) => Some(HarnessError::NoDevice { mac: *mac, detail: detail.clone() }),
+        Some(Stopped::NoDevice { mac, detail }) => {
+            Some(HarnessError::NoDevice { mac: *mac, detail: detail.clone() })
+        }
         _ => None,
     };
     if run.json {

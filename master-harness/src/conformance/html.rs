@@ -367,7 +367,10 @@ fn header(s: &mut String, report: &SuiteReport) {
     for (k, v) in report.identity.rows() {
         row(k, &v);
     }
-    row("master MAC ID", &format!("{} (second master used by the tests: {})", report.master, report.second_master));
+    row(
+        "master MAC ID",
+        &format!("{} (second master used by the tests: {})", report.master, report.second_master),
+    );
     row("date and time (UTC)", &report.started);
     row("tool", &format!("dnet-master {}", crate::version()));
     row("transport", &report.transport);
@@ -441,8 +444,14 @@ mod tests {
             clause_names("§7.1 (1), §3.5"),
             "Duplicate MAC ID check (network access) (1), Duplicate MAC ID check message"
         );
-        assert_eq!(clause_names("0x08/0x03 (notes §9.6)"), "0x08/0x03 (Scanner practice (not fixed by the specification))");
-        assert_eq!(clause_names("§3.4 row 1."), "Predefined Master/Slave Connection Set: Allocate/Release row 1.");
+        assert_eq!(
+            clause_names("0x08/0x03 (notes §9.6)"),
+            "0x08/0x03 (Scanner practice (not fixed by the specification))"
+        );
+        assert_eq!(
+            clause_names("§3.4 row 1."),
+            "Predefined Master/Slave Connection Set: Allocate/Release row 1."
+        );
         assert!(!clause_names("§2 frames 6-7, §6.2 attr 5").contains('§'));
     }
 

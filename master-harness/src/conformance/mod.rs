@@ -470,7 +470,9 @@ pub fn run_observed(
         let stopped = match checks::run_all(&mut runner) {
             Ok(()) => None,
             Err(HarnessError::NoDevice { mac, detail }) => Some(Stopped::NoDevice { mac, detail }),
-            Err(HarnessError::Master(MasterError::Interrupted { signal })) => Some(Stopped::Interrupted(signal)),
+            Err(HarnessError::Master(MasterError::Interrupted { signal })) => {
+                Some(Stopped::Interrupted(signal))
+            }
             Err(e) => return Err(e),
         };
         let release = runner.finish(opts.keep, stopped.is_some())?;

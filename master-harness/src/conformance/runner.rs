@@ -240,8 +240,12 @@ impl<'s, 'b> Runner<'s, 'b> {
             return Err(MasterError::Interrupted { signal }.into());
         }
         self.observer.start(self.results.len() + 1, id, title);
-        let mut c =
-            Check { expectations: Vec::new(), measurements: Vec::new(), start: self.mark(), untimed: self.untimed };
+        let mut c = Check {
+            expectations: Vec::new(),
+            measurements: Vec::new(),
+            start: self.mark(),
+            untimed: self.untimed,
+        };
         match body(self, &mut c) {
             Ok(()) => {}
             Err(HarnessError::Master(MasterError::Bus(e))) => return Err(e.into()),
@@ -373,7 +377,8 @@ impl<'s, 'b> Runner<'s, 'b> {
     /// Get_Attribute_Single through the explicit connection. Identity values read are kept for
     /// the report.
     pub fn get(&mut self, class_id: u16, instance: u16, attribute: u8) -> Result<Answer, HarnessError> {
-        let a = self.request(Port::Explicit, ServiceCode::GetAttributeSingle, class_id, instance, &[attribute])?;
+        let a =
+            self.request(Port::Explicit, ServiceCode::GetAttributeSingle, class_id, instance, &[attribute])?;
         if let (class::IDENTITY, 1, ReplyBody::Success(d)) = (class_id, instance, &a.reply.body) {
             self.identity.note(attribute, d);
         }

@@ -17,7 +17,13 @@ use master_core::session::Verdict;
 const NA: Category = Category::NetworkAccess;
 
 pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
-    r.run("bring-up", "the bring-up (the reference start-up sequence), every frame checked", NA, "§2", bring_up)?;
+    r.run(
+        "bring-up",
+        "the bring-up (the reference start-up sequence), every frame checked",
+        NA,
+        "§2",
+        bring_up,
+    )?;
     // Nothing from the device during the whole bring-up (no duplicate MAC ID check, no answer to
     // the UCMM probes or to the Allocate through the Group 2 Only port, notes §2, §3.4, §7.1):
     // nobody is there, and every other check would only time out.
