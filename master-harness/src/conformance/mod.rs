@@ -19,6 +19,26 @@
 //! | connections | poll ignored before the EPR is set; EPR round trip; the inactivity watchdog measured against 4 × EPR for each timeout action; deferred delete; idle polls; I/O fragmentation of the poll response; requests from a master that does not own the device ignored (§4.2, §5, §8) |
 //! | timing | poll response latency (min, median, 99th percentile) and explicit response latency, with the limit a scanner applies |
 //!
+//! ## Timing and transports
+//!
+//! Timing expectations (the interval between the device's duplicate MAC ID requests, latencies,
+//! watchdog expiry, the re-send of an unacknowledged fragment) are judged only where the
+//! transport's timestamps show the device's timing ([`Timestamps`]): the simulated bus's clock and
+//! SocketCAN's kernel timestamps. On SLCAN (`slcan:…`) frames are buffered on a serial line and
+//! arrive in bursts, so those expectations are advisory with the reason ([`BUFFERED_TIMING`]).
+//! Every report names the transport and its timestamp source.
+//!
+//! ## Ending early
+//!
+//! The run stops after the bring-up when the device sent nothing at all (no duplicate MAC ID
+//! check, no answer to the Allocate through the Group 2 Only port): [`Stopped::NoDevice`], one
+//! check reported, a few seconds of bus time instead of the whole suite's timeouts. A stop
+//! requested on the session (SIGINT, SIGTERM) ends it with the checks completed so far
+//! ([`Stopped::Interrupted`]). Either way, and at the normal end, what the suite allocated is
+//! released unless [`SuiteOptions::keep`]. An [`Observer`] hears of each check as it starts and as
+//! it is judged, which is how `dnet-master conformance` prints each verdict at once
+//! ([`command`]).
+//!
 //! Every frame of every check is kept ([`SuiteReport::records`], each check's
 //! [`CheckResult::frames`]) and judged like the rest of the harness's frames.
 //!
