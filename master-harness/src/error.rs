@@ -4,6 +4,7 @@
 
 use can_io::bus::BusError;
 use can_io::log::LogError;
+use devicenet::MacId;
 use master_core::error::MasterError;
 use std::fmt;
 
@@ -36,6 +37,14 @@ pub enum HarnessError {
     /// A check that would have compared nothing of the device under test: failed, never passed.
     #[error("nothing compared: {0}")]
     NothingCompared(String),
+    /// No device answers at the MAC: it sent no duplicate MAC ID check and answered nothing.
+    #[error("no device answers at MAC {mac}: {detail}")]
+    NoDevice {
+        /// The MAC.
+        mac: MacId,
+        /// What was tried and not answered.
+        detail: String,
+    },
     /// The command ended, but what it allocated could not be released.
     #[error("could not release the device's connections: {0}")]
     Release(Box<MasterError>),

@@ -7,8 +7,9 @@ use converter_sim::device::SoftSlave;
 use devicenet::{CanFrame, Instant, MacId};
 use master_core::master::MasterConfig;
 use master_core::session::Session;
-use master_harness::cli::run;
-use master_harness::conformance::{self, Category, Grade, SuiteOptions, SuiteReport};
+use master_harness::cli::{run, run_with};
+use master_harness::conformance::{self, Category, Grade, Observer, Stopped, SuiteOptions, SuiteReport};
+use master_harness::console::Console;
 use std::collections::VecDeque;
 use system_tests::{mac, sim_bus};
 
@@ -25,6 +26,8 @@ fn the_soft_slave_passes() {
     conformance::write_text(&mut text, &report, false).unwrap();
     println!("{}", String::from_utf8_lossy(&text));
     assert_eq!(report.failed(), 0);
+    assert_eq!(report.checks.len(), conformance::CHECKS);
+    assert!(report.stopped.is_none());
     assert_eq!(report.checks[0].id, "bring-up");
     assert_eq!(report.checks[0].grade, Grade::Pass);
     assert_eq!(report.frames_of(&report.checks[0]).len(), 28, "the 28-frame bring-up first");
@@ -80,11 +83,241 @@ fn the_command_writes_text_json_and_html_and_exits_0() {
 }
 
 #[test]
-fn no_device_fails_and_exits_1() {
+fn no_device_stops_after_the_bring_up_and_exits_1() {
+    let dir = temp_dir("absent");
+    let log = dir.join("absent.log");
     let (mut out, mut err) = (Vec::new(), Vec::new());
     // Nobody at MAC 9: the soft slave sits at 5.
-    let code = run(["dnet-master", "conformance", "--mac", "9"], &mut out, &mut err, false);
-    assert_eq!(code, 1, "{}", String::from_utf8_lossy(&out));
+    let args = ["dnet-master", "--bus", "sim", "--slave-mac", "5", "conformance", "--mac", "9", "--log"];
+    let code =
+        run(args.iter().map(|a| a.to_string()).chain([log.display().to_string()]), &mut out, &mut err, false);
+    let (out, err) = (String::from_utf8_lossy(&out), String::from_utf8_lossy(&err));
+    assert_eq!(code, 1, "{out}\n{err}");
+    assert!(err.contains("error: no device answers at MAC 9"), "{err}");
+    assert!(out.contains("FAIL      bring-up") && out.contains("1 of 43 checks run"), "{out}");
+    assert!(!out.contains("dup-mac-answer"), "no other check ran:\n{out}");
+    // The bring-up alone: the master's network access, the UCMM probes, the allocate.
+    let frames = std::fs::read_to_string(&log).unwrap().lines().count();
+    assert!((1..20).contains(&frames), "{frames} frames");
+
+    // The same in the library: little bus time (the whole suite against nobody took 114 s).
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let report = suite(&mut bus, mac(9));
+    assert_eq!(report.checks.len(), 1);
+    assert!(matches!(&report.stopped, Some(Stopped::NoDevice { .. })), "{:?}", report.stopped);
+    assert!(report.duration < devicenet::Duration::from_secs(10), "{}", report.duration);
+    println!("absent device: stopped after {} of bus time", report.duration);
+
+    // JSON: only the error document.
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let args = ["dnet-master", "--bus", "sim", "--slave-mac", "5", "--json", "conformance", "--mac", "9"];
+    assert_eq!(run(args, &mut out, &mut err, false), 1);
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    assert_eq!(v["ok"], false);
+    assert!(v["error"].as_str().unwrap().starts_with("no device answers at MAC 9"), "{v}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("conformance-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn an_unwritable_html_path_is_refused_before_any_frame() {
+    let dir = temp_dir("unwritable");
+    let log = dir.join("run.log");
+    let html = dir.join("no-such-folder").join("report.html");
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let args = [
+        "dnet-master",
+        "--bus",
+        "sim",
+        "--log",
+        &log.display().to_string(),
+        "conformance",
+        "--mac",
+        "5",
+        "--html",
+        &html.display().to_string(),
+    ]
+    .map(str::to_string);
+    let started = std::time::Instant::now();
+    let code = run(args, &mut out, &mut err, false);
+    let err = String::from_utf8_lossy(&err);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("cannot write") && err.contains("report.html"), "{err}");
+    assert!(out.is_empty(), "nothing reported: {}", String::from_utf8_lossy(&out));
+    let logged = std::fs::read_to_string(&log).unwrap_or_default();
+    assert!(logged.is_empty(), "no frame sent: {logged}");
+    assert!(started.elapsed() < std::time::Duration::from_secs(5));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Records what an observer is told, in order.
+#[derive(Default)]
+struct Events {
+    seen: Vec<String>,
+    /// Asks `stop` for SIGINT once this many checks were judged.
+    stop_after: Option<(usize, master_core::stop::Stop)>,
+}
+
+impl Observer for Events {
+    fn start(&mut self, n: usize, id: &'static str, _title: &'static str) {
+        self.seen.push(format!("start {n} {id}"));
+    }
+    fn judged(&mut self, check: &conformance::CheckResult, _frames: &[master_core::session::Record]) {
+        self.seen.push(format!("judged {}", check.id));
+        let judged = self.seen.iter().filter(|e| e.starts_with("judged")).count();
+        if let Some((n, stop)) = &self.stop_after {
+            if judged == *n {
+                stop.request(master_core::stop::SIGINT);
+            }
+        }
+    }
+}
+
+#[test]
+fn each_verdict_is_reported_as_its_check_is_judged() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let mut events = Events::default();
+    let report = conformance::run_observed(
+        &mut session,
+        MasterConfig::default(),
+        &SuiteOptions::new(mac(5)),
+        &mut events,
+    )
+    .unwrap();
+    assert_eq!(report.checks.len(), conformance::CHECKS);
+    // start, judged, start, judged, ...: each verdict before the next check starts.
+    let expected: Vec<String> = report
+        .checks
+        .iter()
+        .enumerate()
+        .flat_map(|(k, c)| [format!("start {} {}", k + 1, c.id), format!("judged {}", c.id)])
+        .collect();
+    assert_eq!(events.seen, expected);
+
+    // The command prints one verdict line per check, between its header and its summary.
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    assert_eq!(
+        run(["dnet-master", "--bus", "sim", "conformance", "--mac", "5"], &mut out, &mut err, false),
+        0
+    );
+    let text = String::from_utf8_lossy(&out);
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].starts_with("dnet-master ") && lines[0].contains("transport sim"), "{text}");
+    assert_eq!(lines[1], "timestamps: simulated bus clock, exact");
+    let verdicts = lines
+        .iter()
+        .filter(|l| ["  PASS ", "  ADVISORY ", "  FAIL "].iter().any(|g| l.starts_with(g)))
+        .count();
+    assert_eq!(verdicts, conformance::CHECKS, "{text}");
+    let summary = lines.iter().position(|l| l.starts_with("conformance of MAC 5")).unwrap();
+    let last_verdict =
+        lines.iter().rposition(|l| l.starts_with("  PASS ") || l.starts_with("  ADVISORY ")).unwrap();
+    assert!(summary > last_verdict, "the summary at the end");
+    assert!(text.contains("released through the Group 2 Only port"), "{text}");
+}
+
+#[test]
+fn the_html_report_stands_alone_and_names_the_failed_check() {
+    let tx = |f: &CanFrame, _: &mut u32| !(is_dup_mac(f) && f.data()[0] & 0x80 != 0);
+    let (failed, report) = failing(Broken::new(keep_rx, tx, no_answer));
+    assert_eq!(failed, ["dup-mac-answer"]);
+    let page = conformance::html::render(&report);
+    let head = &page[..page.find("<h2>Verdicts").unwrap()];
+    assert!(head.contains(">FAIL<"), "overall verdict in the header");
+    assert!(head.contains("<a href=\"#check-dup-mac-answer\"><code>dup-mac-answer</code></a>"), "{head}");
+    assert!(page.contains("id=\"check-dup-mac-answer\""), "the link's target");
+    // Device identity as read, date, version, transport and timestamps, both MACs.
+    for needle in [
+        "vendor ID</th><td>4660 (0x1234)",
+        "product name</th><td>Serial-DeviceNet Bridge",
+        "serial number</th><td>0x12345678",
+        "date and time (UTC)</th><td>20",
+        master_harness::version(),
+        "transport</th><td>sim",
+        "simulated bus clock, exact",
+        "master MAC ID</th><td>0",
+        "device MAC ID</th><td>5",
+        "Duplicate MAC ID check (network access)",
+    ] {
+        assert!(head.contains(needle) || page.contains(needle), "{needle} missing:\n{head}");
+    }
+    assert!(!page.contains("devicenet-notes") && !page.contains('§'), "no notes references in the page");
+}
+
+#[test]
+fn a_stop_ends_the_run_with_the_checks_completed_and_releases_the_device() {
+    let mut bus = sim_bus(&[5], Bitrate::K250);
+    let mut session = Session::new(&mut bus);
+    let stop = master_core::stop::Stop::new();
+    session.set_stop(stop.clone());
+    let mut events = Events { stop_after: Some((8, stop)), ..Events::default() };
+    let report = conformance::run_observed(
+        &mut session,
+        MasterConfig::default(),
+        &SuiteOptions::new(mac(5)),
+        &mut events,
+    )
+    .unwrap();
+    assert_eq!(report.stopped, Some(Stopped::Interrupted(master_core::stop::SIGINT)));
+    assert_eq!(report.checks.len(), 8);
+    let last = report.checks.last().unwrap().frames.end;
+    // After the last check: the releases through the Group 2 Only port (0x41E), answered.
+    let after = &report.records[last..];
+    assert!(
+        after.iter().any(|r| r.frame.id().as_raw() == 0x42E && r.frame.data().get(1) == Some(&0x4C)),
+        "{after:#?}"
+    );
+    let mut text = Vec::new();
+    conformance::write_text(&mut text, &report, false).unwrap();
+    let text = String::from_utf8(text).unwrap();
+    assert!(text.contains("result: interrupted by SIGINT: 8 of 43 checks completed"), "{text}");
+    let page = conformance::html::render(&report);
+    assert!(page.contains("INTERRUPTED") && page.contains("interrupted by SIGINT"));
+    assert_eq!(conformance::report_json(&report)["interrupted"], "SIGINT");
+}
+
+#[test]
+fn sigint_during_the_command_exits_130_with_a_partial_report() {
+    let dir = temp_dir("sigint");
+    let html = dir.join("partial.html");
+    let console = Console::plain();
+    let stop = console.stop.clone();
+    let asker = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(2500));
+        stop.request(master_core::stop::SIGINT);
+    });
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let args = [
+        "dnet-master",
+        "--bus",
+        "sim",
+        "--realtime",
+        "--json",
+        "conformance",
+        "--mac",
+        "5",
+        "--html",
+        &html.display().to_string(),
+    ]
+    .map(str::to_string);
+    let started = std::time::Instant::now();
+    let code = run_with(args, &mut out, &mut err, &console);
+    asker.join().unwrap();
+    assert_eq!(code, 130, "{}", String::from_utf8_lossy(&err));
+    assert!(started.elapsed() < std::time::Duration::from_secs(10), "stopped at once");
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    assert_eq!(v["ok"], false);
+    assert_eq!(v["interrupted"], "SIGINT");
+    assert_eq!(v["transport"], "sim");
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.contains("interrupted by SIGINT"), "the HTML page is written");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// A soft slave with a fault of its own: incoming frames may be rewritten, outgoing ones dropped,

@@ -1,7 +1,14 @@
-//! The HTML report (`--html FILE`): one self-contained page (no external resources) with the
-//! verdict table and, for every check, its expectations, measurements and a sequence diagram of
-//! its frames as inline SVG. The bring-up of notes §2 is the first check, so its 28 frames are the
-//! first diagram.
+//! The HTML report (`--html FILE`): one self-contained page (no external resources) that reads as
+//! a stand-alone test report an engineer can attach to a ticket. Its header gives the overall
+//! verdict, the failed checks by name (linked to their sections), why the run ended early if it
+//! did, the device's identity as read during the run, the date and time (UTC), the tool version,
+//! the transport and its timestamp source, and both MACs. Then the verdict table and, for every
+//! check, its expectations, measurements and a sequence diagram of its frames as inline SVG. The
+//! bring-up of notes §2 is the first check, so its 28 frames are the first diagram.
+//!
+//! The page cites the protocol clauses by name ([`clause_names`]: "Duplicate MAC ID check
+//! (network access)"), never the section numbers of the project's notes, which mean nothing to a
+//! reader outside this repository.
 //!
 //! ## The diagrams
 //!
@@ -12,7 +19,7 @@
 //! 100 ms, and longer gaps are cut and marked with their length, so a 1 s acknowledge timeout does
 //! not stretch the page.
 
-use super::{Category, CheckResult, Grade, SuiteReport};
+use super::{Category, CheckResult, Grade, Stopped, SuiteReport};
 use can_io::bus::Origin;
 use devicenet::{Identifier, Instant, MacId};
 use master_core::decode::hex;
@@ -207,9 +214,58 @@ th{background:#f4f4f4} code,.mono{font-family:ui-monospace,Menlo,Consolas,monosp
 .grade{font-weight:bold;padding:1px 6px;border-radius:3px;color:#fff;font-size:.85em}
 .pass{background:#2e7d32} .advisory{background:#ef8f00} .fail{background:#c62828}
 li.fail-e{color:#c62828} li.advisory-e{color:#a15c00} li.pass-e{color:#2e7d32}
+p.verdict{font-size:1.2em} p.stopped{color:#c62828} table.facts th{width:14em}
 section.check{margin:1.5em 0 2.5em 0} .section{color:#666;font-size:.9em}
 svg.seq{border:1px solid #eee;background:#fcfcfc;margin-top:.5em}
 "#;
+
+/// The name of the clause behind section `number` of the notes (`3.4`), if it has one.
+fn clause_name(number: &str) -> Option<&'static str> {
+    Some(match number {
+        "1" | "1.1" | "1.2" | "1.3" => "Message groups and identifiers",
+        "1.4" => "Group 3 and Group 4 messages (UCMM)",
+        "2" => "Connection establishment (reference start-up sequence)",
+        "3" | "3.1" => "Explicit message format",
+        "3.2" => "Service codes",
+        "3.3" => "Error response",
+        "3.4" => "Predefined Master/Slave Connection Set: Allocate/Release",
+        "3.5" => "Duplicate MAC ID check message",
+        "3.6" => "UCMM open/close",
+        "4" | "4.1" => "Explicit message fragmentation (acknowledged)",
+        "4.2" => "I/O message fragmentation",
+        "5" | "5.1" => "Connection object attributes",
+        "5.2" => "Connection object states",
+        "5.3" => "Expected packet rate",
+        "5.4" => "Watchdog timeout action",
+        "6.1" => "DeviceNet object",
+        "6.2" => "Identity object",
+        "7" | "7.1" => "Duplicate MAC ID check (network access)",
+        "8" => "Group 2 only slave behaviour",
+        n if n == "9" || n.starts_with("9.") => "Scanner practice (not fixed by the specification)",
+        _ => return None,
+    })
+}
+
+/// `text` with every citation of a notes section (`§3.4`, `notes §9.6`) replaced by the name of
+/// its clause.
+pub fn clause_names(text: &str) -> String {
+    let text = text.replace("notes §", "§");
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text.as_str();
+    while let Some(at) = rest.find('§') {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + '§'.len_utf8()..];
+        let len = after.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(after.len());
+        let number = after[..len].trim_end_matches('.');
+        match clause_name(number) {
+            Some(name) => out.push_str(name),
+            None => out.push_str("clause"),
+        }
+        rest = &after[number.len()..];
+    }
+    out.push_str(rest);
+    out
+}
 
 fn check_section(s: &mut String, report: &SuiteReport, c: &CheckResult) {
     let cls = grade_class(c.grade);
@@ -217,16 +273,16 @@ fn check_section(s: &mut String, report: &SuiteReport, c: &CheckResult) {
         s,
         r#"<section class="check" id="check-{id}"><h3><span class="grade {cls}">{}</span> <code>{id}</code> — {}</h3><div class="section">{} · {} frame(s)</div><ul>"#,
         c.grade.label(),
-        escape(c.title),
-        escape(c.section),
+        escape(&clause_names(c.title)),
+        escape(&clause_names(c.section)),
         c.frames.len(),
         id = c.id,
     );
     for e in &c.expectations {
         let basis = match e.basis {
             super::Basis::Normative => "",
-            super::Basis::Unconfirmed => " <em>(UNCONFIRMED in the notes)</em>",
-            super::Basis::Free => " <em>(FREE in the notes)</em>",
+            super::Basis::Unconfirmed => " <em>(rule not confirmed by public sources)</em>",
+            super::Basis::Free => " <em>(a value the device or the scanner chooses)</em>",
         };
         let frame = e.frame.map_or_else(String::new, |f| format!(" <span class=\"mono\">#{f}</span>"));
         let _ = write!(
@@ -234,7 +290,7 @@ fn check_section(s: &mut String, report: &SuiteReport, c: &CheckResult) {
             r#"<li class="{}-e">{}: {}{}{}</li>"#,
             grade_class(e.grade),
             e.grade.label().to_lowercase(),
-            escape(&e.text),
+            escape(&clause_names(&e.text)),
             basis,
             frame
         );
@@ -264,25 +320,87 @@ fn check_section(s: &mut String, report: &SuiteReport, c: &CheckResult) {
     s.push_str("</section>");
 }
 
+/// The page's header: verdict, failed checks, identity, run facts.
+fn header(s: &mut String, report: &SuiteReport) {
+    let failed: Vec<&CheckResult> = report.checks.iter().filter(|c| c.grade == Grade::Fail).collect();
+    let (cls, verdict) = match (&report.stopped, failed.is_empty()) {
+        (Some(Stopped::Interrupted(_)), _) => ("fail", "INTERRUPTED"),
+        (Some(Stopped::NoDevice { .. }), _) => ("fail", "NO DEVICE"),
+        (None, true) => ("pass", "PASS"),
+        (None, false) => ("fail", "FAIL"),
+    };
+    let _ = write!(
+        s,
+        "<p class=\"verdict\"><span class=\"grade {cls}\">{verdict}</span> {} of {} checks run: {} pass, {} advisory, {} fail</p>",
+        report.checks.len(),
+        super::CHECKS,
+        report.count(Grade::Pass),
+        report.count(Grade::Advisory),
+        report.count(Grade::Fail),
+    );
+    if let Some(stopped) = &report.stopped {
+        let _ = write!(
+            s,
+            "<p class=\"stopped\"><strong>The run ended early: {}.</strong> Only the checks completed are reported.</p>",
+            escape(&stopped.text())
+        );
+    }
+    if failed.is_empty() {
+        s.push_str("<p>Failed checks: none.</p>");
+    } else {
+        s.push_str("<p>Failed checks:</p><ul class=\"failed\">");
+        for c in &failed {
+            let _ = write!(
+                s,
+                "<li><a href=\"#check-{id}\"><code>{id}</code></a> — {}</li>",
+                escape(&clause_names(c.title)),
+                id = c.id
+            );
+        }
+        s.push_str("</ul>");
+    }
+    s.push_str("<table class=\"facts\">");
+    let mut row = |k: &str, v: &str| {
+        let _ = write!(s, "<tr><th>{}</th><td>{}</td></tr>", escape(k), escape(v));
+    };
+    row("device MAC ID", &report.target.to_string());
+    for (k, v) in report.identity.rows() {
+        row(k, &v);
+    }
+    row(
+        "master MAC ID",
+        &format!("{} (second master used by the tests: {})", report.master, report.second_master),
+    );
+    row("date and time (UTC)", &report.started);
+    row("tool", &format!("dnet-master {}", crate::version()));
+    row("transport", &report.transport);
+    row("timestamps", report.timestamps.description());
+    row("bus time", &super::report::seconds(report.duration));
+    row("frames", &report.records.len().to_string());
+    row("at the end", &report.release);
+    s.push_str("</table>");
+    if let Some(why) = report.timestamps.timing_advisory() {
+        let _ = write!(
+            s,
+            "<p class=\"section\">Timing is not judged on this transport ({}): timing expectations are advisory and their values only indicative.</p>",
+            escape(why)
+        );
+    }
+    s.push_str("<p class=\"section\">Grades: an expectation the specification states firmly fails the check when it does not hold; a deviation where the rule is not confirmed by public sources or the value is the device's or the scanner's own choice, a check that could not be exercised, and timing that the transport cannot show are advisory. The suite passes when no check fails.</p>");
+}
+
 /// The whole page.
 pub fn render(report: &SuiteReport) -> String {
     let mut s = String::new();
-    let title = format!("DeviceNet conformance: MAC {} on {}", report.target, report.bus);
+    let title = format!("DeviceNet conformance test report: MAC {} on {}", report.target, report.transport);
     let _ = write!(
         s,
         "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>{STYLE}</style></head><body><h1>{}</h1>",
         escape(&title),
         escape(&title)
     );
-    let overall = if report.failed() == 0 { Grade::Pass } else { Grade::Fail };
-    let _ = write!(
-        s,
-        "<p><span class=\"grade {}\">{}</span> {}</p><p class=\"section\">Grades: a normative rule broken fails; a deviation where <code>devicenet-notes.md</code> marks the rule UNCONFIRMED or the value FREE, or a check that could not be exercised, is advisory. Sections cited are those of <code>../shared/devicenet-notes.md</code>.</p>",
-        grade_class(overall),
-        if overall == Grade::Pass { "no check failed" } else { "checks failed" },
-        escape(&super::report::summary_line(report))
-    );
-    s.push_str("<h2>Verdicts</h2><table><tr><th>category</th><th>check</th><th>grade</th><th>what</th><th>notes</th><th>frames</th></tr>");
+    header(&mut s, report);
+    s.push_str("<h2>Verdicts</h2><table><tr><th>category</th><th>check</th><th>grade</th><th>what</th><th>clause</th><th>frames</th></tr>");
     for c in &report.checks {
         let _ = write!(
             s,
@@ -290,8 +408,8 @@ pub fn render(report: &SuiteReport) -> String {
             escape(c.category.title()),
             grade_class(c.grade),
             c.grade.label(),
-            escape(c.title),
-            escape(c.section),
+            escape(&clause_names(c.title)),
+            escape(&clause_names(c.section)),
             c.frames.len(),
             id = c.id
         );
@@ -318,6 +436,23 @@ mod tests {
     #[test]
     fn escaping() {
         assert_eq!(escape("<a href=\"x\">&'"), "&lt;a href=&quot;x&quot;&gt;&amp;&#39;");
+    }
+
+    #[test]
+    fn citations_become_clause_names() {
+        assert_eq!(
+            clause_names("§7.1 (1), §3.5"),
+            "Duplicate MAC ID check (network access) (1), Duplicate MAC ID check message"
+        );
+        assert_eq!(
+            clause_names("0x08/0x03 (notes §9.6)"),
+            "0x08/0x03 (Scanner practice (not fixed by the specification))"
+        );
+        assert_eq!(
+            clause_names("§3.4 row 1."),
+            "Predefined Master/Slave Connection Set: Allocate/Release row 1."
+        );
+        assert!(!clause_names("§2 frames 6-7, §6.2 attr 5").contains('§'));
     }
 
     #[test]

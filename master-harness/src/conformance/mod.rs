@@ -19,6 +19,26 @@
 //! | connections | poll ignored before the EPR is set; EPR round trip; the inactivity watchdog measured against 4 × EPR for each timeout action; deferred delete; idle polls; I/O fragmentation of the poll response; requests from a master that does not own the device ignored (§4.2, §5, §8) |
 //! | timing | poll response latency (min, median, 99th percentile) and explicit response latency, with the limit a scanner applies |
 //!
+//! ## Timing and transports
+//!
+//! Timing expectations (the interval between the device's duplicate MAC ID requests, latencies,
+//! watchdog expiry, the re-send of an unacknowledged fragment) are judged only where the
+//! transport's timestamps show the device's timing ([`Timestamps`]): the simulated bus's clock and
+//! SocketCAN's kernel timestamps. On SLCAN (`slcan:…`) frames are buffered on a serial line and
+//! arrive in bursts, so those expectations are advisory with the reason ([`BUFFERED_TIMING`]).
+//! Every report names the transport and its timestamp source.
+//!
+//! ## Ending early
+//!
+//! The run stops after the bring-up when the device sent nothing at all (no duplicate MAC ID
+//! check, no answer to the Allocate through the Group 2 Only port): [`Stopped::NoDevice`], one
+//! check reported, a few seconds of bus time instead of the whole suite's timeouts. A stop
+//! requested on the session (SIGINT, SIGTERM) ends it with the checks completed so far
+//! ([`Stopped::Interrupted`]). Either way, and at the normal end, what the suite allocated is
+//! released unless [`SuiteOptions::keep`]. An [`Observer`] hears of each check as it starts and as
+//! it is judged, which is how `dnet-master conformance` prints each verdict at once
+//! ([`command`]).
+//!
 //! Every frame of every check is kept ([`SuiteReport::records`], each check's
 //! [`CheckResult::frames`]) and judged like the rest of the harness's frames.
 //!
@@ -48,6 +68,7 @@ mod runner;
 
 use crate::error::HarnessError;
 use devicenet::{Duration, MacId};
+use master_core::error::MasterError;
 use master_core::master::MasterConfig;
 use master_core::session::{Record, Session};
 use serde::Serialize;
@@ -194,14 +215,171 @@ pub struct SuiteOptions {
     pub latency_polls: u32,
     /// Explicit requests measured for the explicit latency.
     pub latency_requests: u32,
+    /// The bus in `--bus` form (`sim`, `socketcan:can0`, `slcan:/dev/ttyACM0@115200`): named in the
+    /// reports, and it decides what the frames' times can show ([`Timestamps`]). `None`: the
+    /// session's bus name.
+    pub transport: Option<String>,
+    /// Leave the device's connections allocated at the end (`--keep`); by default the suite
+    /// releases them, after an interruption too.
+    pub keep: bool,
 }
 
 impl SuiteOptions {
-    /// The defaults for `target`: EPR 100 ms, 200 polls and 50 explicit requests timed.
+    /// The defaults for `target`: EPR 100 ms, 200 polls and 50 explicit requests timed, the
+    /// session's bus, everything released at the end.
     pub fn new(target: MacId) -> SuiteOptions {
-        SuiteOptions { target, epr_ms: 100, latency_polls: 200, latency_requests: 50 }
+        SuiteOptions {
+            target,
+            epr_ms: 100,
+            latency_polls: 200,
+            latency_requests: 50,
+            transport: None,
+            keep: false,
+        }
     }
 }
+
+/// Where the times of the recorded frames come from, which decides whether the suite can judge
+/// timing (intervals between frames, latencies, watchdog expiry).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Timestamps {
+    /// The simulated bus's own clock: exact.
+    SimulatedClock,
+    /// SocketCAN: the kernel's receive timestamps.
+    Kernel,
+    /// SLCAN: the host's receive time of lines buffered on a serial line; frames arrive in bursts,
+    /// so timing is only advisory.
+    HostBuffered,
+}
+
+/// Why timing expectations are advisory on a transport that buffers frames.
+pub const BUFFERED_TIMING: &str =
+    "SLCAN on a serial line: frames arrive in bursts, their arrival times do not show the device's timing";
+
+impl Timestamps {
+    /// The source of the timestamps of `transport` (in `--bus` form): `slcan:…` buffers,
+    /// `socketcan:…` has kernel timestamps, anything else is the simulated bus.
+    pub fn of_transport(transport: &str) -> Timestamps {
+        if transport.starts_with("slcan") {
+            Timestamps::HostBuffered
+        } else if transport.starts_with("socketcan") {
+            Timestamps::Kernel
+        } else {
+            Timestamps::SimulatedClock
+        }
+    }
+
+    /// What the source is, in words.
+    pub fn description(self) -> &'static str {
+        match self {
+            Timestamps::SimulatedClock => "simulated bus clock, exact",
+            Timestamps::Kernel => "kernel receive timestamps (SocketCAN)",
+            Timestamps::HostBuffered => {
+                "host receive time of buffered serial lines (SLCAN): timing checks advisory"
+            }
+        }
+    }
+
+    /// Why timing cannot be judged from these timestamps, if it cannot.
+    pub fn timing_advisory(self) -> Option<&'static str> {
+        match self {
+            Timestamps::HostBuffered => Some(BUFFERED_TIMING),
+            Timestamps::SimulatedClock | Timestamps::Kernel => None,
+        }
+    }
+}
+
+/// The device's identity as read during the run (Identity object instance 1, notes §6.2); a
+/// value the run did not read is `None` ("not read" in the reports).
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DeviceIdentity {
+    /// Attribute 1.
+    pub vendor_id: Option<u16>,
+    /// Attribute 2.
+    pub device_type: Option<u16>,
+    /// Attribute 3.
+    pub product_code: Option<u16>,
+    /// Attribute 4: major, minor.
+    pub revision: Option<(u8, u8)>,
+    /// Attribute 6.
+    pub serial_number: Option<u32>,
+    /// Attribute 7.
+    pub product_name: Option<String>,
+}
+
+impl DeviceIdentity {
+    /// Takes attribute `attr` of Identity instance 1 from the value `data` read.
+    pub(crate) fn note(&mut self, attr: u8, data: &[u8]) {
+        match (attr, data) {
+            (1, [a, b]) => self.vendor_id = Some(u16::from_le_bytes([*a, *b])),
+            (2, [a, b]) => self.device_type = Some(u16::from_le_bytes([*a, *b])),
+            (3, [a, b]) => self.product_code = Some(u16::from_le_bytes([*a, *b])),
+            (4, [major, minor]) => self.revision = Some((*major, *minor)),
+            (6, [a, b, c, d]) => self.serial_number = Some(u32::from_le_bytes([*a, *b, *c, *d])),
+            (7, _) => {
+                if let Some(name) = master_core::decode::short_string(data) {
+                    self.product_name = Some(name.to_string());
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// `(label, value)` rows for the reports, "not read" where the run did not read it.
+    pub fn rows(&self) -> Vec<(&'static str, String)> {
+        let nr = || "not read".to_string();
+        vec![
+            ("vendor ID", self.vendor_id.map_or_else(nr, |v| format!("{v} (0x{v:04X})"))),
+            ("device type", self.device_type.map_or_else(nr, |v| format!("{v} (0x{v:04X})"))),
+            ("product code", self.product_code.map_or_else(nr, |v| format!("{v} (0x{v:04X})"))),
+            ("revision", self.revision.map_or_else(nr, |(a, b)| format!("{a}.{b:03}"))),
+            ("serial number", self.serial_number.map_or_else(nr, |v| format!("0x{v:08X}"))),
+            ("product name", self.product_name.clone().unwrap_or_else(nr)),
+        ]
+    }
+}
+
+/// Why the suite ended before its last check.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Stopped {
+    /// No device answers at the MAC: every other check would only time out.
+    NoDevice {
+        /// The MAC.
+        mac: MacId,
+        /// What was not seen.
+        detail: String,
+    },
+    /// SIGINT or SIGTERM (the signal's number): the checks completed so far are reported.
+    Interrupted(i32),
+}
+
+impl Stopped {
+    /// The reason in words (`interrupted by SIGINT`, `no device answers at MAC 7: …`).
+    pub fn text(&self) -> String {
+        match self {
+            Stopped::NoDevice { mac, detail } => format!("no device answers at MAC {mac}: {detail}"),
+            Stopped::Interrupted(s) => format!("interrupted by {}", master_core::stop::signal_name(*s)),
+        }
+    }
+}
+
+/// Follows a run check by check: the command prints each verdict as it comes and shows progress.
+/// Every method does nothing by default.
+pub trait Observer {
+    /// Check number `n` (from 1) of [`CHECKS`] starts.
+    fn start(&mut self, _n: usize, _id: &'static str, _title: &'static str) {}
+    /// The current check waits on the bus for a while (`what`: "waiting 4 x EPR …").
+    fn wait(&mut self, _what: &str) {}
+    /// A check was judged; `frames` are its records.
+    fn judged(&mut self, _check: &CheckResult, _frames: &[Record]) {}
+}
+
+/// An observer that does nothing.
+impl Observer for () {}
+
+/// The number of checks in the suite.
+pub const CHECKS: usize = 43;
 
 /// The whole suite's outcome.
 #[derive(Clone, Debug)]
@@ -214,8 +392,20 @@ pub struct SuiteReport {
     pub second_master: MacId,
     /// The bus interface name.
     pub bus: String,
+    /// The bus in `--bus` form.
+    pub transport: String,
+    /// Where the frames' times come from.
+    pub timestamps: Timestamps,
+    /// When the run started, UTC (`2025-01-31 14:05:09 UTC`).
+    pub started: String,
+    /// The device's identity as read during the run.
+    pub identity: DeviceIdentity,
     /// Every check, in the order run.
     pub checks: Vec<CheckResult>,
+    /// Why the run ended early, if it did.
+    pub stopped: Option<Stopped>,
+    /// What the suite released at the end, or kept (`--keep`).
+    pub release: String,
     /// Every frame of the run.
     pub records: Vec<Record>,
     /// Bus time the suite took.
@@ -233,6 +423,11 @@ impl SuiteReport {
         self.count(Grade::Fail)
     }
 
+    /// The suite passed: it ran to its end and no check failed.
+    pub fn passed(&self) -> bool {
+        self.stopped.is_none() && self.failed() == 0
+    }
+
     /// The check named `id`.
     pub fn check(&self, id: &str) -> Option<&CheckResult> {
         self.checks.iter().find(|c| c.id == id)
@@ -244,23 +439,64 @@ impl SuiteReport {
     }
 }
 
-/// Runs the whole suite against `opts.target` on `session`, as a master with `config`. Only a
-/// failing bus stops it: every other problem is a finding of the check it happened in.
+/// The current time, UTC, as `2025-01-31 14:05:09 UTC`.
+pub fn utc_now() -> String {
+    let t = time::OffsetDateTime::now_utc();
+    format!(
+        "{:04}-{:02}-{:02} {:02}:{:02}:{:02} UTC",
+        t.year(),
+        u8::from(t.month()),
+        t.day(),
+        t.hour(),
+        t.minute(),
+        t.second()
+    )
+}
+
+/// Runs the whole suite against `opts.target` on `session`, as a master with `config`. See
+/// [`run_observed`].
 pub fn run(
     session: &mut Session<'_>,
     config: MasterConfig,
     opts: &SuiteOptions,
 ) -> Result<SuiteReport, HarnessError> {
+    run_observed(session, config, opts, &mut ())
+}
+
+/// Runs the whole suite, telling `observer` about each check as it starts and as it is judged.
+///
+/// Only a failing bus ends it with an error: every other problem is a finding of the check it
+/// happened in. It ends early, with the checks completed so far and [`SuiteReport::stopped`] set,
+/// when no device answers at the MAC after the bring-up, and when the session's stop is requested
+/// (SIGINT, SIGTERM). At the end (an early one too) it releases what it allocated through the
+/// Group 2 Only port, unless [`SuiteOptions::keep`]; the session's stop watch is removed for that.
+pub fn run_observed(
+    session: &mut Session<'_>,
+    config: MasterConfig,
+    opts: &SuiteOptions,
+    observer: &mut dyn Observer,
+) -> Result<SuiteReport, HarnessError> {
     if opts.target == config.mac {
         return Err(HarnessError::Usage(format!("the device's MAC {} is the master's own MAC", opts.target)));
     }
     let master_mac = config.mac;
+    let started = utc_now();
     let start = session.now();
     let bus = session.bus_name().to_string();
-    let (checks, second_master) = {
-        let mut runner = runner::Runner::new(session, config, opts.clone());
-        checks::run_all(&mut runner)?;
-        (runner.take_results(), runner.second_master())
+    let transport = opts.transport.clone().unwrap_or_else(|| bus.clone());
+    let timestamps = Timestamps::of_transport(&transport);
+    let (checks, second_master, identity, stopped, release) = {
+        let mut runner = runner::Runner::new(session, config, opts.clone(), timestamps, observer);
+        let stopped = match checks::run_all(&mut runner) {
+            Ok(()) => None,
+            Err(HarnessError::NoDevice { mac, detail }) => Some(Stopped::NoDevice { mac, detail }),
+            Err(HarnessError::Master(MasterError::Interrupted { signal })) => {
+                Some(Stopped::Interrupted(signal))
+            }
+            Err(e) => return Err(e),
+        };
+        let release = runner.finish(opts.keep, stopped.is_some())?;
+        (runner.take_results(), runner.second_master(), runner.identity(), stopped, release)
     };
     let end = session.now();
     Ok(SuiteReport {
@@ -268,7 +504,13 @@ pub fn run(
         master: master_mac,
         second_master,
         bus,
+        transport,
+        timestamps,
+        started,
+        identity,
         checks,
+        stopped,
+        release,
         records: session.records().to_vec(),
         duration: end - start,
     })

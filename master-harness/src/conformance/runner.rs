@@ -4,7 +4,7 @@
 //! master's own checked exchanges.
 
 use super::{Basis, CheckResult, Expectation, Grade, Measurement, SuiteOptions};
-use super::{Category, HarnessError};
+use super::{Category, DeviceIdentity, HarnessError, Observer, Timestamps};
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use devicenet::fragment::{next_count, FragmentByte, FragmentKind, IoReassembler};
@@ -47,6 +47,8 @@ pub(crate) struct Check {
     expectations: Vec<Expectation>,
     measurements: Vec<Measurement>,
     start: usize,
+    /// Why the frames' times cannot be judged on this transport, if they cannot.
+    untimed: Option<&'static str>,
 }
 
 impl Check {
@@ -72,6 +74,20 @@ impl Check {
         self.expectations.push(Expectation { text: text.into(), grade: Grade::Advisory, basis, frame: None });
     }
 
+    /// An expectation on timing (an interval between frames, a latency, a watchdog's expiry):
+    /// graded as [`Check::expect`] where the transport's timestamps show the device's timing;
+    /// where they do not (SLCAN), advisory whatever the value, with the reason.
+    pub fn timed(&mut self, basis: Basis, ok: bool, text: impl Into<String>, frame: Option<usize>) -> bool {
+        match self.untimed {
+            None => self.expect(basis, ok, text, frame),
+            Some(why) => {
+                let text = format!("{} (not judged: {why})", text.into());
+                self.expectations.push(Expectation { text, grade: Grade::Advisory, basis, frame });
+                ok
+            }
+        }
+    }
+
     /// A measured value.
     pub fn measure(&mut self, name: impl Into<String>, value: f64, unit: &'static str) {
         self.measurements.push(Measurement { name: name.into(), value, unit });
@@ -81,6 +97,12 @@ impl Check {
 /// The suite's master and what it knows.
 pub(crate) struct Runner<'s, 'b> {
     pub m: Master<'s, 'b>,
+    /// Told about each check.
+    observer: &'s mut dyn Observer,
+    /// Why timing cannot be judged on this transport, if it cannot.
+    untimed: Option<&'static str>,
+    /// The device's identity as read.
+    identity: DeviceIdentity,
     pub opts: SuiteOptions,
     pub facts: Facts,
     /// A MAC the suite uses as a second master.
@@ -104,12 +126,28 @@ fn free_mac(from: u8, taken: &[MacId]) -> MacId {
 }
 
 impl<'s, 'b> Runner<'s, 'b> {
-    pub fn new(session: &'s mut Session<'b>, config: MasterConfig, opts: SuiteOptions) -> Self {
+    pub fn new(
+        session: &'s mut Session<'b>,
+        config: MasterConfig,
+        opts: SuiteOptions,
+        timestamps: Timestamps,
+        observer: &'s mut dyn Observer,
+    ) -> Self {
         let second = free_mac(config.mac.as_raw().wrapping_add(1), &[config.mac, opts.target]);
         let bystander = free_mac(opts.target.as_raw().wrapping_add(1), &[config.mac, opts.target, second]);
         let mut m = Master::new(session, config);
         m.set_device(opts.target);
-        Runner { m, opts, facts: Facts::default(), second, bystander, results: Vec::new() }
+        Runner {
+            m,
+            observer,
+            untimed: timestamps.timing_advisory(),
+            identity: DeviceIdentity::default(),
+            opts,
+            facts: Facts::default(),
+            second,
+            bystander,
+            results: Vec::new(),
+        }
     }
 
     /// The device under test.
@@ -124,6 +162,51 @@ impl<'s, 'b> Runner<'s, 'b> {
 
     pub fn second_master(&self) -> MacId {
         self.second
+    }
+
+    /// The device's identity as read so far.
+    pub fn identity(&self) -> DeviceIdentity {
+        self.identity.clone()
+    }
+
+    /// Notes identity values the bring-up read.
+    pub fn note_identity(&mut self, attr: u8, value: Option<u16>) {
+        if let Some(v) = value {
+            self.identity.note(attr, &v.to_le_bytes());
+        }
+    }
+
+    /// Whether the device sent anything at all in this run (its duplicate MAC ID check, any
+    /// answer): the criterion for "no device answers at the MAC".
+    pub fn device_heard(&self) -> bool {
+        let dut = self.dut();
+        self.m.session.records().iter().any(|r| r.origin == Origin::Remote && is_from_device(&r.frame, dut))
+    }
+
+    /// Tells the observer the current check waits on the bus (`what`).
+    pub fn waiting(&mut self, what: &str) {
+        self.observer.wait(what);
+    }
+
+    /// The end of a run, a complete or an early one: releases the connections (as the master, and
+    /// as the second master when the device belongs to it) through the Group 2 Only port, unless
+    /// `keep`. The session's stop watch is removed first, so an interrupted run still gives the
+    /// device back. Nothing is released when the device was never heard. Returns what was done,
+    /// in words.
+    pub fn finish(&mut self, keep: bool, early: bool) -> Result<String, HarnessError> {
+        self.m.session.take_stop();
+        let dut = self.dut();
+        if keep {
+            return Ok(format!("connections of MAC {dut} kept allocated (--keep)"));
+        }
+        if !self.device_heard() {
+            return Ok("nothing to release: the device never answered".into());
+        }
+        if early {
+            self.observer.wait("releasing the device");
+        }
+        self.release_all()?;
+        Ok(format!("poll and explicit connections of MAC {dut} released through the Group 2 Only port"))
     }
 
     /// The results so far, handed over at the end.
@@ -152,10 +235,22 @@ impl<'s, 'b> Runner<'s, 'b> {
         section: &'static str,
         body: impl FnOnce(&mut Self, &mut Check) -> Result<(), HarnessError>,
     ) -> Result<(), HarnessError> {
-        let mut c = Check { expectations: Vec::new(), measurements: Vec::new(), start: self.mark() };
+        // A stop asked for between two checks ends the run before the next one.
+        if let Some(signal) = self.m.session.stop_requested() {
+            return Err(MasterError::Interrupted { signal }.into());
+        }
+        self.observer.start(self.results.len() + 1, id, title);
+        let mut c = Check {
+            expectations: Vec::new(),
+            measurements: Vec::new(),
+            start: self.mark(),
+            untimed: self.untimed,
+        };
         match body(self, &mut c) {
             Ok(()) => {}
             Err(HarnessError::Master(MasterError::Bus(e))) => return Err(e.into()),
+            // Interrupted: the check did not complete and is not reported.
+            Err(e @ HarnessError::Master(MasterError::Interrupted { .. })) => return Err(e),
             Err(e) => {
                 c.firm(false, format!("stopped: {e}"), None);
             }
@@ -186,6 +281,10 @@ impl<'s, 'b> Runner<'s, 'b> {
             measurements: c.measurements,
             frames: c.start..end,
         });
+        if let Some(done) = self.results.last() {
+            let frames = self.m.session.records().get(c.start..end).unwrap_or(&[]);
+            self.observer.judged(done, frames);
+        }
         Ok(())
     }
 
@@ -218,6 +317,9 @@ impl<'s, 'b> Runner<'s, 'b> {
 
     /// Waits `d`, expecting nothing from the device: every frame it sends fails. Returns how many.
     pub fn expect_silence(&mut self, c: &mut Check, d: Duration, what: &str) -> Result<usize, HarnessError> {
+        if d >= Duration::from_secs(1) {
+            self.waiting(&format!("listening {d} for silence"));
+        }
         let until = self.now() + d;
         let got = self.collect(until)?;
         for &i in &got {
@@ -272,9 +374,15 @@ impl<'s, 'b> Runner<'s, 'b> {
         Ok(self.m.request(self.dut(), port, &req)?)
     }
 
-    /// Get_Attribute_Single through the explicit connection.
+    /// Get_Attribute_Single through the explicit connection. Identity values read are kept for
+    /// the report.
     pub fn get(&mut self, class_id: u16, instance: u16, attribute: u8) -> Result<Answer, HarnessError> {
-        self.request(Port::Explicit, ServiceCode::GetAttributeSingle, class_id, instance, &[attribute])
+        let a =
+            self.request(Port::Explicit, ServiceCode::GetAttributeSingle, class_id, instance, &[attribute])?;
+        if let (class::IDENTITY, 1, ReplyBody::Success(d)) = (class_id, instance, &a.reply.body) {
+            self.identity.note(attribute, d);
+        }
+        Ok(a)
     }
 
     /// Set_Attribute_Single through the explicit connection.
@@ -631,6 +739,9 @@ impl<'s, 'b> Runner<'s, 'b> {
     /// `wait` has passed.
     pub fn send_collect(&mut self, frame: &[u8], wait: Duration) -> Result<Vec<usize>, HarnessError> {
         let id = self.explicit_request_id();
+        if wait >= Duration::from_secs(1) {
+            self.waiting(&format!("collecting the device's frames for {wait}"));
+        }
         self.send(id, frame)?;
         let until = self.now() + wait;
         self.collect(until)

@@ -11,13 +11,13 @@ mod timing;
 use super::runner::Runner;
 use crate::error::HarnessError;
 
-/// Runs every check, then leaves the device released.
+/// Runs every check. Ends early with [`HarnessError::NoDevice`] when nothing answers at the MAC
+/// after the bring-up, and with the interruption when a stop is asked for; releasing the device
+/// is the caller's ([`Runner::finish`]).
 pub(crate) fn run_all(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
     network::run(r)?;
     connection_set::run(r)?;
     explicit::run(r)?;
     connections::run(r)?;
-    timing::run(r)?;
-    // Polite: give everything back.
-    r.release_all()
+    timing::run(r)
 }

@@ -17,7 +17,26 @@ use master_core::session::Verdict;
 const NA: Category = Category::NetworkAccess;
 
 pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
-    r.run("bring-up", "the bring-up of notes §2, every frame checked", NA, "§2", bring_up)?;
+    r.run(
+        "bring-up",
+        "the bring-up (the reference start-up sequence), every frame checked",
+        NA,
+        "§2",
+        bring_up,
+    )?;
+    // Nothing from the device during the whole bring-up (no duplicate MAC ID check, no answer to
+    // the UCMM probes or to the Allocate through the Group 2 Only port, notes §2, §3.4, §7.1):
+    // nobody is there, and every other check would only time out.
+    if !r.device_heard() {
+        return Err(HarnessError::NoDevice {
+            mac: r.dut(),
+            detail: format!(
+                "it sent no duplicate MAC ID check and did not answer the Allocate through the Group 2 Only port \
+                 within {} (no other check was run)",
+                r.m.config.response_timeout
+            ),
+        });
+    }
     r.run(
         "dup-mac-startup",
         "its own duplicate MAC ID check: two requests 1 s apart, then on-line",
@@ -45,8 +64,12 @@ fn bring_up(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
         verify_state: false,
     };
     let start = r.mark();
+    r.waiting("network access and the device's duplicate MAC ID check (2 s)");
     let summary = r.m.connect(&opts)?;
     let frames = r.mark() - start;
+    r.note_identity(1, summary.vendor_id);
+    r.note_identity(2, summary.device_type);
+    r.note_identity(3, summary.product_code);
     r.facts.produced = summary.produced_size;
     r.facts.consumed = summary.consumed_size;
     r.facts.applied_epr = summary.expected_packet_rate_ms;
@@ -57,7 +80,7 @@ fn bring_up(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
     c.firm(
         true,
         format!(
-            "brought up in {frames} frames (the reference device of §2 takes 28): explicit and poll connections \
+            "brought up in {frames} frames (the reference device takes 28): explicit and poll connections \
              established, EPR {} ms, {} / {} bytes produced / consumed",
             summary.expected_packet_rate_ms.unwrap_or(0),
             summary.produced_size.unwrap_or(0),
@@ -89,9 +112,10 @@ fn dup_mac_startup(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessE
         [(i0, t0, d0), (i1, t1, d1), rest @ ..] => {
             let gap = (*t1 - *t0).total_micros() as f64 / 1000.0;
             c.measure("interval between the two requests", gap, "ms");
-            c.firm(
+            c.timed(
+                Basis::Normative,
                 (900.0..=1100.0).contains(&gap),
-                format!("second request {gap:.1} ms after the first (1 s, §7.1)"),
+                format!("second request {gap:.1} ms after the first (1 s)"),
                 Some(*i1),
             );
             c.firm(
