@@ -785,13 +785,18 @@ mod tests {
 
     fn meter() -> InputLayout {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../slave-fw/descriptions/modbus-meter.toml");
-        InputLayout::from_converter(&slave_fw::description::DeviceDescription::load(path.as_ref()).unwrap().converter)
+        InputLayout::from_converter(
+            &slave_fw::description::DeviceDescription::load(path.as_ref()).unwrap().converter,
+        )
     }
 
     #[test]
     fn csv_lines() {
         let layout = breaker();
-        assert_eq!(csv_header(&layout), "time_s,phase_a,phase_b,phase_c,neutral,switch,status,freshness,stale,raw");
+        assert_eq!(
+            csv_header(&layout),
+            "time_s,phase_a,phase_b,phase_c,neutral,switch,status,freshness,stale,raw"
+        );
         let s = Sample::new(5_100_000, INPUT_IMAGE.to_vec(), &layout);
         assert_eq!(csv_line(&s, &layout), "5.100000,0,0,0,0,open,,,,0000000000000000000F0000000000000000");
         let short = Sample::new(1, vec![1, 2], &layout);
@@ -852,7 +857,13 @@ mod tests {
         let coils = ScanEntry { unit: 2, function: Function::ReadCoils, address: 9, count: 10, offset: 0 };
         let f = modbus_field(&coils, ByteOrder::LittleEndian, &[0b1000_0101, 0b10]);
         assert_eq!(f.text, "u2 fc1 @00010+10: 1, 0, 1, 0, 0, 0, 0, 1, 0, 1");
-        let far = ScanEntry { unit: 1, function: Function::ReadHoldingRegisters, address: 9999, count: 1, offset: 0 };
+        let far = ScanEntry {
+            unit: 1,
+            function: Function::ReadHoldingRegisters,
+            address: 9999,
+            count: 1,
+            offset: 0,
+        };
         assert_eq!(modbus_ref(&far, 0), "410000");
     }
 }

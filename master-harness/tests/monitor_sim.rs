@@ -78,7 +78,8 @@ fn the_modbus_meter_is_shown_with_its_scan_list_never_as_the_breaker() {
 #[test]
 fn the_reference_breaker_is_decoded_as_before() {
     let csv = temp("breaker.csv");
-    let (code, out, err) = dnet(&["monitor", "--count", "15", "--output", "0201", "--csv", csv.to_str().unwrap()]);
+    let (code, out, err) =
+        dnet(&["monitor", "--count", "15", "--output", "0201", "--csv", csv.to_str().unwrap()]);
     assert_eq!(code, 0, "{out}{err}");
     let lines = sample_lines(&out);
     assert_eq!(lines.len(), 15, "{out}");
@@ -108,8 +109,17 @@ fn the_status_assembly_names_the_status_byte_and_the_freshness_counter() {
     // The breaker sends a status frame every second: one more good frame per sample.
     assert!(freshness.windows(2).all(|w| w[1] == w[0] + 1), "{freshness:?}\n{out}");
     // The same description given to monitor alone decodes the same way.
-    let (code, with_description, _) =
-        dnet(&["--slave-config", &config, "monitor", "--count", "4", "--epr", "1000", "--description", &config]);
+    let (code, with_description, _) = dnet(&[
+        "--slave-config",
+        &config,
+        "monitor",
+        "--count",
+        "4",
+        "--epr",
+        "1000",
+        "--description",
+        &config,
+    ]);
     assert_eq!(code, 0);
     assert_eq!(with_description, out);
     // The plain reference device decoded with this description: 18 bytes are not 20, shown raw.
