@@ -406,7 +406,16 @@ fn bring_up_over_vcan_is_notes_section_2_byte_for_byte_recorded_by_candump_and_d
     let mut listener = SocketCanBus::open(IFACE).expect("a listening socket on vcan0");
     let mut master = rig.master(
         "master",
-        &["--keep", "--log", &rig.path("master.log"), "--pcap", &rig.path("master.pcap"), "connect", "--mac", "5"],
+        &[
+            "--keep",
+            "--log",
+            &rig.path("master.log"),
+            "--pcap",
+            &rig.path("master.pcap"),
+            "connect",
+            "--mac",
+            "5",
+        ],
     );
     await_master_second_check(&mut listener, Duration::from_secs(30));
     let mut slave = rig.soft_slave("slave");
