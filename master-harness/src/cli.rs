@@ -13,7 +13,7 @@
 use crate::conformance::command::ConformanceCommand;
 use crate::console::{Console, Progress};
 use crate::error::HarnessError;
-use crate::monitor::{self, MonitorOptions};
+use crate::monitor::{self, InputLayout, MonitorOptions};
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
 use crate::table::{print_table, record_json, RecordJson};
@@ -255,6 +255,10 @@ pub enum Command {
         /// Report a lost connection (bus error, poll unanswered) and reconnect instead of stopping.
         #[arg(long)]
         reconnect: bool,
+        /// Decode the polled data with this device description (TOML) [default on sim: the
+        /// --slave-config description, else the reference breaker; on a real bus: raw bytes].
+        #[arg(long, value_name = "FILE")]
+        description: Option<PathBuf>,
     },
     /// Pretty-print a candump -L log as DeviceNet messages.
     Decode {
@@ -432,6 +436,20 @@ fn master_mac(cli: &Cli, transcript: Option<&[LogEntry]>) -> Result<MacId, Harne
     }
 }
 
+/// How `monitor` decodes the polled data: `--description`, else on the simulated bus the
+/// `--slave-config` description or the reference device (which the simulated device then is), else
+/// (a real bus, nothing known of the device) raw bytes. `--slave-config` describes only the
+/// simulated devices, so on a real bus it does not choose the decoding.
+fn monitor_layout(cli: &Cli, description: Option<&std::path::Path>) -> Result<InputLayout, HarnessError> {
+    let config = match (description, &cli.slave_config, &cli.bus) {
+        (Some(path), _, _) => DeviceDescription::load(path)?.converter,
+        (None, Some(path), BusSpec::Sim) => DeviceDescription::load(path)?.converter,
+        (None, None, BusSpec::Sim) => DeviceDescription::reference().converter,
+        (None, _, _) => return Ok(InputLayout::raw()),
+    };
+    Ok(InputLayout::from_converter(&config))
+}
+
 /// Creates an output file before the command touches the bus, so a path that cannot be written is
 /// an error at once, not after the run.
 fn create_output(path: &std::path::Path) -> Result<std::fs::File, HarnessError> {
@@ -510,6 +528,8 @@ fn execute(
     let mut master = Master::new(&mut session, config);
     let mut progress = progress;
     let target = device.unwrap_or(MacId::from_low_bits(5));
+    // What a command produced before it failed or was interrupted (monitor's samples).
+    let mut partial: Option<Outcome> = None;
     let result: Result<Outcome, HarnessError> = match &cli.command {
         Command::Connect { epr, polls, output, verify_state, .. } => {
             let opts = ConnectOptions {
@@ -557,7 +577,7 @@ fn execute(
         Command::Set { mac, class, instance, attribute, value } => {
             explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0))
         }
-        Command::Monitor { epr, output, count, duration, reconnect, .. } => {
+        Command::Monitor { epr, output, count, duration, reconnect, description, .. } => {
             let duration = match duration {
                 Some(d) if !(d.is_finite() && *d >= 0.0) => {
                     return Err(HarnessError::Usage(format!("--duration {d}: expected seconds >= 0")))
@@ -580,18 +600,32 @@ fn execute(
                 duration,
                 in_place: console.stdout_terminal && !cli.json,
                 reconnect: *reconnect,
+                layout: monitor_layout(cli, description.as_deref())?,
             };
             let mut sink = std::io::sink();
             let screen: &mut dyn Write = if cli.json { &mut sink } else { &mut *out };
             progress.show(&format!("monitor: bringing up MAC {target} ..."));
-            let r =
-                monitor::monitor(&mut master, &opts, screen, csv_file.as_mut().map(|f| f as &mut dyn Write));
+            let run = monitor::monitor(
+                &mut master,
+                &opts,
+                screen,
+                csv_file.as_mut().map(|f| f as &mut dyn Write),
+                &mut progress,
+            );
             progress.clear();
-            r.map(|samples| Outcome {
-                text: format!("{} samples", samples.len()),
-                json: json!({ "samples": samples }),
+            let outcome = Outcome {
+                text: format!("{} samples", run.samples.len()),
+                json: json!({ "samples": run.samples }),
                 code: 0,
-            })
+            };
+            match run.ended {
+                None => Ok(outcome),
+                Some(e) => {
+                    // Interrupted or failed: the samples taken are still reported.
+                    partial = Some(outcome);
+                    Err(e)
+                }
+            }
         }
         Command::Decode { .. } | Command::Conformance { .. } => unreachable!("handled above"),
     };
@@ -632,7 +666,7 @@ fn execute(
     let records = session.records();
     let (mut code, error_text, payload) = match result {
         Ok(o) => (o.code, None, Some(o)),
-        Err(e) => (exit_code(&e), Some(e), None),
+        Err(e) => (exit_code(&e), Some(e), partial.take()),
     };
     if failures > 0 && code == 0 {
         code = 1;

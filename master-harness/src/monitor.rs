@@ -1,7 +1,40 @@
 //! `monitor --mac N`: bring the device up, then poll it at the expected packet rate and show the
-//! polled data decoded by the device profile — for the breaker: the four phase currents and the
-//! switch state — refreshed in place on a terminal, one line per sample otherwise; `--csv FILE`
-//! records every sample.
+//! polled data decoded by the device's own profile, refreshed in place on a terminal, one line per
+//! sample otherwise; `--csv FILE` records every sample, a row flushed as it is taken.
+//!
+//! ## Decoding: the device's description, or raw bytes
+//!
+//! The input image is decoded by an [`InputLayout`] taken from a device description:
+//! `--description FILE` (any bus), else on the simulated bus the `--slave-config` file, else on the
+//! simulated bus the built-in reference device (the breaker: without `--slave-config` the simulated
+//! device *is* the reference converter). On a real bus without `--description` nothing is known of
+//! the device, and the data is shown as raw hex bytes: monitor does not guess a profile.
+//!
+//! | profile | fields |
+//! |---|---|
+//! | breaker | the four phase currents and the switch state (`open`, `closed`, `unknown (0xXX)`) |
+//! | framed | the image as hex bytes |
+//! | Modbus | one field per read entry of the scan list: `u1 fc3 @40101+2: 230, 231` (unit, function, the first item in Modbus notation, count), registers decoded in the description's `byte_order`, coils and inputs as bits `0`/`1` |
+//!
+//! With input assembly 101 (`with_status`: produced size = image + 2) the status byte and the
+//! freshness counter that follow the image are named: `link ok` / `STALE: LINK TIMEOUT` /
+//! `link starting`, `errors seen`, `Modbus exception`, `request unanswered`, the last command's
+//! outcome, and the freshness counter. A sample whose status says link timeout (bit 1) is stale:
+//! `STALE` on its line, `stale` in the CSV and JSON. Data of another length than the description
+//! produces is shown raw with the two sizes named.
+//!
+//! The CSV columns are `time_s`, the profile's fields (breaker: `phase_a,phase_b,phase_c,neutral,
+//! switch`; Modbus: one column per register or bit, named `u1:40101`), then `status` (`0x01`),
+//! `freshness`, `stale` (`1`/`0`; the three empty without a status byte) and `raw` (hex).
+//!
+//! ## How a run ends
+//!
+//! [`monitor`] returns the samples it took together with what ended the run
+//! ([`MonitorRun::ended`]): nothing (`--count` or `--duration` reached), a failure, or an
+//! interruption (SIGINT / SIGTERM through the session's stop). The command line reports the
+//! samples in every case, and exits 128 + the signal after an interruption.
+//!
+//! ## `--reconnect`
 //!
 //! With `--reconnect` a lost connection does not end the run: a bus error (a SocketCAN interface
 //! taken down, an adapter unplugged) or a poll left unanswered is reported as `connection lost`,
@@ -11,6 +44,7 @@
 //! poll connection left over, Allocate poll, sizes and expected packet rate again, then polling
 //! goes on (`reconnected`). A device that restarted is simply asked until it is on-line again.
 
+use crate::console::Progress;
 use crate::error::HarnessError;
 use converter_sim::device::{SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::explicit::GeneralStatus;
@@ -21,6 +55,9 @@ use master_core::client::Port;
 use master_core::error::MasterError;
 use master_core::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
 use master_core::session::Verdict;
+use slave_fw::converter::{ConverterConfig, InputAssembly};
+use slave_fw::serial::modbus::{ByteOrder, Function, ScanEntry};
+use slave_fw::serial::{FramedProfileConfig, ProfileConfig, StatusByte};
 use std::io::Write;
 
 /// The breaker profile's view of the 18-byte poll response.
@@ -49,6 +86,274 @@ impl BreakerStatus {
     }
 }
 
+/// How the instrument's image is decoded.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ImageProfile {
+    /// Nothing known: raw bytes.
+    Raw,
+    /// The breaker preset: phase currents and the switch.
+    Breaker,
+    /// Another framed instrument: the image as bytes.
+    Framed,
+    /// A Modbus gateway: one field per read entry of the scan list.
+    Modbus {
+        /// Register byte order in the image.
+        byte_order: ByteOrder,
+        /// The read entries (functions 1–4), in scan-list order.
+        reads: Vec<ScanEntry>,
+    },
+}
+
+/// What the poll response carries: the decoded image and, with assembly 101, the status byte and
+/// the freshness counter. See the [module docs](self).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct InputLayout {
+    /// How the image is decoded.
+    pub profile: ImageProfile,
+    /// The image's length in bytes (0 for [`ImageProfile::Raw`]).
+    pub image_len: usize,
+    /// The status byte and the freshness counter follow the image (assembly 101).
+    pub with_status: bool,
+}
+
+/// `true` when `c` is the breaker preset (a `kind = "breaker"` description may change only its
+/// serial line, health and sequencer, never its frames).
+fn is_breaker(c: &FramedProfileConfig) -> bool {
+    let b = FramedProfileConfig::breaker();
+    c.framing == b.framing && c.status_len == b.status_len && c.ack == b.ack && c.commands == b.commands
+}
+
+impl InputLayout {
+    /// Nothing known of the device: raw bytes, no status byte assumed.
+    pub fn raw() -> InputLayout {
+        InputLayout { profile: ImageProfile::Raw, image_len: 0, with_status: false }
+    }
+
+    /// The layout of the converter `config` describes (a description's `converter`).
+    pub fn from_converter(config: &ConverterConfig) -> InputLayout {
+        let profile = match &config.profile {
+            ProfileConfig::Framed(c) if is_breaker(c) => ImageProfile::Breaker,
+            ProfileConfig::Framed(_) => ImageProfile::Framed,
+            ProfileConfig::Modbus(m) => ImageProfile::Modbus {
+                byte_order: m.byte_order,
+                reads: m.scan.iter().filter(|e| !e.function.is_write()).copied().collect(),
+            },
+        };
+        InputLayout {
+            profile,
+            image_len: config.profile.input_len(),
+            with_status: config.input == InputAssembly::WithStatus,
+        }
+    }
+
+    /// The produced size the layout expects; `None` for raw bytes.
+    pub fn produced_size(&self) -> Option<usize> {
+        match self.profile {
+            ImageProfile::Raw => None,
+            _ => Some(self.image_len + if self.with_status { 2 } else { 0 }),
+        }
+    }
+
+    /// The CSV columns of the profile's fields.
+    pub fn field_columns(&self) -> Vec<String> {
+        match &self.profile {
+            ImageProfile::Raw | ImageProfile::Framed => Vec::new(),
+            ImageProfile::Breaker => {
+                ["phase_a", "phase_b", "phase_c", "neutral", "switch"].map(String::from).to_vec()
+            }
+            ImageProfile::Modbus { reads, .. } => reads
+                .iter()
+                .flat_map(|e| (0..e.count).map(move |i| format!("u{}:{}", e.unit, modbus_ref(e, i))))
+                .collect(),
+        }
+    }
+
+    /// Decodes one poll response.
+    pub fn decode(&self, input: &[u8]) -> Decoded {
+        let Some(size) = self.produced_size() else {
+            return Decoded::default();
+        };
+        if input.len() != size {
+            return Decoded {
+                note: Some(format!("{} bytes; the description produces {size}", input.len())),
+                ..Decoded::default()
+            };
+        }
+        let (image, tail) = input.split_at(self.image_len);
+        let link = match tail {
+            [status, freshness] if self.with_status => Some(LinkView::new(*status, *freshness)),
+            _ => None,
+        };
+        let fields = match &self.profile {
+            ImageProfile::Raw => Vec::new(),
+            ImageProfile::Breaker => breaker_fields(image),
+            ImageProfile::Framed => vec![Field {
+                name: "data".into(),
+                values: image.iter().map(|b| u16::from(*b)).collect(),
+                text: master_core::decode::hex(image),
+            }],
+            ImageProfile::Modbus { byte_order, reads } => {
+                reads.iter().map(|e| modbus_field(e, *byte_order, image)).collect()
+            }
+        };
+        Decoded { fields, link, note: None }
+    }
+}
+
+/// The Modbus reference of item `i` of `e`: `40001` for holding register 0 (`0xxxx` coils,
+/// `1xxxx` inputs, `3xxxx` input registers, `4xxxx` holding registers; six digits past 9999).
+fn modbus_ref(e: &ScanEntry, i: u16) -> String {
+    let prefix = match e.function {
+        Function::ReadCoils => 0,
+        Function::ReadDiscreteInputs => 1,
+        Function::ReadInputRegisters => 3,
+        _ => 4,
+    };
+    let number = u32::from(e.address) + u32::from(i) + 1;
+    if number <= 9999 {
+        format!("{prefix}{number:04}")
+    } else {
+        format!("{prefix}{number:05}")
+    }
+}
+
+/// One read entry's values from `image`.
+fn modbus_field(e: &ScanEntry, order: ByteOrder, image: &[u8]) -> Field {
+    let at = usize::from(e.offset);
+    let values: Vec<u16> = if e.function.is_bits() {
+        (0..usize::from(e.count))
+            .map(|i| image.get(at + i / 8).map_or(0, |b| u16::from((b >> (i % 8)) & 1)))
+            .collect()
+    } else {
+        (0..usize::from(e.count))
+            .map(|i| {
+                let b = [image.get(at + 2 * i), image.get(at + 2 * i + 1)].map(|b| b.copied().unwrap_or(0));
+                match order {
+                    ByteOrder::LittleEndian => u16::from_le_bytes(b),
+                    ByteOrder::BigEndian => u16::from_be_bytes(b),
+                }
+            })
+            .collect()
+    };
+    let name = format!("u{} fc{} @{}+{}", e.unit, e.function.code(), modbus_ref(e, 0), e.count);
+    let list: Vec<String> = values.iter().map(ToString::to_string).collect();
+    Field { text: format!("{name}: {}", list.join(", ")), name, values }
+}
+
+fn breaker_fields(image: &[u8]) -> Vec<Field> {
+    let Some(b) = BreakerStatus::decode(image) else {
+        return Vec::new();
+    };
+    let mut fields: Vec<Field> = ["phase_a", "phase_b", "phase_c", "neutral"]
+        .iter()
+        .zip(b.currents)
+        .map(|(name, a)| Field { name: (*name).into(), values: vec![u16::from(a)], text: format!("{a} A") })
+        .collect();
+    fields.push(Field { name: "switch".into(), values: vec![u16::from(b.switch)], text: b.switch_text() });
+    fields
+}
+
+/// One decoded field of the image.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Field {
+    /// `phase_a`, `switch`, `data`, or a Modbus entry `u1 fc3 @40101+2`.
+    pub name: String,
+    /// Its values: a current, the switch byte, bytes, registers, or bits (0/1).
+    pub values: Vec<u16>,
+    /// As shown: `120 A`, `closed`, `u1 fc3 @40101+2: 230, 231`.
+    pub text: String,
+}
+
+/// The status byte and the freshness counter of assembly 101, decoded (bit layout in the README,
+/// "Input assemblies and the status byte").
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct LinkView {
+    /// The status byte as received.
+    pub status: u8,
+    /// The freshness counter.
+    pub freshness: u8,
+    /// `ok` (bit 0), `timeout` (bit 1) or `starting` (neither).
+    pub link: &'static str,
+    /// Bit 2: framing or checksum errors seen since the last good frame.
+    pub errors_seen: bool,
+    /// Bit 3: a Modbus exception.
+    pub exception: bool,
+    /// Bit 7: a Modbus request unanswered after all retries.
+    pub request_unanswered: bool,
+    /// Bits 4–6: `none`, `pending`, `ok`, `rejected`, `failed`, `unsupported` (or `code N`).
+    pub command: &'static str,
+}
+
+impl LinkView {
+    /// Decodes the two bytes.
+    pub fn new(status: u8, freshness: u8) -> LinkView {
+        let s = StatusByte::from_raw(status);
+        let link = if s.contains(StatusByte::LINK_TIMEOUT) {
+            "timeout"
+        } else if s.contains(StatusByte::LINK_OK) {
+            "ok"
+        } else {
+            "starting"
+        };
+        let command = match s.command_code() {
+            0 => "none",
+            1 => "pending",
+            2 => "ok",
+            3 => "rejected",
+            4 => "failed",
+            5 => "unsupported",
+            6 => "code 6",
+            _ => "code 7",
+        };
+        LinkView {
+            status,
+            freshness,
+            link,
+            errors_seen: s.contains(StatusByte::FRAME_ERRORS),
+            exception: s.contains(StatusByte::EXCEPTION),
+            request_unanswered: s.contains(StatusByte::REQUEST_TIMEOUT),
+            command,
+        }
+    }
+
+    /// Status bit 1: the instrument has been silent for the stale timeout; the data is held or
+    /// cleared, not live.
+    pub fn stale(&self) -> bool {
+        self.link == "timeout"
+    }
+
+    /// `link ok, command none, freshness 12` / `STALE: LINK TIMEOUT, errors seen, ...`.
+    pub fn text(&self) -> String {
+        let mut parts = vec![match self.link {
+            "timeout" => "STALE: LINK TIMEOUT".to_string(),
+            other => format!("link {other}"),
+        }];
+        if self.errors_seen {
+            parts.push("errors seen".into());
+        }
+        if self.exception {
+            parts.push("Modbus exception".into());
+        }
+        if self.request_unanswered {
+            parts.push("request unanswered".into());
+        }
+        parts.push(format!("command {}", self.command));
+        parts.push(format!("freshness {}", self.freshness));
+        parts.join(", ")
+    }
+}
+
+/// A poll response decoded by an [`InputLayout`].
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Decoded {
+    /// The image's fields (none for raw bytes, or when the size does not fit).
+    pub fields: Vec<Field>,
+    /// The status byte and freshness counter, with assembly 101.
+    pub link: Option<LinkView>,
+    /// Why the data is shown raw although a description was given.
+    pub note: Option<String>,
+}
+
 /// Options of `monitor`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MonitorOptions {
@@ -62,6 +367,8 @@ pub struct MonitorOptions {
     pub in_place: bool,
     /// Report a lost connection and get it back instead of stopping (`--reconnect`).
     pub reconnect: bool,
+    /// How the poll response is decoded.
+    pub layout: InputLayout,
 }
 
 /// How often `--reconnect` tries to get a lost connection back.
@@ -113,13 +420,16 @@ fn reestablish(master: &mut Master<'_, '_>, target: MacId, epr_ms: u16) -> Resul
 }
 
 /// Waits until `deadline` on a bus that may be failing: errors are ridden out, with a short real
-/// pause so a bus that fails at once every time is not spun on.
-fn wait_through_errors(master: &mut Master<'_, '_>, deadline: Instant) {
+/// pause so a bus that fails at once every time is not spun on; a stop asked for ends the wait.
+fn wait_through_errors(master: &mut Master<'_, '_>, deadline: Instant) -> Result<(), MasterError> {
     while master.session.now() < deadline {
-        if master.idle_until(deadline).is_err() {
-            std::thread::sleep(std::time::Duration::from_millis(20));
+        match master.idle_until(deadline) {
+            Ok(()) => {}
+            Err(e @ MasterError::Interrupted { .. }) => return Err(e),
+            Err(_) => std::thread::sleep(std::time::Duration::from_millis(20)),
         }
     }
+    Ok(())
 }
 
 /// One sample.
@@ -127,30 +437,75 @@ fn wait_through_errors(master: &mut Master<'_, '_>, deadline: Instant) {
 pub struct Sample {
     /// Bus time, microseconds.
     pub time_us: u64,
-    /// Decoded status, when the data fits the profile.
-    pub status: Option<BreakerStatus>,
+    /// The image's fields, decoded by the device's profile (empty for raw bytes).
+    pub fields: Vec<Field>,
+    /// The status byte and the freshness counter, when the assembly carries them.
+    pub link: Option<LinkView>,
+    /// The status byte says link timeout: the data is held or cleared, not live.
+    pub stale: bool,
+    /// Why the data is not decoded although a description was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
     /// The raw input data.
     pub raw: Vec<u8>,
 }
 
-/// The CSV header written by `--csv`.
-pub const CSV_HEADER: &str = "time_s,phase_a,phase_b,phase_c,neutral,switch,raw";
-
-/// One CSV line for a sample.
-pub fn csv_line(s: &Sample) -> String {
-    let raw = master_core::decode::hex(&s.raw).replace(' ', "");
-    let t = format!("{}.{:06}", s.time_us / 1_000_000, s.time_us % 1_000_000);
-    match &s.status {
-        Some(b) => format!(
-            "{t},{},{},{},{},{},{raw}",
-            b.currents[0],
-            b.currents[1],
-            b.currents[2],
-            b.currents[3],
-            b.switch_text()
-        ),
-        None => format!("{t},,,,,,{raw}"),
+impl Sample {
+    /// The sample taken at `time_us` of `raw`, decoded by `layout`.
+    pub fn new(time_us: u64, raw: Vec<u8>, layout: &InputLayout) -> Sample {
+        let d = layout.decode(&raw);
+        Sample {
+            time_us,
+            stale: d.link.is_some_and(|l| l.stale()),
+            fields: d.fields,
+            link: d.link,
+            note: d.note,
+            raw,
+        }
     }
+
+    /// The field called `name`.
+    pub fn field(&self, name: &str) -> Option<&Field> {
+        self.fields.iter().find(|f| f.name == name)
+    }
+}
+
+/// The CSV header written by `--csv` for `layout`.
+pub fn csv_header(layout: &InputLayout) -> String {
+    let mut columns = vec!["time_s".to_string()];
+    columns.extend(layout.field_columns());
+    columns.extend(["status", "freshness", "stale", "raw"].map(String::from));
+    columns.join(",")
+}
+
+/// One CSV line for a sample, with the columns of [`csv_header`].
+pub fn csv_line(s: &Sample, layout: &InputLayout) -> String {
+    let raw = master_core::decode::hex(&s.raw).replace(' ', "");
+    let mut cells = vec![format!("{}.{:06}", s.time_us / 1_000_000, s.time_us % 1_000_000)];
+    let width = layout.field_columns().len();
+    let mut values: Vec<String> = match layout.profile {
+        ImageProfile::Breaker => s
+            .fields
+            .iter()
+            .map(|f| match f.name.as_str() {
+                "switch" => f.text.clone(),
+                _ => f.values.first().map(ToString::to_string).unwrap_or_default(),
+            })
+            .collect(),
+        _ => s.fields.iter().flat_map(|f| f.values.iter().map(ToString::to_string)).collect(),
+    };
+    values.resize(width, String::new());
+    cells.extend(values);
+    match &s.link {
+        Some(l) => cells.extend([
+            format!("0x{:02X}", l.status),
+            l.freshness.to_string(),
+            if l.stale() { "1" } else { "0" }.to_string(),
+        ]),
+        None => cells.extend([String::new(), String::new(), String::new()]),
+    }
+    cells.push(raw);
+    cells.join(",")
 }
 
 /// Bus time in seconds with milliseconds: `5.100s`.
@@ -158,33 +513,77 @@ fn seconds_text(us: u64) -> String {
     format!("{}.{:03}s", us / 1_000_000, (us / 1000) % 1000)
 }
 
-fn display_line(s: &Sample) -> String {
+/// The line shown for a sample.
+pub fn display_line(s: &Sample, layout: &InputLayout) -> String {
     let t = seconds_text(s.time_us);
-    match &s.status {
-        Some(b) => format!(
-            "{t:>10}  A {:>3} A  B {:>3} A  C {:>3} A  N {:>3} A  switch {}",
-            b.currents[0],
-            b.currents[1],
-            b.currents[2],
-            b.currents[3],
-            b.switch_text()
-        ),
-        None => format!("{t:>10}  {} (not the breaker profile)", master_core::decode::hex(&s.raw)),
+    let hex = master_core::decode::hex(&s.raw);
+    let data = match (&layout.profile, &s.note) {
+        (_, Some(note)) => format!("{hex} ({note})"),
+        (ImageProfile::Breaker, None) if s.fields.len() == 5 => {
+            let v = |i: usize| s.fields[i].values.first().copied().unwrap_or(0);
+            format!(
+                "A {:>3} A  B {:>3} A  C {:>3} A  N {:>3} A  switch {}",
+                v(0),
+                v(1),
+                v(2),
+                v(3),
+                s.fields[4].text
+            )
+        }
+        (ImageProfile::Raw, None) => hex,
+        (_, None) => s.fields.iter().map(|f| f.text.clone()).collect::<Vec<_>>().join("  "),
+    };
+    match &s.link {
+        Some(l) => format!("{t:>10}  {data}  | {}", l.text()),
+        None => format!("{t:>10}  {data}"),
     }
 }
 
-/// Brings the device up and monitors it. Samples are shown on `out` and written to `csv`.
+/// What a monitor run took, and how it ended.
+#[derive(Debug)]
+pub struct MonitorRun {
+    /// Every sample taken, also those before a failure or an interruption.
+    pub samples: Vec<Sample>,
+    /// `None` when the run reached its `--count` or `--duration`; else what ended it (a failure,
+    /// or [`MasterError::Interrupted`] when SIGINT / SIGTERM asked for a stop).
+    pub ended: Option<HarnessError>,
+}
+
+/// Brings the device up and monitors it. Samples are shown on `out` (the progress line cleared
+/// first) and written to `csv`, each row flushed as it is taken. The samples are returned however
+/// the run ended.
 pub fn monitor(
     master: &mut Master<'_, '_>,
     opts: &MonitorOptions,
     out: &mut dyn Write,
+    csv: Option<&mut dyn Write>,
+    progress: &mut Progress<'_>,
+) -> MonitorRun {
+    let mut samples = Vec::new();
+    let mut shown = false;
+    let r = run(master, opts, out, csv, progress, &mut samples, &mut shown);
+    if opts.in_place && shown {
+        // The refreshed line is ended however the run ended, so what follows starts on its own.
+        let _ = writeln!(out);
+    }
+    MonitorRun { samples, ended: r.err() }
+}
+
+fn run(
+    master: &mut Master<'_, '_>,
+    opts: &MonitorOptions,
+    out: &mut dyn Write,
     mut csv: Option<&mut dyn Write>,
-) -> Result<Vec<Sample>, HarnessError> {
+    progress: &mut Progress<'_>,
+    samples: &mut Vec<Sample>,
+    shown: &mut bool,
+) -> Result<(), HarnessError> {
     let target = opts.connect.target;
     let mut connect = opts.connect.clone();
     connect.polls = 0;
     connect.verify_state = false;
     let summary = master.connect(&connect)?;
+    progress.clear();
     let consumed = summary.consumed_size.unwrap_or(0);
     let epr_ms = summary.expected_packet_rate_ms.unwrap_or(connect.epr_ms).max(1);
     let mut setup = PollSetup {
@@ -194,12 +593,13 @@ pub fn monitor(
     };
     let output = connect.output.clone().unwrap_or_else(|| vec![0; usize::from(consumed)]);
     let write_err = |source| HarnessError::Write { path: "the output".into(), source };
+    let csv_err = |source| HarnessError::Write { path: "the CSV file".into(), source };
     if let Some(w) = csv.as_deref_mut() {
-        writeln!(w, "{CSV_HEADER}").map_err(write_err)?;
+        writeln!(w, "{}", csv_header(&opts.layout)).map_err(csv_err)?;
+        w.flush().map_err(csv_err)?;
     }
     let start = master.session.now();
     let end: Option<Instant> = opts.duration.map(|d| start + d);
-    let mut samples = Vec::new();
     let mut next = start;
     loop {
         if opts.count.is_some_and(|c| samples.len() as u64 >= c) || end.is_some_and(|e| next > e) {
@@ -219,17 +619,18 @@ pub fn monitor(
                 writeln!(
                     out,
                     "{}connection lost at {}: {e}",
-                    if opts.in_place { "\n" } else { "" },
+                    if opts.in_place && *shown { "\n" } else { "" },
                     at(lost)
                 )
                 .map_err(write_err)?;
+                *shown = false;
                 let mut attempts = 0u32;
                 loop {
                     attempts += 1;
                     let tried = master.session.now();
                     if end.is_some_and(|e| tried > e) {
                         writeln!(out, "not reconnected before the end of the run").map_err(write_err)?;
-                        return Ok(samples);
+                        return Ok(());
                     }
                     match reestablish(master, target, connect.epr_ms) {
                         Ok(s) => {
@@ -239,7 +640,7 @@ pub fn monitor(
                         Err(e)
                             if is_connection_loss(&e) || matches!(e, MasterError::ErrorResponse { .. }) =>
                         {
-                            wait_through_errors(master, tried + RECONNECT_INTERVAL);
+                            wait_through_errors(master, tried + RECONNECT_INTERVAL)?;
                         }
                         Err(e) => return Err(e.into()),
                     }
@@ -252,23 +653,23 @@ pub fn monitor(
             }
             Err(e) => return Err(e.into()),
         };
-        let sample = Sample { time_us: polled.total_micros(), status: BreakerStatus::decode(&raw), raw };
+        let sample = Sample::new(polled.total_micros(), raw, &opts.layout);
+        if let Some(w) = csv.as_deref_mut() {
+            // Flushed row by row: a reader tailing the file sees every sample as it is taken.
+            writeln!(w, "{}", csv_line(&sample, &opts.layout)).map_err(csv_err)?;
+            w.flush().map_err(csv_err)?;
+        }
         if opts.in_place {
-            write!(out, "\r\x1b[2K{}", display_line(&sample)).map_err(write_err)?;
+            write!(out, "\r\x1b[2K{}", display_line(&sample, &opts.layout)).map_err(write_err)?;
         } else {
-            writeln!(out, "{}", display_line(&sample)).map_err(write_err)?;
+            writeln!(out, "{}", display_line(&sample, &opts.layout)).map_err(write_err)?;
         }
         out.flush().map_err(write_err)?;
-        if let Some(w) = csv.as_deref_mut() {
-            writeln!(w, "{}", csv_line(&sample)).map_err(write_err)?;
-        }
+        *shown = true;
         samples.push(sample);
         next = polled + setup.epr;
     }
-    if opts.in_place {
-        writeln!(out).map_err(write_err)?;
-    }
-    Ok(samples)
+    Ok(())
 }
 
 #[cfg(test)]
@@ -331,7 +732,7 @@ mod tests {
         }
     }
 
-    fn monitor_through_outage(reconnect: bool) -> (Result<Vec<Sample>, HarnessError>, String, usize) {
+    fn monitor_through_outage(reconnect: bool) -> (MonitorRun, String, usize) {
         use can_io::sim::{PowerOn, SimBus};
         let mut sim = SimBus::new(can_io::bus::Bitrate::K250);
         sim.attach(
@@ -348,9 +749,10 @@ mod tests {
             duration: Some(Duration::from_secs(8)),
             in_place: false,
             reconnect,
+            layout: InputLayout::from_converter(&ConverterConfig::breaker_reference()),
         };
         let mut out = Vec::new();
-        let r = monitor(&mut master, &opts, &mut out, None);
+        let r = monitor(&mut master, &opts, &mut out, None, &mut Progress::off());
         let failures = master.session.failures();
         (r, String::from_utf8_lossy(&out).into_owned(), failures)
     }
@@ -358,7 +760,8 @@ mod tests {
     #[test]
     fn reconnect_rides_out_an_outage() {
         let (r, out, failures) = monitor_through_outage(true);
-        let samples = r.unwrap();
+        assert!(r.ended.is_none(), "{:?}", r.ended);
+        let samples = r.samples;
         assert!(out.contains("connection lost at 7."), "{out}");
         assert!(out.contains("reconnected at 9."), "{out}");
         let after = samples.iter().filter(|s| s.time_us > 9_000_000).count();
@@ -370,20 +773,97 @@ mod tests {
     #[test]
     fn without_reconnect_the_loss_ends_the_run() {
         let (r, out, _) = monitor_through_outage(false);
-        let e = r.unwrap_err();
+        let e = r.ended.unwrap();
+        assert!(!r.samples.is_empty(), "the samples before the loss are kept");
         assert!(matches!(e, HarnessError::Master(MasterError::Bus(_))), "{e}");
         assert!(!out.contains("connection lost"), "{out}");
     }
 
+    fn breaker() -> InputLayout {
+        InputLayout::from_converter(&ConverterConfig::breaker_reference())
+    }
+
+    fn meter() -> InputLayout {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../slave-fw/descriptions/modbus-meter.toml");
+        InputLayout::from_converter(
+            &slave_fw::description::DeviceDescription::load(path.as_ref()).unwrap().converter,
+        )
+    }
+
     #[test]
     fn csv_lines() {
-        let s = Sample {
-            time_us: 5_100_000,
-            status: BreakerStatus::decode(&INPUT_IMAGE),
-            raw: INPUT_IMAGE.to_vec(),
+        let layout = breaker();
+        assert_eq!(
+            csv_header(&layout),
+            "time_s,phase_a,phase_b,phase_c,neutral,switch,status,freshness,stale,raw"
+        );
+        let s = Sample::new(5_100_000, INPUT_IMAGE.to_vec(), &layout);
+        assert_eq!(csv_line(&s, &layout), "5.100000,0,0,0,0,open,,,,0000000000000000000F0000000000000000");
+        let short = Sample::new(1, vec![1, 2], &layout);
+        assert_eq!(csv_line(&short, &layout), "0.000001,,,,,,,,,0102");
+        assert_eq!(short.note.as_deref(), Some("2 bytes; the description produces 18"));
+        let raw = InputLayout::raw();
+        assert_eq!(csv_header(&raw), "time_s,status,freshness,stale,raw");
+        assert_eq!(csv_line(&Sample::new(1, vec![1, 2], &raw), &raw), "0.000001,,,,0102");
+    }
+
+    #[test]
+    fn breaker_with_status_names_the_status_byte() {
+        let mut config = ConverterConfig::breaker_reference();
+        config.input = InputAssembly::WithStatus;
+        let layout = InputLayout::from_converter(&config);
+        assert_eq!(layout.produced_size(), Some(20));
+        let mut raw = INPUT_IMAGE.to_vec();
+        raw.extend([0x21, 7]);
+        let s = Sample::new(2_000_000, raw.clone(), &layout);
+        assert!(!s.stale);
+        assert_eq!(
+            display_line(&s, &layout),
+            "    2.000s  A   0 A  B   0 A  C   0 A  N   0 A  switch open  | link ok, command ok, freshness 7"
+        );
+        raw[18] = 0x06;
+        let s = Sample::new(2_000_000, raw, &layout);
+        assert!(s.stale);
+        let line = display_line(&s, &layout);
+        assert!(line.ends_with("| STALE: LINK TIMEOUT, errors seen, command none, freshness 7"), "{line}");
+        assert!(csv_line(&s, &layout).ends_with(",open,0x06,7,1,0000000000000000000F00000000000000000607"));
+    }
+
+    #[test]
+    fn modbus_fields_follow_the_scan_list() {
+        let layout = meter();
+        assert_eq!(layout.produced_size(), Some(14));
+        assert_eq!(
+            layout.field_columns(),
+            ["u1:30001", "u1:30002", "u1:30003", "u1:30004", "u1:40101", "u1:40102"]
+        );
+        // Little-endian registers: 230 = 0x00E6, 231 = 0x00E7; status: link ok, request unanswered.
+        let raw = vec![1, 0, 2, 0, 3, 0, 0x10, 0x27, 0xE6, 0, 0xE7, 0, 0x81, 3];
+        let s = Sample::new(0, raw, &layout);
+        let line = display_line(&s, &layout);
+        assert!(line.contains("u1 fc4 @30001+4: 1, 2, 3, 10000  u1 fc3 @40101+2: 230, 231"), "{line}");
+        assert!(line.ends_with("| link ok, request unanswered, command none, freshness 3"), "{line}");
+        assert!(!line.contains("switch"), "{line}");
+        let mut be = layout.clone();
+        if let ImageProfile::Modbus { byte_order, .. } = &mut be.profile {
+            *byte_order = ByteOrder::BigEndian;
+        }
+        let s = Sample::new(0, s.raw, &be);
+        assert_eq!(s.field("u1 fc3 @40101+2").unwrap().values, [0xE600, 0xE700]);
+    }
+
+    #[test]
+    fn modbus_bits_and_references() {
+        let coils = ScanEntry { unit: 2, function: Function::ReadCoils, address: 9, count: 10, offset: 0 };
+        let f = modbus_field(&coils, ByteOrder::LittleEndian, &[0b1000_0101, 0b10]);
+        assert_eq!(f.text, "u2 fc1 @00010+10: 1, 0, 1, 0, 0, 0, 0, 1, 0, 1");
+        let far = ScanEntry {
+            unit: 1,
+            function: Function::ReadHoldingRegisters,
+            address: 9999,
+            count: 1,
+            offset: 0,
         };
-        assert_eq!(csv_line(&s), "5.100000,0,0,0,0,open,0000000000000000000F0000000000000000");
-        let short = Sample { time_us: 1, status: None, raw: vec![1, 2] };
-        assert_eq!(csv_line(&short), "0.000001,,,,,,0102");
+        assert_eq!(modbus_ref(&far, 0), "410000");
     }
 }

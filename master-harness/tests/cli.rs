@@ -162,7 +162,7 @@ fn monitor_records_csv() {
     assert_eq!(stdout(&o).lines().filter(|l| l.contains("switch")).count(), 15);
     let text = std::fs::read_to_string(&csv).unwrap();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines[0], "time_s,phase_a,phase_b,phase_c,neutral,switch,raw");
+    assert_eq!(lines[0], "time_s,phase_a,phase_b,phase_c,neutral,switch,status,freshness,stale,raw");
     assert_eq!(lines.len(), 16);
     assert!(lines[1].contains(",open,"), "{text}");
     assert!(lines[15].contains("120,118,121,3,closed,"), "{text}");

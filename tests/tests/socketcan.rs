@@ -35,6 +35,10 @@ const DEVICE: u8 = 5;
 /// Tests take turns on the one interface.
 static RIG_LOCK: Mutex<()> = Mutex::new(());
 
+/// The reference device's description: on a real bus monitor decodes only what a description
+/// tells it.
+const BREAKER: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../slave-fw/descriptions/breaker.toml");
+
 /// The directory of the workspace's binaries: `DNET_BIN_DIR`, else next to this test's `deps/`.
 fn bin_dir() -> PathBuf {
     if let Some(d) = std::env::var_os("DNET_BIN_DIR") {
@@ -502,7 +506,10 @@ fn monitor_open_command_reaches_the_breaker() {
     // The breaker starts closed, so the open command shows in its state as well as in its log.
     let rig = Rig::new("monitor", &["--closed"]);
     let mut listener = SocketCanBus::open(IFACE).expect("a listening socket on vcan0");
-    let mut master = rig.master("monitor", &["monitor", "--mac", "5", "--output", "0101", "--count", "40"]);
+    let mut master = rig.master(
+        "monitor",
+        &["monitor", "--mac", "5", "--output", "0101", "--count", "40", "--description", BREAKER],
+    );
     await_master_second_check(&mut listener, Duration::from_secs(30));
     let mut slave = rig.soft_slave("slave");
     let status = master.wait(Duration::from_secs(90));
@@ -528,8 +535,21 @@ fn monitor_open_command_reaches_the_breaker() {
 fn interface_down_and_up_during_polling_is_reported_and_reconnected() {
     let rig = Rig::new("bus_off", &[]);
     let mut listener = SocketCanBus::open(IFACE).expect("a listening socket on vcan0");
-    let mut master =
-        rig.master("monitor", &["monitor", "--mac", "5", "--epr", "100", "--reconnect", "--duration", "16"]);
+    let mut master = rig.master(
+        "monitor",
+        &[
+            "monitor",
+            "--mac",
+            "5",
+            "--epr",
+            "100",
+            "--reconnect",
+            "--duration",
+            "16",
+            "--description",
+            BREAKER,
+        ],
+    );
     await_master_second_check(&mut listener, Duration::from_secs(30));
     let mut slave = rig.soft_slave("slave");
     master.stdout.wait_for("polled samples", Duration::from_secs(30), |l| l.contains("switch open"));

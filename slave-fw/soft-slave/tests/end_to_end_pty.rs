@@ -12,14 +12,19 @@ mod common;
 use can_io::log::read_log;
 use common::{require_socat, PtyRig};
 
-/// `dnet-master --bus slcan:PTY monitor --output HEX --epr 300 --count 10 --csv FILE`; returns the
-/// CSV rows. (EPR 300 ms: the poll response timeout is the EPR, and a loaded CI machine can take
-/// longer than 100 ms to pass a frame through two ptys and a process.)
+/// `dnet-master --bus slcan:PTY monitor --output HEX --epr 300 --count 10 --csv FILE --description
+/// breaker.toml`; returns the CSV rows. (EPR 300 ms: the poll response timeout is the EPR, and a
+/// loaded CI machine can take longer than 100 ms to pass a frame through two ptys and a process.)
 fn monitor(rig: &PtyRig, output: &str, name: &str) -> Vec<String> {
     let csv = rig.dir.join(format!("{name}.csv"));
     let bus = format!("slcan:{}", rig.can.b);
     let args = ["dnet-master", "--bus", &bus, "monitor", "--output", output, "--epr", "300", "--count", "10"];
     let mut args: Vec<&str> = args.to_vec();
+    // On a real bus monitor decodes only what a description tells it: the built-in device's.
+    args.extend_from_slice(&[
+        "--description",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../descriptions/breaker.toml"),
+    ]);
     args.extend_from_slice(&["--csv", csv.to_str().unwrap()]);
     let (mut out, mut err) = (Vec::new(), Vec::new());
     let code = master_harness::cli::run(args, &mut out, &mut err, false);
