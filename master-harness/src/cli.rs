@@ -234,7 +234,7 @@ pub enum Command {
     },
     /// Connect, then show the polled data decoded by the device profile.
     Monitor {
-        /// The device's MAC ID [default: the --slave-config description's, else 5].
+        /// The device's MAC ID [default: the --description or --slave-config description's, else 5].
         #[arg(long, value_parser = parse_mac)]
         mac: Option<MacId>,
         /// Poll period (expected packet rate), ms.
@@ -378,10 +378,15 @@ where
     }
 }
 
-/// The device a command addresses when `--mac` is left out: the `--slave-config` description's
-/// MAC, else 5 (the reference converter's).
+/// The device a command addresses when `--mac` is left out: the MAC of the description the
+/// command was given (`monitor --description`), else of `--slave-config`'s, else 5 (the reference
+/// converter's).
 fn default_device(cli: &Cli) -> Result<MacId, HarnessError> {
-    match &cli.slave_config {
+    let own = match &cli.command {
+        Command::Monitor { description: Some(path), .. } => Some(path),
+        _ => None,
+    };
+    match own.or(cli.slave_config.as_ref()) {
         Some(path) => Ok(DeviceDescription::load(path)?.converter.device.mac_id),
         None => Ok(MacId::from_low_bits(5)),
     }
@@ -614,7 +619,11 @@ fn execute(
             );
             progress.clear();
             let outcome = Outcome {
-                text: format!("{} samples", run.samples.len()),
+                text: format!(
+                    "{} sample{}",
+                    run.samples.len(),
+                    if run.samples.len() == 1 { "" } else { "s" }
+                ),
                 json: json!({ "samples": run.samples }),
                 code: 0,
             };
