@@ -17,7 +17,7 @@ fuzz_target!(|data: &[u8]| {
     };
     let mac = config.device.mac_id;
     let mut now = Instant::ZERO;
-    let Ok(mut conv) = Converter::new(config, now) else { return };
+    let Ok(mut conv) = Converter::new(config.clone(), now) else { return };
     conv.power_on(now);
     let drain = |conv: &mut Converter, now: Instant| {
         while let Some(f) = conv.poll_can_transmit() {
@@ -38,6 +38,14 @@ fuzz_target!(|data: &[u8]| {
             now = at.max(now);
             conv.handle_timeout(now);
             drain(&mut conv, now);
+            // A due Identity Reset is the application's to carry out, as the firmware does: a new
+            // converter, powered on (poll_at includes the reset's deadline until it is taken).
+            if conv.poll_reset(now).is_some() {
+                let Ok(fresh) = Converter::new(config.clone(), now) else { return };
+                conv = fresh;
+                conv.power_on(now);
+                drain(&mut conv, now);
+            }
             assert!(conv.poll_at().is_none_or(|next| next > now), "deadline not moved past {now}");
         }
         now = target;
