@@ -24,6 +24,7 @@
 //! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the Identity Reset's delay ([`RESET_DELAY`](converter::RESET_DELAY), [`poll_reset`](converter::Converter::poll_reset)) |
 //! | [`converter::objects`] | the vendor objects 0x64 (serial link) and 0x65 (settings): one attribute table each, served by the converter and written into the EDS by `eds::generate` |
 //! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
+//! | `description_write` (feature `description`) | the TOML form of a description, read back to the same configuration |
 //!
 //! The [`Converter`](converter::Converter) owns a [`Profile`](serial::Profile) next to the DeviceNet
 //! slave node: consumed poll data goes to [`Profile::set_outputs`](serial::Profile::set_outputs),
@@ -64,3 +65,5 @@ pub mod serial;
 
 #[cfg(feature = "description")]
 pub mod description;
+#[cfg(feature = "description")]
+pub mod description_write;
