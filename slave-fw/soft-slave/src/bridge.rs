@@ -21,10 +21,11 @@
 use crate::clock::{format_instant, Clock};
 use crate::error::SoftSlaveError;
 use crate::serial::{SerialEvent, SerialLine};
+use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
 use devicenet::slave::{ConnectionKind, FaultReason};
-use devicenet::{CanFrame, Duration, Event, Instant};
+use devicenet::{CanFrame, Duration, Event, Instant, MacId};
 use slave_fw::converter::{Converter, ConverterConfig};
 use slave_fw::serial::{LinkState, Stats};
 use std::io::Write;
@@ -58,7 +59,11 @@ pub struct RunSummary {
 
 /// The converter, its bus, its serial line and its clock. See the [module docs](self).
 pub struct Bridge {
+    /// The description's configuration; what runs is it with the stored state on top.
     config: ConverterConfig,
+    state: StoredState,
+    state_file: Option<StateFile>,
+    mac_override: Option<MacId>,
     converter: Converter,
     bus: Box<dyn Bus>,
     serial: SerialLine,
@@ -83,6 +88,9 @@ impl Bridge {
         let link = converter.profile().status().state;
         Ok(Bridge {
             config,
+            state: StoredState::default(),
+            state_file: None,
+            mac_override: None,
             converter,
             bus,
             serial,
@@ -93,6 +101,22 @@ impl Bridge {
             link,
             summary: RunSummary::default(),
         })
+    }
+
+    /// The state kept across resets (and, with `file`, across restarts: `--state`): the converter
+    /// is recreated with it now and after every Identity Reset; settings changed over the network
+    /// are added to it (and saved to `file`). `mac_override` (`--mac`) wins over the stored MAC.
+    pub fn set_state(
+        &mut self,
+        state: StoredState,
+        file: Option<StateFile>,
+        mac_override: Option<MacId>,
+    ) -> Result<(), SoftSlaveError> {
+        self.state = state;
+        self.state_file = file;
+        self.mac_override = mac_override;
+        self.converter = Converter::new(self.state.apply(&self.config, mac_override), self.now())?;
+        Ok(())
     }
 
     /// Writes every frame seen (received and sent) to `path` in `candump -L` format.
@@ -197,12 +221,12 @@ impl Bridge {
             self.summary.serial_bytes_sent += bytes.len() as u64;
         }
         while let Some(event) = self.converter.poll_event() {
-            self.on_event(event, now);
+            self.on_event(event, now)?;
         }
         // Last in the converter's drain order: the Identity Reset it says is due (RESET_DELAY after
         // the response), carried out as the board's power cycle.
         if self.converter.poll_reset(now).is_some() {
-            self.converter = Converter::new(self.config.clone(), now)?;
+            self.converter = Converter::new(self.state.apply(&self.config, self.mac_override), now)?;
             self.converter.power_on(now);
             self.summary.resets += 1;
             self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");
@@ -224,10 +248,20 @@ impl Bridge {
         Ok(())
     }
 
-    fn on_event(&mut self, event: Event, now: Instant) {
+    fn on_event(&mut self, event: Event, now: Instant) -> Result<(), SoftSlaveError> {
         if let Some(text) = event_text(&event) {
             self.note(now, &text);
         }
+        if let Event::SettingChanged(change) = &event {
+            if self.state.note(change) {
+                if let Some(file) = &self.state_file {
+                    file.save(&self.state)?;
+                    let text = format!("kept in {}", file.path().display());
+                    self.note(now, &text);
+                }
+            }
+        }
+        Ok(())
     }
 
     fn note(&mut self, at: Instant, text: &str) {
@@ -282,7 +316,7 @@ pub fn event_text(event: &Event) -> Option<String> {
         Event::ConnectionDeleted(k) => format!("{} connection deleted by its watchdog", kind(k)),
         Event::ResetRequested(t) => format!("Identity Reset (type {t}) requested"),
         Event::SettingChanged(s) => {
-            format!("setting changed over the network: {s:?} (not kept by the soft slave)")
+            format!("setting changed over the network: {s:?} (applies at the next reset)")
         }
         Event::ExplicitTransferAborted => "fragmented explicit response abandoned".into(),
     })

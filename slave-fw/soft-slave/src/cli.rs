@@ -7,6 +7,7 @@ use crate::bridge::{Bridge, RunSummary};
 use crate::clock::{from_secs_f64, Clock};
 use crate::error::SoftSlaveError;
 use crate::serial::{settings_text, SerialLine};
+use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bitrate, BusSpec};
 use can_io::log::LogWriter;
 use clap::Parser;
@@ -48,6 +49,12 @@ pub struct SoftSlaveArgs {
     /// Write every CAN frame seen (received and sent) to FILE in candump -L format.
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// Keep what the board keeps in flash in FILE (JSON, replaced atomically): MAC ID, data rate
+    /// and bus-off interrupt set over the network, and the configuration downloaded over the
+    /// network; read at start, so a restart behaves like the board's power cycle [default: kept
+    /// in memory until the process ends].
+    #[arg(long, value_name = "FILE")]
+    pub state: Option<PathBuf>,
     /// Stop after this many seconds [default: run until SIGINT or SIGTERM].
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub duration: Option<Duration>,
@@ -177,7 +184,13 @@ pub fn run_soft_slave(
         report = Box::new(std::io::sink());
     }
     let description = load_description(args)?;
-    let config = description.converter;
+    let state_file = args.state.as_ref().map(StateFile::new);
+    let state = match &state_file {
+        Some(f) => f.load()?,
+        None => StoredState::default(),
+    };
+    let base = description.converter;
+    let config = state.apply(&base, args.mac);
     let serial_settings: SerialSettings = *config.profile.serial();
     let rate = Bitrate::from(config.device.baud_rate);
     let log = match &args.log {
@@ -201,7 +214,8 @@ pub fn run_soft_slave(
         settings_text(&serial_settings),
         config.input.instance(),
     );
-    let mut bridge = Bridge::new(config, bus, serial, clock)?;
+    let mut bridge = Bridge::new(base, bus, serial, clock)?;
+    bridge.set_state(state, state_file, args.mac)?;
     if let Some((log, path)) = log {
         bridge.set_log(log, &path);
     }

@@ -47,6 +47,9 @@ pub enum SoftSlaveError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// The `--state` file is unreadable, malformed or cannot be written (names the file).
+    #[error("state file {0}")]
+    State(String),
     /// The SIGINT/SIGTERM handler could not be installed.
     #[error("cannot install the SIGINT/SIGTERM handler: {0}")]
     Signal(String),
@@ -57,7 +60,10 @@ impl SoftSlaveError {
     /// failure while running.
     pub fn exit_code(&self) -> u8 {
         match self {
-            SoftSlaveError::Description(_) | SoftSlaveError::Config(_) | SoftSlaveError::Usage(_) => 2,
+            SoftSlaveError::Description(_)
+            | SoftSlaveError::Config(_)
+            | SoftSlaveError::Usage(_)
+            | SoftSlaveError::State(_) => 2,
             _ => 1,
         }
     }

@@ -16,6 +16,7 @@
 //! | [`serial`] | [`SerialLine`](serial::SerialLine): the instrument's port, opened with the profile's settings, read and written by two threads so the CAN side never waits on it |
 //! | [`bridge`] | [`Bridge`](bridge::Bridge): the main loop — bus, serial line and converter, the drain order of the converter docs, Identity Reset, the `candump -L` log |
 //! | [`breaker`] | [`BreakerRunner`](breaker::BreakerRunner): the simulated breaker on any byte stream, with fault knobs and an event log |
+//! | [`state`] | `--state FILE`: the settings and configuration image kept across restarts, replaced atomically |
 //! | [`cli`] | the two command lines (clap) and their `run` functions |
 //! | [`error`] | [`SoftSlaveError`](error::SoftSlaveError): every failure named, with its exit status |
 //!
@@ -88,6 +89,7 @@ pub mod cli;
 pub mod clock;
 pub mod error;
 pub mod serial;
+pub mod state;
 
 pub use can_io::bus::Bus;
 

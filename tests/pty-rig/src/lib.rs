@@ -339,6 +339,11 @@ impl PtyRig {
 
     /// Starts dnet-soft-slave (again), logging to `can.log` in the scratch folder.
     pub fn start_slave(&mut self, config: Option<&Path>) {
+        self.start_slave_with(config, &[]);
+    }
+
+    /// Starts dnet-soft-slave (again) with `extra` arguments (`--state FILE`, `--mac N`).
+    pub fn start_slave_with(&mut self, config: Option<&Path>, extra: &[&str]) {
         let bus = format!("slcan:{}", self.can.a);
         let log = self.dir.join("can.log");
         let mut args =
@@ -346,6 +351,7 @@ impl PtyRig {
         if let Some(c) = config {
             args.extend_from_slice(&["--config", c.to_str().unwrap()]);
         }
+        args.extend_from_slice(extra);
         self.slave = Some(Proc::spawn(bin("dnet-soft-slave"), &args));
     }
 

@@ -1,0 +1,271 @@
+//! `--state FILE`: what the board keeps in its settings journal, kept by the soft slave in a file,
+//! so that a restarted process behaves like the board after a power cycle.
+//!
+//! The file holds the settings written over the network (DeviceNet attributes 1–3: MAC ID, data
+//! rate, bus-off interrupt; notes §II.7) and the configuration image downloaded through the
+//! configuration object, as JSON:
+//!
+//! ```json
+//! { "mac_id": 9, "baud_rate": "250k", "bus_off_interrupt": false, "configuration": "444E4349..." }
+//! ```
+//!
+//! Every key is optional; what is absent comes from the description. The file is replaced
+//! atomically (written to a temporary file in the same folder, synced, renamed over the old one,
+//! the folder synced), so a crash or power cut at any point leaves the old state or the new one,
+//! never a mixture. A file that cannot be read or parsed at start is an error naming the file and
+//! the line (exit 2): the soft slave never runs on state it did not understand.
+
+use crate::error::SoftSlaveError;
+use devicenet::slave::{BaudRate, SettingChanged};
+use devicenet::MacId;
+use slave_fw::converter::ConverterConfig;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The state kept across restarts.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StoredState {
+    /// DeviceNet attribute 1, set over the network.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mac_id: Option<u8>,
+    /// DeviceNet attribute 2, set over the network: `125k`, `250k` or `500k`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baud_rate: Option<String>,
+    /// DeviceNet attribute 3, set over the network.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bus_off_interrupt: Option<bool>,
+    /// The configuration image downloaded over the network, in hex.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub configuration: Option<String>,
+}
+
+impl StoredState {
+    /// The stored data rate.
+    pub fn baud(&self) -> Option<BaudRate> {
+        match self.baud_rate.as_deref()? {
+            "125k" => Some(BaudRate::Kbps125),
+            "250k" => Some(BaudRate::Kbps250),
+            "500k" => Some(BaudRate::Kbps500),
+            _ => None,
+        }
+    }
+
+    /// Stores `baud`.
+    pub fn set_baud(&mut self, baud: BaudRate) {
+        self.baud_rate = Some(
+            match baud {
+                BaudRate::Kbps125 => "125k",
+                BaudRate::Kbps250 => "250k",
+                BaudRate::Kbps500 => "500k",
+            }
+            .to_string(),
+        );
+    }
+
+    /// The stored configuration image's bytes.
+    pub fn image(&self) -> Option<Vec<u8>> {
+        let hex = self.configuration.as_deref()?;
+        if hex.len() % 2 != 0 {
+            return None;
+        }
+        (0..hex.len())
+            .step_by(2)
+            .map(|i| hex.get(i..i + 2).and_then(|d| u8::from_str_radix(d, 16).ok()))
+            .collect()
+    }
+
+    /// Stores `image`.
+    pub fn set_image(&mut self, image: &[u8]) {
+        self.configuration = Some(image.iter().map(|b| format!("{b:02X}")).collect());
+    }
+
+    /// Takes a setting changed over the network; `true` when the state changed.
+    pub fn note(&mut self, change: &SettingChanged) -> bool {
+        let before = self.clone();
+        match change {
+            SettingChanged::MacId(m) => self.mac_id = Some(m.as_raw()),
+            SettingChanged::BaudRate(b) => self.set_baud(*b),
+            SettingChanged::BusOffInterrupt(on) => self.bus_off_interrupt = Some(*on),
+        }
+        *self != before
+    }
+
+    /// What the device runs with after a start or a reset: `base` (the description) with this
+    /// state on top. In the program position (`network.programmable`, notes §II.7) the MAC ID
+    /// and data rate set over the network are used; the bus-off interrupt setting always is.
+    /// `mac_override` (`--mac`) wins over both.
+    pub fn apply(&self, base: &ConverterConfig, mac_override: Option<MacId>) -> ConverterConfig {
+        let mut config = base.clone();
+        let device = &mut config.device;
+        if device.switches.programmable {
+            if let Some(m) = self.mac_id.and_then(MacId::new) {
+                device.mac_id = m;
+            }
+            if let Some(b) = self.baud() {
+                device.baud_rate = b;
+            }
+        }
+        if let Some(on) = self.bus_off_interrupt {
+            device.bus_off_interrupt = on;
+        }
+        if let Some(m) = mac_override {
+            device.mac_id = m;
+        }
+        config
+    }
+
+    fn check(&self) -> Result<(), String> {
+        if let Some(m) = self.mac_id.filter(|&m| m > 63) {
+            return Err(format!("mac_id: {m} is outside 0..=63"));
+        }
+        if self.baud_rate.is_some() && self.baud().is_none() {
+            return Err(format!(
+                "baud_rate: \"{}\" is not one of \"125k\", \"250k\", \"500k\"",
+                self.baud_rate.as_deref().unwrap_or_default()
+            ));
+        }
+        if self.configuration.is_some() && self.image().is_none() {
+            return Err("configuration: not a string of hex bytes".into());
+        }
+        Ok(())
+    }
+}
+
+/// The state file of `--state FILE`.
+#[derive(Clone, Debug)]
+pub struct StateFile {
+    path: PathBuf,
+}
+
+impl StateFile {
+    /// The state kept in `path` (which need not exist yet).
+    pub fn new(path: impl Into<PathBuf>) -> StateFile {
+        StateFile { path: path.into() }
+    }
+
+    /// The file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn error(&self, why: impl std::fmt::Display) -> SoftSlaveError {
+        SoftSlaveError::State(format!("{}: {why}", self.path.display()))
+    }
+
+    /// Reads the state; an absent file is the empty state.
+    pub fn load(&self) -> Result<StoredState, SoftSlaveError> {
+        let text = match std::fs::read_to_string(&self.path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(StoredState::default()),
+            Err(e) => return Err(self.error(format!("cannot read: {e}"))),
+        };
+        let state: StoredState = serde_json::from_str(&text)
+            .map_err(|e| self.error(format!("line {} column {}: {e}", e.line(), e.column())))?;
+        state.check().map_err(|e| self.error(e))?;
+        Ok(state)
+    }
+
+    /// Replaces the file with `state`, atomically (see the [module docs](self)).
+    pub fn save(&self, state: &StoredState) -> Result<(), SoftSlaveError> {
+        let text = serde_json::to_string_pretty(state).map_err(|e| self.error(e))?;
+        let dir = match self.path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let name = self.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let temp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        let write = || -> std::io::Result<()> {
+            let mut f = std::fs::File::create(&temp)?;
+            f.write_all(text.as_bytes())?;
+            f.write_all(b"\n")?;
+            f.sync_all()?;
+            std::fs::rename(&temp, &self.path)?;
+            // The rename itself is durable once the folder is synced.
+            std::fs::File::open(&dir)?.sync_all()
+        };
+        write().map_err(|e| {
+            let _ = std::fs::remove_file(&temp);
+            self.error(format!("cannot write: {e}"))
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("soft-slave-state-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    #[test]
+    fn an_absent_file_is_the_empty_state_and_a_saved_one_reads_back() {
+        let file = StateFile::new(temp("roundtrip.json"));
+        let _ = std::fs::remove_file(file.path());
+        assert_eq!(file.load().unwrap(), StoredState::default());
+        let mut state =
+            StoredState { mac_id: Some(9), bus_off_interrupt: Some(true), ..StoredState::default() };
+        state.set_baud(BaudRate::Kbps500);
+        state.set_image(&[0x44, 0x4E, 0x00, 0xFF]);
+        file.save(&state).unwrap();
+        let back = file.load().unwrap();
+        assert_eq!(back, state);
+        assert_eq!(back.image(), Some(vec![0x44, 0x4E, 0x00, 0xFF]));
+        assert_eq!(back.baud(), Some(BaudRate::Kbps500));
+        // No temporary file is left behind.
+        let dir = file.path().parent().unwrap();
+        let leftovers: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+            .collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
+    }
+
+    #[test]
+    fn bad_state_is_refused_with_the_file_and_the_reason() {
+        let path = temp("bad.json");
+        for (text, needle) in [
+            ("{ \"mac_id\": 70 }", "mac_id: 70 is outside 0..=63"),
+            ("{ \"baud_rate\": \"1M\" }", "baud_rate: \"1M\" is not one of"),
+            ("{ \"configuration\": \"4G\" }", "configuration: not a string of hex bytes"),
+            ("{ \"mac\": 5 }", "unknown field `mac`"),
+            ("{\n  \"mac_id\": 5,\n", "line 3"),
+        ] {
+            std::fs::write(&path, text).unwrap();
+            let e = StateFile::new(&path).load().unwrap_err().to_string();
+            assert!(e.starts_with(&format!("state file {}: ", path.display())), "{e}");
+            assert!(e.contains(needle), "{text}: {e}");
+            assert_eq!(StateFile::new(&path).load().unwrap_err().exit_code(), 2);
+        }
+    }
+
+    #[test]
+    fn stored_settings_apply_in_the_program_position_only_and_mac_overrides_win() {
+        let mut base = ConverterConfig::breaker_reference();
+        let mut state = StoredState::default();
+        assert!(state.note(&SettingChanged::MacId(MacId::new(9).unwrap())));
+        assert!(!state.note(&SettingChanged::MacId(MacId::new(9).unwrap())), "no change");
+        assert!(state.note(&SettingChanged::BaudRate(BaudRate::Kbps500)));
+        assert!(state.note(&SettingChanged::BusOffInterrupt(true)));
+        // Not programmable: the description's MAC and rate stay; BOI is taken.
+        let c = state.apply(&base, None);
+        assert_eq!((c.device.mac_id.as_raw(), c.device.baud_rate), (5, BaudRate::Kbps250));
+        assert!(c.device.bus_off_interrupt);
+        base.device.switches.programmable = true;
+        let c = state.apply(&base, None);
+        assert_eq!((c.device.mac_id.as_raw(), c.device.baud_rate), (9, BaudRate::Kbps500));
+        let c = state.apply(&base, MacId::new(12));
+        assert_eq!(c.device.mac_id.as_raw(), 12);
+    }
+
+    #[test]
+    fn an_unwritable_folder_is_named() {
+        let file = StateFile::new("/nonexistent/dir/state.json");
+        let e = file.save(&StoredState::default()).unwrap_err().to_string();
+        assert!(e.starts_with("state file /nonexistent/dir/state.json: cannot write"), "{e}");
+    }
+}
