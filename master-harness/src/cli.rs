@@ -11,7 +11,9 @@
 //! stopped it). Output files are created before the bus is touched.
 
 use crate::conformance::command::ConformanceCommand;
+use crate::configure;
 use crate::console::{Console, Progress};
+use crate::params;
 use crate::error::HarnessError;
 use crate::monitor::{self, InputLayout, MonitorOptions};
 use crate::replay::{self, ReplayOptions};
@@ -260,6 +262,34 @@ pub enum Command {
         #[arg(long, value_name = "FILE")]
         description: Option<PathBuf>,
     },
+    /// Download a device description to the device: checked, downloaded, read back, reset, and
+    /// the device checked against it; with --read, upload the configuration in force as a
+    /// description file.
+    Configure {
+        /// The device's MAC ID.
+        #[arg(long, value_parser = parse_mac)]
+        mac: MacId,
+        /// The device description (TOML) to download.
+        #[arg(required_unless_present = "read", conflicts_with = "read")]
+        description: Option<PathBuf>,
+        /// Upload: write the configuration in force to FILE as a description (`-`: standard
+        /// output).
+        #[arg(long, value_name = "FILE")]
+        read: Option<PathBuf>,
+    },
+    /// Read (and with --set write) every parameter of the device: its Parameter object, or the
+    /// [Params] of an EDS through their link paths.
+    Params {
+        /// The device's MAC ID.
+        #[arg(long, value_parser = parse_mac)]
+        mac: MacId,
+        /// Take the parameter list from this EDS.
+        #[arg(long, value_name = "FILE")]
+        eds: Option<PathBuf>,
+        /// Write a parameter first: NAME=VALUE (repeatable).
+        #[arg(long = "set", value_name = "NAME=VALUE")]
+        set: Vec<String>,
+    },
     /// Pretty-print a candump -L log as DeviceNet messages.
     Decode {
         /// The log.
@@ -401,7 +431,10 @@ fn command_device(cli: &Cli, transcript: Option<&[LogEntry]>) -> Result<Option<M
                 None => default_device(cli)?,
             })
         }
-        Command::Get { mac, .. } | Command::Set { mac, .. } => Some(*mac),
+        Command::Get { mac, .. }
+        | Command::Set { mac, .. }
+        | Command::Configure { mac, .. }
+        | Command::Params { mac, .. } => Some(*mac),
         Command::Replay { mac: Some(m), .. } => Some(*m),
         Command::Replay { mac: None, transcript: path, .. } => {
             let devices = replay::transcript_devices(transcript.unwrap_or_default());
@@ -636,6 +669,40 @@ fn execute(
                 }
             }
         }
+        Command::Configure { mac, description: Some(path), .. } => {
+            let description = DeviceDescription::load(path)?;
+            progress.show(&format!("configure: downloading {} to MAC {mac} ...", path.display()));
+            let r = configure::download(&mut master, *mac, &description);
+            progress.clear();
+            r.map(|report| configure_outcome(&report, path))
+        }
+        Command::Configure { mac, read: Some(path), .. } => {
+            progress.show(&format!("configure: reading the configuration of MAC {mac} ..."));
+            let r = configure::upload(&mut master, *mac);
+            progress.clear();
+            r.and_then(|description| {
+                let text = description.to_toml().map_err(HarnessError::Usage)?;
+                let header = format!(
+                    "# The configuration in force at MAC {mac}, read by dnet-master {} configure --read.\n\
+                     # identity.vendor_name and identity.catalog are EDS-only: the device does not keep them.\n\n",
+                    crate::version()
+                );
+                let whole = header + &text;
+                if path.as_os_str() == "-" {
+                    Ok(Outcome { text: whole.trim_end().to_string(), json: json!({ "description": whole }), code: 0 })
+                } else {
+                    std::fs::write(path, &whole)
+                        .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+                    Ok(Outcome {
+                        text: format!("MAC {mac}: the configuration in force written to {}", path.display()),
+                        json: json!({ "description": whole, "file": path }),
+                        code: 0,
+                    })
+                }
+            })
+        }
+        Command::Configure { .. } => Err(HarnessError::Usage("configure needs a description file or --read FILE".into())),
+        Command::Params { mac, eds: eds_file, set } => params_command(&mut master, *mac, eds_file.as_deref(), set),
         Command::Decode { .. } | Command::Conformance { .. } => unreachable!("handled above"),
     };
     drop(progress);
@@ -756,6 +823,62 @@ fn execute(
         Some(e) if !cli.json && interrupted.is_none() => Err(e),
         _ => Ok(code),
     }
+}
+
+fn configure_outcome(r: &configure::DownloadReport, path: &std::path::Path) -> Outcome {
+    let mut text = format!(
+        "MAC {}: {} downloaded ({} bytes in {} chunks), read back and verified; reset; on-line again at MAC {} after {} ms",
+        r.mac,
+        path.display(),
+        r.bytes,
+        r.chunks,
+        r.back_at.map_or_else(|| "?".into(), |m| m.to_string()),
+        r.back_online_ms.map_or_else(|| "?".into(), |m| m.to_string()),
+    );
+    for c in &r.checks {
+        let mark = if c.holds() { "ok  " } else { "FAIL" };
+        text.push_str(&format!("\n  {mark} {:<24} {}", c.what, if c.holds() { c.actual.clone() } else { format!("expected {}, device has {}", c.expected, c.actual) }));
+    }
+    let failed = r.failures().len();
+    text.push_str(&if failed == 0 {
+        "\nthe device runs the description".to_string()
+    } else {
+        format!("\n{failed} check(s) failed: the device does not run the description")
+    });
+    Outcome { json: json!({ "configure": r }), text, code: u8::from(failed > 0) }
+}
+
+fn params_command(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    eds_file: Option<&std::path::Path>,
+    set: &[String],
+) -> Result<Outcome, HarnessError> {
+    let assignments: Vec<(String, i64)> =
+        set.iter().map(|a| params::parse_assignment(a)).collect::<Result<_, _>>().map_err(HarnessError::Usage)?;
+    let listed: Option<Vec<(u32, eds::model::Param)>> = match eds_file {
+        Some(path) => {
+            let model = eds::read_file(path).map_err(|e| HarnessError::Usage(format!("{}: {e}", path.display())))?;
+            Some(model.params().map(|(n, p)| (n, p.clone())).collect())
+        }
+        None => None,
+    };
+    master.open_explicit(mac)?;
+    let read = |master: &mut Master<'_, '_>| match &listed {
+        Some(list) => params::read_eds(master, mac, list),
+        None => params::read_device(master, mac),
+    };
+    let mut rows = read(master)?;
+    if !assignments.is_empty() {
+        for (name, value) in &assignments {
+            params::set(master, mac, &rows, name, *value)?;
+        }
+        rows = read(master)?;
+    }
+    if rows.is_empty() {
+        return Err(HarnessError::NothingCompared(format!("MAC {mac} has no parameters to read")));
+    }
+    Ok(Outcome { text: params::table(&rows), json: json!({ "params": rows }), code: 0 })
 }
 
 fn connect_outcome(s: &DeviceSummary) -> Outcome {

@@ -48,6 +48,9 @@ pub enum HarnessError {
     /// The command ended, but what it allocated could not be released.
     #[error("could not release the device's connections: {0}")]
     Release(Box<MasterError>),
+    /// The device refused or failed a configuration step (the device's reason included).
+    #[error("{0}")]
+    Refused(String),
     /// A replay diverged from its transcript.
     #[error("{0}")]
     Divergence(Box<Divergence>),

@@ -20,6 +20,7 @@
 //! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports |
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
+//! | [`configure`], [`params`] | `configure` (a description downloaded over DeviceNet, read back, applied, checked; `--read` uploads it) and `params` (the Parameter object or an EDS's parameters, read and written) |
 //! | [`cli`] | the command line, reports and JSON |
 //! | [`console`] | progress lines on a terminal, the stop asked for by SIGINT / SIGTERM |
 //! | [`table`] | the frame-by-frame table and the JSON form of a record |
@@ -65,10 +66,12 @@ pub fn version() -> &'static str {
 }
 
 pub mod cli;
+pub mod configure;
 pub mod conformance;
 pub mod console;
 pub mod error;
 pub mod monitor;
+pub mod params;
 pub mod replay;
 pub mod scan;
 pub mod soak;

@@ -1,0 +1,275 @@
+//! `configure --mac N FILE` and `configure --mac N --read FILE`: a device description reaches the
+//! adapter over DeviceNet, and comes back from it, with no toolchain on the integrator's side.
+//!
+//! Download ([`download`]):
+//!
+//! 1. the description is loaded and validated (the TOML loader's errors, naming file and key),
+//!    then encoded as the configuration image ([`slave_fw::image`]);
+//! 2. an explicit connection is allocated; Begin_Download (0x4C) with the size, the image in
+//!    chunks of [`CHUNK`] bytes with Write_Chunk (0x4D, offset first), Commit_Download (0x4E) on
+//!    the configuration object ([`CONFIGURATION_CLASS`], instance 1). A refusal is reported with
+//!    the device's reason (attribute 5), e.g. the key of an invalid value;
+//! 3. the stored image is read back (Read_Chunk 0x4B of the pending image) and compared byte for
+//!    byte;
+//! 4. Identity Reset; the master watches for the device's duplicate MAC ID check (at `--mac` or at
+//!    the description's MAC) and waits until it is on-line;
+//! 5. the device is checked against the description: configuration state "stored image in force"
+//!    and the image's CRC, Identity vendor, device type, product code, revision, serial number and
+//!    product name, and the poll connection's produced and consumed sizes.
+//!
+//! Upload ([`upload`]): the image in force is read in chunks, decoded and written as a
+//! description file ([`slave_fw::description::DeviceDescription::to_toml`]).
+//!
+//! The configuration object's services and attributes are the converter's
+//! (`slave_fw::converter`); notes §3.2 for the service code ranges (0x4B–0x63: object class
+//! specific).
+
+use crate::error::HarnessError;
+use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
+use devicenet::messages::AllocationChoice;
+use devicenet::objects::class;
+use devicenet::{Duration, MacId};
+use master_core::client::Port;
+use master_core::decode::short_string;
+use master_core::error::MasterError;
+use master_core::master::Master;
+use slave_fw::converter::ConverterConfig;
+use slave_fw::description::DeviceDescription;
+
+/// The configuration object (vendor class).
+pub const CONFIGURATION_CLASS: u16 = 0x66;
+/// Read_Chunk: `[which][offset UINT][count USINT]`.
+pub const READ_CHUNK: u8 = 0x4B;
+/// Begin_Download: `[size UINT]`.
+pub const BEGIN_DOWNLOAD: u8 = 0x4C;
+/// Write_Chunk: `[offset UINT][bytes]`.
+pub const WRITE_CHUNK: u8 = 0x4D;
+/// Commit_Download: no data.
+pub const COMMIT_DOWNLOAD: u8 = 0x4E;
+/// Bytes of image per request: a Write_Chunk request is then 62 bytes, within the device's
+/// 64-byte explicit message limit.
+pub const CHUNK: usize = 56;
+/// How long the device may take to come back after its reset (its duplicate MAC ID check takes
+/// 2 s of that).
+pub const BACK_ONLINE: Duration = Duration::from_secs(6);
+
+/// One comparison of the device against the description.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Check {
+    /// What was compared.
+    pub what: String,
+    /// The description's value.
+    pub expected: String,
+    /// The device's.
+    pub actual: String,
+}
+
+impl Check {
+    /// Whether they agree.
+    pub fn holds(&self) -> bool {
+        self.expected == self.actual
+    }
+}
+
+/// What a download did.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct DownloadReport {
+    /// The device's MAC before the download.
+    pub mac: u8,
+    /// Where it came back after the reset.
+    pub back_at: Option<u8>,
+    /// Image bytes.
+    pub bytes: usize,
+    /// Write_Chunk requests.
+    pub chunks: usize,
+    /// The read-back equals the image.
+    pub verified: bool,
+    /// Bus time from the reset to the device being on-line again, ms.
+    pub back_online_ms: Option<u64>,
+    /// The device against the description.
+    pub checks: Vec<Check>,
+}
+
+impl DownloadReport {
+    /// Checks that failed.
+    pub fn failures(&self) -> Vec<&Check> {
+        self.checks.iter().filter(|c| !c.holds()).collect()
+    }
+}
+
+fn service(code: u8) -> ServiceCode {
+    ServiceCode::from(code)
+}
+
+/// A class-specific request to the configuration object; an error response becomes
+/// [`MasterError::ErrorResponse`] (and the record a failure).
+fn config_request(master: &mut Master<'_, '_>, mac: MacId, code: u8, data: &[u8]) -> Result<Vec<u8>, MasterError> {
+    let req = Request { service: service(code), class: CONFIGURATION_CLASS, instance: 1, data };
+    master.request_ok(mac, Port::Explicit, &req).map(|(d, _)| d)
+}
+
+/// The device's reason for its last refusal (configuration object attribute 5).
+fn refusal_reason(master: &mut Master<'_, '_>, mac: MacId) -> String {
+    match master.get(mac, CONFIGURATION_CLASS, 1, 5) {
+        Ok((data, _)) => short_string(&data).filter(|s| !s.is_empty()).unwrap_or_else(|| "no reason given".into()),
+        Err(e) => format!("the reason could not be read: {e}"),
+    }
+}
+
+/// Reads `size` bytes of image `which` (0 in force, 1 stored) in chunks.
+fn read_image(master: &mut Master<'_, '_>, mac: MacId, which: u8, size: usize) -> Result<Vec<u8>, MasterError> {
+    let mut image = Vec::with_capacity(size);
+    while image.len() < size {
+        let offset = u16::try_from(image.len()).map_err(|_| MasterError::Invalid("image too long".into()))?;
+        let count = u8::try_from((size - image.len()).min(CHUNK)).unwrap_or(CHUNK as u8);
+        let [lo, hi] = offset.to_le_bytes();
+        let part = config_request(master, mac, READ_CHUNK, &[which, lo, hi, count])?;
+        if part.is_empty() || part.len() > usize::from(count) {
+            return Err(MasterError::Protocol {
+                what: format!("Read_Chunk at offset {offset}"),
+                reason: format!("{} bytes answered, {count} asked", part.len()),
+            });
+        }
+        image.extend_from_slice(&part);
+    }
+    Ok(image)
+}
+
+fn u16_attr(master: &mut Master<'_, '_>, mac: MacId, class_id: u16, instance: u16, attr: u8) -> Result<String, MasterError> {
+    Ok(master.get_u16(mac, class_id, instance, attr)?.map_or_else(|| "?".into(), |v| v.to_string()))
+}
+
+/// Downloads `description` to the device at `mac`, verifies, resets and checks it. See the
+/// [module docs](self).
+pub fn download(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    description: &DeviceDescription,
+) -> Result<DownloadReport, HarnessError> {
+    let mut buf = [0u8; slave_fw::image::MAX_IMAGE];
+    let len = slave_fw::image::encode(&description.converter, &mut buf)
+        .map_err(|e| HarnessError::Usage(format!("the description cannot be encoded: {e}")))?;
+    let image = buf.get(..len).unwrap_or_default().to_vec();
+    let mut report = DownloadReport { mac: mac.as_raw(), bytes: image.len(), ..DownloadReport::default() };
+
+    master.open_explicit(mac)?;
+    let size = u16::try_from(image.len()).map_err(|_| HarnessError::Usage("image too long".into()))?;
+    let refused = |master: &mut Master<'_, '_>, step: &str, e: MasterError| -> HarnessError {
+        match e {
+            MasterError::ErrorResponse { ref text, .. } => {
+                let reason = refusal_reason(master, mac);
+                HarnessError::Refused(format!("MAC {mac} refused the configuration ({step}): {text}: {reason}"))
+            }
+            other => other.into(),
+        }
+    };
+    config_request(master, mac, BEGIN_DOWNLOAD, &size.to_le_bytes()).map_err(|e| refused(master, "Begin_Download", e))?;
+    for (k, part) in image.chunks(CHUNK).enumerate() {
+        let offset = u16::try_from(k * CHUNK).unwrap_or(u16::MAX);
+        let mut data = offset.to_le_bytes().to_vec();
+        data.extend_from_slice(part);
+        config_request(master, mac, WRITE_CHUNK, &data).map_err(|e| refused(master, "Write_Chunk", e))?;
+        report.chunks += 1;
+    }
+    config_request(master, mac, COMMIT_DOWNLOAD, &[]).map_err(|e| refused(master, "Commit_Download", e))?;
+    let back = read_image(master, mac, 1, image.len())?;
+    report.verified = back == image;
+    if !report.verified {
+        return Err(HarnessError::Refused(format!(
+            "MAC {mac}: the stored image read back differs from the one downloaded ({} bytes)",
+            image.len()
+        )));
+    }
+
+    // Identity Reset: the new configuration applies.
+    let reset = Request { service: ServiceCode::Reset, class: class::IDENTITY, instance: 1, data: &[] };
+    master.request_ok(mac, Port::Explicit, &reset)?;
+    let reset_at = master.session.now();
+    // The reset dropped the device's connections: nothing is left to release.
+    master.set_held(mac, AllocationChoice::empty());
+    let described = description.converter.device.mac_id;
+    let candidates: Vec<MacId> = if described == mac { vec![mac] } else { vec![mac, described] };
+    let deadline = reset_at + BACK_ONLINE;
+    let back_at = loop {
+        if let Some(m) = candidates.iter().copied().find(|m| {
+            master.tracker.online_at(m.as_raw()).is_some_and(|at| at > reset_at && at <= master.session.now())
+        }) {
+            break m;
+        }
+        if master.session.now() >= deadline {
+            return Err(HarnessError::Refused(format!(
+                "MAC {mac} did not come back on-line within {BACK_ONLINE} of its reset (watched MAC {})",
+                candidates.iter().map(ToString::to_string).collect::<Vec<_>>().join(" and ")
+            )));
+        }
+        let until = candidates
+            .iter()
+            .filter_map(|m| master.tracker.online_at(m.as_raw()).filter(|&at| at > reset_at))
+            .min()
+            .unwrap_or(deadline)
+            .min(deadline);
+        master.idle_until(until)?;
+    };
+    report.back_at = Some(back_at.as_raw());
+    report.back_online_ms = Some((master.session.now() - reset_at).total_millis());
+
+    master.set_device(back_at);
+    master.allocate(back_at, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+    check_against(master, back_at, description, &image, &mut report)?;
+    Ok(report)
+}
+
+/// Compares the device at `mac` with `description` (see the [module docs](self), step 5).
+fn check_against(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    description: &DeviceDescription,
+    image: &[u8],
+    report: &mut DownloadReport,
+) -> Result<(), HarnessError> {
+    let config: &ConverterConfig = &description.converter;
+    let id = &config.device.identity;
+    let mut check = |what: &str, expected: String, actual: String| {
+        report.checks.push(Check { what: what.into(), expected, actual });
+    };
+    let (state, _) = master.get(mac, CONFIGURATION_CLASS, 1, 3)?;
+    check("configuration state", "[1]".into(), format!("{state:?}"));
+    let (crc, _) = master.get(mac, CONFIGURATION_CLASS, 1, 4)?;
+    let expected_crc = image.get(image.len().saturating_sub(4)..).unwrap_or_default().to_vec();
+    check("configuration CRC-32", format!("{expected_crc:02X?}"), format!("{crc:02X?}"));
+    check("Identity vendor ID", id.vendor_id.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 1)?);
+    check("Identity device type", id.device_type.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 2)?);
+    check("Identity product code", id.product_code.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 3)?);
+    let (rev, _) = master.get(mac, class::IDENTITY, 1, 4)?;
+    check("Identity revision", format!("[{}, {}]", id.major_revision, id.minor_revision), format!("{rev:?}"));
+    let (serial, _) = master.get(mac, class::IDENTITY, 1, 6)?;
+    check("Identity serial number", format!("{:?}", id.serial_number.to_le_bytes()), format!("{serial:?}"));
+    let (name, _) = master.get(mac, class::IDENTITY, 1, 7)?;
+    check("Identity product name", id.product_name.to_string(), short_string(&name).unwrap_or_default());
+    master.allocate(mac, Port::Explicit, AllocationChoice::POLL)?;
+    let device = config.device_config();
+    check("poll produced size", device.produced_size.to_string(), u16_attr(master, mac, class::CONNECTION, 2, 7)?);
+    check("poll consumed size", device.consumed_size.to_string(), u16_attr(master, mac, class::CONNECTION, 2, 8)?);
+    Ok(())
+}
+
+/// Reads the configuration in force at `mac` and gives it back as a description.
+pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<DeviceDescription, HarnessError> {
+    master.open_explicit(mac)?;
+    let size = master
+        .get_u16(mac, CONFIGURATION_CLASS, 1, 2)?
+        .ok_or_else(|| MasterError::Protocol { what: "configuration size".into(), reason: "not a UINT".into() })?;
+    let image = read_image(master, mac, 0, usize::from(size))?;
+    let converter = slave_fw::image::decode(&image)
+        .map_err(|e| HarnessError::Refused(format!("MAC {mac} serves a configuration image that does not decode: {e}")))?;
+    Ok(DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() })
+}
+
+/// `true` when `e` says the device has no configuration object (an older firmware, another
+/// vendor's device).
+pub fn no_configuration_object(e: &HarnessError) -> bool {
+    matches!(
+        e,
+        HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ObjectDoesNotExist, .. })
+    ) || matches!(e, HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ServiceNotSupported, .. }))
+}
