@@ -47,7 +47,10 @@ use devicenet::slave::{
 use devicenet::{CanFrame, Duration, Instant, SlaveNode};
 use heapless::Deque;
 
+pub mod check;
 pub mod objects;
+
+pub use check::InvalidConfig;
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};

@@ -30,12 +30,11 @@
 //! errors too, so a misspelt setting never goes unnoticed. The complete reference, with every
 //! optional key, is in the README and in `slave-fw/descriptions/`.
 
-use crate::converter::{ConverterConfig, InputAssembly};
+use crate::converter::{ConverterConfig, InputAssembly, InvalidConfig};
 use crate::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
 use crate::serial::{
     FramedProfileConfig, HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings,
 };
-use devicenet::slave::config::MAX_PRODUCT_NAME;
 use devicenet::slave::{BaudRate, DeviceConfig, Identity, Switches};
 use devicenet::MacId;
 use serde::Deserialize;
@@ -211,25 +210,24 @@ impl DeviceDescription {
     }
 }
 
+impl From<InvalidConfig> for DescriptionErrorKind {
+    fn from(e: InvalidConfig) -> Self {
+        invalid(e.key().to_string(), e.message().to_string())
+    }
+}
+
+/// Builds the configuration from the file. Only what is TOML's own is checked here (the product
+/// name's length before it is stored, the MAC ID's raw number, baud rate names, which tables go
+/// with which profile kind, the optional `io.*_size` cross-checks); every value rule is
+/// [`ConverterConfig::check`], shared with the configuration image decoder.
 fn build(file: File) -> Result<DeviceDescription, DescriptionErrorKind> {
     let id = file.identity;
-    if id.product_name.is_empty() || id.product_name.len() > MAX_PRODUCT_NAME {
-        return Err(invalid(
-            "identity.product_name",
-            format!("{} characters, allowed 1..={MAX_PRODUCT_NAME}", id.product_name.len()),
-        ));
-    }
-    if !id.product_name.bytes().all(|b| (0x20..0x7F).contains(&b)) {
-        return Err(invalid("identity.product_name", "must be printable ASCII"));
-    }
-    if !(1..=127).contains(&id.major_revision) {
-        return Err(invalid("identity.major_revision", format!("{} is outside 1..=127", id.major_revision)));
-    }
     let mut product_name = heapless::String::new();
-    let _ = product_name.push_str(&id.product_name);
+    if product_name.push_str(&id.product_name).is_err() {
+        return Err(InvalidConfig::ProductNameLength(id.product_name.len()).into());
+    }
     let net = file.network;
-    let mac_id = MacId::new(net.mac_id)
-        .ok_or_else(|| invalid("network.mac_id", format!("{} is outside 0..=63", net.mac_id)))?;
+    let mac_id = MacId::new(net.mac_id).ok_or(InvalidConfig::MacId(net.mac_id))?;
     let baud_rate = match net.baud_rate.to_ascii_lowercase().as_str() {
         "125k" | "125000" => BaudRate::Kbps125,
         "250k" | "250000" => BaudRate::Kbps250,
@@ -241,9 +239,6 @@ fn build(file: File) -> Result<DeviceDescription, DescriptionErrorKind> {
             ))
         }
     };
-    if net.epr_resolution_ms == 0 {
-        return Err(invalid("network.epr_resolution_ms", "0 is outside 1..=65535"));
-    }
     let device = DeviceConfig {
         identity: Identity {
             vendor_id: id.vendor_id,
@@ -268,13 +263,7 @@ fn build(file: File) -> Result<DeviceDescription, DescriptionErrorKind> {
     };
     let profile = build_profile(file.profile)?;
     let mut converter = ConverterConfig { device, profile, input: file.io.input_assembly };
-    converter.profile.validate().map_err(|e| {
-        let text = e.to_string();
-        match text.split_once(": ") {
-            Some((key, why)) => invalid(format!("profile.{}", profile_prefix(&converter.profile, key)), why),
-            None => invalid("profile", text),
-        }
-    })?;
+    converter.check()?;
     let derived = converter.device_config();
     if let Some(p) = file.io.produced_size.filter(|&p| p != derived.produced_size) {
         return Err(invalid(
@@ -288,17 +277,8 @@ fn build(file: File) -> Result<DeviceDescription, DescriptionErrorKind> {
             format!("{c} disagrees with the profile, which consumes {}", derived.consumed_size),
         ));
     }
-    derived.validate().map_err(|e| invalid("io", e.to_string()))?;
     converter.device = derived;
     Ok(DeviceDescription { converter, vendor_name: id.vendor_name, catalog: id.catalog })
-}
-
-/// Where a profile's own field names live in the file.
-fn profile_prefix(profile: &ProfileConfig, key: &str) -> String {
-    match profile {
-        ProfileConfig::Framed(_) => key.to_string(),
-        ProfileConfig::Modbus(_) => format!("modbus.{key}"),
-    }
 }
 
 fn build_profile(section: ProfileSection) -> Result<ProfileConfig, DescriptionErrorKind> {

@@ -23,6 +23,7 @@
 //! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
 //! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the Identity Reset's delay ([`RESET_DELAY`](converter::RESET_DELAY), [`poll_reset`](converter::Converter::poll_reset)) |
 //! | [`converter::objects`] | the vendor objects 0x64 (serial link) and 0x65 (settings): one attribute table each, served by the converter and written into the EDS by `eds::generate` |
+//! | [`image`] | the binary configuration image: a whole `ConverterConfig` with header and CRC-32, as stored and downloaded |
 //! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
 //! | `description_write` (feature `description`) | the TOML form of a description, read back to the same configuration |
 //!
@@ -61,6 +62,7 @@
 extern crate std;
 
 pub mod converter;
+pub mod image;
 pub mod serial;
 
 #[cfg(feature = "description")]

@@ -7,6 +7,7 @@
 //!   (`candump -L` target);
 //! * the breaker's frames (status, acknowledgements, commands) and Modbus RTU requests and
 //!   responses (serial parsers);
+//! * the configuration images of the two description files (configuration image target);
 //! * the EDS files of `eds/tests` (EDS target).
 //!
 //! Run from the repository root: `cargo run --manifest-path fuzz/Cargo.toml -p seedgen`.
@@ -170,6 +171,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ("exception", &[0x01, 0x83, 0x02]),
     ] {
         write(&dir, "modbus_codec", name, &modbus(body))?;
+    }
+
+    // Configuration images of the description files.
+    for name in ["breaker", "modbus-meter"] {
+        let path = format!("slave-fw/descriptions/{name}.toml");
+        let description = slave_fw::description::DeviceDescription::load(Path::new(&path))?;
+        let mut out = [0u8; slave_fw::image::MAX_IMAGE];
+        let n = slave_fw::image::encode(&description.converter, &mut out)?;
+        write(&dir, "config_image", name, &out[..n])?;
     }
 
     // EDS: the parser's own test files.

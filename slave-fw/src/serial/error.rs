@@ -76,24 +76,46 @@ pub(crate) fn as_u32(n: usize) -> u32 {
     u32::try_from(n).unwrap_or(u32::MAX)
 }
 
-impl fmt::Display for ConfigError {
+impl ConfigError {
+    /// The field with its list index, as the configuration spells it (`scan[3].count`).
+    pub const fn path(&self) -> FieldPath<'_> {
+        FieldPath(self)
+    }
+}
+
+/// [`ConfigError::path`]: displays the field with its list index.
+#[derive(Clone, Copy, Debug)]
+pub struct FieldPath<'a>(&'a ConfigError);
+
+impl fmt::Display for FieldPath<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         // `scan[3].count`: the list name is the part before the first dot.
-        match self.index {
-            Some(i) => match self.field.split_once('.') {
-                Some((list, rest)) => write!(f, "{list}[{i}].{rest}")?,
-                None => write!(f, "{}[{i}]", self.field)?,
+        match self.0.index {
+            Some(i) => match self.0.field.split_once('.') {
+                Some((list, rest)) => write!(f, "{list}[{i}].{rest}"),
+                None => write!(f, "{}[{i}]", self.0.field),
             },
-            None => f.write_str(self.field)?,
+            None => f.write_str(self.0.field),
         }
-        match self.problem {
+    }
+}
+
+impl fmt::Display for Problem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
             Problem::OutOfRange { value, min, max } => {
-                write!(f, ": {value} is outside the allowed range {min}..={max}")
+                write!(f, "{value} is outside the allowed range {min}..={max}")
             }
-            Problem::Conflict(why) => write!(f, ": {why}"),
-            Problem::Overlap { other } => write!(f, ": overlaps the image bytes of entry {other}"),
-            Problem::Duplicate { other } => write!(f, ": duplicates entry {other}"),
+            Problem::Conflict(why) => f.write_str(why),
+            Problem::Overlap { other } => write!(f, "overlaps the image bytes of entry {other}"),
+            Problem::Duplicate { other } => write!(f, "duplicates entry {other}"),
         }
+    }
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.path(), self.problem)
     }
 }
 

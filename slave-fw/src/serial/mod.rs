@@ -31,7 +31,7 @@ pub mod profile;
 pub mod sequencer;
 
 pub use checksum::Checksum;
-pub use error::{ConfigError, Problem};
+pub use error::{ConfigError, FieldPath, Problem};
 pub use framed::{Frame, FrameCounters, FrameError, FrameParser, FramedConfig, LengthField};
 pub use framed_profile::{AckFormat, CommandFormat, FramedProfile, FramedProfileConfig};
 pub use health::{HealthConfig, LinkHealth, LinkState, LinkStatus, StalePolicy, Stats, StatusByte};

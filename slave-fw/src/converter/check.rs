@@ -1,0 +1,184 @@
+//! The value rules of a [`ConverterConfig`], in one place: the TOML device description loader
+//! (`slave_fw::description`) and the configuration image decoder ([`crate::image::decode`]) both
+//! call [`ConverterConfig::check`], so a value refused by either is refused with the same key and
+//! the same words (`profile.modbus.scan[1].offset: 30 is outside the allowed range 0..=4`).
+//!
+//! What stays with the loader is only what TOML has and the image has not: syntax, unknown keys,
+//! names for enumerations (`baud_rate = "250k"`) and the optional `io.*_size` cross-checks.
+
+use super::ConverterConfig;
+use crate::serial::{ConfigError, ProfileConfig};
+use core::fmt;
+use devicenet::slave::config::MAX_PRODUCT_NAME;
+use devicenet::slave::ConfigError as NodeConfigError;
+
+/// A configuration value the converter cannot run with: the key as the description file spells
+/// it ([`InvalidConfig::key`]) and why ([`InvalidConfig::message`]). `Display` gives
+/// `key: message`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InvalidConfig {
+    /// `identity.product_name` is empty or longer than [`MAX_PRODUCT_NAME`] (its length).
+    ProductNameLength(usize),
+    /// `identity.product_name` is not printable ASCII.
+    ProductNameNotAscii,
+    /// `identity.major_revision` is outside 1..=127.
+    MajorRevision(u8),
+    /// `network.mac_id` is outside 0..=63.
+    MacId(u8),
+    /// `network.baud_rate` is not a DeviceNet baud rate code (0, 1, 2); only an image can say so.
+    BaudRate(u8),
+    /// `network.epr_resolution_ms` is 0.
+    EprResolutionZero,
+    /// A value of the serial profile (`profile.…` or `profile.modbus.…`).
+    Profile {
+        /// Whether the profile is Modbus (its keys are under `profile.modbus`).
+        modbus: bool,
+        /// The profile's own error.
+        error: ConfigError,
+    },
+    /// The node refuses the derived I/O configuration (`io`).
+    Io(NodeConfigError),
+}
+
+impl InvalidConfig {
+    /// The dotted key, as in the description file.
+    pub const fn key(&self) -> Key<'_> {
+        Key(self)
+    }
+
+    /// What is wrong with the value.
+    pub const fn message(&self) -> Message<'_> {
+        Message(self)
+    }
+}
+
+/// [`InvalidConfig::key`]: displays the dotted key.
+#[derive(Clone, Copy, Debug)]
+pub struct Key<'a>(&'a InvalidConfig);
+
+/// [`InvalidConfig::message`]: displays what is wrong.
+#[derive(Clone, Copy, Debug)]
+pub struct Message<'a>(&'a InvalidConfig);
+
+impl fmt::Display for Key<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self.0 {
+            InvalidConfig::ProductNameLength(_) | InvalidConfig::ProductNameNotAscii => {
+                "identity.product_name"
+            }
+            InvalidConfig::MajorRevision(_) => "identity.major_revision",
+            InvalidConfig::MacId(_) => "network.mac_id",
+            InvalidConfig::BaudRate(_) => "network.baud_rate",
+            InvalidConfig::EprResolutionZero => "network.epr_resolution_ms",
+            InvalidConfig::Io(_) => "io",
+            InvalidConfig::Profile { modbus, error } => {
+                let section = if *modbus { "profile.modbus." } else { "profile." };
+                return write!(f, "{section}{}", error.path());
+            }
+        })
+    }
+}
+
+impl fmt::Display for Message<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            InvalidConfig::ProductNameLength(n) => {
+                write!(f, "{n} characters, allowed 1..={MAX_PRODUCT_NAME}")
+            }
+            InvalidConfig::ProductNameNotAscii => f.write_str("must be printable ASCII"),
+            InvalidConfig::MajorRevision(v) => write!(f, "{v} is outside 1..=127"),
+            InvalidConfig::MacId(v) => write!(f, "{v} is outside 0..=63"),
+            InvalidConfig::BaudRate(v) => {
+                write!(f, "{v} is not a baud rate code (0 125k, 1 250k, 2 500k)")
+            }
+            InvalidConfig::EprResolutionZero => f.write_str("0 is outside 1..=65535"),
+            InvalidConfig::Profile { error, .. } => write!(f, "{}", error.problem),
+            InvalidConfig::Io(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl fmt::Display for InvalidConfig {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}: {}", self.key(), self.message())
+    }
+}
+
+impl core::error::Error for InvalidConfig {}
+
+impl ConverterConfig {
+    /// Checks every value the converter runs with, and returns the first one refused, named by
+    /// its description-file key. The MAC ID and baud rate are typed and always valid here; their
+    /// raw forms are checked where they are read ([`InvalidConfig::MacId`],
+    /// [`InvalidConfig::BaudRate`]).
+    pub fn check(&self) -> Result<(), InvalidConfig> {
+        let id = &self.device.identity;
+        let name_len = id.product_name.len();
+        if name_len == 0 || name_len > MAX_PRODUCT_NAME {
+            return Err(InvalidConfig::ProductNameLength(name_len));
+        }
+        if !id.product_name.bytes().all(|b| (0x20..0x7F).contains(&b)) {
+            return Err(InvalidConfig::ProductNameNotAscii);
+        }
+        if !(1..=127).contains(&id.major_revision) {
+            return Err(InvalidConfig::MajorRevision(id.major_revision));
+        }
+        if self.device.epr_resolution_ms == 0 {
+            return Err(InvalidConfig::EprResolutionZero);
+        }
+        let modbus = matches!(self.profile, ProfileConfig::Modbus(_));
+        self.profile.validate().map_err(|error| InvalidConfig::Profile { modbus, error })?;
+        self.device_config().validate().map_err(InvalidConfig::Io)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::modbus::{Function, ModbusConfig, ScanEntry};
+    use rstest::rstest;
+    use std::string::ToString;
+
+    fn modbus() -> ConverterConfig {
+        let scan = heapless::Vec::from_iter([
+            ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 0, count: 2, offset: 0 },
+            ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 8, count: 1, offset: 30 },
+        ]);
+        let mut m = ModbusConfig::new(scan);
+        m.input_len = 8;
+        ConverterConfig { profile: ProfileConfig::Modbus(m), ..ConverterConfig::breaker_reference() }
+    }
+
+    #[rstest]
+    #[case::reference(ConverterConfig::breaker_reference(), None)]
+    #[case::modbus_offset(
+        modbus(),
+        Some("profile.modbus.scan[1].offset: 30 is outside the allowed range 0..=6")
+    )]
+    #[case::major(
+        { let mut c = ConverterConfig::breaker_reference(); c.device.identity.major_revision = 0; c },
+        Some("identity.major_revision: 0 is outside 1..=127")
+    )]
+    #[case::empty_name(
+        { let mut c = ConverterConfig::breaker_reference(); c.device.identity.product_name.clear(); c },
+        Some("identity.product_name: 0 characters, allowed 1..=32")
+    )]
+    #[case::epr(
+        { let mut c = ConverterConfig::breaker_reference(); c.device.epr_resolution_ms = 0; c },
+        Some("network.epr_resolution_ms: 0 is outside 1..=65535")
+    )]
+    #[case::framed_health(
+        { let mut c = ConverterConfig::breaker_reference();
+          if let ProfileConfig::Framed(f) = &mut c.profile { f.health.stale_timeout_ms = 0 } c },
+        Some("profile.health.stale_timeout_ms: 0 is outside the allowed range 1..=3600000")
+    )]
+    fn check(#[case] config: ConverterConfig, #[case] expected: Option<&str>) {
+        assert_eq!(config.check().err().map(|e| e.to_string()).as_deref(), expected);
+    }
+
+    #[test]
+    fn raw_network_values() {
+        assert_eq!(InvalidConfig::MacId(70).to_string(), "network.mac_id: 70 is outside 0..=63");
+        assert_eq!(InvalidConfig::BaudRate(3).key().to_string(), "network.baud_rate");
+    }
+}
