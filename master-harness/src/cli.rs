@@ -10,12 +10,12 @@
 //! and the log are flushed and the result printed (with `"interrupted"` in the JSON when a signal
 //! stopped it). Output files are created before the bus is touched.
 
-use crate::conformance::command::ConformanceCommand;
 use crate::configure;
+use crate::conformance::command::ConformanceCommand;
 use crate::console::{Console, Progress};
-use crate::params;
 use crate::error::HarnessError;
 use crate::monitor::{self, InputLayout, MonitorOptions};
+use crate::params;
 use crate::replay::{self, ReplayOptions};
 use crate::scan::{self, ScanReport};
 use crate::table::{print_table, record_json, RecordJson};
@@ -701,8 +701,12 @@ fn execute(
                 }
             })
         }
-        Command::Configure { .. } => Err(HarnessError::Usage("configure needs a description file or --read FILE".into())),
-        Command::Params { mac, eds: eds_file, set } => params_command(&mut master, *mac, eds_file.as_deref(), set),
+        Command::Configure { .. } => {
+            Err(HarnessError::Usage("configure needs a description file or --read FILE".into()))
+        }
+        Command::Params { mac, eds: eds_file, set } => {
+            params_command(&mut master, *mac, eds_file.as_deref(), set)
+        }
         Command::Decode { .. } | Command::Conformance { .. } => unreachable!("handled above"),
     };
     drop(progress);
@@ -837,7 +841,15 @@ fn configure_outcome(r: &configure::DownloadReport, path: &std::path::Path) -> O
     );
     for c in &r.checks {
         let mark = if c.holds() { "ok  " } else { "FAIL" };
-        text.push_str(&format!("\n  {mark} {:<24} {}", c.what, if c.holds() { c.actual.clone() } else { format!("expected {}, device has {}", c.expected, c.actual) }));
+        text.push_str(&format!(
+            "\n  {mark} {:<24} {}",
+            c.what,
+            if c.holds() {
+                c.actual.clone()
+            } else {
+                format!("expected {}, device has {}", c.expected, c.actual)
+            }
+        ));
     }
     let failed = r.failures().len();
     text.push_str(&if failed == 0 {
@@ -854,11 +866,15 @@ fn params_command(
     eds_file: Option<&std::path::Path>,
     set: &[String],
 ) -> Result<Outcome, HarnessError> {
-    let assignments: Vec<(String, i64)> =
-        set.iter().map(|a| params::parse_assignment(a)).collect::<Result<_, _>>().map_err(HarnessError::Usage)?;
+    let assignments: Vec<(String, i64)> = set
+        .iter()
+        .map(|a| params::parse_assignment(a))
+        .collect::<Result<_, _>>()
+        .map_err(HarnessError::Usage)?;
     let listed: Option<Vec<(u32, eds::model::Param)>> = match eds_file {
         Some(path) => {
-            let model = eds::read_file(path).map_err(|e| HarnessError::Usage(format!("{}: {e}", path.display())))?;
+            let model =
+                eds::read_file(path).map_err(|e| HarnessError::Usage(format!("{}: {e}", path.display())))?;
             Some(model.params().map(|(n, p)| (n, p.clone())).collect())
         }
         None => None,

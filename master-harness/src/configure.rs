@@ -103,7 +103,12 @@ fn service(code: u8) -> ServiceCode {
 
 /// A class-specific request to the configuration object; an error response becomes
 /// [`MasterError::ErrorResponse`] (and the record a failure).
-fn config_request(master: &mut Master<'_, '_>, mac: MacId, code: u8, data: &[u8]) -> Result<Vec<u8>, MasterError> {
+fn config_request(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    code: u8,
+    data: &[u8],
+) -> Result<Vec<u8>, MasterError> {
     let req = Request { service: service(code), class: CONFIGURATION_CLASS, instance: 1, data };
     master.request_ok(mac, Port::Explicit, &req).map(|(d, _)| d)
 }
@@ -111,13 +116,20 @@ fn config_request(master: &mut Master<'_, '_>, mac: MacId, code: u8, data: &[u8]
 /// The device's reason for its last refusal (configuration object attribute 5).
 fn refusal_reason(master: &mut Master<'_, '_>, mac: MacId) -> String {
     match master.get(mac, CONFIGURATION_CLASS, 1, 5) {
-        Ok((data, _)) => short_string(&data).filter(|s| !s.is_empty()).unwrap_or_else(|| "no reason given".into()),
+        Ok((data, _)) => {
+            short_string(&data).filter(|s| !s.is_empty()).unwrap_or_else(|| "no reason given".into())
+        }
         Err(e) => format!("the reason could not be read: {e}"),
     }
 }
 
 /// Reads `size` bytes of image `which` (0 in force, 1 stored) in chunks.
-fn read_image(master: &mut Master<'_, '_>, mac: MacId, which: u8, size: usize) -> Result<Vec<u8>, MasterError> {
+fn read_image(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    which: u8,
+    size: usize,
+) -> Result<Vec<u8>, MasterError> {
     let mut image = Vec::with_capacity(size);
     while image.len() < size {
         let offset = u16::try_from(image.len()).map_err(|_| MasterError::Invalid("image too long".into()))?;
@@ -135,7 +147,13 @@ fn read_image(master: &mut Master<'_, '_>, mac: MacId, which: u8, size: usize) -
     Ok(image)
 }
 
-fn u16_attr(master: &mut Master<'_, '_>, mac: MacId, class_id: u16, instance: u16, attr: u8) -> Result<String, MasterError> {
+fn u16_attr(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    class_id: u16,
+    instance: u16,
+    attr: u8,
+) -> Result<String, MasterError> {
     Ok(master.get_u16(mac, class_id, instance, attr)?.map_or_else(|| "?".into(), |v| v.to_string()))
 }
 
@@ -158,12 +176,15 @@ pub fn download(
         match e {
             MasterError::ErrorResponse { ref text, .. } => {
                 let reason = refusal_reason(master, mac);
-                HarnessError::Refused(format!("MAC {mac} refused the configuration ({step}): {text}: {reason}"))
+                HarnessError::Refused(format!(
+                    "MAC {mac} refused the configuration ({step}): {text}: {reason}"
+                ))
             }
             other => other.into(),
         }
     };
-    config_request(master, mac, BEGIN_DOWNLOAD, &size.to_le_bytes()).map_err(|e| refused(master, "Begin_Download", e))?;
+    config_request(master, mac, BEGIN_DOWNLOAD, &size.to_le_bytes())
+        .map_err(|e| refused(master, "Begin_Download", e))?;
     for (k, part) in image.chunks(CHUNK).enumerate() {
         let offset = u16::try_from(k * CHUNK).unwrap_or(u16::MAX);
         let mut data = offset.to_le_bytes().to_vec();
@@ -239,7 +260,11 @@ fn check_against(
     check("configuration CRC-32", format!("{expected_crc:02X?}"), format!("{crc:02X?}"));
     check("Identity vendor ID", id.vendor_id.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 1)?);
     check("Identity device type", id.device_type.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 2)?);
-    check("Identity product code", id.product_code.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 3)?);
+    check(
+        "Identity product code",
+        id.product_code.to_string(),
+        u16_attr(master, mac, class::IDENTITY, 1, 3)?,
+    );
     let (rev, _) = master.get(mac, class::IDENTITY, 1, 4)?;
     check("Identity revision", format!("[{}, {}]", id.major_revision, id.minor_revision), format!("{rev:?}"));
     let (serial, _) = master.get(mac, class::IDENTITY, 1, 6)?;
@@ -248,20 +273,30 @@ fn check_against(
     check("Identity product name", id.product_name.to_string(), short_string(&name).unwrap_or_default());
     master.allocate(mac, Port::Explicit, AllocationChoice::POLL)?;
     let device = config.device_config();
-    check("poll produced size", device.produced_size.to_string(), u16_attr(master, mac, class::CONNECTION, 2, 7)?);
-    check("poll consumed size", device.consumed_size.to_string(), u16_attr(master, mac, class::CONNECTION, 2, 8)?);
+    check(
+        "poll produced size",
+        device.produced_size.to_string(),
+        u16_attr(master, mac, class::CONNECTION, 2, 7)?,
+    );
+    check(
+        "poll consumed size",
+        device.consumed_size.to_string(),
+        u16_attr(master, mac, class::CONNECTION, 2, 8)?,
+    );
     Ok(())
 }
 
 /// Reads the configuration in force at `mac` and gives it back as a description.
 pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<DeviceDescription, HarnessError> {
     master.open_explicit(mac)?;
-    let size = master
-        .get_u16(mac, CONFIGURATION_CLASS, 1, 2)?
-        .ok_or_else(|| MasterError::Protocol { what: "configuration size".into(), reason: "not a UINT".into() })?;
+    let size = master.get_u16(mac, CONFIGURATION_CLASS, 1, 2)?.ok_or_else(|| MasterError::Protocol {
+        what: "configuration size".into(),
+        reason: "not a UINT".into(),
+    })?;
     let image = read_image(master, mac, 0, usize::from(size))?;
-    let converter = slave_fw::image::decode(&image)
-        .map_err(|e| HarnessError::Refused(format!("MAC {mac} serves a configuration image that does not decode: {e}")))?;
+    let converter = slave_fw::image::decode(&image).map_err(|e| {
+        HarnessError::Refused(format!("MAC {mac} serves a configuration image that does not decode: {e}"))
+    })?;
     Ok(DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() })
 }
 
@@ -271,5 +306,8 @@ pub fn no_configuration_object(e: &HarnessError) -> bool {
     matches!(
         e,
         HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ObjectDoesNotExist, .. })
-    ) || matches!(e, HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ServiceNotSupported, .. }))
+    ) || matches!(
+        e,
+        HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ServiceNotSupported, .. })
+    )
 }

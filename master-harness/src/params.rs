@@ -55,7 +55,7 @@ pub struct ParamRow {
 
 /// Whether a CIP data type code is signed.
 fn signed(data_type: u8) -> bool {
-    matches!(data_type, 0xC2 | 0xC3 | 0xC4 | 0xC5)
+    matches!(data_type, 0xC2..=0xC5)
 }
 
 /// The value of little-endian `bytes` of `data_type`.
@@ -100,7 +100,9 @@ pub fn read_device(master: &mut Master<'_, '_>, mac: MacId) -> Result<Vec<ParamR
     let count = master.get_u16(mac, PARAMETER_CLASS, 0, 2)?.unwrap_or(0);
     let mut rows = Vec::new();
     for instance in 1..=count {
-        let mut get = |attr: u8| -> Result<Vec<u8>, MasterError> { Ok(master.get(mac, PARAMETER_CLASS, instance, attr)?.0) };
+        let mut get = |attr: u8| -> Result<Vec<u8>, MasterError> {
+            Ok(master.get(mac, PARAMETER_CLASS, instance, attr)?.0)
+        };
         let descriptor = get(4)?;
         let data_type = get(5)?.first().copied().unwrap_or(0);
         let size = get(6)?.first().copied().unwrap_or(0);
@@ -141,7 +143,10 @@ pub fn read_eds(
     let mut rows = Vec::new();
     for (n, p) in params {
         let Some(address) = p.link_path.as_ref().and_then(LinkPath::attribute) else {
-            return Err(HarnessError::Usage(format!("Param{n} \"{}\": its link path names no attribute", p.name)));
+            return Err(HarnessError::Usage(format!(
+                "Param{n} \"{}\": its link path names no attribute",
+                p.name
+            )));
         };
         // A path to a Parameter instance without an attribute means its value, attribute 1.
         let attribute = address.attribute.and_then(|a| u8::try_from(a).ok()).unwrap_or(1);
@@ -158,7 +163,10 @@ pub fn read_eds(
             max: eds_number(p.max.as_ref()),
             default: eds_number(p.default.as_ref()),
             data_type,
-            size: p.data_size.and_then(|s| u8::try_from(s).ok()).unwrap_or(u8::try_from(value.len()).unwrap_or(0)),
+            size: p
+                .data_size
+                .and_then(|s| u8::try_from(s).ok())
+                .unwrap_or(u8::try_from(value.len()).unwrap_or(0)),
             read_only: p.descriptor.is_some_and(|d| d.0 & 0x10 != 0),
         });
     }
@@ -178,14 +186,21 @@ pub fn parse_assignment(text: &str) -> Result<(String, i64), String> {
 }
 
 /// Writes `value` to the parameter named `name` among `rows`.
-pub fn set(master: &mut Master<'_, '_>, mac: MacId, rows: &[ParamRow], name: &str, value: i64) -> Result<(), HarnessError> {
+pub fn set(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+    rows: &[ParamRow],
+    name: &str,
+    value: i64,
+) -> Result<(), HarnessError> {
     let row = rows.iter().find(|r| r.name.eq_ignore_ascii_case(name)).ok_or_else(|| {
         HarnessError::Usage(format!(
             "no parameter named \"{name}\"; the device has: {}",
             rows.iter().map(|r| format!("\"{}\"", r.name)).collect::<Vec<_>>().join(", ")
         ))
     })?;
-    let bytes = encode_value(value, row.size, row.data_type).map_err(|e| HarnessError::Usage(format!("{name}: {e}")))?;
+    let bytes = encode_value(value, row.size, row.data_type)
+        .map_err(|e| HarnessError::Usage(format!("{name}: {e}")))?;
     let (class_id, instance, attribute) = row.path;
     master.set(mac, class_id, instance, attribute, &bytes).map_err(|e| match e {
         MasterError::ErrorResponse { text, .. } => {
