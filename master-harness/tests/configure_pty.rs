@@ -1,0 +1,111 @@
+//! `configure` and `params` on the real SLCAN path: the `dnet-master` program against
+//! `dnet-soft-slave --state FILE` (with `dnet-sim-breaker` on a second pty pair), as an integrator
+//! configures an adapter in the field: download a description, see the device come back running
+//! it, restart the soft slave (the board's power cycle) and find the configuration still in force,
+//! read it back as an equivalent description, read and set parameters, and get the spec's errors
+//! for bad values without any change.
+//!
+//! Needs socat and the soft slave's binaries: ignored in the plain host-test run, run by the
+//! `scripts/check` stage "dnet-master on the real SLCAN path".
+
+use pty_rig::{require_socat, Proc, PtyRig};
+use slave_fw::description::DeviceDescription;
+use std::path::PathBuf;
+use std::time::Duration;
+
+fn dnet(rig: &PtyRig, args: &[&str]) -> (i32, String, String) {
+    let bus = rig.master_bus_arg();
+    let mut all = vec!["--bus", bus.as_str()];
+    all.extend_from_slice(args);
+    let mut p = Proc::spawn(env!("CARGO_BIN_EXE_dnet-master"), &all);
+    let status = p.wait(Duration::from_secs(90)).unwrap_or_else(|| panic!("dnet-master {args:?} hangs\n{}", p.dump()));
+    (status.code().unwrap_or(-1), p.stdout.text(), p.stderr.text())
+}
+
+fn ok(rig: &PtyRig, args: &[&str]) -> String {
+    let (code, out, err) = dnet(rig, args);
+    assert_eq!(code, 0, "dnet-master {args:?}\n{out}\n{err}\n{}", rig.dump());
+    out
+}
+
+fn workspace() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// A breaker of another make: its own product code and name, the status assembly (20 bytes
+/// produced), a 5 s stale timeout; 9600 8N1 like the simulated breaker on the pty.
+fn other_breaker(dir: &std::path::Path) -> PathBuf {
+    let text = std::fs::read_to_string(workspace().join("slave-fw/descriptions/breaker.toml"))
+        .unwrap()
+        .replace("product_code = 1", "product_code = 42")
+        .replace("product_name = \"Serial-DeviceNet Bridge\"", "product_name = \"Breaker Gateway B\"")
+        .replace("input_assembly = \"plain\"", "input_assembly = \"with_status\"")
+        .replace("produced_size = 18", "produced_size = 20")
+        .replace("stale_timeout_ms = 3000", "stale_timeout_ms = 5000");
+    for needle in ["product_code = 42", "Breaker Gateway B", "with_status", "produced_size = 20", "stale_timeout_ms = 5000"] {
+        assert!(text.contains(needle), "the reference description changed: {needle}");
+    }
+    let path = dir.join("breaker-b.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+#[ignore = "needs socat: run by scripts/check"]
+fn configure_survives_a_restart_reads_back_and_parameters_are_checked() {
+    if !require_socat() {
+        return;
+    }
+    let mut rig = PtyRig::breaker("configure", &["--period", "0.3"], None);
+    rig.stop_slave();
+    let state = rig.dir.join("state.json");
+    let state_arg = state.to_str().unwrap().to_string();
+    rig.start_slave_with(None, &["--state", &state_arg]);
+    let description = other_breaker(&rig.dir);
+
+    // Download: checked, verified, reset, back on-line, identity and sizes as described.
+    let out = ok(&rig, &["configure", "--mac", "5", description.to_str().unwrap()]);
+    assert!(out.contains("read back and verified"), "{out}");
+    assert!(out.contains("the device runs the description"), "{out}");
+    assert!(out.contains("poll produced size") && out.contains(" 20"), "{out}");
+    assert!(std::fs::read_to_string(&state).unwrap().contains("\"configuration\""), "the image is kept");
+
+    // The board's power cycle: the soft slave restarts with the same state file.
+    rig.stop_slave();
+    rig.start_slave_with(None, &["--state", &state_arg]);
+    let read_back = rig.dir.join("read.toml");
+    let out = ok(&rig, &["configure", "--mac", "5", "--read", read_back.to_str().unwrap()]);
+    assert!(out.contains("written to"), "{out}");
+    let got = DeviceDescription::load(&read_back).unwrap();
+    let want = DeviceDescription::load(&description).unwrap();
+    assert_eq!(got.converter, want.converter, "configure --read gives back the description");
+
+    // Parameters: read, set in range (stored, applies at reset), refused out of range, no change.
+    let out = ok(&rig, &["params", "--mac", "5"]);
+    assert!(out.contains("parameter(s)"), "{out}");
+    assert!(out.to_lowercase().contains("stale timeout"), "{out}");
+    let (code, _, err) = dnet(&rig, &["params", "--mac", "5", "--set", "Stale timeout=0"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("invalid attribute value (0x09)"), "{err}");
+    let out = ok(&rig, &["params", "--mac", "5"]);
+    assert!(out.contains("5000"), "nothing changed: {out}");
+}
+
+#[test]
+#[ignore = "needs socat: run by scripts/check"]
+fn a_download_while_polled_is_refused_and_the_device_keeps_working() {
+    if !require_socat() {
+        return;
+    }
+    let rig = PtyRig::breaker("configure-polled", &["--period", "0.3"], None);
+    let description = other_breaker(&rig.dir);
+    // A connect that keeps the poll connection (EPR 10 s: the watchdog leaves room), then the
+    // same master downloads: its own poll connection is established, so the device refuses.
+    ok(&rig, &["--keep", "connect", "--mac", "5", "--epr", "10000"]);
+    let (code, out, err) = dnet(&rig, &["--keep", "configure", "--mac", "5", description.to_str().unwrap()]);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(err.contains("device state conflict (0x10)"), "{err}");
+    // Still the reference device, still answering.
+    let out = ok(&rig, &["get", "5", "1", "1", "3"]);
+    assert!(out.contains("product code") && out.contains(": 1"), "{out}");
+}
