@@ -327,3 +327,149 @@ impl SettingsFlash for InternalFlash {
         self.flash.unlocked().program(at, data.iter()).map_err(|_| FlashError::Controller)
     }
 }
+
+/// The emulated board's settings sectors: a file on the host, `dnet-settings.bin` in QEMU's
+/// working directory, reached through ARM semihosting (QEMU: `-semihosting-config
+/// enable=on,target=native`; scripts/qemu-firmware passes it and chooses the directory). QEMU
+/// emulates no flash controller, and the file keeps the settings when the emulator stops, as the
+/// board's flash keeps them over a power cycle.
+///
+/// The file holds sector A then sector B, [`HOST_SECTOR_LEN`] bytes each; a new file starts
+/// erased (0xFF). Programming reads, clears bits and writes back, so the file behaves as NOR
+/// flash. If the file cannot be opened every access fails and the firmware runs on its defaults.
+#[cfg(feature = "emulated")]
+pub struct HostFileFlash {
+    handle: Option<u32>,
+}
+
+/// Bytes per sector of [`HostFileFlash`]: eight records.
+#[cfg(feature = "emulated")]
+pub const HOST_SECTOR_LEN: usize = 8 * crate::settings::RECORD_LEN;
+
+#[cfg(feature = "emulated")]
+mod semihosting {
+    //! The few ARM semihosting calls the host file needs ("Semihosting for AArch32 and AArch64",
+    //! ARM DUI 0058 / IHI 0058: operation in r0, parameter block address in r1, `BKPT 0xAB` on
+    //! M-profile).
+
+    pub const SYS_OPEN: u32 = 0x01;
+    pub const SYS_WRITE: u32 = 0x05;
+    pub const SYS_READ: u32 = 0x06;
+    pub const SYS_SEEK: u32 = 0x0A;
+    pub const SYS_FLEN: u32 = 0x0C;
+    /// `fopen` modes as SYS_OPEN numbers them.
+    pub const MODE_READ_WRITE: u32 = 3; // "r+b"
+    pub const MODE_CREATE: u32 = 7; // "w+b"
+
+    /// Makes the call; the result is the operation's r0.
+    pub fn call(op: u32, args: &[u32]) -> i32 {
+        let result: i32;
+        // SAFETY: `args` is a live parameter block of the length `op` reads; every address in it
+        // points at a buffer the caller keeps alive and, for SYS_READ, mutable. The debugger
+        // (QEMU) reads and writes only those; no register but r0 changes.
+        unsafe {
+            core::arch::asm!("bkpt #0xab", inout("r0") op => result, in("r1") args.as_ptr(), options(nostack));
+        }
+        result
+    }
+}
+
+#[cfg(feature = "emulated")]
+impl HostFileFlash {
+    /// The file's name, NUL-terminated as SYS_OPEN wants it.
+    const NAME: &'static [u8] = b"dnet-settings.bin\0";
+
+    /// Opens the file, creating it erased when missing or short.
+    pub fn open() -> HostFileFlash {
+        use semihosting::*;
+        let open = |mode| {
+            let name_len = (Self::NAME.len() - 1) as u32;
+            call(SYS_OPEN, &[Self::NAME.as_ptr() as u32, mode, name_len])
+        };
+        let mut handle = open(MODE_READ_WRITE);
+        if handle < 0 {
+            handle = open(MODE_CREATE);
+        }
+        let mut flash = HostFileFlash { handle: u32::try_from(handle).ok() };
+        if let Some(h) = flash.handle {
+            let len = usize::try_from(call(SYS_FLEN, &[h])).unwrap_or(0);
+            let erased = [0xFF; 64];
+            let mut at = len;
+            while at < 2 * HOST_SECTOR_LEN {
+                let n = erased.len().min(2 * HOST_SECTOR_LEN - at);
+                if flash.write_at(at, &erased[..n]).is_err() {
+                    flash.handle = None;
+                    break;
+                }
+                at += n;
+            }
+        }
+        flash
+    }
+
+    fn seek(&self, at: usize) -> Result<u32, FlashError> {
+        let h = self.handle.ok_or(FlashError::Controller)?;
+        match semihosting::call(semihosting::SYS_SEEK, &[h, at as u32]) {
+            0 => Ok(h),
+            _ => Err(FlashError::Controller),
+        }
+    }
+
+    fn read_at(&self, at: usize, buf: &mut [u8]) -> Result<(), FlashError> {
+        let h = self.seek(at)?;
+        // SYS_READ answers the number of bytes *not* read.
+        match semihosting::call(semihosting::SYS_READ, &[h, buf.as_mut_ptr() as u32, buf.len() as u32]) {
+            0 => Ok(()),
+            _ => Err(FlashError::Controller),
+        }
+    }
+
+    fn write_at(&self, at: usize, data: &[u8]) -> Result<(), FlashError> {
+        let h = self.seek(at)?;
+        match semihosting::call(semihosting::SYS_WRITE, &[h, data.as_ptr() as u32, data.len() as u32]) {
+            0 => Ok(()),
+            _ => Err(FlashError::Controller),
+        }
+    }
+
+    fn offset(sector: Sector, offset: usize, len: usize) -> Result<usize, FlashError> {
+        match offset.checked_add(len) {
+            Some(end) if end <= HOST_SECTOR_LEN => Ok(sector.index() * HOST_SECTOR_LEN + offset),
+            _ => Err(FlashError::OutOfBounds),
+        }
+    }
+}
+
+#[cfg(feature = "emulated")]
+impl SettingsFlash for HostFileFlash {
+    fn sector_len(&self) -> usize {
+        HOST_SECTOR_LEN
+    }
+
+    fn read(&mut self, sector: Sector, offset: usize, buf: &mut [u8]) -> Result<(), FlashError> {
+        self.read_at(Self::offset(sector, offset, buf.len())?, buf)
+    }
+
+    fn erase(&mut self, sector: Sector) -> Result<(), FlashError> {
+        let erased = [0xFF; 64];
+        let start = Self::offset(sector, 0, HOST_SECTOR_LEN)?;
+        for at in (start..start + HOST_SECTOR_LEN).step_by(erased.len()) {
+            self.write_at(at, &erased)?;
+        }
+        Ok(())
+    }
+
+    fn program(&mut self, sector: Sector, offset: usize, data: &[u8]) -> Result<(), FlashError> {
+        let start = Self::offset(sector, offset, data.len())?;
+        let mut cell = [0u8; 64];
+        for (i, chunk) in data.chunks(cell.len()).enumerate() {
+            let at = start + i * cell.len();
+            let cell = &mut cell[..chunk.len()];
+            self.read_at(at, cell)?;
+            // NOR flash: programming only clears bits.
+            cell.iter_mut().zip(chunk).for_each(|(c, d)| *c &= d);
+            self.write_at(at, cell)?;
+        }
+        Ok(())
+    }
+}

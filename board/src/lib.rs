@@ -15,7 +15,7 @@
 //! | [`crc32`] | CRC-32 for the settings records | yes |
 //! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make | yes |
-//! | `hw` | peripheral set-up, the flash sector driver, CAN error status (`target_os = "none"` only) | – |
+//! | `hw` | peripheral set-up, the flash sector driver (the emulated board's: a host file over semihosting), CAN error status (`target_os = "none"` only) | – |
 //!
 //! ## Features
 //!
@@ -28,7 +28,8 @@
 //! emulated board speaks is `can_io::slcan`, shared with the host.
 //!
 //! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
-//! does not offer (CAN error status, reading the settings sectors).
+//! does not offer (CAN error status, reading the settings sectors) and for the semihosting calls
+//! of the emulated board's settings file.
 #![no_std]
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]

@@ -1,6 +1,6 @@
 //! The non-volatile settings: what the master set over the network (MAC ID and data rate for the
-//! switches' program position, the bus-off interrupt setting), the serial profile's settings
-//! blob, and the switch reading of the last reset.
+//! switches' program position, the bus-off interrupt setting), the converter's configuration
+//! image, and the switch reading of the last reset.
 //!
 //! ## Power-safe storage
 //!
@@ -14,29 +14,36 @@
 //! - `load` scans both sectors and returns the valid record with the highest sequence number;
 //!   torn records (bad CRC) and half-erased garbage are skipped.
 //!
-//! So a reset at any point of a save leaves either the old or the new settings, never neither;
-//! the host tests cut the power after every single byte written or erased to prove it. The logic
+//! So a reset at any point of a save leaves either the old or the new settings, never neither,
+//! and never a mixture: the configuration image travels in the same record as the network
+//! settings, so a downloaded image and the settings it was stored with are committed together by
+//! the record's CRC. The host tests cut the power after every single byte written or erased, with
+//! configuration images of several hundred bytes, to prove it. The logic
 //! is written against the [`SettingsFlash`] trait; [`RamFlash`] implements it in memory (host tests,
 //! the emulated board) and the firmware's driver implements it on the STM32's sectors 10 and 11
 //! ([`crate::memory`]).
 //!
-//! With 128 KiB sectors a sector holds 1024 records, so a sector is erased once every 1024 saves;
-//! the 32-bit sequence number cannot wrap within the flash's endurance.
+//! With 128 KiB sectors a sector holds 204 records, so a sector is erased once every 204 saves
+//! (settings change rarely: a MAC ID or data rate set over the network, a configuration
+//! download); the 32-bit sequence number cannot wrap within the flash's endurance.
+//!
+//! Records of the earlier 128-byte layout (magic `DNS1`) are not read: a board updated from it
+//! starts from the defaults, as a new board does.
 //!
 //! ## Record layout (little-endian)
 //!
 //! | bytes | field |
 //! |---|---|
-//! | 0–3 | magic `DNS1` |
+//! | 0–3 | magic `DNS2` |
 //! | 4–7 | sequence number |
 //! | 8 | MAC ID (0–63) |
 //! | 9 | data rate, DeviceNet attribute value (0–2) |
 //! | 10 | flags: bit 0 bus-off interrupt, bit 1 `last_switches` present |
 //! | 11 | last switch reading |
-//! | 12 | serial blob length (0–[`SERIAL_BLOB_LEN`]) |
-//! | 13–15 | reserved, 0 |
-//! | 16–123 | serial blob |
-//! | 124–127 | CRC-32 of bytes 0–123 |
+//! | 12–13 | configuration image length (0–[`IMAGE_CAPACITY`]) |
+//! | 14–15 | reserved, 0 |
+//! | 16–635 | configuration image, then 0 |
+//! | 636–639 | CRC-32 of bytes 0–635 |
 
 use crate::crc32::crc32;
 use core::fmt;
@@ -44,13 +51,14 @@ use devicenet::slave::BaudRate;
 use devicenet::MacId;
 
 /// Bytes per record (a multiple of the STM32F4's 16-byte flash row).
-pub const RECORD_LEN: usize = 128;
-/// Largest serial settings blob the record holds.
-pub const SERIAL_BLOB_LEN: usize = 108;
+pub const RECORD_LEN: usize = 640;
+/// Largest configuration image the record holds (the converter's images are at most
+/// `slave_fw::image::MAX_IMAGE` bytes; the firmware checks the two agree at compile time).
+pub const IMAGE_CAPACITY: usize = RECORD_LEN - IMAGE_AT - 4;
 /// Record magic.
-pub const MAGIC: [u8; 4] = *b"DNS1";
+pub const MAGIC: [u8; 4] = *b"DNS2";
 
-const SERIAL_AT: usize = 16;
+const IMAGE_AT: usize = 16;
 const CRC_AT: usize = RECORD_LEN - 4;
 const FLAG_BOI: u8 = 1;
 const FLAG_SWITCHES: u8 = 2;
@@ -66,19 +74,19 @@ pub struct Settings {
     pub bus_off_interrupt: bool,
     /// The switch reading ("on" = 1) of the last reset, for the "switch changed" attributes.
     pub last_switches: Option<u8>,
-    /// The serial profile's settings, opaque to the board.
-    pub serial: heapless::Vec<u8, SERIAL_BLOB_LEN>,
+    /// The converter's configuration image, opaque to the board (empty: none stored).
+    pub image: heapless::Vec<u8, IMAGE_CAPACITY>,
 }
 
 impl Default for Settings {
-    /// An unconfigured DeviceNet node: MAC 63, 125 kbit/s, BOI off, no serial settings.
+    /// An unconfigured DeviceNet node: MAC 63, 125 kbit/s, BOI off, no configuration image.
     fn default() -> Settings {
         Settings {
             mac_id: MacId::MAX,
             baud_rate: BaudRate::Kbps125,
             bus_off_interrupt: false,
             last_switches: None,
-            serial: heapless::Vec::new(),
+            image: heapless::Vec::new(),
         }
     }
 }
@@ -94,8 +102,9 @@ impl Settings {
         r[10] = if self.bus_off_interrupt { FLAG_BOI } else { 0 }
             | if self.last_switches.is_some() { FLAG_SWITCHES } else { 0 };
         r[11] = self.last_switches.unwrap_or(0);
-        r[12] = self.serial.len() as u8;
-        r[SERIAL_AT..SERIAL_AT + self.serial.len()].copy_from_slice(&self.serial);
+        // At most IMAGE_CAPACITY, which fits 16 bits.
+        r[12..14].copy_from_slice(&(self.image.len() as u16).to_le_bytes());
+        r[IMAGE_AT..IMAGE_AT + self.image.len()].copy_from_slice(&self.image);
         let crc = crc32(&r[..CRC_AT]);
         r[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
         r
@@ -109,7 +118,8 @@ impl Settings {
         if record[0..4] != MAGIC {
             return Err(RecordError::Magic);
         }
-        let crc = u32::from_le_bytes([record[124], record[125], record[126], record[127]]);
+        let crc =
+            u32::from_le_bytes([record[CRC_AT], record[CRC_AT + 1], record[CRC_AT + 2], record[CRC_AT + 3]]);
         if crc32(&record[..CRC_AT]) != crc {
             return Err(RecordError::Crc);
         }
@@ -117,19 +127,19 @@ impl Settings {
         let mac_id = MacId::new(record[8]).ok_or(RecordError::Field)?;
         let baud_rate = BaudRate::from_attribute_value(record[9]).ok_or(RecordError::Field)?;
         let flags = record[10];
-        let len = usize::from(record[12]);
-        if flags & !(FLAG_BOI | FLAG_SWITCHES) != 0 || len > SERIAL_BLOB_LEN {
+        let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
+        if flags & !(FLAG_BOI | FLAG_SWITCHES) != 0 || len > IMAGE_CAPACITY {
             return Err(RecordError::Field);
         }
-        let mut serial = heapless::Vec::new();
+        let mut image = heapless::Vec::new();
         // `len` is at most the capacity, checked above.
-        let _ = serial.extend_from_slice(&record[SERIAL_AT..SERIAL_AT + len]);
+        let _ = image.extend_from_slice(&record[IMAGE_AT..IMAGE_AT + len]);
         let settings = Settings {
             mac_id,
             baud_rate,
             bus_off_interrupt: flags & FLAG_BOI != 0,
             last_switches: (flags & FLAG_SWITCHES != 0).then_some(record[11]),
-            serial,
+            image,
         };
         Ok((settings, sequence))
     }
@@ -208,7 +218,7 @@ impl core::error::Error for FlashError {}
 /// Two equal, separately erasable flash sectors with NOR semantics: erase sets every byte to
 /// 0xFF, programming can only clear bits.
 pub trait SettingsFlash {
-    /// Bytes per sector (a multiple of [`RECORD_LEN`]).
+    /// Bytes per sector; it holds `sector_len / RECORD_LEN` records.
     fn sector_len(&self) -> usize;
     /// Reads `buf.len()` bytes at `offset` of `sector`.
     fn read(&mut self, sector: Sector, offset: usize, buf: &mut [u8]) -> Result<(), FlashError>;
@@ -409,15 +419,21 @@ mod tests {
     /// Three records per sector, so the tests wrap around the sectors quickly.
     type Flash = RamFlash<{ 3 * RECORD_LEN }>;
 
+    /// Settings numbered `n`, with a 10-byte configuration image.
     fn settings(n: u8) -> Settings {
-        let mut serial = heapless::Vec::new();
-        serial.extend_from_slice(&[n; 10]).unwrap();
+        with_image(n, 10)
+    }
+
+    /// Settings numbered `n` with an `image_len`-byte configuration image whose every byte
+    /// depends on `n`, so two images never agree on a byte run long enough to hide a mixture.
+    fn with_image(n: u8, image_len: usize) -> Settings {
+        let image = (0..image_len).map(|i| (i as u8).wrapping_mul(31) ^ n).collect();
         Settings {
             mac_id: MacId::new(n % 64).unwrap(),
             baud_rate: BaudRate::from_attribute_value(n % 3).unwrap(),
             bus_off_interrupt: n % 2 == 1,
             last_switches: (n % 4 != 0).then_some(n),
-            serial,
+            image,
         }
     }
 
@@ -425,11 +441,12 @@ mod tests {
     fn record_round_trip() {
         let s = settings(7);
         let r = s.encode(42);
-        assert_eq!(&r[0..4], b"DNS1");
+        assert_eq!(&r[0..4], b"DNS2");
         assert_eq!(Settings::decode(&r), Ok((s, 42)));
-        let full =
-            Settings { serial: heapless::Vec::from_slice(&[0xA5; SERIAL_BLOB_LEN]).unwrap(), ..settings(1) };
+        let full = with_image(1, IMAGE_CAPACITY);
         assert_eq!(Settings::decode(&full.encode(1)), Ok((full, 1)));
+        let none = with_image(2, 0);
+        assert_eq!(Settings::decode(&none.encode(3)), Ok((none, 3)));
     }
 
     #[rstest]
@@ -450,6 +467,22 @@ mod tests {
         let crc = crc32(&r[..CRC_AT]);
         r[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(Settings::decode(&r), Err(RecordError::Field));
+    }
+
+    #[test]
+    fn image_longer_than_the_record_with_good_crc() {
+        let mut r = settings(3).encode(9);
+        r[12..14].copy_from_slice(&(IMAGE_CAPACITY as u16 + 1).to_le_bytes());
+        let crc = crc32(&r[..CRC_AT]);
+        r[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(Settings::decode(&r), Err(RecordError::Field));
+    }
+
+    #[test]
+    fn earlier_layout_is_not_read() {
+        let mut r = settings(3).encode(9);
+        r[0..4].copy_from_slice(b"DNS1");
+        assert_eq!(Settings::decode(&r), Err(RecordError::Magic));
     }
 
     #[test]
@@ -474,20 +507,27 @@ mod tests {
     }
 
     /// Cuts the power after every possible number of byte operations during a save, then
-    /// "reboots" and loads: the result is always the old or the new settings.
+    /// "reboots" and loads: the result is always the old or the new settings, configuration image
+    /// included, never a mixture and never garbage. `image_len` is the length of every stored
+    /// configuration image (about 300 bytes for a Modbus gateway's).
     #[rstest]
-    #[case::first_save_ever(0)]
-    #[case::append_in_sector(1)]
-    #[case::last_slot_of_sector(2)]
-    #[case::sector_switch_with_erase(3)]
-    #[case::second_switch(6)]
-    fn power_loss_never_loses_settings(#[case] saves_before: u8) {
+    #[case::first_save_ever(0, 10)]
+    #[case::append_in_sector(1, 10)]
+    #[case::last_slot_of_sector(2, 10)]
+    #[case::sector_switch_with_erase(3, 10)]
+    #[case::second_switch(6, 10)]
+    #[case::first_image_ever(0, 300)]
+    #[case::image_appended_in_sector(1, 300)]
+    #[case::image_in_last_slot(2, 300)]
+    #[case::image_with_sector_switch(3, 300)]
+    #[case::full_image_with_sector_switch(3, IMAGE_CAPACITY)]
+    fn power_loss_never_loses_settings(#[case] saves_before: u8, #[case] image_len: usize) {
         let mut base = SettingsStore::new(Flash::new());
         for n in 1..=saves_before {
-            base.save(&settings(n)).unwrap();
+            base.save(&with_image(n, image_len)).unwrap();
         }
-        let old = (saves_before > 0).then(|| settings(saves_before));
-        let new = settings(100);
+        let old = (saves_before > 0).then(|| with_image(saves_before, image_len));
+        let new = with_image(100, image_len);
         let mut completed = false;
         for budget in 0.. {
             let mut flash = base.flash().clone();

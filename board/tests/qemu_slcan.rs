@@ -108,24 +108,32 @@ fn expected(frame_index: usize) -> CanFrame {
     CanFrame::from_raw(f.id, f.data).unwrap()
 }
 
-#[test]
-#[ignore = "runs QEMU: scripts/qemu-firmware --build-only && DNET_QEMU=1 cargo test -p board --test qemu_slcan -- --ignored"]
-fn emulated_firmware_answers_over_slcan() {
+/// QEMU runs one at a time: the script's log and pty files are shared.
+static QEMU: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Whether the QEMU tests are enabled (`DNET_QEMU=1`).
+fn qemu_enabled() -> bool {
     if std::env::var("DNET_QEMU").as_deref() != Ok("1") {
         eprintln!("DNET_QEMU=1 not set: not running QEMU");
-        return;
+        return false;
     }
     // The reference device is MAC 5; the script's default build uses DNET_MAC=5.
     assert!(std::env::var("DNET_MAC").map_or(true, |m| m == "5"), "this test expects DNET_MAC=5");
+    true
+}
 
+/// Boots the emulated firmware (its settings flash in `flash_dir`, kept, or a new one) and opens
+/// the SLCAN link on USART1, once the firmware answers.
+fn boot(flash_dir: Option<&std::path::Path>) -> (Emulator, Link) {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/qemu-firmware");
-    let mut child = Process::new(script)
-        .args(["--no-build", "--timeout", &RUN_LIMIT.as_secs().to_string()])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start scripts/qemu-firmware");
+    let mut args = vec!["--no-build".to_string(), "--timeout".into(), RUN_LIMIT.as_secs().to_string()];
+    if let Some(dir) = flash_dir {
+        args.extend(["--flash-dir".to_string(), dir.display().to_string()]);
+    }
+    let mut child =
+        Process::new(script).args(&args).stdout(Stdio::piped()).spawn().expect("start scripts/qemu-firmware");
     let stdout = child.stdout.take().unwrap();
-    let _emulator = Emulator { child };
+    let emulator = Emulator { child };
 
     // USART1=/dev/pts/N from the script.
     let (tx, rx) = mpsc::channel();
@@ -136,7 +144,6 @@ fn emulated_firmware_answers_over_slcan() {
             }
         }
     });
-    let started = Instant::now();
     let usart1 = loop {
         let line = rx.recv_timeout(Duration::from_secs(20)).expect("scripts/qemu-firmware printed no pty");
         if let Some(path) = line.strip_prefix("USART1=") {
@@ -157,10 +164,9 @@ fn emulated_firmware_answers_over_slcan() {
         }
     });
     let mut link = Link { writer: file, bytes, transcript: String::new() };
-    let step = Duration::from_secs(5);
 
-    // Adapter commands: bit rate while closed, a bad command, open. QEMU notices a new pty
-    // client with some delay, so the first command is repeated until it is answered.
+    // QEMU notices a new pty client with some delay, so the first command is repeated until it
+    // is answered.
     let mut answered = false;
     for _ in 0..20 {
         link.send("S5");
@@ -172,8 +178,12 @@ fn emulated_firmware_answers_over_slcan() {
     assert!(answered, "no answer on USART1\n{}", link.transcript);
     // Answers to the repeated commands that were already on their way.
     link.drain(Duration::from_millis(500));
-    link.send("X");
-    assert_eq!(link.reply(step).as_deref(), Some("\u{7}"), "{}", link.transcript);
+    (emulator, link)
+}
+
+/// Opens the adapter, sees the duplicate MAC ID checks and allocates the explicit connection
+/// (frames 3-8 of notes §2).
+fn bring_up_explicit(link: &mut Link, step: Duration) {
     link.send("O");
     assert_eq!(link.reply(step).as_deref(), Some(""), "{}", link.transcript);
 
@@ -194,6 +204,23 @@ fn emulated_firmware_answers_over_slcan() {
         }
     }
     assert_eq!(answer, Some(expected(7)), "allocate\n{}", link.transcript);
+}
+
+#[test]
+#[ignore = "runs QEMU: scripts/qemu-firmware --build-only && DNET_QEMU=1 cargo test -p board --test qemu_slcan -- --ignored"]
+fn emulated_firmware_answers_over_slcan() {
+    if !qemu_enabled() {
+        return;
+    }
+    let _one_at_a_time = QEMU.lock().unwrap_or_else(|e| e.into_inner());
+    let started = Instant::now();
+    let (_emulator, mut link) = boot(None);
+    let step = Duration::from_secs(5);
+
+    // Adapter commands: a bad command is refused.
+    link.send("X");
+    assert_eq!(link.reply(step).as_deref(), Some("\u{7}"), "{}", link.transcript);
+    bring_up_explicit(&mut link, step);
 
     // Frames 9-16 over the explicit connection: set the watchdog action, get vendor ID, device
     // type, product code.
@@ -208,4 +235,46 @@ fn emulated_firmware_answers_over_slcan() {
 
     assert!(started.elapsed() < RUN_LIMIT);
     eprintln!("{}", link.transcript);
+}
+
+/// The emulated board's settings flash is a host file: a setting made over the network is still
+/// in force after QEMU stops and starts again on the same file, as after a power cycle.
+#[test]
+#[ignore = "runs QEMU: scripts/qemu-firmware --build-only && DNET_QEMU=1 cargo test -p board --test qemu_slcan -- --ignored"]
+fn settings_survive_a_qemu_restart() {
+    if !qemu_enabled() {
+        return;
+    }
+    let _one_at_a_time = QEMU.lock().unwrap_or_else(|e| e.into_inner());
+    let flash_dir = std::env::temp_dir().join(format!("dnet-qemu-flash-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&flash_dir);
+    std::fs::create_dir_all(&flash_dir).unwrap();
+    let step = Duration::from_secs(5);
+    // Explicit requests from the master (MAC 0) to MAC 5 (Group 2 message 4) and the answers
+    // (message 3); DeviceNet object, instance 1, attribute 3: bus-off interrupt (notes §7.2).
+    let request = |data: &[u8]| {
+        let line = slcan::frame_line(&CanFrame::from_raw(0x42C, data).unwrap());
+        String::from_utf8(line[..line.len() - 1].to_vec()).unwrap()
+    };
+    let answer = |data: &[u8]| CanFrame::from_raw(0x42B, data).unwrap();
+    let get_boi = request(&[0x00, 0x0E, 0x03, 0x01, 0x03]);
+
+    {
+        let (_emulator, mut link) = boot(Some(&flash_dir));
+        bring_up_explicit(&mut link, step);
+        link.send(&get_boi);
+        assert_eq!(link.frame(step), Some(answer(&[0x00, 0x8E, 0x00])), "new board\n{}", link.transcript);
+        link.send(&request(&[0x00, 0x10, 0x03, 0x01, 0x03, 0x01]));
+        assert_eq!(link.frame(step), Some(answer(&[0x00, 0x90])), "set\n{}", link.transcript);
+        // The firmware stores the setting before it answers the next request.
+        link.send(&get_boi);
+        assert_eq!(link.frame(step), Some(answer(&[0x00, 0x8E, 0x01])), "after set\n{}", link.transcript);
+    }
+
+    let (_emulator, mut link) = boot(Some(&flash_dir));
+    bring_up_explicit(&mut link, step);
+    link.send(&get_boi);
+    assert_eq!(link.frame(step), Some(answer(&[0x00, 0x8E, 0x01])), "after restart\n{}", link.transcript);
+    drop(link);
+    let _ = std::fs::remove_dir_all(&flash_dir);
 }

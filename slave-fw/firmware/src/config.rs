@@ -6,10 +6,10 @@
 //!
 //! The firmware carries both instrument profiles, and picks one at run time:
 //!
-//! 1. the stored settings' serial blob, when its first byte is a preset code ([`Preset::code`]);
+//! 1. the stored settings' configuration image, when its first byte is a preset code ([`Preset::code`]);
 //! 2. otherwise the build-time default, `DNET_PROFILE` (`breaker`, the default, or `modbus`).
 //!
-//! Nothing writes the blob yet (the settings object is read-only over the network); reading it
+//! Nothing writes the image yet (the settings object is read-only over the network); reading it
 //! at run time is what puts both profiles in every image, so the size budget measures the full
 //! converter.
 
@@ -37,7 +37,8 @@ impl Preset {
     /// The build-time default: `DNET_PROFILE`, `breaker` when unset.
     pub const BUILD_DEFAULT: Preset = parse_preset(option_env!("DNET_PROFILE"));
 
-    /// The preset's code in the first byte of the stored serial blob.
+    /// The preset's code in the first byte of the stored configuration image (until
+    /// `slave_fw::image` replaces the presets with decoded images).
     pub const fn code(self) -> u8 {
         match self {
             Preset::Breaker => 1,
@@ -45,9 +46,9 @@ impl Preset {
         }
     }
 
-    /// The preset a stored serial blob selects, if any.
-    pub fn from_stored(blob: &[u8]) -> Option<Preset> {
-        let code = *blob.first()?;
+    /// The preset a stored configuration image selects, if any.
+    pub fn from_stored(image: &[u8]) -> Option<Preset> {
+        let code = *image.first()?;
         [Preset::Breaker, Preset::ModbusMeter].into_iter().find(|p| p.code() == code)
     }
 
@@ -133,7 +134,7 @@ pub fn resolve(reading: SwitchReading, stored: &Settings) -> Resolved {
 
 /// The preset the stored settings select, else the build default.
 pub fn preset(stored: &Settings) -> Preset {
-    Preset::from_stored(&stored.serial).unwrap_or(Preset::BUILD_DEFAULT)
+    Preset::from_stored(&stored.image).unwrap_or(Preset::BUILD_DEFAULT)
 }
 
 /// The converter configuration for `preset` with the MAC ID, data rate and switches `resolved`
@@ -193,7 +194,7 @@ mod tests {
     }
 
     #[test]
-    fn stored_blob_selects_the_preset() {
+    fn stored_image_selects_the_preset() {
         for p in [Preset::Breaker, Preset::ModbusMeter] {
             assert_eq!(Preset::from_stored(&[p.code(), 0xAA]), Some(p));
         }
@@ -202,7 +203,7 @@ mod tests {
         assert_eq!(Preset::from_stored(&[0xFF]), None);
         let mut stored = Settings::default();
         assert_eq!(preset(&stored), Preset::BUILD_DEFAULT);
-        stored.serial.extend_from_slice(&[Preset::ModbusMeter.code()]).unwrap();
+        stored.image.extend_from_slice(&[Preset::ModbusMeter.code()]).unwrap();
         assert_eq!(preset(&stored), Preset::ModbusMeter);
     }
 

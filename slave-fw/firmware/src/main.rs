@@ -82,9 +82,9 @@ mod app {
 
     #[cfg(not(feature = "emulated"))]
     type Flash = board::hw::InternalFlash;
-    /// QEMU's flash controller is not emulated: settings live in RAM until the emulator stops.
+    /// QEMU's flash controller is not emulated: the settings sectors are a file on the host.
     #[cfg(feature = "emulated")]
-    type Flash = board::settings::RamFlash<{ 2 * board::settings::RECORD_LEN }>;
+    type Flash = board::hw::HostFileFlash;
 
     systick_monotonic!(Mono, 1_000);
 
@@ -143,7 +143,7 @@ mod app {
         #[cfg(feature = "emulated")]
         let mut store = {
             let _ = board.flash;
-            SettingsStore::new(board::settings::RamFlash::new())
+            SettingsStore::new(board::hw::HostFileFlash::open())
         };
         let mut settings = store.load_or_default();
         let resolved = config::resolve(board.switches, &settings);
