@@ -14,7 +14,9 @@
 //!   assembly 101 appends the status byte and the freshness counter
 //!   ([`LinkStatus::to_bytes`](crate::serial::LinkStatus::to_bytes)). The description chooses which one the poll connection produces.
 //! - While the instrument is silent the Identity status reports a minor recoverable fault and the
-//!   Module Status LED flashes red (devicenet-notes §6.2, §7.3).
+//!   Module Status LED flashes red (devicenet-notes §6.2, §7.3); so does a configuration fault
+//!   the application reports ([`Converter::set_configuration_fault`]: the stored configuration
+//!   could not be used, the factory default runs).
 //! - Two vendor-specific objects serve the serial side over explicit messaging:
 //!   [`SERIAL_LINK_CLASS`] (statistics and link status) and [`SETTINGS_CLASS`] (the
 //!   configuration in force, which the EDS parameters point at). Their attributes are described
@@ -214,6 +216,8 @@ pub struct Converter {
     last_image: heapless::Vec<u8, { IMAGE_CAPACITY + 2 }>,
     /// An accepted Identity Reset: when it is due, and its kind.
     reset: Option<(Instant, ResetKind)>,
+    /// The application's configuration fault, ORed into the Identity status.
+    configuration_fault: bool,
 }
 
 impl Converter {
@@ -229,6 +233,7 @@ impl Converter {
             events: Deque::new(),
             last_image: heapless::Vec::new(),
             reset: None,
+            configuration_fault: false,
         };
         converter.refresh_image(now);
         Ok(converter)
@@ -306,6 +311,14 @@ impl Converter {
         earliest(earliest(self.node.poll_at(), self.profile.poll_at()), self.reset.map(|(at, _)| at))
     }
 
+    /// Reports a configuration fault (`true`: the stored configuration was corrupt or
+    /// incompatible and the factory default runs instead) or clears it: a minor recoverable fault
+    /// in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3), from the
+    /// next input on, as long as it is set.
+    pub fn set_configuration_fault(&mut self, fault: bool) {
+        self.configuration_fault = fault;
+    }
+
     /// The LEDs at `now`.
     pub fn leds(&self, now: Instant) -> Leds {
         self.node.leds(now)
@@ -362,7 +375,7 @@ impl Converter {
         }
         let stale = status.state == LinkState::Timeout;
         let mut app = ApplicationStatus { configured: true, ..ApplicationStatus::default() };
-        app.minor_recoverable_fault = stale;
+        app.minor_recoverable_fault = stale || self.configuration_fault;
         self.node.set_application_status(app, now);
     }
 }
