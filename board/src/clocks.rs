@@ -17,6 +17,10 @@ pub const PCLK1_HZ: u32 = 42_000_000;
 /// APB2 clock of the real board: USART1 runs from it.
 pub const PCLK2_HZ: u32 = 84_000_000;
 
+/// The clock USART2 (the instrument port) runs from in the build selected by the `emulated`
+/// feature: APB1 on the real board, HSI on the emulated one.
+pub const INSTRUMENT_UART_HZ: u32 = if cfg!(feature = "emulated") { HSI_HZ } else { PCLK1_HZ };
+
 /// The clock SysTick counts in the build selected by the `emulated` feature.
 ///
 /// On the real board this is the 168 MHz core clock. QEMU 7.2's `netduinoplus2` feeds the

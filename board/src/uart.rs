@@ -6,6 +6,10 @@
 //! word, 8 data bits with parity a 9-bit word. 7 data bits without parity (a 7-bit word) is a format
 //! this USART cannot make, and is refused. With 7 data bits the parity bit arrives as bit 7 of the
 //! data register and is masked off ([`LineFormat::data_mask`]).
+//!
+//! The baud rate divider (`USART_BRR`, 16 bits) bounds the rates the USART makes from its clock
+//! ([`LineFormat::baud_range`]): at most an eighth of the clock (8× oversampling), at least the
+//! clock over 65535; a rate outside is refused, not approximated.
 
 use core::fmt;
 
@@ -62,7 +66,10 @@ pub struct UnsupportedFormat;
 
 impl fmt::Display for UnsupportedFormat {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("the USART makes 8 data bits with or without parity, or 7 data bits with parity")
+        f.write_str(
+            "the USART makes 8 data bits with or without parity, or 7 data bits with parity, at a \
+             baud rate its divider reaches",
+        )
     }
 }
 
@@ -70,6 +77,23 @@ impl LineFormat {
     /// 8 data bits, no parity, one stop bit.
     pub const fn new_8n1(baud: u32) -> LineFormat {
         LineFormat { baud, data_bits: 8, parity: Parity::None, stop_bits: StopBits::One }
+    }
+
+    /// The baud rates the USART makes from a `clock_hz` clock
+    /// ([`crate::clocks::INSTRUMENT_UART_HZ`] for the instrument port).
+    pub const fn baud_range(clock_hz: u32) -> core::ops::RangeInclusive<u32> {
+        clock_hz.div_ceil(u16::MAX as u32)..=clock_hz / 8
+    }
+
+    /// The word length, when the USART running from `clock_hz` makes this format (character
+    /// format and baud rate, [`LineFormat::baud_range`]).
+    pub fn check(&self, clock_hz: u32) -> Result<WordLength, UnsupportedFormat> {
+        let word = self.word_length()?;
+        if Self::baud_range(clock_hz).contains(&self.baud) {
+            Ok(word)
+        } else {
+            Err(UnsupportedFormat)
+        }
     }
 
     /// The word length for this format, or why the USART cannot make it.
@@ -121,5 +145,18 @@ mod tests {
     #[test]
     fn breaker_line() {
         assert_eq!(LineFormat::new_8n1(9600), format(8, Parity::None));
+    }
+
+    #[rstest]
+    #[case::board_9600(42_000_000, 9600, true)]
+    #[case::board_lowest(42_000_000, 641, true)]
+    #[case::board_too_slow(42_000_000, 640, false)]
+    #[case::board_fastest(42_000_000, 5_250_000, true)]
+    #[case::board_too_fast(42_000_000, 5_250_001, false)]
+    #[case::emulated_300(16_000_000, 300, true)]
+    #[case::emulated_too_fast(16_000_000, 4_000_000, false)]
+    fn baud_rates(#[case] clock_hz: u32, #[case] baud: u32, #[case] made: bool) {
+        let line = LineFormat::new_8n1(baud);
+        assert_eq!(line.check(clock_hz).is_ok(), made);
     }
 }

@@ -1,93 +1,120 @@
-//! The converter's configuration at reset: which instrument preset ([`Preset`]), the MAC ID and
-//! data rate from the switches or the stored settings (board crate), and in the emulated build the
-//! build-time MAC ID.
+//! The converter's configuration at reset: the stored configuration image or the factory
+//! default ([`boot`]), the MAC ID and data rate from the switches or the stored settings (board
+//! crate), and in the emulated build the build-time MAC ID.
 //!
-//! ## Choosing the preset
+//! ## Which configuration runs
 //!
-//! The firmware carries both instrument profiles, and picks one at run time:
+//! 1. The stored settings' configuration image (`Settings::image`, written when a tool downloads
+//!    one over the bus, `slave_fw::image`), when it decodes, the converter accepts it and the
+//!    USART makes its serial line: [`Configuration::Stored`].
+//! 2. No image stored: the factory default, the reference breaker converter
+//!    ([`ConverterConfig::breaker_reference`]): [`Configuration::FactoryDefault`].
+//! 3. An image that cannot be used (corrupt, another format version, values refused, a line the
+//!    USART cannot make): the factory default with a **configuration fault**, a minor recoverable
+//!    fault in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3):
+//!    [`Configuration::Fault`]. Any image bytes boot.
 //!
-//! 1. the stored settings' configuration image, when its first byte is a preset code ([`Preset::code`]);
-//! 2. otherwise the build-time default, `DNET_PROFILE` (`breaker`, the default, or `modbus`).
-//!
-//! Nothing writes the image yet (the settings object is read-only over the network); reading it
-//! at run time is what puts both profiles in every image, so the size budget measures the full
-//! converter.
+//! Whatever runs, the MAC ID and data rate come from the switches or the stored settings (the
+//! image's own are the soft slave's), and so does the bus-off interrupt setting.
 
-use crate::presets;
+use board::clocks::INSTRUMENT_UART_HZ;
 use board::settings::Settings;
 use board::switches::{self, SwitchReading};
 use board::uart::{self, LineFormat};
 use board::Resolved;
+use devicenet::Instant;
 #[cfg(feature = "emulated")]
 use devicenet::MacId;
-use slave_fw::converter::ConverterConfig;
+use slave_fw::converter::{Converter, ConverterConfig};
+use slave_fw::image::{self, ImageError};
 use slave_fw::serial::{DataBits, Parity, SerialSettings, StopBits};
 
-/// The instrument configurations this firmware carries.
+/// The stored image is at most what a settings record holds.
+const _: () = assert!(image::MAX_IMAGE <= board::settings::IMAGE_CAPACITY);
+
+/// Which configuration is in force.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(all(feature = "defmt", target_os = "none"), derive(defmt::Format))]
-pub enum Preset {
-    /// The reference converter: the intelligent circuit breaker ([`presets::breaker`]).
-    Breaker,
-    /// The Modbus RTU energy-meter gateway ([`presets::modbus_meter`]).
-    ModbusMeter,
+pub enum Configuration {
+    /// No image stored: the factory default.
+    FactoryDefault,
+    /// The stored image.
+    Stored,
+    /// The stored image cannot be used (why); the factory default runs, with a configuration fault.
+    Fault(Unusable),
 }
 
-impl Preset {
-    /// The build-time default: `DNET_PROFILE`, `breaker` when unset.
-    pub const BUILD_DEFAULT: Preset = parse_preset(option_env!("DNET_PROFILE"));
+/// Why a stored image cannot be used.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unusable {
+    /// It does not decode: corrupt, another format version, values refused.
+    Image(ImageError),
+    /// It decodes, but the converter or the USART refuses it.
+    Refused,
+}
 
-    /// The preset's code in the first byte of the stored configuration image (until
-    /// `slave_fw::image` replaces the presets with decoded images).
-    pub const fn code(self) -> u8 {
+impl Configuration {
+    /// A short name for the log.
+    #[cfg_attr(not(target_os = "none"), allow(dead_code))]
+    pub const fn name(self) -> &'static str {
         match self {
-            Preset::Breaker => 1,
-            Preset::ModbusMeter => 2,
-        }
-    }
-
-    /// The preset a stored configuration image selects, if any.
-    pub fn from_stored(image: &[u8]) -> Option<Preset> {
-        let code = *image.first()?;
-        [Preset::Breaker, Preset::ModbusMeter].into_iter().find(|p| p.code() == code)
-    }
-
-    /// The preset's converter configuration (MAC ID and data rate still to be set).
-    pub fn config(self) -> ConverterConfig {
-        match self {
-            Preset::Breaker => presets::breaker(),
-            Preset::ModbusMeter => presets::modbus_meter(),
+            Configuration::FactoryDefault => "factory default",
+            Configuration::Stored => "stored image",
+            Configuration::Fault(Unusable::Image(_)) => "factory default: stored image unreadable",
+            Configuration::Fault(Unusable::Refused) => "factory default: stored image refused",
         }
     }
 }
 
-/// Parses `DNET_PROFILE` at compile time; anything but `breaker` or `modbus` fails the build.
-const fn parse_preset(text: Option<&str>) -> Preset {
-    let bytes = match text {
-        Some(t) => t.as_bytes(),
-        None => return Preset::Breaker,
-    };
-    if eq(bytes, b"breaker") {
-        Preset::Breaker
-    } else if eq(bytes, b"modbus") {
-        Preset::ModbusMeter
+/// What runs after a reset.
+pub struct Boot {
+    /// The converter, powered off, its configuration fault set as [`Boot::configuration`] says.
+    pub converter: Converter,
+    /// Its serial line, one the USART makes.
+    pub line: LineFormat,
+    /// Where the configuration came from.
+    pub configuration: Configuration,
+}
+
+/// The converter the stored `settings` and the switches (`resolved`) make at `now`: the stored
+/// image if it can run, the factory default otherwise (module docs). Never fails.
+pub fn boot(resolved: &Resolved, stored: &Settings, now: Instant) -> Boot {
+    let configuration = if stored.image.is_empty() {
+        Configuration::FactoryDefault
     } else {
-        panic!("DNET_PROFILE must be breaker or modbus")
-    }
+        match image::decode(&stored.image) {
+            Ok(config) => match start(config, resolved, stored, now) {
+                Some((converter, line)) => {
+                    return Boot { converter, line, configuration: Configuration::Stored };
+                }
+                None => Configuration::Fault(Unusable::Refused),
+            },
+            Err(e) => Configuration::Fault(Unusable::Image(e)),
+        }
+    };
+    let factory = start(ConverterConfig::breaker_reference(), resolved, stored, now);
+    // The factory default is the reference converter, which always starts (a host test proves it).
+    let Some((mut converter, line)) = factory else {
+        panic!("factory configuration refused");
+    };
+    converter.set_configuration_fault(matches!(configuration, Configuration::Fault(_)));
+    Boot { converter, line, configuration }
 }
 
-const fn eq(a: &[u8], b: &[u8]) -> bool {
-    if a.len() != b.len() {
-        return false;
-    }
-    let mut i = 0;
-    while i < a.len() {
-        if a[i] != b[i] {
-            return false;
-        }
-        i += 1;
-    }
-    true
+/// A converter for `config` with the network settings of `resolved` and `stored`, and its serial
+/// line, if both the converter and the USART take it.
+fn start(
+    mut config: ConverterConfig,
+    resolved: &Resolved,
+    stored: &Settings,
+    now: Instant,
+) -> Option<(Converter, LineFormat)> {
+    config.device.mac_id = resolved.mac_id;
+    config.device.baud_rate = resolved.baud_rate;
+    config.device.switches = resolved.switches;
+    config.device.bus_off_interrupt = stored.bus_off_interrupt;
+    let line = line_format(config.profile.serial());
+    line.check(INSTRUMENT_UART_HZ).ok()?;
+    Some((Converter::new(config, now).ok()?, line))
 }
 
 /// Parses a decimal MAC ID at compile time.
@@ -132,22 +159,6 @@ pub fn resolve(reading: SwitchReading, stored: &Settings) -> Resolved {
     resolved
 }
 
-/// The preset the stored settings select, else the build default.
-pub fn preset(stored: &Settings) -> Preset {
-    Preset::from_stored(&stored.image).unwrap_or(Preset::BUILD_DEFAULT)
-}
-
-/// The converter configuration for `preset` with the MAC ID, data rate and switches `resolved`
-/// decided and the stored bus-off interrupt setting.
-pub fn converter_config(preset: Preset, resolved: &Resolved, stored: &Settings) -> ConverterConfig {
-    let mut config = preset.config();
-    config.device.mac_id = resolved.mac_id;
-    config.device.baud_rate = resolved.baud_rate;
-    config.device.switches = resolved.switches;
-    config.device.bus_off_interrupt = stored.bus_off_interrupt;
-    config
-}
-
 /// The profile's serial settings as the board's USART takes them.
 pub fn line_format(serial: &SerialSettings) -> LineFormat {
     LineFormat {
@@ -172,14 +183,49 @@ pub fn line_format(serial: &SerialSettings) -> LineFormat {
 mod tests {
     use super::*;
     use board::uart::WordLength;
+    use devicenet::led::Indication;
     use devicenet::slave::BaudRate;
     use devicenet::MacId;
+    use slave_fw::description::DeviceDescription;
+    use slave_fw::serial::ProfileConfig;
+    use std::path::Path;
 
-    #[test]
-    fn default_preset_is_the_breaker() {
-        assert_eq!(parse_preset(None), Preset::Breaker);
-        assert_eq!(parse_preset(Some("breaker")), Preset::Breaker);
-        assert_eq!(parse_preset(Some("modbus")), Preset::ModbusMeter);
+    /// The switches in the program position with MAC ID 12 at 500 kbit/s, from the settings.
+    fn resolved() -> Resolved {
+        Resolved {
+            mac_id: MacId::new(12).unwrap(),
+            baud_rate: BaudRate::Kbps500,
+            switches: devicenet::slave::Switches {
+                mac_id: Some(12),
+                programmable: true,
+                ..Default::default()
+            },
+            store_reading: false,
+        }
+    }
+
+    fn described(file: &str) -> ConverterConfig {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../descriptions").join(file);
+        DeviceDescription::load(&path).unwrap().converter
+    }
+
+    fn settings_with(image: &[u8]) -> Settings {
+        let mut settings = Settings { bus_off_interrupt: true, ..Settings::default() };
+        settings.image.extend_from_slice(image).unwrap();
+        settings
+    }
+
+    fn encoded(config: &ConverterConfig) -> Vec<u8> {
+        let mut out = [0; image::MAX_IMAGE];
+        let len = image::encode(config, &mut out).unwrap();
+        out[..len].to_vec()
+    }
+
+    /// The Module Status indication just after power-on (before the instrument could be late).
+    fn module_status(boot: &mut Boot) -> Indication {
+        boot.converter.power_on(Instant::ZERO);
+        boot.converter.handle_timeout(Instant::from_millis(10));
+        boot.converter.node().module_indication()
     }
 
     #[test]
@@ -194,51 +240,92 @@ mod tests {
     }
 
     #[test]
-    fn stored_image_selects_the_preset() {
-        for p in [Preset::Breaker, Preset::ModbusMeter] {
-            assert_eq!(Preset::from_stored(&[p.code(), 0xAA]), Some(p));
-        }
-        assert_eq!(Preset::from_stored(&[]), None);
-        assert_eq!(Preset::from_stored(&[0]), None);
-        assert_eq!(Preset::from_stored(&[0xFF]), None);
-        let mut stored = Settings::default();
-        assert_eq!(preset(&stored), Preset::BUILD_DEFAULT);
-        stored.image.extend_from_slice(&[Preset::ModbusMeter.code()]).unwrap();
-        assert_eq!(preset(&stored), Preset::ModbusMeter);
-    }
-
-    #[test]
-    fn switches_and_settings_override_the_preset() {
-        let resolved = Resolved {
-            mac_id: MacId::new(12).unwrap(),
-            baud_rate: BaudRate::Kbps500,
-            switches: devicenet::slave::Switches {
-                mac_id: Some(12),
-                programmable: false,
-                ..Default::default()
-            },
-            store_reading: false,
-        };
-        let stored = Settings { bus_off_interrupt: true, ..Settings::default() };
-        for preset in [Preset::Breaker, Preset::ModbusMeter] {
-            let c = converter_config(preset, &resolved, &stored);
-            assert_eq!((c.device.mac_id, c.device.baud_rate), (resolved.mac_id, BaudRate::Kbps500));
-            assert_eq!(c.device.switches, resolved.switches);
-            assert!(c.device.bus_off_interrupt);
-            c.validate().unwrap();
-            // Every preset's line is one the USART makes.
-            assert!(line_format(c.profile.serial()).word_length().is_ok());
-        }
-    }
-
-    #[test]
-    fn line_formats() {
-        let breaker = line_format(presets::breaker().profile.serial());
-        assert_eq!(breaker, LineFormat::new_8n1(9600));
-        let meter = line_format(presets::modbus_meter().profile.serial());
+    fn no_image_runs_the_factory_default() {
+        let mut boot = boot(&resolved(), &settings_with(&[]), Instant::ZERO);
+        assert_eq!(boot.configuration, Configuration::FactoryDefault);
+        assert_eq!(boot.line, LineFormat::new_8n1(9600));
         assert_eq!(
-            (meter.baud, meter.parity, meter.word_length()),
+            boot.converter.node().config().identity,
+            ConverterConfig::breaker_reference().device.identity
+        );
+        assert_eq!(module_status(&mut boot), Indication::Green);
+    }
+
+    #[test]
+    fn a_stored_image_runs_with_the_switches_network_settings() {
+        let meter = described("modbus-meter.toml");
+        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), Instant::ZERO);
+        assert_eq!(boot.configuration, Configuration::Stored);
+        assert!(matches!(boot.converter.profile(), slave_fw::serial::Profile::Modbus(_)));
+        let node = boot.converter.node().config();
+        assert_eq!(node.identity, meter.device.identity);
+        assert_eq!((node.mac_id, node.baud_rate), (resolved().mac_id, BaudRate::Kbps500));
+        assert_eq!(node.switches, resolved().switches);
+        assert!(node.bus_off_interrupt, "the stored setting");
+        assert_eq!((node.produced_size, node.consumed_size), (14, 4));
+        assert_eq!(
+            (boot.line.baud, boot.line.parity, boot.line.word_length()),
             (19200, uart::Parity::Even, Ok(WordLength::Nine))
         );
+        assert_eq!(module_status(&mut boot), Indication::Green);
+    }
+
+    #[test]
+    fn an_unusable_image_runs_the_factory_default_with_a_configuration_fault() {
+        let good = encoded(&described("modbus-meter.toml"));
+        let mut corrupt = good.clone();
+        corrupt[20] ^= 0x01;
+        let mut newer = good.clone();
+        newer[4] = image::IMAGE_VERSION + 1;
+        for (name, bytes) in
+            [("corrupt", &corrupt[..]), ("newer version", &newer[..]), ("garbage", &[0xFF; 40][..])]
+        {
+            let mut boot = boot(&resolved(), &settings_with(bytes), Instant::ZERO);
+            assert!(
+                matches!(boot.configuration, Configuration::Fault(Unusable::Image(_))),
+                "{name}: {:?}",
+                boot.configuration
+            );
+            assert_eq!(boot.line, LineFormat::new_8n1(9600), "{name}");
+            assert_eq!(module_status(&mut boot), Indication::FlashingRed, "{name}");
+        }
+    }
+
+    #[test]
+    fn an_image_whose_line_the_usart_cannot_make_is_refused() {
+        let mut meter = described("modbus-meter.toml");
+        let ProfileConfig::Modbus(modbus) = &mut meter.profile else { unreachable!() };
+        // Valid for the converter (300..=4_000_000), beyond the USART's divider.
+        modbus.serial.baud = if cfg!(feature = "emulated") { 4_000_000 } else { 300 };
+        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), Instant::ZERO);
+        assert_eq!(boot.configuration, Configuration::Fault(Unusable::Refused));
+        assert_eq!(module_status(&mut boot), Indication::FlashingRed);
+    }
+
+    /// Any image bytes boot: every truncation and every single-bit flip of a valid image.
+    #[test]
+    fn any_image_bytes_boot() {
+        let good = encoded(&described("modbus-meter.toml"));
+        for len in 0..good.len() {
+            let b = boot(&resolved(), &settings_with(&good[..len]), Instant::ZERO);
+            assert_ne!(b.configuration, Configuration::Stored, "truncated to {len}");
+        }
+        for byte in 0..good.len() {
+            for bit in 0..8 {
+                let mut bytes = good.clone();
+                bytes[byte] ^= 1 << bit;
+                let b = boot(&resolved(), &settings_with(&bytes), Instant::ZERO);
+                assert!(matches!(b.configuration, Configuration::Fault(_)), "byte {byte} bit {bit}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_factory_default_matches_its_description() {
+        let breaker = described("breaker.toml");
+        let factory = ConverterConfig::breaker_reference();
+        assert_eq!(factory.profile, breaker.profile);
+        assert_eq!(factory.input, breaker.input);
+        assert_eq!(factory.device.identity, breaker.device.identity);
     }
 }

@@ -12,9 +12,11 @@
 //!   `converter.leds(now)` (power-up test included), stores changed settings and resets the chip
 //!   when the converter says the Identity Reset is due. Its work is in `task`, target
 //!   independent and tested on the host; the peripherals are behind `task::Hardware`.
-//! - Switches and stored settings are read at reset (`config`); they choose the MAC ID, the data
-//!   rate and the instrument preset (`presets`: the breaker, or the Modbus meter gateway), whose
-//!   serial settings USART2 is opened with.
+//! - Switches and stored settings are read at reset (`config`): the MAC ID and the data rate, and
+//!   the configuration, the stored image a tool downloaded over the bus or else the factory
+//!   default (the breaker converter; an unusable image runs it with a configuration fault). USART2
+//!   is opened with its serial settings. A downloaded image the converter hands over is stored in
+//!   the settings journal and runs from the next reset.
 //!
 //! The `emulated` feature swaps only the lowest layer (clock from HSI, CAN as SLCAN on USART1,
 //! MAC from `DNET_MAC`); see `README.md` "Firmware".
@@ -36,8 +38,6 @@ mod config;
 mod instrument;
 #[cfg(any(target_os = "none", test))]
 mod log;
-#[cfg(any(target_os = "none", test))]
-mod presets;
 #[cfg(any(target_os = "none", test))]
 mod task;
 
@@ -73,7 +73,7 @@ mod app {
     use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Receiver, Sender};
     use rtic_sync::make_channel;
-    use slave_fw::converter::{Converter, ResetKind};
+    use slave_fw::converter::ResetKind;
 
     #[cfg(not(feature = "emulated"))]
     type Driver = crate::can_bxcan::Bxcan;
@@ -153,21 +153,16 @@ mod app {
                 warn!("settings: could not store the switch reading");
             }
         }
-        let preset = config::preset(&settings);
+        let config::Boot { converter, line, configuration } = config::boot(&resolved, &settings, now());
         info!(
-            "MAC {=u8}, baud attribute {=u8}, {}",
+            "MAC {=u8}, baud attribute {=u8}, {=str}",
             resolved.mac_id.as_raw(),
             resolved.baud_rate.attribute_value(),
-            preset
+            configuration.name()
         );
-
-        let converter_config = config::converter_config(preset, &resolved, &settings);
-        let line = config::line_format(converter_config.profile.serial());
+        // `boot` chose a line the USART makes.
         let Ok(rs485) = board.instrument.open(&line, &mut board.rcc) else {
             panic!("instrument port set-up failed");
-        };
-        let Ok(converter) = Converter::new(converter_config, now()) else {
-            panic!("invalid converter configuration");
         };
 
         #[cfg(not(feature = "emulated"))]
