@@ -415,8 +415,7 @@ impl<const N: usize> FrameParser<N> {
     }
 
     fn discard(&mut self, n: usize) {
-        let n = n.min(self.buf.len());
-        self.buf.drain(..n);
+        super::buffer::drop_front(&mut self.buf, n);
     }
 
     /// Drops buffered bytes up to the next start byte, counting them as skipped.

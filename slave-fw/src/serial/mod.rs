@@ -19,6 +19,7 @@
 //! which every constructor calls, so a running profile never meets a size it cannot hold.
 
 pub mod breaker;
+mod buffer;
 pub mod checksum;
 mod counter;
 pub mod error;

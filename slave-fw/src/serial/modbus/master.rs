@@ -417,7 +417,7 @@ impl ModbusMaster {
 
     fn drop_rx_front(&mut self, n: usize) {
         let n = n.min(self.rx.len());
-        self.rx.drain(..n);
+        crate::serial::buffer::drop_front(&mut self.rx, n);
         self.health.on_discarded_bytes(as_u32(n));
     }
 
