@@ -48,9 +48,7 @@ impl Indication {
     /// The colour to show at `now`; flashing phases are aligned to `since`, the instant the
     /// indication began, so a flash always starts with its lit half.
     pub fn lit(self, since: Instant, now: Instant) -> Lit {
-        let half = FLASH_HALF_PERIOD.total_micros();
-        let phase = (now - since).total_micros() / half;
-        let first_half = phase % 2 == 0;
+        let first_half = first_half(now - since);
         match self {
             Indication::Off => Lit::Off,
             Indication::Green => Lit::Green,
@@ -62,6 +60,22 @@ impl Indication {
             Indication::FlashingGreen | Indication::FlashingRed => Lit::Off,
         }
     }
+}
+
+/// Whether `elapsed` since an indication began falls in the first half of a flash period.
+///
+/// The remainder modulo the period is taken a byte at a time in 32-bit arithmetic: the Cortex-M4
+/// has no 64-bit divide, and a `u64` division would bring the 864-byte library routine into the
+/// firmware (`slave-fw/firmware/size-budget.toml`).
+fn first_half(elapsed: Duration) -> bool {
+    const HALF: u32 = FLASH_HALF_PERIOD.total_micros() as u32;
+    // A period under 2^24 µs keeps `rem << 8` within 32 bits.
+    const _: () = assert!(2 * (HALF as u64) < 1 << 24);
+    let mut rem = 0u32;
+    for byte in elapsed.total_micros().to_be_bytes() {
+        rem = ((rem << 8) | u32::from(byte)) % (2 * HALF);
+    }
+    rem < HALF
 }
 
 /// Both LEDs at one instant.
@@ -76,7 +90,9 @@ pub struct Leds {
 
 /// The power-up LED test (JB): `Some` while it runs, `elapsed` after power-on.
 pub fn self_test(elapsed: Duration) -> Option<Leds> {
-    let step = elapsed.total_micros() / SELF_TEST_STEP.total_micros();
+    // Six steps: anything beyond is over, and what is left fits 32 bits (no 64-bit divide).
+    let step =
+        u32::try_from(elapsed.total_micros()).map_or(6, |us| us / SELF_TEST_STEP.total_micros() as u32);
     let (module, network) = match step {
         0 => (Lit::Green, Lit::Off),
         1 => (Lit::Red, Lit::Off),
@@ -117,5 +133,18 @@ mod tests {
     #[case::done(1500, None)]
     fn self_test_sequence(#[case] ms: u64, #[case] leds: Option<Leds>) {
         assert_eq!(self_test(Duration::from_millis(ms)), leds);
+    }
+
+    #[rstest]
+    #[case::start(0)]
+    #[case::just_before_half(499_999)]
+    #[case::half(500_000)]
+    #[case::period(1_000_000)]
+    #[case::an_hour(3_600_000_123)]
+    #[case::beyond_32_bits(0x1_2345_6789_ABCD)]
+    #[case::max(u64::MAX)]
+    fn flash_phase_as_by_division(#[case] micros: u64) {
+        let by_division = (micros / FLASH_HALF_PERIOD.total_micros()) % 2 == 0;
+        assert_eq!(first_half(Duration::from_micros(micros)), by_division);
     }
 }
