@@ -106,14 +106,21 @@ impl SerialSettings {
         1 + data + parity + stop
     }
 
-    /// `tenths_of_chars / 10` character times, rounded up to the microsecond. A zero baud rate
-    /// (rejected by `validate`) is treated as the minimum.
-    fn char_tenths(&self, tenths_of_chars: u64) -> Duration {
-        let baud = u64::from(self.baud.max(1));
-        let bit_tenths = tenths_of_chars.saturating_mul(u64::from(self.bits_per_char()));
-        let numerator = bit_tenths.saturating_mul(1_000_000);
-        let denominator = baud * 10;
-        Duration::from_micros(numerator.div_ceil(denominator))
+    /// `tenths_of_chars / 10` character times, rounded up to the microsecond. A baud rate outside
+    /// [`SerialSettings::MIN_BAUD`]`..=`[`SerialSettings::MAX_BAUD`] (rejected by `validate`) is
+    /// taken as the nearest bound.
+    ///
+    /// 32-bit divisions only: the Cortex-M4 has no 64-bit divide, and a `u64` division would bring
+    /// the 864-byte library routine into the firmware (`slave-fw/firmware/size-budget.toml`).
+    fn char_tenths(&self, tenths_of_chars: u32) -> Duration {
+        let baud = self.baud.clamp(Self::MIN_BAUD, Self::MAX_BAUD);
+        let bit_tenths = tenths_of_chars.saturating_mul(self.bits_per_char());
+        // µs = ⌈bit_tenths · 100 000 / baud⌉, the fraction carried in two steps (×100, ×1000)
+        // so that every product stays under 2^32 (remainders are below MAX_BAUD = 4·10^6).
+        let (whole, rest) = (bit_tenths / baud, bit_tenths % baud);
+        let (hundreds, rest) = (rest * 100 / baud, rest * 100 % baud);
+        let thousands = (rest * 1000).div_ceil(baud);
+        Duration::from_micros(u64::from(whole) * 100_000 + u64::from(hundreds) * 1000 + u64::from(thousands))
     }
 
     /// The time one character takes on the wire, rounded up to the microsecond.
@@ -123,7 +130,7 @@ impl SerialSettings {
 
     /// The time `bytes` characters take on the wire, rounded up to the microsecond.
     pub fn transmit_time(&self, bytes: usize) -> Duration {
-        self.char_tenths(u64::try_from(bytes).unwrap_or(u64::MAX).saturating_mul(10))
+        self.char_tenths(u32::try_from(bytes).unwrap_or(u32::MAX).saturating_mul(10))
     }
 
     /// The Modbus RTU inter-frame silence t3.5: 3.5 character times, or a fixed 1750 µs above
@@ -152,6 +159,22 @@ impl SerialSettings {
 mod tests {
     use super::*;
     use rstest::rstest;
+
+    /// The 32-bit arithmetic gives what a 64-bit division gives, over the baud range.
+    #[test]
+    fn char_tenths_as_by_64_bit_division() {
+        let bauds = [300, 301, 1200, 9600, 19200, 38400, 115_200, 921_600, 1_000_003, 3_999_999, 4_000_000];
+        for baud in bauds {
+            for data_bits in [DataBits::Seven, DataBits::Eight] {
+                let s = SerialSettings { baud, data_bits, ..SerialSettings::new_8e1(baud) };
+                for tenths in [0, 1, 10, 15, 35, 2560, 123_457, 10_000_000] {
+                    let bit_tenths = u64::from(tenths) * u64::from(s.bits_per_char());
+                    let expected = (bit_tenths * 1_000_000).div_ceil(u64::from(baud) * 10);
+                    assert_eq!(s.char_tenths(tenths).total_micros(), expected, "{baud} baud, {tenths}");
+                }
+            }
+        }
+    }
 
     const S8N2: SerialSettings = SerialSettings {
         baud: 9600,
