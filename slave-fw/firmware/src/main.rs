@@ -315,15 +315,18 @@ mod app {
         task.power_on(start, io!());
         let mut next_led = start;
         loop {
-            let now_ = now();
+            let now_ticks = Mono::now().ticks();
+            let now_ = Instant::from_millis(now_ticks);
             if now_ >= next_led {
                 leds.show(task.leds(now_));
                 next_led = now_ + LED_PERIOD;
             }
             // Sleep until an input arrives or the earliest deadline (a due reset included).
             let deadline = task.poll_at().map_or(next_led, |at| at.min(next_led));
-            // Round up to the next millisecond tick.
-            let ticks = deadline.total_micros().div_ceil(1000);
+            // Round up to the next millisecond tick. `now_` is on a tick and the deadline at most
+            // LED_PERIOD away: 32-bit arithmetic (no 64-bit divide in the firmware).
+            let wait_us = u32::try_from(deadline.saturating_duration_since(now_).total_micros());
+            let ticks = now_ticks + u64::from(wait_us.unwrap_or(u32::MAX).div_ceil(1000));
             let first =
                 Mono::timeout_at(<Mono as Monotonic>::Instant::from_ticks(ticks), inputs.recv()).await;
             // Every sender lives in a task that never ends, so the channel never closes.
