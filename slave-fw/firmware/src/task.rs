@@ -166,6 +166,28 @@ impl ConverterTask {
         }
     }
 
+    /// Stores a downloaded, validated configuration image with the network settings in force
+    /// (one journal record, power-safe), to run from the next reset. An image larger than a
+    /// record holds cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in
+    /// `config`); it would be refused, not cut.
+    // Called from `drain` once the converter hands images over (`Converter::poll_new_image`, on
+    // branch device-config).
+    #[allow(dead_code)]
+    fn store_image(&mut self, image: &[u8], hw: &mut impl Hardware) {
+        let mut settings = self.settings.clone();
+        settings.image.clear();
+        if settings.image.extend_from_slice(image).is_err() {
+            warn!("configuration image: too large to store");
+            return;
+        }
+        if hw.save_settings(&settings) {
+            info!("configuration image stored: {=usize} bytes, in force from the next reset", image.len());
+            self.settings = settings;
+        } else {
+            warn!("configuration image: save failed");
+        }
+    }
+
     /// The application's part of an event: outputs, idle polls and connection faults are the
     /// converter's, and so is the reset's timing.
     fn on_event(&mut self, event: Event, hw: &mut impl Hardware) {
@@ -334,6 +356,23 @@ mod tests {
         assert_eq!(wake_ups, wire.len().div_ceil(INPUTS), "at most {INPUTS} inputs per wake-up");
         assert_eq!(task.converter().profile().stats().frames_received - before, 3);
         assert_eq!(task.converter().profile().input_image()[0], 2, "the last frame's image");
+    }
+
+    #[test]
+    fn a_downloaded_image_is_stored_with_the_settings_in_force() {
+        let mut hw = Recorder::default();
+        let (mut task, _) = established(&mut hw);
+        task.settings.bus_off_interrupt = true;
+        let image = [0xA5; 300];
+        task.store_image(&image, &mut hw);
+        assert_eq!(hw.saved.len(), 1);
+        assert_eq!(hw.saved[0].image, image[..]);
+        assert!(hw.saved[0].bus_off_interrupt, "the network settings travel with it");
+        assert_eq!(task.settings().image, image[..]);
+        // Too large for a record: refused, nothing stored.
+        task.store_image(&[0; board::settings::IMAGE_CAPACITY + 1], &mut hw);
+        assert_eq!(hw.saved.len(), 1);
+        assert_eq!(task.settings().image, image[..]);
     }
 
     #[test]
