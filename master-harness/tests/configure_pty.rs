@@ -18,7 +18,8 @@ fn dnet(rig: &PtyRig, args: &[&str]) -> (i32, String, String) {
     let mut all = vec!["--bus", bus.as_str()];
     all.extend_from_slice(args);
     let mut p = Proc::spawn(env!("CARGO_BIN_EXE_dnet-master"), &all);
-    let status = p.wait(Duration::from_secs(90)).unwrap_or_else(|| panic!("dnet-master {args:?} hangs\n{}", p.dump()));
+    let status =
+        p.wait(Duration::from_secs(90)).unwrap_or_else(|| panic!("dnet-master {args:?} hangs\n{}", p.dump()));
     (status.code().unwrap_or(-1), p.stdout.text(), p.stderr.text())
 }
 
@@ -42,7 +43,13 @@ fn other_breaker(dir: &std::path::Path) -> PathBuf {
         .replace("input_assembly = \"plain\"", "input_assembly = \"with_status\"")
         .replace("produced_size = 18", "produced_size = 20")
         .replace("stale_timeout_ms = 3000", "stale_timeout_ms = 5000");
-    for needle in ["product_code = 42", "Breaker Gateway B", "with_status", "produced_size = 20", "stale_timeout_ms = 5000"] {
+    for needle in [
+        "product_code = 42",
+        "Breaker Gateway B",
+        "with_status",
+        "produced_size = 20",
+        "stale_timeout_ms = 5000",
+    ] {
         assert!(text.contains(needle), "the reference description changed: {needle}");
     }
     let path = dir.join("breaker-b.toml");
