@@ -19,6 +19,10 @@
 //!   [`SERIAL_LINK_CLASS`] (statistics and link status) and [`SETTINGS_CLASS`] (the
 //!   configuration in force, which the EDS parameters point at). Their attributes are described
 //!   once, in [`objects`], for the object handler and the EDS generator alike.
+//! - The configuration object [`CONFIG_CLASS`] (0x66, [`config_object`]) serves the
+//!   configuration image in force ([`crate::image`]) and takes a new one by download; an accepted
+//!   image is handed to the application ([`Converter::poll_new_image`]) and applies at the next
+//!   reset.
 //! - An Identity Reset is carried out [`RESET_DELAY`] after the request, so that the response has
 //!   left; the converter keeps the deadline and says when the reset is due
 //!   ([`Converter::poll_reset`]). The firmware resets the chip then, a host power-cycles its
@@ -32,7 +36,8 @@
 //!
 //! 1. [`Converter::poll_can_transmit`] until `None` (frames for the bus);
 //! 2. [`Converter::poll_serial_transmit`] until `None` (bytes for the instrument's UART);
-//! 3. [`Converter::poll_event`] until `None` (what the application acts on);
+//! 3. [`Converter::poll_event`] until `None` (what the application acts on), and
+//!    [`Converter::poll_new_image`] (a downloaded configuration image to store);
 //! 4. [`Converter::poll_reset`]: when it returns a [`ResetKind`], reset now;
 //!
 //! and call [`Converter::handle_timeout`] at [`Converter::poll_at`] at the latest. The queues
@@ -42,15 +47,18 @@
 use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig, IMAGE_CAPACITY};
 use devicenet::led::Leds;
 use devicenet::slave::{
-    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, DeviceConfig, Event,
+    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, ConnectionState, DeviceConfig, Event,
 };
 use devicenet::{CanFrame, Duration, Instant, SlaveNode};
 use heapless::Deque;
 
 pub mod check;
+pub mod config_object;
 pub mod objects;
 
 pub use check::InvalidConfig;
+use config_object::ConfigObject;
+pub use config_object::{ConfigOrigin, ConfigState, CONFIG_CLASS};
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
@@ -214,12 +222,31 @@ pub struct Converter {
     last_image: heapless::Vec<u8, { IMAGE_CAPACITY + 2 }>,
     /// An accepted Identity Reset: when it is due, and its kind.
     reset: Option<(Instant, ResetKind)>,
+    /// The configuration object (class 0x66): the image in force, downloads.
+    config: ConfigObject,
 }
 
 impl Converter {
-    /// A powered-off converter; call [`Converter::power_on`] to start.
+    /// A powered-off converter running the factory default configuration; call
+    /// [`Converter::power_on`] to start. Same as [`Converter::with_origin`] with
+    /// [`ConfigOrigin::FactoryDefault`].
     pub fn new(config: ConverterConfig, now: Instant) -> Result<Converter, ConverterConfigError> {
+        Converter::with_origin(config, ConfigOrigin::FactoryDefault, now)
+    }
+
+    /// A powered-off converter running `config`, which came from `origin`: the factory default,
+    /// the stored image ([`crate::image::decode`] accepted it), or the factory default because the
+    /// stored image was refused ([`ConfigOrigin::Fault`], reported by the configuration object,
+    /// [`CONFIG_CLASS`] attributes 3 and 5). The image in force is `image::encode(&config)`.
+    pub fn with_origin(
+        config: ConverterConfig,
+        origin: ConfigOrigin,
+        now: Instant,
+    ) -> Result<Converter, ConverterConfigError> {
         config.validate()?;
+        let mut image = [0u8; crate::image::MAX_IMAGE];
+        let len = crate::image::encode(&config, &mut image).unwrap_or(0);
+        let config_object = ConfigObject::new(image.get(..len).unwrap_or_default(), origin);
         let node = SlaveNode::new(config.device_config()).map_err(ConverterConfigError::Device)?;
         let profile = Profile::new(config.profile, now).map_err(ConverterConfigError::Profile)?;
         let mut converter = Converter {
@@ -229,6 +256,7 @@ impl Converter {
             events: Deque::new(),
             last_image: heapless::Vec::new(),
             reset: None,
+            config: config_object,
         };
         converter.refresh_image(now);
         Ok(converter)
@@ -241,7 +269,13 @@ impl Converter {
 
     /// A CAN frame was received.
     pub fn handle_can_frame(&mut self, frame: &CanFrame, now: Instant) {
-        let mut objects = VendorObjects { profile: &self.profile, input: self.input };
+        let io_established = self.node.poll_connection().state == ConnectionState::Established;
+        let mut objects = VendorObjects {
+            profile: &self.profile,
+            input: self.input,
+            config: &mut self.config,
+            io_established,
+        };
         self.node.handle_frame_with(frame, now, &mut objects);
         self.sync(now);
     }
@@ -284,6 +318,21 @@ impl Converter {
     /// the [module docs](self) say, the queue never fills.
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
+    }
+
+    /// A new configuration image the configuration object accepted (a committed download,
+    /// [`config_object`]), once: the application stores it (firmware: the settings journal; soft
+    /// slave: its state file) and builds the converter from it at the next reset
+    /// ([`Converter::with_origin`] with [`ConfigOrigin::Stored`]). Nothing applies before then.
+    /// Drain it with the events (step 3 of the [module docs](self)); a later download replaces an
+    /// image not yet taken.
+    pub fn poll_new_image(&mut self) -> Option<&[u8]> {
+        self.config.take_new_image()
+    }
+
+    /// The configuration object's state (its attribute 3).
+    pub fn config_state(&self) -> ConfigState {
+        self.config.state()
     }
 
     /// The Identity Reset that is due at `now`, once: the caller resets at once (the firmware
