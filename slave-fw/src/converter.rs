@@ -15,12 +15,16 @@
 //!   ([`LinkStatus::to_bytes`](crate::serial::LinkStatus::to_bytes)). The description chooses which one the poll connection produces.
 //! - While the instrument is silent the Identity status reports a minor recoverable fault and the
 //!   Module Status LED flashes red (devicenet-notes §6.2, §7.3); so does a configuration fault
-//!   the application reports ([`Converter::set_configuration_fault`]: the stored configuration
-//!   could not be used, the factory default runs).
+//!   (built [`Converter::with_origin`] [`ConfigOrigin::Fault`]: the stored image was refused, the
+//!   factory default runs).
 //! - Two vendor-specific objects serve the serial side over explicit messaging:
 //!   [`SERIAL_LINK_CLASS`] (statistics and link status) and [`SETTINGS_CLASS`] (the
 //!   configuration in force, which the EDS parameters point at). Their attributes are described
 //!   once, in [`objects`], for the object handler and the EDS generator alike.
+//! - The configuration object [`CONFIG_CLASS`] (0x66, [`config_object`]) serves the
+//!   configuration image in force ([`crate::image`]) and takes a new one by download; an accepted
+//!   image is handed to the application ([`Converter::poll_new_image`]) and applies at the next
+//!   reset.
 //! - An Identity Reset is carried out [`RESET_DELAY`] after the request, so that the response has
 //!   left; the converter keeps the deadline and says when the reset is due
 //!   ([`Converter::poll_reset`]). The firmware resets the chip then, a host power-cycles its
@@ -34,7 +38,8 @@
 //!
 //! 1. [`Converter::poll_can_transmit`] until `None` (frames for the bus);
 //! 2. [`Converter::poll_serial_transmit`] until `None` (bytes for the instrument's UART);
-//! 3. [`Converter::poll_event`] until `None` (what the application acts on);
+//! 3. [`Converter::poll_event`] until `None` (what the application acts on), and
+//!    [`Converter::poll_new_image`] (a downloaded configuration image to store);
 //! 4. [`Converter::poll_reset`]: when it returns a [`ResetKind`], reset now;
 //!
 //! and call [`Converter::handle_timeout`] at [`Converter::poll_at`] at the latest. The queues
@@ -44,15 +49,18 @@
 use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig, IMAGE_CAPACITY};
 use devicenet::led::Leds;
 use devicenet::slave::{
-    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, DeviceConfig, Event,
+    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, ConnectionState, DeviceConfig, Event,
 };
 use devicenet::{CanFrame, Duration, Instant, SlaveNode};
 use heapless::Deque;
 
 pub mod check;
+pub mod config_object;
 pub mod objects;
 
 pub use check::InvalidConfig;
+use config_object::ConfigObject;
+pub use config_object::{ConfigOrigin, ConfigState, CONFIG_CLASS};
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
@@ -216,14 +224,33 @@ pub struct Converter {
     last_image: heapless::Vec<u8, { IMAGE_CAPACITY + 2 }>,
     /// An accepted Identity Reset: when it is due, and its kind.
     reset: Option<(Instant, ResetKind)>,
-    /// The application's configuration fault, ORed into the Identity status.
+    /// The configuration object (class 0x66): the image in force, downloads.
+    config: ConfigObject,
+    /// The stored image was refused ([`ConfigOrigin::Fault`]): ORed into the Identity status.
     configuration_fault: bool,
 }
 
 impl Converter {
-    /// A powered-off converter; call [`Converter::power_on`] to start.
+    /// A powered-off converter running the factory default configuration; call
+    /// [`Converter::power_on`] to start. Same as [`Converter::with_origin`] with
+    /// [`ConfigOrigin::FactoryDefault`].
     pub fn new(config: ConverterConfig, now: Instant) -> Result<Converter, ConverterConfigError> {
+        Converter::with_origin(config, ConfigOrigin::FactoryDefault, now)
+    }
+
+    /// A powered-off converter running `config`, which came from `origin`: the factory default,
+    /// the stored image ([`crate::image::decode`] accepted it), or the factory default because the
+    /// stored image was refused ([`ConfigOrigin::Fault`], reported by the configuration object,
+    /// [`CONFIG_CLASS`] attributes 3 and 5). The image in force is `image::encode(&config)`.
+    pub fn with_origin(
+        config: ConverterConfig,
+        origin: ConfigOrigin,
+        now: Instant,
+    ) -> Result<Converter, ConverterConfigError> {
         config.validate()?;
+        let mut image = [0u8; crate::image::MAX_IMAGE];
+        let len = crate::image::encode(&config, &mut image).unwrap_or(0);
+        let config_object = ConfigObject::new(image.get(..len).unwrap_or_default(), origin);
         let node = SlaveNode::new(config.device_config()).map_err(ConverterConfigError::Device)?;
         let profile = Profile::new(config.profile, now).map_err(ConverterConfigError::Profile)?;
         let mut converter = Converter {
@@ -233,7 +260,8 @@ impl Converter {
             events: Deque::new(),
             last_image: heapless::Vec::new(),
             reset: None,
-            configuration_fault: false,
+            config: config_object,
+            configuration_fault: matches!(origin, ConfigOrigin::Fault(_)),
         };
         converter.refresh_image(now);
         Ok(converter)
@@ -246,7 +274,13 @@ impl Converter {
 
     /// A CAN frame was received.
     pub fn handle_can_frame(&mut self, frame: &CanFrame, now: Instant) {
-        let mut objects = VendorObjects { profile: &self.profile, input: self.input };
+        let io_established = self.node.poll_connection().state == ConnectionState::Established;
+        let mut objects = VendorObjects {
+            profile: &self.profile,
+            input: self.input,
+            config: &mut self.config,
+            io_established,
+        };
         self.node.handle_frame_with(frame, now, &mut objects);
         self.sync(now);
     }
@@ -291,6 +325,21 @@ impl Converter {
         self.events.pop_front()
     }
 
+    /// A new configuration image the configuration object accepted (a committed download,
+    /// [`config_object`]), once: the application stores it (firmware: the settings journal; soft
+    /// slave: its state file) and builds the converter from it at the next reset
+    /// ([`Converter::with_origin`] with [`ConfigOrigin::Stored`]). Nothing applies before then.
+    /// Drain it with the events (step 3 of the [module docs](self)); a later download replaces an
+    /// image not yet taken.
+    pub fn poll_new_image(&mut self) -> Option<&[u8]> {
+        self.config.take_new_image()
+    }
+
+    /// The configuration object's state (its attribute 3).
+    pub fn config_state(&self) -> ConfigState {
+        self.config.state()
+    }
+
     /// The Identity Reset that is due at `now`, once: the caller resets at once (the firmware
     /// resets the chip; a host replaces the converter with a new one and powers it on). The
     /// converter schedules it [`RESET_DELAY`] after the request, and [`Converter::poll_at`]
@@ -309,14 +358,6 @@ impl Converter {
     /// run: the node's and the profile's timers and a pending reset.
     pub fn poll_at(&self) -> Option<Instant> {
         earliest(earliest(self.node.poll_at(), self.profile.poll_at()), self.reset.map(|(at, _)| at))
-    }
-
-    /// Reports a configuration fault (`true`: the stored configuration was corrupt or
-    /// incompatible and the factory default runs instead) or clears it: a minor recoverable fault
-    /// in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3), from the
-    /// next input on, as long as it is set.
-    pub fn set_configuration_fault(&mut self, fault: bool) {
-        self.configuration_fault = fault;
     }
 
     /// The LEDs at `now`.

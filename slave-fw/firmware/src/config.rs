@@ -6,13 +6,13 @@
 //!
 //! 1. The stored settings' configuration image (`Settings::image`, written when a tool downloads
 //!    one over the bus, `slave_fw::image`), when it decodes, the converter accepts it and the
-//!    USART makes its serial line: [`Configuration::Stored`].
+//!    USART makes its serial line: [`ConfigOrigin::Stored`].
 //! 2. No image stored: the factory default, the reference breaker converter
-//!    ([`ConverterConfig::breaker_reference`]): [`Configuration::FactoryDefault`].
+//!    ([`ConverterConfig::breaker_reference`]): [`ConfigOrigin::FactoryDefault`].
 //! 3. An image that cannot be used (corrupt, another format version, values refused, a line the
 //!    USART cannot make): the factory default with a **configuration fault**, a minor recoverable
-//!    fault in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3):
-//!    [`Configuration::Fault`]. Any image bytes boot.
+//!    fault in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3), the
+//!    reason in the configuration object: [`ConfigOrigin::Fault`]. Any image bytes boot.
 //!
 //! Whatever runs, the MAC ID and data rate come from the switches or the stored settings (the
 //! image's own are the soft slave's), and so does the bus-off interrupt setting.
@@ -25,96 +25,84 @@ use board::Resolved;
 use devicenet::Instant;
 #[cfg(feature = "emulated")]
 use devicenet::MacId;
-use slave_fw::converter::{Converter, ConverterConfig};
+use slave_fw::converter::{ConfigOrigin, Converter, ConverterConfig, ConverterConfigError, InvalidConfig};
 use slave_fw::image::{self, ImageError};
-use slave_fw::serial::{DataBits, Parity, SerialSettings, StopBits};
+use slave_fw::serial::{ConfigError, DataBits, Parity, ProfileConfig, SerialSettings, StopBits};
 
 /// The stored image is at most what a settings record holds.
 const _: () = assert!(image::MAX_IMAGE <= board::settings::IMAGE_CAPACITY);
 
-/// Which configuration is in force.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Configuration {
-    /// No image stored: the factory default.
-    FactoryDefault,
-    /// The stored image.
-    Stored,
-    /// The stored image cannot be used (why); the factory default runs, with a configuration fault.
-    Fault(Unusable),
-}
-
-/// Why a stored image cannot be used.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Unusable {
-    /// It does not decode: corrupt, another format version, values refused.
-    Image(ImageError),
-    /// It decodes, but the converter or the USART refuses it.
-    Refused,
-}
-
-impl Configuration {
-    /// A short name for the log.
-    #[cfg_attr(not(target_os = "none"), allow(dead_code))]
-    pub const fn name(self) -> &'static str {
-        match self {
-            Configuration::FactoryDefault => "factory default",
-            Configuration::Stored => "stored image",
-            Configuration::Fault(Unusable::Image(_)) => "factory default: stored image unreadable",
-            Configuration::Fault(Unusable::Refused) => "factory default: stored image refused",
-        }
+/// A short name of `origin` for the log.
+#[cfg_attr(not(target_os = "none"), allow(dead_code))]
+pub const fn origin_name(origin: &ConfigOrigin) -> &'static str {
+    match origin {
+        ConfigOrigin::FactoryDefault => "factory default",
+        ConfigOrigin::Stored => "stored image",
+        ConfigOrigin::Fault(_) => "factory default, stored image refused",
     }
 }
 
 /// What runs after a reset.
 pub struct Boot {
-    /// The converter, powered off, its configuration fault set as [`Boot::configuration`] says.
+    /// The converter, powered off, built with [`Boot::origin`] (a fault shows in its status).
     pub converter: Converter,
     /// Its serial line, one the USART makes.
     pub line: LineFormat,
     /// Where the configuration came from.
-    pub configuration: Configuration,
+    pub origin: ConfigOrigin,
 }
 
 /// The converter the stored `settings` and the switches (`resolved`) make at `now`: the stored
 /// image if it can run, the factory default otherwise (module docs). Never fails.
 pub fn boot(resolved: &Resolved, stored: &Settings, now: Instant) -> Boot {
-    let configuration = if stored.image.is_empty() {
-        Configuration::FactoryDefault
+    let origin = if stored.image.is_empty() {
+        ConfigOrigin::FactoryDefault
     } else {
-        match image::decode(&stored.image) {
-            Ok(config) => match start(config, resolved, stored, now) {
-                Some((converter, line)) => {
-                    return Boot { converter, line, configuration: Configuration::Stored };
-                }
-                None => Configuration::Fault(Unusable::Refused),
-            },
-            Err(e) => Configuration::Fault(Unusable::Image(e)),
+        match image::decode(&stored.image)
+            .and_then(|config| start(config, ConfigOrigin::Stored, resolved, stored, now))
+        {
+            Ok(boot) => return boot,
+            Err(e) => ConfigOrigin::Fault(e),
         }
     };
-    let factory = start(ConverterConfig::breaker_reference(), resolved, stored, now);
     // The factory default is the reference converter, which always starts (a host test proves it).
-    let Some((mut converter, line)) = factory else {
-        panic!("factory configuration refused");
-    };
-    converter.set_configuration_fault(matches!(configuration, Configuration::Fault(_)));
-    Boot { converter, line, configuration }
+    match start(ConverterConfig::breaker_reference(), origin, resolved, stored, now) {
+        Ok(boot) => boot,
+        Err(_) => panic!("factory configuration refused"),
+    }
 }
 
-/// A converter for `config` with the network settings of `resolved` and `stored`, and its serial
-/// line, if both the converter and the USART take it.
+/// A converter for `config` from `origin` with the network settings of `resolved` and `stored`,
+/// and its serial line, if both the converter and the USART take it.
 fn start(
     mut config: ConverterConfig,
+    origin: ConfigOrigin,
     resolved: &Resolved,
     stored: &Settings,
     now: Instant,
-) -> Option<(Converter, LineFormat)> {
+) -> Result<Boot, ImageError> {
     config.device.mac_id = resolved.mac_id;
     config.device.baud_rate = resolved.baud_rate;
     config.device.switches = resolved.switches;
     config.device.bus_off_interrupt = stored.bus_off_interrupt;
     let line = line_format(config.profile.serial());
-    line.check(INSTRUMENT_UART_HZ).ok()?;
-    Some((Converter::new(config, now).ok()?, line))
+    let modbus = matches!(config.profile, ProfileConfig::Modbus(_));
+    if line.check(INSTRUMENT_UART_HZ).is_err() {
+        let range = LineFormat::baud_range(INSTRUMENT_UART_HZ);
+        let error = if line.word_length().is_err() {
+            ConfigError::conflict("serial.parity", "7 data bits need parity on this USART")
+        } else {
+            ConfigError::out_of_range("serial.baud", line.baud, *range.start(), *range.end())
+        };
+        return Err(ImageError::Invalid(InvalidConfig::Profile { modbus, error }));
+    }
+    let converter = Converter::with_origin(config, origin, now).map_err(|e| {
+        ImageError::Invalid(match e {
+            ConverterConfigError::Profile(error) => InvalidConfig::Profile { modbus, error },
+            ConverterConfigError::Device(e) => InvalidConfig::Io(e),
+        })
+    })?;
+    Ok(Boot { converter, line, origin })
 }
 
 /// Parses a decimal MAC ID at compile time.
@@ -186,8 +174,8 @@ mod tests {
     use devicenet::led::Indication;
     use devicenet::slave::BaudRate;
     use devicenet::MacId;
+    use slave_fw::converter::ConfigState;
     use slave_fw::description::DeviceDescription;
-    use slave_fw::serial::ProfileConfig;
     use std::path::Path;
 
     /// The switches in the program position with MAC ID 12 at 500 kbit/s, from the settings.
@@ -242,7 +230,7 @@ mod tests {
     #[test]
     fn no_image_runs_the_factory_default() {
         let mut boot = boot(&resolved(), &settings_with(&[]), Instant::ZERO);
-        assert_eq!(boot.configuration, Configuration::FactoryDefault);
+        assert_eq!(boot.origin, ConfigOrigin::FactoryDefault);
         assert_eq!(boot.line, LineFormat::new_8n1(9600));
         assert_eq!(
             boot.converter.node().config().identity,
@@ -255,7 +243,7 @@ mod tests {
     fn a_stored_image_runs_with_the_switches_network_settings() {
         let meter = described("modbus-meter.toml");
         let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), Instant::ZERO);
-        assert_eq!(boot.configuration, Configuration::Stored);
+        assert_eq!(boot.origin, ConfigOrigin::Stored);
         assert!(matches!(boot.converter.profile(), slave_fw::serial::Profile::Modbus(_)));
         let node = boot.converter.node().config();
         assert_eq!(node.identity, meter.device.identity);
@@ -281,11 +269,8 @@ mod tests {
             [("corrupt", &corrupt[..]), ("newer version", &newer[..]), ("garbage", &[0xFF; 40][..])]
         {
             let mut boot = boot(&resolved(), &settings_with(bytes), Instant::ZERO);
-            assert!(
-                matches!(boot.configuration, Configuration::Fault(Unusable::Image(_))),
-                "{name}: {:?}",
-                boot.configuration
-            );
+            assert!(matches!(boot.origin, ConfigOrigin::Fault(_)), "{name}: {:?}", boot.origin);
+            assert_eq!(boot.converter.config_state(), ConfigState::Fault, "{name}");
             assert_eq!(boot.line, LineFormat::new_8n1(9600), "{name}");
             assert_eq!(module_status(&mut boot), Indication::FlashingRed, "{name}");
         }
@@ -298,7 +283,11 @@ mod tests {
         // Valid for the converter (300..=4_000_000), beyond the USART's divider.
         modbus.serial.baud = if cfg!(feature = "emulated") { 4_000_000 } else { 300 };
         let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), Instant::ZERO);
-        assert_eq!(boot.configuration, Configuration::Fault(Unusable::Refused));
+        let ConfigOrigin::Fault(ImageError::Invalid(InvalidConfig::Profile { error, .. })) = boot.origin
+        else {
+            panic!("{:?}", boot.origin);
+        };
+        assert_eq!(error.field, "serial.baud");
         assert_eq!(module_status(&mut boot), Indication::FlashingRed);
     }
 
@@ -308,14 +297,14 @@ mod tests {
         let good = encoded(&described("modbus-meter.toml"));
         for len in 0..good.len() {
             let b = boot(&resolved(), &settings_with(&good[..len]), Instant::ZERO);
-            assert_ne!(b.configuration, Configuration::Stored, "truncated to {len}");
+            assert_ne!(b.origin, ConfigOrigin::Stored, "truncated to {len}");
         }
         for byte in 0..good.len() {
             for bit in 0..8 {
                 let mut bytes = good.clone();
                 bytes[byte] ^= 1 << bit;
                 let b = boot(&resolved(), &settings_with(&bytes), Instant::ZERO);
-                assert!(matches!(b.configuration, Configuration::Fault(_)), "byte {byte} bit {bit}");
+                assert!(matches!(b.origin, ConfigOrigin::Fault(_)), "byte {byte} bit {bit}");
             }
         }
     }

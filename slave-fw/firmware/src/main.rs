@@ -153,12 +153,12 @@ mod app {
                 warn!("settings: could not store the switch reading");
             }
         }
-        let config::Boot { converter, line, configuration } = config::boot(&resolved, &settings, now());
+        let config::Boot { converter, line, origin } = config::boot(&resolved, &settings, now());
         info!(
             "MAC {=u8}, baud attribute {=u8}, {=str}",
             resolved.mac_id.as_raw(),
             resolved.baud_rate.attribute_value(),
-            configuration.name()
+            config::origin_name(&origin)
         );
         // `boot` chose a line the USART makes.
         let Ok(rs485) = board.instrument.open(&line, &mut board.rcc) else {

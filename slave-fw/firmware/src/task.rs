@@ -6,7 +6,7 @@
 //! transmit queue, USART2, the settings flash, the reset) is behind the [`Hardware`] trait.
 //!
 //! Every input is followed by a full drain, in the converter's order (frames, instrument bytes,
-//! events, a due reset; `slave_fw::converter` module docs), before the next input is handed over:
+//! events and a downloaded configuration image, stored in the settings journal; a due reset; `slave_fw::converter` module docs), before the next input is handed over:
 //! the node queues at most 16 frames and the converter 8 events, and a burst of inputs taken
 //! without draining would push responses and a `ResetRequested` or `SettingChanged` out of them.
 //! Consecutive instrument bytes are one input (up to [`SERIAL_BATCH`] bytes in one
@@ -148,7 +148,8 @@ impl ConverterTask {
         }
     }
 
-    /// The converter's outputs, in its drain order: frames, instrument bytes, events, a due reset.
+    /// The converter's outputs, in its drain order: frames, instrument bytes, events, a downloaded
+    /// image (stored), a due reset.
     fn drain(&mut self, now: Instant, hw: &mut impl Hardware) {
         while let Some(frame) = self.converter.poll_can_transmit() {
             hw.send_frame(frame);
@@ -160,31 +161,12 @@ impl ConverterTask {
             hw.event(&event);
             self.on_event(event, hw);
         }
+        if let Some(image) = self.converter.poll_new_image() {
+            store_image(&mut self.settings, image, hw);
+        }
         if let Some(kind) = self.converter.poll_reset(now) {
             info!("reset, type {=u8}", kind.as_raw());
             hw.reset(kind);
-        }
-    }
-
-    /// Stores a downloaded, validated configuration image with the network settings in force
-    /// (one journal record, power-safe), to run from the next reset. An image larger than a
-    /// record holds cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in
-    /// `config`); it would be refused, not cut.
-    // Called from `drain` once the converter hands images over (`Converter::poll_new_image`, on
-    // branch device-config).
-    #[allow(dead_code)]
-    fn store_image(&mut self, image: &[u8], hw: &mut impl Hardware) {
-        let mut settings = self.settings.clone();
-        settings.image.clear();
-        if settings.image.extend_from_slice(image).is_err() {
-            warn!("configuration image: too large to store");
-            return;
-        }
-        if hw.save_settings(&settings) {
-            info!("configuration image stored: {=usize} bytes, in force from the next reset", image.len());
-            self.settings = settings;
-        } else {
-            warn!("configuration image: save failed");
         }
     }
 
@@ -205,6 +187,25 @@ impl ConverterTask {
             }
             _ => {}
         }
+    }
+}
+
+/// Stores a downloaded, validated configuration image with the network `settings` in force (one
+/// journal record, power-safe), to run from the next reset. An image larger than a record holds
+/// cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in `config`); it would be
+/// refused, not cut.
+fn store_image(settings: &mut Settings, image: &[u8], hw: &mut impl Hardware) {
+    let mut new = settings.clone();
+    new.image.clear();
+    if new.image.extend_from_slice(image).is_err() {
+        warn!("configuration image: too large to store");
+        return;
+    }
+    if hw.save_settings(&new) {
+        info!("configuration image stored: {=usize} bytes, in force from the next reset", image.len());
+        *settings = new;
+    } else {
+        warn!("configuration image: save failed");
     }
 }
 
@@ -364,13 +365,13 @@ mod tests {
         let (mut task, _) = established(&mut hw);
         task.settings.bus_off_interrupt = true;
         let image = [0xA5; 300];
-        task.store_image(&image, &mut hw);
+        store_image(&mut task.settings, &image, &mut hw);
         assert_eq!(hw.saved.len(), 1);
         assert_eq!(hw.saved[0].image, image[..]);
         assert!(hw.saved[0].bus_off_interrupt, "the network settings travel with it");
         assert_eq!(task.settings().image, image[..]);
         // Too large for a record: refused, nothing stored.
-        task.store_image(&[0; board::settings::IMAGE_CAPACITY + 1], &mut hw);
+        store_image(&mut task.settings, &[0; board::settings::IMAGE_CAPACITY + 1], &mut hw);
         assert_eq!(hw.saved.len(), 1);
         assert_eq!(task.settings().image, image[..]);
     }

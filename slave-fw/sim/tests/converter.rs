@@ -280,3 +280,64 @@ fn reset_kinds_keep_their_type_byte() {
     }
     assert_eq!(ResetKind::from_raw(1), ResetKind::OutOfBox);
 }
+
+/// One unfragmented explicit request on the explicit connection (MAC 5: 0x42C); the reply frames.
+fn explicit(c: &mut Converter, now: Instant, data: &[u8]) -> Vec<Vec<u8>> {
+    c.handle_can_frame(&CanFrame::from_raw(0x42C, data).unwrap(), now);
+    std::iter::from_fn(|| c.poll_can_transmit())
+        .filter(|f| f.id().as_raw() == 0x42B)
+        .map(|f| f.data().to_vec())
+        .collect()
+}
+
+fn modbus_image() -> Vec<u8> {
+    use slave_fw::serial::modbus::{Function, ModbusConfig, ScanEntry};
+    let scan =
+        [ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 0, count: 4, offset: 0 }];
+    let config = ConverterConfig {
+        profile: ProfileConfig::Modbus(ModbusConfig::new(scan.into_iter().collect())),
+        ..ConverterConfig::breaker_reference()
+    };
+    let mut out = [0u8; slave_fw::image::MAX_IMAGE];
+    let n = slave_fw::image::encode(&config, &mut out).unwrap();
+    out[..n].to_vec()
+}
+
+#[test]
+fn a_modbus_image_is_downloaded_in_chunks_and_handed_over() {
+    let (mut c, mut now) = bare_established();
+    // Release the poll connection (DeviceNet object Release, choice 0x02): explicit only.
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x4C, 0x03, 0x01, 0x02]), vec![vec![0x00, 0xCC]]);
+    let image = modbus_image();
+    // State 0: the factory default is in force.
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x66, 0x01, 0x03]), vec![vec![0x00, 0x8E, 0]]);
+    let size = (image.len() as u16).to_le_bytes();
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x4C, 0x66, 0x01, size[0], size[1]]), vec![vec![0x00, 0xCC]]);
+    // Two bytes per request: an unfragmented Write_Chunk has room for no more.
+    for (k, chunk) in image.chunks(2).enumerate() {
+        now += Duration::from_millis(1);
+        let offset = ((k * 2) as u16).to_le_bytes();
+        let mut req = vec![0x00, 0x4D, 0x66, 0x01, offset[0], offset[1]];
+        req.extend_from_slice(chunk);
+        assert_eq!(explicit(&mut c, now, &req), vec![vec![0x00, 0xCD]], "chunk {k}");
+    }
+    assert_eq!(c.poll_new_image(), None, "nothing before the commit");
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x4E, 0x66, 0x01]), vec![vec![0x00, 0xCE]]);
+    assert_eq!(c.poll_new_image(), Some(image.as_slice()));
+    assert_eq!(c.poll_new_image(), None, "handed over once");
+    // State 2: stored, applies at the next reset; the breaker profile still runs.
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x66, 0x01, 0x03]), vec![vec![0x00, 0x8E, 2]]);
+    assert!(matches!(slave_fw::image::decode(&image).unwrap().profile, ProfileConfig::Modbus(_)));
+    // The next start runs it, and says it is the stored image.
+    let stored = slave_fw::image::decode(&image).unwrap();
+    let c2 = Converter::with_origin(stored, slave_fw::converter::ConfigOrigin::Stored, now).unwrap();
+    assert_eq!(c2.config_state(), slave_fw::converter::ConfigState::Stored);
+}
+
+#[test]
+fn a_download_is_refused_while_polled() {
+    let (mut c, now) = bare_established();
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x4C, 0x66, 0x01, 98, 0]), vec![vec![0x00, 0x94, 0x10, 0xFF]]);
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x4D, 0x66, 0x01, 0, 0, 1]), vec![vec![0x00, 0x94, 0x10, 0xFF]]);
+    assert_eq!(c.poll_new_image(), None);
+}

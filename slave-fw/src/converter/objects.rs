@@ -456,6 +456,10 @@ pub(super) struct VendorObjects<'a> {
     pub(super) profile: &'a Profile,
     /// The produced assembly.
     pub(super) input: InputAssembly,
+    /// The configuration object.
+    pub(super) config: &'a mut super::ConfigObject,
+    /// Whether an I/O (poll) connection is established.
+    pub(super) io_established: bool,
 }
 
 impl VendorObjects<'_> {
@@ -481,6 +485,7 @@ impl ObjectHandler for VendorObjects<'_> {
         let link = match req.class {
             SERIAL_LINK_CLASS => true,
             SETTINGS_CLASS => false,
+            super::CONFIG_CLASS => return Some(self.config.handle(req, reply, self.io_established)),
             _ => return None,
         };
         let known = |id| {

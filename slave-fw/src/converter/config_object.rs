@@ -1,0 +1,479 @@
+//! The configuration object, vendor class [`CONFIG_CLASS`] 0x66, instance 1: how a tool reads the
+//! configuration image in force and downloads a new one over the bus ([`crate::image`]).
+//!
+//! | attribute | type | value |
+//! |---|---|---|
+//! | 1 | USINT | image format version ([`IMAGE_VERSION`]) |
+//! | 2 | UINT | size of the image in force |
+//! | 3 | USINT | [`ConfigState`]: 0 factory default in force, 1 stored image in force, 2 a new image is stored and applies at the next reset, 3 configuration fault (the stored image was refused, factory default in force) |
+//! | 4 | UDINT | CRC-32 of the image in force (its trailer) |
+//! | 5 | SHORT_STRING | why the last download (or the stored image at start) was refused, "" if none, cut to [`MAX_REFUSAL_TEXT`] characters so the reply fits one explicit message (`MAX_EXPLICIT_SIZE`) |
+//!
+//! Class attribute 1 is the revision, 1. Services (codes object-specific, devicenet-notes §3.2;
+//! error codes §3.3):
+//!
+//! | code | service | request data | reply / errors |
+//! |---|---|---|---|
+//! | 0x0E | Get_Attribute_Single | attribute | 0x14 unknown attribute |
+//! | 0x10 | Set_Attribute_Single | | 0x0E for attributes 1-5 (all read-only), 0x14 otherwise |
+//! | 0x4B | [`READ_CHUNK`] | which USINT (0 in force, 1 pending), offset UINT, count USINT ≤ [`MAX_CHUNK`] | the bytes (fewer at the end, none past it); 0x0C which = 1 with nothing pending; 0x20 which > 1 or count > 56 |
+//! | 0x4C | [`BEGIN_DOWNLOAD`] | size UINT | 0x15 size > [`MAX_IMAGE`]; 0x10 while an I/O connection is established |
+//! | 0x4D | [`WRITE_CHUNK`] | offset UINT, ≤ 56 bytes | 0x0C no download begun; 0x20 offset ≠ bytes received; 0x15 past the size; 0x10 while I/O |
+//! | 0x4E | [`COMMIT_DOWNLOAD`] | none | 0x0C not all bytes received; 0x09 refused, additional code ([`refusal_code`]) 1 header/version, 2 length, 3 CRC, 4 invalid configuration (text in attribute 5) |
+//!
+//! An accepted image is not applied: the converter hands it to the application
+//! ([`Converter::poll_new_image`](super::Converter::poll_new_image)), which stores it (firmware:
+//! the settings journal; soft slave: its state file); it is in force from the next reset, when
+//! the application builds the converter from it with
+//! [`Converter::with_origin`](super::Converter::with_origin).
+//!
+//! Who may download: requests reach an object only over the explicit messaging connection of the
+//! predefined master/slave set, and only the master that allocated it (its owner, DeviceNet object
+//! Allocate, devicenet-notes §3.4) holds that connection; any other master's allocation is refused
+//! by the node, so no other master can reach this object.
+
+use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
+use core::fmt::Write;
+use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
+use devicenet::slave::config::MAX_EXPLICIT_SIZE;
+use devicenet::slave::{Reply, ServiceError};
+use heapless::{String, Vec};
+
+/// Vendor-specific class of the configuration object, instance 1.
+pub const CONFIG_CLASS: u16 = 0x66;
+/// Read_Chunk: part of the image in force or of the pending image.
+pub const READ_CHUNK: u8 = 0x4B;
+/// Begin_Download: announces the size of a new image.
+pub const BEGIN_DOWNLOAD: u8 = 0x4C;
+/// Write_Chunk: the next bytes of the new image.
+pub const WRITE_CHUNK: u8 = 0x4D;
+/// Commit_Download: decode and check the new image, then hand it over for storage.
+pub const COMMIT_DOWNLOAD: u8 = 0x4E;
+/// The most image bytes in one Read_Chunk reply or Write_Chunk request.
+pub const MAX_CHUNK: usize = 56;
+/// The longest refusal text (attribute 5): a reply is header, service, length byte and the text,
+/// within one explicit message.
+pub const MAX_REFUSAL_TEXT: usize = MAX_EXPLICIT_SIZE - 4;
+
+/// Where the configuration in force came from; the application says so when it builds the
+/// converter ([`Converter::with_origin`](super::Converter::with_origin)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConfigOrigin {
+    /// The factory default (the firmware's preset, the description file), nothing stored.
+    FactoryDefault,
+    /// The stored image, decoded and accepted.
+    Stored,
+    /// The stored image was refused for this reason; the factory default is in force.
+    Fault(ImageError),
+}
+
+/// Attribute 3 of the configuration object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum ConfigState {
+    /// 0: the factory default is in force.
+    FactoryDefault = 0,
+    /// 1: the stored image is in force.
+    Stored = 1,
+    /// 2: a new image is stored and applies at the next reset.
+    Pending = 2,
+    /// 3: the stored image was refused; the factory default is in force.
+    Fault = 3,
+}
+
+/// The additional code of a Commit_Download refusal (general status 0x09): 1 header or version,
+/// 2 length, 3 CRC, 4 invalid configuration.
+pub const fn refusal_code(e: &ImageError) -> u8 {
+    match e {
+        ImageError::BadMagic | ImageError::UnsupportedVersion(_) => 1,
+        ImageError::Truncated(_)
+        | ImageError::TooLarge(_)
+        | ImageError::LengthMismatch { .. }
+        | ImageError::BufferTooSmall => 2,
+        ImageError::CrcMismatch { .. } => 3,
+        ImageError::Malformed { .. } | ImageError::Invalid(_) => 4,
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Staging {
+    /// Nothing in the staging buffer.
+    Empty,
+    /// A download of this many bytes is under way.
+    Downloading(u16),
+    /// The staging buffer holds an accepted image, stored for the next reset.
+    Pending,
+}
+
+/// The configuration object's state, owned by the converter.
+#[derive(Clone, Debug)]
+pub struct ConfigObject {
+    in_force: Vec<u8, MAX_IMAGE>,
+    origin: ConfigOrigin,
+    staged: Vec<u8, MAX_IMAGE>,
+    staging: Staging,
+    /// An image was accepted since start (attribute 3 = 2, even once a later download began).
+    accepted: bool,
+    /// The accepted image waits for [`ConfigObject::take_new_image`].
+    handed_over: bool,
+    refusal: String<MAX_REFUSAL_TEXT>,
+}
+
+/// Writes what fits, drops the rest.
+struct Truncating<'a>(&'a mut String<MAX_REFUSAL_TEXT>);
+
+impl Write for Truncating<'_> {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        for c in s.chars() {
+            if self.0.push(c).is_err() {
+                break;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl ConfigObject {
+    /// The object for the image in force and its origin.
+    pub fn new(in_force: &[u8], origin: ConfigOrigin) -> ConfigObject {
+        let mut object = ConfigObject {
+            in_force: Vec::from_slice(in_force).unwrap_or_default(),
+            origin,
+            staged: Vec::new(),
+            staging: Staging::Empty,
+            accepted: false,
+            handed_over: false,
+            refusal: String::new(),
+        };
+        if let ConfigOrigin::Fault(e) = origin {
+            object.refuse(&e);
+        }
+        object
+    }
+
+    fn refuse(&mut self, e: &ImageError) {
+        self.refusal.clear();
+        let _ = write!(Truncating(&mut self.refusal), "{e}");
+    }
+
+    /// Attribute 3.
+    pub fn state(&self) -> ConfigState {
+        match self.origin {
+            _ if self.accepted => ConfigState::Pending,
+            ConfigOrigin::FactoryDefault => ConfigState::FactoryDefault,
+            ConfigOrigin::Stored => ConfigState::Stored,
+            ConfigOrigin::Fault(_) => ConfigState::Fault,
+        }
+    }
+
+    /// The image in force.
+    pub fn in_force(&self) -> &[u8] {
+        &self.in_force
+    }
+
+    /// The accepted image not yet stored, if any (the converter's `poll_new_image`).
+    pub fn take_new_image(&mut self) -> Option<&[u8]> {
+        if self.handed_over && self.staging == Staging::Pending {
+            self.handed_over = false;
+            Some(&self.staged)
+        } else {
+            None
+        }
+    }
+
+    /// The pending image (accepted this run and still in the staging buffer).
+    pub fn pending(&self) -> Option<&[u8]> {
+        (self.staging == Staging::Pending).then_some(self.staged.as_slice())
+    }
+
+    /// Serves a request to [`CONFIG_CLASS`]; `io_established` says whether an I/O (poll)
+    /// connection is established.
+    pub fn handle(
+        &mut self,
+        req: &Request<'_>,
+        reply: &mut Reply<'_>,
+        io_established: bool,
+    ) -> Result<(), ServiceError> {
+        let service = req.service.as_raw();
+        match (req.instance, req.service, req.data) {
+            (0, ServiceCode::GetAttributeSingle, [1]) => return reply.u16(1),
+            (0, ServiceCode::GetAttributeSingle, [_]) => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+            (0 | 1, ServiceCode::GetAttributeSingle, []) => return Err(ServiceError::NOT_ENOUGH_DATA),
+            (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => return Err(ServiceError::TOO_MUCH_DATA),
+            (1, ServiceCode::GetAttributeSingle, [attr]) => return self.get(*attr, reply),
+            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => {
+                return Err(if (1..=5).contains(attr) {
+                    ServiceError::ATTRIBUTE_NOT_SETTABLE
+                } else {
+                    ServiceError::ATTRIBUTE_NOT_SUPPORTED
+                })
+            }
+            (1, ServiceCode::SetAttributeSingle, []) => return Err(ServiceError::NOT_ENOUGH_DATA),
+            (1, _, _) if (READ_CHUNK..=COMMIT_DOWNLOAD).contains(&service) => {}
+            (0 | 1, _, _) => return Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            _ => return Err(ServiceError::OBJECT_DOES_NOT_EXIST),
+        }
+        let data = req.data;
+        match service {
+            READ_CHUNK => {
+                let [which, lo, hi, count] = ServiceError::expect_array(data)?;
+                let image = match which {
+                    0 => self.in_force.as_slice(),
+                    1 => self.pending().ok_or(OBJECT_STATE_CONFLICT)?,
+                    _ => return Err(ServiceError::INVALID_PARAMETER),
+                };
+                if usize::from(count) > MAX_CHUNK {
+                    return Err(ServiceError::INVALID_PARAMETER);
+                }
+                let start = usize::from(u16::from_le_bytes([lo, hi])).min(image.len());
+                let end = (start + usize::from(count)).min(image.len());
+                reply.bytes(image.get(start..end).unwrap_or_default())
+            }
+            BEGIN_DOWNLOAD => {
+                let size = u16::from_le_bytes(ServiceError::expect_array(data)?);
+                if io_established {
+                    return Err(ServiceError::DEVICE_STATE_CONFLICT);
+                }
+                if usize::from(size) > MAX_IMAGE {
+                    return Err(ServiceError::TOO_MUCH_DATA);
+                }
+                self.staged.clear();
+                self.staging = Staging::Downloading(size);
+                self.handed_over = false;
+                Ok(())
+            }
+            WRITE_CHUNK => {
+                let (offset, bytes) = data.split_first_chunk::<2>().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
+                if io_established {
+                    return Err(ServiceError::DEVICE_STATE_CONFLICT);
+                }
+                let Staging::Downloading(size) = self.staging else {
+                    return Err(OBJECT_STATE_CONFLICT);
+                };
+                if usize::from(u16::from_le_bytes(*offset)) != self.staged.len() {
+                    return Err(ServiceError::INVALID_PARAMETER);
+                }
+                if bytes.len() > MAX_CHUNK || self.staged.len() + bytes.len() > usize::from(size) {
+                    return Err(ServiceError::TOO_MUCH_DATA);
+                }
+                self.staged.extend_from_slice(bytes).map_err(|_| ServiceError::TOO_MUCH_DATA)
+            }
+            _ => {
+                if !data.is_empty() {
+                    return Err(ServiceError::TOO_MUCH_DATA);
+                }
+                match self.staging {
+                    Staging::Downloading(size) if usize::from(size) == self.staged.len() => {}
+                    _ => return Err(OBJECT_STATE_CONFLICT),
+                }
+                match image::decode(&self.staged) {
+                    Ok(_) => {
+                        self.staging = Staging::Pending;
+                        self.accepted = true;
+                        self.handed_over = true;
+                        self.refusal.clear();
+                        Ok(())
+                    }
+                    Err(e) => {
+                        self.refuse(&e);
+                        self.staged.clear();
+                        self.staging = Staging::Empty;
+                        Err(ServiceError::with_additional(
+                            GeneralStatus::InvalidAttributeValue,
+                            refusal_code(&e),
+                        ))
+                    }
+                }
+            }
+        }
+    }
+
+    fn get(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+        match attr {
+            1 => reply.u8(IMAGE_VERSION),
+            2 => reply.u16(self.in_force.len() as u16),
+            3 => reply.u8(self.state() as u8),
+            // The image's own trailer: the CRC-32 of its header and body.
+            4 => reply.u32(self.in_force.last_chunk::<4>().map_or(0, |c| u32::from_le_bytes(*c))),
+            5 => reply.short_string(&self.refusal),
+            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        }
+    }
+}
+
+/// 0x0C object state conflict (devicenet-notes §3.3).
+const OBJECT_STATE_CONFLICT: ServiceError = ServiceError::new(GeneralStatus::ObjectStateConflict);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::converter::ConverterConfig;
+    use rstest::rstest;
+    use std::vec::Vec;
+
+    fn image_of(config: &ConverterConfig) -> Vec<u8> {
+        let mut out = [0u8; MAX_IMAGE];
+        let n = image::encode(config, &mut out).unwrap();
+        out[..n].to_vec()
+    }
+
+    fn object() -> ConfigObject {
+        ConfigObject::new(&image_of(&ConverterConfig::breaker_reference()), ConfigOrigin::FactoryDefault)
+    }
+
+    /// Runs one request: `Ok(reply bytes)` or `Err((general status, additional code))`.
+    fn call(
+        o: &mut ConfigObject,
+        instance: u16,
+        service: u8,
+        data: &[u8],
+        io: bool,
+    ) -> Result<Vec<u8>, (u8, u8)> {
+        let req = Request { service: ServiceCode::from(service), class: CONFIG_CLASS, instance, data };
+        let mut buf = [0u8; MAX_EXPLICIT_SIZE];
+        let mut reply = Reply::new(&mut buf);
+        match o.handle(&req, &mut reply, io) {
+            Ok(()) => {
+                let n = reply.len();
+                Ok(buf[..n].to_vec())
+            }
+            Err(e) => Err((e.general.as_raw(), e.additional)),
+        }
+    }
+
+    fn download(o: &mut ConfigObject, bytes: &[u8]) -> Result<Vec<u8>, (u8, u8)> {
+        let size = (bytes.len() as u16).to_le_bytes();
+        call(o, 1, BEGIN_DOWNLOAD, &size, false)?;
+        for (k, chunk) in bytes.chunks(MAX_CHUNK).enumerate() {
+            let mut req = ((k * MAX_CHUNK) as u16).to_le_bytes().to_vec();
+            req.extend_from_slice(chunk);
+            call(o, 1, WRITE_CHUNK, &req, false)?;
+        }
+        call(o, 1, COMMIT_DOWNLOAD, &[], false)
+    }
+
+    #[rstest]
+    #[case::class_revision(0, 0x0E, &[1], Ok(std::vec![1, 0]))]
+    #[case::version(1, 0x0E, &[1], Ok(std::vec![IMAGE_VERSION]))]
+    #[case::size(1, 0x0E, &[2], Ok(std::vec![98, 0]))]
+    #[case::state(1, 0x0E, &[3], Ok(std::vec![0]))]
+    #[case::refusal_none(1, 0x0E, &[5], Ok(std::vec![0]))]
+    #[case::unknown_attribute(1, 0x0E, &[6], Err((0x14, 0xFF)))]
+    #[case::set_read_only(1, 0x10, &[3, 1], Err((0x0E, 0xFF)))]
+    #[case::set_unknown(1, 0x10, &[9, 1], Err((0x14, 0xFF)))]
+    #[case::instance_2(2, 0x0E, &[1], Err((0x16, 0xFF)))]
+    #[case::other_service(1, 0x05, &[], Err((0x08, 0xFF)))]
+    #[case::read_first_bytes(1, READ_CHUNK, &[0, 0, 0, 5], Ok(b"DNCI\x01".to_vec()))]
+    #[case::read_at_end(1, READ_CHUNK, &[0, 96, 0, 56], Ok(Vec::new()))] // checked against the image below
+    #[case::read_past_end(1, READ_CHUNK, &[0, 200, 0, 10], Ok(Vec::new()))]
+    #[case::read_too_many(1, READ_CHUNK, &[0, 0, 0, 57], Err((0x20, 0xFF)))]
+    #[case::read_bad_which(1, READ_CHUNK, &[2, 0, 0, 1], Err((0x20, 0xFF)))]
+    #[case::read_nothing_pending(1, READ_CHUNK, &[1, 0, 0, 1], Err((0x0C, 0xFF)))]
+    #[case::read_short(1, READ_CHUNK, &[0, 0, 0], Err((0x13, 0xFF)))]
+    #[case::begin_too_large(1, BEGIN_DOWNLOAD, &[0x41, 0x01], Err((0x15, 0xFF)))]
+    #[case::write_without_begin(1, WRITE_CHUNK, &[0, 0, 1], Err((0x0C, 0xFF)))]
+    #[case::commit_without_begin(1, COMMIT_DOWNLOAD, &[], Err((0x0C, 0xFF)))]
+    fn services(
+        #[case] instance: u16,
+        #[case] service: u8,
+        #[case] data: &[u8],
+        #[case] expected: Result<Vec<u8>, (u8, u8)>,
+    ) {
+        let mut o = object();
+        let got = call(&mut o, instance, service, data, false);
+        if instance == 1 && service == READ_CHUNK && data == [0, 96, 0, 56] {
+            // The last two bytes of the 98-byte image: its CRC's high half.
+            assert_eq!(got.unwrap(), o.in_force()[96..].to_vec());
+        } else {
+            assert_eq!(got, expected);
+        }
+    }
+
+    #[test]
+    fn crc_attribute_is_the_image_trailer() {
+        let mut o = object();
+        let trailer = o.in_force()[94..].to_vec();
+        assert_eq!(call(&mut o, 1, 0x0E, &[4], false), Ok(trailer));
+    }
+
+    #[test]
+    fn download_is_refused_while_io_is_established() {
+        let mut o = object();
+        assert_eq!(call(&mut o, 1, BEGIN_DOWNLOAD, &[10, 0], true), Err((0x10, 0xFF)));
+        assert_eq!(call(&mut o, 1, BEGIN_DOWNLOAD, &[10, 0], false), Ok(Vec::new()));
+        assert_eq!(call(&mut o, 1, WRITE_CHUNK, &[0, 0, 1], true), Err((0x10, 0xFF)));
+    }
+
+    #[test]
+    fn write_chunk_checks_offset_and_size() {
+        let mut o = object();
+        call(&mut o, 1, BEGIN_DOWNLOAD, &[4, 0], false).unwrap();
+        assert_eq!(call(&mut o, 1, WRITE_CHUNK, &[1, 0, 1], false), Err((0x20, 0xFF)));
+        assert_eq!(call(&mut o, 1, WRITE_CHUNK, &[0, 0, 1, 2, 3, 4, 5], false), Err((0x15, 0xFF)));
+        assert_eq!(call(&mut o, 1, WRITE_CHUNK, &[0], false), Err((0x13, 0xFF)));
+        assert_eq!(call(&mut o, 1, WRITE_CHUNK, &[0, 0, 1, 2], false), Ok(Vec::new()));
+        assert_eq!(call(&mut o, 1, COMMIT_DOWNLOAD, &[], false), Err((0x0C, 0xFF)), "2 of 4 bytes");
+        let mut big = std::vec![0, 0];
+        big.extend_from_slice(&[0; MAX_CHUNK + 1]);
+        call(&mut o, 1, BEGIN_DOWNLOAD, &[0x40, 0x01], false).unwrap();
+        assert_eq!(call(&mut o, 1, WRITE_CHUNK, &big, false), Err((0x15, 0xFF)));
+    }
+
+    #[test]
+    fn accepted_download_is_pending_readable_and_handed_over_once() {
+        let mut o = object();
+        let mut config = ConverterConfig::breaker_reference();
+        config.device.identity.product_code = 9;
+        let new = image_of(&config);
+        assert_eq!(download(&mut o, &new), Ok(Vec::new()));
+        assert_eq!(o.state(), ConfigState::Pending);
+        assert_eq!(call(&mut o, 1, READ_CHUNK, &[1, 0, 0, 56], false), Ok(new[..56].to_vec()));
+        assert_eq!(o.take_new_image(), Some(new.as_slice()));
+        assert_eq!(o.take_new_image(), None);
+        // The image in force is unchanged until the next reset.
+        assert_eq!(o.in_force(), image_of(&ConverterConfig::breaker_reference()).as_slice());
+    }
+
+    #[rstest]
+    #[case::version(|b: &mut Vec<u8>| b[4] = 9, 1, "unsupported version 9")]
+    #[case::length(|b: &mut Vec<u8>| b[5] = 0, 2, "length mismatch")]
+    #[case::crc(|b: &mut Vec<u8>| b[20] ^= 1, 3, "CRC mismatch")]
+    fn refused_downloads_say_why(#[case] damage: fn(&mut Vec<u8>), #[case] code: u8, #[case] text: &str) {
+        let mut o = object();
+        let mut bytes = image_of(&ConverterConfig::breaker_reference());
+        damage(&mut bytes);
+        assert_eq!(download(&mut o, &bytes), Err((0x09, code)));
+        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
+        let reason = core::str::from_utf8(&reason[1..]).unwrap();
+        assert!(reason.starts_with(text), "{reason}");
+        assert_eq!(o.state(), ConfigState::FactoryDefault);
+        assert_eq!(o.take_new_image(), None);
+    }
+
+    #[test]
+    fn an_invalid_configuration_is_refused_with_its_key() {
+        let mut o = object();
+        let mut config = ConverterConfig::breaker_reference();
+        config.device.identity.major_revision = 0;
+        assert_eq!(download(&mut o, &image_of(&config)), Err((0x09, 4)));
+        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
+        assert_eq!(&reason[1..], b"identity.major_revision: 0 is outside 1..=127");
+    }
+
+    #[test]
+    fn a_refused_stored_image_is_a_fault_with_its_reason_cut_to_fit() {
+        let long = ImageError::Invalid(crate::converter::InvalidConfig::Profile {
+            modbus: true,
+            error: crate::serial::ConfigError::conflict(
+                "scan.offset",
+                "a reason long enough to be cut at the end of the explicit message",
+            ),
+        });
+        let mut o =
+            ConfigObject::new(&image_of(&ConverterConfig::breaker_reference()), ConfigOrigin::Fault(long));
+        assert_eq!(o.state(), ConfigState::Fault);
+        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
+        assert_eq!(usize::from(reason[0]), MAX_REFUSAL_TEXT);
+        assert!(reason.len() + 2 <= MAX_EXPLICIT_SIZE);
+    }
+}
