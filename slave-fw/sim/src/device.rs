@@ -20,7 +20,7 @@
 use crate::breaker::SimulatedBreaker;
 use can_io::sim::SimDevice;
 use devicenet::{CanFrame, Duration, Event, Instant, MacId, SlaveNode};
-use slave_fw::converter::{Converter, ConverterConfig, ConverterConfigError};
+use slave_fw::converter::{ConfigOrigin, Converter, ConverterConfig, ConverterConfigError};
 use std::collections::VecDeque;
 
 pub use slave_fw::serial::breaker::{SWITCH_CLOSED, SWITCH_OPEN};
@@ -41,7 +41,10 @@ pub use slave_fw::converter::RESET_DELAY;
 /// The converter as a simulated device: a [`Converter`] and its [`SimulatedBreaker`] on one
 /// virtual clock. See the [module docs](self).
 pub struct SoftSlave {
+    /// The factory configuration; what runs after a reset is the stored image when there is one.
     config: ConverterConfig,
+    /// The configuration image stored over the network (the board's settings journal).
+    stored: Option<Vec<u8>>,
     converter: Converter,
     events: VecDeque<Event>,
     breaker: SimulatedBreaker,
@@ -63,6 +66,7 @@ impl SoftSlave {
         Ok(SoftSlave {
             converter: Converter::new(config.clone(), now)?,
             config,
+            stored: None,
             events: VecDeque::new(),
             breaker,
             to_breaker: VecDeque::new(),
@@ -87,6 +91,18 @@ impl SoftSlave {
         }
     }
 
+    /// The converter a reset starts: the stored configuration image, else the factory
+    /// configuration ([`ConfigOrigin::resolve`], as the board does).
+    fn fresh(&self, now: Instant) -> Result<Converter, ConverterConfigError> {
+        let (config, origin) = ConfigOrigin::resolve(&self.config, self.stored.as_deref());
+        Converter::with_origin(config, origin, now)
+    }
+
+    /// The configuration image stored over the network, if one was.
+    pub fn stored_image(&self) -> Option<&[u8]> {
+        self.stored.as_deref()
+    }
+
     /// The slave node.
     pub fn node(&self) -> &SlaveNode {
         self.converter.node()
@@ -96,7 +112,7 @@ impl SoftSlave {
     pub fn power_on(&mut self, now: Instant) {
         if self.powered {
             // A second power-on is a power cycle: the converter starts afresh.
-            if let Ok(fresh) = Converter::new(self.config.clone(), now) {
+            if let Ok(fresh) = self.fresh(now) {
                 self.converter = fresh;
             }
         }
@@ -224,8 +240,11 @@ impl SoftSlave {
                 }
                 self.events.push_back(event);
             }
+            if let Some(image) = self.converter.poll_new_image() {
+                self.stored = Some(image.to_vec());
+            }
             if self.powered && self.converter.poll_reset(now).is_some() {
-                if let Ok(fresh) = Converter::new(self.config.clone(), now) {
+                if let Ok(fresh) = self.fresh(now) {
                     self.converter = fresh;
                     self.converter.power_on(now);
                     moved = true;

@@ -115,8 +115,14 @@ impl Bridge {
         self.state = state;
         self.state_file = file;
         self.mac_override = mac_override;
-        self.converter = Converter::new(self.state.apply(&self.config, mac_override), self.now())?;
+        self.converter = self.fresh(self.now())?;
         Ok(())
+    }
+
+    /// The converter a start or a reset begins with: the stored state on the description.
+    fn fresh(&self, now: Instant) -> Result<Converter, SoftSlaveError> {
+        let (config, origin) = self.state.apply(&self.config, self.mac_override);
+        Ok(Converter::with_origin(config, origin, now)?)
     }
 
     /// Writes every frame seen (received and sent) to `path` in `candump -L` format.
@@ -223,10 +229,25 @@ impl Bridge {
         while let Some(event) = self.converter.poll_event() {
             self.on_event(event, now)?;
         }
+        if let Some(image) = self.converter.poll_new_image() {
+            let len = image.len();
+            self.state.set_image(image);
+            let kept = match &self.state_file {
+                Some(file) => {
+                    file.save(&self.state)?;
+                    format!("kept in {}", file.path().display())
+                }
+                None => "kept until the process ends (no --state)".to_string(),
+            };
+            self.note(
+                now,
+                &format!("new configuration ({len} bytes) stored, applies at the next reset; {kept}"),
+            );
+        }
         // Last in the converter's drain order: the Identity Reset it says is due (RESET_DELAY after
         // the response), carried out as the board's power cycle.
         if self.converter.poll_reset(now).is_some() {
-            self.converter = Converter::new(self.state.apply(&self.config, self.mac_override), now)?;
+            self.converter = self.fresh(now)?;
             self.converter.power_on(now);
             self.summary.resets += 1;
             self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");

@@ -190,7 +190,10 @@ pub fn run_soft_slave(
         None => StoredState::default(),
     };
     let base = description.converter;
-    let config = state.apply(&base, args.mac);
+    let (config, origin) = state.apply(&base, args.mac);
+    if let slave_fw::converter::ConfigOrigin::Fault(e) = &origin {
+        let _ = writeln!(report, "dnet-soft-slave: the stored configuration is refused ({e}): the description runs, with a configuration fault");
+    }
     let serial_settings: SerialSettings = *config.profile.serial();
     let rate = Bitrate::from(config.device.baud_rate);
     let log = match &args.log {

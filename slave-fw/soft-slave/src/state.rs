@@ -18,7 +18,7 @@
 use crate::error::SoftSlaveError;
 use devicenet::slave::{BaudRate, SettingChanged};
 use devicenet::MacId;
-use slave_fw::converter::ConverterConfig;
+use slave_fw::converter::{ConfigOrigin, ConverterConfig};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -91,12 +91,19 @@ impl StoredState {
         *self != before
     }
 
-    /// What the device runs with after a start or a reset: `base` (the description) with this
-    /// state on top. In the program position (`network.programmable`, notes §II.7) the MAC ID
-    /// and data rate set over the network are used; the bus-off interrupt setting always is.
-    /// `mac_override` (`--mac`) wins over both.
-    pub fn apply(&self, base: &ConverterConfig, mac_override: Option<MacId>) -> ConverterConfig {
-        let mut config = base.clone();
+    /// What the device runs with after a start or a reset: the stored configuration image when
+    /// there is one and it decodes, else `base` (the description; [`ConfigOrigin::resolve`], the
+    /// board's rule, a refused image being a configuration fault), with the settings on top. In
+    /// the program position (`network.programmable`, notes §II.7) the MAC ID and data rate set
+    /// over the network are used; the bus-off interrupt setting always is. `mac_override`
+    /// (`--mac`) wins over all.
+    pub fn apply(
+        &self,
+        base: &ConverterConfig,
+        mac_override: Option<MacId>,
+    ) -> (ConverterConfig, ConfigOrigin) {
+        let image = self.image();
+        let (mut config, origin) = ConfigOrigin::resolve(base, image.as_deref());
         let device = &mut config.device;
         if device.switches.programmable {
             if let Some(m) = self.mac_id.and_then(MacId::new) {
@@ -112,7 +119,7 @@ impl StoredState {
         if let Some(m) = mac_override {
             device.mac_id = m;
         }
-        config
+        (config, origin)
     }
 
     fn check(&self) -> Result<(), String> {
@@ -252,14 +259,32 @@ mod tests {
         assert!(state.note(&SettingChanged::BaudRate(BaudRate::Kbps500)));
         assert!(state.note(&SettingChanged::BusOffInterrupt(true)));
         // Not programmable: the description's MAC and rate stay; BOI is taken.
-        let c = state.apply(&base, None);
+        let (c, origin) = state.apply(&base, None);
+        assert_eq!(origin, ConfigOrigin::FactoryDefault);
         assert_eq!((c.device.mac_id.as_raw(), c.device.baud_rate), (5, BaudRate::Kbps250));
         assert!(c.device.bus_off_interrupt);
         base.device.switches.programmable = true;
-        let c = state.apply(&base, None);
+        let (c, _) = state.apply(&base, None);
         assert_eq!((c.device.mac_id.as_raw(), c.device.baud_rate), (9, BaudRate::Kbps500));
-        let c = state.apply(&base, MacId::new(12));
+        let (c, _) = state.apply(&base, MacId::new(12));
         assert_eq!(c.device.mac_id.as_raw(), 12);
+    }
+
+    #[test]
+    fn a_stored_image_runs_and_a_bad_one_is_a_fault_on_the_description() {
+        let base = ConverterConfig::breaker_reference();
+        let mut other = base.clone();
+        other.device.identity.product_code = 42;
+        let mut buf = [0u8; slave_fw::image::MAX_IMAGE];
+        let n = slave_fw::image::encode(&other, &mut buf).unwrap();
+        let mut state = StoredState::default();
+        state.set_image(&buf[..n]);
+        let (c, origin) = state.apply(&base, None);
+        assert_eq!((c.device.identity.product_code, origin), (42, ConfigOrigin::Stored));
+        state.set_image(&buf[..n - 1]);
+        let (c, origin) = state.apply(&base, None);
+        assert_eq!(c.device.identity.product_code, 1);
+        assert!(matches!(origin, ConfigOrigin::Fault(_)), "{origin:?}");
     }
 
     #[test]

@@ -32,6 +32,7 @@
 //! Allocate, devicenet-notes §3.4) holds that connection; any other master's allocation is refused
 //! by the node, so no other master can reach this object.
 
+use super::ConverterConfig;
 use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
 use core::fmt::Write;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
@@ -65,6 +66,20 @@ pub enum ConfigOrigin {
     Stored,
     /// The stored image was refused for this reason; the factory default is in force.
     Fault(ImageError),
+}
+
+impl ConfigOrigin {
+    /// What runs after a reset: the stored image when there is one and it decodes
+    /// ([`ConfigOrigin::Stored`]), else `factory` — as [`ConfigOrigin::FactoryDefault`] when
+    /// nothing is stored, as [`ConfigOrigin::Fault`] with the reason when the stored image is
+    /// refused. The one rule of the firmware, the soft slave and the simulated device.
+    pub fn resolve(factory: &ConverterConfig, stored: Option<&[u8]>) -> (ConverterConfig, ConfigOrigin) {
+        match stored.filter(|s| !s.is_empty()).map(crate::image::decode) {
+            None => (factory.clone(), ConfigOrigin::FactoryDefault),
+            Some(Ok(config)) => (config, ConfigOrigin::Stored),
+            Some(Err(e)) => (factory.clone(), ConfigOrigin::Fault(e)),
+        }
+    }
 }
 
 /// Attribute 3 of the configuration object.
