@@ -7,8 +7,8 @@
 //!   escapes `\\`, `\"`, `\n`, `\t`, `\r` and `\xHH`; an unknown escape is kept literally (so a
 //!   Windows path such as `"C:\eds\x.ico"` survives); adjacent strings are joined by the parser;
 //! - a string is taken as unterminated at its first line break when the text after that break
-//!   cannot be the rest of a string: a later line starts a section or an entry (`Keyword =`)
-//!   before the next `"`, or that `"` is followed on its line by something other than `,`, `;`,
+//!   cannot be the rest of a string: a later line is a section header or starts an entry
+//!   (`Keyword =`) before the next `"`, or that `"` is followed on its line by something other than `,`, `;`,
 //!   `}`, a comment, the line end or (after a space) another string. The lexer then reports the
 //!   string once, at its opening quote, and carries on at the next line, so a missing `"` does
 //!   not swap strings and text for the rest of the file;
@@ -348,11 +348,15 @@ impl<'a> Lexer<'a> {
     }
 }
 
-/// Whether `line` starts a section header or an entry (`Keyword =`).
+/// Whether `line` is a section header (`[Name]`, then only a comment) or starts an entry
+/// (`Keyword =`).
 fn starts_section_or_entry(line: &str) -> bool {
     let line = line.trim_start_matches(is_space);
-    if line.starts_with('[') {
-        return true;
+    if let Some(name) = line.strip_prefix('[') {
+        return name.split_once(']').is_some_and(|(name, rest)| {
+            let rest = rest.trim_start_matches(is_space);
+            !name.contains('"') && (rest.is_empty() || rest.starts_with('$'))
+        });
     }
     let keyword_end = line.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(line.len());
     keyword_end > 0 && line[keyword_end..].trim_start_matches(is_space).starts_with('=')

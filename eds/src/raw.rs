@@ -607,7 +607,9 @@ mod tests {
     }
 
     #[rstest]
-    #[case::missing_semicolon("[S]\nA = 1\nB = 2;", SyntaxError::MissingSemicolon("A".into()), Span::new(3, 1))]
+    #[case::missing_semicolon("[S]\nA = 1\nB = 2;", SyntaxError::MissingSemicolon("A".into()), Span::new(2, 6))]
+    #[case::missing_semicolon_multi_line("[S]\nA =\n 1,\n 2\nB = 2;", SyntaxError::MissingSemicolon("A".into()), Span::new(4, 3))]
+    #[case::missing_semicolon_before_section("[S]\nA = 1 $ c\n\n[T]", SyntaxError::MissingSemicolon("A".into()), Span::new(2, 6))]
     #[case::missing_semicolon_at_eof("[S]\nA = 1", SyntaxError::MissingSemicolon("A".into()), Span::new(2, 6))]
     #[case::missing_equals("[S]\nA 1;", SyntaxError::ExpectedEquals { keyword: "A".into(), found: "`1`".into() }, Span::new(2, 3))]
     #[case::outside_section("A = 1;", SyntaxError::EntryOutsideSection("A".into()), Span::new(1, 1))]
@@ -627,7 +629,7 @@ mod tests {
         let (raw, errors) = RawEds::parse_lenient("[File]\nDescText = \"x\"\nRevision = 1.0;");
         assert_eq!(
             errors,
-            vec![ParseError::new(Span::new(3, 1), SyntaxError::MissingSemicolon("DescText".into()))]
+            vec![ParseError::new(Span::new(2, 15), SyntaxError::MissingSemicolon("DescText".into()))]
         );
         assert_eq!(raw.sections[0].entries.len(), 2);
     }

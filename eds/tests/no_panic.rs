@@ -63,6 +63,12 @@ fn quoted() -> impl Strategy<Value = String> {
             match c {
                 '\\' => out.push_str("\\\\"),
                 '"' => out.push_str("\\\""),
+                // A line of a string never starts like an entry or a section header: that reads
+                // as a string missing its closing quote (see the lexer rules).
+                '\n' | '\r' => {
+                    out.push(c);
+                    out.push('.');
+                }
                 c => out.push(c),
             }
         }
