@@ -30,7 +30,7 @@ pub enum SyntaxError {
     /// A `"` with no closing `"`: none before the end of the file, or the text after the string's
     /// first line break cannot be its rest (see the lexer rules in [`crate::raw`]). The position
     /// is the opening quote.
-    #[error("string is not terminated: no closing '\"' for the '\"' here")]
+    #[error("string is not terminated: the '\"' here has no closing '\"'")]
     UnterminatedString,
     /// A `[` with no `]` on the same line.
     #[error("section header has no closing ']' on its line")]
