@@ -15,7 +15,7 @@
 //! The parser recovers from errors so one pass reports them all: an entry missing its `;` ends
 //! where the next `keyword =` starts, and the error points just after the entry's last value
 //! (where the `;` belongs); an unterminated string is reported once, at its opening quote, and
-//! the entry it is in raises no further error; anything else unexpected skips to the next `;` or
+//! nothing else is reported until the next entry or section starts; anything else unexpected skips to the next `;` or
 //! section.
 //!
 //! `$` comments are not part of [`RawEds`]; [`RawEds::parse_with_comments`] also returns them,
@@ -280,6 +280,11 @@ impl<'a> Parser<'a> {
     }
 
     fn error(&mut self, span: Span, kind: SyntaxError) {
+        // After an unterminated string, the rest of its entry is read as it comes: what looks
+        // wrong there follows from the one error already reported.
+        if self.broken && !matches!(kind, SyntaxError::TooMany { .. } | SyntaxError::TooDeep(_)) {
+            return;
+        }
         self.errors.push(ParseError::new(span, kind));
     }
 
@@ -322,6 +327,7 @@ impl<'a> Parser<'a> {
                                 );
                                 break;
                             }
+                            self.broken = false;
                             if name.is_empty() {
                                 self.error(token.span, SyntaxError::EmptySectionName);
                             }
@@ -393,7 +399,7 @@ impl<'a> Parser<'a> {
             End::NextEntry(next, next_span) => (self.prev_end, Some((next, next_span))),
             End::Cut => (self.last_end, None),
         };
-        if !closed && !self.stopped && !self.broken {
+        if !closed && !self.stopped {
             self.error(value_end, SyntaxError::MissingSemicolon(keyword.clone()));
         }
         (Some((RawEntry { keyword, span, fields }, value_end)), next)
@@ -446,7 +452,7 @@ impl<'a> Parser<'a> {
                     self.error(token.span, SyntaxError::UnmatchedBrace(keyword.to_string()));
                 }
                 Tok::Section(_) | Tok::Eof => {
-                    if depth > 0 && !self.stopped && !self.broken {
+                    if depth > 0 && !self.stopped {
                         self.error(token.span, SyntaxError::UnclosedBrace(keyword.to_string()));
                     }
                     self.push_field(&mut fields, current, token.span);
