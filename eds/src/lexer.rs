@@ -441,6 +441,57 @@ mod tests {
     }
 
     #[rstest]
+    #[case::closed_on_a_later_line("\"one\ntwo\";", None)]
+    #[case::closed_before_a_comma("\"one\n two\", 3", None)]
+    #[case::closed_then_adjacent_string("\"one\ntwo\" \"three\"", None)]
+    #[case::bracket_line_that_is_no_header("\"one\n[two\"}", None)]
+    #[case::next_line_is_an_entry("\"one\nB = 1;", Some("one"))]
+    #[case::next_line_is_a_section("\"one\n\n[Device]  $ id\n", Some("one"))]
+    #[case::next_quote_opens_a_string("\"one,\n  \"\",\n  \"help\";", Some("one,"))]
+    #[case::no_closing_quote("\"one\n two", Some("one"))]
+    fn a_string_spanning_lines_is_closed_only_when_the_rest_fits(
+        #[case] text: &str,
+        #[case] unterminated: Option<&str>,
+    ) {
+        let mut lexer = Lexer::new(text);
+        let first = lexer.next_token().tok;
+        while lexer.next_token().tok != Tok::Eof {}
+        let errors = lexer.take_errors();
+        match unterminated {
+            None => assert!(matches!(first, Tok::Str(_)) && errors.is_empty(), "{first:?} {errors:?}"),
+            Some(cut) => {
+                assert_eq!(first, Tok::UnterminatedStr(cut.to_string()));
+                assert_eq!(errors, vec![ParseError::new(Span::START, SyntaxError::UnterminatedString)]);
+            }
+        }
+    }
+
+    #[test]
+    fn an_unterminated_string_ends_at_its_line_and_lexing_goes_on() {
+        let mut lexer = Lexer::new("A = \"abc\nB = 1;");
+        let toks: Vec<Tok> = std::iter::from_fn(|| Some(lexer.next_token().tok).filter(|t| *t != Tok::Eof)).collect();
+        assert_eq!(
+            toks,
+            vec![w("A"), Tok::Equals, Tok::UnterminatedStr("abc".into()), w("B"), Tok::Equals, w("1"), Tok::Semicolon]
+        );
+    }
+
+    #[test]
+    fn keeps_comments_with_positions() {
+        let mut lexer = Lexer::new("$ top \u{a0} \n[S] $ s\u{92}\r\nA = \"$ no\"; $ end  ");
+        while lexer.next_token().tok != Tok::Eof {}
+        let comments: Vec<(Span, String)> = lexer.take_comments().into_iter().map(|c| (c.span, c.text)).collect();
+        assert_eq!(
+            comments,
+            vec![
+                (Span::new(1, 1), "$ top \u{a0}".to_string()),
+                (Span::new(2, 5), "$ s\u{92}".to_string()),
+                (Span::new(3, 13), "$ end".to_string()),
+            ]
+        );
+    }
+
+    #[rstest]
     #[case::unterminated_string("x = \"abc", SyntaxError::UnterminatedString, Span::new(1, 5))]
     #[case::unterminated_section("[File\nA = 1;", SyntaxError::UnterminatedSection, Span::new(1, 1))]
     fn reports_errors(#[case] text: &str, #[case] kind: SyntaxError, #[case] span: Span) {
