@@ -62,7 +62,10 @@ pub struct Attached {
 impl Comments {
     /// `true` when the file has no comment at all.
     pub fn is_empty(&self) -> bool {
-        self.header.is_empty() && self.sections.is_empty() && self.entries.is_empty() && self.trailer.is_empty()
+        self.header.is_empty()
+            && self.sections.is_empty()
+            && self.entries.is_empty()
+            && self.trailer.is_empty()
     }
 }
 
@@ -185,7 +188,12 @@ fn anchors(raw: &RawEds, ends: &[Span]) -> Vec<Anchor> {
     for section in &raw.sections {
         let name = normalize_name(&section.name);
         let key = (name.clone(), occurrence(&mut sections, name.clone()));
-        anchors.push(Anchor { start: section.span, end: section.span, fields: Vec::new(), key: Key::Section(key) });
+        anchors.push(Anchor {
+            start: section.span,
+            end: section.span,
+            fields: Vec::new(),
+            key: Key::Section(key),
+        });
         for entry in &section.entries {
             let end = ends.next().copied().unwrap_or(entry.span);
             let keyword = entry_key(&entry.keyword);

@@ -469,10 +469,19 @@ mod tests {
     #[test]
     fn an_unterminated_string_ends_at_its_line_and_lexing_goes_on() {
         let mut lexer = Lexer::new("A = \"abc\nB = 1;");
-        let toks: Vec<Tok> = std::iter::from_fn(|| Some(lexer.next_token().tok).filter(|t| *t != Tok::Eof)).collect();
+        let toks: Vec<Tok> =
+            std::iter::from_fn(|| Some(lexer.next_token().tok).filter(|t| *t != Tok::Eof)).collect();
         assert_eq!(
             toks,
-            vec![w("A"), Tok::Equals, Tok::UnterminatedStr("abc".into()), w("B"), Tok::Equals, w("1"), Tok::Semicolon]
+            vec![
+                w("A"),
+                Tok::Equals,
+                Tok::UnterminatedStr("abc".into()),
+                w("B"),
+                Tok::Equals,
+                w("1"),
+                Tok::Semicolon
+            ]
         );
     }
 
@@ -480,7 +489,8 @@ mod tests {
     fn keeps_comments_with_positions() {
         let mut lexer = Lexer::new("$ top \u{a0} \n[S] $ s\u{92}\r\nA = \"$ no\"; $ end  ");
         while lexer.next_token().tok != Tok::Eof {}
-        let comments: Vec<(Span, String)> = lexer.take_comments().into_iter().map(|c| (c.span, c.text)).collect();
+        let comments: Vec<(Span, String)> =
+            lexer.take_comments().into_iter().map(|c| (c.span, c.text)).collect();
         assert_eq!(
             comments,
             vec![

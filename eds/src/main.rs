@@ -264,7 +264,9 @@ fn write_text(path: Option<&Path>, text: &str) -> Result<(), String> {
 /// Writes `bytes` to `path`, or to standard output.
 fn write_bytes(path: Option<&Path>, bytes: &[u8]) -> Result<(), String> {
     match path {
-        Some(path) => std::fs::write(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display())),
+        Some(path) => {
+            std::fs::write(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
+        }
         None => {
             let mut out = std::io::stdout().lock();
             out.write_all(bytes).map_err(|e| format!("cannot write output: {e}"))

@@ -217,6 +217,9 @@ impl FieldBuilder {
     }
 }
 
+/// A keyword and its position.
+type Keyword = (String, Span);
+
 /// How a list of fields ended.
 enum End {
     /// `;` (or `}` in a group).
@@ -368,11 +371,7 @@ impl<'a> Parser<'a> {
 
     /// An entry after its keyword, with where it ends; also returns the keyword of a following
     /// entry when this one was cut short by it (missing `;`).
-    fn entry(
-        &mut self,
-        keyword: String,
-        span: Span,
-    ) -> (Option<(RawEntry, Span)>, Option<(String, Span)>) {
+    fn entry(&mut self, keyword: String, span: Span) -> (Option<(RawEntry, Span)>, Option<Keyword>) {
         self.broken = false;
         if !is_keyword(&keyword) {
             self.error(span, SyntaxError::InvalidKeyword(keyword.clone()));

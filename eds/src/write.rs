@@ -438,8 +438,7 @@ fn text(t: &str) -> String {
     let safe = !t.is_empty()
         && t == t.trim()
         && !t.contains(|c: char| {
-            matches!(c, '"' | '$' | ',' | ';' | '=' | '{' | '}' | '[')
-                || is_space(c) && c != ' '
+            matches!(c, '"' | '$' | ',' | ';' | '=' | '{' | '}' | '[') || is_space(c) && c != ' '
         })
         && !t.contains("  ");
     if safe {

@@ -146,7 +146,9 @@ $ File Description Section
     ] {
         assert!(text.contains(expected), "missing {expected:?} in\n{text}");
     }
-    assert!(text.ends_with("7,8;                      $ parameters\n\n$ DNS V5 Extended Configuration Demo EDS File\n"));
+    assert!(text.ends_with(
+        "7,8;                      $ parameters\n\n$ DNS V5 Extended Configuration Demo EDS File\n"
+    ));
 }
 
 #[test]
@@ -202,7 +204,11 @@ fn latin1_bytes_in_strings_comments_and_text_survive_format() {
     let mut header = b"$ header ".to_vec();
     header.extend(&high);
     assert!(out.starts_with(&header), "header bytes changed:\n{}", String::from_utf8_lossy(&out));
-    assert!(find(b"Class1 = Device\xa0Net\x85x;"), "unquoted bytes changed:\n{}", String::from_utf8_lossy(&out));
+    assert!(
+        find(b"Class1 = Device\xa0Net\x85x;"),
+        "unquoted bytes changed:\n{}",
+        String::from_utf8_lossy(&out)
+    );
     assert!(!find(b"\\x"), "escaped bytes:\n{}", String::from_utf8_lossy(&out));
     assert_eq!(format(&out), out);
 }

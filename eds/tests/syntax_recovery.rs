@@ -41,10 +41,13 @@ fn a_missing_closing_quote_is_one_error_at_its_opening_quote() {
                 let line_no = u32::try_from(index + 1).unwrap();
                 let column = u32::try_from(line[..open].chars().count() + 1).unwrap();
                 let errors = syntax_errors(&broken);
-                let messages: Vec<String> = errors.iter().map(|d| format!("{}: {}", d.span, d.message)).collect();
+                let messages: Vec<String> =
+                    errors.iter().map(|d| format!("{}: {}", d.span, d.message)).collect();
                 assert_eq!(
                     messages,
-                    [format!("{line_no}:{column}: string is not terminated: the '\"' here has no closing '\"'")],
+                    [format!(
+                        "{line_no}:{column}: string is not terminated: the '\"' here has no closing '\"'"
+                    )],
                     "{path}: closing quote of line {line_no} removed"
                 );
                 cases += 1;
@@ -74,7 +77,8 @@ fn a_missing_semicolon_is_one_error_after_the_entry_that_lacks_it() {
                     u32::try_from(line[..at].chars().count() + 1).unwrap(),
                 );
                 let errors = syntax_errors(&broken);
-                let messages: Vec<String> = errors.iter().map(|d| format!("{}: {}", d.span, d.message)).collect();
+                let messages: Vec<String> =
+                    errors.iter().map(|d| format!("{}: {}", d.span, d.message)).collect();
                 assert_eq!(
                     messages,
                     [format!("{span}: missing ';' after entry `{keyword}`")],
