@@ -769,7 +769,7 @@ mod tests {
         let report = check_str("[File]\nDescText = \"x\"\nRevision = 1.0;\n[Device\nVendCode = 1;");
         let syntax: Vec<Span> =
             report.diagnostics.iter().filter(|d| d.rule == Rule::Syntax).map(|d| d.span).collect();
-        assert_eq!(syntax, vec![Span::new(3, 1), Span::new(4, 1)]);
+        assert_eq!(syntax, vec![Span::new(2, 15), Span::new(4, 1)]);
         assert!(report.has_errors());
     }
 

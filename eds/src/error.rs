@@ -27,8 +27,10 @@ pub enum SyntaxError {
     /// `{` groups nested deeper than [`crate::limits::MAX_NESTING`].
     #[error("'{{' groups nested more than {0} deep")]
     TooDeep(usize),
-    /// A `"` with no closing `"` before the end of the file (the position is the opening quote).
-    #[error("string is not terminated: no closing '\"' before the end of the file")]
+    /// A `"` with no closing `"`: none before the end of the file, or the text after the string's
+    /// first line break cannot be its rest (see the lexer rules in [`crate::raw`]). The position
+    /// is the opening quote.
+    #[error("string is not terminated: the '\"' here has no closing '\"'")]
     UnterminatedString,
     /// A `[` with no `]` on the same line.
     #[error("section header has no closing ']' on its line")]
@@ -53,8 +55,9 @@ pub enum SyntaxError {
     /// A keyword containing characters other than letters, digits and `_`.
     #[error("invalid keyword `{0}`: keywords are made of letters, digits and '_'")]
     InvalidKeyword(String),
-    /// An entry not terminated by `;` (before the next keyword, section or end of file).
-    #[error("entry `{0}` is not terminated by ';'")]
+    /// An entry not terminated by `;` (before the next keyword, section or end of file). The
+    /// position is just after the entry's last value, where the `;` belongs.
+    #[error("missing ';' after entry `{0}`")]
     MissingSemicolon(String),
     /// A token that cannot appear in a value.
     #[error("unexpected {found} in the value of `{keyword}`")]

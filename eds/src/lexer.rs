@@ -6,11 +6,21 @@
 //! - `"..."` strings may span lines (a line break inside is kept as `\n`) and understand the
 //!   escapes `\\`, `\"`, `\n`, `\t`, `\r` and `\xHH`; an unknown escape is kept literally (so a
 //!   Windows path such as `"C:\eds\x.ico"` survives); adjacent strings are joined by the parser;
+//! - a string is taken as unterminated at its first line break when the text after that break
+//!   cannot be the rest of a string: a later line is a section header or starts an entry
+//!   (`Keyword =`) before the next `"`, or that `"` is followed on its line by something other than `,`, `;`,
+//!   `}`, a comment, the line end or (after a space) another string. The lexer then reports the
+//!   string once, at its opening quote, and carries on at the next line, so a missing `"` does
+//!   not swap strings and text for the rest of the file;
+//! - whitespace is ASCII (space, tab, line breaks, vertical tab, form feed): bytes 0x80–0xFF of a
+//!   Latin-1 file, such as a no-break space, are text like any other;
 //! - `[name]` is a section header; `=`, `,`, `;`, `{`, `}` are punctuation;
 //! - everything else up to whitespace or punctuation is a word (keywords, numbers such as `0x00C6`,
 //!   dates, unquoted identifiers such as `DeviceNet`);
 //! - line breaks are `\n`, `\r\n` or a lone `\r`; DOS end-of-file (0x1A) and NUL count as
 //!   whitespace.
+//!
+//! Comments are not tokens: the lexer keeps each one, with its position, for [`crate::comments`].
 //!
 //! The lexer never fails: problems (an unterminated string or section header) are recorded as
 //! [`ParseError`]s and a best-effort token is still produced.
@@ -29,6 +39,9 @@ pub(crate) enum Tok {
     Word(String),
     /// One quoted string literal, escapes resolved.
     Str(String),
+    /// A string with no closing quote (already reported), cut at its first line break or at the
+    /// end of input.
+    UnterminatedStr(String),
     /// `=`
     Equals,
     /// `,`
@@ -49,7 +62,7 @@ impl Tok {
         match self {
             Tok::Section(name) => format!("section header [{name}]"),
             Tok::Word(word) => format!("`{}`", truncate(word)),
-            Tok::Str(_) => "a quoted string".to_string(),
+            Tok::Str(_) | Tok::UnterminatedStr(_) => "a quoted string".to_string(),
             Tok::Equals => "'='".to_string(),
             Tok::Comma => "','".to_string(),
             Tok::Semicolon => "';'".to_string(),
@@ -71,11 +84,19 @@ fn truncate(text: &str) -> String {
     }
 }
 
-/// A token and the position of its first character.
+/// A token, the position of its first character and the position just after its last.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub(crate) struct Token {
     pub(crate) tok: Tok,
     pub(crate) span: Span,
+    pub(crate) end: Span,
+}
+
+/// A `$` comment: its text from the `$` to the end of the line, trailing whitespace removed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub(crate) struct Comment {
+    pub(crate) span: Span,
+    pub(crate) text: String,
 }
 
 /// Splits decoded EDS text into [`Token`]s.
@@ -84,10 +105,12 @@ pub(crate) struct Lexer<'a> {
     line: u32,
     column: u32,
     errors: Vec<ParseError>,
+    comments: Vec<Comment>,
 }
 
-fn is_space(c: char) -> bool {
-    c.is_whitespace() || c == '\u{1a}' || c == '\0'
+/// Whitespace between tokens: ASCII spaces and line breaks, DOS end-of-file (0x1A) and NUL.
+pub(crate) fn is_space(c: char) -> bool {
+    matches!(c, ' ' | '\t' | '\n' | '\r' | '\u{0b}' | '\u{0c}' | '\u{1a}' | '\0')
 }
 
 fn ends_word(c: char) -> bool {
@@ -96,7 +119,12 @@ fn ends_word(c: char) -> bool {
 
 impl<'a> Lexer<'a> {
     pub(crate) fn new(text: &'a str) -> Lexer<'a> {
-        Lexer { chars: text.chars().peekable(), line: 1, column: 1, errors: Vec::new() }
+        Lexer { chars: text.chars().peekable(), line: 1, column: 1, errors: Vec::new(), comments: Vec::new() }
+    }
+
+    /// Comments found so far, in file order.
+    pub(crate) fn take_comments(&mut self) -> Vec<Comment> {
+        std::mem::take(&mut self.comments)
     }
 
     /// Errors found so far, in the order found.
@@ -144,12 +172,17 @@ impl<'a> Lexer<'a> {
             if is_space(c) {
                 self.bump();
             } else if c == '$' {
+                let span = self.span();
+                let mut text = String::new();
                 while let Some(c) = self.peek() {
                     if c == '\n' || c == '\r' {
                         break;
                     }
+                    text.push(c);
                     self.bump();
                 }
+                text.truncate(text.trim_end_matches(is_space).len());
+                self.comments.push(Comment { span, text });
             } else {
                 break;
             }
@@ -161,7 +194,7 @@ impl<'a> Lexer<'a> {
         self.skip_trivia();
         let span = self.span();
         let Some(c) = self.peek() else {
-            return Token { tok: Tok::Eof, span };
+            return Token { tok: Tok::Eof, span, end: span };
         };
         let tok = match c {
             '[' => {
@@ -194,7 +227,7 @@ impl<'a> Lexer<'a> {
                 Tok::Word(word)
             }
         };
-        Token { tok, span }
+        Token { tok, span, end: self.span() }
     }
 
     fn section(&mut self, start: Span) -> Tok {
@@ -220,11 +253,19 @@ impl<'a> Lexer<'a> {
 
     fn string(&mut self, start: Span) -> Tok {
         let mut text = String::new();
+        let mut checked_line_break = false;
         loop {
+            if !checked_line_break && matches!(self.peek(), Some('\n' | '\r')) {
+                checked_line_break = true;
+                if !self.string_continues() {
+                    self.errors.push(ParseError::new(start, SyntaxError::UnterminatedString));
+                    return Tok::UnterminatedStr(text);
+                }
+            }
             match self.bump() {
                 None => {
                     self.errors.push(ParseError::new(start, SyntaxError::UnterminatedString));
-                    break;
+                    return Tok::UnterminatedStr(text);
                 }
                 Some('"') => break,
                 Some('\\') => match self.peek() {
@@ -257,6 +298,38 @@ impl<'a> Lexer<'a> {
         Tok::Str(text)
     }
 
+    /// At a line break inside a string: whether the text after it can be the rest of the string
+    /// (see the module docs). Looks ahead without consuming.
+    fn string_continues(&self) -> bool {
+        let mut ahead = self.chars.clone();
+        let mut line = String::new();
+        // Skip the rest of the first line: it is empty, the break is next.
+        let mut first = true;
+        loop {
+            let next = ahead.next();
+            if let Some(c) = next.filter(|c| !matches!(c, '\n' | '\r')) {
+                line.push(c);
+                continue;
+            }
+            if !std::mem::take(&mut first) {
+                if starts_section_or_entry(&line) {
+                    return false;
+                }
+                if let Some(quote) = closing_quote(&line) {
+                    let after = &line[quote + 1..];
+                    let trimmed = after.trim_start_matches(is_space);
+                    return trimmed.is_empty()
+                        || trimmed.starts_with([',', ';', '}', '$'])
+                        || trimmed.starts_with('"') && trimmed.len() < after.len();
+                }
+            }
+            if next.is_none() {
+                return false; // no closing quote at all
+            }
+            line.clear();
+        }
+    }
+
     /// `\xHH` (one or two hex digits) after the backslash; `\x` without a digit stays literal.
     fn hex_escape(&mut self, text: &mut String) {
         let mut ahead = self.chars.clone();
@@ -273,6 +346,33 @@ impl<'a> Lexer<'a> {
             Err(_) => text.push('\\'),
         }
     }
+}
+
+/// Whether `line` is a section header (`[Name]`, then only a comment) or starts an entry
+/// (`Keyword =`).
+fn starts_section_or_entry(line: &str) -> bool {
+    let line = line.trim_start_matches(is_space);
+    if let Some(name) = line.strip_prefix('[') {
+        return name.split_once(']').is_some_and(|(name, rest)| {
+            let rest = rest.trim_start_matches(is_space);
+            !name.contains('"') && (rest.is_empty() || rest.starts_with('$'))
+        });
+    }
+    let keyword_end = line.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).unwrap_or(line.len());
+    keyword_end > 0 && line[keyword_end..].trim_start_matches(is_space).starts_with('=')
+}
+
+/// The byte index of the first `"` of `line` that is not escaped by a backslash.
+fn closing_quote(line: &str) -> Option<usize> {
+    let mut escaped = false;
+    for (i, c) in line.char_indices() {
+        match c {
+            '"' if !escaped => return Some(i),
+            '\\' => escaped = !escaped,
+            _ => escaped = false,
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -336,6 +436,67 @@ mod tests {
                 Span::new(2, 14),
                 Span::new(2, 17),
                 Span::new(3, 3)
+            ]
+        );
+    }
+
+    #[rstest]
+    #[case::closed_on_a_later_line("\"one\ntwo\";", None)]
+    #[case::closed_before_a_comma("\"one\n two\", 3", None)]
+    #[case::closed_then_adjacent_string("\"one\ntwo\" \"three\"", None)]
+    #[case::bracket_line_that_is_no_header("\"one\n[two\"}", None)]
+    #[case::next_line_is_an_entry("\"one\nB = 1;", Some("one"))]
+    #[case::next_line_is_a_section("\"one\n\n[Device]  $ id\n", Some("one"))]
+    #[case::next_quote_opens_a_string("\"one,\n  \"\",\n  \"help\";", Some("one,"))]
+    #[case::no_closing_quote("\"one\n two", Some("one"))]
+    fn a_string_spanning_lines_is_closed_only_when_the_rest_fits(
+        #[case] text: &str,
+        #[case] unterminated: Option<&str>,
+    ) {
+        let mut lexer = Lexer::new(text);
+        let first = lexer.next_token().tok;
+        while lexer.next_token().tok != Tok::Eof {}
+        let errors = lexer.take_errors();
+        match unterminated {
+            None => assert!(matches!(first, Tok::Str(_)) && errors.is_empty(), "{first:?} {errors:?}"),
+            Some(cut) => {
+                assert_eq!(first, Tok::UnterminatedStr(cut.to_string()));
+                assert_eq!(errors, vec![ParseError::new(Span::START, SyntaxError::UnterminatedString)]);
+            }
+        }
+    }
+
+    #[test]
+    fn an_unterminated_string_ends_at_its_line_and_lexing_goes_on() {
+        let mut lexer = Lexer::new("A = \"abc\nB = 1;");
+        let toks: Vec<Tok> =
+            std::iter::from_fn(|| Some(lexer.next_token().tok).filter(|t| *t != Tok::Eof)).collect();
+        assert_eq!(
+            toks,
+            vec![
+                w("A"),
+                Tok::Equals,
+                Tok::UnterminatedStr("abc".into()),
+                w("B"),
+                Tok::Equals,
+                w("1"),
+                Tok::Semicolon
+            ]
+        );
+    }
+
+    #[test]
+    fn keeps_comments_with_positions() {
+        let mut lexer = Lexer::new("$ top \u{a0} \n[S] $ s\u{92}\r\nA = \"$ no\"; $ end  ");
+        while lexer.next_token().tok != Tok::Eof {}
+        let comments: Vec<(Span, String)> =
+            lexer.take_comments().into_iter().map(|c| (c.span, c.text)).collect();
+        assert_eq!(
+            comments,
+            vec![
+                (Span::new(1, 1), "$ top \u{a0}".to_string()),
+                (Span::new(2, 5), "$ s\u{92}".to_string()),
+                (Span::new(3, 13), "$ end".to_string()),
             ]
         );
     }

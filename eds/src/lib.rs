@@ -12,9 +12,10 @@
 //! | decoding | [`text`] | bytes → text (UTF-8, else Latin-1), size capped |
 //! | lexer | `lexer` (private) | text → tokens with line/column; `$` comments, quoted strings |
 //! | raw sections | [`raw`] | tokens → [`RawEds`]: sections, entries, fields, every position kept |
+//! | comments | [`comments`] | `$` comments → [`Comments`] attached to sections and entries by name |
 //! | typed model | [`model`] | [`RawEds`] → [`Eds`]: identity, I/O, parameters, enums, groups, unknowns kept |
 //! | checks | [`mod@check`] | [`Eds`] + [`RawEds`] → [`Report`] of [`Diagnostic`]s, errors vs warnings |
-//! | writer | [`mod@write`] | [`Eds`] → EDS text, deterministic |
+//! | writer | [`mod@write`] | [`Eds`] (+ [`Comments`]) → EDS text, deterministic; [`format()`] for files |
 //! | generator | [`mod@generate`] | device description ([`slave_fw::description`]) → [`Eds`] → text |
 //! | device check | [`device`] | [`Eds`] + a device on a bus (through `master_core`, the master's protocol layer; never the harness) → [`DeviceReport`] of disagreements |
 //!
@@ -72,6 +73,7 @@
 #![warn(missing_docs)]
 
 pub mod check;
+pub mod comments;
 pub mod device;
 pub mod diag;
 pub mod error;
@@ -86,6 +88,7 @@ pub mod value;
 pub mod write;
 
 pub use check::{check, check_file, check_str, Report};
+pub use comments::Comments;
 pub use device::{check_device, DeviceReport, Finding};
 pub use diag::{Diagnostic, Rule, Severity, Span};
 pub use error::{EdsError, ParseError, SyntaxError};
@@ -119,6 +122,39 @@ pub fn parse(bytes: &[u8]) -> Result<Eds, ParseError> {
 pub fn parse_str(text: &str) -> Result<Eds, ParseError> {
     let raw = RawEds::parse(text)?;
     Ok(Eds::from_raw(&raw).0)
+}
+
+/// Rewrites EDS bytes in the [`Writer`]'s canonical layout (what `dnet-eds format` prints), with
+/// the file's `$` comments in place ([`comments`]) and in the file's own encoding: a Latin-1
+/// file stays Latin-1, so its bytes 0x80–0xFF in strings and comments come back unchanged; a
+/// UTF-8 file stays UTF-8 (a byte-order mark is dropped). Formatting the output again gives the
+/// same bytes, and the output parses to the same model.
+///
+/// # Errors
+///
+/// The first syntax error, or a size limit.
+pub fn format(bytes: &[u8]) -> Result<Vec<u8>, ParseError> {
+    let (text, encoding) = text::decode(bytes)?;
+    let (raw, comments) = RawEds::parse_with_comments(&text)?;
+    let eds = Eds::from_raw(&raw).0;
+    let written = Writer::new().write_with_comments(&eds, &comments);
+    Ok(match encoding {
+        text::Encoding::Utf8 => written.into_bytes(),
+        // Every character is from the input (so at most U+00FF) or ASCII from the writer; the
+        // fallback to UTF-8 is never taken.
+        text::Encoding::Latin1 => text::encode_latin1(&written).unwrap_or_else(|_| written.into_bytes()),
+    })
+}
+
+/// [`format()`] of the EDS file at `path`; errors name the file.
+///
+/// # Errors
+///
+/// As [`read_file`].
+pub fn format_file(path: impl AsRef<Path>) -> Result<Vec<u8>, EdsError> {
+    let path = path.as_ref();
+    let bytes = read_bytes(path)?;
+    format(&bytes).map_err(|e| EdsError::Parse(e.with_file(path)))
 }
 
 /// Reads and parses the EDS file at `path`; errors name the file.

@@ -12,7 +12,7 @@ use devicenet::{Duration, MacId};
 use eds::device::{check_on_bus, BusOptions, CheckOptions, DeviceError};
 use eds::generate::{generate_text, GenerateOptions, DEFAULT_DATE, DEFAULT_REVISION};
 use eds::value::{Date, Revision};
-use eds::{check_file, read_file, EdsError, Summary, Writer};
+use eds::{check_file, format_file, read_file, EdsError, Summary};
 use master_core::error::MasterError;
 use slave_fw::description::DeviceDescription;
 use std::io::Write as _;
@@ -56,7 +56,9 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// Rewrite an EDS file in the canonical, deterministic layout of the writer.
+    /// Rewrite an EDS file in the canonical, deterministic layout of the writer, keeping its `$`
+    /// comments beside their sections and entries and its encoding (Latin-1 bytes stay as they
+    /// are).
     Format {
         /// The EDS file.
         file: PathBuf,
@@ -194,12 +196,11 @@ fn run(command: Command) -> Result<ExitCode, String> {
             Ok(if report.has_errors() { ExitCode::from(1) } else { ExitCode::SUCCESS })
         }
         Command::Format { file, output } => {
-            let eds = match read_file(&file) {
-                Ok(eds) => eds,
+            let bytes = match format_file(&file) {
+                Ok(bytes) => bytes,
                 Err(error) => return failed(error),
             };
-            let text = Writer::new().write(&eds);
-            write_text(output.as_deref(), &text)?;
+            write_bytes(output.as_deref(), &bytes)?;
             Ok(ExitCode::SUCCESS)
         }
         Command::Generate { description, output, date, revision } => {
@@ -257,11 +258,18 @@ fn run(command: Command) -> Result<ExitCode, String> {
 
 /// Writes `text` to `path`, or to standard output.
 fn write_text(path: Option<&Path>, text: &str) -> Result<(), String> {
+    write_bytes(path, text.as_bytes())
+}
+
+/// Writes `bytes` to `path`, or to standard output.
+fn write_bytes(path: Option<&Path>, bytes: &[u8]) -> Result<(), String> {
     match path {
-        Some(path) => std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display())),
+        Some(path) => {
+            std::fs::write(path, bytes).map_err(|e| format!("cannot write {}: {e}", path.display()))
+        }
         None => {
             let mut out = std::io::stdout().lock();
-            out.write_all(text.as_bytes()).map_err(|e| format!("cannot write output: {e}"))
+            out.write_all(bytes).map_err(|e| format!("cannot write output: {e}"))
         }
     }
 }

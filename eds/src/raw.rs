@@ -13,10 +13,17 @@
 //! one space, empty fields are kept (`,,` is an empty field).
 //!
 //! The parser recovers from errors so one pass reports them all: an entry missing its `;` ends
-//! where the next `keyword =` starts; anything else unexpected skips to the next `;` or section.
+//! where the next `keyword =` starts, and the error points just after the entry's last value
+//! (where the `;` belongs); an unterminated string is reported once, at its opening quote, and
+//! nothing else is reported until the next entry or section starts; anything else unexpected skips to the next `;` or
+//! section.
+//!
+//! `$` comments are not part of [`RawEds`]; [`RawEds::parse_with_comments`] also returns them,
+//! attached to sections and entries as [`crate::comments`] describes.
 //! Input size, section, entry, field and nesting counts are capped ([`crate::limits`]); hitting a
 //! cap stops the parse with a [`SyntaxError::TooMany`] or [`SyntaxError::TooDeep`] error.
 
+use crate::comments::{self, Comments};
 use crate::diag::Span;
 use crate::error::{ParseError, SyntaxError};
 use crate::lexer::{Lexer, Tok, Token};
@@ -94,12 +101,32 @@ impl RawEds {
     /// Parses decoded text, recovering from errors: the sections found, and every syntax error
     /// (empty when the text is well-formed).
     pub fn parse_lenient(text: &str) -> (RawEds, Vec<ParseError>) {
+        let (raw, _, errors) = RawEds::parse_all(text);
+        (raw, errors)
+    }
+
+    /// Parses decoded text and attaches its `$` comments to sections and entries
+    /// ([`crate::comments`]).
+    ///
+    /// # Errors
+    ///
+    /// The first syntax error in the text.
+    pub fn parse_with_comments(text: &str) -> Result<(RawEds, Comments), ParseError> {
+        let (raw, comments, errors) = RawEds::parse_all(text);
+        match errors.into_iter().next() {
+            Some(error) => Err(error),
+            None => Ok((raw, comments)),
+        }
+    }
+
+    fn parse_all(text: &str) -> (RawEds, Comments, Vec<ParseError>) {
         let mut parser = Parser::new(text);
         let raw = parser.file();
         let mut errors = parser.errors;
         errors.extend(parser.lexer.take_errors());
         errors.sort_by_key(|e| e.span);
-        (raw, errors)
+        let comments = comments::attach(&raw, &parser.entry_ends, parser.lexer.take_comments());
+        (raw, comments, errors)
     }
 
     /// Parses decoded text.
@@ -190,6 +217,9 @@ impl FieldBuilder {
     }
 }
 
+/// A keyword and its position.
+type Keyword = (String, Span);
+
 /// How a list of fields ended.
 enum End {
     /// `;` (or `}` in a group).
@@ -204,6 +234,14 @@ struct Parser<'a> {
     lexer: Lexer<'a>,
     peeked: Option<Token>,
     errors: Vec<ParseError>,
+    /// Where the last consumed token ends, and the one before it.
+    last_end: Span,
+    prev_end: Span,
+    /// The entry being read contains an unterminated string (already reported by the lexer):
+    /// the errors that follow from it are not reported again.
+    broken: bool,
+    /// Where each entry kept in a section ends (just after its `;` or last value), in file order.
+    entry_ends: Vec<Span>,
     entries: usize,
     fields: usize,
     /// A limit was hit: the parse stops.
@@ -216,6 +254,10 @@ impl<'a> Parser<'a> {
             lexer: Lexer::new(text),
             peeked: None,
             errors: Vec::new(),
+            last_end: Span::START,
+            prev_end: Span::START,
+            broken: false,
+            entry_ends: Vec::new(),
             entries: 0,
             fields: 0,
             stopped: false,
@@ -224,7 +266,7 @@ impl<'a> Parser<'a> {
 
     fn peek(&mut self) -> &Token {
         if self.stopped {
-            self.peeked = Some(Token { tok: Tok::Eof, span: Span::START });
+            self.peeked = Some(Token { tok: Tok::Eof, span: Span::START, end: Span::START });
         }
         let lexer = &mut self.lexer;
         self.peeked.get_or_insert_with(|| lexer.next_token())
@@ -232,10 +274,20 @@ impl<'a> Parser<'a> {
 
     fn next(&mut self) -> Token {
         self.peek();
-        self.peeked.take().unwrap_or(Token { tok: Tok::Eof, span: Span::START })
+        let token =
+            self.peeked.take().unwrap_or(Token { tok: Tok::Eof, span: Span::START, end: Span::START });
+        if token.tok != Tok::Eof {
+            self.prev_end = std::mem::replace(&mut self.last_end, token.end);
+        }
+        token
     }
 
     fn error(&mut self, span: Span, kind: SyntaxError) {
+        // After an unterminated string, the rest of its entry is read as it comes: what looks
+        // wrong there follows from the one error already reported.
+        if self.broken && !matches!(kind, SyntaxError::TooMany { .. } | SyntaxError::TooDeep(_)) {
+            return;
+        }
         self.errors.push(ParseError::new(span, kind));
     }
 
@@ -278,6 +330,7 @@ impl<'a> Parser<'a> {
                                 );
                                 break;
                             }
+                            self.broken = false;
                             if name.is_empty() {
                                 self.error(token.span, SyntaxError::EmptySectionName);
                             }
@@ -285,6 +338,8 @@ impl<'a> Parser<'a> {
                             continue;
                         }
                         Tok::Word(word) => (word, token.span),
+                        // Already reported by the lexer.
+                        Tok::UnterminatedStr(_) => continue,
                         other => {
                             self.error(token.span, SyntaxError::ExpectedKeyword(other.describe()));
                             if other != Tok::Semicolon {
@@ -297,23 +352,27 @@ impl<'a> Parser<'a> {
             };
             let (entry, next) = self.entry(keyword, span);
             pending = next;
-            let Some(entry) = entry else { continue };
+            let Some((entry, end)) = entry else { continue };
             self.entries += 1;
             if self.entries > MAX_ENTRIES {
                 self.stop(entry.span, SyntaxError::TooMany { what: "entries", limit: MAX_ENTRIES });
                 break;
             }
             match raw.sections.last_mut() {
-                Some(section) => section.entries.push(entry),
+                Some(section) => {
+                    section.entries.push(entry);
+                    self.entry_ends.push(end);
+                }
                 None => self.error(entry.span, SyntaxError::EntryOutsideSection(entry.keyword)),
             }
         }
         raw
     }
 
-    /// An entry after its keyword; also returns the keyword of a following entry when this one
-    /// was cut short by it (missing `;`).
-    fn entry(&mut self, keyword: String, span: Span) -> (Option<RawEntry>, Option<(String, Span)>) {
+    /// An entry after its keyword, with where it ends; also returns the keyword of a following
+    /// entry when this one was cut short by it (missing `;`).
+    fn entry(&mut self, keyword: String, span: Span) -> (Option<(RawEntry, Span)>, Option<Keyword>) {
+        self.broken = false;
         if !is_keyword(&keyword) {
             self.error(span, SyntaxError::InvalidKeyword(keyword.clone()));
         }
@@ -331,21 +390,18 @@ impl<'a> Parser<'a> {
         }
         self.next();
         let (fields, end) = self.fields(&keyword, 0);
-        let next = match end {
-            End::Closed => None,
-            End::NextEntry(next, next_span) => {
-                self.error(next_span, SyntaxError::MissingSemicolon(keyword.clone()));
-                Some((next, next_span))
-            }
-            End::Cut => {
-                let at = self.peek().span;
-                if !self.stopped {
-                    self.error(at, SyntaxError::MissingSemicolon(keyword.clone()));
-                }
-                None
-            }
+        // Where the entry's last value ends: the `;` belongs there when it is missing.
+        let closed = matches!(end, End::Closed);
+        let (value_end, next) = match end {
+            End::Closed => (self.last_end, None),
+            // The next entry's keyword has been read already.
+            End::NextEntry(next, next_span) => (self.prev_end, Some((next, next_span))),
+            End::Cut => (self.last_end, None),
         };
-        (Some(RawEntry { keyword, span, fields }), next)
+        if !closed && !self.stopped {
+            self.error(value_end, SyntaxError::MissingSemicolon(keyword.clone()));
+        }
+        (Some((RawEntry { keyword, span, fields }, value_end)), next)
     }
 
     fn push_field(&mut self, fields: &mut Vec<Field>, builder: FieldBuilder, at: Span) {
@@ -363,6 +419,9 @@ impl<'a> Parser<'a> {
         let mut current = FieldBuilder::new();
         loop {
             let token = self.peek().clone();
+            if matches!(token.tok, Tok::UnterminatedStr(_)) {
+                self.broken = true;
+            }
             match token.tok {
                 Tok::Comma => {
                     self.next();
@@ -435,7 +494,7 @@ impl<'a> Parser<'a> {
                         }
                     }
                 }
-                Tok::Str(text) => {
+                Tok::Str(text) | Tok::UnterminatedStr(text) => {
                     self.next();
                     current.span.get_or_insert(token.span);
                     match &mut current.acc {
@@ -553,7 +612,9 @@ mod tests {
     }
 
     #[rstest]
-    #[case::missing_semicolon("[S]\nA = 1\nB = 2;", SyntaxError::MissingSemicolon("A".into()), Span::new(3, 1))]
+    #[case::missing_semicolon("[S]\nA = 1\nB = 2;", SyntaxError::MissingSemicolon("A".into()), Span::new(2, 6))]
+    #[case::missing_semicolon_multi_line("[S]\nA =\n 1,\n 2\nB = 2;", SyntaxError::MissingSemicolon("A".into()), Span::new(4, 3))]
+    #[case::missing_semicolon_before_section("[S]\nA = 1 $ c\n\n[T]", SyntaxError::MissingSemicolon("A".into()), Span::new(2, 6))]
     #[case::missing_semicolon_at_eof("[S]\nA = 1", SyntaxError::MissingSemicolon("A".into()), Span::new(2, 6))]
     #[case::missing_equals("[S]\nA 1;", SyntaxError::ExpectedEquals { keyword: "A".into(), found: "`1`".into() }, Span::new(2, 3))]
     #[case::outside_section("A = 1;", SyntaxError::EntryOutsideSection("A".into()), Span::new(1, 1))]
@@ -573,7 +634,7 @@ mod tests {
         let (raw, errors) = RawEds::parse_lenient("[File]\nDescText = \"x\"\nRevision = 1.0;");
         assert_eq!(
             errors,
-            vec![ParseError::new(Span::new(3, 1), SyntaxError::MissingSemicolon("DescText".into()))]
+            vec![ParseError::new(Span::new(2, 15), SyntaxError::MissingSemicolon("DescText".into()))]
         );
         assert_eq!(raw.sections[0].entries.len(), 2);
     }

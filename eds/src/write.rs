@@ -10,18 +10,25 @@
 //!   kept unknown entries in their original order;
 //! - numbers in decimal, except descriptors, data type codes and connection masks, which are
 //!   written in `0x` hex as configuration tools show them; strings quoted with `\"`, `\\`, `\n`,
-//!   `\t`, `\r` and `\xHH` escapes;
+//!   `\t` and `\r` escapes, `\xHH` only for the other ASCII control characters: characters from
+//!   U+0080 up are written as they are, so a Latin-1 file's bytes 0x80–0xFF come back unchanged
+//!   once re-encoded ([`crate::format`] does that);
 //! - multi-field entries one field per line with a `$` comment naming the field, in the layout of
-//!   the common EDS tools; 8-space indentation; `\n` line ends.
+//!   the common EDS tools; 8-space indentation; `\n` line ends;
+//! - with [`Writer::write_with_comments`], the file's own `$` comments back in place
+//!   ([`crate::comments`] says where); a vendor's field comment replaces the generated one.
 //!
 //! The output is UTF-8 text; [`crate::text::encode_latin1`] converts it for tools that want
 //! single-byte files. Writing then parsing gives the same model, except that unquoted text that
 //! could not be read back unquoted is written quoted, and a group's count is recomputed from its
 //! list.
 
-use crate::model::{ConnectionInfo, Eds, IoEntry, Param};
-use crate::raw::{Field, FieldValue, RawEntry, RawSection};
+use crate::comments::{occurrence, Attached, Comments};
+use crate::lexer::is_space;
+use crate::model::{entry_key, ConnectionInfo, Eds, IoEntry, Param};
+use crate::raw::{normalize_name, Field, FieldValue, RawEntry, RawSection};
 use crate::value::{LinkPath, Value};
+use std::collections::HashMap;
 use std::fmt::Write as _;
 
 /// Serializes [`Eds`] models; see the [module docs](self) for the format.
@@ -47,6 +54,8 @@ pub struct Writer {
 
 /// The column, counted from the field's indentation, where field comments start.
 const COMMENT_COLUMN: usize = 24;
+/// Width a line is padded to before its comment (the field comment column from the line start).
+const LINE_WIDTH: usize = FIELD_INDENT.len() + COMMENT_COLUMN;
 const INDENT: &str = "        ";
 const FIELD_INDENT: &str = "                ";
 
@@ -65,10 +74,24 @@ impl Writer {
 
     /// The EDS text of `eds`.
     pub fn write(&self, eds: &Eds) -> String {
-        let mut out = Out { text: String::new() };
+        self.write_with_comments(eds, &Comments::default())
+    }
+
+    /// The EDS text of `eds` with the `comments` of the file it was read from, each back beside
+    /// its section or entry ([`crate::comments`]); the header comments given to the writer come
+    /// first.
+    pub fn write_with_comments(&self, eds: &Eds, comments: &Comments) -> String {
+        let mut out = Out {
+            text: String::new(),
+            comments: comments.clone(),
+            section: String::new(),
+            sections_seen: HashMap::new(),
+            entries_seen: HashMap::new(),
+        };
         for line in &self.header {
             out.line(format!("$ {line}").trim_end());
         }
+        out.comment_lines("", &comments.header);
         if let Some(file) = &eds.file {
             out.section("File");
             out.opt("DescText", file.desc_text.as_ref().map(|s| quote(s)));
@@ -139,14 +162,15 @@ impl Writer {
             for (n, entries) in &params.enums {
                 let lines: Vec<String> =
                     entries.iter().map(|e| format!("{}, {}", e.value, quote(&e.text))).collect();
-                out.multi(&format!("Enum{n}"), &lines.iter().map(|l| (l.clone(), None)).collect::<Vec<_>>());
+                let lines: Vec<Line> = lines.iter().map(|l| (l.clone(), 2, None)).collect();
+                out.multi(&format!("Enum{n}"), &lines);
             }
             out.raw_entries(&params.other);
         }
         if let Some(legacy) = &eds.enum_par {
             out.section("EnumPar");
             for (n, strings) in &legacy.enums {
-                let lines: Vec<(String, Option<&str>)> = strings.iter().map(|s| (quote(s), None)).collect();
+                let lines: Vec<Line> = strings.iter().map(|s| (quote(s), 1, None)).collect();
                 out.multi(&format!("Param{n}"), &lines);
             }
             out.raw_entries(&legacy.other);
@@ -156,11 +180,11 @@ impl Writer {
             for (n, group) in &groups.groups {
                 let members: Vec<String> = group.params.iter().map(u32::to_string).collect();
                 let mut lines = vec![
-                    (quote(&group.name), Some("group name")),
-                    (group.params.len().to_string(), Some("number of parameters")),
+                    (quote(&group.name), 1, Some("group name")),
+                    (group.params.len().to_string(), 1, Some("number of parameters")),
                 ];
                 if !members.is_empty() {
-                    lines.push((members.join(","), Some("parameters")));
+                    lines.push((members.join(","), members.len(), Some("parameters")));
                 }
                 out.multi(&format!("Group{n}"), &lines);
             }
@@ -169,15 +193,77 @@ impl Writer {
         for section in &eds.other_sections {
             out.raw_section(section);
         }
-        out.text
+        out.finish()
     }
 }
 
+/// One line of a multi-line entry: its fields as text, how many fields that is, and the comment
+/// the writer generates for it.
+type Line<'a> = (String, usize, Option<&'a str>);
+
 struct Out {
     text: String,
+    /// The comments not written yet.
+    comments: Comments,
+    /// The normalized name of the section being written.
+    section: String,
+    sections_seen: HashMap<String, usize>,
+    entries_seen: HashMap<(String, String), usize>,
+}
+
+/// `line`, then `comment` at the comment column.
+fn with_comment(line: String, comment: Option<String>) -> String {
+    match comment {
+        Some(comment) => format!("{line:<LINE_WIDTH$}  {comment}"),
+        None => line,
+    }
+}
+
+/// The comments of `texts` on one line, joined by a space.
+fn joined<'a>(texts: impl IntoIterator<Item = &'a String>) -> Option<String> {
+    let texts: Vec<&str> = texts.into_iter().map(String::as_str).collect();
+    (!texts.is_empty()).then(|| texts.join(" "))
 }
 
 impl Out {
+    /// Comment lines at `indent`, `""` as an empty line.
+    fn comment_lines(&mut self, indent: &str, lines: &[String]) {
+        for line in lines {
+            if line.is_empty() {
+                self.line("");
+            } else {
+                self.line(&format!("{indent}{line}"));
+            }
+        }
+    }
+
+    /// The comments of the next entry `keyword` of the current section, taken out of the rest.
+    fn take_entry(&mut self, keyword: &str) -> Attached {
+        let key = (self.section.clone(), entry_key(keyword));
+        let n = occurrence(&mut self.entries_seen, key.clone());
+        self.comments.entries.remove(&(key.0, key.1, n)).unwrap_or_default()
+    }
+
+    /// The comments no written item took, then the trailer; the text.
+    fn finish(mut self) -> String {
+        let comments = std::mem::take(&mut self.comments);
+        let mut left = Vec::new();
+        for attached in comments.sections.values().chain(comments.entries.values()) {
+            left.extend(attached.before.iter().filter(|l| !l.is_empty()).cloned());
+            left.extend(attached.end_of_line.iter().cloned());
+            left.extend(attached.fields.values().flatten().cloned());
+        }
+        for lines in [left, comments.trailer] {
+            if !lines.is_empty() {
+                if !self.text.is_empty() {
+                    self.text.push('\n');
+                }
+                self.comment_lines("", &lines);
+            }
+        }
+        self.text
+    }
+
     fn line(&mut self, line: &str) {
         self.text.push_str(line);
         self.text.push('\n');
@@ -187,13 +273,25 @@ impl Out {
         if !self.text.is_empty() {
             self.text.push('\n');
         }
-        self.line(&format!("[{name}]"));
+        let normalized = normalize_name(name);
+        let n = occurrence(&mut self.sections_seen, normalized.clone());
+        let comments = self.comments.sections.remove(&(normalized.clone(), n)).unwrap_or_default();
+        self.comment_lines("", &comments.before);
+        let comment = joined(comments.end_of_line.iter().chain(comments.fields.values().flatten()));
+        match comment {
+            Some(comment) => self.line(&format!("[{name}]  {comment}")),
+            None => self.line(&format!("[{name}]")),
+        }
+        self.section = normalized;
     }
 
     fn single(&mut self, key: &str, value: &str) {
+        let comments = self.take_entry(key);
+        self.comment_lines(INDENT, &comments.before);
         let line =
             if value.is_empty() { format!("{INDENT}{key} = ;") } else { format!("{INDENT}{key} = {value};") };
-        self.line(&line);
+        let comment = joined(comments.end_of_line.iter().chain(comments.fields.values().flatten()));
+        self.line(&with_comment(line, comment));
     }
 
     fn opt(&mut self, key: &str, value: Option<String>) {
@@ -202,45 +300,49 @@ impl Out {
         }
     }
 
-    /// `Key =` then one line per field group, each with an optional `$ comment`.
-    fn multi(&mut self, key: &str, lines: &[(String, Option<&str>)]) {
+    /// `Key =` then one line per field group, each with the file's comments on its fields or
+    /// else the generated `$ comment`.
+    fn multi(&mut self, key: &str, lines: &[Line<'_>]) {
         if lines.is_empty() {
             self.single(key, "");
             return;
         }
-        self.line(&format!("{INDENT}{key} ="));
+        let comments = self.take_entry(key);
+        self.comment_lines(INDENT, &comments.before);
+        self.line(&with_comment(format!("{INDENT}{key} ="), comments.end_of_line.clone()));
         let last = lines.len() - 1;
-        for (i, (fields, comment)) in lines.iter().enumerate() {
+        let mut first_field = 0;
+        for (i, (fields, count, generated)) in lines.iter().enumerate() {
             let body = format!("{fields}{}", if i == last { ";" } else { "," });
-            let line = match comment {
-                Some(comment) => format!("{FIELD_INDENT}{body:<COMMENT_COLUMN$}  $ {comment}"),
-                None => format!("{FIELD_INDENT}{body}"),
-            };
-            self.line(line.trim_end());
+            let end = if i == last { usize::MAX } else { first_field + count };
+            let kept = joined(comments.fields.range(first_field..end).flat_map(|(_, texts)| texts));
+            first_field = end;
+            let comment = kept.or_else(|| generated.map(|g| format!("$ {g}")));
+            self.line(with_comment(format!("{FIELD_INDENT}{body}"), comment).trim_end());
         }
     }
 
     fn connection_info(&mut self, key: &str, info: &ConnectionInfo) {
         let mut lines = vec![
-            (opt_hex4(info.compatible.map(|m| m.0)), Some("compatible connections")),
-            (opt_num(info.default_input), Some("default input")),
-            (opt_num(info.default_output), Some("default output")),
+            (opt_hex4(info.compatible.map(|m| m.0)), 1, Some("compatible connections")),
+            (opt_num(info.default_input), 1, Some("default input")),
+            (opt_num(info.default_output), 1, Some("default output")),
         ];
-        lines.extend(info.extra.iter().map(|v| (field_value(v), None)));
+        lines.extend(info.extra.iter().map(|v| (field_value(v), 1, None)));
         self.multi(key, &lines);
     }
 
     fn io_entry(&mut self, key: &str, entry: &IoEntry) {
         let mut lines = vec![
-            (opt_num(entry.size), Some("size in bytes")),
-            (opt_num(entry.bits), Some("bits used")),
-            (opt_hex4(entry.mask.map(|m| m.0)), Some("connections")),
-            (quote(&entry.name), Some("name")),
-            (opt_num(entry.path_size), Some("path size")),
-            (path(&entry.path), Some("path")),
-            (quote(&entry.help), Some("help string")),
+            (opt_num(entry.size), 1, Some("size in bytes")),
+            (opt_num(entry.bits), 1, Some("bits used")),
+            (opt_hex4(entry.mask.map(|m| m.0)), 1, Some("connections")),
+            (quote(&entry.name), 1, Some("name")),
+            (opt_num(entry.path_size), 1, Some("path size")),
+            (path(&entry.path), 1, Some("path")),
+            (quote(&entry.help), 1, Some("help string")),
         ];
-        lines.extend(entry.extra.iter().map(|v| (field_value(v), None)));
+        lines.extend(entry.extra.iter().map(|v| (field_value(v), 1, None)));
         self.multi(key, &lines);
     }
 
@@ -249,35 +351,36 @@ impl Out {
         let s = p.scaling;
         let l = p.links;
         let mut lines = vec![
-            (opt_num(p.reserved), Some("reserved, shall equal 0")),
+            (opt_num(p.reserved), 1, Some("reserved, shall equal 0")),
             (
                 format!("{},{}", opt_num(p.link_path_size), path(&p.link_path)),
+                2,
                 Some("link path size, link path"),
             ),
-            (opt_hex4(p.descriptor.map(|d| d.0)), Some("descriptor")),
+            (opt_hex4(p.descriptor.map(|d| d.0)), 1, Some("descriptor")),
             (
                 p.data_type.map_or_else(String::new, |t| format!("0x{:02X}", t.code())),
-                p.data_type.and_then(|t| t.name()),
+                1,
+                Some(p.data_type.and_then(|t| t.name()).unwrap_or("data type")),
             ),
-            (opt_num(p.data_size), Some("data size in bytes")),
-            (quote(&p.name), Some("name")),
-            (quote(&p.units), Some("units")),
-            (quote(&p.help), Some("help string")),
-            (values.join(","), Some("min, max, default data values")),
+            (opt_num(p.data_size), 1, Some("data size in bytes")),
+            (quote(&p.name), 1, Some("name")),
+            (quote(&p.units), 1, Some("units")),
+            (quote(&p.help), 1, Some("help string")),
+            (values.join(","), 3, Some("min, max, default data values")),
             (
                 [s.multiplier, s.divisor, s.base, s.offset].map(opt_num).join(","),
+                4,
                 Some("mult, div, base, offset scaling"),
             ),
             (
                 [l.multiplier, l.divisor, l.base, l.offset].map(opt_num).join(","),
+                4,
                 Some("mult, div, base, offset links"),
             ),
-            (opt_num(p.decimal_places), Some("decimal places")),
+            (opt_num(p.decimal_places), 1, Some("decimal places")),
         ];
-        if lines[3].1.is_none() {
-            lines[3].1 = Some("data type");
-        }
-        lines.extend(p.extra.iter().map(|v| (field_value(v), None)));
+        lines.extend(p.extra.iter().map(|v| (field_value(v), 1, None)));
         self.multi(&format!("Param{n}"), &lines);
     }
 
@@ -335,10 +438,7 @@ fn text(t: &str) -> String {
     let safe = !t.is_empty()
         && t == t.trim()
         && !t.contains(|c: char| {
-            matches!(c, '"' | '$' | ',' | ';' | '=' | '{' | '}' | '[')
-                || c.is_whitespace() && c != ' '
-                || c == '\0'
-                || c == '\u{1a}'
+            matches!(c, '"' | '$' | ',' | ';' | '=' | '{' | '}' | '[') || is_space(c) && c != ' '
         })
         && !t.contains("  ");
     if safe {
@@ -359,7 +459,7 @@ pub(crate) fn quote(s: &str) -> String {
             '\n' => out.push_str("\\n"),
             '\t' => out.push_str("\\t"),
             '\r' => out.push_str("\\r"),
-            c if c.is_control() && u32::from(c) < 0x100 => {
+            c if c.is_ascii_control() => {
                 let _ = write!(out, "\\x{:02X}", u32::from(c));
             }
             c => out.push(c),

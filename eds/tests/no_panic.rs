@@ -63,6 +63,12 @@ fn quoted() -> impl Strategy<Value = String> {
             match c {
                 '\\' => out.push_str("\\\\"),
                 '"' => out.push_str("\\\""),
+                // A line of a string never starts like an entry or a section header: that reads
+                // as a string missing its closing quote (see the lexer rules).
+                '\n' | '\r' => {
+                    out.push(c);
+                    out.push('.');
+                }
                 c => out.push(c),
             }
         }
@@ -124,8 +130,62 @@ fn well_formed() -> impl Strategy<Value = String> {
     prop::collection::vec(section, 0..6).prop_map(|sections| sections.concat())
 }
 
+/// Every comment of `text`, as the parser finds them.
+fn comment_texts(text: &str) -> Vec<String> {
+    let comments = eds::RawEds::parse_with_comments(text).unwrap().1;
+    let mut all = comments.header.clone();
+    for attached in comments.sections.values().chain(comments.entries.values()) {
+        all.extend(attached.before.iter().cloned());
+        all.extend(attached.end_of_line.iter().cloned());
+        all.extend(attached.fields.values().flatten().cloned());
+    }
+    all.extend(comments.trailer);
+    all.retain(|c| !c.is_empty());
+    all
+}
+
+/// Well-formed text with `$` comments added: lines above sections and entries, blank lines
+/// between them, comments at line ends (inside a string spanning lines, such a comment is text).
+fn well_formed_with_comments() -> impl Strategy<Value = String> {
+    let comment = "[ !#-\\[\\]-~\u{80}-\u{ff}]{0,12}";
+    (well_formed(), prop::collection::vec((0u8..6, comment), 0..96)).prop_map(|(text, inserts)| {
+        let mut out = String::new();
+        let mut inserts = inserts.into_iter();
+        for line in text.lines() {
+            match inserts.next() {
+                Some((0, c)) => out.push_str(&format!("$ {c}\n{line}\n")),
+                Some((1, _)) => out.push_str(&format!("\n{line}\n")),
+                Some((2, c)) => out.push_str(&format!("{line} ${c}\n")),
+                _ => out.push_str(&format!("{line}\n")),
+            }
+        }
+        if let Some((_, c)) = inserts.next() {
+            out.push_str(&format!("\n$ {c}\n"));
+        }
+        out
+    })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
+
+    #[test]
+    fn format_keeps_comments_and_is_a_fixed_point(text in well_formed_with_comments()) {
+        let once = eds::format(text.as_bytes());
+        prop_assert!(once.is_ok(), "{:?}\n{}", once, text);
+        let once = once.unwrap();
+        let twice = eds::format(&once).unwrap();
+        prop_assert_eq!(String::from_utf8_lossy(&twice), String::from_utf8_lossy(&once), "input:\n{}", text);
+        // The same model: written without comments, both give the same text.
+        let model = |bytes: &[u8]| Writer::new().write(&eds::parse(bytes).unwrap());
+        prop_assert_eq!(model(&once), model(text.as_bytes()));
+        // Every comment of the input is a comment of the output.
+        let out = String::from_utf8(once).unwrap();
+        let kept = comment_texts(&out).join("\n");
+        for comment in comment_texts(&text) {
+            prop_assert!(kept.contains(&comment), "lost comment {:?}\n{}", comment, out);
+        }
+    }
 
     #[test]
     fn arbitrary_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..4096)) {
