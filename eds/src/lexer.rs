@@ -248,7 +248,7 @@ impl<'a> Lexer<'a> {
                 }
             }
         }
-        Tok::Section(name.trim().to_string())
+        Tok::Section(name.trim_matches(is_space).to_string())
     }
 
     fn string(&mut self, start: Span) -> Tok {

@@ -89,7 +89,7 @@ impl Writer {
             entries_seen: HashMap::new(),
         };
         for line in &self.header {
-            out.line(format!("$ {line}").trim_end());
+            out.line(format!("$ {line}").trim_end_matches(is_space));
         }
         out.comment_lines("", &comments.header);
         if let Some(file) = &eds.file {
@@ -318,7 +318,7 @@ impl Out {
             let kept = joined(comments.fields.range(first_field..end).flat_map(|(_, texts)| texts));
             first_field = end;
             let comment = kept.or_else(|| generated.map(|g| format!("$ {g}")));
-            self.line(with_comment(format!("{FIELD_INDENT}{body}"), comment).trim_end());
+            self.line(with_comment(format!("{FIELD_INDENT}{body}"), comment).trim_end_matches(is_space));
         }
     }
 
@@ -436,7 +436,7 @@ fn field_value(value: &FieldValue) -> String {
 /// Unquoted text as is when it reads back the same, else quoted.
 fn text(t: &str) -> String {
     let safe = !t.is_empty()
-        && t == t.trim()
+        && t == t.trim_matches(is_space)
         && !t.contains(|c: char| {
             matches!(c, '"' | '$' | ',' | ';' | '=' | '{' | '}' | '[') || is_space(c) && c != ' '
         })
