@@ -31,7 +31,7 @@
 //! `;`; fields may be empty; integers are decimal or `0x`/`0X` hex; vendor keywords
 //! (`283_Name`) and unknown sections are kept; both enum dialects (`EnumN` in `[Params]`, legacy
 //! `[EnumPar]`) are read; every optional section may be missing; non-UTF-8 files are read as
-//! Latin-1.
+//! Latin-1, and [`format()`] writes them back as Latin-1 with their comments in place.
 //!
 //! ## Quick start
 //!
