@@ -167,3 +167,35 @@ fn params_through_the_generated_eds() {
     assert_eq!(code, 0, "{out}{err}");
     assert!(out.contains("0x0F/"), "the EDS parameters point at the Parameter object: {out}");
 }
+
+#[test]
+fn a_download_from_a_second_master_is_refused_and_changes_nothing() {
+    let mut bus = system_bus();
+    let mut session = Session::new(&mut bus);
+    let mac = MacId::new(5).unwrap();
+    {
+        let mut owner = Master::new(
+            &mut session,
+            MasterConfig { mac: MacId::new(1).unwrap(), ..MasterConfig::default() },
+        );
+        owner.open_explicit(mac).unwrap();
+    }
+    let mut second = Master::new(
+        &mut session,
+        MasterConfig { mac: MacId::new(2).unwrap(), serial_number: 7, ..MasterConfig::default() },
+    );
+    let meter = DeviceDescription::load(std::path::Path::new(&workspace_file(
+        "slave-fw/descriptions/modbus-meter.toml",
+    )))
+    .unwrap();
+    let e = master_harness::configure::download(&mut second, mac, &meter).unwrap_err().to_string();
+    assert!(e.contains("MAC 5 is allocated to another master (MAC 1)"), "{e}");
+    // Nothing was downloaded: no request of the second master reached the configuration object.
+    let requests_to_0x66 = second
+        .session
+        .records()
+        .iter()
+        .filter(|r| r.frame.id().as_raw() == 0x42C && r.frame.data().get(2) == Some(&0x66))
+        .count();
+    assert_eq!(requests_to_0x66, 0);
+}
