@@ -23,6 +23,9 @@
 //!   configuration image in force ([`crate::image`]) and takes a new one by download; an accepted
 //!   image is handed to the application ([`Converter::poll_new_image`]) and applies at the next
 //!   reset.
+//! - The Parameter object [`PARAMETER_CLASS`] (0x0F, [`parameters`]) serves the settings a
+//!   commissioning tool edits one by one; a Set changes the pending configuration and hands the
+//!   new image over as a download does, so it too applies at the next reset.
 //! - An Identity Reset is carried out [`RESET_DELAY`] after the request, so that the response has
 //!   left; the converter keeps the deadline and says when the reset is due
 //!   ([`Converter::poll_reset`]). The firmware resets the chip then, a host power-cycles its
@@ -55,6 +58,7 @@ use heapless::Deque;
 pub mod check;
 pub mod config_object;
 pub mod objects;
+pub mod parameters;
 
 pub use check::InvalidConfig;
 use config_object::ConfigObject;
@@ -62,6 +66,7 @@ pub use config_object::{ConfigOrigin, ConfigState, CONFIG_CLASS};
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
+pub use parameters::PARAMETER_CLASS;
 
 /// Input assembly instance with the instrument's image only.
 pub const PLAIN_INPUT_ASSEMBLY: u8 = 100;
