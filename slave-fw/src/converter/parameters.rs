@@ -207,7 +207,9 @@ pub const PARAMETERS: [ParameterDef; 9] = {
     ]
 };
 
-// The limits of §II.4.2 and of one explicit message, checked at compile time.
+// The limits of §II.4.2 and of one explicit message, and instance N at index N - 1, checked at
+// compile time (indexing in a const block fails the build, never the device).
+#[allow(clippy::indexing_slicing)]
 const _: () = {
     let mut i = 0;
     while i < PARAMETERS.len() {
@@ -225,6 +227,7 @@ impl Parameter {
     }
 
     /// Its definition.
+    #[allow(clippy::indexing_slicing)] // The discriminants are 1..=9, checked at compile time above.
     pub const fn def(self) -> &'static ParameterDef {
         &PARAMETERS[self as usize - 1]
     }
