@@ -326,7 +326,7 @@ impl Converter {
     }
 
     /// A new configuration image the configuration object accepted (a committed download,
-    /// [`config_object`]), once: the application stores it (firmware: the settings journal; soft
+    /// [`config_object`], or a Parameter object Set, [`parameters`]), once: the application stores it (firmware: the settings journal; soft
     /// slave: its state file) and builds the converter from it at the next reset
     /// ([`Converter::with_origin`] with [`ConfigOrigin::Stored`]). Nothing applies before then.
     /// Drain it with the events (step 3 of the [module docs](self)); a later download replaces an
