@@ -11,10 +11,11 @@
 //! | `[Device]` | vendor, device type (and its CIP name), product code, revision, product name, catalog | Identity object (class 0x01) attributes 1–4, 7 |
 //! | `[Device Classification]` | `Class1 = DeviceNet` | — |
 //! | `[IO_Info]` | `Default` and `PollInfo` poll only (`0x0001`); `Input1` = produced size, path `20 04 24 <100 or 101> 30 03`; `Output1` = consumed size, path `20 04 24 96 30 03` | Connection 2 attributes 7, 8, 14, 16; Assembly (class 0x04) |
-//! | `[ParamClass]` | `MaxInst = 0`: the device has no Parameter object (class 0x0F); every parameter is reached through its link path | — |
-//! | `[Params]` 1–11 | the converter's settings, read-only: `ParamN` is attribute N | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]); names, units, types, access and defaults from its attribute table, [`SettingsAttribute`] |
-//! | `[Params]` 12–14 | MAC ID, data rate, bus-off interrupt | DeviceNet object, class 0x03 instance 1, attributes 1–3 |
-//! | `[Params]` 15–29 | serial link statistics and status, monitor parameters: `ParamN` is attribute N − 14 | serial link object, class 0x64 instance 1 ([`slave_fw::converter::SERIAL_LINK_CLASS`]); names, units, types and access from its attribute table, [`LinkAttribute`] |
+//! | `[ParamClass]` | `MaxInst = 9`, `Descriptor = 0x0B`, `CfgAssembly = 0` | Parameter object (class 0x0F) class attributes 2, 8, 9 |
+//! | `[Params]` 1–9 | the settings a commissioning tool edits (serial line, stale timeout and policy, input assembly, response timeout, retries, Modbus poll period): `ParamN` is Parameter instance N, link path `20 0F 24 NN 30 01` (devicenet-notes §II.4.4); writable, in force after a reset (the poll period is read-only for a framed instrument) | Parameter object ([`slave_fw::converter::PARAMETER_CLASS`]); names, units, help, types, ranges and access from its table, [`PARAMETERS`]; defaults are the description's values, what the device reports as attribute 12 |
+//! | `[Params]` 10–12 | idle action, fault action, serial profile, read-only: `ParamN` is attribute N − 1 | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]); from its attribute table, [`SettingsAttribute`] |
+//! | `[Params]` 13–15 | MAC ID, data rate, bus-off interrupt | DeviceNet object, class 0x03 instance 1, attributes 1–3 |
+//! | `[Params]` 16–30 | serial link statistics and status, monitor parameters: `ParamN` is attribute N − 15 | serial link object, class 0x64 instance 1 ([`slave_fw::converter::SERIAL_LINK_CLASS`]); names, units, types and access from its attribute table, [`LinkAttribute`] |
 //! | `[Params]` `EnumN` | the strings of every parameter that is a choice (the `EnumN` dialect only; no `[EnumPar]`) | — |
 //! | `[Groups]` | serial line, instrument link, I/O behaviour, DeviceNet, statistics | — |
 //!
@@ -22,8 +23,10 @@
 //! cyclic allocations (devicenet `slave` module docs), so every connection mask is `0x0001`.
 //! Parameter defaults are the values of the description; ranges are those the description file
 //! accepts (the `validate` limits of `slave_fw`). A setting the device does not serve over the
-//! network (data bits, the Modbus poll period, byte order and scan list, the framing) is not a
-//! parameter: a configuration tool could neither read nor write it.
+//! network (data bits, the Modbus byte order and scan list, the framing) is not a parameter: a
+//! configuration tool could neither read nor write it. The Parameter object's descriptor has no
+//! enumerated-strings bit (the device has no Get_Enum_String); the EDS sets it where it lists the
+//! strings itself.
 //!
 //! The output is deterministic: the same description and options give the same bytes (golden
 //! files in `tests/golden/`). Nothing in it depends on the clock, the machine or the path of the
@@ -40,7 +43,8 @@ use devicenet::objects::class;
 use slave_fw::converter::objects::{
     Access, AttributeSpec, AttributeType, LinkAttribute, SettingsAttribute, SettingsValues,
 };
-use slave_fw::converter::{InputAssembly, OUTPUT_ASSEMBLY};
+use slave_fw::converter::parameters::{Parameter, ParameterDef, CLASS_DESCRIPTOR, PARAMETERS};
+use slave_fw::converter::{ConverterConfig, InputAssembly, OUTPUT_ASSEMBLY, PARAMETER_CLASS};
 use slave_fw::description::DeviceDescription;
 use slave_fw::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry};
 use slave_fw::serial::{HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings};
@@ -52,15 +56,21 @@ pub const FILE_TIME: Time = Time { hour: 0, minute: 0, second: 0 };
 /// The `[File] Revision` written when [`GenerateOptions::revision`] is not changed.
 pub const DEFAULT_REVISION: Revision = Revision { major: 1, minor: 0 };
 
-/// Number of the first DeviceNet object parameter (MAC ID); 13 is the data rate, 14 the bus-off
+/// Number of Parameter object parameters: `Param1` to `Param9` are Parameter instances 1 to 9
+/// ([`PARAMETERS`]).
+pub const PARAMETER_OBJECT_PARAM_COUNT: u32 = PARAMETERS.len() as u32;
+/// Number of the first settings object parameter: `ParamN` reads class 0x65 attribute `N - 1`
+/// (attributes 9 to 11; attributes 1 to 8 are Parameter instances 1 to 8).
+pub const FIRST_SETTINGS_PARAM: u32 = PARAMETER_OBJECT_PARAM_COUNT + 1;
+/// The settings object attributes that are parameters of their own.
+pub const SETTINGS_PARAMS: [SettingsAttribute; 3] =
+    [SettingsAttribute::IdleAction, SettingsAttribute::FaultAction, SettingsAttribute::SerialProfile];
+/// Number of the first DeviceNet object parameter (MAC ID); 14 is the data rate, 15 the bus-off
 /// interrupt.
-pub const FIRST_DEVICENET_PARAM: u32 = 12;
+pub const FIRST_DEVICENET_PARAM: u32 = FIRST_SETTINGS_PARAM + SETTINGS_PARAMS.len() as u32;
 /// Number of the first serial link parameter: `ParamN` reads class 0x64 attribute
 /// `N - FIRST_LINK_PARAM + 1`.
-pub const FIRST_LINK_PARAM: u32 = 15;
-/// Number of settings parameters: `Param1` to `Param11` read class 0x65 attributes 1 to 11
-/// ([`SettingsAttribute::ALL`]).
-pub const SETTINGS_PARAM_COUNT: u32 = SettingsAttribute::ALL.len() as u32;
+pub const FIRST_LINK_PARAM: u32 = FIRST_DEVICENET_PARAM + 3;
 /// Number of serial link parameters (class 0x64 attributes 1 to 15, [`LinkAttribute::ALL`]).
 pub const LINK_PARAM_COUNT: u32 = LinkAttribute::ALL.len() as u32;
 
@@ -132,8 +142,8 @@ pub fn generate(description: &DeviceDescription, options: &GenerateOptions) -> E
         }),
         io_info: Some(io_info(description)),
         param_class: Some(ParamClass {
-            max_inst: Some(0),
-            descriptor: Some(0),
+            max_inst: Some(PARAMETERS.len() as u32),
+            descriptor: Some(CLASS_DESCRIPTOR),
             cfg_assembly: Some(0),
             other: Vec::new(),
         }),
@@ -423,13 +433,12 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
     let s = Settings::of(&converter.profile);
     let input_len = converter.profile.input_len();
     let values = SettingsValues::of_config(&converter.profile, converter.input);
-    let mut specs: Vec<Spec> = SettingsAttribute::ALL
-        .into_iter()
-        .map(|a| {
-            let shown = setting_presentation(a, &s, input_len);
-            attribute_param(u32::from(a.id()), a.spec(), a.read(&values), shown)
-        })
-        .collect();
+    let mut specs: Vec<Spec> =
+        PARAMETERS.iter().map(|d| parameter_object_param(d, converter, &s, input_len)).collect();
+    specs.extend(SETTINGS_PARAMS.into_iter().zip(FIRST_SETTINGS_PARAM..).map(|(a, n)| {
+        let shown = setting_presentation(a, &s, input_len);
+        attribute_param(n, a.spec(), a.read(&values), shown)
+    }));
     let programmable = device.switches.programmable;
     let (switch_descriptor, switch_help) = if programmable {
         (0, "; settable over the network (program position), in force after a reset")
@@ -511,6 +520,43 @@ impl Presentation {
     }
 }
 
+/// `ParamN` for Parameter instance N (`def`), its value in `config` the default: the table's
+/// name, units, help, type, range and access; the strings of a choice are the settings object's.
+fn parameter_object_param(
+    def: &ParameterDef,
+    config: &ConverterConfig,
+    s: &Settings<'_>,
+    input_len: usize,
+) -> Spec {
+    let p = def.parameter;
+    // Instances 1-8 are the settings object's attributes 1-8; the poll period has no choices.
+    let choices = SettingsAttribute::from_id(p.instance())
+        .filter(|_| p != Parameter::PollPeriod)
+        .map(|a| setting_presentation(a, s, input_len).choices)
+        .unwrap_or_default();
+    Spec {
+        number: p.instance().into(),
+        path: logical_path(PARAMETER_CLASS, p.instance(), 1),
+        descriptor: p.descriptor(config),
+        data_type: data_type(def.data_type),
+        name: def.name,
+        units: def.units,
+        help: def.help.to_string(),
+        min: def.min.into(),
+        max: def.max.into(),
+        default: p.read(config).into(),
+        choices,
+    }
+}
+
+fn data_type(t: AttributeType) -> DataType {
+    match t {
+        AttributeType::Usint => DataType::Usint,
+        AttributeType::Udint => DataType::Udint,
+        AttributeType::Byte => DataType::Byte,
+    }
+}
+
 /// Parameter `number` for the vendor attribute `spec` (instance 1), with the value `default`.
 fn attribute_param(number: u32, spec: AttributeSpec, default: u32, shown: Presentation) -> Spec {
     Spec {
@@ -520,11 +566,7 @@ fn attribute_param(number: u32, spec: AttributeSpec, default: u32, shown: Presen
             Access::Get => READ_ONLY,
             Access::GetMonitor => MONITOR,
         },
-        data_type: match spec.data_type {
-            AttributeType::Usint => DataType::Usint,
-            AttributeType::Udint => DataType::Udint,
-            AttributeType::Byte => DataType::Byte,
-        },
+        data_type: data_type(spec.data_type),
         name: spec.name,
         units: spec.units,
         help: shown.help,
@@ -648,9 +690,9 @@ fn link_presentation(a: LinkAttribute) -> Presentation {
 fn groups() -> GroupsSection {
     let link: Vec<u32> = (FIRST_LINK_PARAM..FIRST_LINK_PARAM + LINK_PARAM_COUNT).collect();
     let list = [
-        ("Serial line", vec![11, 1, 2, 3]),
-        ("Instrument link", vec![4, 5, 7, 8]),
-        ("I/O behaviour", vec![6, 9, 10]),
+        ("Serial line", vec![FIRST_SETTINGS_PARAM + 2, 1, 2, 3]),
+        ("Instrument link", vec![4, 5, 7, 8, 9]),
+        ("I/O behaviour", vec![6, FIRST_SETTINGS_PARAM, FIRST_SETTINGS_PARAM + 1]),
         ("DeviceNet", vec![FIRST_DEVICENET_PARAM, FIRST_DEVICENET_PARAM + 1, FIRST_DEVICENET_PARAM + 2]),
         ("Serial link statistics", link),
     ];
@@ -698,20 +740,50 @@ mod tests {
     fn parameter_numbers_and_groups_cover_each_other() {
         let eds = generate(&DeviceDescription::reference(), &GenerateOptions::default());
         let params: Vec<u32> = eds.params().map(|(n, _)| n).collect();
-        let total = SETTINGS_PARAM_COUNT + 3 + LINK_PARAM_COUNT;
+        let total = FIRST_LINK_PARAM - 1 + LINK_PARAM_COUNT;
         assert_eq!(params, (1..=total).collect::<Vec<_>>());
         let mut grouped: Vec<u32> = eds.groups().flat_map(|(_, g)| g.params.clone()).collect();
         grouped.sort_unstable();
         assert_eq!(grouped, params, "every parameter is in exactly one group");
     }
 
-    #[test]
-    fn settings_parameters_point_at_the_settings_object() {
-        let eds = generate(&DeviceDescription::reference(), &GenerateOptions::default());
-        for n in 1..=SETTINGS_PARAM_COUNT {
-            let path = eds.param(n).and_then(|p| p.link_path.as_ref()).and_then(LinkPath::attribute);
-            let path = path.unwrap();
-            assert_eq!((path.class, path.instance, path.attribute), (SETTINGS_CLASS, 1, Some(n as u16)));
+    #[rstest]
+    #[case::breaker("breaker")]
+    #[case::modbus_meter("modbus-meter")]
+    fn settings_parameters_point_at_the_parameter_object(#[case] name: &str) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../slave-fw/descriptions/{name}.toml"));
+        let description = DeviceDescription::load(&path).unwrap();
+        let eds = generate(&description, &GenerateOptions::default());
+        let class = eds.param_class.as_ref().unwrap();
+        assert_eq!((class.max_inst, class.descriptor, class.cfg_assembly), (Some(9), Some(0x0B), Some(0)));
+        let modbus = matches!(description.converter.profile, ProfileConfig::Modbus(_));
+        for d in &PARAMETERS {
+            let n = u32::from(d.parameter.instance());
+            let param = eds.param(n).unwrap();
+            // devicenet-notes §II.4.4: `6,"20 0F 24 NN 30 01"`.
+            assert_eq!(param.link_path_size, Some(6));
+            assert_eq!(param.link_path, Some(LinkPath::Bytes(vec![0x20, 0x0F, 0x24, n as u8, 0x30, 0x01])));
+            assert_eq!(
+                (param.name.as_str(), param.units.as_str(), param.help.as_str()),
+                (d.name, d.units, d.help)
+            );
+            assert_eq!(param.data_type, Some(data_type(d.data_type)), "Param{n}");
+            assert_eq!(param.data_size, Some(d.data_type.size() as u32), "Param{n}");
+            assert_eq!(param.min, Some(Value::Int(d.min.into())), "Param{n}");
+            assert_eq!(param.max, Some(Value::Int(d.max.into())), "Param{n}");
+            let default = d.parameter.read(&description.converter);
+            assert_eq!(param.default, Some(Value::Int(default.into())), "Param{n}");
+            let read_only = d.parameter == Parameter::PollPeriod && !modbus;
+            assert_eq!(param.descriptor.unwrap().read_only(), read_only, "Param{n}");
+            assert_eq!(eds.enum_strings(n).is_some(), !matches!(n, 1 | 4 | 7 | 8 | 9), "Param{n}");
+        }
+        for (a, n) in SETTINGS_PARAMS.into_iter().zip(FIRST_SETTINGS_PARAM..) {
+            let path = eds.param(n).and_then(|p| p.link_path.as_ref()).and_then(LinkPath::attribute).unwrap();
+            assert_eq!(
+                (path.class, path.instance, path.attribute),
+                (SETTINGS_CLASS, 1, Some(u16::from(a.id())))
+            );
             assert!(eds.param(n).unwrap().descriptor.unwrap().read_only());
         }
     }
@@ -729,9 +801,9 @@ mod tests {
     #[test]
     fn vendor_parameters_are_the_attribute_tables() {
         let eds = generate(&DeviceDescription::reference(), &GenerateOptions::default());
-        let settings = SettingsAttribute::ALL.map(|a| (u32::from(a.id()), a.spec()));
+        let settings = SETTINGS_PARAMS.into_iter().zip(FIRST_SETTINGS_PARAM..).map(|(a, n)| (n, a.spec()));
         let link = LinkAttribute::ALL.map(|a| (FIRST_LINK_PARAM + u32::from(a.id()) - 1, a.spec()));
-        for (n, spec) in settings.into_iter().chain(link) {
+        for (n, spec) in settings.chain(link) {
             let param = eds.param(n).unwrap();
             assert_eq!((param.name.as_str(), param.units.as_str()), (spec.name, spec.units), "Param{n}");
             let path = param.link_path.as_ref().and_then(LinkPath::attribute).unwrap();

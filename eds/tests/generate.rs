@@ -10,7 +10,7 @@ use eds::generate::{
 use eds::model::Eds;
 use eds::value::{ConnectionMask, DataType, Date, Descriptor, LinkPath, Revision, Value};
 use rstest::rstest;
-use slave_fw::converter::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
+use slave_fw::converter::{PARAMETER_CLASS, SERIAL_LINK_CLASS, SETTINGS_CLASS};
 use slave_fw::description::DeviceDescription;
 use slave_fw::serial::{IdleAction, Parity, ProfileConfig, StalePolicy, StopBits};
 use std::path::PathBuf;
@@ -116,23 +116,32 @@ fn model_equals_the_description(#[case] name: &str) {
     assert_eq!(assembly(input), Some((4, u16::from(config.input_assembly), Some(3))));
     assert_eq!(assembly(output), Some((4, 150, Some(3))));
 
-    // Parameters 1-11: the settings object's attributes 1-11, defaults from the description.
-    let (serial, health, timeout, retries, on_idle, on_fault, kind) = match &d.converter.profile {
+    // Parameters 1-9: Parameter instances 1-9; 10-12: the settings object's attributes 9-11;
+    // defaults from the description.
+    let (serial, health, timeout, retries, period, on_idle, on_fault, kind) = match &d.converter.profile {
         ProfileConfig::Framed(c) => (
             c.serial,
             c.health,
             c.sequencer.response_timeout_ms,
             c.sequencer.retries,
+            0,
             &c.sequencer.on_idle,
             &c.sequencer.on_fault,
             0,
         ),
-        ProfileConfig::Modbus(c) => {
-            (c.serial, c.health, c.response_timeout_ms, c.retries, &c.on_idle, &c.on_fault, 1)
-        }
+        ProfileConfig::Modbus(c) => (
+            c.serial,
+            c.health,
+            c.response_timeout_ms,
+            c.retries,
+            c.poll_period_ms,
+            &c.on_idle,
+            &c.on_fault,
+            1,
+        ),
     };
     let sends = |a: &IdleAction| i128::from(matches!(a, IdleAction::Send(_)));
-    let expected: [i128; 11] = [
+    let expected: [i128; 12] = [
         serial.baud.into(),
         match serial.parity {
             Parity::None => 0,
@@ -151,6 +160,7 @@ fn model_equals_the_description(#[case] name: &str) {
         config.input_assembly.into(),
         timeout.into(),
         retries.into(),
+        period.into(),
         sends(on_idle),
         sends(on_fault),
         kind,
@@ -158,18 +168,20 @@ fn model_equals_the_description(#[case] name: &str) {
     for (n, want) in (1..).zip(expected) {
         assert_eq!(default(&eds, n), want, "Param{n} default");
         let path = eds.param(n).unwrap().link_path.as_ref().and_then(LinkPath::attribute).unwrap();
-        assert_eq!(
-            (path.class, path.instance, path.attribute),
-            (SETTINGS_CLASS, 1, Some(n as u16)),
-            "Param{n}"
-        );
+        let expected = if n <= 9 {
+            (PARAMETER_CLASS, n as u16, Some(1))
+        } else {
+            (SETTINGS_CLASS, 1, Some(n as u16 - 1))
+        };
+        assert_eq!((path.class, path.instance, path.attribute), expected, "Param{n}");
     }
     assert_eq!(default(&eds, FIRST_DEVICENET_PARAM), i128::from(config.mac_id.as_raw()));
     assert_eq!(default(&eds, FIRST_DEVICENET_PARAM + 1), i128::from(config.baud_rate.attribute_value()));
     assert_eq!(default(&eds, FIRST_DEVICENET_PARAM + 2), i128::from(config.bus_off_interrupt));
 
-    // Every parameter: sized by its type, within its range, read-only unless it is the bus-off
-    // interrupt; the statistics are monitor parameters of the serial link object.
+    // Every parameter: sized by its type, within its range, read-only unless it is a Parameter
+    // object instance (the poll period of a framed instrument excepted) or the bus-off interrupt;
+    // the statistics are monitor parameters of the serial link object.
     for (n, p) in eds.params() {
         assert_eq!(p.data_size, p.data_type.and_then(DataType::fixed_size), "Param{n}");
         let (min, max) = (
@@ -180,7 +192,7 @@ fn model_equals_the_description(#[case] name: &str) {
         let descriptor = p.descriptor.unwrap();
         assert_eq!(
             descriptor.read_only(),
-            n != FIRST_DEVICENET_PARAM + 2,
+            n != FIRST_DEVICENET_PARAM + 2 && (n > 9 || (n == 9 && kind == 0)),
             "Param{n} descriptor {descriptor:?}"
         );
         assert_eq!(descriptor.has(Descriptor::ENUMERATED_STRINGS), eds.enum_strings(n).is_some(), "Param{n}");

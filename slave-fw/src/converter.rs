@@ -25,6 +25,9 @@
 //!   configuration image in force ([`crate::image`]) and takes a new one by download; an accepted
 //!   image is handed to the application ([`Converter::poll_new_image`]) and applies at the next
 //!   reset.
+//! - The Parameter object [`PARAMETER_CLASS`] (0x0F, [`parameters`]) serves the settings a
+//!   commissioning tool edits one by one; a Set changes the pending configuration and hands the
+//!   new image over as a download does, so it too applies at the next reset.
 //! - An Identity Reset is carried out [`RESET_DELAY`] after the request, so that the response has
 //!   left; the converter keeps the deadline and says when the reset is due
 //!   ([`Converter::poll_reset`]). The firmware resets the chip then, a host power-cycles its
@@ -57,6 +60,7 @@ use heapless::Deque;
 pub mod check;
 pub mod config_object;
 pub mod objects;
+pub mod parameters;
 
 pub use check::InvalidConfig;
 use config_object::ConfigObject;
@@ -64,6 +68,7 @@ pub use config_object::{ConfigOrigin, ConfigState, CONFIG_CLASS};
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
+pub use parameters::PARAMETER_CLASS;
 
 /// Input assembly instance with the instrument's image only.
 pub const PLAIN_INPUT_ASSEMBLY: u8 = 100;
@@ -326,7 +331,7 @@ impl Converter {
     }
 
     /// A new configuration image the configuration object accepted (a committed download,
-    /// [`config_object`]), once: the application stores it (firmware: the settings journal; soft
+    /// [`config_object`], or a Parameter object Set, [`parameters`]), once: the application stores it (firmware: the settings journal; soft
     /// slave: its state file) and builds the converter from it at the next reset
     /// ([`Converter::with_origin`] with [`ConfigOrigin::Stored`]). Nothing applies before then.
     /// Drain it with the events (step 3 of the [module docs](self)); a later download replaces an

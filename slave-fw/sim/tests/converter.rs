@@ -341,3 +341,32 @@ fn a_download_is_refused_while_polled() {
     assert_eq!(explicit(&mut c, now, &[0x00, 0x4D, 0x66, 0x01, 0, 0, 1]), vec![vec![0x00, 0x94, 0x10, 0xFF]]);
     assert_eq!(c.poll_new_image(), None);
 }
+
+#[test]
+fn parameters_are_set_into_the_pending_image_and_refused_while_polled() {
+    let (mut c, now) = bare_established();
+    // Parameter class attribute 2: nine instances (devicenet-notes §II.4.3 byte examples).
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x0F, 0x00, 0x02]), vec![vec![0x00, 0x8E, 9, 0]]);
+    // Instance 2 (serial parity) attribute 1: none.
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x0F, 0x02, 0x01]), vec![vec![0x00, 0x8E, 0]]);
+    // While the poll connection is established: object state conflict.
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x10, 0x0F, 0x02, 0x01, 2]), vec![vec![0x00, 0x94, 0x0C, 0xFF]]);
+    assert_eq!(c.poll_new_image(), None);
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x4C, 0x03, 0x01, 0x02]), vec![vec![0x00, 0xCC]]);
+    // Out of range (retries 11): invalid attribute value, nothing handed over.
+    assert_eq!(
+        explicit(&mut c, now, &[0x00, 0x10, 0x0F, 0x08, 0x01, 11]),
+        vec![vec![0x00, 0x94, 0x09, 0xFF]]
+    );
+    assert_eq!(c.poll_new_image(), None);
+    assert_eq!(c.config_state(), slave_fw::converter::ConfigState::FactoryDefault);
+    // Even parity: pending, handed over as a download is, the running profile unchanged.
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x10, 0x0F, 0x02, 0x01, 2]), vec![vec![0x00, 0x90]]);
+    let image = c.poll_new_image().unwrap().to_vec();
+    let pending = slave_fw::image::decode(&image).unwrap();
+    assert_eq!(pending.profile.serial().parity, slave_fw::serial::Parity::Even);
+    assert_eq!(c.config_state(), slave_fw::converter::ConfigState::Pending);
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x0F, 0x02, 0x01]), vec![vec![0x00, 0x8E, 2]]);
+    assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x0F, 0x02, 0x0C]), vec![vec![0x00, 0x8E, 0]]);
+    assert_eq!(c.profile().serial_settings().parity, slave_fw::serial::Parity::None);
+}

@@ -127,8 +127,9 @@ pub struct ConfigObject {
     origin: ConfigOrigin,
     staged: Vec<u8, MAX_IMAGE>,
     staging: Staging,
-    /// An image was accepted since start (attribute 3 = 2, even once a later download began).
-    accepted: bool,
+    /// The application took an accepted image since start ([`ConfigObject::take_new_image`]): it
+    /// is stored and applies at the next reset, even once a later download dropped its bytes.
+    stored: bool,
     /// The accepted image waits for [`ConfigObject::take_new_image`].
     handed_over: bool,
     refusal: String<MAX_REFUSAL_TEXT>,
@@ -156,7 +157,7 @@ impl ConfigObject {
             origin,
             staged: Vec::new(),
             staging: Staging::Empty,
-            accepted: false,
+            stored: false,
             handed_over: false,
             refusal: String::new(),
         };
@@ -171,10 +172,12 @@ impl ConfigObject {
         let _ = write!(Truncating(&mut self.refusal), "{e}");
     }
 
-    /// Attribute 3.
+    /// Attribute 3: 2 (pending) while an accepted image waits in the staging buffer or once the
+    /// application has stored one; a new download drops an image not yet taken, and the state
+    /// returns to where it was.
     pub fn state(&self) -> ConfigState {
         match self.origin {
-            _ if self.accepted => ConfigState::Pending,
+            _ if self.stored || self.staging == Staging::Pending => ConfigState::Pending,
             ConfigOrigin::FactoryDefault => ConfigState::FactoryDefault,
             ConfigOrigin::Stored => ConfigState::Stored,
             ConfigOrigin::Fault(_) => ConfigState::Fault,
@@ -190,6 +193,7 @@ impl ConfigObject {
     pub fn take_new_image(&mut self) -> Option<&[u8]> {
         if self.handed_over && self.staging == Staging::Pending {
             self.handed_over = false;
+            self.stored = true;
             Some(&self.staged)
         } else {
             None
@@ -199,6 +203,30 @@ impl ConfigObject {
     /// The pending image (accepted this run and still in the staging buffer).
     pub fn pending(&self) -> Option<&[u8]> {
         (self.staging == Staging::Pending).then_some(self.staged.as_slice())
+    }
+
+    /// The image the next change starts from: the pending one, or the one in force when nothing is
+    /// pending; `None` when the pending image was stored but a later download dropped its bytes.
+    pub fn base(&self) -> Option<&[u8]> {
+        match self.staging {
+            Staging::Pending => Some(&self.staged),
+            _ if self.stored => None,
+            _ => Some(&self.in_force),
+        }
+    }
+
+    /// Takes `image` (already checked) as an accepted download is taken: pending, handed to the
+    /// application once. A download under way is abandoned.
+    pub fn stage(&mut self, image: &[u8]) {
+        self.staged.clear();
+        let _ = self.staged.extend_from_slice(image);
+        self.accept();
+    }
+
+    fn accept(&mut self) {
+        self.staging = Staging::Pending;
+        self.handed_over = true;
+        self.refusal.clear();
     }
 
     /// Serves a request to [`CONFIG_CLASS`]; `io_established` says whether an I/O (poll)
@@ -283,10 +311,7 @@ impl ConfigObject {
                 }
                 match image::decode(&self.staged) {
                     Ok(_) => {
-                        self.staging = Staging::Pending;
-                        self.accepted = true;
-                        self.handed_over = true;
-                        self.refusal.clear();
+                        self.accept();
                         Ok(())
                     }
                     Err(e) => {

@@ -53,6 +53,15 @@ impl AttributeType {
             AttributeType::Udint => 4,
         }
     }
+
+    /// The CIP data type code (devicenet-notes §II.4.2: 0xC6 USINT, 0xC8 UDINT, 0xD1 BYTE).
+    pub const fn cip_code(self) -> u8 {
+        match self {
+            AttributeType::Usint => 0xC6,
+            AttributeType::Udint => 0xC8,
+            AttributeType::Byte => 0xD1,
+        }
+    }
 }
 
 /// How an attribute may be accessed. Every vendor attribute is Get only; the difference is what
@@ -486,6 +495,9 @@ impl ObjectHandler for VendorObjects<'_> {
             SERIAL_LINK_CLASS => true,
             SETTINGS_CLASS => false,
             super::CONFIG_CLASS => return Some(self.config.handle(req, reply, self.io_established)),
+            super::PARAMETER_CLASS => {
+                return Some(super::parameters::handle(self.config, req, reply, self.io_established))
+            }
             _ => return None,
         };
         let known = |id| {
