@@ -229,6 +229,8 @@ struct Writer<'a> {
 }
 
 impl Writer<'_> {
+    // Out of line: one call per field instead of a bounds-checked store inlined at each.
+    #[inline(never)]
     fn u8(&mut self, v: u8) {
         if let Some(b) = self.out.get_mut(self.len) {
             *b = v;
@@ -392,6 +394,8 @@ impl Reader<'_> {
         self.bad.get_or_insert(at);
     }
 
+    // Out of line, as `Writer::u8`.
+    #[inline(never)]
     fn u8(&mut self) -> u8 {
         let b = self.body.get(self.pos).copied();
         if b.is_none() {
