@@ -90,6 +90,7 @@ pub mod messages;
 pub mod objects;
 pub mod reference;
 pub mod slave;
+pub mod text;
 pub mod time;
 
 pub use frame::{CanFrame, CanId, FrameError};

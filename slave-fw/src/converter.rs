@@ -252,7 +252,8 @@ impl Converter {
         origin: ConfigOrigin,
         now: Instant,
     ) -> Result<Converter, ConverterConfigError> {
-        config.validate()?;
+        // No `config.validate()` first: `SlaveNode::new` and `Profile::new` check their halves
+        // (the node's first), and a refused configuration builds nothing.
         let mut image = [0u8; crate::image::MAX_IMAGE];
         let len = crate::image::encode(&config, &mut image).unwrap_or(0);
         let config_object = ConfigObject::new(image.get(..len).unwrap_or_default(), origin);

@@ -69,6 +69,7 @@ use crate::serial::{
 };
 use core::fmt;
 use devicenet::slave::{BaudRate, DeviceConfig, Identity, Switches};
+use devicenet::text::{self, TextSink};
 use devicenet::MacId;
 
 /// The image format version this firmware writes and reads.
@@ -130,25 +131,56 @@ pub enum ImageError {
     BufferTooSmall,
 }
 
-impl fmt::Display for ImageError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            ImageError::Truncated(n) => write!(f, "truncated: {n} bytes, an image has at least 11"),
-            ImageError::TooLarge(n) => write!(f, "oversized: {n} bytes, at most {MAX_IMAGE}"),
-            ImageError::BadMagic => f.write_str("bad magic: not a configuration image"),
+impl ImageError {
+    /// Writes the reason (the `Display` text) without `core::fmt` ([`devicenet::text`]): the
+    /// configuration object's refusal text.
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        match *self {
+            ImageError::Truncated(n) => {
+                out.text("truncated: ");
+                out.decimal(u32::try_from(n).unwrap_or(u32::MAX));
+                out.text(" bytes, an image has at least 11");
+            }
+            ImageError::TooLarge(n) => {
+                out.text("oversized: ");
+                out.decimal(u32::try_from(n).unwrap_or(u32::MAX));
+                out.text(" bytes, at most ");
+                out.decimal(MAX_IMAGE as u32);
+            }
+            ImageError::BadMagic => out.text("bad magic: not a configuration image"),
             ImageError::UnsupportedVersion(v) => {
-                write!(f, "unsupported version {v} (this device reads {IMAGE_VERSION})")
+                out.text("unsupported version ");
+                out.decimal(u32::from(v));
+                out.text(" (this device reads ");
+                out.decimal(u32::from(IMAGE_VERSION));
+                out.text(")");
             }
             ImageError::LengthMismatch { stated, actual } => {
-                write!(f, "length mismatch: header says {stated} body bytes, {actual} received")
+                out.text("length mismatch: header says ");
+                out.decimal(u32::from(stated));
+                out.text(" body bytes, ");
+                out.decimal(u32::try_from(actual).unwrap_or(u32::MAX));
+                out.text(" received");
             }
             ImageError::CrcMismatch { stated, computed } => {
-                write!(f, "CRC mismatch: image {stated:08X}, computed {computed:08X}")
+                out.text("CRC mismatch: image ");
+                out.hex8(stated);
+                out.text(", computed ");
+                out.hex8(computed);
             }
-            ImageError::Malformed { offset } => write!(f, "malformed body at byte {offset}"),
-            ImageError::Invalid(e) => write!(f, "{e}"),
-            ImageError::BufferTooSmall => f.write_str("output buffer too small"),
+            ImageError::Malformed { offset } => {
+                out.text("malformed body at byte ");
+                out.decimal(u32::from(offset));
+            }
+            ImageError::Invalid(e) => e.write_text(out),
+            ImageError::BufferTooSmall => out.text("output buffer too small"),
         }
+    }
+}
+
+impl fmt::Display for ImageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        text::display(f, |out| self.write_text(out))
     }
 }
 
@@ -229,6 +261,8 @@ struct Writer<'a> {
 }
 
 impl Writer<'_> {
+    // Out of line: one call per field instead of a bounds-checked store inlined at each.
+    #[inline(never)]
     fn u8(&mut self, v: u8) {
         if let Some(b) = self.out.get_mut(self.len) {
             *b = v;
@@ -392,6 +426,8 @@ impl Reader<'_> {
         self.bad.get_or_insert(at);
     }
 
+    // Out of line, as `Writer::u8`.
+    #[inline(never)]
     fn u8(&mut self) -> u8 {
         let b = self.body.get(self.pos).copied();
         if b.is_none() {

@@ -3,6 +3,7 @@
 //! the firmware, the soft slave and the EDS generator all build this from one description.
 
 use crate::id::MacId;
+use crate::text::{self, TextSink};
 use core::fmt;
 
 /// Largest I/O assembly (produced or consumed size) the node holds, in bytes.
@@ -140,21 +141,30 @@ pub enum ConfigError {
     MajorRevisionOutOfRange,
 }
 
-impl fmt::Display for ConfigError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+impl ConfigError {
+    /// Writes the message (the `Display` text) without `core::fmt` ([`crate::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
         match self {
             ConfigError::IoSizeTooLarge { size } => {
-                write!(f, "I/O size {size} exceeds the maximum of {MAX_IO_SIZE} bytes")
+                out.text("I/O size ");
+                out.decimal(u32::from(*size));
+                out.text(" exceeds the maximum of ");
+                out.decimal(MAX_IO_SIZE as u32);
+                out.text(" bytes");
             }
-            ConfigError::SameAssemblyInstance => {
-                f.write_str("input and output assembly instances must differ")
-            }
-            ConfigError::AssemblyInstanceZero => f.write_str("assembly instance 0 is the class"),
-            ConfigError::PortOutOfRange => f.write_str("port number must be 0..=127"),
-            ConfigError::ZeroEprResolution => f.write_str("EPR resolution must be at least 1 ms"),
-            ConfigError::ProductNameNotAscii => f.write_str("product name must be printable ASCII"),
-            ConfigError::MajorRevisionOutOfRange => f.write_str("major revision must be 1..=127"),
+            ConfigError::SameAssemblyInstance => out.text("input and output assembly instances must differ"),
+            ConfigError::AssemblyInstanceZero => out.text("assembly instance 0 is the class"),
+            ConfigError::PortOutOfRange => out.text("port number must be 0..=127"),
+            ConfigError::ZeroEprResolution => out.text("EPR resolution must be at least 1 ms"),
+            ConfigError::ProductNameNotAscii => out.text("product name must be printable ASCII"),
+            ConfigError::MajorRevisionOutOfRange => out.text("major revision must be 1..=127"),
         }
+    }
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        text::display(f, |out| self.write_text(out))
     }
 }
 

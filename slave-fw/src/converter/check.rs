@@ -11,6 +11,7 @@ use crate::serial::{ConfigError, ProfileConfig};
 use core::fmt;
 use devicenet::slave::config::MAX_PRODUCT_NAME;
 use devicenet::slave::ConfigError as NodeConfigError;
+use devicenet::text::{self, TextSink};
 
 /// A configuration value the converter cannot run with: the key as the description file spells
 /// it ([`InvalidConfig::key`]) and why ([`InvalidConfig::message`]). `Display` gives
@@ -60,9 +61,10 @@ pub struct Key<'a>(&'a InvalidConfig);
 #[derive(Clone, Copy, Debug)]
 pub struct Message<'a>(&'a InvalidConfig);
 
-impl fmt::Display for Key<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self.0 {
+impl Key<'_> {
+    /// Writes the key (the `Display` text) without `core::fmt` ([`devicenet::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        out.text(match self.0 {
             InvalidConfig::ProductNameLength(_) | InvalidConfig::ProductNameNotAscii => {
                 "identity.product_name"
             }
@@ -72,35 +74,66 @@ impl fmt::Display for Key<'_> {
             InvalidConfig::EprResolutionZero => "network.epr_resolution_ms",
             InvalidConfig::Io(_) => "io",
             InvalidConfig::Profile { modbus, error } => {
-                let section = if *modbus { "profile.modbus." } else { "profile." };
-                return write!(f, "{section}{}", error.path());
+                out.text(if *modbus { "profile.modbus." } else { "profile." });
+                return error.path().write_text(out);
             }
         })
     }
 }
 
-impl fmt::Display for Message<'_> {
+impl fmt::Display for Key<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        text::display(f, |out| self.write_text(out))
+    }
+}
+
+impl Message<'_> {
+    /// Writes what is wrong (the `Display` text) without `core::fmt` ([`devicenet::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
         match self.0 {
             InvalidConfig::ProductNameLength(n) => {
-                write!(f, "{n} characters, allowed 1..={MAX_PRODUCT_NAME}")
+                out.decimal(u32::try_from(*n).unwrap_or(u32::MAX));
+                out.text(" characters, allowed 1..=");
+                out.decimal(MAX_PRODUCT_NAME as u32);
             }
-            InvalidConfig::ProductNameNotAscii => f.write_str("must be printable ASCII"),
-            InvalidConfig::MajorRevision(v) => write!(f, "{v} is outside 1..=127"),
-            InvalidConfig::MacId(v) => write!(f, "{v} is outside 0..=63"),
+            InvalidConfig::ProductNameNotAscii => out.text("must be printable ASCII"),
+            InvalidConfig::MajorRevision(v) => {
+                out.decimal(u32::from(*v));
+                out.text(" is outside 1..=127");
+            }
+            InvalidConfig::MacId(v) => {
+                out.decimal(u32::from(*v));
+                out.text(" is outside 0..=63");
+            }
             InvalidConfig::BaudRate(v) => {
-                write!(f, "{v} is not a baud rate code (0 125k, 1 250k, 2 500k)")
+                out.decimal(u32::from(*v));
+                out.text(" is not a baud rate code (0 125k, 1 250k, 2 500k)");
             }
-            InvalidConfig::EprResolutionZero => f.write_str("0 is outside 1..=65535"),
-            InvalidConfig::Profile { error, .. } => write!(f, "{}", error.problem),
-            InvalidConfig::Io(e) => write!(f, "{e}"),
+            InvalidConfig::EprResolutionZero => out.text("0 is outside 1..=65535"),
+            InvalidConfig::Profile { error, .. } => error.problem.write_text(out),
+            InvalidConfig::Io(e) => e.write_text(out),
         }
+    }
+}
+
+impl fmt::Display for Message<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        text::display(f, |out| self.write_text(out))
+    }
+}
+
+impl InvalidConfig {
+    /// Writes `key: message` (the `Display` text) without `core::fmt` ([`devicenet::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        self.key().write_text(out);
+        out.text(": ");
+        self.message().write_text(out);
     }
 }
 
 impl fmt::Display for InvalidConfig {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.key(), self.message())
+        text::display(f, |out| self.write_text(out))
     }
 }
 

@@ -34,7 +34,6 @@
 
 use super::ConverterConfig;
 use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
-use core::fmt::Write;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;
 use devicenet::slave::{Reply, ServiceError};
@@ -135,20 +134,6 @@ pub struct ConfigObject {
     refusal: String<MAX_REFUSAL_TEXT>,
 }
 
-/// Writes what fits, drops the rest.
-struct Truncating<'a>(&'a mut String<MAX_REFUSAL_TEXT>);
-
-impl Write for Truncating<'_> {
-    fn write_str(&mut self, s: &str) -> core::fmt::Result {
-        for c in s.chars() {
-            if self.0.push(c).is_err() {
-                break;
-            }
-        }
-        Ok(())
-    }
-}
-
 impl ConfigObject {
     /// The object for the image in force and its origin.
     pub fn new(in_force: &[u8], origin: ConfigOrigin) -> ConfigObject {
@@ -169,7 +154,8 @@ impl ConfigObject {
 
     fn refuse(&mut self, e: &ImageError) {
         self.refusal.clear();
-        let _ = write!(Truncating(&mut self.refusal), "{e}");
+        // What fits, without core::fmt (a heapless::String drops the rest).
+        e.write_text(&mut self.refusal);
     }
 
     /// Attribute 3: 2 (pending) while an accepted image waits in the staging buffer or once the

@@ -6,6 +6,7 @@
 //! at the offending line.
 
 use core::fmt;
+use devicenet::text::{self, TextSink};
 
 /// A configuration value that a profile cannot run with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,35 +88,76 @@ impl ConfigError {
 #[derive(Clone, Copy, Debug)]
 pub struct FieldPath<'a>(&'a ConfigError);
 
+impl FieldPath<'_> {
+    /// Writes the path (the `Display` text) without `core::fmt` ([`devicenet::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        // `scan[3].count`: the list name is the part before the first dot.
+        let Some(i) = self.0.index else {
+            return out.text(self.0.field);
+        };
+        let (list, rest) = match self.0.field.split_once('.') {
+            Some((list, rest)) => (list, Some(rest)),
+            None => (self.0.field, None),
+        };
+        out.text(list);
+        out.text("[");
+        out.decimal(u32::from(i));
+        out.text("]");
+        if let Some(rest) = rest {
+            out.text(".");
+            out.text(rest);
+        }
+    }
+}
+
 impl fmt::Display for FieldPath<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        // `scan[3].count`: the list name is the part before the first dot.
-        match self.0.index {
-            Some(i) => match self.0.field.split_once('.') {
-                Some((list, rest)) => write!(f, "{list}[{i}].{rest}"),
-                None => write!(f, "{}[{i}]", self.0.field),
-            },
-            None => f.write_str(self.0.field),
+        text::display(f, |out| self.write_text(out))
+    }
+}
+
+impl Problem {
+    /// Writes the message (the `Display` text) without `core::fmt` ([`devicenet::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        match *self {
+            Problem::OutOfRange { value, min, max } => {
+                out.decimal(value);
+                out.text(" is outside the allowed range ");
+                out.decimal(min);
+                out.text("..=");
+                out.decimal(max);
+            }
+            Problem::Conflict(why) => out.text(why),
+            Problem::Overlap { other } => {
+                out.text("overlaps the image bytes of entry ");
+                out.decimal(u32::from(other));
+            }
+            Problem::Duplicate { other } => {
+                out.text("duplicates entry ");
+                out.decimal(u32::from(other));
+            }
         }
     }
 }
 
 impl fmt::Display for Problem {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match *self {
-            Problem::OutOfRange { value, min, max } => {
-                write!(f, "{value} is outside the allowed range {min}..={max}")
-            }
-            Problem::Conflict(why) => f.write_str(why),
-            Problem::Overlap { other } => write!(f, "overlaps the image bytes of entry {other}"),
-            Problem::Duplicate { other } => write!(f, "duplicates entry {other}"),
-        }
+        text::display(f, |out| self.write_text(out))
+    }
+}
+
+impl ConfigError {
+    /// Writes `path: problem` (the `Display` text) without `core::fmt` ([`devicenet::text`]).
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        self.path().write_text(out);
+        out.text(": ");
+        self.problem.write_text(out);
     }
 }
 
 impl fmt::Display for ConfigError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {}", self.path(), self.problem)
+        text::display(f, |out| self.write_text(out))
     }
 }
 
