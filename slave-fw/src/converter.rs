@@ -60,7 +60,7 @@ pub mod objects;
 
 pub use check::InvalidConfig;
 use config_object::ConfigObject;
-pub use config_object::{ConfigOrigin, ConfigState, CONFIG_CLASS};
+pub use config_object::{ConfigOrigin, ConfigState, PlatformCheck, CONFIG_CLASS};
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
@@ -333,6 +333,12 @@ impl Converter {
     /// image not yet taken.
     pub fn poll_new_image(&mut self) -> Option<&[u8]> {
         self.config.take_new_image()
+    }
+
+    /// Has Commit_Download also refuse what this platform cannot run (the firmware: a serial line
+    /// its USART does not make), with the check's key and reason ([`PlatformCheck`]).
+    pub fn set_platform_check(&mut self, check: PlatformCheck) {
+        self.config.set_platform_check(check);
     }
 
     /// The configuration object's state (its attribute 3).
