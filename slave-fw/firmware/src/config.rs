@@ -99,6 +99,10 @@ fn start(
     })?;
     // A download this board cannot run is refused at once, not found out at the next reset.
     converter.set_platform_check(usart_makes_the_line);
+    if origin == ConfigOrigin::Stored {
+        // The network values above are the switches'; the image in force is the one stored.
+        converter.set_image_in_force(&stored.image);
+    }
     Ok(Boot { converter, line, origin })
 }
 
@@ -270,6 +274,7 @@ mod tests {
             (19200, uart::Parity::Even, Ok(WordLength::Nine))
         );
         assert_eq!(module_status(&mut boot), Indication::Green);
+        assert_eq!(boot.converter.image_in_force(), encoded(&meter), "the bytes stored, as downloaded");
     }
 
     #[test]
