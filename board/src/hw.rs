@@ -473,3 +473,32 @@ impl SettingsFlash for HostFileFlash {
         Ok(())
     }
 }
+
+/// One word that survives a system reset (not a power-on): [`crate::memory::RETAINED_CELL`] at
+/// the end of SRAM, with a check word. The emulated board keeps its SLCAN adapter's channel state there,
+/// since in reality the adapter is a device of its own that a reset of the board leaves open.
+pub mod retained {
+    use crate::memory::RETAINED_CELL;
+
+    const CHECK: u32 = 0x5245_5441; // "RETA"
+
+    /// Stores `value` until the next power-on.
+    pub fn store(value: u32) {
+        let cell = RETAINED_CELL as *mut u32;
+        // SAFETY: the last two words of SRAM, word-aligned, outside every linker region the
+        // program uses (memory.x `RETAINED`, `crate::memory`): nothing else reads or writes them.
+        unsafe {
+            cell.write_volatile(value);
+            cell.add(1).write_volatile(value ^ CHECK);
+        }
+    }
+
+    /// The value stored before the last system reset; `None` after a power-on (the check word
+    /// does not match).
+    pub fn load() -> Option<u32> {
+        let cell = RETAINED_CELL as *const u32;
+        // SAFETY: as in `store`; any bit pattern is a valid `u32`.
+        let (value, check) = unsafe { (cell.read_volatile(), cell.add(1).read_volatile()) };
+        (check == value ^ CHECK).then_some(value)
+    }
+}

@@ -344,6 +344,26 @@ impl Adapter {
         self.bitrate
     }
 
+    /// The channel state as one number, for a board that keeps it across its own reset (the
+    /// emulated firmware plays both the adapter and the node, and a real adapter is not reset with
+    /// the node): bit 0 open, bit 1 listen-only, bit 2 a bit rate set, bits 8–15 its `Sn` code.
+    pub const fn to_bits(&self) -> u32 {
+        let (set, code) = match self.bitrate {
+            Some(code) => (1 << 2, code as u32),
+            None => (0, 0),
+        };
+        self.open as u32 | (self.listen_only as u32) << 1 | set | code << 8
+    }
+
+    /// The adapter [`Adapter::to_bits`] described.
+    pub const fn from_bits(bits: u32) -> Self {
+        Adapter {
+            open: bits & 1 != 0,
+            listen_only: bits & 2 != 0,
+            bitrate: if bits & 4 != 0 { Some((bits >> 8) as u8) } else { None },
+        }
+    }
+
     /// Handles one line from [`LineBuffer::push`].
     pub fn handle_line(&mut self, line: Result<&[u8], SlcanError>) -> Response {
         let reply = |reply: &'static [u8]| Response { reply, frame: None };
@@ -392,6 +412,19 @@ mod tests {
 
     fn frame(id: u16, data: &[u8]) -> CanFrame {
         CanFrame::from_raw(id, data).unwrap()
+    }
+
+    #[rstest]
+    #[case::closed(&[])]
+    #[case::open_at_250k(&[&b"S5"[..], b"O"])]
+    #[case::listen_only(&[&b"S8"[..], b"L"])]
+    #[case::closed_again(&[&b"S0"[..], b"O", b"C"])]
+    fn adapter_state_round_trips_through_bits(#[case] lines: &[&[u8]]) {
+        let mut adapter = Adapter::new();
+        for line in lines {
+            adapter.handle_line(Ok(line));
+        }
+        assert_eq!(Adapter::from_bits(adapter.to_bits()), adapter);
     }
 
     #[rstest]

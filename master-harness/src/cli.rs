@@ -278,7 +278,7 @@ pub enum Command {
         read: Option<PathBuf>,
     },
     /// Read (and with --set write) every parameter of the device: its Parameter object, or the
-    /// [Params] of an EDS through their link paths.
+    /// `[Params]` of an EDS through their link paths.
     Params {
         /// The device's MAC ID.
         #[arg(long, value_parser = parse_mac)]

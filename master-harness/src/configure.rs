@@ -53,6 +53,12 @@ pub const CHUNK: usize = 56;
 /// 2 s of that).
 pub const BACK_ONLINE: Duration = Duration::from_secs(6);
 
+/// How often the wait for the device after its reset looks for its duplicate MAC ID check.
+const WATCH_STEP: Duration = Duration::from_millis(100);
+
+/// The wait after the device is on-line, by the master's reckoning, before the first request.
+const ONLINE_MARGIN: Duration = Duration::from_millis(250);
+
 /// One comparison of the device against the description.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct Check {
@@ -227,12 +233,17 @@ pub fn download(
             .iter()
             .filter_map(|m| master.tracker.online_at(m.as_raw()).filter(|&at| at > reset_at))
             .min()
-            .unwrap_or(deadline)
+            // Until the device's check shows, look again every WATCH_STEP.
+            .unwrap_or(master.session.now() + WATCH_STEP)
             .min(deadline);
         master.idle_until(until)?;
     };
     report.back_at = Some(back_at.as_raw());
     report.back_online_ms = Some((master.session.now() - reset_at).total_millis());
+    // The device goes on-line by its own clock, 1 s after its second check request; a request
+    // sent at the moment the master reckons may reach it first (the emulated board in QEMU).
+    let settled = master.session.now() + ONLINE_MARGIN;
+    master.idle_until(settled)?;
 
     master.set_device(back_at);
     master.allocate(back_at, Port::Group2Only, AllocationChoice::EXPLICIT)?;

@@ -64,7 +64,7 @@ pub mod parameters;
 
 pub use check::InvalidConfig;
 use config_object::ConfigObject;
-pub use config_object::{ConfigOrigin, ConfigState, CONFIG_CLASS};
+pub use config_object::{ConfigOrigin, ConfigState, PlatformCheck, CONFIG_CLASS};
 
 use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
@@ -339,6 +339,25 @@ impl Converter {
     /// image not yet taken.
     pub fn poll_new_image(&mut self) -> Option<&[u8]> {
         self.config.take_new_image()
+    }
+
+    /// The image in force is the stored `image` as it was downloaded, not the encoding of the
+    /// running configuration: the firmware runs a stored image with the MAC ID and data rate of
+    /// its switches, and a tool reading the image back (attributes 2 and 4, Read_Chunk) must find
+    /// the bytes it downloaded.
+    pub fn set_image_in_force(&mut self, image: &[u8]) {
+        self.config.set_in_force(image);
+    }
+
+    /// The configuration image in force (the configuration object's Read_Chunk 0).
+    pub fn image_in_force(&self) -> &[u8] {
+        self.config.in_force()
+    }
+
+    /// Has Commit_Download also refuse what this platform cannot run (the firmware: a serial line
+    /// its USART does not make), with the check's key and reason ([`PlatformCheck`]).
+    pub fn set_platform_check(&mut self, check: PlatformCheck) {
+        self.config.set_platform_check(check);
     }
 
     /// The configuration object's state (its attribute 3).

@@ -4,7 +4,9 @@
 //! the adapter state machine are `can_io::slcan` (the one codec, shared with the host). Host lines are handled in the USART1 receive
 //! interrupt: commands are answered at once, frames for this node (the same acceptance list as the
 //! bxCAN filter) go to the node task. While the host has not opened the channel the transmitter
-//! reports [`Busy`], as a bxCAN mailbox stays pending on a bus with no other node.
+//! reports [`Busy`], as a bxCAN mailbox stays pending on a bus with no other node. The channel
+//! state survives the board's own reset (an Identity Reset), as a real adapter's would: it is kept
+//! in `board::hw::retained`.
 
 use crate::can::{Busy, CanDriver};
 use board::filters;
@@ -28,7 +30,10 @@ impl Slcan {
     /// The adapter for node `mac`, closed, with the receive interrupt on.
     pub fn new(mut serial: Serial<USART1>, mac: MacId) -> Slcan {
         serial.listen(Event::RxNotEmpty);
-        Slcan { serial, lines: LineBuffer::new(), adapter: Adapter::new(), mac }
+        // The adapter is not reset with the board: after an Identity Reset the host's open
+        // channel stays open (board::hw::retained; closed after a power-on).
+        let adapter = board::hw::retained::load().map_or(Adapter::new(), Adapter::from_bits);
+        Slcan { serial, lines: LineBuffer::new(), adapter, mac }
     }
 
     fn write(&mut self, bytes: &[u8]) {
@@ -56,7 +61,11 @@ impl CanDriver for Slcan {
                 Err(nb::Error::Other(_)) => continue,
             };
             if let Some(line) = self.lines.push(byte) {
+                let before = self.adapter;
                 let response = self.adapter.handle_line(line);
+                if self.adapter != before {
+                    board::hw::retained::store(self.adapter.to_bits());
+                }
                 self.write(response.reply);
                 if let Some(frame) = response.frame {
                     if filters::accepts(self.mac, frame.id().as_raw()) {

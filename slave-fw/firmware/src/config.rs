@@ -14,6 +14,9 @@
 //!    fault in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3), the
 //!    reason in the configuration object: [`ConfigOrigin::Fault`]. Any image bytes boot.
 //!
+//! The same rule for the serial line ([`usart_makes_the_line`]) refuses a download at
+//! Commit_Download, so an image the board cannot run is never stored.
+//!
 //! Whatever runs, the MAC ID and data rate come from the switches or the stored settings (the
 //! image's own are the soft slave's), and so does the bus-off interrupt setting.
 
@@ -85,24 +88,39 @@ fn start(
     config.device.baud_rate = resolved.baud_rate;
     config.device.switches = resolved.switches;
     config.device.bus_off_interrupt = stored.bus_off_interrupt;
+    usart_makes_the_line(&config).map_err(ImageError::Invalid)?;
     let line = line_format(config.profile.serial());
     let modbus = matches!(config.profile, ProfileConfig::Modbus(_));
-    if line.check(INSTRUMENT_UART_HZ).is_err() {
-        let range = LineFormat::baud_range(INSTRUMENT_UART_HZ);
-        let error = if line.word_length().is_err() {
-            ConfigError::conflict("serial.parity", "7 data bits need parity on this USART")
-        } else {
-            ConfigError::out_of_range("serial.baud", line.baud, *range.start(), *range.end())
-        };
-        return Err(ImageError::Invalid(InvalidConfig::Profile { modbus, error }));
-    }
-    let converter = Converter::with_origin(config, origin, now).map_err(|e| {
+    let mut converter = Converter::with_origin(config, origin, now).map_err(|e| {
         ImageError::Invalid(match e {
             ConverterConfigError::Profile(error) => InvalidConfig::Profile { modbus, error },
             ConverterConfigError::Device(e) => InvalidConfig::Io(e),
         })
     })?;
+    // A download this board cannot run is refused at once, not found out at the next reset.
+    converter.set_platform_check(usart_makes_the_line);
+    if origin == ConfigOrigin::Stored {
+        // The network values above are the switches'; the image in force is the one stored.
+        converter.set_image_in_force(&stored.image);
+    }
     Ok(Boot { converter, line, origin })
+}
+
+/// The board's own rule for a configuration ([`slave_fw::converter::PlatformCheck`]): the
+/// instrument USART makes its serial line (7 data bits only with parity; the baud rate within the
+/// divider's range, [`LineFormat::baud_range`]).
+pub fn usart_makes_the_line(config: &ConverterConfig) -> Result<(), InvalidConfig> {
+    let line = line_format(config.profile.serial());
+    if line.check(INSTRUMENT_UART_HZ).is_ok() {
+        return Ok(());
+    }
+    let range = LineFormat::baud_range(INSTRUMENT_UART_HZ);
+    let error = if line.word_length().is_err() {
+        ConfigError::conflict("serial.parity", "7 data bits need parity on this USART")
+    } else {
+        ConfigError::out_of_range("serial.baud", line.baud, *range.start(), *range.end())
+    };
+    Err(InvalidConfig::Profile { modbus: matches!(config.profile, ProfileConfig::Modbus(_)), error })
 }
 
 /// Parses a decimal MAC ID at compile time.
@@ -256,6 +274,7 @@ mod tests {
             (19200, uart::Parity::Even, Ok(WordLength::Nine))
         );
         assert_eq!(module_status(&mut boot), Indication::Green);
+        assert_eq!(boot.converter.image_in_force(), encoded(&meter), "the bytes stored, as downloaded");
     }
 
     #[test]
@@ -289,6 +308,12 @@ mod tests {
         };
         assert_eq!(error.field, "serial.baud");
         assert_eq!(module_status(&mut boot), Indication::FlashingRed);
+        // The same rule refuses the download (the converter's Commit_Download).
+        assert_eq!(
+            usart_makes_the_line(&meter).map_err(|e| e.key().to_string()),
+            Err("profile.modbus.serial.baud".into())
+        );
+        assert_eq!(usart_makes_the_line(&described("modbus-meter.toml")), Ok(()));
     }
 
     /// Any image bytes boot: every truncation and every single-bit flip of a valid image.

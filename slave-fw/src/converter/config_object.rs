@@ -19,7 +19,7 @@
 //! | 0x4B | [`READ_CHUNK`] | which USINT (0 in force, 1 pending), offset UINT, count USINT ≤ [`MAX_CHUNK`] | the bytes (fewer at the end, none past it); 0x0C which = 1 with nothing pending; 0x20 which > 1 or count > 56 |
 //! | 0x4C | [`BEGIN_DOWNLOAD`] | size UINT | 0x15 size > [`MAX_IMAGE`]; 0x10 while an I/O connection is established |
 //! | 0x4D | [`WRITE_CHUNK`] | offset UINT, ≤ 56 bytes | 0x0C no download begun; 0x20 offset ≠ bytes received; 0x15 past the size; 0x10 while I/O |
-//! | 0x4E | [`COMMIT_DOWNLOAD`] | none | 0x0C not all bytes received; 0x09 refused, additional code ([`refusal_code`]) 1 header/version, 2 length, 3 CRC, 4 invalid configuration (text in attribute 5) |
+//! | 0x4E | [`COMMIT_DOWNLOAD`] | none | 0x0C not all bytes received; 0x09 refused, additional code ([`refusal_code`]) 1 header/version, 2 length, 3 CRC, 4 invalid configuration, also one the platform cannot run ([`PlatformCheck`]) (text in attribute 5) |
 //!
 //! An accepted image is not applied: the converter hands it to the application
 //! ([`Converter::poll_new_image`](super::Converter::poll_new_image)), which stores it (firmware:
@@ -32,7 +32,7 @@
 //! Allocate, devicenet-notes §3.4) holds that connection; any other master's allocation is refused
 //! by the node, so no other master can reach this object.
 
-use super::ConverterConfig;
+use super::{ConverterConfig, InvalidConfig};
 use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;
@@ -119,6 +119,13 @@ enum Staging {
     Pending,
 }
 
+/// What the platform itself cannot run, checked at Commit_Download after the converter's own
+/// checks ([`crate::image::decode`]): the firmware's USART makes fewer serial lines than the
+/// converter accepts. A configuration it refuses is refused like an invalid one (additional code
+/// 4, the key and reason in attribute 5), so it is never stored. Set with
+/// [`Converter::set_platform_check`](super::Converter::set_platform_check).
+pub type PlatformCheck = fn(&ConverterConfig) -> Result<(), InvalidConfig>;
+
 /// The configuration object's state, owned by the converter.
 #[derive(Clone, Debug)]
 pub struct ConfigObject {
@@ -132,6 +139,8 @@ pub struct ConfigObject {
     /// The accepted image waits for [`ConfigObject::take_new_image`].
     handed_over: bool,
     refusal: String<MAX_REFUSAL_TEXT>,
+    /// The platform's own check of a downloaded configuration, if it has one.
+    platform_check: Option<PlatformCheck>,
 }
 
 impl ConfigObject {
@@ -145,11 +154,26 @@ impl ConfigObject {
             stored: false,
             handed_over: false,
             refusal: String::new(),
+            platform_check: None,
         };
         if let ConfigOrigin::Fault(e) = origin {
             object.refuse(&e);
         }
         object
+    }
+
+    /// Replaces the image in force with `image` (see
+    /// [`Converter::set_image_in_force`](super::Converter::set_image_in_force)); an image longer
+    /// than [`MAX_IMAGE`] is ignored.
+    pub fn set_in_force(&mut self, image: &[u8]) {
+        if let Ok(bytes) = Vec::from_slice(image) {
+            self.in_force = bytes;
+        }
+    }
+
+    /// Sets the platform's own check of downloaded configurations ([`PlatformCheck`]).
+    pub fn set_platform_check(&mut self, check: PlatformCheck) {
+        self.platform_check = Some(check);
     }
 
     fn refuse(&mut self, e: &ImageError) {
@@ -295,8 +319,13 @@ impl ConfigObject {
                     Staging::Downloading(size) if usize::from(size) == self.staged.len() => {}
                     _ => return Err(OBJECT_STATE_CONFLICT),
                 }
-                match image::decode(&self.staged) {
-                    Ok(_) => {
+                let platform_check = self.platform_check;
+                let checked = image::decode(&self.staged).and_then(|config| match platform_check {
+                    Some(check) => check(&config).map_err(ImageError::Invalid),
+                    None => Ok(()),
+                });
+                match checked {
+                    Ok(()) => {
                         self.accept();
                         Ok(())
                     }
@@ -484,6 +513,30 @@ mod tests {
         assert_eq!(download(&mut o, &image_of(&config)), Err((0x09, 4)));
         let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
         assert_eq!(&reason[1..], b"identity.major_revision: 0 is outside 1..=127");
+    }
+
+    #[test]
+    fn a_configuration_the_platform_cannot_run_is_refused_with_its_key() {
+        fn no_odd_parity(config: &ConverterConfig) -> Result<(), InvalidConfig> {
+            match config.profile.serial().parity {
+                crate::serial::Parity::Odd => Err(InvalidConfig::Profile {
+                    modbus: false,
+                    error: crate::serial::ConfigError::conflict("serial.parity", "odd parity not made here"),
+                }),
+                _ => Ok(()),
+            }
+        }
+        let mut o = object();
+        o.set_platform_check(no_odd_parity);
+        let mut config = ConverterConfig::breaker_reference();
+        assert_eq!(download(&mut o, &image_of(&config)), Ok(Vec::new()), "even parity runs");
+        assert_eq!(o.take_new_image().map(<[u8]>::len), Some(image_of(&config).len()));
+        let crate::serial::ProfileConfig::Framed(framed) = &mut config.profile else { unreachable!() };
+        framed.serial.parity = crate::serial::Parity::Odd;
+        assert_eq!(download(&mut o, &image_of(&config)), Err((0x09, 4)));
+        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
+        assert_eq!(&reason[1..], b"profile.serial.parity: odd parity not made here");
+        assert_eq!(o.take_new_image(), None, "nothing to store");
     }
 
     #[test]

@@ -352,7 +352,14 @@ impl PtyRig {
             args.extend_from_slice(&["--config", c.to_str().unwrap()]);
         }
         args.extend_from_slice(extra);
-        self.slave = Some(Proc::spawn(bin("dnet-soft-slave"), &args));
+        let slave = Proc::spawn(bin("dnet-soft-slave"), &args);
+        // Ready (its signal handler installed, the bus open) once it reports the start: a stop or
+        // a master before that would race its start-up.
+        let end = std::time::Instant::now() + std::time::Duration::from_secs(10);
+        while !slave.stderr.text().contains("started on") && std::time::Instant::now() < end {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        self.slave = Some(slave);
     }
 
     /// The master's end of the CAN link, as a `--bus` argument.
