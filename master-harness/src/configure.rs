@@ -25,7 +25,7 @@
 //! specific).
 
 use crate::error::HarnessError;
-use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
+use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, MacId};
@@ -309,16 +309,4 @@ pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<DeviceDescripti
         HarnessError::Refused(format!("MAC {mac} serves a configuration image that does not decode: {e}"))
     })?;
     Ok(DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() })
-}
-
-/// `true` when `e` says the device has no configuration object (an older firmware, another
-/// vendor's device).
-pub fn no_configuration_object(e: &HarnessError) -> bool {
-    matches!(
-        e,
-        HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ObjectDoesNotExist, .. })
-    ) || matches!(
-        e,
-        HarnessError::Master(MasterError::ErrorResponse { general: GeneralStatus::ServiceNotSupported, .. })
-    )
 }
