@@ -14,34 +14,36 @@ pub trait TextSink {
     fn text(&mut self, s: &str);
 
     /// Appends `v` in decimal.
-    fn decimal(&mut self, v: u32) {
+    fn decimal(&mut self, mut v: u32) {
+        // Digit values, least significant first; written one by one from the most significant.
         let mut digits = [0u8; 10];
-        self.text(decimal_digits(v, &mut digits));
+        let mut n = 0;
+        for slot in digits.iter_mut() {
+            *slot = (v % 10) as u8;
+            n += 1;
+            v /= 10;
+            if v == 0 {
+                break;
+            }
+        }
+        for &d in digits.iter().take(n).rev() {
+            self.text(digit(d.into()));
+        }
     }
 
     /// Appends `v` as eight upper-case hexadecimal digits (`{v:08X}`).
     fn hex8(&mut self, v: u32) {
-        let mut digits = [0u8; 8];
-        for (i, d) in digits.iter_mut().enumerate() {
-            let nibble = (v >> (28 - 4 * i)) & 0xF;
-            *d = b"0123456789ABCDEF".get(nibble as usize).copied().unwrap_or(b'0');
+        for i in (0..8).rev() {
+            self.text(digit((v >> (4 * i)) & 0xF));
         }
-        self.text(core::str::from_utf8(&digits).unwrap_or_default());
     }
 }
 
-/// The decimal digits of `v`, written at the end of `buf`.
-fn decimal_digits(mut v: u32, buf: &mut [u8; 10]) -> &str {
-    let mut start = buf.len();
-    for slot in buf.iter_mut().rev() {
-        *slot = b'0' + (v % 10) as u8;
-        start -= 1;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
-    core::str::from_utf8(buf.get(start..).unwrap_or_default()).unwrap_or_default()
+/// The one-character text of the digit `d` (0..=15, upper-case), without `str::from_utf8`'s
+/// validation linked in.
+fn digit(d: u32) -> &'static str {
+    let d = d as usize;
+    "0123456789ABCDEF".get(d..d + 1).unwrap_or("0")
 }
 
 /// A [`TextSink`] writing into a formatter: `Display` for the types that write their text. The

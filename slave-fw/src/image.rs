@@ -502,11 +502,16 @@ impl Reader<'_> {
         if self.pos != self.body.len() {
             self.fail(self.body.len().min(self.pos));
         }
-        // Not UTF-8 is not printable ASCII: refused with the loader's words.
-        let product_name = heapless::String::from_utf8(name).unwrap_or_else(|_| {
-            self.invalid.get_or_insert(InvalidConfig::ProductNameNotAscii);
-            heapless::String::new()
-        });
+        // Not ASCII is not printable ASCII: refused with the loader's words (control characters
+        // are left to `check`). Byte by byte, so no UTF-8 validation is linked in.
+        let mut product_name = heapless::String::new();
+        for &b in &name {
+            if b.is_ascii() {
+                let _ = product_name.push(char::from(b));
+            } else {
+                self.invalid.get_or_insert(InvalidConfig::ProductNameNotAscii);
+            }
+        }
         let mac_id = MacId::new(mac).unwrap_or_else(|| {
             self.invalid.get_or_insert(InvalidConfig::MacId(mac));
             MacId::MAX
