@@ -84,11 +84,13 @@ pub fn display(f: &mut fmt::Formatter<'_>, write: impl FnOnce(&mut FmtSink<'_, '
 /// to the attribute's size).
 impl<const N: usize> TextSink for heapless::String<N> {
     fn text(&mut self, s: &str) {
-        for c in s.chars() {
-            if self.push(c).is_err() {
-                break;
-            }
+        // The longest prefix of whole characters that fits, in one copy (no char decoding and
+        // re-encoding).
+        let mut end = s.len().min(N.saturating_sub(self.len()));
+        while !s.is_char_boundary(end) {
+            end -= 1;
         }
+        let _ = self.push_str(s.get(..end).unwrap_or_default());
     }
 }
 
@@ -115,6 +117,17 @@ mod tests {
         let mut s = heapless::String::<16>::new();
         s.hex8(v);
         assert_eq!(s, text);
+    }
+
+    #[test]
+    fn a_character_that_does_not_fit_whole_is_dropped() {
+        let mut s = heapless::String::<3>::new();
+        s.text("ab");
+        s.text("\u{e9}x");
+        assert_eq!(s, "ab");
+        let mut s = heapless::String::<4>::new();
+        s.text("ab\u{e9}x");
+        assert_eq!(s, "ab\u{e9}");
     }
 
     #[test]
