@@ -433,6 +433,8 @@ struct Reader<'a> {
 }
 
 impl Reader<'_> {
+    // Out of line: one call at each unreadable field instead of the `get_or_insert`.
+    #[inline(never)]
     fn fail(&mut self, at: usize) {
         self.bad.get_or_insert(at);
     }
