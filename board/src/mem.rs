@@ -1,4 +1,4 @@
-//! Byte-at-a-time memory routines for the firmware (`memcmp` included), in place of `compiler_builtins`' word-wise
+//! Byte-at-a-time memory routines for the firmware, in place of `compiler_builtins`' word-wise
 //! ones.
 //!
 //! The converter copies and clears little at a time (CAN frames, serial frames of at most 260
@@ -44,37 +44,6 @@ pub unsafe extern "C" fn memset(dest: *mut u8, c: c_int, n: usize) -> *mut u8 {
     // SAFETY: the caller's contract.
     unsafe { fill(dest, c as u8, n) };
     dest
-}
-
-/// `memcmp`: compares `n` bytes; negative, zero or positive as the first differing byte of `a`
-/// is below, equal to or above that of `b`.
-///
-/// # Safety
-/// The C contract: both ranges valid for `n` bytes.
-#[no_mangle]
-pub unsafe extern "C" fn memcmp(a: *const u8, b: *const u8, n: usize) -> c_int {
-    // SAFETY: the caller's contract.
-    unsafe { compare(a, b, n) }
-}
-
-/// The first difference of two `n`-byte ranges, as `memcmp` reports it.
-///
-/// # Safety
-/// Both ranges valid for `n` bytes.
-// As `copy`: not inlined into a function LLVM takes for the builtin; the reads are volatile so
-// the loop is not taken for a `memcmp`/`bcmp` idiom.
-#[inline(never)]
-unsafe fn compare(a: *const u8, b: *const u8, n: usize) -> c_int {
-    let mut i = 0;
-    while i < n {
-        // SAFETY: i < n, both ranges valid for n bytes.
-        let (x, y) = unsafe { (a.add(i).read_volatile(), b.add(i).read_volatile()) };
-        if x != y {
-            return c_int::from(x) - c_int::from(y);
-        }
-        i += 1;
-    }
-    0
 }
 
 /// Copies `n` bytes from `src` to `dest`, forward when `dest` is below `src` and backward
