@@ -95,14 +95,18 @@ impl FieldPath<'_> {
         let Some(i) = self.0.index else {
             return out.text(self.0.field);
         };
-        // A byte search, not `split_once`: no `memchr` linked in for one dot.
-        let field = self.0.field;
-        let dot = field.bytes().position(|b| b == b'.').unwrap_or(field.len());
-        out.text(field.get(..dot).unwrap_or_default());
+        let (list, rest) = match self.0.field.split_once('.') {
+            Some((list, rest)) => (list, Some(rest)),
+            None => (self.0.field, None),
+        };
+        out.text(list);
         out.text("[");
         out.decimal(u32::from(i));
         out.text("]");
-        out.text(field.get(dot..).unwrap_or_default());
+        if let Some(rest) = rest {
+            out.text(".");
+            out.text(rest);
+        }
     }
 }
 
