@@ -14,34 +14,36 @@ pub trait TextSink {
     fn text(&mut self, s: &str);
 
     /// Appends `v` in decimal.
-    fn decimal(&mut self, v: u32) {
+    fn decimal(&mut self, mut v: u32) {
+        // Digit values, least significant first; written one by one from the most significant.
         let mut digits = [0u8; 10];
-        self.text(decimal_digits(v, &mut digits));
+        let mut n = 0;
+        for slot in digits.iter_mut() {
+            *slot = (v % 10) as u8;
+            n += 1;
+            v /= 10;
+            if v == 0 {
+                break;
+            }
+        }
+        for &d in digits.iter().take(n).rev() {
+            self.text(digit(d.into()));
+        }
     }
 
     /// Appends `v` as eight upper-case hexadecimal digits (`{v:08X}`).
     fn hex8(&mut self, v: u32) {
-        let mut digits = [0u8; 8];
-        for (i, d) in digits.iter_mut().enumerate() {
-            let nibble = (v >> (28 - 4 * i)) & 0xF;
-            *d = b"0123456789ABCDEF".get(nibble as usize).copied().unwrap_or(b'0');
+        for i in (0..8).rev() {
+            self.text(digit((v >> (4 * i)) & 0xF));
         }
-        self.text(core::str::from_utf8(&digits).unwrap_or_default());
     }
 }
 
-/// The decimal digits of `v`, written at the end of `buf`.
-fn decimal_digits(mut v: u32, buf: &mut [u8; 10]) -> &str {
-    let mut start = buf.len();
-    for slot in buf.iter_mut().rev() {
-        *slot = b'0' + (v % 10) as u8;
-        start -= 1;
-        v /= 10;
-        if v == 0 {
-            break;
-        }
-    }
-    core::str::from_utf8(buf.get(start..).unwrap_or_default()).unwrap_or_default()
+/// The one-character text of the digit `d` (0..=15, upper-case), without `str::from_utf8`'s
+/// validation linked in.
+fn digit(d: u32) -> &'static str {
+    let d = d as usize;
+    "0123456789ABCDEF".get(d..d + 1).unwrap_or("0")
 }
 
 /// A [`TextSink`] writing into a formatter: `Display` for the types that write their text. The
@@ -82,11 +84,13 @@ pub fn display(f: &mut fmt::Formatter<'_>, write: impl FnOnce(&mut FmtSink<'_, '
 /// to the attribute's size).
 impl<const N: usize> TextSink for heapless::String<N> {
     fn text(&mut self, s: &str) {
-        for c in s.chars() {
-            if self.push(c).is_err() {
-                break;
-            }
+        // The longest prefix of whole characters that fits, in one copy (no char decoding and
+        // re-encoding).
+        let mut end = s.len().min(N.saturating_sub(self.len()));
+        while !s.is_char_boundary(end) {
+            end -= 1;
         }
+        let _ = self.push_str(s.get(..end).unwrap_or_default());
     }
 }
 
@@ -113,6 +117,17 @@ mod tests {
         let mut s = heapless::String::<16>::new();
         s.hex8(v);
         assert_eq!(s, text);
+    }
+
+    #[test]
+    fn a_character_that_does_not_fit_whole_is_dropped() {
+        let mut s = heapless::String::<3>::new();
+        s.text("ab");
+        s.text("\u{e9}x");
+        assert_eq!(s, "ab");
+        let mut s = heapless::String::<4>::new();
+        s.text("ab\u{e9}x");
+        assert_eq!(s, "ab\u{e9}");
     }
 
     #[test]

@@ -258,10 +258,10 @@ impl Converter {
         let len = crate::image::encode(&config, &mut image).unwrap_or(0);
         let config_object = ConfigObject::new(image.get(..len).unwrap_or_default(), origin);
         let node = SlaveNode::new(config.device_config()).map_err(ConverterConfigError::Device)?;
-        let profile = Profile::new(config.profile, now).map_err(ConverterConfigError::Profile)?;
+        config.profile.validate().map_err(ConverterConfigError::Profile)?;
         let mut converter = Converter {
             node,
-            profile,
+            profile: Profile::build(config.profile, now),
             input: config.input,
             events: Deque::new(),
             last_image: heapless::Vec::new(),

@@ -248,7 +248,14 @@ pub fn decode(bytes: &[u8]) -> Result<ConverterConfig, ImageError> {
         return Err(ImageError::CrcMismatch { stated, computed });
     }
     let body = covered.get(HEADER_LEN..).unwrap_or_default();
-    let config = Reader { body, pos: 0, bad: None }.config()?;
+    let mut reader = Reader { body, pos: 0, bad: None, invalid: None };
+    let config = reader.config();
+    if let Some(offset) = reader.bad {
+        return Err(ImageError::Malformed { offset: u16::try_from(offset).unwrap_or(u16::MAX) });
+    }
+    if let Some(e) = reader.invalid {
+        return Err(ImageError::Invalid(e));
+    }
     config.check()?;
     Ok(config)
 }
@@ -419,9 +426,15 @@ struct Reader<'a> {
     pos: usize,
     /// The offset of the first unreadable field.
     bad: Option<usize>,
+    /// The first value that reads but cannot be held (a product name that is not UTF-8, a MAC
+    /// ID or baud rate code out of range): reported after [`Reader::bad`]. Recorded instead of
+    /// returned, so the configuration is not moved through a `Result`.
+    invalid: Option<InvalidConfig>,
 }
 
 impl Reader<'_> {
+    // Out of line: one call at each unreadable field instead of the `get_or_insert`.
+    #[inline(never)]
     fn fail(&mut self, at: usize) {
         self.bad.get_or_insert(at);
     }
@@ -473,7 +486,7 @@ impl Reader<'_> {
         v
     }
 
-    fn config(&mut self) -> Result<ConverterConfig, ImageError> {
+    fn config(&mut self) -> ConverterConfig {
         let vendor_id = self.u16();
         let device_type = self.u16();
         let product_code = self.u16();
@@ -491,14 +504,24 @@ impl Reader<'_> {
         if self.pos != self.body.len() {
             self.fail(self.body.len().min(self.pos));
         }
-        if let Some(offset) = self.bad {
-            return Err(ImageError::Malformed { offset: u16::try_from(offset).unwrap_or(u16::MAX) });
+        // Not ASCII is not printable ASCII: refused with the loader's words (control characters
+        // are left to `check`). Byte by byte, so no UTF-8 validation is linked in.
+        let mut product_name = heapless::String::new();
+        for &b in &name {
+            if b.is_ascii() {
+                let _ = product_name.push(char::from(b));
+            } else {
+                self.invalid.get_or_insert(InvalidConfig::ProductNameNotAscii);
+            }
         }
-        // Not UTF-8 is not printable ASCII: refused with the loader's words.
-        let product_name =
-            heapless::String::from_utf8(name).map_err(|_| InvalidConfig::ProductNameNotAscii)?;
-        let mac_id = MacId::new(mac).ok_or(InvalidConfig::MacId(mac))?;
-        let baud_rate = BaudRate::from_attribute_value(baud).ok_or(InvalidConfig::BaudRate(baud))?;
+        let mac_id = MacId::new(mac).unwrap_or_else(|| {
+            self.invalid.get_or_insert(InvalidConfig::MacId(mac));
+            MacId::MAX
+        });
+        let baud_rate = BaudRate::from_attribute_value(baud).unwrap_or_else(|| {
+            self.invalid.get_or_insert(InvalidConfig::BaudRate(baud));
+            BaudRate::Kbps125
+        });
         let device = DeviceConfig {
             identity: Identity {
                 vendor_id,
@@ -523,7 +546,7 @@ impl Reader<'_> {
         };
         let mut config = ConverterConfig { device, profile, input };
         config.device = config.device_config();
-        Ok(config)
+        config
     }
 
     fn framed(&mut self) -> ProfileConfig {

@@ -328,6 +328,12 @@ impl<const N: usize> FrameParser<N> {
     /// not fit in `N` bytes.
     pub fn new(config: FramedConfig) -> Result<Self, ConfigError> {
         config.validate()?;
+        Self::check_capacity(&config)?;
+        Ok(Self::build(config))
+    }
+
+    /// `Ok` when the longest frame of `config` fits in `N` bytes.
+    pub(crate) fn check_capacity(config: &FramedConfig) -> Result<(), ConfigError> {
         if config.max_frame_len() > N {
             let overhead = config.header_len() + config.trailer_len();
             let max = N.saturating_sub(overhead).min(255);
@@ -337,7 +343,13 @@ impl<const N: usize> FrameParser<N> {
             };
             return Err(ConfigError::out_of_range(field, u32::from(value), 0, as_u32(max)));
         }
-        Ok(FrameParser { config, buf: Vec::new(), counters: FrameCounters::default() })
+        Ok(())
+    }
+
+    /// A parser for `config`, which [`FramedConfig::validate`] and
+    /// [`check_capacity`](Self::check_capacity) have accepted.
+    pub(crate) fn build(config: FramedConfig) -> Self {
+        FrameParser { config, buf: Vec::new(), counters: FrameCounters::default() }
     }
 
     /// The framing this parser follows.

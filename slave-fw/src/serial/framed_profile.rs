@@ -140,7 +140,7 @@ impl FramedProfileConfig {
                 }
             }
         }
-        Ok(())
+        FrameParser::<FRAME_CAPACITY>::check_capacity(&self.framing)
     }
 }
 
@@ -161,14 +161,19 @@ impl FramedProfile {
     /// starts as `status_len` zero bytes.
     pub fn new(config: FramedProfileConfig, now: Instant) -> Result<Self, ConfigError> {
         config.validate()?;
-        let parser = FrameParser::new(config.framing)?;
-        let sequencer = CommandSequencer::new(config.sequencer.clone())?;
-        let health = LinkHealth::new(config.health, now)?;
+        Ok(FramedProfile::build(config, now))
+    }
+
+    /// The profile for `config`, which [`FramedProfileConfig::validate`] has accepted: nothing
+    /// is checked twice, and nothing fails.
+    pub(crate) fn build(config: FramedProfileConfig, now: Instant) -> Self {
+        let parser = FrameParser::build(config.framing);
+        let sequencer = CommandSequencer::build(config.sequencer.clone());
+        let health = LinkHealth::build(config.health, now);
         let mut image = Vec::new();
-        image.resize(usize::from(config.status_len), 0).map_err(|_| {
-            ConfigError::out_of_range("status_len", u32::from(config.status_len), 1, as_u32(IMAGE_CAPACITY))
-        })?;
-        Ok(FramedProfile { config, parser, sequencer, health, image, tx: Vec::new() })
+        // validate() bounds status_len by IMAGE_CAPACITY.
+        let _ = image.resize(usize::from(config.status_len).min(IMAGE_CAPACITY), 0);
+        FramedProfile { config, parser, sequencer, health, image, tx: Vec::new() }
     }
 
     /// The configuration.

@@ -222,14 +222,19 @@ impl LinkHealth {
     /// A tracker in [`LinkState::Starting`]; the stale timeout runs from `now`.
     pub fn new(config: HealthConfig, now: Instant) -> Result<Self, ConfigError> {
         config.validate()?;
-        Ok(LinkHealth {
+        Ok(LinkHealth::build(config, now))
+    }
+
+    /// A tracker for `config`, which [`HealthConfig::validate`] has accepted.
+    pub(crate) fn build(config: HealthConfig, now: Instant) -> Self {
+        LinkHealth {
             config,
             state: LinkState::Starting,
             stale_at: now + config.stale_timeout(),
             frame_errors: false,
             freshness: 0,
             stats: Stats::default(),
-        })
+        }
     }
 
     /// The configuration.

@@ -77,10 +77,17 @@ pub enum Profile {
 impl Profile {
     /// The profile for `config`, started at `now`.
     pub fn new(config: ProfileConfig, now: Instant) -> Result<Self, ConfigError> {
-        Ok(match config {
-            ProfileConfig::Framed(c) => Profile::Framed(FramedProfile::new(c, now)?),
-            ProfileConfig::Modbus(c) => Profile::Modbus(ModbusMaster::new(c, now)?),
-        })
+        config.validate()?;
+        Ok(Profile::build(config, now))
+    }
+
+    /// The profile for `config`, which [`ProfileConfig::validate`] has accepted: the large
+    /// profile is built where it stays, not passed through a `Result`.
+    pub(crate) fn build(config: ProfileConfig, now: Instant) -> Self {
+        match config {
+            ProfileConfig::Framed(c) => Profile::Framed(FramedProfile::build(c, now)),
+            ProfileConfig::Modbus(c) => Profile::Modbus(ModbusMaster::build(c, now)),
+        }
     }
 
     /// Takes bytes read from the UART at `now`.

@@ -323,7 +323,12 @@ impl CommandSequencer {
     /// A sequencer with no command yet.
     pub fn new(config: SequencerConfig) -> Result<Self, ConfigError> {
         config.validate()?;
-        Ok(CommandSequencer {
+        Ok(CommandSequencer::build(config))
+    }
+
+    /// A sequencer for `config`, which [`SequencerConfig::validate`] has accepted.
+    pub(crate) fn build(config: SequencerConfig) -> Self {
+        CommandSequencer {
             config,
             mode: OutputMode::Startup,
             mode_frame_due: None,
@@ -332,7 +337,7 @@ impl CommandSequencer {
             outcome: CommandOutcome::None,
             last_command: None,
             counters: SequencerCounters::default(),
-        })
+        }
     }
 
     /// The configuration.

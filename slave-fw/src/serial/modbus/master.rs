@@ -286,11 +286,16 @@ impl ModbusMaster {
     /// timeout runs from here. Nothing is written before the first outputs arrive.
     pub fn new(config: ModbusConfig, now: Instant) -> Result<Self, ConfigError> {
         config.validate()?;
-        let health = LinkHealth::new(config.health, now)?;
+        Ok(ModbusMaster::build(config, now))
+    }
+
+    /// The master for `config`, which [`ModbusConfig::validate`] has accepted: nothing is checked
+    /// twice, and nothing fails.
+    pub(crate) fn build(config: ModbusConfig, now: Instant) -> Self {
+        let health = LinkHealth::build(config.health, now);
         let mut input = Vec::new();
-        input.resize(usize::from(config.input_len), 0).map_err(|_| {
-            ConfigError::out_of_range("input_len", u32::from(config.input_len), 0, as_u32(IMAGE_CAPACITY))
-        })?;
+        // validate() bounds input_len by IMAGE_CAPACITY.
+        let _ = input.resize(usize::from(config.input_len).min(IMAGE_CAPACITY), 0);
         let silence = config.serial.modbus_interframe_silence();
         let mut master = ModbusMaster {
             config,
@@ -318,7 +323,7 @@ impl ModbusMaster {
             silence,
         };
         master.start_cycle(now);
-        Ok(master)
+        master
     }
 
     /// The configuration.
