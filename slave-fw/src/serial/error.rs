@@ -95,9 +95,11 @@ impl FieldPath<'_> {
         let Some(i) = self.0.index else {
             return out.text(self.0.field);
         };
-        let (list, rest) = match self.0.field.split_once('.') {
-            Some((list, rest)) => (list, Some(rest)),
-            None => (self.0.field, None),
+        // A plain loop, not `split_once`: that would pull in `memchr` (flash).
+        let field = self.0.field;
+        let (list, rest) = match field.bytes().position(|b| b == b'.') {
+            Some(dot) => (field.get(..dot).unwrap_or(field), field.get(dot + 1..)),
+            None => (field, None),
         };
         out.text(list);
         out.text("[");

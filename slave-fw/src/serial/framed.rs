@@ -122,7 +122,8 @@ impl FramedConfig {
             return Err(EncodeError::DataLength(data.len()));
         }
         if let (LengthField::Delimited, Some(end)) = (self.length, self.end) {
-            if data.contains(&end) {
+            // A plain loop: `contains` on bytes would pull in `memchr` (flash).
+            if data.iter().any(|&b| b == end) {
                 return Err(EncodeError::DelimiterInData);
             }
         }

@@ -135,7 +135,8 @@ impl FramedProfileConfig {
             if let (LengthField::Delimited, Some(end), Some(frame)) =
                 (self.framing.length, self.framing.end, action.frame())
             {
-                if frame.contains(&end) {
+                // A plain loop: `contains` on bytes would pull in `memchr` (flash).
+                if frame.iter().any(|&b| b == end) {
                     return Err(ConfigError::conflict(field, "contains the end delimiter"));
                 }
             }
