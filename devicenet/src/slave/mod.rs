@@ -196,10 +196,18 @@ impl SlaveNode {
     /// A powered-off node for `config`. The input image starts as zeros.
     pub fn new(config: DeviceConfig) -> Result<SlaveNode, ConfigError> {
         config.validate()?;
+        Ok(SlaveNode::build(config))
+    }
+
+    /// The node for `config`, which [`DeviceConfig::validate`] has accepted. Out of line: the
+    /// large node is built in its return slot, not moved through the caller's `Result`
+    /// (firmware size budget).
+    #[inline(never)]
+    fn build(config: DeviceConfig) -> SlaveNode {
         let mut input = heapless::Vec::new();
         // validate() bounds the produced size by MAX_IO_SIZE, so this cannot fail.
         let _ = input.resize(usize::from(config.produced_size), 0);
-        Ok(SlaveNode {
+        SlaveNode {
             network: NetworkState::PoweredOff,
             powered_on_at: None,
             explicit: Connection::new(ConnectionKind::Explicit),
@@ -223,7 +231,7 @@ impl SlaveNode {
             module_indication: (Indication::Off, Instant::ZERO),
             stats: NodeStats::default(),
             config,
-        })
+        }
     }
 
     /// The configuration the node runs with.

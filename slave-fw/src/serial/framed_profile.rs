@@ -166,7 +166,9 @@ impl FramedProfile {
     }
 
     /// The profile for `config`, which [`FramedProfileConfig::validate`] has accepted: nothing
-    /// is checked twice, and nothing fails.
+    /// is checked twice, and nothing fails. Out of line: the large value is built in its return
+    /// slot, not copied piece by piece through the caller's frame (firmware size budget).
+    #[inline(never)]
     pub(crate) fn build(config: FramedProfileConfig, now: Instant) -> Self {
         let parser = FrameParser::build(config.framing);
         let sequencer = CommandSequencer::build(config.sequencer.clone());
