@@ -486,6 +486,9 @@ impl Reader<'_> {
         v
     }
 
+    // Out of line, like `framed` and `modbus`: the configuration is built in the return slot, not
+    // copied piece by piece through `decode` (firmware size budget).
+    #[inline(never)]
     fn config(&mut self) -> ConverterConfig {
         let vendor_id = self.u16();
         let device_type = self.u16();
@@ -549,6 +552,7 @@ impl Reader<'_> {
         config
     }
 
+    #[inline(never)]
     fn framed(&mut self) -> ProfileConfig {
         let serial = self.serial();
         let framing = self.framing();
@@ -584,6 +588,7 @@ impl Reader<'_> {
         })
     }
 
+    #[inline(never)]
     fn modbus(&mut self) -> ModbusConfig {
         let serial = self.serial();
         let response_timeout_ms = self.u32();
