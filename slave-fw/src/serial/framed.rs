@@ -117,6 +117,7 @@ impl FramedConfig {
     }
 
     /// Writes the frame carrying `data` to the start of `out` and returns its length.
+    #[allow(clippy::manual_contains)] // No `memchr` in the firmware (size budget).
     pub fn encode(&self, data: &[u8], out: &mut [u8]) -> Result<usize, EncodeError> {
         if !self.accepts_data_len(data.len()) {
             return Err(EncodeError::DataLength(data.len()));
