@@ -247,6 +247,9 @@ impl Converter {
     /// the stored image ([`crate::image::decode`] accepted it), or the factory default because the
     /// stored image was refused ([`ConfigOrigin::Fault`], reported by the configuration object,
     /// [`CONFIG_CLASS`] attributes 3 and 5). The image in force is `image::encode(&config)`.
+    // Out of line: the converter is built in the caller's return slot, not moved through it
+    // (firmware size budget).
+    #[inline(never)]
     pub fn with_origin(
         config: ConverterConfig,
         origin: ConfigOrigin,
