@@ -170,10 +170,8 @@ pub fn download(
     mac: MacId,
     description: &DeviceDescription,
 ) -> Result<DownloadReport, HarnessError> {
-    let mut buf = [0u8; slave_fw::image::MAX_IMAGE];
-    let len = slave_fw::image::encode(&description.converter, &mut buf)
+    let image = slave_fw::image::encode_to_vec(&description.converter)
         .map_err(|e| HarnessError::Usage(format!("the description cannot be encoded: {e}")))?;
-    let image = buf.get(..len).unwrap_or_default().to_vec();
     let mut report = DownloadReport { mac: mac.as_raw(), bytes: image.len(), ..DownloadReport::default() };
 
     master.open_explicit(mac)?;

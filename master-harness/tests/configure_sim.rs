@@ -114,9 +114,7 @@ fn meter_image() -> Vec<u8> {
         "slave-fw/descriptions/modbus-meter.toml",
     )))
     .unwrap();
-    let mut buf = [0u8; slave_fw::image::MAX_IMAGE];
-    let n = slave_fw::image::encode(&d.converter, &mut buf).unwrap();
-    buf[..n].to_vec()
+    slave_fw::image::encode_to_vec(&d.converter).unwrap()
 }
 
 #[test]

@@ -192,6 +192,15 @@ impl From<InvalidConfig> for ImageError {
     }
 }
 
+/// The image of `config` as a vector (host tools and tests; the device encodes into its own
+/// buffer with [`encode`]).
+#[cfg(any(test, feature = "std"))]
+pub fn encode_to_vec(config: &ConverterConfig) -> Result<std::vec::Vec<u8>, ImageError> {
+    let mut out = [0u8; MAX_IMAGE];
+    let len = encode(config, &mut out)?;
+    Ok(out.get(..len).unwrap_or_default().to_vec())
+}
+
 /// Writes the image of `config` into `out`; returns its length. The configuration is written as
 /// it is (its I/O sizes and switch readings excepted, see the module docs); [`decode`] checks it.
 pub fn encode(config: &ConverterConfig, out: &mut [u8]) -> Result<usize, ImageError> {

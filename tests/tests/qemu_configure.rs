@@ -308,8 +308,8 @@ fn a_downloaded_modbus_configuration_runs_and_survives_a_cut_download() {
     // breaker's image but the last, then the board loses power before Commit_Download.
     let breaker =
         DeviceDescription::load(&workspace_dir().join("slave-fw/descriptions/breaker.toml")).unwrap();
-    let mut buf = [0u8; slave_fw::image::MAX_IMAGE];
-    let len = slave_fw::image::encode(&breaker.converter, &mut buf).unwrap();
+    let image = slave_fw::image::encode_to_vec(&breaker.converter).unwrap();
+    let len = image.len();
     let sent = len.div_ceil(CHUNK) - 1;
     assert!(sent > 0, "the breaker's image takes more than one chunk");
     let (state, input_after_refusal) = with_master(&emulator.usart1, |m| {
@@ -325,7 +325,7 @@ fn a_downloaded_modbus_configuration_runs_and_survives_a_cut_download() {
             data: &size,
         };
         m.request_ok(mac(BOARD), Port::Explicit, &begin).map_err(text)?;
-        for (k, part) in buf[..len].chunks(CHUNK).take(sent).enumerate() {
+        for (k, part) in image.chunks(CHUNK).take(sent).enumerate() {
             let mut data = u16::try_from(k * CHUNK).unwrap().to_le_bytes().to_vec();
             data.extend_from_slice(part);
             let write = Request {
@@ -374,10 +374,7 @@ fn a_downloaded_modbus_configuration_runs_and_survives_a_cut_download() {
         download_time.as_secs_f64(),
         restart_time.as_secs_f64(),
         total.as_secs_f64(),
-        len_meter = {
-            let mut b = [0u8; slave_fw::image::MAX_IMAGE];
-            slave_fw::image::encode(&meter.converter, &mut b).unwrap()
-        },
+        len_meter = slave_fw::image::encode_to_vec(&meter.converter).unwrap().len(),
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -45,6 +45,8 @@ impl ServiceError {
     pub const INVALID_PARAMETER: ServiceError = ServiceError::new(GeneralStatus::InvalidParameter);
     /// 0x10 device state conflict.
     pub const DEVICE_STATE_CONFLICT: ServiceError = ServiceError::new(GeneralStatus::DeviceStateConflict);
+    /// 0x0C object state conflict.
+    pub const OBJECT_STATE_CONFLICT: ServiceError = ServiceError::new(GeneralStatus::ObjectStateConflict);
 
     /// Checks that `data` holds exactly `n` bytes (0x13 / 0x15 otherwise).
     pub fn expect_len(data: &[u8], n: usize) -> Result<(), ServiceError> {

@@ -298,9 +298,7 @@ fn modbus_image() -> Vec<u8> {
         profile: ProfileConfig::Modbus(ModbusConfig::new(scan.into_iter().collect())),
         ..ConverterConfig::breaker_reference()
     };
-    let mut out = [0u8; slave_fw::image::MAX_IMAGE];
-    let n = slave_fw::image::encode(&config, &mut out).unwrap();
-    out[..n].to_vec()
+    slave_fw::image::encode_to_vec(&config).unwrap()
 }
 
 #[test]

@@ -275,13 +275,12 @@ mod tests {
         let base = ConverterConfig::breaker_reference();
         let mut other = base.clone();
         other.device.identity.product_code = 42;
-        let mut buf = [0u8; slave_fw::image::MAX_IMAGE];
-        let n = slave_fw::image::encode(&other, &mut buf).unwrap();
+        let image = slave_fw::image::encode_to_vec(&other).unwrap();
         let mut state = StoredState::default();
-        state.set_image(&buf[..n]);
+        state.set_image(&image);
         let (c, origin) = state.apply(&base, None);
         assert_eq!((c.device.identity.product_code, origin), (42, ConfigOrigin::Stored));
-        state.set_image(&buf[..n - 1]);
+        state.set_image(&image[..image.len() - 1]);
         let (c, origin) = state.apply(&base, None);
         assert_eq!(c.device.identity.product_code, 1);
         assert!(matches!(origin, ConfigOrigin::Fault(_)), "{origin:?}");

@@ -272,7 +272,7 @@ impl ConfigObject {
                 let [which, lo, hi, count] = ServiceError::expect_array(data)?;
                 let image = match which {
                     0 => self.in_force.as_slice(),
-                    1 => self.pending().ok_or(OBJECT_STATE_CONFLICT)?,
+                    1 => self.pending().ok_or(ServiceError::OBJECT_STATE_CONFLICT)?,
                     _ => return Err(ServiceError::INVALID_PARAMETER),
                 };
                 if usize::from(count) > MAX_CHUNK {
@@ -301,7 +301,7 @@ impl ConfigObject {
                     return Err(ServiceError::DEVICE_STATE_CONFLICT);
                 }
                 let Staging::Downloading(size) = self.staging else {
-                    return Err(OBJECT_STATE_CONFLICT);
+                    return Err(ServiceError::OBJECT_STATE_CONFLICT);
                 };
                 if usize::from(u16::from_le_bytes(*offset)) != self.staged.len() {
                     return Err(ServiceError::INVALID_PARAMETER);
@@ -317,7 +317,7 @@ impl ConfigObject {
                 }
                 match self.staging {
                     Staging::Downloading(size) if usize::from(size) == self.staged.len() => {}
-                    _ => return Err(OBJECT_STATE_CONFLICT),
+                    _ => return Err(ServiceError::OBJECT_STATE_CONFLICT),
                 }
                 let platform_check = self.platform_check;
                 let checked = image::decode(&self.staged).and_then(|config| match platform_check {
@@ -356,9 +356,6 @@ impl ConfigObject {
     }
 }
 
-/// 0x0C object state conflict (devicenet-notes §3.3).
-const OBJECT_STATE_CONFLICT: ServiceError = ServiceError::new(GeneralStatus::ObjectStateConflict);
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -367,9 +364,7 @@ mod tests {
     use std::vec::Vec;
 
     fn image_of(config: &ConverterConfig) -> Vec<u8> {
-        let mut out = [0u8; MAX_IMAGE];
-        let n = image::encode(config, &mut out).unwrap();
-        out[..n].to_vec()
+        image::encode_to_vec(config).unwrap()
     }
 
     fn object() -> ConfigObject {

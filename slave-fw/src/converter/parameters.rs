@@ -63,7 +63,7 @@ use crate::image::{self, MAX_IMAGE};
 use crate::serial::{
     HealthConfig, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
 };
-use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
+use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;
 use devicenet::slave::{Reply, ServiceError};
 
@@ -307,9 +307,6 @@ impl Parameter {
     }
 }
 
-/// 0x0C object state conflict (devicenet-notes §3.3).
-const OBJECT_STATE_CONFLICT: ServiceError = ServiceError::new(GeneralStatus::ObjectStateConflict);
-
 /// Serves a request to [`PARAMETER_CLASS`]; `io_established` says whether an I/O (poll)
 /// connection is established. See the [module docs](self).
 pub(super) fn handle(
@@ -375,7 +372,7 @@ pub(super) fn handle(
     // A tool commissioning over a running poll connection is refused, as a download is
     // (§II.4.3: "object state conflict" while the I/O connection is established).
     if io_established {
-        return Err(OBJECT_STATE_CONFLICT);
+        return Err(ServiceError::OBJECT_STATE_CONFLICT);
     }
     if value < def.min || value > def.max || !p.write(&mut pending, value) || pending.check().is_err() {
         return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
@@ -389,7 +386,7 @@ pub(super) fn handle(
 /// The configuration in an image; `None` (the pending image is gone) and an image that does not
 /// decode (the image in force always does) are an object state conflict.
 fn decode(bytes: Option<&[u8]>) -> Result<ConverterConfig, ServiceError> {
-    bytes.and_then(|b| image::decode(b).ok()).ok_or(OBJECT_STATE_CONFLICT)
+    bytes.and_then(|b| image::decode(b).ok()).ok_or(ServiceError::OBJECT_STATE_CONFLICT)
 }
 
 /// A value of type `t`.
@@ -410,9 +407,7 @@ mod tests {
     use std::vec::Vec;
 
     fn image_of(config: &ConverterConfig) -> Vec<u8> {
-        let mut out = [0u8; MAX_IMAGE];
-        let n = image::encode(config, &mut out).unwrap();
-        out[..n].to_vec()
+        image::encode_to_vec(config).unwrap()
     }
 
     fn object_for(config: &ConverterConfig) -> ConfigObject {
