@@ -422,63 +422,10 @@ impl<D: SimDevice> SimDevice for SharedDevice<D> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bus::{Bitrate, Bus, BusEvent, Origin};
+    use crate::bus::{Bitrate, Bus, Origin};
     use crate::sim::{frame_bits, PowerOn, SimBus};
-    use std::collections::VecDeque;
 
-    type Log = Rc<RefCell<Vec<(Instant, CanFrame)>>>;
-
-    /// Sends its script at power-on, records what it receives and its bus-offs.
-    struct Node {
-        mac: MacId,
-        script: Vec<CanFrame>,
-        queue: VecDeque<CanFrame>,
-        received: Log,
-        bus_offs: Rc<RefCell<Vec<Instant>>>,
-    }
-
-    impl SimDevice for Node {
-        fn mac(&self) -> MacId {
-            self.mac
-        }
-        fn power_on(&mut self, _now: Instant) {
-            self.queue.extend(self.script.iter().copied());
-        }
-        fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
-            self.received.borrow_mut().push((now, *frame));
-        }
-        fn handle_timeout(&mut self, _now: Instant) {}
-        fn poll_transmit(&mut self) -> Option<CanFrame> {
-            self.queue.pop_front()
-        }
-        fn poll_at(&self) -> Option<Instant> {
-            None
-        }
-        fn handle_bus_off(&mut self, now: Instant) {
-            self.bus_offs.borrow_mut().push(now);
-        }
-    }
-
-    fn frame(id: u16, data: &[u8]) -> CanFrame {
-        CanFrame::from_raw(id, data).unwrap()
-    }
-
-    fn node(mac: u8, script: Vec<CanFrame>) -> (Box<Node>, Log, Rc<RefCell<Vec<Instant>>>) {
-        let received = Log::default();
-        let bus_offs = Rc::default();
-        let n = Node {
-            mac: MacId::new(mac).unwrap(),
-            script,
-            queue: VecDeque::new(),
-            received: Rc::clone(&received),
-            bus_offs: Rc::clone(&bus_offs),
-        };
-        (Box::new(n), received, bus_offs)
-    }
-
-    fn drain(bus: &mut SimBus, until: Instant) -> Vec<BusEvent> {
-        std::iter::from_fn(|| bus.recv(until).unwrap()).collect()
-    }
+    use crate::sim::scripted::{drain, frame, scripted as node};
 
     fn us_per_bit() -> u64 {
         4 // 250 kbit/s

@@ -29,6 +29,8 @@
 
 mod device;
 pub mod fault;
+#[cfg(test)]
+mod scripted;
 
 pub use device::{PowerOn, SimDevice};
 
@@ -637,53 +639,12 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    /// What a test device received, shared with the test.
-    type Received = std::rc::Rc<std::cell::RefCell<Vec<(Instant, CanFrame)>>>;
+    use super::scripted::{drain, frame, scripted, Log as Received, Scripted};
 
-    /// A device that sends the frames it is given at power-on, and records what it receives.
-    struct Talker {
-        mac: MacId,
-        script: Vec<CanFrame>,
-        queue: VecDeque<CanFrame>,
-        received: Received,
-    }
-
-    impl SimDevice for Talker {
-        fn mac(&self) -> MacId {
-            self.mac
-        }
-        fn power_on(&mut self, _now: Instant) {
-            self.queue.extend(self.script.iter().copied());
-        }
-        fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
-            self.received.borrow_mut().push((now, *frame));
-        }
-        fn handle_timeout(&mut self, _now: Instant) {}
-        fn poll_transmit(&mut self) -> Option<CanFrame> {
-            self.queue.pop_front()
-        }
-        fn poll_at(&self) -> Option<Instant> {
-            None
-        }
-    }
-
-    fn frame(id: u16, data: &[u8]) -> CanFrame {
-        CanFrame::from_raw(id, data).unwrap()
-    }
-
-    fn talker(mac: u8, script: Vec<CanFrame>) -> (Box<Talker>, Received) {
-        let received = std::rc::Rc::default();
-        let t = Talker {
-            mac: MacId::new(mac).unwrap(),
-            script,
-            queue: VecDeque::new(),
-            received: std::rc::Rc::clone(&received),
-        };
-        (Box::new(t), received)
-    }
-
-    fn drain(bus: &mut SimBus, until: Instant) -> Vec<BusEvent> {
-        std::iter::from_fn(|| bus.recv(until).unwrap()).collect()
+    /// A scripted device whose bus-offs these tests do not look at.
+    fn talker(mac: u8, script: Vec<CanFrame>) -> (Box<Scripted>, Received) {
+        let (device, received, _) = scripted(mac, script);
+        (device, received)
     }
 
     #[test]
