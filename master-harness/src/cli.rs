@@ -33,6 +33,7 @@ use master_core::error::MasterError;
 use master_core::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
 use master_core::session::Session;
 use serde_json::json;
+use slave_fw::converter::ConverterConfig;
 use slave_fw::description::DeviceDescription;
 use std::ffi::OsString;
 use std::io::Write;
@@ -307,18 +308,42 @@ pub enum Command {
     },
 }
 
-/// Opens the bus the options name: on `sim`, the simulated converters of `--slave-config` /
-/// `--slave-mac` / `--slave-power-on` ([`converter_sim::open_bus`], the one way every program opens
-/// a bus); with no `--slave-mac`, one device at `device` (the command's `--mac`). `replay_power_on`
-/// is when a replayed transcript's device powered on: a simulated device with the default power-on
-/// policy is powered on then.
+/// The description files a run reads, each read once, before the bus is touched.
+struct Descriptions {
+    /// `--slave-config`: the simulated devices' configuration.
+    slave: Option<DeviceDescription>,
+    /// The command's own description: `monitor --description`, `configure FILE`.
+    command: Option<DeviceDescription>,
+}
+
+impl Descriptions {
+    fn load(cli: &Cli) -> Result<Descriptions, HarnessError> {
+        let own = match &cli.command {
+            Command::Monitor { description: Some(path), .. }
+            | Command::Configure { description: Some(path), .. } => Some(path),
+            _ => None,
+        };
+        Ok(Descriptions {
+            slave: cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?,
+            command: own.map(|p| DeviceDescription::load(p)).transpose()?,
+        })
+    }
+}
+
+/// Opens the bus the options name: on `sim`, the simulated converters of `slave` (the
+/// `--slave-config` description, else the reference device) / `--slave-mac` / `--slave-power-on`
+/// ([`converter_sim::open_bus`], the one way every program opens a bus); with no `--slave-mac`,
+/// one device at `device` (the command's `--mac`). `replay_power_on` is when a replayed
+/// transcript's device powered on: a simulated device with the default power-on policy is powered
+/// on then.
 pub fn open_bus(
     cli: &Cli,
+    slave: Option<&ConverterConfig>,
     device: Option<MacId>,
     replay_power_on: Option<Duration>,
 ) -> Result<Box<dyn Bus>, HarnessError> {
-    let mut setup = match &cli.slave_config {
-        Some(path) => SimSetup::described(DeviceDescription::load(path)?.converter),
+    let mut setup = match slave {
+        Some(config) => SimSetup::described(config.clone()),
         None => SimSetup::reference(),
     };
     setup.macs = match (cli.slave_mac.is_empty(), device) {
@@ -411,25 +436,23 @@ where
 /// The device a command addresses when `--mac` is left out: the MAC of the description the
 /// command was given (`monitor --description`), else of `--slave-config`'s, else 5 (the reference
 /// converter's).
-fn default_device(cli: &Cli) -> Result<MacId, HarnessError> {
-    let own = match &cli.command {
-        Command::Monitor { description: Some(path), .. } => Some(path),
-        _ => None,
-    };
-    match own.or(cli.slave_config.as_ref()) {
-        Some(path) => Ok(DeviceDescription::load(path)?.converter.device.mac_id),
-        None => Ok(MacId::from_low_bits(5)),
-    }
+fn default_device(descriptions: &Descriptions) -> MacId {
+    descriptions
+        .command
+        .as_ref()
+        .or(descriptions.slave.as_ref())
+        .map_or(MacId::from_low_bits(5), |d| d.converter.device.mac_id)
 }
 
 /// The device the command addresses, with the defaults resolved.
-fn command_device(cli: &Cli, transcript: Option<&[LogEntry]>) -> Result<Option<MacId>, HarnessError> {
+fn command_device(
+    cli: &Cli,
+    descriptions: &Descriptions,
+    transcript: Option<&[LogEntry]>,
+) -> Result<Option<MacId>, HarnessError> {
     Ok(match &cli.command {
         Command::Connect { mac, .. } | Command::Monitor { mac, .. } | Command::Conformance { mac, .. } => {
-            Some(match mac {
-                Some(m) => *m,
-                None => default_device(cli)?,
-            })
+            Some(mac.unwrap_or_else(|| default_device(descriptions)))
         }
         Command::Get { mac, .. }
         | Command::Set { mac, .. }
@@ -478,14 +501,12 @@ fn master_mac(cli: &Cli, transcript: Option<&[LogEntry]>) -> Result<MacId, Harne
 /// `--slave-config` description or the reference device (which the simulated device then is), else
 /// (a real bus, nothing known of the device) raw bytes. `--slave-config` describes only the
 /// simulated devices, so on a real bus it does not choose the decoding.
-fn monitor_layout(cli: &Cli, description: Option<&std::path::Path>) -> Result<InputLayout, HarnessError> {
-    let config = match (description, &cli.slave_config, &cli.bus) {
-        (Some(path), _, _) => DeviceDescription::load(path)?.converter,
-        (None, Some(path), BusSpec::Sim) => DeviceDescription::load(path)?.converter,
-        (None, None, BusSpec::Sim) => DeviceDescription::reference().converter,
-        (None, _, _) => return Ok(InputLayout::raw()),
-    };
-    Ok(InputLayout::from_converter(&config))
+fn monitor_layout(cli: &Cli, descriptions: &Descriptions) -> InputLayout {
+    match (&descriptions.command, &descriptions.slave, &cli.bus) {
+        (Some(d), _, _) | (None, Some(d), BusSpec::Sim) => InputLayout::from_converter(&d.converter),
+        (None, None, BusSpec::Sim) => InputLayout::from_converter(&DeviceDescription::reference().converter),
+        (None, _, _) => InputLayout::raw(),
+    }
 }
 
 /// Creates an output file before the command touches the bus, so a path that cannot be written is
@@ -513,7 +534,8 @@ fn execute(
         Command::Replay { transcript, .. } => Some(read_log(transcript)?),
         _ => None,
     };
-    let device = command_device(cli, transcript.as_deref())?;
+    let descriptions = Descriptions::load(cli)?;
+    let device = command_device(cli, &descriptions, transcript.as_deref())?;
     let master_mac = master_mac(cli, transcript.as_deref())?;
     if device == Some(master_mac) {
         return Err(HarnessError::Usage(format!(
@@ -524,7 +546,8 @@ fn execute(
         (Some(mac), Some(entries)) => Some(replay::device_power_on(entries, mac)),
         _ => None,
     };
-    let mut bus = open_bus(cli, device, replay_power_on)?;
+    let slave = descriptions.slave.as_ref().map(|d| &d.converter);
+    let mut bus = open_bus(cli, slave, device, replay_power_on)?;
     if let Some(path) = &cli.pcap {
         let pcap = PcapWriter::create(path)
             .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
@@ -615,7 +638,7 @@ fn execute(
         Command::Set { mac, class, instance, attribute, value } => {
             explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0))
         }
-        Command::Monitor { epr, output, count, duration, reconnect, description, .. } => {
+        Command::Monitor { epr, output, count, duration, reconnect, .. } => {
             let duration = match duration {
                 Some(d) if !(d.is_finite() && *d >= 0.0) => {
                     return Err(HarnessError::Usage(format!("--duration {d}: expected seconds >= 0")))
@@ -638,7 +661,7 @@ fn execute(
                 duration,
                 in_place: console.stdout_terminal && !cli.json,
                 reconnect: *reconnect,
-                layout: monitor_layout(cli, description.as_deref())?,
+                layout: monitor_layout(cli, &descriptions),
             };
             let mut sink = std::io::sink();
             let screen: &mut dyn Write = if cli.json { &mut sink } else { &mut *out };
@@ -670,9 +693,11 @@ fn execute(
             }
         }
         Command::Configure { mac, description: Some(path), .. } => {
-            let description = DeviceDescription::load(path)?;
             progress.show(&format!("configure: downloading {} to MAC {mac} ...", path.display()));
-            let r = configure::download(&mut master, *mac, &description);
+            let r = match &descriptions.command {
+                Some(description) => configure::download(&mut master, *mac, description),
+                None => unreachable!("Descriptions::load reads configure's file"),
+            };
             progress.clear();
             r.map(|report| configure_outcome(&report, path))
         }
