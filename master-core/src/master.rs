@@ -399,6 +399,18 @@ impl<'s, 'b> Master<'s, 'b> {
         Ok(true)
     }
 
+    /// Drives `tx` to its end on the session ([`client::run`]); the frames that were not part of
+    /// the exchange are judged once it is over, in order ([`Master::other`]). For requests built
+    /// by the caller, e.g. sent as another master would.
+    pub fn run(&mut self, tx: &mut Transaction) -> Result<client::Outcome<usize>, MasterError> {
+        let mut deferred: Vec<usize> = Vec::new();
+        let outcome = client::run(self.session, tx, |_, i| deferred.push(i))?;
+        for i in deferred {
+            self.other(i)?;
+        }
+        Ok(outcome)
+    }
+
     /// Sends `request` to `target` and waits for the complete answer (fragmented both ways as
     /// needed). A timeout is an error naming the request and the timeout.
     pub fn request(
@@ -418,12 +430,7 @@ impl<'s, 'b> Master<'s, 'b> {
             format,
             self.config.response_timeout,
         )?;
-        let mut deferred: Vec<usize> = Vec::new();
-        let (outcome, record) = client::run(self.session, &mut tx, |_, i| deferred.push(i))?;
-        // Frames that were not part of the exchange are judged once it is over (in order).
-        for i in deferred {
-            self.other(i)?;
-        }
+        let (outcome, record) = self.run(&mut tx)?;
         self.last_record = record;
         match outcome {
             Ok(reply) => Ok(Answer { reply, record }),

@@ -12,7 +12,7 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, CanId, Duration, Group2Message, Identifier, Instant, MacId};
-use master_core::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
+use master_core::client::{ClientError, Port, Reply, ReplyBody, Transaction};
 use master_core::decode::{self, hex};
 use master_core::error::MasterError;
 use master_core::master::{Answer, Master, MasterConfig};
@@ -415,12 +415,7 @@ impl<'s, 'b> Runner<'s, 'b> {
             BodyFormat::Class8Instance8,
             self.m.config.response_timeout,
         )?;
-        let mut deferred = Vec::new();
-        let r = client::run(self.m.session, &mut tx, |_, i| deferred.push(i))?;
-        for i in deferred {
-            self.m.other(i)?;
-        }
-        Ok(r)
+        Ok(self.m.run(&mut tx)?)
     }
 
     /// Allocate_Master/Slave_Connection_Set of `choice` with `allocator`, as `allocator` (its MAC
