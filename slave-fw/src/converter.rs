@@ -247,19 +247,32 @@ impl Converter {
     /// the stored image ([`crate::image::decode`] accepted it), or the factory default because the
     /// stored image was refused ([`ConfigOrigin::Fault`], reported by the configuration object,
     /// [`CONFIG_CLASS`] attributes 3 and 5). The image in force is `image::encode(&config)`.
-    // Out of line: the converter is built in the caller's return slot, not moved through it
-    // (firmware size budget).
-    #[inline(never)]
     pub fn with_origin(
         config: ConverterConfig,
         origin: ConfigOrigin,
         now: Instant,
     ) -> Result<Converter, ConverterConfigError> {
-        // No `config.validate()` first: `SlaveNode::new` and `Profile::new` check their halves
-        // (the node's first), and a refused configuration builds nothing.
         let mut image = [0u8; crate::image::MAX_IMAGE];
         let len = crate::image::encode(&config, &mut image).unwrap_or(0);
-        let config_object = ConfigObject::new(image.get(..len).unwrap_or_default(), origin);
+        Converter::with_image(config, origin, image.get(..len).unwrap_or_default(), now)
+    }
+
+    /// [`Converter::with_origin`] for a configuration read from `image`, which is the image in
+    /// force as a tool reads it back (Read_Chunk, attributes 2 and 4): the firmware runs its
+    /// stored image, or [`image::BREAKER_REFERENCE`](crate::image::BREAKER_REFERENCE), with the
+    /// MAC ID and data rate of its switches, and carries no encoder.
+    // Out of line: the converter is built in the caller's return slot, not moved through it
+    // (firmware size budget).
+    #[inline(never)]
+    pub fn with_image(
+        config: ConverterConfig,
+        origin: ConfigOrigin,
+        image: &[u8],
+        now: Instant,
+    ) -> Result<Converter, ConverterConfigError> {
+        // No `config.validate()` first: `SlaveNode::new` and `Profile::new` check their halves
+        // (the node's first), and a refused configuration builds nothing.
+        let config_object = ConfigObject::new(image, origin);
         let node = SlaveNode::new(config.device_config()).map_err(ConverterConfigError::Device)?;
         config.profile.validate().map_err(ConverterConfigError::Profile)?;
         let mut converter = Converter {

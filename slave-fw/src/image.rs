@@ -85,6 +85,110 @@ pub const HEADER_LEN: usize = 7;
 /// Trailer bytes: the CRC-32.
 pub const CRC_LEN: usize = 4;
 
+/// The image of the factory default, [`ConverterConfig::breaker_reference`] (a test holds it equal
+/// to its encoding): the firmware boots from these bytes when nothing valid is stored, so it
+/// carries neither an encoder nor the code that builds the reference configuration.
+pub const BREAKER_REFERENCE: [u8; 98] = [
+    b'D',
+    b'N',
+    b'C',
+    b'I',
+    IMAGE_VERSION,
+    87,
+    0, // header: body of 87 bytes
+    0x34,
+    0x12,
+    0x0C,
+    0x00,
+    0x01,
+    0x00,
+    1,
+    1, // vendor 0x1234, device type 0x0C, product 1, rev 1.1
+    0x78,
+    0x56,
+    0x34,
+    0x12,
+    23, // serial number 0x12345678, product name of 23 bytes
+    b'S',
+    b'e',
+    b'r',
+    b'i',
+    b'a',
+    b'l',
+    b'-',
+    b'D',
+    b'e',
+    b'v',
+    b'i',
+    b'c',
+    b'e',
+    b'N',
+    b'e',
+    b't',
+    b' ',
+    b'B',
+    b'r',
+    b'i',
+    b'd',
+    b'g',
+    b'e', //
+    5,
+    1,
+    0,
+    0,
+    1,
+    0, // MAC 5, 250 kbit/s, port 0, flags 0, EPR resolution 1 ms
+    0,
+    0, // input assembly 100; profile framed
+    0x80,
+    0x25,
+    0,
+    0,
+    0, // serial 9600 baud, 8N1
+    0x68,
+    0,
+    0,
+    1,
+    0x16,
+    1,
+    18, // framing: start 0x68, length byte, end 0x16, sum8, max 18
+    18,
+    1,
+    2,
+    0x80,
+    0, // status 18 bytes; ack: 2 data bytes, flag 0x80, ok status 0
+    4,
+    1,
+    1,
+    0,
+    2,
+    2,
+    0,
+    3,
+    3,
+    3,
+    4,
+    4,
+    0, // four commands: code, wire code, argument bytes
+    0xF4,
+    0x01,
+    0,
+    0,
+    2,
+    1,
+    0,
+    0, // sequencer: 500 ms, 2 retries, execute first, no idle/fault frames
+    0xB8,
+    0x0B,
+    0,
+    0,
+    0, // health: stale after 3000 ms, hold last value
+    0xED,
+    0x08,
+    0x0D,
+    0x0A, // CRC-32
+];
+
 /// The CRC-32 of the image (IEEE 802.3 / zlib: `"123456789"` gives `0xCBF43926`), computed bit by
 /// bit: the smallest code, fast enough for a few hundred bytes.
 const CRC32: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
@@ -228,6 +332,27 @@ pub fn encode(config: &ConverterConfig, out: &mut [u8]) -> Result<usize, ImageEr
 /// checks the configuration ([`ConverterConfig::check`]). The returned configuration's I/O sizes
 /// and assembly instances are derived from its profile.
 pub fn decode(bytes: &[u8]) -> Result<ConverterConfig, ImageError> {
+    decode_with_layout(bytes).map(|(config, _)| config)
+}
+
+/// Where the values a Parameter object Set changes lie in an image
+/// ([`decode_with_layout`]): offsets from the image's first byte.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Layout {
+    /// The serial settings: baud u32, then the format byte.
+    pub serial: u16,
+    /// The input assembly byte (0 plain = 100, 1 with status = 101).
+    pub input: u16,
+    /// The response timeout u32, then the retries u8, then (Modbus only) the poll period u32.
+    pub timing: u16,
+    /// The health settings: stale timeout u32, then the stale policy byte (0 hold, 1 clear).
+    pub health: u16,
+}
+
+/// [`decode`], and where the settings the Parameter object edits lie in `bytes`
+/// ([`Layout`]): a Set writes the new value there, [`reseal`]s the image and decodes it again, so
+/// the device needs no encoder (`converter::parameters`).
+pub fn decode_with_layout(bytes: &[u8]) -> Result<(ConverterConfig, Layout), ImageError> {
     if bytes.len() < HEADER_LEN + CRC_LEN {
         return Err(ImageError::Truncated(bytes.len()));
     }
@@ -257,7 +382,7 @@ pub fn decode(bytes: &[u8]) -> Result<ConverterConfig, ImageError> {
         return Err(ImageError::CrcMismatch { stated, computed });
     }
     let body = covered.get(HEADER_LEN..).unwrap_or_default();
-    let mut reader = Reader { body, pos: 0, bad: None, invalid: None };
+    let mut reader = Reader { body, pos: 0, bad: None, invalid: None, layout: Layout::default() };
     let config = reader.config();
     if let Some(offset) = reader.bad {
         return Err(ImageError::Malformed { offset: u16::try_from(offset).unwrap_or(u16::MAX) });
@@ -266,7 +391,15 @@ pub fn decode(bytes: &[u8]) -> Result<ConverterConfig, ImageError> {
         return Err(ImageError::Invalid(e));
     }
     config.check()?;
-    Ok(config)
+    Ok((config, reader.layout))
+}
+
+/// Seals an image whose body was changed in place (same length): writes the CRC of everything
+/// before the trailer into the trailer. Too short an image is left as it is.
+pub fn reseal(image: &mut [u8]) {
+    if let Some((covered, trailer)) = image.split_last_chunk_mut::<CRC_LEN>() {
+        *trailer = crc32(covered).to_le_bytes();
+    }
 }
 
 /// The body writer: bytes past the end of `out` are counted, not written, so [`encode`] can
@@ -439,9 +572,16 @@ struct Reader<'a> {
     /// ID or baud rate code out of range): reported after [`Reader::bad`]. Recorded instead of
     /// returned, so the configuration is not moved through a `Result`.
     invalid: Option<InvalidConfig>,
+    /// Where the Parameter object's settings were read.
+    layout: Layout,
 }
 
 impl Reader<'_> {
+    /// The image offset of the next field (for [`Layout`]).
+    fn here(&self) -> u16 {
+        u16::try_from(HEADER_LEN + self.pos).unwrap_or(u16::MAX)
+    }
+
     // Out of line: one call at each unreadable field instead of the `get_or_insert`.
     #[inline(never)]
     fn fail(&mut self, at: usize) {
@@ -511,6 +651,7 @@ impl Reader<'_> {
         let port = self.u8();
         let flags = self.code(4);
         let epr_resolution_ms = self.u16();
+        self.layout.input = self.here();
         let input = if self.flag() { InputAssembly::WithStatus } else { InputAssembly::Plain };
         let profile = if self.flag() { ProfileConfig::Modbus(self.modbus()) } else { self.framed() };
         if self.pos != self.body.len() {
@@ -578,6 +719,7 @@ impl Reader<'_> {
                 self.fail(self.pos - 3);
             }
         }
+        self.layout.timing = self.here();
         let sequencer = SequencerConfig {
             response_timeout_ms: self.u32(),
             retries: self.u8(),
@@ -600,6 +742,7 @@ impl Reader<'_> {
     #[inline(never)]
     fn modbus(&mut self) -> ModbusConfig {
         let serial = self.serial();
+        self.layout.timing = self.here();
         let response_timeout_ms = self.u32();
         let retries = self.u8();
         let poll_period_ms = self.u32();
@@ -635,6 +778,7 @@ impl Reader<'_> {
     }
 
     fn serial(&mut self) -> SerialSettings {
+        self.layout.serial = self.here();
         let baud = self.u32();
         let format = self.code(16);
         let parity = match (format >> 1) & 3 {
@@ -674,6 +818,7 @@ impl Reader<'_> {
     }
 
     fn health(&mut self) -> HealthConfig {
+        self.layout.health = self.here();
         let stale_timeout_ms = self.u32();
         let stale_policy = if self.flag() { StalePolicy::Clear } else { StalePolicy::HoldLastValue };
         HealthConfig { stale_timeout_ms, stale_policy }
@@ -745,7 +890,7 @@ mod tests {
     }
 
     /// Re-seals a modified image: fixes the body length and the CRC.
-    fn reseal(mut bytes: Vec<u8>) -> Vec<u8> {
+    fn resealed(mut bytes: Vec<u8>) -> Vec<u8> {
         bytes.truncate(bytes.len() - CRC_LEN);
         let body = u16::try_from(bytes.len() - HEADER_LEN).unwrap();
         bytes[5..7].copy_from_slice(&body.to_le_bytes());
@@ -771,6 +916,46 @@ mod tests {
         }
         c.device = c.device_config();
         c
+    }
+
+    #[test]
+    fn the_breaker_reference_image_is_the_encoding_of_the_reference() {
+        let encoded = image(&ConverterConfig::breaker_reference());
+        assert_eq!(BREAKER_REFERENCE.as_slice(), encoded, "update BREAKER_REFERENCE to {encoded:?}");
+        assert_eq!(decode(&BREAKER_REFERENCE).unwrap(), breaker());
+    }
+
+    #[test]
+    fn the_layout_points_at_the_parameter_values() {
+        let (_, l) = decode_with_layout(&BREAKER_REFERENCE).unwrap();
+        let at = |o: u16, n: usize| &BREAKER_REFERENCE[usize::from(o)..usize::from(o) + n];
+        assert_eq!(at(l.serial, 5), [0x80, 0x25, 0, 0, 0], "9600 baud, 8N1");
+        assert_eq!(at(l.input, 1), [0]);
+        assert_eq!(at(l.timing, 5), [0xF4, 0x01, 0, 0, 2], "500 ms, 2 retries");
+        assert_eq!(at(l.health, 5), [0xB8, 0x0B, 0, 0, 0], "3000 ms, hold");
+        let meter = image(&modbus_meter());
+        let (config, l) = decode_with_layout(&meter).unwrap();
+        let ProfileConfig::Modbus(m) = config.profile else { panic!("a Modbus gateway") };
+        let u32_at =
+            |o: u16| u32::from_le_bytes(meter[usize::from(o)..usize::from(o) + 4].try_into().unwrap());
+        assert_eq!(u32_at(l.serial), m.serial.baud);
+        assert_eq!(meter[usize::from(l.input)], 1, "with status");
+        assert_eq!(u32_at(l.timing), m.response_timeout_ms);
+        assert_eq!(meter[usize::from(l.timing) + 4], m.retries);
+        assert_eq!(u32_at(l.timing + 5), m.poll_period_ms);
+        assert_eq!(u32_at(l.health), m.health.stale_timeout_ms);
+        assert_eq!(meter[usize::from(l.health) + 4], 1, "clear");
+    }
+
+    #[test]
+    fn reseal_writes_the_crc_of_the_changed_bytes() {
+        let mut bytes = BREAKER_REFERENCE;
+        bytes[usize::from(decode_with_layout(&bytes).unwrap().1.timing) + 4] = 3;
+        assert!(matches!(decode(&bytes), Err(ImageError::CrcMismatch { .. })));
+        reseal(&mut bytes);
+        let ProfileConfig::Framed(f) = decode(&bytes).unwrap().profile else { panic!("framed") };
+        assert_eq!(f.sequencer.retries, 3);
+        reseal(&mut [0u8; 3]);
     }
 
     #[test]
@@ -829,11 +1014,11 @@ mod tests {
         // The profile kind byte (after 12 + 1 + 23 identity bytes, 6 network bytes, 1 io byte).
         let mut bytes = image(&breaker());
         bytes[HEADER_LEN + 43] = 7;
-        assert_eq!(decode(&reseal(bytes)), Err(ImageError::Malformed { offset: 43 }));
+        assert_eq!(decode(&resealed(bytes)), Err(ImageError::Malformed { offset: 43 }));
         // A byte left over.
         let mut bytes = image(&breaker());
         bytes.insert(bytes.len() - CRC_LEN, 0);
-        assert_eq!(decode(&reseal(bytes)), Err(ImageError::Malformed { offset: 87 }));
+        assert_eq!(decode(&resealed(bytes)), Err(ImageError::Malformed { offset: 87 }));
     }
 
     #[test]
@@ -841,7 +1026,7 @@ mod tests {
         let mut bytes = image(&breaker());
         // The MAC ID follows the 36 identity bytes.
         bytes[HEADER_LEN + 36] = 70;
-        let e = decode(&reseal(bytes)).unwrap_err();
+        let e = decode(&resealed(bytes)).unwrap_err();
         assert_eq!(e, ImageError::Invalid(InvalidConfig::MacId(70)));
         assert_eq!(e.to_string(), "network.mac_id: 70 is outside 0..=63");
 
@@ -1027,7 +1212,7 @@ mod tests {
             let mut bytes = image(&modbus_meter());
             let at = at % bytes.len();
             bytes[at] ^= xor;
-            let bytes = if seal && at >= HEADER_LEN && at < bytes.len() - CRC_LEN { reseal(bytes) } else { bytes };
+            let bytes = if seal && at >= HEADER_LEN && at < bytes.len() - CRC_LEN { resealed(bytes) } else { bytes };
             if let Ok(c) = decode(&bytes) {
                 prop_assert_eq!(c.check(), Ok(()));
             }

@@ -61,29 +61,29 @@ pub fn boot(resolved: &Resolved, stored: &Settings, now: Instant) -> Boot {
     let origin = if stored.image.is_empty() {
         ConfigOrigin::FactoryDefault
     } else {
-        match image::decode(&stored.image)
-            .and_then(|config| start(config, ConfigOrigin::Stored, resolved, stored, now))
-        {
+        match start(&stored.image, ConfigOrigin::Stored, resolved, stored, now) {
             Ok(boot) => return boot,
             Err(e) => ConfigOrigin::Fault(e),
         }
     };
     // The factory default is the reference converter, which always starts (a host test proves it).
-    match start(ConverterConfig::breaker_reference(), origin, resolved, stored, now) {
+    match start(&image::BREAKER_REFERENCE, origin, resolved, stored, now) {
         Ok(boot) => boot,
         Err(_) => panic!("factory configuration refused"),
     }
 }
 
-/// A converter for `config` from `origin` with the network settings of `resolved` and `stored`,
-/// and its serial line, if both the converter and the USART take it.
+/// A converter for the configuration in `image` from `origin` with the network settings of
+/// `resolved` and `stored`, and its serial line, if the image decodes and both the converter and
+/// the USART take it. The image in force is `image` as it is.
 fn start(
-    mut config: ConverterConfig,
+    image: &[u8],
     origin: ConfigOrigin,
     resolved: &Resolved,
     stored: &Settings,
     now: Instant,
 ) -> Result<Boot, ImageError> {
+    let mut config = image::decode(image)?;
     config.device.mac_id = resolved.mac_id;
     config.device.baud_rate = resolved.baud_rate;
     config.device.switches = resolved.switches;
@@ -91,7 +91,7 @@ fn start(
     usart_makes_the_line(&config).map_err(ImageError::Invalid)?;
     let line = line_format(config.profile.serial());
     let modbus = matches!(config.profile, ProfileConfig::Modbus(_));
-    let mut converter = Converter::with_origin(config, origin, now).map_err(|e| {
+    let mut converter = Converter::with_image(config, origin, image, now).map_err(|e| {
         ImageError::Invalid(match e {
             ConverterConfigError::Profile(error) => InvalidConfig::Profile { modbus, error },
             ConverterConfigError::Device(e) => InvalidConfig::Io(e),
@@ -99,10 +99,6 @@ fn start(
     })?;
     // A download this board cannot run is refused at once, not found out at the next reset.
     converter.set_platform_check(usart_makes_the_line);
-    if origin == ConfigOrigin::Stored {
-        // The network values above are the switches'; the image in force is the one stored.
-        converter.set_image_in_force(&stored.image);
-    }
     Ok(Boot { converter, line, origin })
 }
 

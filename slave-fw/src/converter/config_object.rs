@@ -319,12 +319,7 @@ impl ConfigObject {
                     Staging::Downloading(size) if usize::from(size) == self.staged.len() => {}
                     _ => return Err(ServiceError::OBJECT_STATE_CONFLICT),
                 }
-                let platform_check = self.platform_check;
-                let checked = image::decode(&self.staged).and_then(|config| match platform_check {
-                    Some(check) => check(&config).map_err(ImageError::Invalid),
-                    None => Ok(()),
-                });
-                match checked {
+                match self.check(&self.staged) {
                     Ok(()) => {
                         self.accept();
                         Ok(())
@@ -340,6 +335,16 @@ impl ConfigObject {
                     }
                 }
             }
+        }
+    }
+
+    /// Whether `image` may be stored: it decodes ([`image::decode`], which checks the
+    /// configuration) and the platform can run it ([`PlatformCheck`]).
+    pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
+        let config = image::decode(image)?;
+        match self.platform_check {
+            Some(check) => check(&config).map_err(ImageError::Invalid),
+            None => Ok(()),
         }
     }
 

@@ -33,8 +33,9 @@
 //!
 //! Nothing applies at once. A Set changes the **pending** configuration: the image a download or
 //! an earlier Set left for the next reset, or else the image in force. The new value is written
-//! into it, the whole configuration is checked again ([`ConverterConfig::check`]), encoded
-//! ([`image::encode`]) and handed to the application exactly as an accepted download is
+//! into its bytes ([`Parameter::patch`]), the image is decoded and checked again as a download is
+//! ([`image::decode`], [`ConverterConfig::check`], the platform's check) and handed to the
+//! application exactly as an accepted download is
 //! ([`Converter::poll_new_image`](super::Converter::poll_new_image), configuration object state 2
 //! "pending"); it is in force from the next reset. So attribute 1 (value) answers the pending
 //! value, what a tool just wrote and what the device will run with; attribute 12 (default) is the
@@ -58,14 +59,13 @@
 
 use super::config_object::ConfigObject;
 use super::objects::{AttributeType, SettingsAttribute, SettingsValues};
-use super::{ConverterConfig, InputAssembly};
-use crate::image::{self, MAX_IMAGE};
-use crate::serial::{
-    HealthConfig, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
-};
+use super::ConverterConfig;
+use crate::image::{self, Layout, MAX_IMAGE};
+use crate::serial::{HealthConfig, ProfileConfig, SequencerConfig, SerialSettings};
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;
 use devicenet::slave::{Reply, ServiceError};
+use heapless::Vec;
 
 /// The Parameter object class (devicenet-notes §II.4).
 pub const PARAMETER_CLASS: u16 = 0x0F;
@@ -257,9 +257,54 @@ impl Parameter {
         }
     }
 
+    /// Writes `value`, already within the definition's range and [settable](Parameter::settable),
+    /// into `image` at its place in `layout` ([`image::decode_with_layout`]). The caller
+    /// [`image::reseal`]s the image and decodes it again: the device changes a setting without an
+    /// encoder of the whole configuration.
+    pub fn patch(self, image: &mut [u8], layout: &Layout, value: u32) {
+        let [v0, ..] = value.to_le_bytes();
+        let (at, bytes): (u16, &[u8]) = match self {
+            Parameter::SerialBaud => (layout.serial, &value.to_le_bytes()),
+            Parameter::SerialParity | Parameter::SerialStopBits => {
+                // The format byte: bits 1-2 parity (0 none, 1 even, 2 odd), bit 3 two stop bits.
+                let at = layout.serial + 4;
+                let format = image.get(usize::from(at)).copied().unwrap_or(0);
+                let format = if self == Parameter::SerialParity {
+                    let code = match value {
+                        0 => 0,
+                        1 => 2,
+                        _ => 1,
+                    };
+                    format & !0b110 | code << 1
+                } else if value == 2 {
+                    format | 0b1000
+                } else {
+                    format & !0b1000
+                };
+                (at, &[format])
+            }
+            Parameter::StaleTimeout => (layout.health, &value.to_le_bytes()),
+            Parameter::StalePolicy => (layout.health + 4, &[v0]),
+            Parameter::InputAssembly => {
+                (layout.input, &[u8::from(value != u32::from(super::PLAIN_INPUT_ASSEMBLY))])
+            }
+            Parameter::ResponseTimeout => (layout.timing, &value.to_le_bytes()),
+            Parameter::Retries => (layout.timing + 4, &[v0]),
+            Parameter::PollPeriod => (layout.timing + 5, &value.to_le_bytes()),
+        };
+        let at = usize::from(at);
+        if let Some(dst) = image.get_mut(at..at + bytes.len()) {
+            dst.copy_from_slice(bytes);
+        }
+    }
+
     /// Writes `value`, already within the definition's range, into `config`; `false` when it
-    /// cannot be set there (the poll period of a framed instrument).
+    /// cannot be set there (the poll period of a framed instrument). The tests' oracle for
+    /// [`Parameter::patch`].
+    #[cfg(test)]
     pub fn write(self, config: &mut ConverterConfig, value: u32) -> bool {
+        use super::InputAssembly;
+        use crate::serial::{Parity, StalePolicy, StopBits};
         let (serial, health, timeout, retries, period) = match &mut config.profile {
             ProfileConfig::Framed(f) => {
                 let s = &mut f.sequencer;
@@ -359,7 +404,10 @@ pub(super) fn handle(
         2..=12 => return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
         _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
     }
-    let mut pending = decode(config.base())?;
+    let base = config.base().ok_or(ServiceError::OBJECT_STATE_CONFLICT)?;
+    let (pending, layout) =
+        image::decode_with_layout(base).map_err(|_| ServiceError::OBJECT_STATE_CONFLICT)?;
+    let mut patched: Vec<u8, MAX_IMAGE> = Vec::from_slice(base).unwrap_or_default();
     if !p.settable(&pending) {
         return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE);
     }
@@ -374,12 +422,14 @@ pub(super) fn handle(
     if io_established {
         return Err(ServiceError::OBJECT_STATE_CONFLICT);
     }
-    if value < def.min || value > def.max || !p.write(&mut pending, value) || pending.check().is_err() {
+    if value < def.min || value > def.max {
         return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
     }
-    let mut out = [0u8; MAX_IMAGE];
-    let len = image::encode(&pending, &mut out).map_err(|_| ServiceError::INVALID_ATTRIBUTE_VALUE)?;
-    config.stage(out.get(..len).unwrap_or_default());
+    // The whole configuration is checked again, as a download is (the platform's check too).
+    p.patch(&mut patched, &layout, value);
+    image::reseal(&mut patched);
+    config.check(&patched).map_err(|_| ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+    config.stage(&patched);
     Ok(())
 }
 
@@ -403,11 +453,39 @@ mod tests {
     use super::*;
     use crate::converter::{ConfigOrigin, ConfigState, ConverterConfig};
     use crate::serial::modbus::{Function, ModbusConfig, ScanEntry};
+    use crate::serial::Parity;
     use rstest::rstest;
     use std::vec::Vec;
 
     fn image_of(config: &ConverterConfig) -> Vec<u8> {
         image::encode_to_vec(config).unwrap()
+    }
+
+    #[test]
+    fn patch_writes_what_write_writes_for_every_value_of_every_parameter() {
+        for config in [ConverterConfig::breaker_reference(), modbus()] {
+            let base = image_of(&config);
+            let (_, layout) = image::decode_with_layout(&base).unwrap();
+            for d in PARAMETERS.iter().filter(|d| d.parameter.settable(&config)) {
+                let values = [d.min, d.max, (d.min + d.max) / 2, d.min + 1, d.max.saturating_sub(1)];
+                for v in values {
+                    let mut expected = config.clone();
+                    assert!(d.parameter.write(&mut expected, v));
+                    let mut patched = base.clone();
+                    d.parameter.patch(&mut patched, &layout, v);
+                    image::reseal(&mut patched);
+                    match expected.check() {
+                        Ok(()) => {
+                            expected.device = expected.device_config();
+                            assert_eq!(image::decode(&patched), Ok(expected), "{:?} = {v}", d.parameter);
+                        }
+                        Err(e) => {
+                            assert_eq!(image::decode(&patched), Err(e.into()), "{:?} = {v}", d.parameter)
+                        }
+                    }
+                }
+            }
+        }
     }
 
     fn object_for(config: &ConverterConfig) -> ConfigObject {
