@@ -456,8 +456,9 @@ impl ModbusMaster {
             }
             let rx = core::mem::take(&mut self.rx);
             self.awaiting = None;
-            match Response::parse(rx.get(..len).unwrap_or(&[])) {
-                Ok((_, response)) => self.on_response(t, &response, now),
+            let adu = rx.get(..len).unwrap_or(&[]);
+            match Response::parse(adu) {
+                Ok((_, response)) => self.on_response(t, adu, &response, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
                     self.attempt_failed(t, false);
@@ -471,7 +472,8 @@ impl ModbusMaster {
         }
     }
 
-    fn on_response(&mut self, t: Transaction, response: &Response<'_>, now: Instant) {
+    /// Handles `response`, parsed from `adu`, to the transaction `t`.
+    fn on_response(&mut self, t: Transaction, adu: &[u8], response: &Response<'_>, now: Instant) {
         let Job::Entry(i) = t.job else {
             // The idle/fault frame: any well-formed answer will do.
             self.health.on_frame(now);
@@ -494,7 +496,19 @@ impl ModbusMaster {
             self.finish_entry(i);
             return;
         }
-        let answers = Request::parse(&self.tx).is_ok_and(|(_, request)| response.answers(&request));
+        // What `Response::answers` checks, against the request still in `tx` instead of parsing
+        // it again (firmware size): the same unit and function, then the data length the entry's
+        // quantity calls for, or the echo of the written address and value or quantity (§6.5,
+        // §6.6, §6.11, §6.12: the first six bytes of the request).
+        let echo = if entry.function.is_write() { 6 } else { 2 };
+        let answers = adu.get(..echo).is_some_and(|a| self.tx.get(..echo) == Some(a))
+            && match *response {
+                Response::ReadCoils(d)
+                | Response::ReadDiscreteInputs(d)
+                | Response::ReadHoldingRegisters(d)
+                | Response::ReadInputRegisters(d) => d.len() == entry.image_len(),
+                _ => true,
+            };
         if !answers {
             self.health.on_framing_error();
             self.attempt_failed(t, false);
@@ -1144,6 +1158,25 @@ mod tests {
         assert_eq!(&m.input_image()[..2], &[0x02, 0x01]);
         assert_eq!(m.stats().discarded_bytes, 4);
         assert_eq!(s.requests.len(), 2);
+    }
+
+    // Well-formed responses that do not answer the request: a framing error, and the same
+    // request again.
+    #[rstest]
+    #[case::read_byte_count(false, &[0x01, 0x03, 0x02, 0x00, 0x07])]
+    #[case::write_address(true, &[0x01, 0x10, 0x00, 0x0B, 0x00, 0x02])]
+    #[case::write_quantity(true, &[0x01, 0x10, 0x00, 0x0A, 0x00, 0x01])]
+    fn response_that_does_not_answer_is_retried(#[case] write: bool, #[case] body: &[u8]) {
+        let mut m = master(config());
+        if write {
+            m.set_outputs(&[1, 0, 0, 0, 0], ms(0));
+        }
+        let request = m.poll_transmit(ms(0)).unwrap().to_vec();
+        let mut response = body.to_vec();
+        response.extend_from_slice(&crate::serial::checksum::crc16_modbus(body).to_le_bytes());
+        m.on_bytes(&response, ms(5));
+        assert_eq!((m.stats().framing_errors, m.stats().frames_received), (1, 0));
+        assert_eq!(m.poll_transmit(ms(10)), Some(request.as_slice()));
     }
 
     #[test]
