@@ -459,7 +459,7 @@ impl ModbusMaster {
             self.awaiting = None;
             let adu = rx.get(..len).unwrap_or(&[]);
             match Response::parse(adu) {
-                Ok((_, response)) => self.on_response(t, adu, &response, now),
+                Ok(_) => self.on_response(t, adu, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
                     self.attempt_failed(t, false);
@@ -473,61 +473,52 @@ impl ModbusMaster {
         }
     }
 
-    /// Handles `response`, parsed from `adu`, to the transaction `t`.
-    fn on_response(&mut self, t: Transaction, adu: &[u8], response: &Response<'_>, now: Instant) {
+    /// Handles `adu`, a response to the transaction `t` that [`Response::parse`] accepts and that
+    /// starts with `t`'s unit and function. Read from its bytes rather than from the parsed
+    /// [`Response`]: the values are at fixed places, and matching on the parsed enum costs flash.
+    fn on_response(&mut self, t: Transaction, adu: &[u8], now: Instant) {
         let Job::Entry(i) = t.job else {
             // The idle/fault frame: any well-formed answer will do.
             self.health.on_frame(now);
             return;
         };
-        let Some(entry) = self.entry(i) else {
+        let (Some(entry), &[_, function, byte2, ..]) = (self.entry(i), adu) else {
             return;
         };
-        if let Response::Exception { code, .. } = *response {
+        let write = entry.function.is_write();
+        if function & 0x80 != 0 {
+            // An exception: byte 2 is its code (§7).
             self.health.on_frame(now);
             let stats = self.health.stats_mut();
             bump(&mut stats.modbus_exceptions);
             self.exception.current = true;
-            self.last_exception = Some((i, code));
-            if entry.function.is_write() {
+            self.last_exception = Some((i, ExceptionCode::from(byte2)));
+            if write {
                 bump(&mut self.health.stats_mut().commands_rejected);
-                self.write_outcome = CommandOutcome::Rejected(code.as_raw());
+                self.write_outcome = CommandOutcome::Rejected(byte2);
                 self.write_failed(i);
             }
             self.finish_entry(i);
             return;
         }
         // What `Response::answers` checks, against the request still in `tx` instead of parsing
-        // it again (firmware size): the same unit and function, then the data length the entry's
-        // quantity calls for, or the echo of the written address and value or quantity (§6.5,
-        // §6.6, §6.11, §6.12: the first six bytes of the request).
-        let echo = if entry.function.is_write() { 6 } else { 2 };
+        // it again: the same unit and function, then the byte count (byte 2) the entry's quantity
+        // calls for, or the echo of the written address and value or quantity (§6.5, §6.6,
+        // §6.11, §6.12: the first six bytes of the request).
+        let echo = if write { 6 } else { 2 };
         let answers = adu.get(..echo).is_some_and(|a| self.tx.get(..echo) == Some(a))
-            && match *response {
-                Response::ReadCoils(d)
-                | Response::ReadDiscreteInputs(d)
-                | Response::ReadHoldingRegisters(d)
-                | Response::ReadInputRegisters(d) => d.len() == entry.image_len(),
-                _ => true,
-            };
+            && (write || usize::from(byte2) == entry.image_len());
         if !answers {
             self.health.on_framing_error();
             self.attempt_failed(t, false);
             return;
         }
         self.health.on_frame(now);
-        match *response {
-            Response::ReadCoils(d)
-            | Response::ReadDiscreteInputs(d)
-            | Response::ReadHoldingRegisters(d)
-            | Response::ReadInputRegisters(d) => {
-                store_read(&mut self.input, &entry, d, self.config.byte_order)
-            }
-            Response::WriteSingleCoil { .. }
-            | Response::WriteSingleRegister { .. }
-            | Response::WriteMultipleCoils { .. }
-            | Response::WriteMultipleRegisters { .. } => self.write_outcome = CommandOutcome::Ok,
-            Response::Exception { .. } => {}
+        if write {
+            self.write_outcome = CommandOutcome::Ok;
+        } else {
+            let data = adu.get(3..3 + usize::from(byte2)).unwrap_or(&[]);
+            store_read(&mut self.input, &entry, data, self.config.byte_order);
         }
         self.finish_entry(i);
     }
