@@ -32,7 +32,7 @@
 //! packed LSB first as on the Modbus wire (unused high bits of the last byte are zero on reads
 //! and ignored on writes; a single coil is bit 0).
 
-use super::pdu::{self, CodecError, ExceptionCode, Function, Response, ADU_CAPACITY};
+use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
 use crate::serial::counter::bump;
 use crate::serial::error::{as_u32, ConfigError, Problem};
 use crate::serial::health::{HealthConfig, LinkHealth, LinkStatus, Stats};
@@ -458,8 +458,8 @@ impl ModbusMaster {
             let rx = core::mem::take(&mut self.rx);
             self.awaiting = None;
             let adu = rx.get(..len).unwrap_or(&[]);
-            match Response::parse(adu) {
-                Ok(_) => self.on_response(t, adu, now),
+            match pdu::check_delimited_response(adu) {
+                Ok(()) => self.on_response(t, adu, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
                     self.attempt_failed(t, false);
@@ -473,9 +473,9 @@ impl ModbusMaster {
         }
     }
 
-    /// Handles `adu`, a response to the transaction `t` that [`Response::parse`] accepts and that
+    /// Handles `adu`, a response to the transaction `t` that [`pdu::Response::parse`] accepts and that
     /// starts with `t`'s unit and function. Read from its bytes rather than from the parsed
-    /// [`Response`]: the values are at fixed places, and matching on the parsed enum costs flash.
+    /// [`pdu::Response`]: the values are at fixed places, and matching on the parsed enum costs flash.
     fn on_response(&mut self, t: Transaction, adu: &[u8], now: Instant) {
         let Job::Entry(i) = t.job else {
             // The idle/fault frame: any well-formed answer will do.
@@ -859,7 +859,7 @@ fn append_crc(out: &mut [u8], n: usize) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::serial::modbus::Request;
+    use crate::serial::modbus::{Request, Response};
     use crate::serial::{LinkState, StalePolicy, StatusByte};
     use proptest::prelude::*;
     use rstest::rstest;
