@@ -286,7 +286,8 @@ pub struct ModbusMaster {
     exception: CycleFlag,
     request_timeout: CycleFlag,
     write_outcome: CommandOutcome,
-    last_exception: Option<(usize, ExceptionCode)>,
+    /// Scan list index and raw code: decoded only when asked for (the firmware never asks).
+    last_exception: Option<(usize, u8)>,
     silence: Duration,
 }
 
@@ -492,7 +493,7 @@ impl ModbusMaster {
             let stats = self.health.stats_mut();
             bump(&mut stats.modbus_exceptions);
             self.exception.current = true;
-            self.last_exception = Some((i, ExceptionCode::from(byte2)));
+            self.last_exception = Some((i, byte2));
             if write {
                 bump(&mut self.health.stats_mut().commands_rejected);
                 self.write_outcome = CommandOutcome::Rejected(byte2);
@@ -763,7 +764,7 @@ impl ModbusMaster {
 
     /// The last exception: scan list index and code.
     pub fn last_exception(&self) -> Option<(usize, ExceptionCode)> {
-        self.last_exception
+        self.last_exception.map(|(i, code)| (i, ExceptionCode::from(code)))
     }
 
     /// Read cycles completed since start-up (wraps).
