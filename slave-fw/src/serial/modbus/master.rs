@@ -232,12 +232,11 @@ enum Job {
 }
 
 #[derive(Clone, Copy, Debug)]
+/// The request awaiting its response; the request itself stays in `tx` until the next one.
 struct Transaction {
     job: Job,
     attempt: u8,
     deadline: Instant,
-    unit: u8,
-    function: u8,
 }
 
 /// A flag that is shown for the current and the last complete scan cycle.
@@ -432,14 +431,15 @@ impl ModbusMaster {
 
     /// Delimits the response to `t` in the receive buffer and handles it once complete.
     fn try_complete(&mut self, t: Transaction, now: Instant) {
+        let (unit, function) = (self.tx.first().copied(), self.tx.get(1).map(|f| f & 0x7F));
         loop {
-            let skip = self.rx.iter().position(|&b| b == t.unit).unwrap_or(self.rx.len());
+            let skip = self.rx.iter().position(|&b| Some(b) == unit).unwrap_or(self.rx.len());
             if skip > 0 {
                 self.drop_rx_front(skip);
             }
             match self.rx.get(1) {
                 None => return,
-                Some(&code) if code & 0x7F != t.function => {
+                Some(&code) if Some(code & 0x7F) != function => {
                     self.drop_rx_front(1);
                     continue;
                 }
@@ -653,7 +653,7 @@ impl ModbusMaster {
                     Job::ModeFrame => self.mode_frame_due = false,
                     Job::Entry(_) => {
                         self.retry = None;
-                        let t = Transaction { job, attempt: u8::MAX, deadline: now, unit: 0, function: 0 };
+                        let t = Transaction { job, attempt: u8::MAX, deadline: now };
                         self.attempt_failed(t, false);
                     }
                 }
@@ -664,8 +664,6 @@ impl ModbusMaster {
                 job,
                 attempt,
                 deadline: tx_done + Duration::from_millis(u64::from(self.config.response_timeout_ms)),
-                unit: self.tx.first().copied().unwrap_or(0),
-                function: self.tx.get(1).copied().unwrap_or(0) & 0x7F,
             });
             self.quiet_at = tx_done + self.silence;
             self.rx.clear();
