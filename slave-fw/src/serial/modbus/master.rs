@@ -32,7 +32,7 @@
 //! packed LSB first as on the Modbus wire (unused high bits of the last byte are zero on reads
 //! and ignored on writes; a single coil is bit 0).
 
-use super::pdu::{self, CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};
+use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
 use crate::serial::counter::bump;
 use crate::serial::error::{as_u32, ConfigError, Problem};
 use crate::serial::health::{HealthConfig, LinkHealth, LinkStatus, Stats};
@@ -189,6 +189,15 @@ impl ModbusConfig {
         check_idle_frame("on_fault", &self.on_fault, 2, IDLE_FRAME_CAPACITY)
     }
 
+    /// The frame to send on entry into `mode` (without its CRC), if any.
+    fn mode_frame(&self, mode: OutputMode) -> Option<&[u8]> {
+        match mode {
+            OutputMode::Idle => self.on_idle.frame(),
+            OutputMode::Fault => self.on_fault.frame(),
+            OutputMode::Startup | OutputMode::Run => None,
+        }
+    }
+
     fn validate_entry(&self, e: &ScanEntry) -> Result<(), ConfigError> {
         ConfigError::check_range("scan.unit", u32::from(e.unit), 1, 247)?;
         let image = usize::from(if e.function.is_write() { self.output_len } else { self.input_len });
@@ -223,12 +232,11 @@ enum Job {
 }
 
 #[derive(Clone, Copy, Debug)]
+/// The request awaiting its response; the request itself stays in `tx` until the next one.
 struct Transaction {
     job: Job,
     attempt: u8,
     deadline: Instant,
-    unit: u8,
-    function: u8,
 }
 
 /// A flag that is shown for the current and the last complete scan cycle.
@@ -277,7 +285,8 @@ pub struct ModbusMaster {
     exception: CycleFlag,
     request_timeout: CycleFlag,
     write_outcome: CommandOutcome,
-    last_exception: Option<(usize, ExceptionCode)>,
+    /// Scan list index and raw code: decoded only when asked for (the firmware never asks).
+    last_exception: Option<(usize, u8)>,
     silence: Duration,
 }
 
@@ -381,15 +390,7 @@ impl ModbusMaster {
             return;
         }
         self.mode = mode;
-        self.mode_frame_due = self.mode_action().and_then(IdleAction::frame).is_some();
-    }
-
-    fn mode_action(&self) -> Option<&IdleAction> {
-        match self.mode {
-            OutputMode::Idle => Some(&self.config.on_idle),
-            OutputMode::Fault => Some(&self.config.on_fault),
-            OutputMode::Startup | OutputMode::Run => None,
-        }
+        self.mode_frame_due = self.config.mode_frame(mode).is_some();
     }
 
     /// Takes bytes read from the UART at `now`.
@@ -430,14 +431,15 @@ impl ModbusMaster {
 
     /// Delimits the response to `t` in the receive buffer and handles it once complete.
     fn try_complete(&mut self, t: Transaction, now: Instant) {
+        let (unit, function) = (self.tx.first().copied(), self.tx.get(1).map(|f| f & 0x7F));
         loop {
-            let skip = self.rx.iter().position(|&b| b == t.unit).unwrap_or(self.rx.len());
+            let skip = self.rx.iter().position(|&b| Some(b) == unit).unwrap_or(self.rx.len());
             if skip > 0 {
                 self.drop_rx_front(skip);
             }
             match self.rx.get(1) {
                 None => return,
-                Some(&code) if code & 0x7F != t.function => {
+                Some(&code) if Some(code & 0x7F) != function => {
                     self.drop_rx_front(1);
                     continue;
                 }
@@ -456,8 +458,9 @@ impl ModbusMaster {
             }
             let rx = core::mem::take(&mut self.rx);
             self.awaiting = None;
-            match Response::parse(rx.get(..len).unwrap_or(&[])) {
-                Ok((_, response)) => self.on_response(t, &response, now),
+            let adu = rx.get(..len).unwrap_or(&[]);
+            match pdu::check_delimited_response(adu) {
+                Ok(()) => self.on_response(t, adu, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
                     self.attempt_failed(t, false);
@@ -471,48 +474,52 @@ impl ModbusMaster {
         }
     }
 
-    fn on_response(&mut self, t: Transaction, response: &Response<'_>, now: Instant) {
+    /// Handles `adu`, a response to the transaction `t` that [`pdu::Response::parse`] accepts and that
+    /// starts with `t`'s unit and function. Read from its bytes rather than from the parsed
+    /// [`pdu::Response`]: the values are at fixed places, and matching on the parsed enum costs flash.
+    fn on_response(&mut self, t: Transaction, adu: &[u8], now: Instant) {
         let Job::Entry(i) = t.job else {
             // The idle/fault frame: any well-formed answer will do.
             self.health.on_frame(now);
             return;
         };
-        let Some(entry) = self.entry(i) else {
+        let (Some(entry), &[_, function, byte2, ..]) = (self.entry(i), adu) else {
             return;
         };
-        if let Response::Exception { code, .. } = *response {
+        let write = entry.function.is_write();
+        if function & 0x80 != 0 {
+            // An exception: byte 2 is its code (§7).
             self.health.on_frame(now);
             let stats = self.health.stats_mut();
             bump(&mut stats.modbus_exceptions);
             self.exception.current = true;
-            self.last_exception = Some((i, code));
-            if entry.function.is_write() {
+            self.last_exception = Some((i, byte2));
+            if write {
                 bump(&mut self.health.stats_mut().commands_rejected);
-                self.write_outcome = CommandOutcome::Rejected(code.as_raw());
+                self.write_outcome = CommandOutcome::Rejected(byte2);
                 self.write_failed(i);
             }
             self.finish_entry(i);
             return;
         }
-        let answers = Request::parse(&self.tx).is_ok_and(|(_, request)| response.answers(&request));
+        // What `Response::answers` checks, against the request still in `tx` instead of parsing
+        // it again: the same unit and function, then the byte count (byte 2) the entry's quantity
+        // calls for, or the echo of the written address and value or quantity (§6.5, §6.6,
+        // §6.11, §6.12: the first six bytes of the request).
+        let echo = if write { 6 } else { 2 };
+        let answers = adu.get(..echo).is_some_and(|a| self.tx.get(..echo) == Some(a))
+            && (write || usize::from(byte2) == entry.image_len());
         if !answers {
             self.health.on_framing_error();
             self.attempt_failed(t, false);
             return;
         }
         self.health.on_frame(now);
-        match *response {
-            Response::ReadCoils(d)
-            | Response::ReadDiscreteInputs(d)
-            | Response::ReadHoldingRegisters(d)
-            | Response::ReadInputRegisters(d) => {
-                store_read(&mut self.input, &entry, d, self.config.byte_order)
-            }
-            Response::WriteSingleCoil { .. }
-            | Response::WriteSingleRegister { .. }
-            | Response::WriteMultipleCoils { .. }
-            | Response::WriteMultipleRegisters { .. } => self.write_outcome = CommandOutcome::Ok,
-            Response::Exception { .. } => {}
+        if write {
+            self.write_outcome = CommandOutcome::Ok;
+        } else {
+            let data = adu.get(3..3 + usize::from(byte2)).unwrap_or(&[]);
+            store_read(&mut self.input, &entry, data, self.config.byte_order);
         }
         self.finish_entry(i);
     }
@@ -646,7 +653,7 @@ impl ModbusMaster {
                     Job::ModeFrame => self.mode_frame_due = false,
                     Job::Entry(_) => {
                         self.retry = None;
-                        let t = Transaction { job, attempt: u8::MAX, deadline: now, unit: 0, function: 0 };
+                        let t = Transaction { job, attempt: u8::MAX, deadline: now };
                         self.attempt_failed(t, false);
                     }
                 }
@@ -657,8 +664,6 @@ impl ModbusMaster {
                 job,
                 attempt,
                 deadline: tx_done + Duration::from_millis(u64::from(self.config.response_timeout_ms)),
-                unit: self.tx.first().copied().unwrap_or(0),
-                function: self.tx.get(1).copied().unwrap_or(0) & 0x7F,
             });
             self.quiet_at = tx_done + self.silence;
             self.rx.clear();
@@ -695,18 +700,16 @@ impl ModbusMaster {
         }
         let n = match job {
             Job::ModeFrame => {
-                let action = match self.mode {
-                    OutputMode::Idle => &self.config.on_idle,
-                    OutputMode::Fault => &self.config.on_fault,
-                    OutputMode::Startup | OutputMode::Run => &IdleAction::Nothing,
-                };
-                raw_adu(action.frame().unwrap_or(&[]), &mut self.tx)
+                let body = self.config.mode_frame(self.mode).unwrap_or(&[]);
+                self.tx.get_mut(..body.len()).map(|out| out.copy_from_slice(body)).map(|()| body.len())
             }
-            Job::Entry(i) => match self.config.scan.get(i) {
-                Some(e) => encode_entry(e, &self.output, self.config.byte_order, &mut self.tx).ok(),
-                None => None,
-            },
+            Job::Entry(i) => self
+                .config
+                .scan
+                .get(i)
+                .and_then(|e| encode_entry(e, &self.output, self.config.byte_order, &mut self.tx)),
         };
+        let n = n.and_then(|n| append_crc(&mut self.tx, n));
         match n {
             Some(n) if n >= 2 => {
                 self.tx.truncate(n);
@@ -759,7 +762,7 @@ impl ModbusMaster {
 
     /// The last exception: scan list index and code.
     pub fn last_exception(&self) -> Option<(usize, ExceptionCode)> {
-        self.last_exception
+        self.last_exception.map(|(i, code)| (i, ExceptionCode::from(code)))
     }
 
     /// Read cycles completed since start-up (wraps).
@@ -792,73 +795,62 @@ fn significant_bits(e: &ScanEntry, k: usize, len: usize) -> u8 {
 
 /// Copies a read response's data into the input image at the entry's offset.
 fn store_read(input: &mut [u8], e: &ScanEntry, data: &[u8], order: ByteOrder) {
-    let len = data.len();
-    let Some(dst) = input.get_mut(e.range()) else {
-        return;
-    };
-    if e.function.is_bits() {
-        for (k, (d, &s)) in dst.iter_mut().zip(data).enumerate() {
-            *d = s & significant_bits(e, k, len);
-        }
-    } else {
-        for (d, s) in dst.chunks_exact_mut(2).zip(data.chunks_exact(2)) {
-            if let ([d0, d1], [hi, lo]) = (d, s) {
-                (*d0, *d1) = match order {
-                    ByteOrder::BigEndian => (*hi, *lo),
-                    ByteOrder::LittleEndian => (*lo, *hi),
-                };
-            }
-        }
+    if let Some(dst) = input.get_mut(e.range()) {
+        convert(e, order, data, dst);
     }
 }
 
-/// Encodes the request of scan entry `e` (writes take their data from `output`).
-fn encode_entry(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) -> Result<usize, CodecError> {
-    if let Some(read) = Request::read(e.function, e.address, e.count) {
-        return read.emit(e.unit, out);
+/// Copies entry `e`'s data between the wire and its image, the same conversion either way: bits
+/// masked to the entry's quantity, register bytes swapped for little-endian images.
+fn convert(e: &ScanEntry, order: ByteOrder, from: &[u8], to: &mut [u8]) {
+    let len = from.len();
+    let swap = usize::from(!e.function.is_bits() && order == ByteOrder::LittleEndian);
+    for (k, d) in to.iter_mut().enumerate().take(len) {
+        *d = from.get(k ^ swap).copied().unwrap_or(0) & significant_bits(e, k, len);
     }
-    let data = output.get(e.range()).ok_or(CodecError::ByteCount)?;
-    let len = data.len();
-    let word = |k: usize| -> u16 {
-        let (a, b) = (data.get(k).copied().unwrap_or(0), data.get(k + 1).copied().unwrap_or(0));
-        match order {
-            ByteOrder::BigEndian => u16::from_be_bytes([a, b]),
-            ByteOrder::LittleEndian => u16::from_le_bytes([a, b]),
-        }
-    };
-    let mut scratch = [0u8; ADU_CAPACITY];
-    let request = match e.function {
+}
+
+/// Writes the request of scan entry `e` without its CRC into `out` and returns its length (writes
+/// take their data from `output`); `None` where [`pdu::Request::emit`] refuses the entry (a quantity
+/// out of range) or its data lies outside `output`. The bytes `Request::emit` writes, written
+/// here directly: building a `Request` to emit it costs some 500 bytes of firmware flash.
+fn encode_entry(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) -> Option<usize> {
+    let f = e.function;
+    let single = matches!(f, Function::WriteSingleCoil | Function::WriteSingleRegister);
+    if !single && !(1..=f.max_count()).contains(&e.count) {
+        return None;
+    }
+    let data = if f.is_write() { output.get(e.range())? } else { &[] };
+    let (head, rest) = out.split_first_chunk_mut::<6>()?;
+    let [address_hi, address_lo] = e.address.to_be_bytes();
+    let [count_hi, count_lo] = e.count.to_be_bytes();
+    *head = [e.unit, f.code(), address_hi, address_lo, count_hi, count_lo];
+    match f {
         Function::WriteSingleCoil => {
-            Request::WriteSingleCoil { address: e.address, value: data.first().is_some_and(|b| b & 1 != 0) }
+            let on = data.first().is_some_and(|b| b & 1 != 0);
+            head[4..].copy_from_slice(if on { &[0xFF, 0x00] } else { &[0x00, 0x00] });
         }
-        Function::WriteSingleRegister => Request::WriteSingleRegister { address: e.address, value: word(0) },
-        Function::WriteMultipleCoils => {
-            let bits = scratch.get_mut(..len).ok_or(CodecError::ByteCount)?;
-            for (k, (d, &s)) in bits.iter_mut().zip(data).enumerate() {
-                *d = s & significant_bits(e, k, len);
-            }
-            Request::WriteMultipleCoils { address: e.address, count: e.count, bits }
+        Function::WriteSingleRegister => {
+            head[4..].fill(0);
+            convert(e, order, data, &mut head[4..]);
         }
-        Function::WriteMultipleRegisters => {
-            let values = scratch.get_mut(..len).ok_or(CodecError::ByteCount)?;
-            for (k, pair) in values.chunks_exact_mut(2).enumerate() {
-                pair.copy_from_slice(&word(2 * k).to_be_bytes());
-            }
-            Request::WriteMultipleRegisters { address: e.address, values }
+        Function::WriteMultipleCoils | Function::WriteMultipleRegisters => {
+            let (byte_count, payload) = rest.split_first_mut()?;
+            *byte_count = data.len() as u8;
+            convert(e, order, data, payload.get_mut(..data.len())?);
+            return Some(7 + data.len());
         }
         Function::ReadCoils
         | Function::ReadDiscreteInputs
         | Function::ReadHoldingRegisters
-        | Function::ReadInputRegisters => return Err(CodecError::UnknownFunction(e.function.code())),
-    };
-    request.emit(e.unit, out)
+        | Function::ReadInputRegisters => {}
+    }
+    Some(6)
 }
 
-/// Writes `body` (unit, function, data) and its CRC into `out`.
-fn raw_adu(body: &[u8], out: &mut [u8]) -> Option<usize> {
-    let n = body.len();
-    let crc = crate::serial::checksum::crc16_modbus(body).to_le_bytes();
-    out.get_mut(..n)?.copy_from_slice(body);
+/// Appends the CRC to the `n` bytes of `out` (unit, function, data); returns the ADU's length.
+fn append_crc(out: &mut [u8], n: usize) -> Option<usize> {
+    let crc = crate::serial::checksum::crc16_modbus(out.get(..n)?).to_le_bytes();
     out.get_mut(n..n + 2)?.copy_from_slice(&crc);
     Some(n + 2)
 }
@@ -866,6 +858,7 @@ fn raw_adu(body: &[u8], out: &mut [u8]) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::serial::modbus::{Request, Response};
     use crate::serial::{LinkState, StalePolicy, StatusByte};
     use proptest::prelude::*;
     use rstest::rstest;
@@ -986,6 +979,44 @@ mod tests {
             }
         }
         panic!("runaway");
+    }
+
+    /// What `Request::emit` writes for entry `e` (writes take their data from `output`).
+    fn emitted(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) -> Option<usize> {
+        if let Some(read) = Request::read(e.function, e.address, e.count) {
+            return read.emit(e.unit, out).ok();
+        }
+        let data = output.get(e.range())?;
+        let word = |k: usize| {
+            let (a, b) = (data.get(k).copied().unwrap_or(0), data.get(k + 1).copied().unwrap_or(0));
+            match order {
+                ByteOrder::BigEndian => u16::from_be_bytes([a, b]),
+                ByteOrder::LittleEndian => u16::from_le_bytes([a, b]),
+            }
+        };
+        let mut scratch = data.to_vec();
+        let request = match e.function {
+            Function::WriteSingleCoil => Request::WriteSingleCoil {
+                address: e.address,
+                value: data.first().is_some_and(|b| b & 1 != 0),
+            },
+            Function::WriteSingleRegister => {
+                Request::WriteSingleRegister { address: e.address, value: word(0) }
+            }
+            Function::WriteMultipleCoils => {
+                if let (Some(last), 1..) = (scratch.last_mut(), e.count % 8) {
+                    *last &= (1 << (e.count % 8)) - 1;
+                }
+                Request::WriteMultipleCoils { address: e.address, count: e.count, bits: &scratch }
+            }
+            _ => {
+                for (k, pair) in scratch.chunks_exact_mut(2).enumerate() {
+                    pair.copy_from_slice(&word(2 * k).to_be_bytes());
+                }
+                Request::WriteMultipleRegisters { address: e.address, values: &scratch }
+            }
+        };
+        request.emit(e.unit, out).ok()
     }
 
     fn master(c: ModbusConfig) -> ModbusMaster {
@@ -1146,6 +1177,25 @@ mod tests {
         assert_eq!(s.requests.len(), 2);
     }
 
+    // Well-formed responses that do not answer the request: a framing error, and the same
+    // request again.
+    #[rstest]
+    #[case::read_byte_count(false, &[0x01, 0x03, 0x02, 0x00, 0x07])]
+    #[case::write_address(true, &[0x01, 0x10, 0x00, 0x0B, 0x00, 0x02])]
+    #[case::write_quantity(true, &[0x01, 0x10, 0x00, 0x0A, 0x00, 0x01])]
+    fn response_that_does_not_answer_is_retried(#[case] write: bool, #[case] body: &[u8]) {
+        let mut m = master(config());
+        if write {
+            m.set_outputs(&[1, 0, 0, 0, 0], ms(0));
+        }
+        let request = m.poll_transmit(ms(0)).unwrap().to_vec();
+        let mut response = body.to_vec();
+        response.extend_from_slice(&crate::serial::checksum::crc16_modbus(body).to_le_bytes());
+        m.on_bytes(&response, ms(5));
+        assert_eq!((m.stats().framing_errors, m.stats().frames_received), (1, 0));
+        assert_eq!(m.poll_transmit(ms(10)), Some(request.as_slice()));
+    }
+
     #[test]
     fn unsolicited_bytes_are_one_framing_error_per_burst() {
         let mut m = master(config());
@@ -1271,6 +1321,27 @@ mod tests {
                 }
                 prop_assert_eq!(m.input_image().len(), 6);
             }
+        }
+
+        // `encode_entry` writes what `Request::emit` writes for the entry, and refuses what it
+        // refuses.
+        #[test]
+        fn encode_entry_is_request_emit(
+            unit in any::<u8>(),
+            code in prop::sample::select(&[1u8, 2, 3, 4, 5, 6, 15, 16][..]),
+            address in any::<u16>(),
+            count in prop_oneof![0u16..140, 0u16..2100],
+            offset in 0u16..70,
+            output in any::<[u8; IMAGE_CAPACITY]>(),
+            little_endian in any::<bool>(),
+        ) {
+            let e = entry(unit, Function::from_code(code).unwrap(), address, count, offset);
+            let order = if little_endian { ByteOrder::LittleEndian } else { ByteOrder::BigEndian };
+            let mut out = [0u8; ADU_CAPACITY];
+            let n = encode_entry(&e, &output, order, &mut out).and_then(|n| append_crc(&mut out, n));
+            let mut expected = [0u8; ADU_CAPACITY];
+            let m = emitted(&e, &output, order, &mut expected);
+            prop_assert_eq!(n.map(|n| &out[..n]), m.map(|m| &expected[..m]));
         }
 
         // A valid response split at any point is understood.

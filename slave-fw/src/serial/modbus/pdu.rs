@@ -787,6 +787,25 @@ pub fn response_len(prefix: &[u8]) -> Result<Option<usize>, CodecError> {
     }
 }
 
+/// Checks a response ADU that [`response_len`] has delimited, so that its length already agrees
+/// with its function and byte count: `Ok` exactly when [`Response::parse`] accepts it, the same
+/// errors otherwise. What `parse` checks beyond `response_len` (the CRC, an even byte count for
+/// registers, a coil value of 0xFF00 or 0x0000), without building the [`Response`]: a master that
+/// knows its request reads the few values it needs from the bytes (firmware flash).
+pub fn check_delimited_response(adu: &[u8]) -> Result<(), CodecError> {
+    let body = strip_crc(adu, 5)?;
+    let (Some(&code), Some(&byte_count)) = (body.get(1), body.get(2)) else {
+        return Err(CodecError::TooShort);
+    };
+    match Function::from_code(code) {
+        Some(Function::ReadHoldingRegisters | Function::ReadInputRegisters) if byte_count % 2 != 0 => {
+            Err(CodecError::ByteCount)
+        }
+        Some(Function::WriteSingleCoil) => coil_value(be16(body, 4)).map(|_| ()),
+        _ => Ok(()),
+    }
+}
+
 /// The length of the request ADU that starts with `prefix`: `Ok(None)` until enough bytes are
 /// known (2, or 7 for the multiple writes), an error for an unknown function.
 pub fn request_len(prefix: &[u8]) -> Result<Option<usize>, CodecError> {
@@ -980,6 +999,31 @@ mod tests {
             let _ = Response::parse(&bytes);
             let _ = response_len(&bytes);
             let _ = request_len(&bytes);
+        }
+
+        // On what `response_len` delimits, `check_delimited_response` judges as `parse` does.
+        #[test]
+        fn delimited_response_check_is_parse(
+            body in proptest::collection::vec(any::<u8>(), 3..260),
+            code in prop_oneof![1u8..=6, Just(0x0F), Just(0x10), 0x80u8..=0xFF],
+            bad_crc in any::<bool>(),
+        ) {
+            let mut body = body;
+            body[1] = code;
+            if code == 5 && body.len() > 5 && body[0] % 2 == 0 {
+                // Valid coil values, half the time.
+                body[4] = if body[5] % 2 == 0 { 0xFF } else { 0x00 };
+                body[5] = 0;
+            }
+            if let Ok(Some(len)) = response_len(&body) {
+                if len <= body.len() + 2 {
+                    let mut wire = adu(&body[..len - 2]);
+                    if bad_crc {
+                        wire[len - 1] ^= 1;
+                    }
+                    prop_assert_eq!(check_delimited_response(&wire), Response::parse(&wire).map(|_| ()));
+                }
+            }
         }
 
         #[test]
