@@ -88,105 +88,22 @@ pub const CRC_LEN: usize = 4;
 /// The image of the factory default, [`ConverterConfig::breaker_reference`] (a test holds it equal
 /// to its encoding): the firmware boots from these bytes when nothing valid is stored, so it
 /// carries neither an encoder nor the code that builds the reference configuration.
+#[rustfmt::skip]
 pub const BREAKER_REFERENCE: [u8; 98] = [
-    b'D',
-    b'N',
-    b'C',
-    b'I',
-    IMAGE_VERSION,
-    87,
-    0, // header: body of 87 bytes
-    0x34,
-    0x12,
-    0x0C,
-    0x00,
-    0x01,
-    0x00,
-    1,
-    1, // vendor 0x1234, device type 0x0C, product 1, rev 1.1
-    0x78,
-    0x56,
-    0x34,
-    0x12,
-    23, // serial number 0x12345678, product name of 23 bytes
-    b'S',
-    b'e',
-    b'r',
-    b'i',
-    b'a',
-    b'l',
-    b'-',
-    b'D',
-    b'e',
-    b'v',
-    b'i',
-    b'c',
-    b'e',
-    b'N',
-    b'e',
-    b't',
-    b' ',
-    b'B',
-    b'r',
-    b'i',
-    b'd',
-    b'g',
-    b'e', //
-    5,
-    1,
-    0,
-    0,
-    1,
-    0, // MAC 5, 250 kbit/s, port 0, flags 0, EPR resolution 1 ms
-    0,
-    0, // input assembly 100; profile framed
-    0x80,
-    0x25,
-    0,
-    0,
-    0, // serial 9600 baud, 8N1
-    0x68,
-    0,
-    0,
-    1,
-    0x16,
-    1,
-    18, // framing: start 0x68, length byte, end 0x16, sum8, max 18
-    18,
-    1,
-    2,
-    0x80,
-    0, // status 18 bytes; ack: 2 data bytes, flag 0x80, ok status 0
-    4,
-    1,
-    1,
-    0,
-    2,
-    2,
-    0,
-    3,
-    3,
-    3,
-    4,
-    4,
-    0, // four commands: code, wire code, argument bytes
-    0xF4,
-    0x01,
-    0,
-    0,
-    2,
-    1,
-    0,
-    0, // sequencer: 500 ms, 2 retries, execute first, no idle/fault frames
-    0xB8,
-    0x0B,
-    0,
-    0,
-    0, // health: stale after 3000 ms, hold last value
-    0xED,
-    0x08,
-    0x0D,
-    0x0A, // CRC-32
+    b'D', b'N', b'C', b'I', IMAGE_VERSION, 87, 0, // header: body of 87 bytes
+    0x34, 0x12, 0x0C, 0x00, 0x01, 0x00, 1, 1, // vendor 0x1234, device type 0x0C, product 1, rev 1.1
+    0x78, 0x56, 0x34, 0x12, 23, // serial number 0x12345678, product name of 23 bytes
+    b'S', b'e', b'r', b'i', b'a', b'l', b'-', b'D', b'e', b'v', b'i', b'c', b'e', b'N', b'e', b't',
+    b' ', b'B', b'r', b'i', b'd', b'g', b'e',
+    5, 1, 0, 0, 1, 0, // MAC 5, 250 kbit/s, port 0, flags 0, EPR resolution 1 ms
+    0, 0, // input assembly 100; profile framed
+    0x80, 0x25, 0, 0, 0, // serial 9600 baud, 8N1
+    0x68, 0, 0, 1, 0x16, 1, 18, // framing: start 0x68, length byte, end 0x16, sum8, max 18
+    18, 1, 2, 0x80, 0, // status 18 bytes; ack: 2 data bytes, flag 0x80, ok status 0
+    4, 1, 1, 0, 2, 2, 0, 3, 3, 3, 4, 4, 0, // four commands: code, wire code, argument bytes
+    0xF4, 0x01, 0, 0, 2, 1, 0, 0, // sequencer: 500 ms, 2 retries, execute first, no idle/fault frames
+    0xB8, 0x0B, 0, 0, 0, // health: stale after 3000 ms, hold last value
+    0xED, 0x08, 0x0D, 0x0A, // CRC-32
 ];
 
 /// The CRC-32 of the image (IEEE 802.3 / zlib: `"123456789"` gives `0xCBF43926`), computed bit by
