@@ -8,7 +8,9 @@
 //! 2. an explicit connection is allocated; Begin_Download (0x4C) with the size, the image in
 //!    chunks of [`CHUNK`] bytes with Write_Chunk (0x4D, offset first), Commit_Download (0x4E) on
 //!    the configuration object ([`CONFIGURATION_CLASS`], instance 1). A refusal is reported with
-//!    the device's reason (attribute 5), e.g. the key of an invalid value;
+//!    the device's reason (attribute 5, a refusal record of numbers and the key that the master
+//!    words, `RefusalRecord`), e.g. `profile.serial.baud: 4000000 is outside the allowed range
+//!    300..=2625000`;
 //! 3. the stored image is read back (Read_Chunk 0x4B of the pending image) and compared byte for
 //!    byte;
 //! 4. Identity Reset; the master watches for the device's duplicate MAC ID check (at `--mac` or at
@@ -33,6 +35,7 @@ use master_core::client::Port;
 use master_core::decode::short_string;
 use master_core::error::MasterError;
 use master_core::master::Master;
+use slave_fw::converter::config_object::RefusalRecord;
 use slave_fw::converter::ConverterConfig;
 use slave_fw::description::DeviceDescription;
 
@@ -123,7 +126,7 @@ fn config_request(
 fn refusal_reason(master: &mut Master<'_, '_>, mac: MacId) -> String {
     match master.get(mac, CONFIGURATION_CLASS, 1, 5) {
         Ok((data, _)) => {
-            short_string(&data).filter(|s| !s.is_empty()).unwrap_or_else(|| "no reason given".into())
+            RefusalRecord::parse(&data).map_or_else(|| "no reason given".into(), |record| record.to_string())
         }
         Err(e) => format!("the reason could not be read: {e}"),
     }

@@ -9,6 +9,7 @@ use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
 use master_harness::cli::run;
 use master_harness::configure::{BEGIN_DOWNLOAD, COMMIT_DOWNLOAD, CONFIGURATION_CLASS, WRITE_CHUNK};
+use slave_fw::converter::config_object::RefusalRecord;
 use slave_fw::description::DeviceDescription;
 use std::path::PathBuf;
 
@@ -93,7 +94,7 @@ fn raw_download(image: &[u8]) -> (Result<(), String>, String) {
     }
     let reason = master
         .get(mac, CONFIGURATION_CLASS, 1, 5)
-        .map(|(d, _)| master_core::decode::short_string(&d).unwrap_or_default())
+        .map(|(d, _)| RefusalRecord::parse(&d).map(|r| r.to_string()).unwrap_or_default())
         .unwrap_or_default();
     // The device works on: it still answers.
     assert_eq!(master.get_u16(mac, 1, 1, 3).unwrap(), Some(1), "still the reference device");

@@ -7,7 +7,7 @@
 //! | 2 | UINT | size of the image in force |
 //! | 3 | USINT | [`ConfigState`]: 0 factory default in force, 1 stored image in force, 2 a new image is stored and applies at the next reset, 3 configuration fault (the stored image was refused, factory default in force) |
 //! | 4 | UDINT | CRC-32 of the image in force (its trailer) |
-//! | 5 | SHORT_STRING | why the last download (or the stored image at start) was refused, "" if none, cut to [`MAX_REFUSAL_TEXT`] characters so the reply fits one explicit message (`MAX_EXPLICIT_SIZE`) |
+//! | 5 | bytes | why the last download (or the stored image at start) was refused: a [`RefusalRecord`], no bytes if nothing was refused |
 //!
 //! Class attribute 1 is the revision, 1. Services (codes object-specific, devicenet-notes §3.2;
 //! error codes §3.3):
@@ -19,7 +19,7 @@
 //! | 0x4B | [`READ_CHUNK`] | which USINT (0 in force, 1 pending), offset UINT, count USINT ≤ [`MAX_CHUNK`] | the bytes (fewer at the end, none past it); 0x0C which = 1 with nothing pending; 0x20 which > 1 or count > 56 |
 //! | 0x4C | [`BEGIN_DOWNLOAD`] | size UINT | 0x15 size > [`MAX_IMAGE`]; 0x10 while an I/O connection is established |
 //! | 0x4D | [`WRITE_CHUNK`] | offset UINT, ≤ 56 bytes | 0x0C no download begun; 0x20 offset ≠ bytes received; 0x15 past the size; 0x10 while I/O |
-//! | 0x4E | [`COMMIT_DOWNLOAD`] | none | 0x0C not all bytes received; 0x09 refused, additional code ([`refusal_code`]) 1 header/version, 2 length, 3 CRC, 4 invalid configuration, also one the platform cannot run ([`PlatformCheck`]) (text in attribute 5) |
+//! | 0x4E | [`COMMIT_DOWNLOAD`] | none | 0x0C not all bytes received; 0x09 refused, additional code ([`refusal_code`]) 1 header/version, 2 length, 3 CRC, 4 invalid configuration, also one the platform cannot run ([`PlatformCheck`]) (the reason in attribute 5) |
 //!
 //! An accepted image is not applied: the converter hands it to the application
 //! ([`Converter::poll_new_image`](super::Converter::poll_new_image)), which stores it (firmware:
@@ -34,9 +34,14 @@
 
 use super::{ConverterConfig, InvalidConfig};
 use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
+use crate::serial::Problem;
+use core::fmt;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;
+use devicenet::slave::config::MAX_PRODUCT_NAME;
+use devicenet::slave::ConfigError as NodeConfigError;
 use devicenet::slave::{Reply, ServiceError};
+use devicenet::text::{self, TextSink};
 use heapless::{String, Vec};
 
 /// Vendor-specific class of the configuration object, instance 1.
@@ -51,9 +56,11 @@ pub const WRITE_CHUNK: u8 = 0x4D;
 pub const COMMIT_DOWNLOAD: u8 = 0x4E;
 /// The most image bytes in one Read_Chunk reply or Write_Chunk request.
 pub const MAX_CHUNK: usize = 56;
-/// The longest refusal text (attribute 5): a reply is header, service, length byte and the text,
-/// within one explicit message.
-pub const MAX_REFUSAL_TEXT: usize = MAX_EXPLICIT_SIZE - 4;
+/// The longest refusal record (attribute 5): a reply is header, service and the record, within one
+/// explicit message.
+pub const MAX_REFUSAL: usize = MAX_EXPLICIT_SIZE - 2;
+/// The record's fixed part: kind, problem and three numbers ([`RefusalRecord`]).
+pub const REFUSAL_HEADER: usize = 14;
 
 /// Where the configuration in force came from; the application says so when it builds the
 /// converter ([`Converter::with_origin`](super::Converter::with_origin)).
@@ -109,6 +116,163 @@ pub const fn refusal_code(e: &ImageError) -> u8 {
     }
 }
 
+/// Attribute 5, why a download or the stored image was refused, as the device sends it: numbers
+/// and the key, not sentences (the device carries no message texts; a tool words the record with
+/// the same words as the description loader, [`RefusalRecord::write_text`]).
+///
+/// ```text
+/// offset  size  field
+/// 0       1     kind: 1 truncated (a = length), 2 too large (a = length), 3 not an image (bad
+///               magic), 4 unsupported version (a), 5 length mismatch (a = stated, b = actual),
+///               6 CRC mismatch (a = stated, b = computed), 7 malformed body (a = offset),
+///               8 invalid configuration (problem, key), 9 buffer too small
+/// 1       1     problem, kind 8 only: 1 out of range (a = value, b..=c the allowed range),
+///               2 conflicts with another setting, 3 overlaps the image bytes of entry a,
+///               4 duplicates entry a, 5 not printable ASCII, 6 the node refuses the I/O
+///               configuration (a = the node's error code 0..=6, b = the I/O size), 0 other
+/// 2       12    a, b, c: UDINT each, 0 where unused
+/// 14      n     kind 8: the key as the description file spells it (ASCII, cut to fit)
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RefusalRecord<'a> {
+    kind: u8,
+    problem: u8,
+    numbers: [u32; 3],
+    key: &'a [u8],
+}
+
+impl RefusalRecord<'_> {
+    /// The record's fixed part for `e`, and the key of an invalid configuration ("" otherwise).
+    pub fn encode(e: &ImageError) -> ([u8; REFUSAL_HEADER], String<{ MAX_REFUSAL - REFUSAL_HEADER }>) {
+        let mut key = String::new();
+        let n = |v: usize| u32::try_from(v).unwrap_or(u32::MAX);
+        let (kind, problem, [a, b, c]) = match *e {
+            ImageError::Truncated(len) => (1, 0, [n(len), 0, 0]),
+            ImageError::TooLarge(len) => (2, 0, [n(len), 0, 0]),
+            ImageError::BadMagic => (3, 0, [0; 3]),
+            ImageError::UnsupportedVersion(v) => (4, 0, [v.into(), 0, 0]),
+            ImageError::LengthMismatch { stated, actual } => (5, 0, [stated.into(), n(actual), 0]),
+            ImageError::CrcMismatch { stated, computed } => (6, 0, [stated, computed, 0]),
+            ImageError::Malformed { offset } => (7, 0, [offset.into(), 0, 0]),
+            ImageError::BufferTooSmall => (9, 0, [0; 3]),
+            ImageError::Invalid(ref invalid) => {
+                invalid.key().write_text(&mut key);
+                let (problem, numbers) = match *invalid {
+                    InvalidConfig::ProductNameLength(len) => (1, [n(len), 1, MAX_PRODUCT_NAME as u32]),
+                    InvalidConfig::ProductNameNotAscii => (5, [0; 3]),
+                    InvalidConfig::MajorRevision(v) => (1, [v.into(), 1, 127]),
+                    InvalidConfig::MacId(v) => (1, [v.into(), 0, 63]),
+                    InvalidConfig::BaudRate(v) => (1, [v.into(), 0, 2]),
+                    InvalidConfig::EprResolutionZero => (1, [0, 1, 65_535]),
+                    InvalidConfig::Profile { error, .. } => match error.problem {
+                        Problem::OutOfRange { value, min, max } => (1, [value, min, max]),
+                        Problem::Conflict(_) => (2, [0; 3]),
+                        Problem::Overlap { other } => (3, [other.into(), 0, 0]),
+                        Problem::Duplicate { other } => (4, [other.into(), 0, 0]),
+                    },
+                    InvalidConfig::Io(e) => {
+                        let size = match e {
+                            NodeConfigError::IoSizeTooLarge { size } => size,
+                            _ => 0,
+                        };
+                        (6, [node_error_code(&e), size.into(), 0])
+                    }
+                };
+                (8, problem, numbers)
+            }
+        };
+        let [a0, a1, a2, a3] = a.to_le_bytes();
+        let [b0, b1, b2, b3] = b.to_le_bytes();
+        let [c0, c1, c2, c3] = c.to_le_bytes();
+        ([kind, problem, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3], key)
+    }
+}
+
+impl<'a> RefusalRecord<'a> {
+    /// Reads attribute 5; `None` when nothing was refused (no bytes) or the record is shorter than
+    /// its fixed part.
+    pub fn parse(bytes: &'a [u8]) -> Option<RefusalRecord<'a>> {
+        let (header, key) = bytes.split_first_chunk::<REFUSAL_HEADER>()?;
+        let [kind, problem, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3] = *header;
+        let numbers = [
+            u32::from_le_bytes([a0, a1, a2, a3]),
+            u32::from_le_bytes([b0, b1, b2, b3]),
+            u32::from_le_bytes([c0, c1, c2, c3]),
+        ];
+        Some(RefusalRecord { kind, problem, numbers, key })
+    }
+
+    /// The reason in words, those of [`ImageError`] and of the description loader
+    /// (`profile.serial.baud: 4000000 is outside the allowed range 300..=2625000`).
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        let [a, b, c] = self.numbers;
+        let short = |v: u32| u16::try_from(v).unwrap_or(u16::MAX);
+        let image = match self.kind {
+            1 => ImageError::Truncated(a as usize),
+            2 => ImageError::TooLarge(a as usize),
+            3 => ImageError::BadMagic,
+            4 => ImageError::UnsupportedVersion(a as u8),
+            5 => ImageError::LengthMismatch { stated: short(a), actual: b as usize },
+            6 => ImageError::CrcMismatch { stated: a, computed: b },
+            7 => ImageError::Malformed { offset: short(a) },
+            9 => ImageError::BufferTooSmall,
+            8 => {
+                match core::str::from_utf8(self.key) {
+                    Ok(key) if key.bytes().all(|b| b.is_ascii_graphic()) => out.text(key),
+                    _ => out.text("(a key that is not ASCII)"),
+                }
+                out.text(": ");
+                return match self.problem {
+                    1 => Problem::OutOfRange { value: a, min: b, max: c }.write_text(out),
+                    2 => out.text("conflicts with another setting"),
+                    3 => Problem::Overlap { other: short(a) }.write_text(out),
+                    4 => Problem::Duplicate { other: short(a) }.write_text(out),
+                    5 => out.text("must be printable ASCII"),
+                    6 => match node_error(a, short(b)) {
+                        Some(e) => e.write_text(out),
+                        None => out.text("the node refuses the I/O configuration"),
+                    },
+                    _ => out.text("refused"),
+                };
+            }
+            other => {
+                out.text("refusal of unknown kind ");
+                return out.decimal(other.into());
+            }
+        };
+        image.write_text(out);
+    }
+}
+
+/// The node's configuration errors in a refusal record (problem 6), in declaration order.
+const NODE_ERRORS: [NodeConfigError; 7] = [
+    NodeConfigError::IoSizeTooLarge { size: 0 },
+    NodeConfigError::SameAssemblyInstance,
+    NodeConfigError::AssemblyInstanceZero,
+    NodeConfigError::PortOutOfRange,
+    NodeConfigError::ZeroEprResolution,
+    NodeConfigError::ProductNameNotAscii,
+    NodeConfigError::MajorRevisionOutOfRange,
+];
+
+fn node_error_code(e: &NodeConfigError) -> u32 {
+    let same = |k: &NodeConfigError| core::mem::discriminant(k) == core::mem::discriminant(e);
+    NODE_ERRORS.iter().position(same).map_or(u32::MAX, |i| i as u32)
+}
+
+fn node_error(code: u32, size: u16) -> Option<NodeConfigError> {
+    match NODE_ERRORS.get(usize::try_from(code).ok()?)? {
+        NodeConfigError::IoSizeTooLarge { .. } => Some(NodeConfigError::IoSizeTooLarge { size }),
+        other => Some(*other),
+    }
+}
+
+impl fmt::Display for RefusalRecord<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        text::display(f, |out| self.write_text(out))
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Staging {
     /// Nothing in the staging buffer.
@@ -138,7 +302,8 @@ pub struct ConfigObject {
     stored: bool,
     /// The accepted image waits for [`ConfigObject::take_new_image`].
     handed_over: bool,
-    refusal: String<MAX_REFUSAL_TEXT>,
+    /// Why the last download or the stored image was refused (attribute 5).
+    refusal: Option<ImageError>,
     /// The platform's own check of a downloaded configuration, if it has one.
     platform_check: Option<PlatformCheck>,
 }
@@ -153,11 +318,11 @@ impl ConfigObject {
             staging: Staging::Empty,
             stored: false,
             handed_over: false,
-            refusal: String::new(),
+            refusal: None,
             platform_check: None,
         };
         if let ConfigOrigin::Fault(e) = origin {
-            object.refuse(&e);
+            object.refusal = Some(e);
         }
         object
     }
@@ -174,12 +339,6 @@ impl ConfigObject {
     /// Sets the platform's own check of downloaded configurations ([`PlatformCheck`]).
     pub fn set_platform_check(&mut self, check: PlatformCheck) {
         self.platform_check = Some(check);
-    }
-
-    fn refuse(&mut self, e: &ImageError) {
-        self.refusal.clear();
-        // What fits, without core::fmt (a heapless::String drops the rest).
-        e.write_text(&mut self.refusal);
     }
 
     /// Attribute 3: 2 (pending) while an accepted image waits in the staging buffer or once the
@@ -236,7 +395,7 @@ impl ConfigObject {
     fn accept(&mut self) {
         self.staging = Staging::Pending;
         self.handed_over = true;
-        self.refusal.clear();
+        self.refusal = None;
     }
 
     /// Serves a request to [`CONFIG_CLASS`]; `io_established` says whether an I/O (poll)
@@ -325,7 +484,7 @@ impl ConfigObject {
                         Ok(())
                     }
                     Err(e) => {
-                        self.refuse(&e);
+                        self.refusal = Some(e);
                         self.staged.clear();
                         self.staging = Staging::Empty;
                         Err(ServiceError::with_additional(
@@ -355,7 +514,15 @@ impl ConfigObject {
             3 => reply.u8(self.state() as u8),
             // The image's own trailer: the CRC-32 of its header and body.
             4 => reply.u32(self.in_force.last_chunk::<4>().map_or(0, |c| u32::from_le_bytes(*c))),
-            5 => reply.short_string(&self.refusal),
+            5 => match &self.refusal {
+                Some(e) => {
+                    let (header, key) = RefusalRecord::encode(e);
+                    reply.bytes(&header)?;
+                    let room = MAX_REFUSAL - REFUSAL_HEADER;
+                    reply.bytes(key.as_bytes().get(..room).unwrap_or(key.as_bytes()))
+                }
+                None => Ok(()),
+            },
             _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
         }
     }
@@ -366,6 +533,7 @@ mod tests {
     use super::*;
     use crate::converter::ConverterConfig;
     use rstest::rstest;
+    use std::string::{String, ToString};
     use std::vec::Vec;
 
     fn image_of(config: &ConverterConfig) -> Vec<u8> {
@@ -412,7 +580,7 @@ mod tests {
     #[case::version(1, 0x0E, &[1], Ok(std::vec![IMAGE_VERSION]))]
     #[case::size(1, 0x0E, &[2], Ok(std::vec![98, 0]))]
     #[case::state(1, 0x0E, &[3], Ok(std::vec![0]))]
-    #[case::refusal_none(1, 0x0E, &[5], Ok(std::vec![0]))]
+    #[case::refusal_none(1, 0x0E, &[5], Ok(std::vec![]))]
     #[case::unknown_attribute(1, 0x0E, &[6], Err((0x14, 0xFF)))]
     #[case::set_read_only(1, 0x10, &[3, 1], Err((0x0E, 0xFF)))]
     #[case::set_unknown(1, 0x10, &[9, 1], Err((0x14, 0xFF)))]
@@ -498,8 +666,7 @@ mod tests {
         let mut bytes = image_of(&ConverterConfig::breaker_reference());
         damage(&mut bytes);
         assert_eq!(download(&mut o, &bytes), Err((0x09, code)));
-        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
-        let reason = core::str::from_utf8(&reason[1..]).unwrap();
+        let reason = reason(&mut o);
         assert!(reason.starts_with(text), "{reason}");
         assert_eq!(o.state(), ConfigState::FactoryDefault);
         assert_eq!(o.take_new_image(), None);
@@ -511,8 +678,7 @@ mod tests {
         let mut config = ConverterConfig::breaker_reference();
         config.device.identity.major_revision = 0;
         assert_eq!(download(&mut o, &image_of(&config)), Err((0x09, 4)));
-        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
-        assert_eq!(&reason[1..], b"identity.major_revision: 0 is outside 1..=127");
+        assert_eq!(reason(&mut o), "identity.major_revision: 0 is outside the allowed range 1..=127");
     }
 
     #[test]
@@ -534,25 +700,92 @@ mod tests {
         let crate::serial::ProfileConfig::Framed(framed) = &mut config.profile else { unreachable!() };
         framed.serial.parity = crate::serial::Parity::Odd;
         assert_eq!(download(&mut o, &image_of(&config)), Err((0x09, 4)));
-        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
-        assert_eq!(&reason[1..], b"profile.serial.parity: odd parity not made here");
+        assert_eq!(reason(&mut o), "profile.serial.parity: conflicts with another setting");
         assert_eq!(o.take_new_image(), None, "nothing to store");
     }
 
     #[test]
-    fn a_refused_stored_image_is_a_fault_with_its_reason_cut_to_fit() {
-        let long = ImageError::Invalid(crate::converter::InvalidConfig::Profile {
+    fn a_refused_stored_image_is_a_fault_with_its_reason() {
+        let e = ImageError::Invalid(crate::converter::InvalidConfig::Profile {
             modbus: true,
-            error: crate::serial::ConfigError::conflict(
-                "scan.offset",
-                "a reason long enough to be cut at the end of the explicit message",
-            ),
+            error: crate::serial::ConfigError::out_of_range("scan.offset", 30, 0, 4).at(15),
         });
         let mut o =
-            ConfigObject::new(&image_of(&ConverterConfig::breaker_reference()), ConfigOrigin::Fault(long));
+            ConfigObject::new(&image_of(&ConverterConfig::breaker_reference()), ConfigOrigin::Fault(e));
         assert_eq!(o.state(), ConfigState::Fault);
-        let reason = call(&mut o, 1, 0x0E, &[5], false).unwrap();
-        assert_eq!(usize::from(reason[0]), MAX_REFUSAL_TEXT);
-        assert!(reason.len() + 2 <= MAX_EXPLICIT_SIZE);
+        assert_eq!(reason(&mut o), "profile.modbus.scan[15].offset: 30 is outside the allowed range 0..=4");
+        assert_eq!(reason(&mut o), e.to_string(), "the words of the image error itself");
+    }
+
+    /// Attribute 5, worded.
+    fn reason(o: &mut ConfigObject) -> String {
+        let record = call(o, 1, 0x0E, &[5], false).unwrap();
+        assert!(record.len() + 2 <= MAX_EXPLICIT_SIZE, "one explicit message");
+        RefusalRecord::parse(&record).expect("a record").to_string()
+    }
+
+    /// Every refusal the device can make, encoded, sent and worded again: the words of
+    /// `ImageError`'s own text, except where the record keeps numbers only (a conflict's reason,
+    /// the loader's own phrasing of identity and network values).
+    #[rstest]
+    #[case::truncated(ImageError::Truncated(3))]
+    #[case::too_large(ImageError::TooLarge(400))]
+    #[case::bad_magic(ImageError::BadMagic)]
+    #[case::version(ImageError::UnsupportedVersion(9))]
+    #[case::length(ImageError::LengthMismatch { stated: 80, actual: 81 })]
+    #[case::crc(ImageError::CrcMismatch { stated: 0xDEAD_BEEF, computed: 0x0123_4567 })]
+    #[case::malformed(ImageError::Malformed { offset: 43 })]
+    #[case::buffer(ImageError::BufferTooSmall)]
+    #[case::overlap(ImageError::Invalid(InvalidConfig::Profile {
+        modbus: true,
+        error: crate::serial::ConfigError { field: "scan.offset", index: Some(2), problem: Problem::Overlap { other: 0 } },
+    }))]
+    #[case::duplicate(ImageError::Invalid(InvalidConfig::Profile {
+        modbus: false,
+        error: crate::serial::ConfigError { field: "commands.code", index: Some(3), problem: Problem::Duplicate { other: 1 } },
+    }))]
+    #[case::not_ascii(ImageError::Invalid(InvalidConfig::ProductNameNotAscii))]
+    #[case::io_size(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::IoSizeTooLarge { size: 300 })))]
+    #[case::io_instances(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::SameAssemblyInstance)))]
+    fn a_record_is_worded_as_the_error(#[case] e: ImageError) {
+        let (header, key) = RefusalRecord::encode(&e);
+        let mut bytes = header.to_vec();
+        bytes.extend_from_slice(key.as_bytes());
+        assert_eq!(RefusalRecord::parse(&bytes).unwrap().to_string(), e.to_string());
+    }
+
+    #[rstest]
+    #[case::mac(InvalidConfig::MacId(70), "network.mac_id: 70 is outside the allowed range 0..=63")]
+    #[case::baud(InvalidConfig::BaudRate(3), "network.baud_rate: 3 is outside the allowed range 0..=2")]
+    #[case::name(
+        InvalidConfig::ProductNameLength(40),
+        "identity.product_name: 40 is outside the allowed range 1..=32"
+    )]
+    #[case::epr(
+        InvalidConfig::EprResolutionZero,
+        "network.epr_resolution_ms: 0 is outside the allowed range 1..=65535"
+    )]
+    #[case::conflict(
+        InvalidConfig::Profile { modbus: false, error: crate::serial::ConfigError::conflict("framing.end", "why") },
+        "profile.framing.end: conflicts with another setting"
+    )]
+    fn identity_network_and_conflicts_are_worded_from_their_numbers(
+        #[case] e: InvalidConfig,
+        #[case] text: &str,
+    ) {
+        let (header, key) = RefusalRecord::encode(&ImageError::Invalid(e));
+        let mut bytes = header.to_vec();
+        bytes.extend_from_slice(key.as_bytes());
+        assert_eq!(RefusalRecord::parse(&bytes).unwrap().to_string(), text);
+    }
+
+    #[rstest]
+    #[case::empty(&[], None)]
+    #[case::short(&[8, 1, 0], None)]
+    #[case::unknown_kind(&[42, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], Some("refusal of unknown kind 42"))]
+    #[case::key_not_ascii(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF], Some("(a key that is not ASCII): conflicts with another setting"))]
+    #[case::unknown_node_error(&[8, 6, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, b'i', b'o'], Some("io: the node refuses the I/O configuration"))]
+    fn any_record_bytes_are_worded_or_refused(#[case] bytes: &[u8], #[case] text: Option<&str>) {
+        assert_eq!(RefusalRecord::parse(bytes).map(|r| r.to_string()).as_deref(), text);
     }
 }
