@@ -262,12 +262,11 @@ impl FramedProfile {
         let Some(format) = command_format(&self.config, command) else {
             return false;
         };
-        let mut data: Vec<u8, 7> = Vec::new();
-        let args = command.args.get(..usize::from(format.args)).unwrap_or(&[]);
-        if data.push(format.wire).is_err() || data.extend_from_slice(args).is_err() {
-            return false;
-        }
-        encode_padded(&self.config.framing, &data, &mut self.tx)
+        let [a0, a1, a2, a3, a4, a5] = command.args;
+        let data = [format.wire, a0, a1, a2, a3, a4, a5];
+        // More than six argument bytes cannot be taken from the poll: the wire code alone.
+        let len = if format.args <= 6 { 1 + usize::from(format.args) } else { 1 };
+        encode_padded(&self.config.framing, data.get(..len).unwrap_or(&[]), &mut self.tx)
     }
 
     /// When to call [`poll_transmit`](Self::poll_transmit) next.
@@ -318,17 +317,39 @@ fn command_format(config: &FramedProfileConfig, command: &Command) -> Option<Com
     config.commands.iter().copied().find(|f| f.code == command.code.as_raw())
 }
 
-/// Frames `data` into `out`, padding with zeros up to a fixed length.
+/// Frames `data` into `out`, padded with zeros up to (or cut to) a fixed length; `false`, with
+/// `out` empty, when the framing does not take it. The same frame as
+/// [`FramedConfig::encode_to_vec`] of the padded data, written straight into `out`: no padded
+/// copy, no zero-filled buffer written twice (firmware size budget).
+#[allow(clippy::manual_contains)] // No `memchr` in the firmware (size budget).
 fn encode_padded(framing: &FramedConfig, data: &[u8], out: &mut Vec<u8, FRAME_CAPACITY>) -> bool {
-    if let LengthField::Fixed(n) = framing.length {
-        let mut padded: Vec<u8, 255> = Vec::new();
-        if padded.extend_from_slice(data).is_err() || padded.resize(usize::from(n), 0).is_err() {
+    out.clear();
+    let len = match framing.length {
+        LengthField::Fixed(n) => usize::from(n),
+        LengthField::Byte | LengthField::Delimited if data.len() <= usize::from(framing.max_len) => {
+            data.len()
+        }
+        LengthField::Byte | LengthField::Delimited => return false,
+    };
+    if let (LengthField::Delimited, Some(end)) = (framing.length, framing.end) {
+        // A plain loop: `contains` on bytes would pull in `memchr` (flash).
+        if data.iter().any(|&b| b == end) {
             return false;
         }
-        framing.encode_to_vec(&padded, out).is_ok()
-    } else {
-        framing.encode_to_vec(data, out).is_ok()
     }
+    let header = framing.header_len();
+    // At most 2 + 255 + 3 = FRAME_CAPACITY bytes (`len` is a `u8` value): no push can fail.
+    const _: () = assert!(2 + 255 + 3 <= FRAME_CAPACITY);
+    let _ = out.extend_from_slice([framing.start, len as u8].get(..header).unwrap_or(&[]));
+    for i in 0..len {
+        let _ = out.push(data.get(i).copied().unwrap_or(0));
+    }
+    let sum = framing.checksum.wire_bytes(out.get(header..).unwrap_or(&[]));
+    let _ = out.extend_from_slice(sum.get(..framing.checksum.byte_len()).unwrap_or(&[]));
+    if let Some(end) = framing.end {
+        let _ = out.push(end);
+    }
+    true
 }
 
 /// Handles one good frame's data.
@@ -372,4 +393,62 @@ fn parse_ack(ack: &AckFormat, data: &[u8]) -> Option<(u8, u8)> {
         return None;
     }
     Some((first & !ack.flag, rest.first().copied().unwrap_or(ack.ok_status)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::breaker::FRAMING as BREAKER;
+    use crate::serial::Checksum;
+    use proptest::prelude::*;
+
+    /// The frame as `encode_padded` first built it: pad (or cut) to a fixed length, then
+    /// [`FramedConfig::encode_to_vec`].
+    fn encode_padded_reference(framing: &FramedConfig, data: &[u8]) -> Option<std::vec::Vec<u8>> {
+        let mut padded: Vec<u8, 255> = Vec::from_slice(data).ok()?;
+        if let LengthField::Fixed(n) = framing.length {
+            padded.resize(usize::from(n), 0).ok()?;
+        }
+        let mut out: Vec<u8, FRAME_CAPACITY> = Vec::new();
+        framing.encode_to_vec(&padded, &mut out).ok()?;
+        Some(out.to_vec())
+    }
+
+    fn any_framing() -> impl Strategy<Value = FramedConfig> {
+        let fixed = |n, checksum| FramedConfig {
+            start: 0x02,
+            length: LengthField::Fixed(n),
+            end: Some(0x03),
+            checksum,
+            max_len: 255,
+        };
+        prop_oneof![
+            Just(BREAKER),
+            Just(FramedConfig { max_len: 255, ..BREAKER }),
+            Just(fixed(4, Checksum::Xor8)),
+            Just(fixed(255, Checksum::Crc16Modbus)),
+            Just(FramedConfig { end: None, checksum: Checksum::Crc16Modbus, ..BREAKER }),
+            Just(FramedConfig {
+                start: b':',
+                length: LengthField::Delimited,
+                end: Some(b'\n'),
+                checksum: Checksum::None,
+                max_len: 8,
+            }),
+        ]
+    }
+
+    proptest! {
+        #[test]
+        fn encode_padded_matches_pad_then_encode(
+            framing in any_framing(),
+            data in proptest::collection::vec(prop_oneof![Just(b'\n'), any::<u8>()], 0..40),
+        ) {
+            let mut out: Vec<u8, FRAME_CAPACITY> = Vec::from_slice(&[0xEE; 7]).unwrap();
+            let ok = encode_padded(&framing, &data, &mut out);
+            let expected = encode_padded_reference(&framing, &data);
+            prop_assert_eq!(ok, expected.is_some());
+            prop_assert_eq!(out.as_slice(), expected.as_deref().unwrap_or(&[]));
+        }
+    }
 }
