@@ -93,57 +93,70 @@ impl FramedProfileConfig {
         self.sequencer.validate()?;
         self.health.validate()?;
 
+        // The data lengths a frame of this framing can carry: status frames, acknowledgements.
         let (min, max) = match self.framing.length {
             LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
             LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
         };
-        let max = max.min(as_u32(IMAGE_CAPACITY));
-        ConfigError::check_range("status_len", u32::from(self.status_len), min, max)?;
+        ConfigError::check_range(
+            "status_len",
+            u32::from(self.status_len),
+            min,
+            max.min(as_u32(IMAGE_CAPACITY)),
+        )?;
 
         if let Some(ack) = self.ack {
-            let (min, max) = match self.framing.length {
-                LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
-                LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
-            };
             ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
             ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
         }
 
         let max_data = self.max_tx_data();
+        // The byte that data sent in a delimited frame must not contain.
+        let end = match self.framing.length {
+            LengthField::Delimited => self.framing.end,
+            LengthField::Byte | LengthField::Fixed(_) => None,
+        };
+        let max_args = as_u32(max_data.saturating_sub(1).min(6));
         for (i, c) in self.commands.iter().enumerate() {
-            ConfigError::check_range("commands.code", u32::from(c.code), 1, 255).map_err(|e| e.at(i))?;
-            let max_args = max_data.saturating_sub(1).min(6);
-            ConfigError::check_range("commands.args", u32::from(c.args), 0, as_u32(max_args))
-                .map_err(|e| e.at(i))?;
-            if let Some(other) = self.commands.iter().take(i).position(|o| o.code == c.code) {
-                return Err(ConfigError {
-                    field: "commands.code",
-                    index: None,
-                    problem: Problem::Duplicate { other: other as u16 },
-                }
-                .at(i));
-            }
-            if self.framing.length == LengthField::Delimited && self.framing.end == Some(c.wire) {
-                return Err(ConfigError::conflict("commands.wire", "equals the end delimiter").at(i));
-            }
+            check_command(c, self.commands.get(..i).unwrap_or(&[]), max_args, end).map_err(|e| e.at(i))?;
         }
 
-        check_idle_frame("sequencer.on_idle", &self.sequencer.on_idle, 0, max_data)?;
-        check_idle_frame("sequencer.on_fault", &self.sequencer.on_fault, 0, max_data)?;
-        for (field, action) in
-            [("sequencer.on_idle", &self.sequencer.on_idle), ("sequencer.on_fault", &self.sequencer.on_fault)]
-        {
-            if let (LengthField::Delimited, Some(end), Some(frame)) =
-                (self.framing.length, self.framing.end, action.frame())
-            {
-                // A plain loop: `contains` on bytes would pull in `memchr` (flash).
-                if frame.iter().any(|&b| b == end) {
-                    return Err(ConfigError::conflict(field, "contains the end delimiter"));
-                }
+        let actions = [
+            ("sequencer.on_idle", &self.sequencer.on_idle),
+            ("sequencer.on_fault", &self.sequencer.on_fault),
+        ];
+        for (field, action) in actions {
+            check_idle_frame(field, action, 0, max_data)?;
+        }
+        for (field, action) in actions {
+            // A plain loop: `contains` on bytes would pull in `memchr` (flash).
+            if action.frame().is_some_and(|frame| frame.iter().any(|&b| Some(b) == end)) {
+                return Err(ConfigError::conflict(field, "contains the end delimiter"));
             }
         }
         FrameParser::<FRAME_CAPACITY>::check_capacity(&self.framing)
     }
+}
+
+/// Checks one entry of [`FramedProfileConfig::commands`] against the entries before it (the
+/// caller adds the entry's index to the error).
+#[allow(clippy::manual_contains)] // No `memchr` in the firmware (size budget).
+fn check_command(
+    c: &CommandFormat,
+    before: &[CommandFormat],
+    max_args: u32,
+    end: Option<u8>,
+) -> Result<(), ConfigError> {
+    ConfigError::check_range("commands.code", u32::from(c.code), 1, 255)?;
+    ConfigError::check_range("commands.args", u32::from(c.args), 0, max_args)?;
+    if let Some(other) = before.iter().position(|o| o.code == c.code) {
+        let problem = Problem::Duplicate { other: other as u16 };
+        return Err(ConfigError { field: "commands.code", index: None, problem });
+    }
+    if end == Some(c.wire) {
+        return Err(ConfigError::conflict("commands.wire", "equals the end delimiter"));
+    }
+    Ok(())
 }
 
 /// A framed-serial instrument: input image from status frames, commands from poll outputs,
@@ -436,6 +449,134 @@ mod tests {
                 max_len: 8,
             }),
         ]
+    }
+
+    /// `validate` as it was before it was written for size: the order of its checks decides
+    /// which error a configuration with several faults reports.
+    #[allow(clippy::manual_contains)]
+    fn validate_reference(c: &FramedProfileConfig) -> Result<(), ConfigError> {
+        use crate::serial::sequencer::check_idle_frame;
+        c.serial.validate()?;
+        c.framing.validate()?;
+        c.sequencer.validate()?;
+        c.health.validate()?;
+        let (min, max) = match c.framing.length {
+            LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
+            LengthField::Byte | LengthField::Delimited => (1, u32::from(c.framing.max_len)),
+        };
+        let max = max.min(as_u32(IMAGE_CAPACITY));
+        ConfigError::check_range("status_len", u32::from(c.status_len), min, max)?;
+        if let Some(ack) = c.ack {
+            let (min, max) = match c.framing.length {
+                LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
+                LengthField::Byte | LengthField::Delimited => (1, u32::from(c.framing.max_len)),
+            };
+            ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
+            ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
+        }
+        let max_data = c.max_tx_data();
+        for (i, f) in c.commands.iter().enumerate() {
+            ConfigError::check_range("commands.code", u32::from(f.code), 1, 255).map_err(|e| e.at(i))?;
+            let max_args = max_data.saturating_sub(1).min(6);
+            ConfigError::check_range("commands.args", u32::from(f.args), 0, as_u32(max_args))
+                .map_err(|e| e.at(i))?;
+            if let Some(other) = c.commands.iter().take(i).position(|o| o.code == f.code) {
+                return Err(ConfigError {
+                    field: "commands.code",
+                    index: None,
+                    problem: Problem::Duplicate { other: other as u16 },
+                }
+                .at(i));
+            }
+            if c.framing.length == LengthField::Delimited && c.framing.end == Some(f.wire) {
+                return Err(ConfigError::conflict("commands.wire", "equals the end delimiter").at(i));
+            }
+        }
+        check_idle_frame("sequencer.on_idle", &c.sequencer.on_idle, 0, max_data)?;
+        check_idle_frame("sequencer.on_fault", &c.sequencer.on_fault, 0, max_data)?;
+        for (field, action) in
+            [("sequencer.on_idle", &c.sequencer.on_idle), ("sequencer.on_fault", &c.sequencer.on_fault)]
+        {
+            if let (LengthField::Delimited, Some(end), Some(frame)) =
+                (c.framing.length, c.framing.end, action.frame())
+            {
+                if frame.iter().any(|&b| b == end) {
+                    return Err(ConfigError::conflict(field, "contains the end delimiter"));
+                }
+            }
+        }
+        FrameParser::<FRAME_CAPACITY>::check_capacity(&c.framing)
+    }
+
+    /// Configurations around every limit `validate` checks: each field mostly valid, so that
+    /// every check, and every pair of faults, is reached.
+    fn any_config() -> impl Strategy<Value = FramedProfileConfig> {
+        let len = || prop_oneof![8 => Just(18u8), 2 => Just(255), 1 => Just(0), 1 => Just(1), 1 => Just(2), 1 => Just(7), 1 => Just(64), 1 => Just(65), 1 => any::<u8>()];
+        let length = prop_oneof![3 => Just(LengthField::Byte), 2 => Just(LengthField::Delimited), 2 => len().prop_map(LengthField::Fixed)];
+        let checksum = prop_oneof![Just(Checksum::None), Just(Checksum::Sum8), Just(Checksum::Crc16Modbus)];
+        let framing = (
+            prop_oneof![8 => Just(0x68u8), 1 => Just(0x16)],
+            length,
+            prop_oneof![1 => Just(None), 8 => Just(Some(0x16u8)), 1 => Just(Some(0x68))],
+            checksum,
+            len(),
+        )
+            .prop_map(|(start, length, end, checksum, max_len)| FramedConfig {
+                start,
+                length,
+                end,
+                checksum,
+                max_len,
+            });
+        let ack = proptest::option::of(
+            (len(), prop_oneof![1 => Just(0u8), 8 => Just(0x80)], any::<u8>())
+                .prop_map(|(data_len, flag, ok_status)| AckFormat { data_len, flag, ok_status }),
+        );
+        let command = (prop_oneof![1 => Just(0u8), 3 => Just(1), 3 => Just(2), 3 => Just(3), 3 => Just(4)], prop_oneof![Just(1u8), Just(0x16), any::<u8>()], prop_oneof![3 => Just(0u8), 1 => Just(3), 1 => Just(5), 1 => Just(6), 1 => Just(7), 1 => any::<u8>()])
+            .prop_map(|(code, wire, args)| CommandFormat { code, wire, args });
+        let commands = proptest::collection::vec(command, 0..=MAX_COMMAND_FORMATS);
+        let action = || {
+            prop_oneof![
+                Just(crate::serial::IdleAction::Nothing),
+                proptest::collection::vec(prop_oneof![1 => Just(0x16u8), 8 => Just(0u8)], 0..=32)
+                    .prop_map(|v| crate::serial::IdleAction::send(&v).unwrap()),
+            ]
+        };
+        let sequencer = (
+            prop_oneof![20 => Just(500u32), 1 => Just(0), 1 => Just(1), 1 => Just(60_000), 1 => Just(60_001)],
+            prop_oneof![20 => Just(2u8), 1 => Just(10), 1 => Just(11)],
+            action(),
+            action(),
+        )
+            .prop_map(|(response_timeout_ms, retries, on_idle, on_fault)| SequencerConfig {
+                response_timeout_ms,
+                retries,
+                execute_first: true,
+                on_idle,
+                on_fault,
+            });
+        let health = prop_oneof![20 => Just(3000u32), 1 => Just(0), 1 => Just(1), 1 => Just(3_600_000), 1 => Just(3_600_001)]
+            .prop_map(|stale_timeout_ms| HealthConfig { stale_timeout_ms, ..HealthConfig::default() });
+        let baud = prop_oneof![20 => Just(9600u32), 1 => Just(299), 1 => Just(300), 1 => Just(4_000_000), 1 => Just(4_000_001)];
+        (baud, framing, len(), ack, commands, sequencer, health).prop_map(
+            |(baud, framing, status_len, ack, commands, sequencer, health)| FramedProfileConfig {
+                serial: SerialSettings::new_8n1(baud),
+                framing,
+                status_len,
+                ack,
+                commands: Vec::from_slice(&commands).unwrap(),
+                sequencer,
+                health,
+            },
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4096))]
+        #[test]
+        fn validate_matches_reference(c in any_config()) {
+            prop_assert_eq!(c.validate(), validate_reference(&c));
+        }
     }
 
     proptest! {
