@@ -253,12 +253,12 @@ impl FramedProfile {
                     Transmission::Command { .. } => {
                         self.sequencer.complete(CommandOutcome::Unsupported);
                     }
-                    Transmission::Idle | Transmission::Fault => self.sequencer.transmitted(t, now, now),
+                    Transmission::Idle | Transmission::Fault => self.sequencer.record_transmitted(t, now),
                 }
                 continue;
             }
             let done = now + self.config.serial.transmit_time(self.tx.len());
-            self.sequencer.transmitted(t, now, done);
+            self.sequencer.record_transmitted(t, done);
             if matches!(t, Transmission::Command { .. }) && self.config.ack.is_none() {
                 self.sequencer.complete(CommandOutcome::Ok);
             }
