@@ -352,8 +352,12 @@ fn encode_padded(framing: &FramedConfig, data: &[u8], out: &mut Vec<u8, FRAME_CA
     }
     let header = framing.header_len();
     // At most 2 + 255 + 3 = FRAME_CAPACITY bytes (`len` is a `u8` value): no push can fail.
+    // Single bytes pushed in line; `extend_from_slice` only where the length varies (flash).
     const _: () = assert!(2 + 255 + 3 <= FRAME_CAPACITY);
-    let _ = out.extend_from_slice([framing.start, len as u8].get(..header).unwrap_or(&[]));
+    let _ = out.push(framing.start);
+    if framing.length == LengthField::Byte {
+        let _ = out.push(len as u8);
+    }
     for i in 0..len {
         let _ = out.push(data.get(i).copied().unwrap_or(0));
     }
