@@ -247,24 +247,25 @@ impl FramedProfile {
                     encode_padded(&self.config.framing, frame, &mut self.tx)
                 }
             };
-            if !encoded {
-                // Unknown command code (validated configurations never fail otherwise).
-                match t {
-                    Transmission::Command { .. } => {
-                        self.sequencer.complete(CommandOutcome::Unsupported);
-                    }
-                    Transmission::Idle | Transmission::Fault => self.sequencer.record_transmitted(t, now),
-                }
-                continue;
+            // A command that cannot be framed has an unknown code (validated configurations never
+            // fail otherwise): it is not sent, and ends unsupported. An idle/fault frame that
+            // cannot be framed is passed over as if sent. Without acknowledgements a command is
+            // done once sent. One call site each for recording and completing (flash).
+            let command = matches!(t, Transmission::Command { .. });
+            if encoded || !command {
+                let tx_done =
+                    if encoded { now + self.config.serial.transmit_time(self.tx.len()) } else { now };
+                self.sequencer.record_transmitted(t, tx_done);
             }
-            let done = now + self.config.serial.transmit_time(self.tx.len());
-            self.sequencer.record_transmitted(t, done);
-            if matches!(t, Transmission::Command { .. }) && self.config.ack.is_none() {
-                self.sequencer.complete(CommandOutcome::Ok);
+            if command && (!encoded || self.config.ack.is_none()) {
+                let outcome = if encoded { CommandOutcome::Ok } else { CommandOutcome::Unsupported };
+                self.sequencer.complete(outcome);
             }
-            bump(&mut self.health.stats_mut().frames_sent);
-            self.sync_stats();
-            return Some(&self.tx);
+            if encoded {
+                bump(&mut self.health.stats_mut().frames_sent);
+                self.sync_stats();
+                return Some(&self.tx);
+            }
         }
         self.sync_stats();
         None
