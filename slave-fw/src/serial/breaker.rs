@@ -270,13 +270,14 @@ impl FramedProfileConfig {
 /// wire codes 1–4 (set parameter takes 3 argument bytes), 500 ms response timeout with 2 retries,
 /// stale after 3 s, hold last value.
 pub fn profile_config() -> FramedProfileConfig {
-    let mut commands = Vec::new();
-    for (code, wire, args) in
-        [(1, CMD_OPEN, 0), (2, CMD_CLOSE, 0), (3, CMD_SET_PARAMETER, 3), (4, CMD_REFRESH, 0)]
-    {
-        // Four entries, capacity 8.
-        let _ = commands.push(CommandFormat { code, wire, args });
-    }
+    let command = |code, wire, args| CommandFormat { code, wire, args };
+    // Four entries, capacity 8 (checked at compile time).
+    let commands = Vec::from_array([
+        command(1, CMD_OPEN, 0),
+        command(2, CMD_CLOSE, 0),
+        command(3, CMD_SET_PARAMETER, 3),
+        command(4, CMD_REFRESH, 0),
+    ]);
     FramedProfileConfig {
         serial: SerialSettings::new_8n1(9600),
         framing: FRAMING,

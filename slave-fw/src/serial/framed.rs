@@ -406,21 +406,22 @@ impl<const N: usize> FrameParser<N> {
     /// Decides on the buffered candidate until more bytes are needed.
     fn process(&mut self, on_event: &mut impl FnMut(Result<Frame<'_>, FrameError>)) {
         loop {
-            match self.check() {
+            // One call of `on_event` for both verdicts: each call site builds the event (flash).
+            let (event, used) = match self.check() {
                 Check::NeedMore => return,
                 Check::Complete { total, data_start, data_len } => {
                     self.counters.frames = self.counters.frames.wrapping_add(1);
                     let raw = self.buf.get(..total).unwrap_or(&[]);
-                    on_event(Ok(Frame { raw, data_start, data_len }));
-                    self.discard(total);
+                    (Ok(Frame { raw, data_start, data_len }), total)
                 }
                 Check::Reject(e) => {
                     self.counters.count(e);
-                    on_event(Err(e));
                     // Drop only the start byte: a frame may begin inside the rejected one.
-                    self.discard(1);
+                    (Err(e), 1)
                 }
-            }
+            };
+            on_event(event);
+            self.discard(used);
             self.skip_to_start();
             if self.buf.is_empty() {
                 return;

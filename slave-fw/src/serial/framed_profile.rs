@@ -93,57 +93,70 @@ impl FramedProfileConfig {
         self.sequencer.validate()?;
         self.health.validate()?;
 
+        // The data lengths a frame of this framing can carry: status frames, acknowledgements.
         let (min, max) = match self.framing.length {
             LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
             LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
         };
-        let max = max.min(as_u32(IMAGE_CAPACITY));
-        ConfigError::check_range("status_len", u32::from(self.status_len), min, max)?;
+        ConfigError::check_range(
+            "status_len",
+            u32::from(self.status_len),
+            min,
+            max.min(as_u32(IMAGE_CAPACITY)),
+        )?;
 
         if let Some(ack) = self.ack {
-            let (min, max) = match self.framing.length {
-                LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
-                LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
-            };
             ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
             ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
         }
 
         let max_data = self.max_tx_data();
+        // The byte that data sent in a delimited frame must not contain.
+        let end = match self.framing.length {
+            LengthField::Delimited => self.framing.end,
+            LengthField::Byte | LengthField::Fixed(_) => None,
+        };
+        let max_args = as_u32(max_data.saturating_sub(1).min(6));
         for (i, c) in self.commands.iter().enumerate() {
-            ConfigError::check_range("commands.code", u32::from(c.code), 1, 255).map_err(|e| e.at(i))?;
-            let max_args = max_data.saturating_sub(1).min(6);
-            ConfigError::check_range("commands.args", u32::from(c.args), 0, as_u32(max_args))
-                .map_err(|e| e.at(i))?;
-            if let Some(other) = self.commands.iter().take(i).position(|o| o.code == c.code) {
-                return Err(ConfigError {
-                    field: "commands.code",
-                    index: None,
-                    problem: Problem::Duplicate { other: other as u16 },
-                }
-                .at(i));
-            }
-            if self.framing.length == LengthField::Delimited && self.framing.end == Some(c.wire) {
-                return Err(ConfigError::conflict("commands.wire", "equals the end delimiter").at(i));
-            }
+            check_command(c, self.commands.get(..i).unwrap_or(&[]), max_args, end).map_err(|e| e.at(i))?;
         }
 
-        check_idle_frame("sequencer.on_idle", &self.sequencer.on_idle, 0, max_data)?;
-        check_idle_frame("sequencer.on_fault", &self.sequencer.on_fault, 0, max_data)?;
-        for (field, action) in
-            [("sequencer.on_idle", &self.sequencer.on_idle), ("sequencer.on_fault", &self.sequencer.on_fault)]
-        {
-            if let (LengthField::Delimited, Some(end), Some(frame)) =
-                (self.framing.length, self.framing.end, action.frame())
-            {
-                // A plain loop: `contains` on bytes would pull in `memchr` (flash).
-                if frame.iter().any(|&b| b == end) {
-                    return Err(ConfigError::conflict(field, "contains the end delimiter"));
-                }
+        let actions = [
+            ("sequencer.on_idle", &self.sequencer.on_idle),
+            ("sequencer.on_fault", &self.sequencer.on_fault),
+        ];
+        for (field, action) in actions {
+            check_idle_frame(field, action, 0, max_data)?;
+        }
+        for (field, action) in actions {
+            // A plain loop: `contains` on bytes would pull in `memchr` (flash).
+            if action.frame().is_some_and(|frame| frame.iter().any(|&b| Some(b) == end)) {
+                return Err(ConfigError::conflict(field, "contains the end delimiter"));
             }
         }
         FrameParser::<FRAME_CAPACITY>::check_capacity(&self.framing)
     }
+}
+
+/// Checks one entry of [`FramedProfileConfig::commands`] against the entries before it (the
+/// caller adds the entry's index to the error).
+#[allow(clippy::manual_contains)] // No `memchr` in the firmware (size budget).
+fn check_command(
+    c: &CommandFormat,
+    before: &[CommandFormat],
+    max_args: u32,
+    end: Option<u8>,
+) -> Result<(), ConfigError> {
+    ConfigError::check_range("commands.code", u32::from(c.code), 1, 255)?;
+    ConfigError::check_range("commands.args", u32::from(c.args), 0, max_args)?;
+    if let Some(other) = before.iter().position(|o| o.code == c.code) {
+        let problem = Problem::Duplicate { other: other as u16 };
+        return Err(ConfigError { field: "commands.code", index: None, problem });
+    }
+    if end == Some(c.wire) {
+        return Err(ConfigError::conflict("commands.wire", "equals the end delimiter"));
+    }
+    Ok(())
 }
 
 /// A framed-serial instrument: input image from status frames, commands from poll outputs,
@@ -234,24 +247,25 @@ impl FramedProfile {
                     encode_padded(&self.config.framing, frame, &mut self.tx)
                 }
             };
-            if !encoded {
-                // Unknown command code (validated configurations never fail otherwise).
-                match t {
-                    Transmission::Command { .. } => {
-                        self.sequencer.complete(CommandOutcome::Unsupported);
-                    }
-                    Transmission::Idle | Transmission::Fault => self.sequencer.transmitted(t, now, now),
-                }
-                continue;
+            // A command that cannot be framed has an unknown code (validated configurations never
+            // fail otherwise): it is not sent, and ends unsupported. An idle/fault frame that
+            // cannot be framed is passed over as if sent. Without acknowledgements a command is
+            // done once sent. One call site each for recording and completing (flash).
+            let command = matches!(t, Transmission::Command { .. });
+            if encoded || !command {
+                let tx_done =
+                    if encoded { now + self.config.serial.transmit_time(self.tx.len()) } else { now };
+                self.sequencer.record_transmitted(t, tx_done);
             }
-            let done = now + self.config.serial.transmit_time(self.tx.len());
-            self.sequencer.transmitted(t, now, done);
-            if matches!(t, Transmission::Command { .. }) && self.config.ack.is_none() {
-                self.sequencer.complete(CommandOutcome::Ok);
+            if command && (!encoded || self.config.ack.is_none()) {
+                let outcome = if encoded { CommandOutcome::Ok } else { CommandOutcome::Unsupported };
+                self.sequencer.complete(outcome);
             }
-            bump(&mut self.health.stats_mut().frames_sent);
-            self.sync_stats();
-            return Some(&self.tx);
+            if encoded {
+                bump(&mut self.health.stats_mut().frames_sent);
+                self.sync_stats();
+                return Some(&self.tx);
+            }
         }
         self.sync_stats();
         None
@@ -262,12 +276,11 @@ impl FramedProfile {
         let Some(format) = command_format(&self.config, command) else {
             return false;
         };
-        let mut data: Vec<u8, 7> = Vec::new();
-        let args = command.args.get(..usize::from(format.args)).unwrap_or(&[]);
-        if data.push(format.wire).is_err() || data.extend_from_slice(args).is_err() {
-            return false;
-        }
-        encode_padded(&self.config.framing, &data, &mut self.tx)
+        let [a0, a1, a2, a3, a4, a5] = command.args;
+        let data = [format.wire, a0, a1, a2, a3, a4, a5];
+        // More than six argument bytes cannot be taken from the poll: the wire code alone.
+        let len = if format.args <= 6 { 1 + usize::from(format.args) } else { 1 };
+        encode_padded(&self.config.framing, data.get(..len).unwrap_or(&[]), &mut self.tx)
     }
 
     /// When to call [`poll_transmit`](Self::poll_transmit) next.
@@ -318,17 +331,43 @@ fn command_format(config: &FramedProfileConfig, command: &Command) -> Option<Com
     config.commands.iter().copied().find(|f| f.code == command.code.as_raw())
 }
 
-/// Frames `data` into `out`, padding with zeros up to a fixed length.
+/// Frames `data` into `out`, padded with zeros up to (or cut to) a fixed length; `false`, with
+/// `out` empty, when the framing does not take it. The same frame as
+/// [`FramedConfig::encode_to_vec`] of the padded data, written straight into `out`: no padded
+/// copy, no zero-filled buffer written twice (firmware size budget).
+#[allow(clippy::manual_contains)] // No `memchr` in the firmware (size budget).
 fn encode_padded(framing: &FramedConfig, data: &[u8], out: &mut Vec<u8, FRAME_CAPACITY>) -> bool {
-    if let LengthField::Fixed(n) = framing.length {
-        let mut padded: Vec<u8, 255> = Vec::new();
-        if padded.extend_from_slice(data).is_err() || padded.resize(usize::from(n), 0).is_err() {
+    out.clear();
+    let len = match framing.length {
+        LengthField::Fixed(n) => usize::from(n),
+        LengthField::Byte | LengthField::Delimited if data.len() <= usize::from(framing.max_len) => {
+            data.len()
+        }
+        LengthField::Byte | LengthField::Delimited => return false,
+    };
+    if let (LengthField::Delimited, Some(end)) = (framing.length, framing.end) {
+        // A plain loop: `contains` on bytes would pull in `memchr` (flash).
+        if data.iter().any(|&b| b == end) {
             return false;
         }
-        framing.encode_to_vec(&padded, out).is_ok()
-    } else {
-        framing.encode_to_vec(data, out).is_ok()
     }
+    let header = framing.header_len();
+    // At most 2 + 255 + 3 = FRAME_CAPACITY bytes (`len` is a `u8` value): no push can fail.
+    // Single bytes pushed in line; `extend_from_slice` only where the length varies (flash).
+    const _: () = assert!(2 + 255 + 3 <= FRAME_CAPACITY);
+    let _ = out.push(framing.start);
+    if framing.length == LengthField::Byte {
+        let _ = out.push(len as u8);
+    }
+    for i in 0..len {
+        let _ = out.push(data.get(i).copied().unwrap_or(0));
+    }
+    let sum = framing.checksum.wire_bytes(out.get(header..).unwrap_or(&[]));
+    let _ = out.extend_from_slice(sum.get(..framing.checksum.byte_len()).unwrap_or(&[]));
+    if let Some(end) = framing.end {
+        let _ = out.push(end);
+    }
+    true
 }
 
 /// Handles one good frame's data.
@@ -372,4 +411,190 @@ fn parse_ack(ack: &AckFormat, data: &[u8]) -> Option<(u8, u8)> {
         return None;
     }
     Some((first & !ack.flag, rest.first().copied().unwrap_or(ack.ok_status)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serial::breaker::FRAMING as BREAKER;
+    use crate::serial::Checksum;
+    use proptest::prelude::*;
+
+    /// The frame as `encode_padded` first built it: pad (or cut) to a fixed length, then
+    /// [`FramedConfig::encode_to_vec`].
+    fn encode_padded_reference(framing: &FramedConfig, data: &[u8]) -> Option<std::vec::Vec<u8>> {
+        let mut padded: Vec<u8, 255> = Vec::from_slice(data).ok()?;
+        if let LengthField::Fixed(n) = framing.length {
+            padded.resize(usize::from(n), 0).ok()?;
+        }
+        let mut out: Vec<u8, FRAME_CAPACITY> = Vec::new();
+        framing.encode_to_vec(&padded, &mut out).ok()?;
+        Some(out.to_vec())
+    }
+
+    fn any_framing() -> impl Strategy<Value = FramedConfig> {
+        let fixed = |n, checksum| FramedConfig {
+            start: 0x02,
+            length: LengthField::Fixed(n),
+            end: Some(0x03),
+            checksum,
+            max_len: 255,
+        };
+        prop_oneof![
+            Just(BREAKER),
+            Just(FramedConfig { max_len: 255, ..BREAKER }),
+            Just(fixed(4, Checksum::Xor8)),
+            Just(fixed(255, Checksum::Crc16Modbus)),
+            Just(FramedConfig { end: None, checksum: Checksum::Crc16Modbus, ..BREAKER }),
+            Just(FramedConfig {
+                start: b':',
+                length: LengthField::Delimited,
+                end: Some(b'\n'),
+                checksum: Checksum::None,
+                max_len: 8,
+            }),
+        ]
+    }
+
+    /// `validate` as it was before it was written for size: the order of its checks decides
+    /// which error a configuration with several faults reports.
+    #[allow(clippy::manual_contains)]
+    fn validate_reference(c: &FramedProfileConfig) -> Result<(), ConfigError> {
+        use crate::serial::sequencer::check_idle_frame;
+        c.serial.validate()?;
+        c.framing.validate()?;
+        c.sequencer.validate()?;
+        c.health.validate()?;
+        let (min, max) = match c.framing.length {
+            LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
+            LengthField::Byte | LengthField::Delimited => (1, u32::from(c.framing.max_len)),
+        };
+        let max = max.min(as_u32(IMAGE_CAPACITY));
+        ConfigError::check_range("status_len", u32::from(c.status_len), min, max)?;
+        if let Some(ack) = c.ack {
+            let (min, max) = match c.framing.length {
+                LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
+                LengthField::Byte | LengthField::Delimited => (1, u32::from(c.framing.max_len)),
+            };
+            ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
+            ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
+        }
+        let max_data = c.max_tx_data();
+        for (i, f) in c.commands.iter().enumerate() {
+            ConfigError::check_range("commands.code", u32::from(f.code), 1, 255).map_err(|e| e.at(i))?;
+            let max_args = max_data.saturating_sub(1).min(6);
+            ConfigError::check_range("commands.args", u32::from(f.args), 0, as_u32(max_args))
+                .map_err(|e| e.at(i))?;
+            if let Some(other) = c.commands.iter().take(i).position(|o| o.code == f.code) {
+                return Err(ConfigError {
+                    field: "commands.code",
+                    index: None,
+                    problem: Problem::Duplicate { other: other as u16 },
+                }
+                .at(i));
+            }
+            if c.framing.length == LengthField::Delimited && c.framing.end == Some(f.wire) {
+                return Err(ConfigError::conflict("commands.wire", "equals the end delimiter").at(i));
+            }
+        }
+        check_idle_frame("sequencer.on_idle", &c.sequencer.on_idle, 0, max_data)?;
+        check_idle_frame("sequencer.on_fault", &c.sequencer.on_fault, 0, max_data)?;
+        for (field, action) in
+            [("sequencer.on_idle", &c.sequencer.on_idle), ("sequencer.on_fault", &c.sequencer.on_fault)]
+        {
+            if let (LengthField::Delimited, Some(end), Some(frame)) =
+                (c.framing.length, c.framing.end, action.frame())
+            {
+                if frame.iter().any(|&b| b == end) {
+                    return Err(ConfigError::conflict(field, "contains the end delimiter"));
+                }
+            }
+        }
+        FrameParser::<FRAME_CAPACITY>::check_capacity(&c.framing)
+    }
+
+    /// Configurations around every limit `validate` checks: each field mostly valid, so that
+    /// every check, and every pair of faults, is reached.
+    fn any_config() -> impl Strategy<Value = FramedProfileConfig> {
+        let len = || prop_oneof![8 => Just(18u8), 2 => Just(255), 1 => Just(0), 1 => Just(1), 1 => Just(2), 1 => Just(7), 1 => Just(64), 1 => Just(65), 1 => any::<u8>()];
+        let length = prop_oneof![3 => Just(LengthField::Byte), 2 => Just(LengthField::Delimited), 2 => len().prop_map(LengthField::Fixed)];
+        let checksum = prop_oneof![Just(Checksum::None), Just(Checksum::Sum8), Just(Checksum::Crc16Modbus)];
+        let framing = (
+            prop_oneof![8 => Just(0x68u8), 1 => Just(0x16)],
+            length,
+            prop_oneof![1 => Just(None), 8 => Just(Some(0x16u8)), 1 => Just(Some(0x68))],
+            checksum,
+            len(),
+        )
+            .prop_map(|(start, length, end, checksum, max_len)| FramedConfig {
+                start,
+                length,
+                end,
+                checksum,
+                max_len,
+            });
+        let ack = proptest::option::of(
+            (len(), prop_oneof![1 => Just(0u8), 8 => Just(0x80)], any::<u8>())
+                .prop_map(|(data_len, flag, ok_status)| AckFormat { data_len, flag, ok_status }),
+        );
+        let command = (prop_oneof![1 => Just(0u8), 3 => Just(1), 3 => Just(2), 3 => Just(3), 3 => Just(4)], prop_oneof![Just(1u8), Just(0x16), any::<u8>()], prop_oneof![3 => Just(0u8), 1 => Just(3), 1 => Just(5), 1 => Just(6), 1 => Just(7), 1 => any::<u8>()])
+            .prop_map(|(code, wire, args)| CommandFormat { code, wire, args });
+        let commands = proptest::collection::vec(command, 0..=MAX_COMMAND_FORMATS);
+        let action = || {
+            prop_oneof![
+                Just(crate::serial::IdleAction::Nothing),
+                proptest::collection::vec(prop_oneof![1 => Just(0x16u8), 8 => Just(0u8)], 0..=32)
+                    .prop_map(|v| crate::serial::IdleAction::send(&v).unwrap()),
+            ]
+        };
+        let sequencer = (
+            prop_oneof![20 => Just(500u32), 1 => Just(0), 1 => Just(1), 1 => Just(60_000), 1 => Just(60_001)],
+            prop_oneof![20 => Just(2u8), 1 => Just(10), 1 => Just(11)],
+            action(),
+            action(),
+        )
+            .prop_map(|(response_timeout_ms, retries, on_idle, on_fault)| SequencerConfig {
+                response_timeout_ms,
+                retries,
+                execute_first: true,
+                on_idle,
+                on_fault,
+            });
+        let health = prop_oneof![20 => Just(3000u32), 1 => Just(0), 1 => Just(1), 1 => Just(3_600_000), 1 => Just(3_600_001)]
+            .prop_map(|stale_timeout_ms| HealthConfig { stale_timeout_ms, ..HealthConfig::default() });
+        let baud = prop_oneof![20 => Just(9600u32), 1 => Just(299), 1 => Just(300), 1 => Just(4_000_000), 1 => Just(4_000_001)];
+        (baud, framing, len(), ack, commands, sequencer, health).prop_map(
+            |(baud, framing, status_len, ack, commands, sequencer, health)| FramedProfileConfig {
+                serial: SerialSettings::new_8n1(baud),
+                framing,
+                status_len,
+                ack,
+                commands: Vec::from_slice(&commands).unwrap(),
+                sequencer,
+                health,
+            },
+        )
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4096))]
+        #[test]
+        fn validate_matches_reference(c in any_config()) {
+            prop_assert_eq!(c.validate(), validate_reference(&c));
+        }
+    }
+
+    proptest! {
+        #[test]
+        fn encode_padded_matches_pad_then_encode(
+            framing in any_framing(),
+            data in proptest::collection::vec(prop_oneof![Just(b'\n'), any::<u8>()], 0..40),
+        ) {
+            let mut out: Vec<u8, FRAME_CAPACITY> = Vec::from_slice(&[0xEE; 7]).unwrap();
+            let ok = encode_padded(&framing, &data, &mut out);
+            let expected = encode_padded_reference(&framing, &data);
+            prop_assert_eq!(ok, expected.is_some());
+            prop_assert_eq!(out.as_slice(), expected.as_deref().unwrap_or(&[]));
+        }
+    }
 }

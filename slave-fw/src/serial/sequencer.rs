@@ -295,9 +295,10 @@ enum ActiveState {
     Awaiting { deadline: Instant },
 }
 
+/// The command in progress; the command itself is [`CommandSequencer::last_command`] (kept once:
+/// every command started is also the last one, firmware size budget).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Active {
-    command: Command,
     /// Transmissions so far.
     attempts: u8,
     state: ActiveState,
@@ -366,7 +367,7 @@ impl CommandSequencer {
             return;
         }
         // A new command supersedes one still in progress.
-        self.active = Some(Active { command, attempts: 0, state: ActiveState::Due(now) });
+        self.active = Some(Active { attempts: 0, state: ActiveState::Due(now) });
         self.outcome = CommandOutcome::Pending;
         self.last_command = Some(command);
     }
@@ -428,7 +429,7 @@ impl CommandSequencer {
         let active = self.active.as_ref()?;
         match active.state {
             ActiveState::Due(t) if t <= now => Some(Transmission::Command {
-                command: active.command,
+                command: *self.last_command.as_ref()?,
                 attempt: active.attempts.saturating_add(1),
             }),
             ActiveState::Due(_) | ActiveState::Awaiting { .. } => None,
@@ -438,9 +439,15 @@ impl CommandSequencer {
     /// `transmission` (from [`next_transmission`](Self::next_transmission)) was handed to the UART
     /// at `now` and is on the wire until `tx_done`; the answer timeout runs from `tx_done`.
     pub fn transmitted(&mut self, transmission: Transmission, now: Instant, tx_done: Instant) {
-        if self.next_transmission(now) != Some(transmission) {
-            return;
+        if self.next_transmission(now) == Some(transmission) {
+            self.record_transmitted(transmission, tx_done);
         }
+    }
+
+    /// [`transmitted`](Self::transmitted) for the transmission that
+    /// [`next_transmission`](Self::next_transmission) has just returned, the sequencer untouched
+    /// since: the profile's own path skips the comparison (firmware size budget).
+    pub(crate) fn record_transmitted(&mut self, transmission: Transmission, tx_done: Instant) {
         match transmission {
             Transmission::Idle | Transmission::Fault => {
                 self.mode_frame_due = None;
@@ -485,7 +492,7 @@ impl CommandSequencer {
 
     /// The command in progress (sent or due), if any.
     pub fn active(&self) -> Option<&Command> {
-        self.active.as_ref().map(|a| &a.command)
+        self.active.and(self.last_command.as_ref())
     }
 
     /// Whether the command in progress has been sent at least once (an answer is welcome).
