@@ -29,7 +29,8 @@
 //!
 //! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
 //! does not offer (CAN error status, reading the settings sectors) and for the semihosting calls
-//! of the emulated board's settings file.
+//! of the emulated board's settings file, and in `mem` for the firmware's byte-at-a-time
+//! `memcpy`/`memset` family (1.5 KiB smaller than `compiler_builtins`' word-wise one).
 #![no_std]
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
@@ -50,6 +51,8 @@ pub mod uart;
 
 #[cfg(target_os = "none")]
 pub mod hw;
+#[cfg(any(target_os = "none", test))]
+pub mod mem;
 
 pub use settings::{Settings, SettingsStore};
 pub use switches::{Resolved, SwitchReading};
