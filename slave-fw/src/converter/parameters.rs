@@ -380,35 +380,46 @@ pub(super) fn handle(
     };
     let p = def.parameter;
     let t = def.data_type;
-    if get {
+    let (attr, data) = if get {
         let [attr] = ServiceError::expect_array(req.data)?;
+        match attr {
+            1 | 4 | 12 => {}
+            2 => return reply.u8(0),
+            3 => return Ok(()),
+            5 => return reply.u8(t.cip_code()),
+            6 => return reply.u8(t.size() as u8),
+            7 => return reply.short_string(def.name),
+            8 => return reply.short_string(def.units),
+            9 => return reply.short_string(def.help),
+            10 => return put(reply, t, def.min),
+            11 => return put(reply, t, def.max),
+            _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        }
+        (attr, &[][..])
+    } else {
+        let (&attr, data) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
+        match attr {
+            1 => {}
+            2..=12 => return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
+            _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        }
+        (attr, data)
+    };
+    // One decode for every request that needs the configuration (one call site: the configuration
+    // is large): the default (attribute 12) is the image in force, everything else the pending
+    // image. `None` (the pending image is gone) is an object state conflict, and so would be an
+    // image that does not decode (the image in force always does).
+    let bytes = if attr == 12 { Some(config.in_force()) } else { config.base() };
+    let (current, layout) =
+        bytes.and_then(|b| image::decode_with_layout(b).ok()).ok_or(ServiceError::OBJECT_STATE_CONFLICT)?;
+    if get {
         return match attr {
-            1 => put(reply, t, p.read(&decode(config.base())?)),
-            2 => reply.u8(0),
-            3 => Ok(()),
-            4 => reply.u16(p.descriptor(&decode(config.base())?)),
-            5 => reply.u8(t.cip_code()),
-            6 => reply.u8(t.size() as u8),
-            7 => reply.short_string(def.name),
-            8 => reply.short_string(def.units),
-            9 => reply.short_string(def.help),
-            10 => put(reply, t, def.min),
-            11 => put(reply, t, def.max),
-            12 => put(reply, t, p.read(&decode(Some(config.in_force()))?)),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+            4 => reply.u16(p.descriptor(&current)),
+            _ => put(reply, t, p.read(&current)),
         };
     }
-    let (&attr, data) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
-    match attr {
-        1 => {}
-        2..=12 => return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
-        _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-    }
-    let base = config.base().ok_or(ServiceError::OBJECT_STATE_CONFLICT)?;
-    let (pending, layout) =
-        image::decode_with_layout(base).map_err(|_| ServiceError::OBJECT_STATE_CONFLICT)?;
-    let mut patched: Vec<u8, MAX_IMAGE> = Vec::from_slice(base).unwrap_or_default();
-    if !p.settable(&pending) {
+    let mut patched: Vec<u8, MAX_IMAGE> = Vec::from_slice(bytes.unwrap_or_default()).unwrap_or_default();
+    if !p.settable(&current) {
         return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE);
     }
     let value = match t {
@@ -431,12 +442,6 @@ pub(super) fn handle(
     config.check(&patched).map_err(|_| ServiceError::INVALID_ATTRIBUTE_VALUE)?;
     config.stage(&patched);
     Ok(())
-}
-
-/// The configuration in an image; `None` (the pending image is gone) and an image that does not
-/// decode (the image in force always does) are an object state conflict.
-fn decode(bytes: Option<&[u8]>) -> Result<ConverterConfig, ServiceError> {
-    bytes.and_then(|b| image::decode(b).ok()).ok_or(ServiceError::OBJECT_STATE_CONFLICT)
 }
 
 /// A value of type `t`.
