@@ -4,10 +4,11 @@
 //!
 //! - Interrupt tasks only move data: CAN RX0/RX1 (or, emulated, USART1 SLCAN lines) → frames into
 //!   the converter task's channel; CAN TX refills the controller from the transmit queue; CAN SCE
-//!   reports bus-off and error-passive; USART2 moves instrument bytes in and out.
+//!   reports bus-off and error-passive; USART2 moves instrument bytes in and out; SysTick counts
+//!   the milliseconds and ticks the converter task when its deadline is due.
 //! - One software task, `app::converter_task`, owns the [`slave_fw::converter::Converter`] (the
 //!   DeviceNet slave node and the serial profile of the instrument) through a
-//!   `task::ConverterTask`: it waits for inputs or the next deadline (SysTick monotonic, 1 kHz),
+//!   `task::ConverterTask`: it waits for inputs or the next deadline (SysTick, 1 kHz),
 //!   hands them over one at a time, draining the converter after each, drives the LEDs from
 //!   `converter.leds(now)` (power-up test included), stores changed settings and resets the chip
 //!   when the converter says the Identity Reset is due. Its work is in `task`, target
@@ -67,10 +68,11 @@ mod app {
     use board::hw::BusState;
     use board::hw::{Board, LedPins};
     use board::settings::{Settings, SettingsStore};
+    use cortex_m::peripheral::syst::SystClkSource;
     use devicenet::slave::Event;
     use devicenet::{CanFrame, Duration, Instant};
+    use portable_atomic::{AtomicU64, Ordering};
     use rtic::Mutex;
-    use rtic_monotonics::systick::prelude::*;
     use rtic_sync::channel::{Receiver, Sender};
     use rtic_sync::make_channel;
     use slave_fw::converter::ResetKind;
@@ -86,7 +88,12 @@ mod app {
     #[cfg(feature = "emulated")]
     type Flash = board::hw::HostFileFlash;
 
-    systick_monotonic!(Mono, 1_000);
+    /// Milliseconds since reset, counted by the SysTick task. A plain counter and a deadline
+    /// instead of rtic-monotonics' timer queue: the converter task is the only one that waits
+    /// (firmware size).
+    static MILLIS: AtomicU64 = AtomicU64::new(0);
+    /// The millisecond at which the SysTick task ticks the converter task (`u64::MAX`: none).
+    static WAKE_AT: AtomicU64 = AtomicU64::new(u64::MAX);
 
     /// LED refresh period (flash half-period 500 ms, self-test steps 250 ms).
     const LED_PERIOD: Duration = Duration::from_millis(25);
@@ -117,6 +124,8 @@ mod app {
         sce_inputs: Sender<'static, Input, INPUTS>,
         /// USART2 (instrument bytes).
         usart2_inputs: Sender<'static, Input, INPUTS>,
+        /// SysTick (a due deadline).
+        tick_inputs: Sender<'static, Input, INPUTS>,
         /// The converter task's end of the channel.
         inputs: Receiver<'static, Input, INPUTS>,
     }
@@ -136,7 +145,13 @@ mod app {
         let Ok(mut board) = Board::take(cx.device) else {
             panic!("board set-up failed");
         };
-        Mono::start(cx.core.SYST, board.systick_hz);
+        // SysTick: 1 kHz interrupt from the core clock.
+        let mut syst = cx.core.SYST;
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(board.systick_hz / 1000 - 1);
+        syst.clear_current();
+        syst.enable_interrupt();
+        syst.enable_counter();
 
         #[cfg(not(feature = "emulated"))]
         let mut store = SettingsStore::new(board.flash);
@@ -186,14 +201,31 @@ mod app {
                 rx1_inputs: sender.clone(),
                 #[cfg(not(feature = "emulated"))]
                 sce_inputs: sender.clone(),
-                usart2_inputs: sender,
+                usart2_inputs: sender.clone(),
+                tick_inputs: sender,
                 inputs,
             },
         )
     }
 
     fn now() -> Instant {
-        Instant::from_millis(Mono::now().ticks())
+        Instant::from_millis(millis())
+    }
+
+    // Out of line: the 64-bit load masks interrupts, and inlined at each call site it costs 60 bytes.
+    #[inline(never)]
+    fn millis() -> u64 {
+        MILLIS.load(Ordering::Relaxed)
+    }
+
+    /// The millisecond count, and a tick to the converter task once its deadline is due (until
+    /// the tick is in the channel: a full one is tried again at the next millisecond).
+    #[task(binds = SysTick, local = [tick_inputs], priority = 3)]
+    fn systick(cx: systick::Context) {
+        let millis = MILLIS.fetch_add(1, Ordering::Relaxed) + 1;
+        if millis >= WAKE_AT.load(Ordering::Relaxed) && cx.local.tick_inputs.try_send(Input::Tick).is_ok() {
+            WAKE_AT.store(u64::MAX, Ordering::Relaxed);
+        }
     }
 
     fn forward_frames(can: &mut CanPort<Driver>, inputs: &mut Sender<'static, Input, INPUTS>) {
@@ -315,8 +347,8 @@ mod app {
         task.power_on(start, io!());
         let mut next_led = start;
         loop {
-            let now_ticks = Mono::now().ticks();
-            let now_ = Instant::from_millis(now_ticks);
+            let now_ms = millis();
+            let now_ = Instant::from_millis(now_ms);
             if now_ >= next_led {
                 leds.show(task.leds(now_));
                 next_led = now_ + LED_PERIOD;
@@ -326,11 +358,9 @@ mod app {
             // Round up to the next millisecond tick. `now_` is on a tick and the deadline at most
             // LED_PERIOD away: 32-bit arithmetic (no 64-bit divide in the firmware).
             let wait_us = u32::try_from(deadline.saturating_duration_since(now_).total_micros());
-            let ticks = now_ticks + u64::from(wait_us.unwrap_or(u32::MAX).div_ceil(1000));
-            let first =
-                Mono::timeout_at(<Mono as Monotonic>::Instant::from_ticks(ticks), inputs.recv()).await;
+            WAKE_AT.store(now_ms + u64::from(wait_us.unwrap_or(u32::MAX).div_ceil(1000)), Ordering::Relaxed);
             // Every sender lives in a task that never ends, so the channel never closes.
-            if let Ok(Ok(input)) = first {
+            if let Ok(input) = inputs.recv().await {
                 task.take_inputs(input, || inputs.try_recv().ok(), now(), io!());
             }
             task.handle_timeout(now(), io!());

@@ -33,6 +33,8 @@ pub enum Input {
     BusOff,
     /// A byte from the instrument.
     InstrumentByte(u8),
+    /// A deadline is due (the SysTick task): the timers run after the inputs taken with it.
+    Tick,
 }
 
 /// The board's side of the converter task's outputs.
@@ -101,6 +103,7 @@ impl ConverterTask {
                     self.converter.handle_bus_off(now);
                     self.drain(now, hw);
                 }
+                Input::Tick => {}
             }
             // Never take an input beyond the bound: it would be lost.
             match (taken < INPUTS).then(&mut next).flatten() {
@@ -357,6 +360,18 @@ mod tests {
         assert_eq!(wake_ups, wire.len().div_ceil(INPUTS), "at most {INPUTS} inputs per wake-up");
         assert_eq!(task.converter().profile().stats().frames_received - before, 3);
         assert_eq!(task.converter().profile().input_image()[0], 2, "the last frame's image");
+    }
+
+    #[test]
+    fn a_tick_only_wakes_the_task() {
+        let mut hw = Recorder::default();
+        let (mut task, now) = established(&mut hw);
+        let before = task.converter().profile().stats().discarded_bytes;
+        let mut rest = [Input::Tick, Input::InstrumentByte(0xFF)].into_iter();
+        task.take_inputs(Input::InstrumentByte(0xFF), || rest.next(), now, &mut hw);
+        assert!(hw.frames.is_empty() && hw.events.is_empty());
+        let after = task.converter().profile().stats().discarded_bytes;
+        assert_eq!(after - before, 2, "both bytes reached the profile");
     }
 
     #[test]
