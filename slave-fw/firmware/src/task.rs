@@ -1,7 +1,7 @@
 //! The converter task's work, apart from RTIC and the peripherals, so that the host tests run it.
 //!
-//! `app::converter_task` (main.rs) waits for an input or the next deadline, then hands what it got
-//! to a [`ConverterTask`]: [`ConverterTask::take_inputs`] for the inputs waiting in the channel,
+//! `app::converter_task` (main.rs) runs when an input was queued or the next deadline is due, then
+//! hands what it got to a [`ConverterTask`]: [`ConverterTask::take_inputs`] for the queued inputs,
 //! [`ConverterTask::handle_timeout`] for the timers. The board's side of every output (the CAN
 //! transmit queue, USART2, the settings flash, the reset) is behind the [`Hardware`] trait.
 //!
@@ -19,7 +19,7 @@ use devicenet::slave::{Event, SettingChanged};
 use devicenet::{CanFrame, Instant};
 use slave_fw::converter::{Converter, ResetKind};
 
-/// Capacity of the converter task's input channel, and the most inputs taken per wake-up.
+/// Capacity of the converter task's input queue, and the most inputs taken per wake-up.
 pub const INPUTS: usize = 64;
 /// Instrument bytes handed to the converter in one call.
 pub const SERIAL_BATCH: usize = 32;
@@ -33,8 +33,6 @@ pub enum Input {
     BusOff,
     /// A byte from the instrument.
     InstrumentByte(u8),
-    /// A deadline is due (the SysTick task): the timers run after the inputs taken with it.
-    Tick,
 }
 
 /// The board's side of the converter task's outputs.
@@ -103,7 +101,6 @@ impl ConverterTask {
                     self.converter.handle_bus_off(now);
                     self.drain(now, hw);
                 }
-                Input::Tick => {}
             }
             // Never take an input beyond the bound: it would be lost.
             match (taken < INPUTS).then(&mut next).flatten() {
@@ -286,7 +283,7 @@ mod tests {
         (task, now)
     }
 
-    /// 64 inputs at once, as a channel full of them after a busy spell: polls, instrument bytes,
+    /// 64 inputs at once, as a queue full of them after a busy spell: polls, instrument bytes,
     /// a Set of the bus-off interrupt (a stored setting) and an Identity Reset in the middle.
     #[test]
     fn burst_of_64_inputs_with_a_reset_in_the_middle_loses_no_frame_and_no_event() {
@@ -360,18 +357,6 @@ mod tests {
         assert_eq!(wake_ups, wire.len().div_ceil(INPUTS), "at most {INPUTS} inputs per wake-up");
         assert_eq!(task.converter().profile().stats().frames_received - before, 3);
         assert_eq!(task.converter().profile().input_image()[0], 2, "the last frame's image");
-    }
-
-    #[test]
-    fn a_tick_only_wakes_the_task() {
-        let mut hw = Recorder::default();
-        let (mut task, now) = established(&mut hw);
-        let before = task.converter().profile().stats().discarded_bytes;
-        let mut rest = [Input::Tick, Input::InstrumentByte(0xFF)].into_iter();
-        task.take_inputs(Input::InstrumentByte(0xFF), || rest.next(), now, &mut hw);
-        assert!(hw.frames.is_empty() && hw.events.is_empty());
-        let after = task.converter().profile().stats().discarded_bytes;
-        assert_eq!(after - before, 2, "both bytes reached the profile");
     }
 
     #[test]
