@@ -195,14 +195,20 @@ impl ConverterTask {
 /// cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in `config`); it would be
 /// refused, not cut.
 fn store_image(settings: &mut Settings, image: &[u8], hw: &mut impl Hardware) {
-    let mut new = settings.clone();
-    new.image.clear();
-    if new.image.extend_from_slice(image).is_err() {
+    // The network settings and the new image, without copying the old image first.
+    let Ok(image) = heapless::Vec::from_slice(image) else {
         warn!("configuration image: too large to store");
         return;
-    }
+    };
+    let new = Settings {
+        mac_id: settings.mac_id,
+        baud_rate: settings.baud_rate,
+        bus_off_interrupt: settings.bus_off_interrupt,
+        last_switches: settings.last_switches,
+        image,
+    };
     if hw.save_settings(&new) {
-        info!("configuration image stored: {=usize} bytes, in force from the next reset", image.len());
+        info!("configuration image stored: {=usize} bytes, in force from the next reset", new.image.len());
         *settings = new;
     } else {
         warn!("configuration image: save failed");
