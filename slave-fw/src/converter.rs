@@ -273,8 +273,15 @@ impl Converter {
         // No `config.validate()` first: `SlaveNode::new` and `Profile::new` check their halves
         // (the node's first), and a refused configuration builds nothing.
         let config_object = ConfigObject::new(image, origin);
-        let node = SlaveNode::new(config.device_config()).map_err(ConverterConfigError::Device)?;
-        config.profile.validate().map_err(ConverterConfigError::Profile)?;
+        // Matches rather than `?` and `map_err`: the node is not moved through the `Try` machinery
+        // (firmware size: 96 bytes).
+        let node = match SlaveNode::new(config.device_config()) {
+            Ok(node) => node,
+            Err(e) => return Err(ConverterConfigError::Device(e)),
+        };
+        if let Err(e) = config.profile.validate() {
+            return Err(ConverterConfigError::Profile(e));
+        }
         let mut converter = Converter {
             node,
             profile: Profile::build(config.profile, now),
