@@ -124,8 +124,11 @@ impl Settings {
             return Err(RecordError::Crc);
         }
         let sequence = u32::from_le_bytes([record[4], record[5], record[6], record[7]]);
-        let mac_id = MacId::new(record[8]).ok_or(RecordError::Field)?;
-        let baud_rate = BaudRate::from_attribute_value(record[9]).ok_or(RecordError::Field)?;
+        let (Some(mac_id), Some(baud_rate)) =
+            (MacId::new(record[8]), BaudRate::from_attribute_value(record[9]))
+        else {
+            return Err(RecordError::Field);
+        };
         let flags = record[10];
         let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
         if flags & !(FLAG_BOI | FLAG_SWITCHES) != 0 || len > IMAGE_CAPACITY {
@@ -308,7 +311,12 @@ impl<F: SettingsFlash> SettingsStore<F> {
 
     /// Appends `settings` as the newest record; returns its sequence number.
     pub fn save(&mut self, settings: &Settings) -> Result<u32, FlashError> {
-        let scan = self.scan()?;
+        // A match rather than `?`: the scan is not moved through the `Try` machinery (firmware size).
+        #[allow(clippy::question_mark)]
+        let scan = match self.scan() {
+            Ok(scan) => scan,
+            Err(e) => return Err(e),
+        };
         let (mut sector, sequence) = match &scan.newest {
             Some(n) => (n.sector, n.sequence.wrapping_add(1)),
             None => (Sector::A, 1),

@@ -4,7 +4,7 @@
 //! The node task hands frames to [`CanPort::send`]; the driver takes one when it can
 //! ([`CanDriver::try_transmit`]), and the transmit-complete interrupt (or, for SLCAN, the host
 //! opening the channel) calls [`CanPort::pump`] for the next. Receive interrupts drain
-//! [`CanPort::receive`] into the node task's input channel.
+//! [`CanPort::receive`] into the converter task's input queue.
 
 use board::hw::BusState;
 use devicenet::CanFrame;

@@ -1,7 +1,7 @@
 //! The instrument port: USART2 (through the RS-485 transceiver) with its transmit queue, shared by
 //! the converter task and the USART2 interrupt.
 //!
-//! Received bytes go from the interrupt to the converter task's channel; the frames the serial
+//! Received bytes go from the interrupt to the converter task's input queue; the frames the serial
 //! profile returns from `Converter::poll_serial_transmit` are queued here whole and leave from the
 //! interrupt, which holds the RS-485 driver on until the last stop bit is out.
 

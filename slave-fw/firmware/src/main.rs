@@ -3,12 +3,15 @@
 //! The RTIC 2 application of the STM32F405 serial-to-DeviceNet adapter board.
 //!
 //! - Interrupt tasks only move data: CAN RX0/RX1 (or, emulated, USART1 SLCAN lines) → frames into
-//!   the converter task's channel; CAN TX refills the controller from the transmit queue; CAN SCE
-//!   reports bus-off and error-passive; USART2 moves instrument bytes in and out.
-//! - One software task, `app::converter_task`, owns the [`slave_fw::converter::Converter`] (the
-//!   DeviceNet slave node and the serial profile of the instrument) through a
-//!   `task::ConverterTask`: it waits for inputs or the next deadline (SysTick monotonic, 1 kHz),
-//!   hands them over one at a time, draining the converter after each, drives the LEDs from
+//!   the converter task's input queue; CAN TX refills the controller from the transmit queue; CAN
+//!   SCE reports bus-off and error-passive; USART2 moves instrument bytes in and out; SysTick
+//!   counts the milliseconds. Each pends the converter task when it queued an input, SysTick when
+//!   the task's deadline is due.
+//! - One task at the lowest priority, `app::converter_task` (bound to the otherwise unused EXTI2
+//!   interrupt, so no async executor), owns the [`slave_fw::converter::Converter`] (the DeviceNet
+//!   slave node and the serial profile of the instrument) through a `task::ConverterTask`: each
+//!   time it runs it hands the queued inputs over one at a time, draining the converter after
+//!   each, runs the timers, sets its next deadline (1 ms resolution), drives the LEDs from
 //!   `converter.leds(now)` (power-up test included), stores changed settings and resets the chip
 //!   when the converter says the Identity Reset is due. Its work is in `task`, target
 //!   independent and tested on the host; the peripherals are behind `task::Hardware`.
@@ -56,7 +59,7 @@ fn main() {
 }
 
 #[cfg(target_os = "none")]
-#[rtic::app(device = stm32f4xx_hal::pac, dispatchers = [EXTI1, EXTI2])]
+#[rtic::app(device = stm32f4xx_hal::pac)]
 mod app {
     use crate::can::CanPort;
     use crate::config;
@@ -67,13 +70,14 @@ mod app {
     use board::hw::BusState;
     use board::hw::{Board, LedPins};
     use board::settings::{Settings, SettingsStore};
+    use cortex_m::peripheral::syst::SystClkSource;
     use devicenet::slave::Event;
     use devicenet::{CanFrame, Duration, Instant};
+    use heapless::Deque;
+    use portable_atomic::{AtomicU64, Ordering};
     use rtic::Mutex;
-    use rtic_monotonics::systick::prelude::*;
-    use rtic_sync::channel::{Receiver, Sender};
-    use rtic_sync::make_channel;
     use slave_fw::converter::ResetKind;
+    use stm32f4xx_hal::pac::Interrupt;
 
     #[cfg(not(feature = "emulated"))]
     type Driver = crate::can_bxcan::Bxcan;
@@ -86,7 +90,14 @@ mod app {
     #[cfg(feature = "emulated")]
     type Flash = board::hw::HostFileFlash;
 
-    systick_monotonic!(Mono, 1_000);
+    /// Milliseconds since reset, counted by the SysTick task. A plain counter and a deadline
+    /// instead of rtic-monotonics' timer queue: the converter task is the only one that waits
+    /// (firmware size).
+    static MILLIS: AtomicU64 = AtomicU64::new(0);
+    /// The millisecond at which the SysTick task pends the converter task (`u64::MAX`: none).
+    static WAKE_AT: AtomicU64 = AtomicU64::new(u64::MAX);
+    /// The interrupt the converter task is bound to; pending it runs the task.
+    const CONVERTER_TASK: Interrupt = Interrupt::EXTI2;
 
     /// LED refresh period (flash half-period 500 ms, self-test steps 250 ms).
     const LED_PERIOD: Duration = Duration::from_millis(25);
@@ -97,28 +108,16 @@ mod app {
         can: CanPort<Driver>,
         /// USART2 and its transmit queue: converter task queues, USART2 interrupt moves bytes.
         instrument_port: InstrumentPort,
+        /// The converter task's inputs: the CAN, SLCAN and USART2 interrupts queue, the task takes.
+        /// A queue and a pended interrupt instead of an rtic-sync channel and an async task
+        /// (firmware size).
+        inputs: Deque<Input, INPUTS>,
     }
 
     #[local]
     struct Local {
         /// Everything only the converter task touches.
         state: TaskState,
-        /// Channel into the converter task, one sender per interrupt: CAN RX0.
-        #[cfg(not(feature = "emulated"))]
-        rx0_inputs: Sender<'static, Input, INPUTS>,
-        /// SLCAN on USART1 (emulated CAN).
-        #[cfg(feature = "emulated")]
-        slcan_inputs: Sender<'static, Input, INPUTS>,
-        /// CAN RX1.
-        #[cfg(not(feature = "emulated"))]
-        rx1_inputs: Sender<'static, Input, INPUTS>,
-        /// CAN SCE.
-        #[cfg(not(feature = "emulated"))]
-        sce_inputs: Sender<'static, Input, INPUTS>,
-        /// USART2 (instrument bytes).
-        usart2_inputs: Sender<'static, Input, INPUTS>,
-        /// The converter task's end of the channel.
-        inputs: Receiver<'static, Input, INPUTS>,
     }
 
     /// The converter task's own resources.
@@ -136,7 +135,13 @@ mod app {
         let Ok(mut board) = Board::take(cx.device) else {
             panic!("board set-up failed");
         };
-        Mono::start(cx.core.SYST, board.systick_hz);
+        // SysTick: 1 kHz interrupt from the core clock.
+        let mut syst = cx.core.SYST;
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(board.systick_hz / 1000 - 1);
+        syst.clear_current();
+        syst.enable_interrupt();
+        syst.enable_counter();
 
         #[cfg(not(feature = "emulated"))]
         let mut store = SettingsStore::new(board.flash);
@@ -172,49 +177,60 @@ mod app {
         #[cfg(not(feature = "emulated"))]
         let _ = board.service;
 
-        let (sender, inputs) = make_channel!(Input, INPUTS);
-        let _ = converter_task::spawn();
+        // The converter task's first run powers the converter on.
+        rtic::pend(CONVERTER_TASK);
         (
-            Shared { can: CanPort::new(driver), instrument_port: InstrumentPort::new(rs485) },
+            Shared {
+                can: CanPort::new(driver),
+                instrument_port: InstrumentPort::new(rs485),
+                inputs: Deque::new(),
+            },
             Local {
                 state: TaskState { task: ConverterTask::new(converter, settings), leds: board.leds, store },
-                #[cfg(not(feature = "emulated"))]
-                rx0_inputs: sender.clone(),
-                #[cfg(feature = "emulated")]
-                slcan_inputs: sender.clone(),
-                #[cfg(not(feature = "emulated"))]
-                rx1_inputs: sender.clone(),
-                #[cfg(not(feature = "emulated"))]
-                sce_inputs: sender.clone(),
-                usart2_inputs: sender,
-                inputs,
             },
         )
     }
 
     fn now() -> Instant {
-        Instant::from_millis(Mono::now().ticks())
+        Instant::from_millis(millis())
     }
 
-    fn forward_frames(can: &mut CanPort<Driver>, inputs: &mut Sender<'static, Input, INPUTS>) {
-        while let Some(frame) = can.receive() {
-            // A full channel drops the frame, as a full bxCAN FIFO would.
-            let _ = inputs.try_send(Input::Frame(frame));
+    // Out of line: the 64-bit load masks interrupts, and inlined at each call site it costs 60 bytes.
+    #[inline(never)]
+    fn millis() -> u64 {
+        MILLIS.load(Ordering::Relaxed)
+    }
+
+    /// The millisecond count; pends the converter task once its deadline is due.
+    #[task(binds = SysTick, priority = 3)]
+    fn systick(_: systick::Context) {
+        let millis = MILLIS.fetch_add(1, Ordering::Relaxed) + 1;
+        if millis >= WAKE_AT.load(Ordering::Relaxed) {
+            WAKE_AT.store(u64::MAX, Ordering::Relaxed);
+            rtic::pend(CONVERTER_TASK);
         }
+    }
+
+    fn forward_frames(can: &mut CanPort<Driver>, inputs: &mut Deque<Input, INPUTS>) {
+        while let Some(frame) = can.receive() {
+            // A full queue drops the frame, as a full bxCAN FIFO would.
+            let _ = inputs.push_back(Input::Frame(frame));
+        }
+        rtic::pend(CONVERTER_TASK);
     }
 
     /// CAN FIFO 0 (the acceptance list): frames to the converter task.
     #[cfg(not(feature = "emulated"))]
-    #[task(binds = CAN1_RX0, shared = [can], local = [rx0_inputs], priority = 3)]
-    fn can_rx0(mut cx: can_rx0::Context) {
-        cx.shared.can.lock(|can| forward_frames(can, cx.local.rx0_inputs));
+    #[task(binds = CAN1_RX0, shared = [can, inputs], priority = 3)]
+    fn can_rx0(cx: can_rx0::Context) {
+        (cx.shared.can, cx.shared.inputs).lock(forward_frames);
     }
 
     /// CAN FIFO 1 (no filter routes here; drained for completeness).
     #[cfg(not(feature = "emulated"))]
-    #[task(binds = CAN1_RX1, shared = [can], local = [rx1_inputs], priority = 3)]
-    fn can_rx1(mut cx: can_rx1::Context) {
-        cx.shared.can.lock(|can| forward_frames(can, cx.local.rx1_inputs));
+    #[task(binds = CAN1_RX1, shared = [can, inputs], priority = 3)]
+    fn can_rx1(cx: can_rx1::Context) {
+        (cx.shared.can, cx.shared.inputs).lock(forward_frames);
     }
 
     /// A mailbox emptied: the next queued frame.
@@ -226,11 +242,12 @@ mod app {
 
     /// Status change: bus-off or error-passive, to the converter task.
     #[cfg(not(feature = "emulated"))]
-    #[task(binds = CAN1_SCE, shared = [can], local = [sce_inputs], priority = 3)]
+    #[task(binds = CAN1_SCE, shared = [can, inputs], priority = 3)]
     fn can_sce(mut cx: can_sce::Context) {
         match cx.shared.can.lock(|can| can.bus_state()) {
             BusState::BusOff => {
-                let _ = cx.local.sce_inputs.try_send(Input::BusOff);
+                let _ = cx.shared.inputs.lock(|inputs| inputs.push_back(Input::BusOff));
+                rtic::pend(CONVERTER_TASK);
             }
             state => info!("CAN {}", state),
         }
@@ -239,22 +256,23 @@ mod app {
     /// The emulated CAN bus: SLCAN lines from the host; frames to the converter task, and frames
     /// held while the channel was closed go out once it opens.
     #[cfg(feature = "emulated")]
-    #[task(binds = USART1, shared = [can], local = [slcan_inputs], priority = 3)]
-    fn slcan_rx(mut cx: slcan_rx::Context) {
-        cx.shared.can.lock(|can| {
-            forward_frames(can, cx.local.slcan_inputs);
+    #[task(binds = USART1, shared = [can, inputs], priority = 3)]
+    fn slcan_rx(cx: slcan_rx::Context) {
+        (cx.shared.can, cx.shared.inputs).lock(|can, inputs| {
+            forward_frames(can, inputs);
             can.pump();
         });
     }
 
     /// Instrument bytes in, queued bytes out.
-    #[task(binds = USART2, shared = [instrument_port], local = [usart2_inputs], priority = 2)]
-    fn usart2(mut cx: usart2::Context) {
-        let inputs = cx.local.usart2_inputs;
-        cx.shared.instrument_port.lock(|port| {
+    #[task(binds = USART2, shared = [instrument_port, inputs], priority = 2)]
+    fn usart2(cx: usart2::Context) {
+        let usart2::SharedResources { mut instrument_port, mut inputs, .. } = cx.shared;
+        instrument_port.lock(|port| {
             port.on_interrupt(|b| {
-                // A full channel drops the byte, as an overrun would; the profile resynchronises.
-                let _ = inputs.try_send(Input::InstrumentByte(b));
+                // A full queue drops the byte, as an overrun would; the profile resynchronises.
+                let _ = inputs.lock(|inputs| inputs.push_back(Input::InstrumentByte(b)));
+                rtic::pend(CONVERTER_TASK);
             })
         });
     }
@@ -298,42 +316,46 @@ mod app {
     }
 
     /// The one task that owns the converter: inputs and timers in; frames, instrument bytes,
-    /// LEDs and settings out ([`crate::task`]).
-    #[task(shared = [can, instrument_port], local = [state, inputs], priority = 1)]
-    async fn converter_task(cx: converter_task::Context) {
-        let converter_task::LocalResources { state, inputs, .. } = cx.local;
+    /// LEDs and settings out ([`crate::task`]). It runs when an input was queued or its deadline
+    /// is due (both pend it), and once after `init`, which powers the converter on.
+    #[task(
+        binds = EXTI2,
+        shared = [can, instrument_port, inputs],
+        local = [state, powered_on: bool = false, next_led: Instant = Instant::ZERO],
+        priority = 1
+    )]
+    fn converter_task(cx: converter_task::Context) {
+        let converter_task::LocalResources { state, powered_on, next_led, .. } = cx.local;
         let TaskState { task, leds, store } = state;
-        let converter_task::SharedResources { mut can, mut instrument_port, .. } = cx.shared;
-        // The board's side is borrowed for each step, not held across the wait: the task's
-        // future stays small.
+        let converter_task::SharedResources { mut can, mut instrument_port, mut inputs, .. } = cx.shared;
         macro_rules! io {
             () => {
                 &mut Io { can: &mut can, instrument_port: &mut instrument_port, store: &mut *store }
             };
         }
-        let start = now();
-        task.power_on(start, io!());
-        let mut next_led = start;
-        loop {
-            let now_ticks = Mono::now().ticks();
-            let now_ = Instant::from_millis(now_ticks);
-            if now_ >= next_led {
-                leds.show(task.leds(now_));
-                next_led = now_ + LED_PERIOD;
-            }
-            // Sleep until an input arrives or the earliest deadline (a due reset included).
-            let deadline = task.poll_at().map_or(next_led, |at| at.min(next_led));
-            // Round up to the next millisecond tick. `now_` is on a tick and the deadline at most
-            // LED_PERIOD away: 32-bit arithmetic (no 64-bit divide in the firmware).
-            let wait_us = u32::try_from(deadline.saturating_duration_since(now_).total_micros());
-            let ticks = now_ticks + u64::from(wait_us.unwrap_or(u32::MAX).div_ceil(1000));
-            let first =
-                Mono::timeout_at(<Mono as Monotonic>::Instant::from_ticks(ticks), inputs.recv()).await;
-            // Every sender lives in a task that never ends, so the channel never closes.
-            if let Ok(Ok(input)) = first {
-                task.take_inputs(input, || inputs.try_recv().ok(), now(), io!());
-            }
-            task.handle_timeout(now(), io!());
+        if !*powered_on {
+            *powered_on = true;
+            task.power_on(now(), io!());
         }
+        if let Some(first) = inputs.lock(|q| q.pop_front()) {
+            task.take_inputs(first, || inputs.lock(|q| q.pop_front()), now(), io!());
+            // Inputs beyond the INPUTS `take_inputs` takes may wait: run again (a run that finds
+            // none only runs the timers). Cheaper than looking into the queue (firmware size).
+            rtic::pend(CONVERTER_TASK);
+        }
+        task.handle_timeout(now(), io!());
+
+        let now_ms = millis();
+        let now_ = Instant::from_millis(now_ms);
+        if now_ >= *next_led {
+            leds.show(task.leds(now_));
+            *next_led = now_ + LED_PERIOD;
+        }
+        // The earliest deadline (a due reset included), rounded up to the next millisecond tick.
+        // `now_` is on a tick and the deadline at most LED_PERIOD away: 32-bit arithmetic (no
+        // 64-bit divide in the firmware).
+        let deadline = task.poll_at().map_or(*next_led, |at| at.min(*next_led));
+        let wait_us = u32::try_from(deadline.saturating_duration_since(now_).total_micros());
+        WAKE_AT.store(now_ms + u64::from(wait_us.unwrap_or(u32::MAX).div_ceil(1000)), Ordering::Relaxed);
     }
 }

@@ -1,7 +1,7 @@
 //! The converter task's work, apart from RTIC and the peripherals, so that the host tests run it.
 //!
-//! `app::converter_task` (main.rs) waits for an input or the next deadline, then hands what it got
-//! to a [`ConverterTask`]: [`ConverterTask::take_inputs`] for the inputs waiting in the channel,
+//! `app::converter_task` (main.rs) runs when an input was queued or the next deadline is due, then
+//! hands what it got to a [`ConverterTask`]: [`ConverterTask::take_inputs`] for the queued inputs,
 //! [`ConverterTask::handle_timeout`] for the timers. The board's side of every output (the CAN
 //! transmit queue, USART2, the settings flash, the reset) is behind the [`Hardware`] trait.
 //!
@@ -19,7 +19,7 @@ use devicenet::slave::{Event, SettingChanged};
 use devicenet::{CanFrame, Instant};
 use slave_fw::converter::{Converter, ResetKind};
 
-/// Capacity of the converter task's input channel, and the most inputs taken per wake-up.
+/// Capacity of the converter task's input queue, and the most inputs taken per wake-up.
 pub const INPUTS: usize = 64;
 /// Instrument bytes handed to the converter in one call.
 pub const SERIAL_BATCH: usize = 32;
@@ -195,14 +195,20 @@ impl ConverterTask {
 /// cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in `config`); it would be
 /// refused, not cut.
 fn store_image(settings: &mut Settings, image: &[u8], hw: &mut impl Hardware) {
-    let mut new = settings.clone();
-    new.image.clear();
-    if new.image.extend_from_slice(image).is_err() {
+    // The network settings and the new image, without copying the old image first.
+    let Ok(image) = heapless::Vec::from_slice(image) else {
         warn!("configuration image: too large to store");
         return;
-    }
+    };
+    let new = Settings {
+        mac_id: settings.mac_id,
+        baud_rate: settings.baud_rate,
+        bus_off_interrupt: settings.bus_off_interrupt,
+        last_switches: settings.last_switches,
+        image,
+    };
     if hw.save_settings(&new) {
-        info!("configuration image stored: {=usize} bytes, in force from the next reset", image.len());
+        info!("configuration image stored: {=usize} bytes, in force from the next reset", new.image.len());
         *settings = new;
     } else {
         warn!("configuration image: save failed");
@@ -283,7 +289,7 @@ mod tests {
         (task, now)
     }
 
-    /// 64 inputs at once, as a channel full of them after a busy spell: polls, instrument bytes,
+    /// 64 inputs at once, as a queue full of them after a busy spell: polls, instrument bytes,
     /// a Set of the bus-off interrupt (a stored setting) and an Identity Reset in the middle.
     #[test]
     fn burst_of_64_inputs_with_a_reset_in_the_middle_loses_no_frame_and_no_event() {
