@@ -242,12 +242,20 @@ pub fn download(
     report.back_at = Some(back_at.as_raw());
     report.back_online_ms = Some((master.session.now() - reset_at).total_millis());
     // The device goes on-line by its own clock, 1 s after its second check request; a request
-    // sent at the moment the master reckons may reach it first (the emulated board in QEMU).
+    // sent at the moment the master reckons may reach it first (the emulated board in QEMU,
+    // whose clock falls behind the host's when the host is busy). A device still checking does
+    // not answer: the allocation is repeated, as a scanner repeats it, until BACK_ONLINE.
     let settled = master.session.now() + ONLINE_MARGIN;
     master.idle_until(settled)?;
 
     master.set_device(back_at);
-    master.allocate(back_at, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+    loop {
+        match master.allocate(back_at, Port::Group2Only, AllocationChoice::EXPLICIT) {
+            Ok(_) => break,
+            Err(MasterError::Timeout { .. }) if master.session.now() < deadline => continue,
+            Err(e) => return Err(e.into()),
+        }
+    }
     check_against(master, back_at, description, &image, &mut report)?;
     Ok(report)
 }

@@ -272,10 +272,18 @@ fn a_downloaded_modbus_configuration_runs_and_survives_a_cut_download() {
 
     // The download, verified, reset and checked by dnet-master.
     let download_started = StdInstant::now();
-    let (code, out, err) =
-        dnet_master(&emulator.usart1, &["configure", "--mac", &board, meter_file.to_str().unwrap()]);
+    let log = dir.join("configure.log");
+    let (code, out, err) = dnet_master(
+        &emulator.usart1,
+        &["--log", log.to_str().unwrap(), "configure", "--mac", &board, meter_file.to_str().unwrap()],
+    );
     let download_time = download_started.elapsed();
-    assert_eq!(code, 0, "configure:\n{out}\n{err}");
+    assert_eq!(
+        code,
+        0,
+        "configure:\n{out}\n{err}\nframes:\n{}",
+        std::fs::read_to_string(&log).unwrap_or_default()
+    );
     let back_online_ms = out
         .split("after ")
         .nth(1)
