@@ -168,14 +168,15 @@ fn frame_fields(rest: &[u8], id_digits: usize, remote: bool) -> Result<(u32, [u8
 #[inline(never)]
 pub fn parse(line: &[u8]) -> Result<Command, SlcanError> {
     let (&letter, rest) = line.split_first().ok_or(SlcanError::Empty)?;
-    let bare = |cmd: Command| if rest.is_empty() { Ok(cmd) } else { Err(SlcanError::Length) };
     match letter {
-        b'O' => bare(Command::Open),
-        b'L' => bare(Command::ListenOnly),
-        b'C' => bare(Command::Close),
-        b'V' => bare(Command::Version),
-        b'N' => bare(Command::SerialNumber),
-        b'F' => bare(Command::StatusFlags),
+        // Nothing may follow these letters: one check for the six, 8 bytes less than one each.
+        b'O' | b'L' | b'C' | b'V' | b'N' | b'F' if !rest.is_empty() => Err(SlcanError::Length),
+        b'O' => Ok(Command::Open),
+        b'L' => Ok(Command::ListenOnly),
+        b'C' => Ok(Command::Close),
+        b'V' => Ok(Command::Version),
+        b'N' => Ok(Command::SerialNumber),
+        b'F' => Ok(Command::StatusFlags),
         b'S' => match rest {
             [d @ b'0'..=b'8'] => Ok(Command::Bitrate(d - b'0')),
             [_] => Err(SlcanError::Bitrate),
