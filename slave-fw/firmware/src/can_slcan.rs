@@ -49,7 +49,7 @@ impl CanDriver for Slcan {
         if !self.adapter.is_open() {
             return Err(Busy);
         }
-        self.write(&slcan::frame_line(frame));
+        slcan::write_frame_line(frame, |b| self.write(&[b]));
         Ok(())
     }
 
