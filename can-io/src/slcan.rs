@@ -302,7 +302,8 @@ impl LineBuffer {
                 if core::mem::take(&mut self.overflowed) {
                     Some(Err(SlcanError::TooLong))
                 } else {
-                    Some(Ok(&self.buf[..len]))
+                    // `len` never exceeds MAX_LINE: `get` leaves out a panic path (12 bytes).
+                    Some(Ok(self.buf.get(..len).unwrap_or_default()))
                 }
             }
             b'\n' => None,
