@@ -38,9 +38,13 @@ impl Slcan {
 
     fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
-            // USART1 at 115200 bit/s; QEMU's transmitter is always ready.
-            let _ = nb::block!(self.serial.write(b));
+            self.write_byte(b);
         }
+    }
+
+    fn write_byte(&mut self, b: u8) {
+        // USART1 at 115200 bit/s; QEMU's transmitter is always ready.
+        let _ = nb::block!(self.serial.write(b));
     }
 }
 
@@ -49,7 +53,7 @@ impl CanDriver for Slcan {
         if !self.adapter.is_open() {
             return Err(Busy);
         }
-        slcan::write_frame_line(frame, |b| self.write(&[b]));
+        slcan::write_frame_line(frame, |b| self.write_byte(b));
         Ok(())
     }
 
