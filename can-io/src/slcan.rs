@@ -169,14 +169,20 @@ fn frame_fields(rest: &[u8], id_digits: usize, remote: bool) -> Result<(u32, [u8
 pub fn parse(line: &[u8]) -> Result<Command, SlcanError> {
     let (&letter, rest) = line.split_first().ok_or(SlcanError::Empty)?;
     match letter {
-        // Nothing may follow these letters: one check for the six, 8 bytes less than one each.
-        b'O' | b'L' | b'C' | b'V' | b'N' | b'F' if !rest.is_empty() => Err(SlcanError::Length),
-        b'O' => Ok(Command::Open),
-        b'L' => Ok(Command::ListenOnly),
-        b'C' => Ok(Command::Close),
-        b'V' => Ok(Command::Version),
-        b'N' => Ok(Command::SerialNumber),
-        b'F' => Ok(Command::StatusFlags),
+        // Nothing may follow these letters: one check for the six, 20 bytes less than one each.
+        b'O' | b'L' | b'C' | b'V' | b'N' | b'F' => {
+            if !rest.is_empty() {
+                return Err(SlcanError::Length);
+            }
+            Ok(match letter {
+                b'O' => Command::Open,
+                b'L' => Command::ListenOnly,
+                b'C' => Command::Close,
+                b'V' => Command::Version,
+                b'N' => Command::SerialNumber,
+                _ => Command::StatusFlags,
+            })
+        }
         b'S' => match rest {
             [d @ b'0'..=b'8'] => Ok(Command::Bitrate(d - b'0')),
             [_] => Err(SlcanError::Bitrate),
