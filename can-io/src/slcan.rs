@@ -5,7 +5,8 @@
 //! adapters and to that firmware.
 //!
 //! The parts: a line assembler ([`LineBuffer`]), the line codec ([`parse`], [`parse_received`],
-//! [`frame_line`], [`bitrate_code`]) and the adapter's state machine ([`Adapter`]).
+//! [`frame_line`] or [`write_frame_line`], [`bitrate_code`]) and the adapter's state machine
+//! ([`Adapter`]).
 //!
 //! ## Supported lines (each ends with `\r`; a stray `\n` is ignored)
 //!
