@@ -525,7 +525,13 @@ impl ConfigObject {
     /// Whether `image` may be stored: it decodes ([`image::decode`], which checks the
     /// configuration) and the platform can run it ([`PlatformCheck`]).
     pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
-        let config = image::decode(image)?;
+        // A match rather than `?`: the configuration is not moved through the `Try` machinery
+        // (firmware size).
+        #[allow(clippy::question_mark)]
+        let config = match image::decode(image) {
+            Ok(config) => config,
+            Err(e) => return Err(e),
+        };
         match self.platform_check {
             Some(check) => check(&config).map_err(ImageError::Invalid),
             None => Ok(()),
