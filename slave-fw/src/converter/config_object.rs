@@ -337,7 +337,7 @@ impl ConfigObject {
     /// The object for the image in force and its origin.
     pub fn new(in_force: &[u8], origin: ConfigOrigin) -> ConfigObject {
         let mut object = ConfigObject {
-            in_force: Vec::from_slice(in_force).unwrap_or_default(),
+            in_force: Vec::new(),
             origin,
             staged: Vec::new(),
             staging: Staging::Empty,
@@ -346,6 +346,9 @@ impl ConfigObject {
             refusal: None,
             platform_check: None,
         };
+        // Filled in place rather than through `from_slice`'s `Result` (firmware size: a copy of the
+        // buffer). Too long an image leaves it empty.
+        let _ = object.in_force.extend_from_slice(in_force);
         if let ConfigOrigin::Fault(e) = origin {
             object.refusal = Some(e);
         }
