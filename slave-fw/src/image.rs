@@ -517,11 +517,17 @@ impl Reader<'_> {
     }
 
     fn u16(&mut self) -> u16 {
-        u16::from_le_bytes([self.u8(), self.u8()])
+        self.uint(2) as u16
     }
 
     fn u32(&mut self) -> u32 {
-        u32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()])
+        self.uint(4)
+    }
+
+    /// A little-endian number of `n` bytes (2 or 4). A loop, not one call per byte (firmware size).
+    #[inline(never)]
+    fn uint(&mut self, n: u32) -> u32 {
+        (0..n).fold(0, |v, i| v | u32::from(self.u8()) << (8 * i))
     }
 
     /// A byte that must be below `limit` (an enumeration code); 0 if it is not.

@@ -145,6 +145,14 @@ impl RefusalRecord<'_> {
     /// The record's fixed part for `e`, and the key of an invalid configuration ("" otherwise).
     pub fn encode(e: &ImageError) -> ([u8; REFUSAL_HEADER], String<{ MAX_REFUSAL - REFUSAL_HEADER }>) {
         let mut key = String::new();
+        if let ImageError::Invalid(invalid) = e {
+            invalid.key().write_text(&mut key);
+        }
+        (RefusalRecord::header(e), key)
+    }
+
+    /// The record's fixed part for `e`; the key, if any, follows it ([`RefusalRecord::encode`]).
+    fn header(e: &ImageError) -> [u8; REFUSAL_HEADER] {
         let n = |v: usize| u32::try_from(v).unwrap_or(u32::MAX);
         let (kind, problem, [a, b, c]) = match *e {
             ImageError::Truncated(len) => (1, 0, [n(len), 0, 0]),
@@ -156,7 +164,6 @@ impl RefusalRecord<'_> {
             ImageError::Malformed { offset } => (7, 0, [offset.into(), 0, 0]),
             ImageError::BufferTooSmall => (9, 0, [0; 3]),
             ImageError::Invalid(ref invalid) => {
-                invalid.key().write_text(&mut key);
                 let (problem, numbers) = match *invalid {
                     InvalidConfig::ProductNameLength(len) => (1, [n(len), 1, MAX_PRODUCT_NAME as u32]),
                     InvalidConfig::ProductNameNotAscii => (5, [0; 3]),
@@ -184,7 +191,7 @@ impl RefusalRecord<'_> {
         let [a0, a1, a2, a3] = a.to_le_bytes();
         let [b0, b1, b2, b3] = b.to_le_bytes();
         let [c0, c1, c2, c3] = c.to_le_bytes();
-        ([kind, problem, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3], key)
+        [kind, problem, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3]
     }
 }
 
@@ -273,6 +280,24 @@ impl fmt::Display for RefusalRecord<'_> {
     }
 }
 
+/// Writes the key of a refusal record into the reply, cut to `room` bytes. The key is ASCII (the
+/// configuration's field names), so a byte cut is a character cut, as in [`RefusalRecord::encode`].
+struct KeySink<'r, 'b> {
+    reply: &'r mut Reply<'b>,
+    room: usize,
+    result: Result<(), ServiceError>,
+}
+
+impl TextSink for KeySink<'_, '_> {
+    fn text(&mut self, s: &str) {
+        let n = s.len().min(self.room);
+        self.room -= n;
+        if let Err(e) = self.reply.bytes(s.as_bytes().get(..n).unwrap_or_default()) {
+            self.result = Err(e);
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Staging {
     /// Nothing in the staging buffer.
@@ -312,7 +337,7 @@ impl ConfigObject {
     /// The object for the image in force and its origin.
     pub fn new(in_force: &[u8], origin: ConfigOrigin) -> ConfigObject {
         let mut object = ConfigObject {
-            in_force: Vec::from_slice(in_force).unwrap_or_default(),
+            in_force: Vec::new(),
             origin,
             staged: Vec::new(),
             staging: Staging::Empty,
@@ -321,6 +346,9 @@ impl ConfigObject {
             refusal: None,
             platform_check: None,
         };
+        // Filled in place rather than through `from_slice`'s `Result` (firmware size: a copy of the
+        // buffer). Too long an image leaves it empty.
+        let _ = object.in_force.extend_from_slice(in_force);
         if let ConfigOrigin::Fault(e) = origin {
             object.refusal = Some(e);
         }
@@ -500,7 +528,13 @@ impl ConfigObject {
     /// Whether `image` may be stored: it decodes ([`image::decode`], which checks the
     /// configuration) and the platform can run it ([`PlatformCheck`]).
     pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
-        let config = image::decode(image)?;
+        // A match rather than `?`: the configuration is not moved through the `Try` machinery
+        // (firmware size).
+        #[allow(clippy::question_mark)]
+        let config = match image::decode(image) {
+            Ok(config) => config,
+            Err(e) => return Err(e),
+        };
         match self.platform_check {
             Some(check) => check(&config).map_err(ImageError::Invalid),
             None => Ok(()),
@@ -514,12 +548,14 @@ impl ConfigObject {
             3 => reply.u8(self.state() as u8),
             // The image's own trailer: the CRC-32 of its header and body.
             4 => reply.u32(self.in_force.last_chunk::<4>().map_or(0, |c| u32::from_le_bytes(*c))),
+            // The key goes straight into the reply, not through a string first (firmware size).
             5 => match &self.refusal {
                 Some(e) => {
-                    let (header, key) = RefusalRecord::encode(e);
-                    reply.bytes(&header)?;
-                    let room = MAX_REFUSAL - REFUSAL_HEADER;
-                    reply.bytes(key.as_bytes().get(..room).unwrap_or(key.as_bytes()))
+                    reply.bytes(&RefusalRecord::header(e))?;
+                    let ImageError::Invalid(invalid) = e else { return Ok(()) };
+                    let mut key = KeySink { reply, room: MAX_REFUSAL - REFUSAL_HEADER, result: Ok(()) };
+                    invalid.key().write_text(&mut key);
+                    key.result
                 }
                 None => Ok(()),
             },

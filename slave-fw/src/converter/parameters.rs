@@ -262,13 +262,23 @@ impl Parameter {
     /// [`image::reseal`]s the image and decodes it again: the device changes a setting without an
     /// encoder of the whole configuration.
     pub fn patch(self, image: &mut [u8], layout: &Layout, value: u32) {
-        let [v0, ..] = value.to_le_bytes();
-        let (at, bytes): (u16, &[u8]) = match self {
-            Parameter::SerialBaud => (layout.serial, &value.to_le_bytes()),
+        // Where the value lies and how many bytes it takes; then what those bytes are. One write
+        // for every parameter (firmware size).
+        let (at, len) = match self {
+            Parameter::SerialBaud => (layout.serial, 4),
+            Parameter::SerialParity | Parameter::SerialStopBits => (layout.serial + 4, 1),
+            Parameter::StaleTimeout => (layout.health, 4),
+            Parameter::StalePolicy => (layout.health + 4, 1),
+            Parameter::InputAssembly => (layout.input, 1),
+            Parameter::ResponseTimeout => (layout.timing, 4),
+            Parameter::Retries => (layout.timing + 4, 1),
+            Parameter::PollPeriod => (layout.timing + 5, 4),
+        };
+        let at = usize::from(at);
+        let value = match self {
             Parameter::SerialParity | Parameter::SerialStopBits => {
                 // The format byte: bits 1-2 parity (0 none, 1 even, 2 odd), bit 3 two stop bits.
-                let at = layout.serial + 4;
-                let format = image.get(usize::from(at)).copied().unwrap_or(0);
+                let format = image.get(at).copied().unwrap_or(0);
                 let format = if self == Parameter::SerialParity {
                     let code = match value {
                         0 => 0,
@@ -281,20 +291,13 @@ impl Parameter {
                 } else {
                     format & !0b1000
                 };
-                (at, &[format])
+                u32::from(format)
             }
-            Parameter::StaleTimeout => (layout.health, &value.to_le_bytes()),
-            Parameter::StalePolicy => (layout.health + 4, &[v0]),
-            Parameter::InputAssembly => {
-                (layout.input, &[u8::from(value != u32::from(super::PLAIN_INPUT_ASSEMBLY))])
-            }
-            Parameter::ResponseTimeout => (layout.timing, &value.to_le_bytes()),
-            Parameter::Retries => (layout.timing + 4, &[v0]),
-            Parameter::PollPeriod => (layout.timing + 5, &value.to_le_bytes()),
+            Parameter::InputAssembly => u32::from(value != u32::from(super::PLAIN_INPUT_ASSEMBLY)),
+            _ => value,
         };
-        let at = usize::from(at);
-        if let Some(dst) = image.get_mut(at..at + bytes.len()) {
-            dst.copy_from_slice(bytes);
+        if let (Some(dst), Some(src)) = (image.get_mut(at..at + len), value.to_le_bytes().get(..len)) {
+            dst.copy_from_slice(src);
         }
     }
 
@@ -418,7 +421,9 @@ pub(super) fn handle(
             _ => put(reply, t, p.read(&current)),
         };
     }
-    let mut patched: Vec<u8, MAX_IMAGE> = Vec::from_slice(bytes.unwrap_or_default()).unwrap_or_default();
+    let mut patched: Vec<u8, MAX_IMAGE> = Vec::new();
+    // The bytes decoded, so they fit.
+    let _ = patched.extend_from_slice(bytes.unwrap_or_default());
     if !p.settable(&current) {
         return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE);
     }

@@ -95,20 +95,16 @@ impl FieldPath<'_> {
         let Some(i) = self.0.index else {
             return out.text(self.0.field);
         };
-        // A plain loop, not `split_once`: that would pull in `memchr` (flash).
+        // A plain loop, not `split_once`: that would pull in `memchr` (flash). The rest keeps its
+        // dot.
         let field = self.0.field;
-        let (list, rest) = match field.bytes().position(|b| b == b'.') {
-            Some(dot) => (field.get(..dot).unwrap_or(field), field.get(dot + 1..)),
-            None => (field, None),
-        };
+        let dot = field.bytes().position(|b| b == b'.').unwrap_or(field.len());
+        let (list, rest) = field.split_at_checked(dot).unwrap_or((field, ""));
         out.text(list);
         out.text("[");
         out.decimal(u32::from(i));
         out.text("]");
-        if let Some(rest) = rest {
-            out.text(".");
-            out.text(rest);
-        }
+        out.text(rest);
     }
 }
 
