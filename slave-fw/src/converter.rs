@@ -226,7 +226,6 @@ pub struct Converter {
     profile: Profile,
     input: InputAssembly,
     events: Deque<Event, 8>,
-    last_image: heapless::Vec<u8, { IMAGE_CAPACITY + 2 }>,
     /// An accepted Identity Reset: when it is due, and its kind.
     reset: Option<(Instant, ResetKind)>,
     /// The configuration object (class 0x66): the image in force, downloads.
@@ -287,7 +286,6 @@ impl Converter {
             profile: Profile::build(config.profile, now),
             input: config.input,
             events: Deque::new(),
-            last_image: heapless::Vec::new(),
             reset: None,
             config: config_object,
             configuration_fault: matches!(origin, ConfigOrigin::Fault(_)),
@@ -458,11 +456,10 @@ impl Converter {
         if self.input == InputAssembly::WithStatus {
             let _ = image.extend_from_slice(&status.to_bytes());
         }
-        if image != self.last_image {
-            // Sizes are fixed by the configuration, so this always matches the produced size.
-            let _ = self.node.set_input(&image);
-            self.last_image = image;
-        }
+        // Sizes are fixed by the configuration, so this always matches the produced size. Set
+        // every time: comparing with a copy of the last image first costs more flash and RAM
+        // than the copy it saves.
+        let _ = self.node.set_input(&image);
         let stale = status.state == LinkState::Timeout;
         let mut app = ApplicationStatus { configured: true, ..ApplicationStatus::default() };
         app.minor_recoverable_fault = stale || self.configuration_fault;
