@@ -349,7 +349,8 @@ impl CommandSequencer {
     /// Takes the consumed poll data received at `now`. A zero-length slice is an idle poll: it
     /// never triggers a command, and enters [`OutputMode::Idle`].
     pub fn set_outputs(&mut self, outputs: &[u8], now: Instant) {
-        let Some(command) = Command::from_outputs(outputs) else {
+        // The key from the raw bytes; the command is decoded only when it starts (flash).
+        let Some((&code, rest)) = outputs.split_first() else {
             self.enter(OutputMode::Idle, now);
             return;
         };
@@ -357,19 +358,19 @@ impl CommandSequencer {
             self.mode = OutputMode::Run;
             self.mode_frame_due = None;
         }
-        let key = (command.code.as_raw(), command.sequence);
+        let key = (code, rest.first().copied().unwrap_or(0));
         let first = self.last_key.is_none();
         if self.last_key == Some(key) {
             return;
         }
         self.last_key = Some(key);
-        if (first && !self.config.execute_first) || command.code == CommandCode::None {
+        if (first && !self.config.execute_first) || code == 0 {
             return;
         }
         // A new command supersedes one still in progress.
         self.active = Some(Active { attempts: 0, state: ActiveState::Due(now) });
         self.outcome = CommandOutcome::Pending;
-        self.last_command = Some(command);
+        self.last_command = Command::from_outputs(outputs);
     }
 
     /// The poll connection timed out at `now`: enter [`OutputMode::Fault`]. Never triggers a
