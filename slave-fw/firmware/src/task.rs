@@ -195,18 +195,19 @@ impl ConverterTask {
 /// cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in `config`); it would be
 /// refused, not cut.
 fn store_image(settings: &mut Settings, image: &[u8], hw: &mut impl Hardware) {
-    // The network settings and the new image, without copying the old image first.
-    let Ok(image) = heapless::Vec::from_slice(image) else {
-        warn!("configuration image: too large to store");
-        return;
-    };
-    let new = Settings {
+    // The network settings and the new image, without copying the old image first; the image
+    // is copied into the record in place, not moved into it from a vector of its own (flash).
+    let mut new = Settings {
         mac_id: settings.mac_id,
         baud_rate: settings.baud_rate,
         bus_off_interrupt: settings.bus_off_interrupt,
         last_switches: settings.last_switches,
-        image,
+        image: heapless::Vec::new(),
     };
+    if new.image.extend_from_slice(image).is_err() {
+        warn!("configuration image: too large to store");
+        return;
+    }
     if hw.save_settings(&new) {
         info!("configuration image stored: {=usize} bytes, in force from the next reset", new.image.len());
         *settings = new;
