@@ -241,7 +241,12 @@ impl FramedProfile {
         self.poll(now);
         while let Some(t) = self.sequencer.next_transmission(now) {
             let encoded = match t {
-                Transmission::Command { command, .. } => self.encode_command(&command),
+                // The command in progress is the last one started: framed from where the sequencer
+                // keeps it, not from the transmission's copy (flash).
+                Transmission::Command { .. } => match self.sequencer.last_command() {
+                    Some(command) => encode_command(&self.config, command, &mut self.tx),
+                    None => false,
+                },
                 Transmission::Idle | Transmission::Fault => {
                     let frame = self.sequencer.frame_for(t).unwrap_or(&[]);
                     encode_padded(&self.config.framing, frame, &mut self.tx)
@@ -269,18 +274,6 @@ impl FramedProfile {
         }
         self.sync_stats();
         None
-    }
-
-    /// Frames `command` into `self.tx`; `false` if the code has no [`CommandFormat`].
-    fn encode_command(&mut self, command: &Command) -> bool {
-        let Some(format) = command_format(&self.config, command) else {
-            return false;
-        };
-        let [a0, a1, a2, a3, a4, a5] = command.args;
-        let data = [format.wire, a0, a1, a2, a3, a4, a5];
-        // More than six argument bytes cannot be taken from the poll: the wire code alone.
-        let len = if format.args <= 6 { 1 + usize::from(format.args) } else { 1 };
-        encode_padded(&self.config.framing, data.get(..len).unwrap_or(&[]), &mut self.tx)
     }
 
     /// When to call [`poll_transmit`](Self::poll_transmit) next.
@@ -325,6 +318,18 @@ impl FramedProfile {
         s.commands_rejected = c.rejected;
         s.timeouts = c.timeouts;
     }
+}
+
+/// Frames `command` into `tx`; `false` if the code has no [`CommandFormat`].
+fn encode_command(config: &FramedProfileConfig, command: &Command, tx: &mut Vec<u8, FRAME_CAPACITY>) -> bool {
+    let Some(format) = command_format(config, command) else {
+        return false;
+    };
+    let [a0, a1, a2, a3, a4, a5] = command.args;
+    let data = [format.wire, a0, a1, a2, a3, a4, a5];
+    // More than six argument bytes cannot be taken from the poll: the wire code alone.
+    let len = if format.args <= 6 { 1 + usize::from(format.args) } else { 1 };
+    encode_padded(&config.framing, data.get(..len).unwrap_or(&[]), tx)
 }
 
 fn command_format(config: &FramedProfileConfig, command: &Command) -> Option<CommandFormat> {
