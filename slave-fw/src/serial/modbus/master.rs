@@ -671,9 +671,8 @@ impl ModbusMaster {
             match job {
                 Job::ModeFrame => self.mode_frame_due = false,
                 Job::Entry(i) => {
-                    if self.retry.is_some_and(|(r, _)| r == i) {
-                        self.retry = None;
-                    }
+                    // `next_job` takes a pending retry first: if there is one, it is this entry.
+                    self.retry = None;
                     if self.is_write(i) {
                         if let Some(s) = self.entries.get_mut(i) {
                             s.dirty = false;
