@@ -105,8 +105,11 @@ macro_rules! code_enum {
         $(#[$meta])*
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        // Each known variant's tag is its code, so the conversions to and from `u8` compile to a
+        // range check instead of two jump tables (firmware size budget).
+        #[repr(u8)]
         pub enum $name {
-            $( $(#[$vmeta])* $variant, )*
+            $( $(#[$vmeta])* $variant = $value, )*
             /// A code this crate has no name for, kept as received.
             Unknown(u8),
         }
