@@ -332,7 +332,7 @@ impl SlaveNode {
                 match message {
                     Group2Message::DuplicateMacCheck => self.on_duplicate_mac(frame.data()),
                     _ if self.network != NetworkState::Online => {}
-                    Group2Message::UnconnectedExplicitRequest => self.on_group2_only(frame.data(), now),
+                    Group2Message::UnconnectedExplicitRequest => self.on_group2_only::<H>(frame.data(), now),
                     Group2Message::ExplicitRequest => self.on_explicit(frame.data(), now, objects),
                     Group2Message::PollCommand => self.on_poll(frame.data(), now),
                     _ => {}

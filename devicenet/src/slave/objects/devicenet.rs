@@ -37,14 +37,11 @@ impl SlaveNode {
                 self.devicenet_attribute(attr, reply)
             }
             (1, ServiceCode::SetAttributeSingle) => self.set_devicenet_attribute(req.data),
-            (1, ServiceCode::AllocateMasterSlave) => match self.allocate(req.data, now)? {
-                Some(fmt) => reply.u8(fmt),
-                None => Ok(()),
-            },
+            (1, ServiceCode::AllocateMasterSlave) => self.allocate(req.data, reply, now),
             (1, ServiceCode::ReleaseMasterSlave) => {
                 // Through the explicit connection the requester is the owner (checked on entry).
                 let owner = self.master.unwrap_or(MacId::MAX);
-                self.release(owner, req.data).map(|_| ())
+                self.release(owner, req.data)
             }
             (1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
