@@ -2,7 +2,6 @@
 //! and counter, allocation information, the switches, and the Allocate/Release services of the
 //! Predefined Master/Slave Connection Set (whose logic is in `allocation.rs`).
 
-use super::class_revision;
 use crate::explicit::{Request, ServiceCode};
 use crate::id::MacId;
 use crate::slave::{BaudRate, Event, Reply, ServiceError, SlaveNode};
@@ -30,8 +29,6 @@ impl SlaveNode {
         now: Instant,
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
-            (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 2, reply),
-            (0, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             (1, ServiceCode::GetAttributeSingle) => {
                 let [attr] = ServiceError::expect_array(req.data)?;
                 self.devicenet_attribute(attr, reply)

@@ -1,5 +1,5 @@
 //! The Message Router (class 0x02): hands each explicit request to the object class it names,
-//! and serves its own class revision.
+//! and serves the class instance (the revision) of every core class, its own included.
 
 use super::class_revision;
 use crate::explicit::{Request, ServiceCode};
@@ -16,23 +16,33 @@ impl SlaveNode {
         now: Instant,
         objects: &mut H,
     ) -> Result<(), ServiceError> {
+        let revision = match req.class {
+            class::IDENTITY | class::MESSAGE_ROUTER | class::CONNECTION => 1,
+            class::DEVICENET | class::ASSEMBLY => 2,
+            _ => return objects.handle(req, reply).unwrap_or(Err(ServiceError::OBJECT_DOES_NOT_EXIST)),
+        };
+        // Every core class serves the same class instance (0): its revision, nothing else.
+        if req.instance == 0 {
+            return match req.service {
+                ServiceCode::GetAttributeSingle => class_revision(req.data, revision, reply),
+                _ => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            };
+        }
         match req.class {
             class::IDENTITY => self.identity_service(req, reply),
-            class::MESSAGE_ROUTER => self.router_service(req, reply),
             class::DEVICENET => self.devicenet_service(req, reply, now),
             class::ASSEMBLY => self.assembly_service(req, reply),
             class::CONNECTION => self.connection_service(req, reply, now),
-            _ => objects.handle(req, reply).unwrap_or(Err(ServiceError::OBJECT_DOES_NOT_EXIST)),
+            _ => router_service(req),
         }
     }
+}
 
-    /// Message Router services: the class revision only.
-    fn router_service(&mut self, req: &Request<'_>, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
-        match (req.instance, req.service) {
-            (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 1, reply),
-            (1, ServiceCode::GetAttributeSingle) => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-            (0 | 1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
-            _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
-        }
+/// Message Router instance services: no attribute is served.
+fn router_service(req: &Request<'_>) -> Result<(), ServiceError> {
+    match (req.instance, req.service) {
+        (1, ServiceCode::GetAttributeSingle) => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        (1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+        _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
     }
 }
