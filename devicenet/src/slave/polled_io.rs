@@ -15,11 +15,12 @@ impl SlaveNode {
             return;
         }
         let consumed = usize::from(self.config.consumed_size);
-        // A copy: the reassembled command borrows the reassembler. validate() bounds the consumed
+        // The command is read in place (from the frame or the reassembler) and copied into the
+        // output image only when it is accepted and not empty. validate() bounds the consumed
         // size by MAX_IO_SIZE, so an accepted command always fits.
         let command = if consumed > 8 {
             match self.poll_rx.receive(data) {
-                Ok(Some(whole)) if whole.len() <= consumed => heapless::Vec::from_slice(whole).ok(),
+                Ok(Some(whole)) if whole.len() <= consumed => Some(whole),
                 Ok(None) => {
                     self.poll.restart_timer(now);
                     return;
@@ -27,7 +28,7 @@ impl SlaveNode {
                 Ok(Some(_)) | Err(_) => None,
             }
         } else if data.len() <= consumed {
-            heapless::Vec::from_slice(data).ok()
+            Some(data)
         } else {
             None
         };
@@ -35,15 +36,14 @@ impl SlaveNode {
             self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
             return;
         };
-        self.poll.restart_timer(now);
-        if command.is_empty() {
-            self.io_idle = true;
-            self.push_event(Event::Idle);
-        } else {
-            self.io_idle = false;
-            self.output = command;
-            self.push_event(Event::OutputReceived);
+        let idle = command.is_empty();
+        if !idle {
+            self.output.clear();
+            let _ = self.output.extend_from_slice(command);
         }
+        self.poll.restart_timer(now);
+        self.io_idle = idle;
+        self.push_event(if idle { Event::Idle } else { Event::OutputReceived });
         self.send_poll_response();
     }
 
