@@ -438,14 +438,9 @@ impl SlaveNode {
 
     /// Back to no connection and no owner (power-on, bus-off, Communication Faulted).
     fn reset_connections(&mut self) {
-        self.explicit.delete();
-        self.poll.delete();
-        self.allocation = AllocationChoice::empty();
-        self.master = None;
-        self.io_idle = false;
-        self.explicit_rx.reset();
-        self.explicit_tx.reset();
-        self.poll_rx.reset();
+        // Deleting both connections also ends the master's ownership (`delete_connection`).
+        self.delete_connection(ConnectionKind::Poll);
+        self.delete_connection(ConnectionKind::Explicit);
     }
 }
 
