@@ -409,18 +409,10 @@ impl<const N: usize> ExplicitReassembler<N> {
             return ExplicitReceive::Ignored(FragmentError::FirstCountNotZero(count));
         }
         let header = Header { fragmented: false, ..frag.header };
-        if !(self.append(&[header.to_byte()]) && self.append(frag.body)) {
+        if !self.append(&[header.to_byte()]) {
             return self.reject(frag);
         }
-        self.last_answer = Some((frag.fragment, AckStatus::Success));
-        let ack = ack_frame(frag.header, count, AckStatus::Success);
-        if frag.fragment.is_single() {
-            self.state = RxState::Complete;
-            ExplicitReceive::Complete(ack)
-        } else {
-            self.state = RxState::InProgress { next: next_count(count) };
-            ExplicitReceive::Ack(ack)
-        }
+        self.accept(frag, frag.fragment.is_single())
     }
 
     fn continuation(&mut self, frag: &ExplicitFragment<'_>) -> ExplicitReceive {
@@ -430,18 +422,7 @@ impl<const N: usize> ExplicitReassembler<N> {
             RxState::Idle | RxState::Complete => None,
         };
         if expected == Some(fragment.count) {
-            if !self.append(frag.body) {
-                return self.reject(frag);
-            }
-            self.last_answer = Some((fragment, AckStatus::Success));
-            let ack = ack_frame(frag.header, fragment.count, AckStatus::Success);
-            return if fragment.kind == FragmentKind::Last {
-                self.state = RxState::Complete;
-                ExplicitReceive::Complete(ack)
-            } else {
-                self.state = RxState::InProgress { next: next_count(fragment.count) };
-                ExplicitReceive::Ack(ack)
-            };
+            return self.accept(frag, fragment.kind == FragmentKind::Last);
         }
         match (self.last_answer, expected) {
             (Some((last, status)), _) if last == fragment => {
@@ -452,6 +433,24 @@ impl<const N: usize> ExplicitReassembler<N> {
                 ExplicitReceive::Ignored(FragmentError::OutOfSequence { expected, got: fragment.count })
             }
             (_, None) => ExplicitReceive::Ignored(FragmentError::NoFirstFragment),
+        }
+    }
+
+    /// Appends the body of `frag`, the fragment expected, and acks it; `last` completes the
+    /// message. A body that does not fit drops the series ([`reject`](Self::reject)).
+    fn accept(&mut self, frag: &ExplicitFragment<'_>, last: bool) -> ExplicitReceive {
+        if !self.append(frag.body) {
+            return self.reject(frag);
+        }
+        let fragment = frag.fragment;
+        self.last_answer = Some((fragment, AckStatus::Success));
+        let ack = ack_frame(frag.header, fragment.count, AckStatus::Success);
+        if last {
+            self.state = RxState::Complete;
+            ExplicitReceive::Complete(ack)
+        } else {
+            self.state = RxState::InProgress { next: next_count(fragment.count) };
+            ExplicitReceive::Ack(ack)
         }
     }
 
