@@ -868,34 +868,26 @@ impl<const N: usize> IoReassembler<N> {
     /// Applies one frame; `Ok(true)` when the series is complete.
     fn step(&mut self, frame: &[u8]) -> Result<bool, FragmentError> {
         let IoFragment { fragment, data } = IoFragment::parse(frame)?;
-        match fragment.kind {
-            FragmentKind::Ack => Err(FragmentError::UnexpectedAck),
+        let complete = match fragment.kind {
+            FragmentKind::Ack => return Err(FragmentError::UnexpectedAck),
             FragmentKind::First => {
                 self.reset();
                 if fragment.count != 0 && !fragment.is_single() {
                     return Err(FragmentError::FirstCountNotZero(fragment.count));
                 }
-                self.append(data)?;
-                if fragment.is_single() {
-                    return Ok(true);
-                }
-                self.next = Some(next_count(fragment.count));
-                Ok(false)
+                fragment.is_single()
             }
             FragmentKind::Middle | FragmentKind::Last => {
                 let expected = self.next.ok_or(FragmentError::NoFirstFragment)?;
                 if fragment.count != expected {
                     return Err(FragmentError::OutOfSequence { expected, got: fragment.count });
                 }
-                self.append(data)?;
-                if fragment.kind == FragmentKind::Last {
-                    self.next = None;
-                    return Ok(true);
-                }
-                self.next = Some(next_count(fragment.count));
-                Ok(false)
+                fragment.kind == FragmentKind::Last
             }
-        }
+        };
+        self.append(data)?;
+        self.next = if complete { None } else { Some(next_count(fragment.count)) };
+        Ok(complete)
     }
 
     fn append(&mut self, bytes: &[u8]) -> Result<(), FragmentError> {
