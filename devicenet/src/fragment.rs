@@ -641,17 +641,13 @@ impl<const N: usize> ExplicitTransmitter<N> {
     /// `[header | 0x80, fragment byte, ≤ 6 body bytes]`.
     pub fn poll_transmit(&mut self, now: Instant) -> Option<Payload> {
         self.expire(now);
-        match self.state {
-            TxState::Due { .. } => {
-                self.state = TxState::AwaitingAck { deadline: now + ACK_TIMEOUT, retried: false };
-                Some(self.fragment_frame())
-            }
-            TxState::AwaitingAck { deadline, retried: false } if now >= deadline => {
-                self.state = TxState::AwaitingAck { deadline: now + ACK_TIMEOUT, retried: true };
-                Some(self.fragment_frame())
-            }
-            _ => None,
-        }
+        let retried = match self.state {
+            TxState::Due { .. } => false,
+            TxState::AwaitingAck { deadline, retried: false } if now >= deadline => true,
+            _ => return None,
+        };
+        self.state = TxState::AwaitingAck { deadline: now + ACK_TIMEOUT, retried };
+        Some(self.fragment_frame())
     }
 
     /// Takes a received ack frame, `[header, C0 | count, status]`.
