@@ -199,6 +199,8 @@ impl SlaveNode {
     }
 
     /// The connection object instance `instance`, if it is one of ours.
+    // Out of line: the firmware's flash is 20 bytes smaller than with it inlined at each use.
+    #[inline(never)]
     fn connection_mut(&mut self, instance: u16) -> Option<&mut Connection> {
         match instance {
             1 => Some(&mut self.explicit),
