@@ -76,6 +76,8 @@ pub struct CanFrame {
 
 impl CanFrame {
     /// A frame with `id` and `data`; fails when `data` is longer than 8 bytes.
+    // Inlined: most callers know the data length (some 30 bytes of the firmware's flash).
+    #[inline]
     pub fn new(id: CanId, data: &[u8]) -> Result<CanFrame, FrameError> {
         let mut buf = [0u8; 8];
         buf.get_mut(..data.len()).ok_or(FrameError::TooLong(data.len()))?.copy_from_slice(data);

@@ -5,8 +5,9 @@
 //! Requests are validated in JB's order and answered with the error codes of notes §3.4. This
 //! node offers the explicit and poll connections only ([`SUPPORTED`]).
 
-use super::{ConnectionKind, Event, ServiceError, SlaveNode};
-use crate::explicit::{additional, split_message, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
+use super::explicit_messaging::Port;
+use super::{ConnectionKind, Event, ObjectHandler, Reply, ServiceError, SlaveNode};
+use crate::explicit::{additional, BodyFormat, GeneralStatus, Request, ServiceCode};
 use crate::id::MacId;
 use crate::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use crate::objects::class;
@@ -18,47 +19,44 @@ pub(super) const SUPPORTED: AllocationChoice = AllocationChoice::EXPLICIT.union(
 impl SlaveNode {
     /// A request on the Group 2 Only Unconnected Explicit Request port (notes §3.4): only
     /// Allocate and Release of the DeviceNet object are served; the response goes out at once.
-    pub(super) fn on_group2_only(&mut self, data: &[u8], now: Instant) {
-        let Ok((header, body)) = split_message(data) else { return };
-        let Some(&service_byte) = body.first() else { return };
-        if header.fragmented || service_byte & 0x80 != 0 {
-            return; // unconnected messages are never fragmented; responses are not for us
-        }
-        let service = ServiceCode::from(service_byte);
-        let result = match Request::parse(body, BodyFormat::Class8Instance8) {
-            Ok(req) => match req.service {
-                ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave
-                    if (req.class, req.instance) != (class::DEVICENET, 1) =>
-                {
-                    Err(ServiceError::OBJECT_DOES_NOT_EXIST)
-                }
-                ServiceCode::AllocateMasterSlave => self.allocate(req.data, now),
-                ServiceCode::ReleaseMasterSlave => self.release(header.mac, req.data),
-                _ => Err(invalid_group2_only_request()),
-            },
-            Err(_) => match service {
-                ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => {
-                    Err(ServiceError::NOT_ENOUGH_DATA)
-                }
-                _ => Err(invalid_group2_only_request()),
-            },
-        };
-        let header = Header::new(header.xid, header.mac).to_byte();
-        let id = self.response_id();
-        match result {
-            // Allocate answers with its body format byte, Release with no data (notes §3.4).
-            Ok(Some(body_format)) => self.queue_data(id, &[header, 0x80 | service.as_raw(), body_format]),
-            Ok(None) => self.queue_data(id, &[header, 0x80 | service.as_raw()]),
-            Err(e) => {
-                let error = 0x80 | ServiceCode::ErrorResponse.as_raw();
-                self.queue_data(id, &[header, error, e.general.as_raw(), e.additional]);
+    pub(super) fn on_group2_only<H: ObjectHandler>(&mut self, data: &[u8], now: Instant) {
+        match data {
+            // Unconnected messages are never fragmented; responses are not for us.
+            [header, service, ..] if header & 0x80 == 0 && service & 0x80 == 0 => {
+                self.serve(data, now, Port::<H>::Group2Only);
             }
+            _ => {}
         }
     }
 
-    /// Allocate_Master/Slave_Connection_Set (notes §3.4), validation in JB's order. Returns the
-    /// body format byte of the success response.
-    pub(super) fn allocate(&mut self, data: &[u8], now: Instant) -> Result<Option<u8>, ServiceError> {
+    /// The services of the Group 2 Only port for a parsed request from `requester`.
+    pub(super) fn group2_only_service(
+        &mut self,
+        req: &Request<'_>,
+        requester: MacId,
+        reply: &mut Reply<'_>,
+        now: Instant,
+    ) -> Result<(), ServiceError> {
+        match req.service {
+            ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave
+                if (req.class, req.instance) != (class::DEVICENET, 1) =>
+            {
+                Err(ServiceError::OBJECT_DOES_NOT_EXIST)
+            }
+            ServiceCode::AllocateMasterSlave => self.allocate(req.data, reply, now),
+            ServiceCode::ReleaseMasterSlave => self.release(requester, req.data),
+            _ => Err(invalid_group2_only_request()),
+        }
+    }
+
+    /// Allocate_Master/Slave_Connection_Set (notes §3.4), validation in JB's order. The success
+    /// response carries the body format byte.
+    pub(super) fn allocate(
+        &mut self,
+        data: &[u8],
+        reply: &mut Reply<'_>,
+        now: Instant,
+    ) -> Result<(), ServiceError> {
         ServiceError::expect_len(data, 2)?;
         let req = AllocateRequest::parse(data).map_err(|_| invalid_choice())?;
         let choice = req.choice;
@@ -101,11 +99,11 @@ impl SlaveNode {
         }
         self.push_event(Event::Allocated { choice, master: req.allocator });
         // Our explicit connection uses message body format 0 (8/8).
-        Ok(Some(BodyFormat::Class8Instance8.code()))
+        reply.u8(BodyFormat::Class8Instance8.code())
     }
 
     /// Release_Master/Slave_Connection_Set (notes §3.4).
-    pub(super) fn release(&mut self, requester: MacId, data: &[u8]) -> Result<Option<u8>, ServiceError> {
+    pub(super) fn release(&mut self, requester: MacId, data: &[u8]) -> Result<(), ServiceError> {
         ServiceError::expect_len(data, 1)?;
         let req = ReleaseRequest::parse(data).map_err(|_| invalid_choice())?;
         let choice = req.choice;
@@ -137,7 +135,7 @@ impl SlaveNode {
             self.delete_connection(ConnectionKind::Explicit);
         }
         self.push_event(Event::Released { choice, owned: self.master.is_some() });
-        Ok(None)
+        Ok(())
     }
 }
 
@@ -146,8 +144,19 @@ fn invalid_choice() -> ServiceError {
     ServiceError::with_additional(GeneralStatus::InvalidAttributeValue, additional::INVALID_CHOICE)
 }
 
+/// The error for a request on the Group 2 Only port too short to parse: 0x13 for Allocate and
+/// Release, else that of any other service (notes §3.4).
+pub(super) fn group2_only_truncated(service: ServiceCode) -> ServiceError {
+    match service {
+        ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => ServiceError::NOT_ENOUGH_DATA,
+        _ => invalid_group2_only_request(),
+    }
+}
+
 /// Any service but Allocate/Release on the Group 2 Only port: 0x02 / 0x03 (JB, notes §3.4 and
 /// §9.6).
+// Out of line: the constant built at each of its uses costs some 15 bytes of flash.
+#[inline(never)]
 fn invalid_group2_only_request() -> ServiceError {
     ServiceError::with_additional(GeneralStatus::ResourceUnavailable, additional::INVALID_GROUP2_ONLY_REQUEST)
 }

@@ -3,11 +3,22 @@
 //! requests are reassembled and long responses are sent in acknowledged fragments.
 //!
 //! A whole request goes to the Message Router ([`objects`](super::objects)), which answers it.
+//! Requests on the Group 2 Only port are served and answered by the same code, restricted to
+//! Allocate and Release ([`Port`]).
 
+use super::allocation::group2_only_truncated;
 use super::{ConnectionState, ObjectHandler, Reply, ServiceError, SlaveNode, MAX_EXPLICIT_SIZE};
 use crate::explicit::{split_message, BodyFormat, ExplicitError, Header, Request, ServiceCode};
 use crate::fragment::{ExplicitReceive, FragmentByte, FragmentKind};
 use crate::time::Instant;
+
+/// Where a request came in, which decides the services it may ask for.
+pub(super) enum Port<'h, H> {
+    /// The explicit connection: every object; classes the core lacks go to the handler.
+    Explicit(&'h mut H),
+    /// The Group 2 Only Unconnected Explicit Request port: Allocate and Release only (notes §3.4).
+    Group2Only,
+}
 
 impl SlaveNode {
     /// A frame on our Group 2 explicit request identifier.
@@ -49,7 +60,7 @@ impl SlaveNode {
                     // The reassembler keeps its last answer (not reset here): a repeat of the last
                     // fragment, whose ack the master missed, is acknowledged again and the request
                     // is not served twice (notes §4.1, JB; found by the conformance suite).
-                    self.serve(&message, now, objects);
+                    self.serve(&message, now, Port::Explicit(objects));
                 }
                 ExplicitReceive::Ignored(_) => {
                     self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
@@ -59,27 +70,35 @@ impl SlaveNode {
             // An unfragmented request resets both directions' fragmentation (JB, notes §4.1).
             self.explicit_rx.reset();
             self.explicit_tx.reset();
-            self.serve(data, now, objects);
+            self.serve(data, now, Port::Explicit(objects));
         }
     }
 
-    /// Serves one whole explicit request message (header + body) and queues the response.
-    fn serve<H: ObjectHandler>(&mut self, message: &[u8], now: Instant, objects: &mut H) {
+    /// Serves one whole explicit request message (header + body) that came in on `port`, and
+    /// queues the response.
+    pub(super) fn serve<H: ObjectHandler>(&mut self, message: &[u8], now: Instant, port: Port<'_, H>) {
         let Ok((header, body)) = split_message(message) else { return };
         let Some(&service_byte) = body.first() else { return };
+        let service = ServiceCode::from(service_byte);
         let mut out = [0u8; MAX_EXPLICIT_SIZE];
         out[0] = Header::new(header.xid, header.mac).to_byte();
-        let (result, service) = match Request::parse(body, BodyFormat::Class8Instance8) {
+        let result = match Request::parse(body, BodyFormat::Class8Instance8) {
             Ok(req) => {
                 let mut reply = Reply::new(&mut out[2..]);
-                let r = self.dispatch(&req, &mut reply, now, objects).map(|()| reply.len());
-                (r, req.service)
+                let r = match port {
+                    Port::Explicit(objects) => self.dispatch(&req, &mut reply, now, objects),
+                    Port::Group2Only => self.group2_only_service(&req, header.mac, &mut reply, now),
+                };
+                r.map(|()| reply.len())
             }
             Err(ExplicitError::NotARequest) => {
                 self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
                 return;
             }
-            Err(_) => (Err(ServiceError::NOT_ENOUGH_DATA), ServiceCode::from(service_byte)),
+            Err(_) => Err(match port {
+                Port::Group2Only => group2_only_truncated(service),
+                Port::Explicit(_) => ServiceError::NOT_ENOUGH_DATA,
+            }),
         };
         let len = match result {
             Ok(n) => {

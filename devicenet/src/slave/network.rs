@@ -99,6 +99,8 @@ impl SlaveNode {
     }
 
     /// Communication Faulted: silent, every connection gone, until reset (notes §7.4).
+    // Always inlined: the reason is a constant at each call site (some 15 bytes of flash).
+    #[inline(always)]
     pub(super) fn fault(&mut self, reason: FaultReason) {
         self.network = NetworkState::CommunicationFaulted(reason);
         self.reset_connections();

@@ -108,11 +108,16 @@ impl<'b> Reply<'b> {
     }
 
     /// Appends a UINT / WORD, little-endian.
+    // Always inlined, as `u32` (some 15 bytes of flash).
+    #[inline(always)]
     pub fn u16(&mut self, v: u16) -> Result<(), ServiceError> {
         self.bytes(&v.to_le_bytes())
     }
 
     /// Appends a UDINT / DWORD, little-endian.
+    // Always inlined, as `u16`: the call to `bytes` with the value on the stack is no longer than
+    // a call here (some 10 bytes of flash).
+    #[inline(always)]
     pub fn u32(&mut self, v: u32) -> Result<(), ServiceError> {
         self.bytes(&v.to_le_bytes())
     }

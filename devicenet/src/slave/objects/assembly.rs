@@ -1,7 +1,6 @@
 //! The Assembly object (class 0x04): the poll connection's input (produced) and output
 //! (consumed) images as two instances, whose numbers come from the configuration.
 
-use super::class_revision;
 use crate::explicit::{Request, ServiceCode};
 use crate::slave::{Event, Reply, ServiceError, SlaveNode};
 
@@ -15,12 +14,6 @@ impl SlaveNode {
     ) -> Result<(), ServiceError> {
         let input = u16::from(self.config.input_assembly);
         let output = u16::from(self.config.output_assembly);
-        if req.instance == 0 {
-            return match req.service {
-                ServiceCode::GetAttributeSingle => class_revision(req.data, 2, reply),
-                _ => Err(ServiceError::SERVICE_NOT_SUPPORTED),
-            };
-        }
         if req.instance != input && req.instance != output {
             return Err(ServiceError::OBJECT_DOES_NOT_EXIST);
         }

@@ -2,7 +2,6 @@
 //! and counter, allocation information, the switches, and the Allocate/Release services of the
 //! Predefined Master/Slave Connection Set (whose logic is in `allocation.rs`).
 
-use super::class_revision;
 use crate::explicit::{Request, ServiceCode};
 use crate::id::MacId;
 use crate::slave::{BaudRate, Event, Reply, ServiceError, SlaveNode};
@@ -30,21 +29,16 @@ impl SlaveNode {
         now: Instant,
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
-            (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 2, reply),
-            (0, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             (1, ServiceCode::GetAttributeSingle) => {
                 let [attr] = ServiceError::expect_array(req.data)?;
                 self.devicenet_attribute(attr, reply)
             }
             (1, ServiceCode::SetAttributeSingle) => self.set_devicenet_attribute(req.data),
-            (1, ServiceCode::AllocateMasterSlave) => match self.allocate(req.data, now)? {
-                Some(fmt) => reply.u8(fmt),
-                None => Ok(()),
-            },
+            (1, ServiceCode::AllocateMasterSlave) => self.allocate(req.data, reply, now),
             (1, ServiceCode::ReleaseMasterSlave) => {
                 // Through the explicit connection the requester is the owner (checked on entry).
                 let owner = self.master.unwrap_or(MacId::MAX);
-                self.release(owner, req.data).map(|_| ())
+                self.release(owner, req.data)
             }
             (1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),

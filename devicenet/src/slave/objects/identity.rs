@@ -2,7 +2,6 @@
 //! configuration, the status word and state drawn from the connections and the application's
 //! fault flags, and the Reset service.
 
-use super::class_revision;
 use crate::explicit::{Request, ServiceCode};
 use crate::slave::{ConnectionState, Event, Reply, ServiceError, SlaveNode};
 
@@ -46,8 +45,6 @@ impl SlaveNode {
         reply: &mut Reply<'_>,
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
-            (0, ServiceCode::GetAttributeSingle) => class_revision(req.data, 1, reply),
-            (0, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             (1, ServiceCode::GetAttributeSingle) => {
                 let [attr] = ServiceError::expect_array(req.data)?;
                 self.identity_attribute(attr, reply)
