@@ -200,7 +200,7 @@ fn garbage_and_bad_checksums_are_counted_and_survived() {
     b.breaker.corrupt_next_frames(2);
     let until = b.secs(2);
     b.run_until(until);
-    let s = *b.profile.stats();
+    let s = b.profile.stats();
     assert_eq!(s.checksum_errors, 2);
     assert!(s.framing_errors >= 1, "{s:?}");
     assert!(s.discarded_bytes >= 3, "{s:?}");

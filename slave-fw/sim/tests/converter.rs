@@ -192,7 +192,7 @@ fn garbage_on_the_serial_line_is_counted_and_survived() {
     rig.slave.breaker_mut().send_garbage(&[0x68, 0x99, 0x01, 0x16, 0xFF, 0x00], now);
     rig.slave.breaker_mut().corrupt_next_frames(2);
     rig.advance(Duration::from_secs(4));
-    let stats = *rig.slave.converter().profile().stats();
+    let stats = rig.slave.converter().profile().stats();
     assert!(stats.checksum_errors >= 2, "{stats:?}");
     rig.slave.breaker_mut().set_load([7, 0, 0, 0]);
     rig.slave.breaker_mut().set_switch(SwitchState::Closed);

@@ -165,7 +165,7 @@ impl Bridge {
         let flushed = self.flush_log();
         let now = self.now();
         self.summary.elapsed = now - start;
-        self.summary.stats = *self.converter.profile().stats();
+        self.summary.stats = self.converter.profile().stats();
         result?;
         flushed?;
         Ok(self.summary.clone())
@@ -256,7 +256,7 @@ impl Bridge {
         let state = self.converter.profile().status().state;
         if state != self.link {
             self.link = state;
-            let s = *self.converter.profile().stats();
+            let s = self.converter.profile().stats();
             let text = match state {
                 LinkState::Ok => format!("instrument link ok ({} frames received)", s.frames_received),
                 LinkState::Timeout => {

@@ -9,9 +9,10 @@
 //! Each table is an enum with one variant per attribute, its discriminant the attribute id; what
 //! an attribute is (name, units, CIP data type, access: [`LinkAttribute::spec`],
 //! [`SettingsAttribute::spec`]) and how its value is read from the converter's state
-//! ([`LinkAttribute::read`] from the profile's [`Stats`] and [`LinkStatus`],
+//! ([`LinkAttribute::read`] from the profile's counters and [`LinkStatus`],
 //! [`SettingsAttribute::read`] from [`SettingsValues`]) are `match`es on it, so adding an attribute
-//! fails to compile until every side says what it is. The firmware calls only `from_id`,
+//! fails to compile until every side says what it is; only the link counters are read by index,
+//! attribute id less one being the [`Counter`] (a test holds each to its statistic). The firmware calls only `from_id`,
 //! `data_type` and `read`: the names stay out of its flash.
 //!
 //! Services (both classes): Get_Attribute_Single on instance 1 and on the class (attribute 1,
@@ -23,8 +24,8 @@
 use super::InputAssembly;
 use crate::serial::modbus::ModbusConfig;
 use crate::serial::{
-    FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile, ProfileConfig,
-    StalePolicy, Stats, StopBits,
+    Counter, FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile,
+    ProfileConfig, StalePolicy, StopBits,
 };
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::{ObjectHandler, Reply, ServiceError};
@@ -96,29 +97,29 @@ pub struct AttributeSpec {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[repr(u8)]
 pub enum LinkAttribute {
-    /// Good frames received from the instrument ([`Stats::frames_received`]).
+    /// Good frames received from the instrument ([`Counter::FramesReceived`]).
     FramesReceived = 1,
-    /// Frames discarded for a checksum or CRC mismatch ([`Stats::checksum_errors`]).
+    /// Frames discarded for a checksum or CRC mismatch ([`Counter::ChecksumErrors`]).
     ChecksumErrors = 2,
-    /// Frames discarded for bad framing ([`Stats::framing_errors`]).
+    /// Frames discarded for bad framing ([`Counter::FramingErrors`]).
     FramingErrors = 3,
-    /// Expected answers that did not arrive in time ([`Stats::timeouts`]).
+    /// Expected answers that did not arrive in time ([`Counter::Timeouts`]).
     AnswerTimeouts = 4,
-    /// Commands sent, first attempts ([`Stats::commands_sent`]).
+    /// Commands sent, first attempts ([`Counter::CommandsSent`]).
     CommandsSent = 5,
-    /// Command retransmissions ([`Stats::commands_retried`]).
+    /// Command retransmissions ([`Counter::CommandsRetried`]).
     CommandsRetried = 6,
-    /// Commands given up after all retries ([`Stats::commands_failed`]).
+    /// Commands given up after all retries ([`Counter::CommandsFailed`]).
     CommandsFailed = 7,
-    /// Commands the instrument refused ([`Stats::commands_rejected`]).
+    /// Commands the instrument refused ([`Counter::CommandsRejected`]).
     CommandsRejected = 8,
-    /// Modbus exception responses ([`Stats::modbus_exceptions`]).
+    /// Modbus exception responses ([`Counter::ModbusExceptions`]).
     ModbusExceptions = 9,
-    /// Frames written to the serial line ([`Stats::frames_sent`]).
+    /// Frames written to the serial line ([`Counter::FramesSent`]).
     FramesSent = 10,
-    /// Bytes skipped outside any frame ([`Stats::discarded_bytes`]).
+    /// Bytes skipped outside any frame ([`Counter::DiscardedBytes`]).
     DiscardedBytes = 11,
-    /// Times the link went stale ([`Stats::link_timeouts`]).
+    /// Times the link went stale ([`Counter::LinkTimeouts`]).
     LinkTimeouts = 12,
     /// The status byte of input assembly 101 ([`LinkStatus::to_bytes`], byte 0).
     StatusByte = 13,
@@ -216,22 +217,11 @@ impl LinkAttribute {
         }
     }
 
-    /// The value served, from the profile's statistics and status.
-    pub fn read(self, stats: &Stats, status: &LinkStatus) -> u32 {
+    /// The value served, from the profile's statistics (a table indexed by [`Counter`]) and
+    /// status.
+    pub fn read(self, counts: &[u32; Counter::COUNT], status: &LinkStatus) -> u32 {
         use LinkAttribute as A;
         match self {
-            A::FramesReceived => stats.frames_received,
-            A::ChecksumErrors => stats.checksum_errors,
-            A::FramingErrors => stats.framing_errors,
-            A::AnswerTimeouts => stats.timeouts,
-            A::CommandsSent => stats.commands_sent,
-            A::CommandsRetried => stats.commands_retried,
-            A::CommandsFailed => stats.commands_failed,
-            A::CommandsRejected => stats.commands_rejected,
-            A::ModbusExceptions => stats.modbus_exceptions,
-            A::FramesSent => stats.frames_sent,
-            A::DiscardedBytes => stats.discarded_bytes,
-            A::LinkTimeouts => stats.link_timeouts,
             A::StatusByte => status.to_bytes()[0].into(),
             A::Freshness => status.freshness.into(),
             A::LinkState => match status.state {
@@ -239,6 +229,9 @@ impl LinkAttribute {
                 LinkState::Ok => 1,
                 LinkState::Timeout => 2,
             },
+            // Attributes 1–12 are the counters in table order (Counter): read by index, not a
+            // match over the fields (firmware size budget).
+            _ => counts.get(usize::from(self.id()).wrapping_sub(1)).copied().unwrap_or(0),
         }
     }
 }
@@ -479,7 +472,7 @@ impl VendorObjects<'_> {
             let Some(a) = LinkAttribute::from_id(id) else {
                 return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED);
             };
-            (a.data_type(), a.read(self.profile.stats(), &self.profile.status()))
+            (a.data_type(), a.read(self.profile.counts(), &self.profile.status()))
         } else {
             let Some(a) = SettingsAttribute::from_id(id) else {
                 return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED);
@@ -551,6 +544,46 @@ mod tests {
         assert_eq!(LinkAttribute::from_id(16), None);
         assert_eq!(SettingsAttribute::from_id(0), None);
         assert_eq!(SettingsAttribute::from_id(12), None);
+    }
+
+    #[test]
+    fn counter_attributes_read_their_statistic() {
+        // Distinct values, so each attribute shows which counter it read.
+        let mut counts = [0; Counter::COUNT];
+        for (i, c) in counts.iter_mut().enumerate() {
+            *c = 1000 + i as u32;
+        }
+        let s = crate::serial::Stats::from_counts(&counts);
+        let status = LinkStatus {
+            state: LinkState::Ok,
+            frame_errors: false,
+            exception: false,
+            request_timeout: false,
+            command: crate::serial::CommandOutcome::None,
+            freshness: 7,
+        };
+        use LinkAttribute as A;
+        let expected = [
+            (A::FramesReceived, s.frames_received),
+            (A::ChecksumErrors, s.checksum_errors),
+            (A::FramingErrors, s.framing_errors),
+            (A::AnswerTimeouts, s.timeouts),
+            (A::CommandsSent, s.commands_sent),
+            (A::CommandsRetried, s.commands_retried),
+            (A::CommandsFailed, s.commands_failed),
+            (A::CommandsRejected, s.commands_rejected),
+            (A::ModbusExceptions, s.modbus_exceptions),
+            (A::FramesSent, s.frames_sent),
+            (A::DiscardedBytes, s.discarded_bytes),
+            (A::LinkTimeouts, s.link_timeouts),
+            (A::StatusByte, 0x01),
+            (A::Freshness, 7),
+            (A::LinkState, 1),
+        ];
+        for (a, v) in expected {
+            assert_eq!(a.read(&counts, &status), v, "{a:?}");
+        }
+        assert_eq!(s.unexpected_frames, 1012);
     }
 
     #[test]

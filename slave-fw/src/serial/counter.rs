@@ -1,7 +1,6 @@
-//! The wrapping statistics counters every profile keeps: a helper of its own, so that the modules
-//! counting ([`health`](super::health), [`sequencer`](super::sequencer),
-//! [`framed_profile`](super::framed_profile), [`modbus`](super::modbus)) import it from here and
-//! not from one another.
+//! The wrapping counter increment of the [`sequencer`](super::sequencer)'s own counters (the
+//! link statistics are a table in [`health`](super::health), counted by
+//! [`LinkHealth::count`](super::LinkHealth::count)).
 
 /// Adds one to a wrapping counter.
 pub(crate) fn bump(counter: &mut u32) {

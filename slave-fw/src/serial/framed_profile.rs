@@ -13,10 +13,9 @@
 //! Everything that differs between instruments lives in [`FramedProfileConfig`]; the breaker is
 //! [`breaker::profile_config`](super::breaker::profile_config).
 
-use super::counter::bump;
 use super::error::{as_u32, ConfigError, Problem};
 use super::framed::{FrameError, FrameParser, FramedConfig, LengthField};
-use super::health::{HealthConfig, LinkHealth, LinkStatus, Stats};
+use super::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use super::line::SerialSettings;
 use super::sequencer::{
     check_idle_frame, Command, CommandOutcome, CommandSequencer, SequencerConfig, Transmission,
@@ -267,7 +266,7 @@ impl FramedProfile {
                 self.sequencer.complete(outcome);
             }
             if encoded {
-                bump(&mut self.health.stats_mut().frames_sent);
+                self.health.count(Counter::FramesSent);
                 self.sync_stats();
                 return Some(&self.tx);
             }
@@ -295,8 +294,13 @@ impl FramedProfile {
     }
 
     /// The statistics.
-    pub fn stats(&self) -> &Stats {
+    pub fn stats(&self) -> Stats {
         self.health.stats()
+    }
+
+    /// The statistics as a table indexed by [`Counter`].
+    pub fn counts(&self) -> &[u32; Counter::COUNT] {
+        self.health.counts()
     }
 
     /// The command sequencer (last command, outcome, mode).
@@ -311,12 +315,12 @@ impl FramedProfile {
 
     fn sync_stats(&mut self) {
         let c = *self.sequencer.counters();
-        let s = self.health.stats_mut();
-        s.commands_sent = c.sent;
-        s.commands_retried = c.retried;
-        s.commands_failed = c.failed;
-        s.commands_rejected = c.rejected;
-        s.timeouts = c.timeouts;
+        let h = &mut self.health;
+        h.set_count(Counter::CommandsSent, c.sent);
+        h.set_count(Counter::CommandsRetried, c.retried);
+        h.set_count(Counter::CommandsFailed, c.failed);
+        h.set_count(Counter::CommandsRejected, c.rejected);
+        h.set_count(Counter::Timeouts, c.timeouts);
     }
 }
 
@@ -402,7 +406,7 @@ fn on_frame(
     if data.len() == image.len() {
         image.copy_from_slice(data);
     } else {
-        bump(&mut health.stats_mut().unexpected_frames);
+        health.count(Counter::UnexpectedFrames);
     }
 }
 

@@ -35,7 +35,7 @@ pub use checksum::Checksum;
 pub use error::{ConfigError, FieldPath, Problem};
 pub use framed::{Frame, FrameCounters, FrameError, FrameParser, FramedConfig, LengthField};
 pub use framed_profile::{AckFormat, CommandFormat, FramedProfile, FramedProfileConfig};
-pub use health::{HealthConfig, LinkHealth, LinkState, LinkStatus, StalePolicy, Stats, StatusByte};
+pub use health::{Counter, HealthConfig, LinkHealth, LinkState, LinkStatus, StalePolicy, Stats, StatusByte};
 pub use line::{DataBits, Parity, SerialSettings, StopBits};
 pub use profile::{Profile, ProfileConfig};
 pub use sequencer::{

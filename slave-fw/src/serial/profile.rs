@@ -2,7 +2,7 @@
 
 use super::error::ConfigError;
 use super::framed_profile::{FramedProfile, FramedProfileConfig};
-use super::health::{LinkStatus, Stats};
+use super::health::{Counter, LinkStatus, Stats};
 use super::line::SerialSettings;
 use super::modbus::{ModbusConfig, ModbusMaster};
 use devicenet::Instant;
@@ -157,10 +157,15 @@ impl Profile {
     }
 
     /// The statistics.
-    pub fn stats(&self) -> &Stats {
+    pub fn stats(&self) -> Stats {
+        Stats::from_counts(self.counts())
+    }
+
+    /// The statistics as a table indexed by [`Counter`].
+    pub fn counts(&self) -> &[u32; Counter::COUNT] {
         match self {
-            Profile::Framed(p) => p.stats(),
-            Profile::Modbus(p) => p.stats(),
+            Profile::Framed(p) => p.counts(),
+            Profile::Modbus(p) => p.counts(),
         }
     }
 

@@ -33,9 +33,8 @@
 //! and ignored on writes; a single coil is bit 0).
 
 use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
-use crate::serial::counter::bump;
 use crate::serial::error::{as_u32, ConfigError, Problem};
-use crate::serial::health::{HealthConfig, LinkHealth, LinkStatus, Stats};
+use crate::serial::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use crate::serial::line::{DataBits, SerialSettings};
 use crate::serial::sequencer::{check_idle_frame, CommandOutcome, IdleAction, OutputMode};
 use crate::serial::{IDLE_FRAME_CAPACITY, IMAGE_CAPACITY};
@@ -490,12 +489,11 @@ impl ModbusMaster {
         if function & 0x80 != 0 {
             // An exception: byte 2 is its code (§7).
             self.health.on_frame(now);
-            let stats = self.health.stats_mut();
-            bump(&mut stats.modbus_exceptions);
+            self.health.count(Counter::ModbusExceptions);
             self.exception.current = true;
             self.last_exception = Some((i, byte2));
             if write {
-                bump(&mut self.health.stats_mut().commands_rejected);
+                self.health.count(Counter::CommandsRejected);
                 self.write_outcome = CommandOutcome::Rejected(byte2);
                 self.write_failed(i);
             }
@@ -530,14 +528,14 @@ impl ModbusMaster {
             return;
         };
         if timed_out {
-            bump(&mut self.health.stats_mut().timeouts);
+            self.health.count(Counter::Timeouts);
         }
         if t.attempt <= self.config.retries {
             self.retry = Some((i, t.attempt.saturating_add(1)));
         } else {
             self.request_timeout.current = true;
             if self.is_write(i) {
-                bump(&mut self.health.stats_mut().commands_failed);
+                self.health.count(Counter::CommandsFailed);
                 self.write_outcome = CommandOutcome::Failed;
                 self.write_failed(i);
             }
@@ -678,15 +676,15 @@ impl ModbusMaster {
                             s.dirty = false;
                         }
                         if attempt <= 1 {
-                            bump(&mut self.health.stats_mut().commands_sent);
+                            self.health.count(Counter::CommandsSent);
                             self.write_outcome = CommandOutcome::Pending;
                         } else {
-                            bump(&mut self.health.stats_mut().commands_retried);
+                            self.health.count(Counter::CommandsRetried);
                         }
                     }
                 }
             }
-            bump(&mut self.health.stats_mut().frames_sent);
+            self.health.count(Counter::FramesSent);
             return Some(&self.tx);
         }
     }
@@ -755,8 +753,13 @@ impl ModbusMaster {
     }
 
     /// The statistics.
-    pub fn stats(&self) -> &Stats {
+    pub fn stats(&self) -> Stats {
         self.health.stats()
+    }
+
+    /// The statistics as a table indexed by [`Counter`].
+    pub fn counts(&self) -> &[u32; Counter::COUNT] {
+        self.health.counts()
     }
 
     /// The last exception: scan list index and code.
