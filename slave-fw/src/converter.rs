@@ -49,7 +49,7 @@
 //! behind the first and third are small (the node's 16 frames, 8 events): a caller that hands
 //! several inputs over before draining loses frames and events.
 
-use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig, IMAGE_CAPACITY};
+use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig};
 use devicenet::led::Leds;
 use devicenet::slave::{
     ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, ConnectionState, DeviceConfig, Event,
@@ -450,16 +450,26 @@ impl Converter {
 
     /// Copies the instrument's image (and, for assembly 101, its status) into the node.
     fn refresh_image(&mut self, now: Instant) {
-        let mut image: heapless::Vec<u8, { IMAGE_CAPACITY + 2 }> = heapless::Vec::new();
-        let _ = image.extend_from_slice(self.profile.input_image());
         let status = self.profile.status();
-        if self.input == InputAssembly::WithStatus {
-            let _ = image.extend_from_slice(&status.to_bytes());
+        let data = self.profile.input_image();
+        let with_status = self.input == InputAssembly::WithStatus;
+        // Written straight into the node's image, not assembled in a copy first (flash). Sizes
+        // are fixed by the configuration, so this always matches the produced size. Set every
+        // time: comparing with a copy of the last image first costs more flash and RAM than the
+        // copy it saves.
+        if let Some((head, tail)) = self.node.input_mut().split_at_mut_checked(data.len()) {
+            let fits = match tail {
+                [] => !with_status,
+                [byte, freshness] if with_status => {
+                    [*byte, *freshness] = status.to_bytes();
+                    true
+                }
+                _ => false,
+            };
+            if fits {
+                head.copy_from_slice(data);
+            }
         }
-        // Sizes are fixed by the configuration, so this always matches the produced size. Set
-        // every time: comparing with a copy of the last image first costs more flash and RAM
-        // than the copy it saves.
-        let _ = self.node.set_input(&image);
         let stale = status.state == LinkState::Timeout;
         let mut app = ApplicationStatus { configured: true, ..ApplicationStatus::default() };
         app.minor_recoverable_fault = stale || self.configuration_fault;

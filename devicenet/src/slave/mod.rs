@@ -299,6 +299,12 @@ impl SlaveNode {
         Ok(())
     }
 
+    /// The input image to write in place, exactly the produced size: for an application that
+    /// assembles it from parts, without a copy to hand to [`set_input`](Self::set_input).
+    pub fn input_mut(&mut self) -> &mut [u8] {
+        &mut self.input
+    }
+
     /// Sets the fault and status flags reported through the Identity object and the Module LED.
     pub fn set_application_status(&mut self, status: ApplicationStatus, now: Instant) {
         self.app_status = status;

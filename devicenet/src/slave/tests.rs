@@ -599,6 +599,15 @@ fn set_input_checks_the_size() {
 }
 
 #[test]
+fn input_mut_writes_the_image_in_place() {
+    let mut rig = Rig::established();
+    assert_eq!(rig.node.input_mut().len(), 18, "exactly the produced size");
+    rig.node.input_mut()[1] = 0x42;
+    assert_eq!(rig.node.input()[..3], [0, 0x42, 0]);
+    assert_eq!(rig.send(0x42D, &[0; 8])[0].1, std::vec![0x00, 0, 0x42, 0, 0, 0, 0, 0]);
+}
+
+#[test]
 fn assembly_output_set_refused_while_polling() {
     let mut config = DeviceConfig::reference();
     config.consumed_size = 2;
