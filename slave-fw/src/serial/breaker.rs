@@ -198,7 +198,7 @@ impl BreakerCommand {
     /// 2–4 (id, value low, value high). `None` for code 0 and unknown codes.
     pub fn from_command(command: &Command) -> Option<BreakerCommand> {
         let [id, lo, hi, ..] = command.args;
-        match command.code {
+        match CommandCode::from(command.code) {
             CommandCode::Open => Some(BreakerCommand::Open),
             CommandCode::Close => Some(BreakerCommand::Close),
             CommandCode::SetParameter => {

@@ -336,8 +336,9 @@ fn encode_command(config: &FramedProfileConfig, command: &Command, tx: &mut Vec<
     encode_padded(&config.framing, data.get(..len).unwrap_or(&[]), tx)
 }
 
+#[inline(never)]
 fn command_format(config: &FramedProfileConfig, command: &Command) -> Option<CommandFormat> {
-    config.commands.iter().copied().find(|f| f.code == command.code.as_raw())
+    config.commands.iter().copied().find(|f| f.code == command.code)
 }
 
 /// Frames `data` into `out`, padded with zeros up to (or cut to) a fixed length; `false`, with

@@ -76,8 +76,9 @@ impl From<u8> for CommandCode {
 /// A command as carried in the 8 consumed poll bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Command {
-    /// Byte 0.
-    pub code: CommandCode,
+    /// Byte 0, the command code as sent ([`CommandCode::from`] says what it means). Kept raw: the
+    /// sequencer and the framed profile only compare and copy it (firmware size budget).
+    pub code: u8,
     /// Byte 1: a new sequence number makes the same code a new command.
     pub sequence: u8,
     /// Bytes 2–7.
@@ -97,13 +98,13 @@ impl Command {
             *slot = b;
         }
         let [sequence, a0, a1, a2, a3, a4, a5] = bytes;
-        Some(Command { code: CommandCode::from(code), sequence, args: [a0, a1, a2, a3, a4, a5] })
+        Some(Command { code, sequence, args: [a0, a1, a2, a3, a4, a5] })
     }
 
     /// The 8 poll output bytes of this command.
     pub fn to_bytes(&self) -> [u8; 8] {
         let [a0, a1, a2, a3, a4, a5] = self.args;
-        [self.code.as_raw(), self.sequence, a0, a1, a2, a3, a4, a5]
+        [self.code, self.sequence, a0, a1, a2, a3, a4, a5]
     }
 }
 
@@ -583,10 +584,10 @@ mod tests {
 
     #[rstest]
     #[case::idle(&[], None)]
-    #[case::full(&[3, 9, 1, 0x34, 0x12, 0, 0, 0], Some(Command { code: CommandCode::SetParameter, sequence: 9, args: [1, 0x34, 0x12, 0, 0, 0] }))]
-    #[case::short_padded(&[1, 7], Some(Command { code: CommandCode::Open, sequence: 7, args: [0; 6] }))]
-    #[case::long_truncated(&[4, 1, 1, 2, 3, 4, 5, 6, 7, 8], Some(Command { code: CommandCode::Refresh, sequence: 1, args: [1, 2, 3, 4, 5, 6] }))]
-    #[case::unknown_code(&[0x42, 0], Some(Command { code: CommandCode::Unknown(0x42), sequence: 0, args: [0; 6] }))]
+    #[case::full(&[3, 9, 1, 0x34, 0x12, 0, 0, 0], Some(Command { code: 3, sequence: 9, args: [1, 0x34, 0x12, 0, 0, 0] }))]
+    #[case::short_padded(&[1, 7], Some(Command { code: 1, sequence: 7, args: [0; 6] }))]
+    #[case::long_truncated(&[4, 1, 1, 2, 3, 4, 5, 6, 7, 8], Some(Command { code: 4, sequence: 1, args: [1, 2, 3, 4, 5, 6] }))]
+    #[case::unknown_code(&[0x42, 0], Some(Command { code: 0x42, sequence: 0, args: [0; 6] }))]
     fn command_from_outputs(#[case] bytes: &[u8], #[case] command: Option<Command>) {
         assert_eq!(Command::from_outputs(bytes), command);
         if let (Some(c), 8) = (command, bytes.len()) {
@@ -781,7 +782,7 @@ mod tests {
                 attempt: 1
             }]
         );
-        assert_eq!(s.active().map(|c| c.code), Some(CommandCode::Close));
+        assert_eq!(s.active().map(|c| CommandCode::from(c.code)), Some(CommandCode::Close));
     }
 
     #[rstest]
