@@ -392,8 +392,9 @@ fn on_frame(
     health.on_frame(now);
     if let Some(ack) = config.ack {
         if let Some((wire, status)) = parse_ack(&ack, data) {
-            let expected = sequencer.active().and_then(|c| command_format(config, c)).map(|f| f.wire);
-            if sequencer.awaiting_answer() && expected == Some(wire) {
+            // The command's wire code looked up only while an answer is awaited (flash).
+            let awaited = sequencer.awaiting_answer().then(|| sequencer.active()).flatten();
+            if awaited.and_then(|c| command_format(config, c)).map(|f| f.wire) == Some(wire) {
                 let outcome = if status == ack.ok_status {
                     CommandOutcome::Ok
                 } else {
