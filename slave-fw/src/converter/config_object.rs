@@ -435,6 +435,8 @@ impl ConfigObject {
         io_established: bool,
     ) -> Result<(), ServiceError> {
         let service = req.service.as_raw();
+        // `matches!` on the ranges, not `RangeInclusive::contains`: that was an out-of-line call
+        // (some 120 bytes of flash).
         match (req.instance, req.service, req.data) {
             (0, ServiceCode::GetAttributeSingle, [1]) => return reply.u16(1),
             (0, ServiceCode::GetAttributeSingle, [_]) => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
@@ -442,14 +444,14 @@ impl ConfigObject {
             (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => return Err(ServiceError::TOO_MUCH_DATA),
             (1, ServiceCode::GetAttributeSingle, [attr]) => return self.get(*attr, reply),
             (1, ServiceCode::SetAttributeSingle, [attr, ..]) => {
-                return Err(if (1..=5).contains(attr) {
+                return Err(if matches!(attr, 1..=5) {
                     ServiceError::ATTRIBUTE_NOT_SETTABLE
                 } else {
                     ServiceError::ATTRIBUTE_NOT_SUPPORTED
                 })
             }
             (1, ServiceCode::SetAttributeSingle, []) => return Err(ServiceError::NOT_ENOUGH_DATA),
-            (1, _, _) if (READ_CHUNK..=COMMIT_DOWNLOAD).contains(&service) => {}
+            (1, _, _) if matches!(service, READ_CHUNK..=COMMIT_DOWNLOAD) => {}
             (0 | 1, _, _) => return Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => return Err(ServiceError::OBJECT_DOES_NOT_EXIST),
         }
