@@ -95,6 +95,13 @@ impl Settings {
     /// The record for these settings with `sequence`.
     pub fn encode(&self, sequence: u32) -> [u8; RECORD_LEN] {
         let mut r = [0u8; RECORD_LEN];
+        self.encode_into(sequence, &mut r);
+        r
+    }
+
+    /// Writes the record for these settings with `sequence` into `r` (zeroed).
+    // In place: the save does not copy a returned 640-byte record (firmware size).
+    fn encode_into(&self, sequence: u32, r: &mut [u8; RECORD_LEN]) {
         r[0..4].copy_from_slice(&MAGIC);
         r[4..8].copy_from_slice(&sequence.to_le_bytes());
         r[8] = self.mac_id.as_raw();
@@ -104,10 +111,13 @@ impl Settings {
         r[11] = self.last_switches.unwrap_or(0);
         // At most IMAGE_CAPACITY, which fits 16 bits.
         r[12..14].copy_from_slice(&(self.image.len() as u16).to_le_bytes());
-        r[IMAGE_AT..IMAGE_AT + self.image.len()].copy_from_slice(&self.image);
+        // The image fits its field (IMAGE_CAPACITY); zipped rather than sliced to its length, so
+        // there is no panic path.
+        for (to, from) in r[IMAGE_AT..CRC_AT].iter_mut().zip(&self.image) {
+            *to = *from;
+        }
         let crc = crc32(&r[..CRC_AT]);
         r[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
-        r
     }
 
     /// The settings and sequence number in a record, or why it is not a valid record.
@@ -329,7 +339,8 @@ impl<F: SettingsFlash> SettingsStore<F> {
             self.flash.erase(sector)?;
             slot = 0;
         }
-        let record = settings.encode(sequence);
+        let mut record = [0u8; RECORD_LEN];
+        settings.encode_into(sequence, &mut record);
         self.flash.program(sector, slot * RECORD_LEN, &record)?;
         let mut check = [0u8; RECORD_LEN];
         self.flash.read(sector, slot * RECORD_LEN, &mut check)?;
