@@ -122,6 +122,12 @@ impl Settings {
 
     /// The settings and sequence number in a record, or why it is not a valid record.
     pub fn decode(record: &[u8; RECORD_LEN]) -> Result<(Settings, u32), RecordError> {
+        Settings::check(record).map(|sequence| (Settings::from_checked(record), sequence))
+    }
+
+    /// The sequence number of a valid record, or why it is not one ([`Settings::decode`]'s
+    /// checks).
+    fn check(record: &[u8; RECORD_LEN]) -> Result<u32, RecordError> {
         if record.iter().all(|&b| b == 0xFF) {
             return Err(RecordError::Erased);
         }
@@ -133,28 +139,35 @@ impl Settings {
         if crc32(&record[..CRC_AT]) != crc {
             return Err(RecordError::Crc);
         }
-        let sequence = u32::from_le_bytes([record[4], record[5], record[6], record[7]]);
-        let (Some(mac_id), Some(baud_rate)) =
-            (MacId::new(record[8]), BaudRate::from_attribute_value(record[9]))
-        else {
-            return Err(RecordError::Field);
-        };
         let flags = record[10];
         let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
-        if flags & !(FLAG_BOI | FLAG_SWITCHES) != 0 || len > IMAGE_CAPACITY {
+        if MacId::new(record[8]).is_none()
+            || BaudRate::from_attribute_value(record[9]).is_none()
+            || flags & !(FLAG_BOI | FLAG_SWITCHES) != 0
+            || len > IMAGE_CAPACITY
+        {
             return Err(RecordError::Field);
         }
+        Ok(u32::from_le_bytes([record[4], record[5], record[6], record[7]]))
+    }
+
+    /// The settings of a record that [`Settings::check`] accepted.
+    // Built only for a record newer than the newest so far, straight into its place (the scan does
+    // not move each record's settings through a `Result`; firmware size).
+    fn from_checked(record: &[u8; RECORD_LEN]) -> Settings {
+        let flags = record[10];
+        let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
         let mut image = heapless::Vec::new();
-        // `len` is at most the capacity, checked above.
-        let _ = image.extend_from_slice(&record[IMAGE_AT..IMAGE_AT + len]);
-        let settings = Settings {
-            mac_id,
-            baud_rate,
+        // At most the capacity (checked); too long would leave the image empty.
+        let _ = image.extend_from_slice(record.get(IMAGE_AT..IMAGE_AT + len).unwrap_or_default());
+        Settings {
+            // Both checked; the defaults are never used.
+            mac_id: MacId::new(record[8]).unwrap_or(MacId::MAX),
+            baud_rate: BaudRate::from_attribute_value(record[9]).unwrap_or(BaudRate::Kbps125),
             bus_off_interrupt: flags & FLAG_BOI != 0,
             last_switches: (flags & FLAG_SWITCHES != 0).then_some(record[11]),
             image,
-        };
-        Ok((settings, sequence))
+        }
     }
 }
 
@@ -291,10 +304,11 @@ impl<F: SettingsFlash> SettingsStore<F> {
         for sector in [Sector::A, Sector::B] {
             for slot in 0..self.slots() {
                 self.flash.read(sector, slot * RECORD_LEN, &mut record)?;
-                match Settings::decode(&record) {
+                match Settings::check(&record) {
                     Err(RecordError::Erased) => continue,
-                    Ok((settings, sequence)) => {
+                    Ok(sequence) => {
                         if scan.newest.as_ref().is_none_or(|n| sequence > n.sequence) {
+                            let settings = Settings::from_checked(&record);
                             scan.newest = Some(Loaded { settings, sequence, sector, slot });
                         }
                     }
