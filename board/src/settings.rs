@@ -152,8 +152,8 @@ impl Settings {
     }
 
     /// The settings of a record that [`Settings::check`] accepted.
-    // Built only for a record newer than the newest so far, straight into its place (the scan does
-    // not move each record's settings through a `Result`; firmware size).
+    // The scan builds it only for a record newer than the newest so far, not every record's
+    // settings through `decode`'s `Result` (firmware size).
     fn from_checked(record: &[u8; RECORD_LEN]) -> Settings {
         let flags = record[10];
         let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
