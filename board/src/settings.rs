@@ -122,7 +122,10 @@ impl Settings {
 
     /// The settings and sequence number in a record, or why it is not a valid record.
     pub fn decode(record: &[u8; RECORD_LEN]) -> Result<(Settings, u32), RecordError> {
-        Settings::check(record).map(|sequence| (Settings::from_checked(record), sequence))
+        let sequence = Settings::check(record)?;
+        let mut settings = Settings::default();
+        settings.fill_checked(record);
+        Ok((settings, sequence))
     }
 
     /// The sequence number of a valid record, or why it is not one ([`Settings::decode`]'s
@@ -151,23 +154,20 @@ impl Settings {
         Ok(u32::from_le_bytes([record[4], record[5], record[6], record[7]]))
     }
 
-    /// The settings of a record that [`Settings::check`] accepted.
-    // The scan builds it only for a record newer than the newest so far, not every record's
-    // settings through `decode`'s `Result` (firmware size).
-    fn from_checked(record: &[u8; RECORD_LEN]) -> Settings {
+    /// Sets these settings to those of a record that [`Settings::check`] accepted.
+    // In place: the scan checks every record without building its settings, and fills the newest
+    // one's where they are kept instead of moving a 624-byte image into them (firmware size).
+    fn fill_checked(&mut self, record: &[u8; RECORD_LEN]) {
         let flags = record[10];
         let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
-        let mut image = heapless::Vec::new();
+        self.image.clear();
         // At most the capacity (checked); too long would leave the image empty.
-        let _ = image.extend_from_slice(record.get(IMAGE_AT..IMAGE_AT + len).unwrap_or_default());
-        Settings {
-            // Both checked; the defaults are never used.
-            mac_id: MacId::new(record[8]).unwrap_or(MacId::MAX),
-            baud_rate: BaudRate::from_attribute_value(record[9]).unwrap_or(BaudRate::Kbps125),
-            bus_off_interrupt: flags & FLAG_BOI != 0,
-            last_switches: (flags & FLAG_SWITCHES != 0).then_some(record[11]),
-            image,
-        }
+        let _ = self.image.extend_from_slice(record.get(IMAGE_AT..IMAGE_AT + len).unwrap_or_default());
+        // Both checked; the defaults are never used.
+        self.mac_id = MacId::new(record[8]).unwrap_or(MacId::MAX);
+        self.baud_rate = BaudRate::from_attribute_value(record[9]).unwrap_or(BaudRate::Kbps125);
+        self.bus_off_interrupt = flags & FLAG_BOI != 0;
+        self.last_switches = (flags & FLAG_SWITCHES != 0).then_some(record[11]);
     }
 }
 
@@ -308,8 +308,13 @@ impl<F: SettingsFlash> SettingsStore<F> {
                     Err(RecordError::Erased) => continue,
                     Ok(sequence) => {
                         if scan.newest.as_ref().is_none_or(|n| sequence > n.sequence) {
-                            let settings = Settings::from_checked(&record);
-                            scan.newest = Some(Loaded { settings, sequence, sector, slot });
+                            let newest = scan.newest.insert(Loaded {
+                                settings: Settings::default(),
+                                sequence,
+                                sector,
+                                slot,
+                            });
+                            newest.settings.fill_checked(&record);
                         }
                     }
                     Err(_) => {}
