@@ -95,6 +95,13 @@ impl Settings {
     /// The record for these settings with `sequence`.
     pub fn encode(&self, sequence: u32) -> [u8; RECORD_LEN] {
         let mut r = [0u8; RECORD_LEN];
+        self.encode_into(sequence, &mut r);
+        r
+    }
+
+    /// Writes the record for these settings with `sequence` into `r` (zeroed).
+    // In place: the save does not copy a returned 640-byte record (firmware size).
+    fn encode_into(&self, sequence: u32, r: &mut [u8; RECORD_LEN]) {
         r[0..4].copy_from_slice(&MAGIC);
         r[4..8].copy_from_slice(&sequence.to_le_bytes());
         r[8] = self.mac_id.as_raw();
@@ -104,14 +111,26 @@ impl Settings {
         r[11] = self.last_switches.unwrap_or(0);
         // At most IMAGE_CAPACITY, which fits 16 bits.
         r[12..14].copy_from_slice(&(self.image.len() as u16).to_le_bytes());
-        r[IMAGE_AT..IMAGE_AT + self.image.len()].copy_from_slice(&self.image);
+        // The image fits its field (IMAGE_CAPACITY); zipped rather than sliced to its length, so
+        // there is no panic path.
+        for (to, from) in r[IMAGE_AT..CRC_AT].iter_mut().zip(&self.image) {
+            *to = *from;
+        }
         let crc = crc32(&r[..CRC_AT]);
         r[CRC_AT..].copy_from_slice(&crc.to_le_bytes());
-        r
     }
 
     /// The settings and sequence number in a record, or why it is not a valid record.
     pub fn decode(record: &[u8; RECORD_LEN]) -> Result<(Settings, u32), RecordError> {
+        let sequence = Settings::check(record)?;
+        let mut settings = Settings::default();
+        settings.fill_checked(record);
+        Ok((settings, sequence))
+    }
+
+    /// The sequence number of a valid record, or why it is not one ([`Settings::decode`]'s
+    /// checks).
+    fn check(record: &[u8; RECORD_LEN]) -> Result<u32, RecordError> {
         if record.iter().all(|&b| b == 0xFF) {
             return Err(RecordError::Erased);
         }
@@ -123,28 +142,32 @@ impl Settings {
         if crc32(&record[..CRC_AT]) != crc {
             return Err(RecordError::Crc);
         }
-        let sequence = u32::from_le_bytes([record[4], record[5], record[6], record[7]]);
-        let (Some(mac_id), Some(baud_rate)) =
-            (MacId::new(record[8]), BaudRate::from_attribute_value(record[9]))
-        else {
-            return Err(RecordError::Field);
-        };
         let flags = record[10];
         let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
-        if flags & !(FLAG_BOI | FLAG_SWITCHES) != 0 || len > IMAGE_CAPACITY {
+        if MacId::new(record[8]).is_none()
+            || BaudRate::from_attribute_value(record[9]).is_none()
+            || flags & !(FLAG_BOI | FLAG_SWITCHES) != 0
+            || len > IMAGE_CAPACITY
+        {
             return Err(RecordError::Field);
         }
-        let mut image = heapless::Vec::new();
-        // `len` is at most the capacity, checked above.
-        let _ = image.extend_from_slice(&record[IMAGE_AT..IMAGE_AT + len]);
-        let settings = Settings {
-            mac_id,
-            baud_rate,
-            bus_off_interrupt: flags & FLAG_BOI != 0,
-            last_switches: (flags & FLAG_SWITCHES != 0).then_some(record[11]),
-            image,
-        };
-        Ok((settings, sequence))
+        Ok(u32::from_le_bytes([record[4], record[5], record[6], record[7]]))
+    }
+
+    /// Sets these settings to those of a record that [`Settings::check`] accepted.
+    // In place: the scan checks every record without building its settings, and fills the newest
+    // one's where they are kept instead of moving a 624-byte image into them (firmware size).
+    fn fill_checked(&mut self, record: &[u8; RECORD_LEN]) {
+        let flags = record[10];
+        let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
+        self.image.clear();
+        // At most the capacity (checked); too long would leave the image empty.
+        let _ = self.image.extend_from_slice(record.get(IMAGE_AT..IMAGE_AT + len).unwrap_or_default());
+        // Both checked; the defaults are never used.
+        self.mac_id = MacId::new(record[8]).unwrap_or(MacId::MAX);
+        self.baud_rate = BaudRate::from_attribute_value(record[9]).unwrap_or(BaudRate::Kbps125);
+        self.bus_off_interrupt = flags & FLAG_BOI != 0;
+        self.last_switches = (flags & FLAG_SWITCHES != 0).then_some(record[11]);
     }
 }
 
@@ -281,11 +304,17 @@ impl<F: SettingsFlash> SettingsStore<F> {
         for sector in [Sector::A, Sector::B] {
             for slot in 0..self.slots() {
                 self.flash.read(sector, slot * RECORD_LEN, &mut record)?;
-                match Settings::decode(&record) {
+                match Settings::check(&record) {
                     Err(RecordError::Erased) => continue,
-                    Ok((settings, sequence)) => {
+                    Ok(sequence) => {
                         if scan.newest.as_ref().is_none_or(|n| sequence > n.sequence) {
-                            scan.newest = Some(Loaded { settings, sequence, sector, slot });
+                            let newest = scan.newest.insert(Loaded {
+                                settings: Settings::default(),
+                                sequence,
+                                sector,
+                                slot,
+                            });
+                            newest.settings.fill_checked(&record);
                         }
                     }
                     Err(_) => {}
@@ -329,7 +358,8 @@ impl<F: SettingsFlash> SettingsStore<F> {
             self.flash.erase(sector)?;
             slot = 0;
         }
-        let record = settings.encode(sequence);
+        let mut record = [0u8; RECORD_LEN];
+        settings.encode_into(sequence, &mut record);
         self.flash.program(sector, slot * RECORD_LEN, &record)?;
         let mut check = [0u8; RECORD_LEN];
         self.flash.read(sector, slot * RECORD_LEN, &mut check)?;
