@@ -318,17 +318,6 @@ enum Staging {
     Pending,
 }
 
-/// The error for request data that is not `n` bytes long: 0x13 too short, 0x15 too long.
-// Used instead of `ServiceError::expect_array(data)?`, whose `Result` costs some 20 bytes of
-// flash per request.
-fn length_error(data: &[u8], n: usize) -> ServiceError {
-    if data.len() < n {
-        ServiceError::NOT_ENOUGH_DATA
-    } else {
-        ServiceError::TOO_MUCH_DATA
-    }
-}
-
 /// What the platform itself cannot run, checked at Commit_Download after the converter's own
 /// checks ([`crate::image::decode`]): the firmware's USART makes fewer serial lines than the
 /// converter accepts. A configuration it refuses is refused like an invalid one (additional code
@@ -480,7 +469,7 @@ impl ConfigObject {
         match service {
             READ_CHUNK => {
                 let &[which, lo, hi, count] = data else {
-                    return Err(length_error(data, 4));
+                    return Err(ServiceError::wrong_length(data, 4));
                 };
                 let image = match which {
                     0 => self.in_force.as_slice(),
@@ -496,7 +485,7 @@ impl ConfigObject {
             }
             BEGIN_DOWNLOAD => {
                 let &[lo, hi] = data else {
-                    return Err(length_error(data, 2));
+                    return Err(ServiceError::wrong_length(data, 2));
                 };
                 let size = u16::from_le_bytes([lo, hi]);
                 if io_established {

@@ -365,7 +365,9 @@ pub(super) fn handle(
 ) -> Result<(), ServiceError> {
     let get = req.service == ServiceCode::GetAttributeSingle;
     if req.instance == 0 && get {
-        let [attr] = ServiceError::expect_array(req.data)?;
+        let &[attr] = req.data else {
+            return Err(ServiceError::wrong_length(req.data, 1));
+        };
         return match attr {
             1 => reply.u16(1),
             2 => reply.u16(PARAMETERS.len() as u16),
@@ -384,7 +386,9 @@ pub(super) fn handle(
     let p = def.parameter;
     let t = def.data_type;
     let (attr, data) = if get {
-        let [attr] = ServiceError::expect_array(req.data)?;
+        let &[attr] = req.data else {
+            return Err(ServiceError::wrong_length(req.data, 1));
+        };
         match attr {
             1 | 4 | 12 => {}
             2 => return reply.u8(0),
@@ -428,10 +432,14 @@ pub(super) fn handle(
         return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE);
     }
     let value = match t {
-        AttributeType::Udint => u32::from_le_bytes(ServiceError::expect_array(data)?),
-        AttributeType::Usint | AttributeType::Byte => {
-            u8::from_le_bytes(ServiceError::expect_array(data)?).into()
-        }
+        AttributeType::Udint => match *data {
+            [a, b, c, d] => u32::from_le_bytes([a, b, c, d]),
+            _ => return Err(ServiceError::wrong_length(data, 4)),
+        },
+        AttributeType::Usint | AttributeType::Byte => match *data {
+            [v] => v.into(),
+            _ => return Err(ServiceError::wrong_length(data, 1)),
+        },
     };
     // A tool commissioning over a running poll connection is refused, as a download is
     // (§II.4.3: "object state conflict" while the I/O connection is established).

@@ -20,7 +20,9 @@ impl SlaveNode {
         let is_input = req.instance == input;
         match req.service {
             ServiceCode::GetAttributeSingle => {
-                let [attr] = ServiceError::expect_array(req.data)?;
+                let &[attr] = req.data else {
+                    return Err(ServiceError::wrong_length(req.data, 1));
+                };
                 let data: &[u8] = if is_input { &self.input } else { &self.output };
                 match attr {
                     3 => reply.bytes(data),

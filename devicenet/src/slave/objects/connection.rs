@@ -27,7 +27,9 @@ impl SlaveNode {
         };
         match req.service {
             ServiceCode::GetAttributeSingle => {
-                let [attr] = ServiceError::expect_array(req.data)?;
+                let &[attr] = req.data else {
+                    return Err(ServiceError::wrong_length(req.data, 1));
+                };
                 self.connection_attribute(&conn, attr, reply)
             }
             ServiceCode::SetAttributeSingle => {
@@ -107,7 +109,10 @@ impl SlaveNode {
         let resolution = self.config.epr_resolution_ms;
         match attr {
             9 => {
-                let requested = u16::from_le_bytes(ServiceError::expect_array(value)?);
+                let &[lo, hi] = value else {
+                    return Err(ServiceError::wrong_length(value, 2));
+                };
+                let requested = u16::from_le_bytes([lo, hi]);
                 if requested > MAX_EPR_MS {
                     return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
                 }
@@ -123,7 +128,9 @@ impl SlaveNode {
                 reply.u16(applied)
             }
             12 => {
-                let [value] = ServiceError::expect_array(value)?;
+                let &[value] = value else {
+                    return Err(ServiceError::wrong_length(value, 1));
+                };
                 let action = kind.parse_action(value).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
                 let conn = if kind == ConnectionKind::Explicit { &mut self.explicit } else { &mut self.poll };
                 conn.watchdog_action = action;

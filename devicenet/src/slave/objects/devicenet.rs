@@ -30,7 +30,9 @@ impl SlaveNode {
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
             (1, ServiceCode::GetAttributeSingle) => {
-                let [attr] = ServiceError::expect_array(req.data)?;
+                let &[attr] = req.data else {
+                    return Err(ServiceError::wrong_length(req.data, 1));
+                };
                 self.devicenet_attribute(attr, reply)
             }
             (1, ServiceCode::SetAttributeSingle) => self.set_devicenet_attribute(req.data),
@@ -73,7 +75,9 @@ impl SlaveNode {
         let changed = match attr {
             1 | 2 if !programmable => return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
             1..=4 => {
-                let [v] = ServiceError::expect_array(value)?;
+                let &[v] = value else {
+                    return Err(ServiceError::wrong_length(value, 1));
+                };
                 match attr {
                     1 => {
                         let mac = MacId::new(v).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;

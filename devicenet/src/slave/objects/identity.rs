@@ -46,7 +46,9 @@ impl SlaveNode {
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
             (1, ServiceCode::GetAttributeSingle) => {
-                let [attr] = ServiceError::expect_array(req.data)?;
+                let &[attr] = req.data else {
+                    return Err(ServiceError::wrong_length(req.data, 1));
+                };
                 self.identity_attribute(attr, reply)
             }
             (1, ServiceCode::GetAttributesAll) => {

@@ -24,8 +24,9 @@ use super::{Reply, ServiceError};
 
 /// Class attribute 1 (revision), the only class attribute served.
 fn class_revision(data: &[u8], revision: u16, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
-    match ServiceError::expect_array(data)? {
+    match *data {
         [1] => reply.u16(revision),
-        _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        [_] => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        _ => Err(ServiceError::wrong_length(data, 1)),
     }
 }
