@@ -214,8 +214,16 @@ mod app {
     fn forward_frames(can: &mut CanPort<Driver>, inputs: &mut Deque<Input, INPUTS>) {
         while let Some(frame) = can.receive() {
             // A full queue drops the frame, as a full bxCAN FIFO would.
-            let _ = inputs.push_back(Input::Frame(frame));
+            queue(inputs, Input::Frame(frame));
         }
+    }
+
+    /// Queues `input` for the converter task and pends it; a full queue drops the input.
+    // Out of line: one copy of the queue's push for the CAN, SLCAN and USART2 interrupts
+    // (firmware size).
+    #[inline(never)]
+    fn queue(inputs: &mut Deque<Input, INPUTS>, input: Input) {
+        let _ = inputs.push_back(input);
         rtic::pend(CONVERTER_TASK);
     }
 
@@ -246,8 +254,7 @@ mod app {
     fn can_sce(mut cx: can_sce::Context) {
         match cx.shared.can.lock(|can| can.bus_state()) {
             BusState::BusOff => {
-                let _ = cx.shared.inputs.lock(|inputs| inputs.push_back(Input::BusOff));
-                rtic::pend(CONVERTER_TASK);
+                cx.shared.inputs.lock(|inputs| queue(inputs, Input::BusOff));
             }
             state => info!("CAN {}", state),
         }
@@ -271,8 +278,7 @@ mod app {
         instrument_port.lock(|port| {
             port.on_interrupt(|b| {
                 // A full queue drops the byte, as an overrun would; the profile resynchronises.
-                let _ = inputs.lock(|inputs| inputs.push_back(Input::InstrumentByte(b)));
-                rtic::pend(CONVERTER_TASK);
+                inputs.lock(|inputs| queue(inputs, Input::InstrumentByte(b)));
             })
         });
     }
@@ -337,8 +343,9 @@ mod app {
             *powered_on = true;
             task.power_on(now(), io!());
         }
-        if let Some(first) = inputs.lock(|q| q.pop_front()) {
-            task.take_inputs(first, || inputs.lock(|q| q.pop_front()), now(), io!());
+        let mut next = || inputs.lock(|q| q.pop_front());
+        if let Some(first) = next() {
+            task.take_inputs(first, next, now(), io!());
             // Inputs beyond the INPUTS `take_inputs` takes may wait: run again (a run that finds
             // none only runs the timers). Cheaper than looking into the queue (firmware size).
             rtic::pend(CONVERTER_TASK);
