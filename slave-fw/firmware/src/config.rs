@@ -30,7 +30,7 @@ use devicenet::Instant;
 use devicenet::MacId;
 use slave_fw::converter::{ConfigOrigin, Converter, ConverterConfig, ConverterConfigError, InvalidConfig};
 use slave_fw::image::{self, ImageError};
-use slave_fw::serial::{ConfigError, DataBits, Parity, ProfileConfig, SerialSettings, StopBits};
+use slave_fw::serial::{ConfigError, Conflict, DataBits, Parity, ProfileConfig, SerialSettings, StopBits};
 
 /// The stored image is at most what a settings record holds.
 const _: () = assert!(image::MAX_IMAGE <= board::settings::IMAGE_CAPACITY);
@@ -122,7 +122,7 @@ pub fn usart_makes_the_line(config: &ConverterConfig) -> Result<(), InvalidConfi
     }
     let range = LineFormat::baud_range(INSTRUMENT_UART_HZ);
     let error = if line.word_length().is_err() {
-        ConfigError::conflict("serial.parity", "7 data bits need parity on this USART")
+        ConfigError::conflict("serial.parity", Conflict::SevenBitsNeedParity)
     } else {
         ConfigError::out_of_range("serial.baud", line.baud, *range.start(), *range.end())
     };

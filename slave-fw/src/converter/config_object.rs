@@ -127,7 +127,7 @@ pub const fn refusal_code(e: &ImageError) -> u8 {
 ///               6 CRC mismatch (a = stated, b = computed), 7 malformed body (a = offset),
 ///               8 invalid configuration (problem, key), 9 buffer too small
 /// 1       1     problem, kind 8 only: 1 out of range (a = value, b..=c the allowed range),
-///               2 conflicts with another setting, 3 overlaps the image bytes of entry a,
+///               2 conflicts with another setting (a = the reason, `Conflict::code`), 3 overlaps the image bytes of entry a,
 ///               4 duplicates entry a, 5 not printable ASCII, 6 the node refuses the I/O
 ///               configuration (a = the node's error code 0..=6, b = the I/O size), 0 other
 /// 2       12    a, b, c: UDINT each, 0 where unused
@@ -173,7 +173,7 @@ impl RefusalRecord<'_> {
                     InvalidConfig::EprResolutionZero => (1, [0, 1, 65_535]),
                     InvalidConfig::Profile { error, .. } => match error.problem {
                         Problem::OutOfRange { value, min, max } => (1, [value, min, max]),
-                        Problem::Conflict(_) => (2, [0; 3]),
+                        Problem::Conflict(why) => (2, [why.code().into(), 0, 0]),
                         Problem::Overlap { other } => (3, [other.into(), 0, 0]),
                         Problem::Duplicate { other } => (4, [other.into(), 0, 0]),
                     },
@@ -231,7 +231,10 @@ impl<'a> RefusalRecord<'a> {
                 out.text(": ");
                 return match self.problem {
                     1 => Problem::OutOfRange { value: a, min: b, max: c }.write_text(out),
-                    2 => out.text("conflicts with another setting"),
+                    2 => match crate::serial::Conflict::from_code(a) {
+                        Some(why) => out.text(why.text()),
+                        None => out.text("conflicts with another setting"),
+                    },
                     3 => Problem::Overlap { other: short(a) }.write_text(out),
                     4 => Problem::Duplicate { other: short(a) }.write_text(out),
                     5 => out.text("must be printable ASCII"),
@@ -740,7 +743,10 @@ mod tests {
             match config.profile.serial().parity {
                 crate::serial::Parity::Odd => Err(InvalidConfig::Profile {
                     modbus: false,
-                    error: crate::serial::ConfigError::conflict("serial.parity", "odd parity not made here"),
+                    error: crate::serial::ConfigError::conflict(
+                        "serial.parity",
+                        crate::serial::Conflict::SevenBitsNeedParity,
+                    ),
                 }),
                 _ => Ok(()),
             }
@@ -753,7 +759,7 @@ mod tests {
         let crate::serial::ProfileConfig::Framed(framed) = &mut config.profile else { unreachable!() };
         framed.serial.parity = crate::serial::Parity::Odd;
         assert_eq!(download(&mut o, &image_of(&config)), Err((0x09, 4)));
-        assert_eq!(reason(&mut o), "profile.serial.parity: conflicts with another setting");
+        assert_eq!(reason(&mut o), "profile.serial.parity: 7 data bits need parity on this USART");
         assert_eq!(o.take_new_image(), None, "nothing to store");
     }
 
@@ -778,8 +784,8 @@ mod tests {
     }
 
     /// Every refusal the device can make, encoded, sent and worded again: the words of
-    /// `ImageError`'s own text, except where the record keeps numbers only (a conflict's reason,
-    /// the loader's own phrasing of identity and network values).
+    /// `ImageError`'s own text, except where the record keeps numbers only (the loader's own
+    /// phrasing of identity and network values).
     #[rstest]
     #[case::truncated(ImageError::Truncated(3))]
     #[case::too_large(ImageError::TooLarge(400))]
@@ -798,6 +804,10 @@ mod tests {
         error: crate::serial::ConfigError { field: "commands.code", index: Some(3), problem: Problem::Duplicate { other: 1 } },
     }))]
     #[case::not_ascii(ImageError::Invalid(InvalidConfig::ProductNameNotAscii))]
+    #[case::conflict(ImageError::Invalid(InvalidConfig::Profile {
+        modbus: true,
+        error: crate::serial::ConfigError::conflict("serial.data_bits", crate::serial::Conflict::ModbusDataBits),
+    }))]
     #[case::io_size(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::IoSizeTooLarge { size: 300 })))]
     #[case::io_instances(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::SameAssemblyInstance)))]
     fn a_record_is_worded_as_the_error(#[case] e: ImageError) {
@@ -819,8 +829,8 @@ mod tests {
         "network.epr_resolution_ms: 0 is outside the allowed range 1..=65535"
     )]
     #[case::conflict(
-        InvalidConfig::Profile { modbus: false, error: crate::serial::ConfigError::conflict("framing.end", "why") },
-        "profile.framing.end: conflicts with another setting"
+        InvalidConfig::Profile { modbus: false, error: crate::serial::ConfigError::conflict("framing.end", crate::serial::Conflict::NoEndDelimiter) },
+        "profile.framing.end: a delimited frame needs an end byte"
     )]
     fn identity_network_and_conflicts_are_worded_from_their_numbers(
         #[case] e: InvalidConfig,
@@ -836,7 +846,8 @@ mod tests {
     #[case::empty(&[], None)]
     #[case::short(&[8, 1, 0], None)]
     #[case::unknown_kind(&[42, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], Some("refusal of unknown kind 42"))]
-    #[case::key_not_ascii(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF], Some("(a key that is not ASCII): conflicts with another setting"))]
+    #[case::key_not_ascii(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF], Some("(a key that is not ASCII): a delimited frame needs an end byte"))]
+    #[case::unknown_conflict(&[8, 2, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, b'x'], Some("x: conflicts with another setting"))]
     #[case::unknown_node_error(&[8, 6, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, b'i', b'o'], Some("io: the node refuses the I/O configuration"))]
     fn any_record_bytes_are_worded_or_refused(#[case] bytes: &[u8], #[case] text: Option<&str>) {
         assert_eq!(RefusalRecord::parse(bytes).map(|r| r.to_string()).as_deref(), text);

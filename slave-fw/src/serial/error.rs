@@ -31,8 +31,8 @@ pub enum Problem {
         /// The largest allowed value.
         max: u32,
     },
-    /// The field conflicts with another setting; the text says which and why.
-    Conflict(&'static str),
+    /// The field conflicts with another setting; the reason says which and why.
+    Conflict(Conflict),
     /// The image bytes of this list entry overlap those of the entry at `other`.
     Overlap {
         /// Index of the entry it overlaps.
@@ -45,6 +45,60 @@ pub enum Problem {
     },
 }
 
+/// Why a field conflicts with another setting ([`Problem::Conflict`]). A code, not the sentence:
+/// the words ([`Conflict::text`]) are only linked where an error is written out (hosts), not into
+/// the firmware, which reports the code ([`Conflict::code`]) in its refusal record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Conflict {
+    /// `framing.end` of a delimited frame is not set.
+    NoEndDelimiter,
+    /// `framing.end` of a delimited frame equals its start byte.
+    EndEqualsStart,
+    /// A frame (idle, fault) contains the end delimiter.
+    ContainsEndDelimiter,
+    /// A command's wire code equals the end delimiter.
+    EqualsEndDelimiter,
+    /// Modbus RTU with 7 data bits.
+    ModbusDataBits,
+    /// 7 data bits without parity, which the adapter board's USART cannot make (the firmware's
+    /// own check).
+    SevenBitsNeedParity,
+}
+
+impl Conflict {
+    /// Every reason, in code order.
+    pub const ALL: [Conflict; 6] = [
+        Conflict::NoEndDelimiter,
+        Conflict::EndEqualsStart,
+        Conflict::ContainsEndDelimiter,
+        Conflict::EqualsEndDelimiter,
+        Conflict::ModbusDataBits,
+        Conflict::SevenBitsNeedParity,
+    ];
+
+    /// The reason in words.
+    pub const fn text(self) -> &'static str {
+        match self {
+            Conflict::NoEndDelimiter => "a delimited frame needs an end byte",
+            Conflict::EndEqualsStart => "the end byte of a delimited frame must differ from the start byte",
+            Conflict::ContainsEndDelimiter => "contains the end delimiter",
+            Conflict::EqualsEndDelimiter => "equals the end delimiter",
+            Conflict::ModbusDataBits => "Modbus RTU uses 8 data bits",
+            Conflict::SevenBitsNeedParity => "7 data bits need parity on this USART",
+        }
+    }
+
+    /// Its number in [`Conflict::ALL`] (the refusal record's).
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The reason numbered `code`.
+    pub fn from_code(code: u32) -> Option<Conflict> {
+        Conflict::ALL.get(usize::try_from(code).ok()?).copied()
+    }
+}
+
 impl ConfigError {
     /// An [`Problem::OutOfRange`] error for `field`.
     pub const fn out_of_range(field: &'static str, value: u32, min: u32, max: u32) -> Self {
@@ -52,7 +106,7 @@ impl ConfigError {
     }
 
     /// A [`Problem::Conflict`] error for `field`.
-    pub const fn conflict(field: &'static str, why: &'static str) -> Self {
+    pub const fn conflict(field: &'static str, why: Conflict) -> Self {
         ConfigError { field, index: None, problem: Problem::Conflict(why) }
     }
 
@@ -125,7 +179,7 @@ impl Problem {
                 out.text("..=");
                 out.decimal(max);
             }
-            Problem::Conflict(why) => out.text(why),
+            Problem::Conflict(why) => out.text(why.text()),
             Problem::Overlap { other } => {
                 out.text("overlaps the image bytes of entry ");
                 out.decimal(u32::from(other));
@@ -175,12 +229,21 @@ mod tests {
     #[case::indexed(ConfigError::out_of_range("scan.count", 200, 1, 125).at(3), "scan[3].count: 200 is outside the allowed range 1..=125")]
     #[case::overlap(ConfigError { field: "scan.offset", index: Some(2), problem: Problem::Overlap { other: 0 } }, "scan[2].offset: overlaps the image bytes of entry 0")]
     #[case::conflict(
-        ConfigError::conflict("framing.end", "a delimited frame needs an end byte"),
+        ConfigError::conflict("framing.end", Conflict::NoEndDelimiter),
         "framing.end: a delimited frame needs an end byte"
     )]
     #[case::list_itself(ConfigError::out_of_range("commands", 9, 0, 8).at(8), "commands[8]: 9 is outside the allowed range 0..=8")]
     fn display(#[case] e: ConfigError, #[case] text: &str) {
         assert_eq!(e.to_string(), text);
+    }
+
+    #[test]
+    fn conflict_codes_are_their_place_in_all() {
+        for (i, c) in Conflict::ALL.into_iter().enumerate() {
+            assert_eq!(usize::from(c.code()), i);
+            assert_eq!(Conflict::from_code(i as u32), Some(c));
+        }
+        assert_eq!(Conflict::from_code(Conflict::ALL.len() as u32), None);
     }
 
     #[test]

@@ -26,7 +26,7 @@
 //! against `N` when the parser is built), every rejected byte is counted, and nothing allocates.
 
 use super::checksum::Checksum;
-use super::error::{as_u32, ConfigError};
+use super::error::{as_u32, ConfigError, Conflict};
 use core::fmt;
 use heapless::Vec;
 
@@ -71,11 +71,10 @@ impl FramedConfig {
                 ConfigError::check_range("framing.length", u32::from(n), 0, u32::from(self.max_len))
             }
             LengthField::Delimited => match self.end {
-                None => Err(ConfigError::conflict("framing.end", "a delimited frame needs an end byte")),
-                Some(end) if end == self.start => Err(ConfigError::conflict(
-                    "framing.end",
-                    "the end byte of a delimited frame must differ from the start byte",
-                )),
+                None => Err(ConfigError::conflict("framing.end", Conflict::NoEndDelimiter)),
+                Some(end) if end == self.start => {
+                    Err(ConfigError::conflict("framing.end", Conflict::EndEqualsStart))
+                }
                 Some(_) => Ok(()),
             },
         }

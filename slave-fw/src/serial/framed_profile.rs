@@ -13,7 +13,7 @@
 //! Everything that differs between instruments lives in [`FramedProfileConfig`]; the breaker is
 //! [`breaker::profile_config`](super::breaker::profile_config).
 
-use super::error::{as_u32, ConfigError, Problem};
+use super::error::{as_u32, ConfigError, Conflict, Problem};
 use super::framed::{FrameError, FrameParser, FramedConfig, LengthField};
 use super::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use super::line::SerialSettings;
@@ -130,7 +130,7 @@ impl FramedProfileConfig {
         for (field, action) in actions {
             // A plain loop: `contains` on bytes would pull in `memchr` (flash).
             if action.frame().is_some_and(|frame| frame.iter().any(|&b| Some(b) == end)) {
-                return Err(ConfigError::conflict(field, "contains the end delimiter"));
+                return Err(ConfigError::conflict(field, Conflict::ContainsEndDelimiter));
             }
         }
         FrameParser::<FRAME_CAPACITY>::check_capacity(&self.framing)
@@ -153,7 +153,7 @@ fn check_command(
         return Err(ConfigError { field: "commands.code", index: None, problem });
     }
     if end == Some(c.wire) {
-        return Err(ConfigError::conflict("commands.wire", "equals the end delimiter"));
+        return Err(ConfigError::conflict("commands.wire", Conflict::EqualsEndDelimiter));
     }
     Ok(())
 }
@@ -505,7 +505,7 @@ mod tests {
                 .at(i));
             }
             if c.framing.length == LengthField::Delimited && c.framing.end == Some(f.wire) {
-                return Err(ConfigError::conflict("commands.wire", "equals the end delimiter").at(i));
+                return Err(ConfigError::conflict("commands.wire", Conflict::EqualsEndDelimiter).at(i));
             }
         }
         check_idle_frame("sequencer.on_idle", &c.sequencer.on_idle, 0, max_data)?;
@@ -517,7 +517,7 @@ mod tests {
                 (c.framing.length, c.framing.end, action.frame())
             {
                 if frame.iter().any(|&b| b == end) {
-                    return Err(ConfigError::conflict(field, "contains the end delimiter"));
+                    return Err(ConfigError::conflict(field, Conflict::ContainsEndDelimiter));
                 }
             }
         }

@@ -33,7 +33,7 @@
 //! and ignored on writes; a single coil is bit 0).
 
 use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
-use crate::serial::error::{as_u32, ConfigError, Problem};
+use crate::serial::error::{as_u32, ConfigError, Conflict, Problem};
 use crate::serial::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use crate::serial::line::{DataBits, SerialSettings};
 use crate::serial::sequencer::{check_idle_frame, CommandOutcome, IdleAction, OutputMode};
@@ -151,7 +151,7 @@ impl ModbusConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.serial.validate()?;
         if self.serial.data_bits != DataBits::Eight {
-            return Err(ConfigError::conflict("serial.data_bits", "Modbus RTU uses 8 data bits"));
+            return Err(ConfigError::conflict("serial.data_bits", Conflict::ModbusDataBits));
         }
         ConfigError::check_range(
             "response_timeout_ms",
