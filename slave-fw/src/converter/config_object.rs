@@ -42,7 +42,7 @@ use devicenet::slave::config::MAX_PRODUCT_NAME;
 use devicenet::slave::ConfigError as NodeConfigError;
 use devicenet::slave::{Reply, ServiceError};
 use devicenet::text::{self, TextSink};
-use heapless::{String, Vec};
+use heapless::Vec;
 
 /// Vendor-specific class of the configuration object, instance 1.
 pub const CONFIG_CLASS: u16 = 0x66;
@@ -142,16 +142,17 @@ pub struct RefusalRecord<'a> {
 }
 
 impl RefusalRecord<'_> {
-    /// The record's fixed part for `e`, and the key of an invalid configuration ("" otherwise).
-    pub fn encode(e: &ImageError) -> ([u8; REFUSAL_HEADER], String<{ MAX_REFUSAL - REFUSAL_HEADER }>) {
-        let mut key = String::new();
-        if let ImageError::Invalid(invalid) = e {
-            invalid.key().write_text(&mut key);
-        }
-        (RefusalRecord::header(e), key)
+    /// Writes the record for `e` into `reply` (attribute 5): the fixed part, then the key of an
+    /// invalid configuration, cut to [`MAX_REFUSAL`] bytes in all.
+    pub fn write(e: &ImageError, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+        reply.bytes(&RefusalRecord::header(e))?;
+        let ImageError::Invalid(invalid) = e else { return Ok(()) };
+        let mut key = KeySink { reply, room: MAX_REFUSAL - REFUSAL_HEADER, result: Ok(()) };
+        invalid.key().write_text(&mut key);
+        key.result
     }
 
-    /// The record's fixed part for `e`; the key, if any, follows it ([`RefusalRecord::encode`]).
+    /// The record's fixed part for `e`; the key, if any, follows it ([`RefusalRecord::write`]).
     fn header(e: &ImageError) -> [u8; REFUSAL_HEADER] {
         let n = |v: usize| u32::try_from(v).unwrap_or(u32::MAX);
         let (kind, problem, [a, b, c]) = match *e {
@@ -294,7 +295,7 @@ impl fmt::Display for RefusalRecord<'_> {
 }
 
 /// Writes the key of a refusal record into the reply, cut to `room` bytes. The key is ASCII (the
-/// configuration's field names), so a byte cut is a character cut, as in [`RefusalRecord::encode`].
+/// configuration's field names), so a byte cut is a character cut.
 struct KeySink<'r, 'b> {
     reply: &'r mut Reply<'b>,
     room: usize,
@@ -570,13 +571,7 @@ impl ConfigObject {
             4 => reply.u32(self.in_force.last_chunk::<4>().map_or(0, |c| u32::from_le_bytes(*c))),
             // The key goes straight into the reply, not through a string first (firmware size).
             5 => match &self.refusal {
-                Some(e) => {
-                    reply.bytes(&RefusalRecord::header(e))?;
-                    let ImageError::Invalid(invalid) = e else { return Ok(()) };
-                    let mut key = KeySink { reply, room: MAX_REFUSAL - REFUSAL_HEADER, result: Ok(()) };
-                    invalid.key().write_text(&mut key);
-                    key.result
-                }
+                Some(e) => RefusalRecord::write(e, reply),
                 None => Ok(()),
             },
             _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
@@ -811,10 +806,7 @@ mod tests {
     #[case::io_size(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::IoSizeTooLarge { size: 300 })))]
     #[case::io_instances(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::SameAssemblyInstance)))]
     fn a_record_is_worded_as_the_error(#[case] e: ImageError) {
-        let (header, key) = RefusalRecord::encode(&e);
-        let mut bytes = header.to_vec();
-        bytes.extend_from_slice(key.as_bytes());
-        assert_eq!(RefusalRecord::parse(&bytes).unwrap().to_string(), e.to_string());
+        assert_eq!(RefusalRecord::parse(&record(&e)).unwrap().to_string(), e.to_string());
     }
 
     #[rstest]
@@ -836,10 +828,16 @@ mod tests {
         #[case] e: InvalidConfig,
         #[case] text: &str,
     ) {
-        let (header, key) = RefusalRecord::encode(&ImageError::Invalid(e));
-        let mut bytes = header.to_vec();
-        bytes.extend_from_slice(key.as_bytes());
-        assert_eq!(RefusalRecord::parse(&bytes).unwrap().to_string(), text);
+        assert_eq!(RefusalRecord::parse(&record(&ImageError::Invalid(e))).unwrap().to_string(), text);
+    }
+
+    /// The record the device sends for `e`.
+    fn record(e: &ImageError) -> Vec<u8> {
+        let mut buf = [0u8; MAX_EXPLICIT_SIZE];
+        let mut reply = Reply::new(&mut buf);
+        RefusalRecord::write(e, &mut reply).unwrap();
+        let n = reply.len();
+        buf[..n].to_vec()
     }
 
     #[rstest]
