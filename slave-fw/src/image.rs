@@ -311,6 +311,25 @@ pub fn decode_with_layout(bytes: &[u8]) -> Result<(ConverterConfig, Layout), Ima
     Ok((config, reader.layout))
 }
 
+/// The serial settings' format byte: bit 0 seven data bits, bits 1-2 parity (0 none, 1 even,
+/// 2 odd), bit 3 two stop bits (the encoder's, and a Parameter object Set's).
+pub fn serial_format(s: &SerialSettings) -> u8 {
+    let parity = match s.parity {
+        Parity::None => 0,
+        Parity::Even => 1,
+        Parity::Odd => 2,
+    };
+    u8::from(s.data_bits == DataBits::Seven) | parity << 1 | u8::from(s.stop_bits == StopBits::Two) << 3
+}
+
+/// The input assembly byte: 0 plain (100), 1 with status (101).
+pub const fn input_code(input: InputAssembly) -> u8 {
+    match input {
+        InputAssembly::Plain => 0,
+        InputAssembly::WithStatus => 1,
+    }
+}
+
 /// Seals an image whose body was changed in place (same length): writes the CRC of everything
 /// before the trailer into the trailer. Too short an image is left as it is.
 pub fn reseal(image: &mut [u8]) {
@@ -375,10 +394,7 @@ impl Writer<'_> {
         self.u8(d.port);
         self.u8(u8::from(d.bus_off_interrupt) | u8::from(d.switches.programmable) << 1);
         self.u16(d.epr_resolution_ms);
-        self.u8(match c.input {
-            InputAssembly::Plain => 0,
-            InputAssembly::WithStatus => 1,
-        });
+        self.u8(input_code(c.input));
         match &c.profile {
             ProfileConfig::Framed(p) => {
                 self.u8(0);
@@ -430,14 +446,7 @@ impl Writer<'_> {
 
     fn serial(&mut self, s: &SerialSettings) {
         self.u32(s.baud);
-        let parity = match s.parity {
-            Parity::None => 0,
-            Parity::Even => 1,
-            Parity::Odd => 2,
-        };
-        self.u8(u8::from(s.data_bits == DataBits::Seven)
-            | parity << 1
-            | u8::from(s.stop_bits == StopBits::Two) << 3);
+        self.u8(serial_format(s));
     }
 
     fn framing(&mut self, f: &FramedConfig) {

@@ -59,9 +59,9 @@
 
 use super::config_object::ConfigObject;
 use super::objects::{AttributeType, SettingsAttribute, SettingsValues};
-use super::ConverterConfig;
+use super::{ConverterConfig, InputAssembly};
 use crate::image::{self, Layout, MAX_IMAGE};
-use crate::serial::{HealthConfig, ProfileConfig, SequencerConfig, SerialSettings};
+use crate::serial::{HealthConfig, Parity, ProfileConfig, SequencerConfig, SerialSettings, StopBits};
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;
 use devicenet::slave::{Reply, ServiceError};
@@ -258,10 +258,11 @@ impl Parameter {
     }
 
     /// Writes `value`, already within the definition's range and [settable](Parameter::settable),
-    /// into `image` at its place in `layout` ([`image::decode_with_layout`]). The caller
-    /// [`image::reseal`]s the image and decodes it again: the device changes a setting without an
-    /// encoder of the whole configuration.
-    pub fn patch(self, image: &mut [u8], layout: &Layout, value: u32) {
+    /// into `image`, the image of `current`, at its place in `layout`
+    /// ([`image::decode_with_layout`]), coded as the image codes it ([`image::serial_format`],
+    /// [`image::input_code`]). The caller [`image::reseal`]s the image and decodes it again: the
+    /// device changes a setting without an encoder of the whole configuration.
+    pub fn patch(self, image: &mut [u8], layout: &Layout, current: &ConverterConfig, value: u32) {
         // Where the value lies and how many bytes it takes; then what those bytes are. One write
         // for every parameter (firmware size).
         let (at, len) = match self {
@@ -274,28 +275,30 @@ impl Parameter {
             Parameter::Retries => (layout.timing + 4, 1),
             Parameter::PollPeriod => (layout.timing + 5, 4),
         };
-        let at = usize::from(at);
         let value = match self {
             Parameter::SerialParity | Parameter::SerialStopBits => {
-                // The format byte: bits 1-2 parity (0 none, 1 even, 2 odd), bit 3 two stop bits.
-                let format = image.get(at).copied().unwrap_or(0);
-                let format = if self == Parameter::SerialParity {
-                    let code = match value {
-                        0 => 0,
-                        1 => 2,
-                        _ => 1,
+                let mut serial = *current.profile.serial();
+                if self == Parameter::SerialParity {
+                    serial.parity = match value {
+                        0 => Parity::None,
+                        1 => Parity::Odd,
+                        _ => Parity::Even,
                     };
-                    format & !0b110 | code << 1
-                } else if value == 2 {
-                    format | 0b1000
                 } else {
-                    format & !0b1000
-                };
-                u32::from(format)
+                    serial.stop_bits = if value == 2 { StopBits::Two } else { StopBits::One };
+                }
+                u32::from(image::serial_format(&serial))
             }
-            Parameter::InputAssembly => u32::from(value != u32::from(super::PLAIN_INPUT_ASSEMBLY)),
+            Parameter::InputAssembly => {
+                u32::from(image::input_code(if value == u32::from(super::PLAIN_INPUT_ASSEMBLY) {
+                    InputAssembly::Plain
+                } else {
+                    InputAssembly::WithStatus
+                }))
+            }
             _ => value,
         };
+        let at = usize::from(at);
         if let (Some(dst), Some(src)) = (image.get_mut(at..at + len), value.to_le_bytes().get(..len)) {
             dst.copy_from_slice(src);
         }
@@ -306,8 +309,7 @@ impl Parameter {
     /// [`Parameter::patch`].
     #[cfg(test)]
     pub fn write(self, config: &mut ConverterConfig, value: u32) -> bool {
-        use super::InputAssembly;
-        use crate::serial::{Parity, StalePolicy, StopBits};
+        use crate::serial::StalePolicy;
         let (serial, health, timeout, retries, period) = match &mut config.profile {
             ProfileConfig::Framed(f) => {
                 let s = &mut f.sequencer;
@@ -450,7 +452,7 @@ pub(super) fn handle(
         return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
     }
     // The whole configuration is checked again, as a download is (the platform's check too).
-    p.patch(&mut patched, &layout, value);
+    p.patch(&mut patched, &layout, &current, value);
     image::reseal(&mut patched);
     config.check(&patched).map_err(|_| ServiceError::INVALID_ATTRIBUTE_VALUE)?;
     config.stage(&patched);
@@ -471,7 +473,6 @@ mod tests {
     use super::*;
     use crate::converter::{ConfigOrigin, ConfigState, ConverterConfig};
     use crate::serial::modbus::{Function, ModbusConfig, ScanEntry};
-    use crate::serial::Parity;
     use rstest::rstest;
     use std::vec::Vec;
 
@@ -490,7 +491,7 @@ mod tests {
                     let mut expected = config.clone();
                     assert!(d.parameter.write(&mut expected, v));
                     let mut patched = base.clone();
-                    d.parameter.patch(&mut patched, &layout, v);
+                    d.parameter.patch(&mut patched, &layout, &config, v);
                     image::reseal(&mut patched);
                     match expected.check() {
                         Ok(()) => {
