@@ -153,8 +153,8 @@ pub enum ImageError {
 }
 
 impl ImageError {
-    /// Writes the reason (the `Display` text) without `core::fmt` ([`devicenet::text`]): the
-    /// configuration object's refusal text.
+    /// Writes the reason (the `Display` text) without `core::fmt` ([`devicenet::text`]); a tool
+    /// words a refusal record with it (`RefusalRecord::write_text`).
     pub fn write_text(&self, out: &mut impl TextSink) {
         match *self {
             ImageError::Truncated(n) => {

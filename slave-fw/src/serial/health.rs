@@ -154,8 +154,8 @@ pub enum Counter {
 }
 
 impl Counter {
-    /// The number of counters.
-    pub const COUNT: usize = 13;
+    /// The number of counters (the last one's place, plus one).
+    pub const COUNT: usize = Counter::UnexpectedFrames as usize + 1;
 }
 
 impl Stats {
