@@ -362,14 +362,6 @@ impl Converter {
         self.config.take_new_image()
     }
 
-    /// The image in force is the stored `image` as it was downloaded, not the encoding of the
-    /// running configuration: the firmware runs a stored image with the MAC ID and data rate of
-    /// its switches, and a tool reading the image back (attributes 2 and 4, Read_Chunk) must find
-    /// the bytes it downloaded.
-    pub fn set_image_in_force(&mut self, image: &[u8]) {
-        self.config.set_in_force(image);
-    }
-
     /// The configuration image in force (the configuration object's Read_Chunk 0).
     pub fn image_in_force(&self) -> &[u8] {
         self.config.in_force()

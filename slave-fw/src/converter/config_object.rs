@@ -369,15 +369,6 @@ impl ConfigObject {
         object
     }
 
-    /// Replaces the image in force with `image` (see
-    /// [`Converter::set_image_in_force`](super::Converter::set_image_in_force)); an image longer
-    /// than [`MAX_IMAGE`] is ignored.
-    pub fn set_in_force(&mut self, image: &[u8]) {
-        if let Ok(bytes) = Vec::from_slice(image) {
-            self.in_force = bytes;
-        }
-    }
-
     /// Sets the platform's own check of downloaded configurations ([`PlatformCheck`]).
     pub fn set_platform_check(&mut self, check: PlatformCheck) {
         self.platform_check = Some(check);
