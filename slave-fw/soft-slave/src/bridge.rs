@@ -121,8 +121,7 @@ impl Bridge {
 
     /// The converter a start or a reset begins with: the stored state on the description.
     fn fresh(&self, now: Instant) -> Result<Converter, SoftSlaveError> {
-        let (config, origin) = self.state.apply(&self.config, self.mac_override);
-        Ok(Converter::with_origin(config, origin, now)?)
+        Ok(self.state.converter(&self.config, self.mac_override, now)?)
     }
 
     /// Writes every frame seen (received and sent) to `path` in `candump -L` format.

@@ -17,8 +17,9 @@
 
 use crate::error::SoftSlaveError;
 use devicenet::slave::{BaudRate, SettingChanged};
+use devicenet::Instant;
 use devicenet::MacId;
-use slave_fw::converter::{ConfigOrigin, ConverterConfig};
+use slave_fw::converter::{ConfigOrigin, Converter, ConverterConfig, ConverterConfigError};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -120,6 +121,23 @@ impl StoredState {
             device.mac_id = m;
         }
         (config, origin)
+    }
+
+    /// The converter this state makes on `base` at `now` ([`StoredState::apply`]). A stored image
+    /// in force is the image as it was downloaded, whatever network settings run on top of it,
+    /// as on the board: a tool reading it back (configuration object attributes 2 and 4,
+    /// Read_Chunk) finds the bytes it wrote.
+    pub fn converter(
+        &self,
+        base: &ConverterConfig,
+        mac_override: Option<MacId>,
+        now: Instant,
+    ) -> Result<Converter, ConverterConfigError> {
+        let (config, origin) = self.apply(base, mac_override);
+        match (origin, self.image()) {
+            (ConfigOrigin::Stored, Some(image)) => Converter::with_image(config, origin, &image, now),
+            _ => Converter::with_origin(config, origin, now),
+        }
     }
 
     fn check(&self) -> Result<(), String> {
@@ -284,6 +302,25 @@ mod tests {
         let (c, origin) = state.apply(&base, None);
         assert_eq!(c.device.identity.product_code, 1);
         assert!(matches!(origin, ConfigOrigin::Fault(_)), "{origin:?}");
+    }
+
+    #[test]
+    fn a_stored_image_in_force_is_the_bytes_downloaded_whatever_the_network_settings() {
+        let base = ConverterConfig::breaker_reference();
+        let mut other = base.clone();
+        other.device.identity.product_code = 42;
+        other.device.switches.programmable = true;
+        let image = slave_fw::image::encode_to_vec(&other).unwrap();
+        let mut state = StoredState::default();
+        state.set_image(&image);
+        state.mac_id = Some(9);
+        for mac_override in [None, MacId::new(12)] {
+            let converter = state.converter(&base, mac_override, Instant::ZERO).unwrap();
+            assert_eq!(converter.image_in_force(), image.as_slice(), "--mac {mac_override:?}");
+        }
+        // Nothing stored: the description's own image.
+        let converter = StoredState::default().converter(&base, None, Instant::ZERO).unwrap();
+        assert_eq!(converter.image_in_force(), slave_fw::image::encode_to_vec(&base).unwrap());
     }
 
     #[test]
