@@ -305,6 +305,15 @@ pub enum Command {
         /// Also write a self-contained HTML report with a sequence diagram per check.
         #[arg(long, value_name = "FILE")]
         html: Option<PathBuf>,
+        /// Prove that every check can fail: run the suite on the simulated bus against the
+        /// reference device and against mutant devices, each with one deliberate fault, and print
+        /// the matrix check x mutant (exit 0 only when every check fails against at least one
+        /// mutant, every mutant fails its target check and the reference device passes).
+        #[arg(long, conflicts_with_all = ["mac", "html"])]
+        self_test: bool,
+        /// With --self-test: print the matrix as Markdown tables (as in the README).
+        #[arg(long, requires = "self_test")]
+        markdown: bool,
     },
 }
 
@@ -509,6 +518,71 @@ fn monitor_layout(cli: &Cli, descriptions: &Descriptions) -> InputLayout {
     }
 }
 
+/// `conformance --self-test`: the suite against the reference device and every mutant, each on a
+/// simulated bus of its own (`--bus sim` only: the mutants are simulated devices).
+fn self_test_command(
+    cli: &Cli,
+    markdown: bool,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+    stderr_terminal: bool,
+) -> Result<u8, HarnessError> {
+    use crate::conformance::self_test;
+    if cli.bus != BusSpec::Sim {
+        return Err(HarnessError::Usage(format!(
+            "--self-test runs the suite against simulated mutant devices: it needs --bus sim, not {}",
+            cli.bus
+        )));
+    }
+    let unused = [
+        (cli.log.is_some(), "--log"),
+        (cli.pcap.is_some(), "--pcap"),
+        (cli.keep, "--keep"),
+        (cli.realtime, "--realtime"),
+        (!cli.slave_mac.is_empty(), "--slave-mac"),
+        (cli.slave_config.is_some(), "--slave-config"),
+        (cli.frames, "--frames"),
+    ];
+    if let Some((_, flag)) = unused.iter().find(|(given, _)| *given) {
+        return Err(HarnessError::Usage(format!(
+            "{flag} has no meaning with --self-test, which builds its own devices and buses"
+        )));
+    }
+    if markdown && cli.json {
+        return Err(HarnessError::Usage("--markdown and --json: choose one".into()));
+    }
+    let config = MasterConfig {
+        mac: cli.master_mac.unwrap_or(MacId::from_low_bits(0)),
+        response_timeout: Duration::from_millis(cli.timeout.max(1)),
+        ..MasterConfig::default()
+    };
+    struct Shown<'e>(&'e mut dyn Write, bool);
+    impl self_test::SelfTestObserver for Shown<'_> {
+        fn start(&mut self, n: usize, total: usize, mutant: Option<&crate::conformance::mutants::Mutant>) {
+            if self.1 {
+                let what = mutant.map_or("the reference device".to_string(), |m| format!("mutant {}", m.id));
+                let _ = write!(self.0, "\r\x1b[K[{n}/{total}] {what}");
+                let _ = self.0.flush();
+            }
+        }
+    }
+    let progress = stderr_terminal && !cli.json && !markdown;
+    let mut shown = Shown(err, progress);
+    let report = self_test::run(config, cli.bitrate, &mut shown)?;
+    if progress {
+        let _ = write!(shown.0, "\r\x1b[K");
+    }
+    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    if cli.json {
+        writeln!(out, "{}", self_test::report_json(&report)).map_err(werr)?;
+    } else if markdown {
+        write!(out, "{}", self_test::markdown(&report)).map_err(werr)?;
+    } else {
+        self_test::write_text(out, &report).map_err(werr)?;
+    }
+    Ok(if report.passed() { 0 } else { 1 })
+}
+
 /// Creates an output file before the command touches the bus, so a path that cannot be written is
 /// an error at once, not after the run.
 fn create_output(path: &std::path::Path) -> Result<std::fs::File, HarnessError> {
@@ -528,6 +602,9 @@ fn execute(
             HarnessError::Write { source, .. } => werr(source),
             other => other,
         });
+    }
+    if let Command::Conformance { self_test: true, markdown, .. } = &cli.command {
+        return self_test_command(cli, *markdown, out, err, console.stderr_terminal);
     }
     // Read input files and resolve the defaults before touching the bus.
     let transcript = match &cli.command {

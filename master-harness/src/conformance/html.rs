@@ -386,6 +386,15 @@ fn header(s: &mut String, report: &SuiteReport) {
             escape(why)
         );
     }
+    for n in super::NOT_EXERCISED {
+        let _ = write!(
+            s,
+            "<p class=\"section\">Not checked: {} ({}): {}.</p>",
+            escape(n.section),
+            escape(n.rule),
+            escape(n.why)
+        );
+    }
     s.push_str("<p class=\"section\">Grades: an expectation the specification states firmly fails the check when it does not hold; a deviation where the rule is not confirmed by public sources or the value is the device's or the scanner's own choice, a check that could not be exercised, and timing that the transport cannot show are advisory. The suite passes when no check fails.</p>");
 }
 

@@ -60,6 +60,7 @@ pub fn report_json(report: &SuiteReport) -> serde_json::Value {
             "frames": report.records.len(),
         },
         "checks": checks,
+        "not_exercised": super::NOT_EXERCISED,
     })
 }
 
@@ -139,6 +140,9 @@ pub fn write_footer(out: &mut dyn Write, report: &SuiteReport) -> io::Result<()>
     writeln!(out)?;
     writeln!(out, "{}", summary_line(report))?;
     writeln!(out, "started {}; {}", report.started, report.release)?;
+    for n in super::NOT_EXERCISED {
+        writeln!(out, "not checked: {} ({}): {}", n.section, n.rule, n.why)?;
+    }
     let failed = report.failed();
     let names: Vec<&str> = report.checks.iter().filter(|c| c.grade == Grade::Fail).map(|c| c.id).collect();
     match &report.stopped {

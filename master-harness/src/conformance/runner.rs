@@ -40,6 +40,9 @@ pub(crate) struct Facts {
     pub lacking: Option<AllocationChoice>,
     /// The EPR the device applies for the suite's EPR.
     pub applied_epr: Option<u16>,
+    /// The step between the EPRs applied for the suite's EPR and for 3 ms more (epr-round-trip):
+    /// the device's timer resolution, as far as the rounding shows it (notes §5.3).
+    pub epr_step: Option<u16>,
 }
 
 /// A check being run: its expectations and measurements.

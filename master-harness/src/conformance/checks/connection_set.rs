@@ -210,19 +210,6 @@ pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
         group2_only_service,
     )?;
     r.run(
-        "alloc-resource-unavailable",
-        "resources for the requested connections unavailable: 0x02/0x04",
-        CS,
-        "§3.4 row 11",
-        |_, c| {
-            c.advise(
-                Basis::Unconfirmed,
-                "not exercised: an internal limit of the device (GC/AN), which cannot be provoked from the bus",
-            );
-            Ok(())
-        },
-    )?;
-    r.run(
         "alloc-explicit-path",
         "allocation of the poll connection through the explicit connection; ownership shown",
         CS,

@@ -115,42 +115,40 @@ fn identity(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
     r.fresh_explicit()?;
     let id = class::IDENTITY;
     let announced = r.facts.announced;
-    if let Some((v, i)) = sized(r, c, Basis::Normative, (id, 1, 1), 2)? {
-        if let Some((vendor, _, _)) = announced {
-            c.firm(
-                le(&v) == u64::from(vendor),
-                format!("vendor ID equals the duplicate MAC ID check's 0x{vendor:04X}"),
-                i,
-            );
-        }
+    // Attributes 1-7 as read, for Get_Attributes_All.
+    let mut parts: Vec<Option<Vec<u8>>> = Vec::new();
+    let v1 = sized(r, c, Basis::Normative, (id, 1, 1), 2)?;
+    if let (Some((v, i)), Some((vendor, _, _))) = (&v1, announced) {
+        c.firm(le(v) == u64::from(vendor), format!("vendor ID equals the duplicate MAC ID check's 0x{vendor:04X}"), *i);
     }
-    sized(r, c, Basis::Normative, (id, 1, 2), 2)?;
-    sized(r, c, Basis::Normative, (id, 1, 3), 2)?;
-    if let Some((v, i)) = sized(r, c, Basis::Normative, (id, 1, 4), 2)? {
-        c.firm((1..=127).contains(&v[0]), format!("major revision {} in 1..127", v[0]), i);
+    parts.push(v1.map(|v| v.0));
+    parts.push(sized(r, c, Basis::Normative, (id, 1, 2), 2)?.map(|v| v.0));
+    parts.push(sized(r, c, Basis::Normative, (id, 1, 3), 2)?.map(|v| v.0));
+    let v4 = sized(r, c, Basis::Normative, (id, 1, 4), 2)?;
+    if let Some((v, i)) = &v4 {
+        c.firm((1..=127).contains(&v[0]), format!("major revision {} in 1..127", v[0]), *i);
     }
-    sized(r, c, Basis::Normative, (id, 1, 5), 2)?;
-    if let Some((v, i)) = sized(r, c, Basis::Normative, (id, 1, 6), 4)? {
-        if let Some((_, serial, _)) = announced {
-            c.firm(
-                le(&v) == u64::from(serial),
-                format!("serial number equals the duplicate MAC ID check's 0x{serial:08X}"),
-                i,
-            );
-        }
+    parts.push(v4.map(|v| v.0));
+    parts.push(sized(r, c, Basis::Normative, (id, 1, 5), 2)?.map(|v| v.0));
+    let v6 = sized(r, c, Basis::Normative, (id, 1, 6), 4)?;
+    if let (Some((v, i)), Some((_, serial, _))) = (&v6, announced) {
+        c.firm(le(v) == u64::from(serial), format!("serial number equals the duplicate MAC ID check's 0x{serial:08X}"), *i);
     }
-    if let Some((v, i)) = r.read(c, Basis::Normative, id, 1, 7)? {
-        let ok = decode::short_string(&v).is_some() && v.len() == 1 + usize::from(v[0]);
+    parts.push(v6.map(|v| v.0));
+    let v7 = r.read(c, Basis::Normative, id, 1, 7)?;
+    if let Some((v, i)) = &v7 {
+        let ok = decode::short_string(v).is_some() && v.len() == 1 + usize::from(v[0]);
         c.firm(
             ok,
             format!(
                 "product name {:?} is a SHORT_STRING ({} bytes)",
-                decode::short_string(&v).unwrap_or_default(),
+                decode::short_string(v).unwrap_or_default(),
                 v.len()
             ),
-            i,
+            *i,
         );
     }
+    parts.push(v7.map(|v| v.0));
     if let Some((v, i)) = sized(r, c, Basis::Normative, (id, 1, 8), 1)? {
         c.firm(v[0] <= 5, format!("state {} in 0..5", v[0]), i);
     }
@@ -181,6 +179,70 @@ fn identity(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
         }
     }
     sized(r, c, Basis::Unconfirmed, (id, 0, 1), 2)?;
+    if let Some(parts) = parts.into_iter().collect::<Option<Vec<_>>>() {
+        attributes_all(r, c, &parts)?;
+    }
+    Ok(())
+}
+
+/// Get_Attributes_All of Identity instance 1 (optional, notes §6.2): the attributes concatenated
+/// in order, each whole; `parts` are attributes 1-7 as read with Get_Attribute_Single.
+fn attributes_all(r: &mut Runner<'_, '_>, c: &mut Check, parts: &[Vec<u8>]) -> Result<(), HarnessError> {
+    let a = Runner::outcome(r.request(Port::Explicit, ServiceCode::GetAttributesAll, class::IDENTITY, 1, &[]))?;
+    let data = match &a.0 {
+        Ok(Reply { body: ReplyBody::Success(d), .. }) => d.clone(),
+        Ok(Reply { body: ReplyBody::Error { general: GeneralStatus::ServiceNotSupported, .. }, .. }) => {
+            c.firm(true, "optional Get_Attributes_All: not supported (0x08)", a.1);
+            return Ok(());
+        }
+        _ => {
+            r.expect_error(
+                c,
+                Basis::Normative,
+                &a,
+                GeneralStatus::ServiceNotSupported,
+                0xFF,
+                "optional Get_Attributes_All",
+            );
+            return Ok(());
+        }
+    };
+    let whole: Vec<u8> = parts.concat();
+    // Where each attribute ends in the concatenation: a reply must end on one of these.
+    let ends: Vec<usize> = parts.iter().scan(0, |end, p| { *end += p.len(); Some(*end) }).collect();
+    let n = data.len();
+    if n >= whole.len() {
+        c.firm(
+            data.starts_with(&whole),
+            format!(
+                "Get_Attributes_All: {n} bytes, beginning with attributes 1-7 as read one by one ({} bytes){}",
+                whole.len(),
+                if data.starts_with(&whole) { String::new() } else { format!(": {} differs", hex(&data)) }
+            ),
+            a.1,
+        );
+    } else if whole.starts_with(&data) && ends.contains(&n) {
+        let k = ends.iter().position(|&e| e == n).map_or(0, |p| p + 1);
+        c.advise(
+            Basis::Unconfirmed,
+            format!("Get_Attributes_All: {n} bytes, attributes 1-{k} only (the CIP Identity object returns 1-7)"),
+        );
+    } else {
+        let inside = ends.iter().position(|&e| e > n).map_or(parts.len(), |p| p + 1);
+        c.firm(
+            false,
+            format!(
+                "Get_Attributes_All: {n} bytes ({}) {}",
+                hex(&data),
+                if whole.starts_with(&data) {
+                    format!("end inside attribute {inside}: a reply is whole attributes in order")
+                } else {
+                    "differ from attributes 1-7 as read one by one".to_string()
+                }
+            ),
+            a.1,
+        );
+    }
     Ok(())
 }
 
@@ -505,6 +567,18 @@ fn fragmented_response(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harn
     for (service, cls, inst, data) in fragmented_response_requests() {
         let start = r.mark();
         let a = Runner::outcome(r.request(Port::Explicit, service, cls, inst, &data))?;
+        if let (Err(e), _) = &a {
+            let text = super::super::runner::client_error_text(e);
+            c.firm(
+                false,
+                format!(
+                    "{}: no complete answer ({text})",
+                    decode::request_text(&Request { service, class: cls, instance: inst, data: &data })
+                ),
+                None,
+            );
+            return Ok(());
+        }
         if let (Ok(reply), record) = &a {
             if reply.fragmented {
                 let frags = r.m.session.records()[start..]

@@ -1,0 +1,717 @@
+//! Mutant devices for `dnet-master conformance --self-test` ([`super::self_test`]): the reference
+//! soft slave with exactly one deliberate fault each, built as a fault hook around the real node
+//! ([`MutantDevice`]), never as a second implementation of the protocol.
+//!
+//! A hook sees every frame the bus delivers to the node and every frame the node transmits, and
+//! may rewrite, drop, delay or add frames, or feed the node a frame of its own. It knows the last
+//! request the node received (to tell which response a frame is) and may read the node's state
+//! (the poll connection's state, its input data, its owner). Everything else is the real node,
+//! so each mutant behaves exactly like the reference device except for its one fault.
+//!
+//! Every check of the suite is the target of at least one mutant ([`MUTANTS`]); the self-test
+//! shows that each target check fails against its mutant, and which other checks fail too.
+
+use can_io::sim::SimDevice;
+use converter_sim::device::SoftSlave;
+use devicenet::fragment::{io_fragments, next_count, FragmentByte, FragmentKind};
+use devicenet::id::{Group1MessageId, Group3MessageId};
+use devicenet::objects::class;
+use devicenet::slave::ConnectionState;
+use devicenet::{CanFrame, CanId, Duration, Group2Message, Identifier, Instant, MacId};
+use std::collections::VecDeque;
+
+/// One deliberate fault of the reference device.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mutant {
+    /// Short stable name (`answers-ucmm`).
+    pub id: &'static str,
+    /// The check that must fail against it.
+    pub target: &'static str,
+    /// The fault, in words.
+    pub fault: &'static str,
+    kind: Fault,
+}
+
+impl Mutant {
+    /// The reference soft slave at `mac` with this fault.
+    pub fn device(&self, mac: MacId) -> MutantDevice {
+        MutantDevice::new(SoftSlave::reference(mac), self.kind)
+    }
+}
+
+/// The faults, one per mutant. Response rewrites apply to the unfragmented response that answers
+/// the last request the node received.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Fault {
+    // ----- network access (notes §7.1, §3.4, §8) ---------------------------------------------
+    /// Its second duplicate MAC ID request is not sent.
+    SkipsSecondDupMacRequest,
+    /// A duplicate MAC ID request for its MAC gets no response.
+    DoesNotDefendMac,
+    /// Answers a UCMM open request with an open response.
+    AnswersUcmm,
+    /// Takes Group 2 frames for the next MAC ID as its own.
+    AcceptsNextMac,
+    /// Connection 2 attribute 7 (produced size) reads one byte short.
+    ShortProducedSize,
+    // ----- the Predefined Master/Slave Connection Set (notes §3.4) ---------------------------
+    /// Allocating poll without explicit succeeds.
+    AllocatesPollWithoutExplicit,
+    /// Releasing a connection that does not exist succeeds.
+    ReleasesNothing,
+    /// Allocation choice 0 succeeds.
+    AcceptsChoiceZero,
+    /// Acknowledge suppression without change of state or cyclic succeeds.
+    AcceptsAckSuppression,
+    /// A connection type it lacks is refused with 0x08 (service not supported) instead of 0x02/0x02.
+    LackingTypeAsUnsupportedService,
+    /// The explicit connection allocated through the Group 2 Only port reports body format 4.
+    ReservedBodyFormat,
+    /// Allocating the explicit connection a second time succeeds.
+    AcceptsDoubleAllocation,
+    /// A second master's Allocate succeeds while it is owned (nothing is allocated to it).
+    AnswersSecondMaster,
+    /// Release choice 0 succeeds.
+    AcceptsReleaseChoiceZero,
+    /// Releasing a type it lacks is refused with 0x0B/0x02 instead of 0x02/0x02.
+    LackingReleaseAsAlreadyReleased,
+    /// Another service on the Group 2 Only port is refused with 0x02 and no additional code.
+    Group2OnlyWithoutAdditionalCode,
+    /// Identity status bit 0 (owned) is never set.
+    NeverShowsOwned,
+    /// A Release through the explicit connection is answered with success and not carried out.
+    KeepsReleasedConnections,
+    // ----- explicit messaging (notes §3.3, §4.1, §5.1, §6) -----------------------------------
+    /// Identity attribute 6 (serial number) differs from the serial its duplicate MAC ID check announced.
+    SerialDiffersFromAnnounced,
+    /// Get_Attributes_All of the Identity object is one byte short.
+    ShortAttributesAll,
+    /// DeviceNet attribute 1 reads another MAC ID.
+    WrongMacAttribute,
+    /// Connection 2 attribute 5 (consumed connection ID) names another MAC ID.
+    WrongPollConsumedId,
+    /// Identity attribute 7 (product name) accepts a Set.
+    ProductNameSettable,
+    /// An unknown Identity instance is answered 0x14 (attribute not supported) instead of 0x16.
+    UnknownInstanceAsUnknownAttribute,
+    /// A service an object lacks is answered 0x14 instead of 0x08.
+    UnsupportedServiceAsUnknownAttribute,
+    /// The last fragment of a fragmented response carries the wrong count.
+    WrongLastResponseFragmentCount,
+    /// The acknowledgement of request fragment #1 is lost.
+    LosesSecondFragmentAck,
+    /// Sends the next response fragment without waiting for the acknowledgement of the previous one.
+    DoesNotWaitForAck,
+    /// A repeated request fragment is not acknowledged again.
+    DoesNotReacknowledgeRepeat,
+    /// An out-of-sequence request fragment is acknowledged with success.
+    AcknowledgesOutOfSequence,
+    /// The acknowledgement "too much data" (status 1) is sent as success (status 0).
+    TakesAnyLength,
+    // ----- connections (notes §4.2, §5, §8, §9.12) ---------------------------------------------
+    /// Answers polls while the poll connection is configuring (before the EPR is set).
+    PollsWhileConfiguring,
+    /// The Set EPR response carries no data instead of the EPR applied.
+    SetEprWithoutValue,
+    /// The inactivity watchdogs expire at 3 x EPR (the node is given 3/4 of each EPR set, and the
+    /// EPR read back is the one set).
+    WatchdogAt3Epr,
+    /// Watchdog action 1 (auto delete) on the poll connection acts as 0 (transition to timed out).
+    AutoDeleteAsTimedOut,
+    /// Watchdog action 2 (auto reset) on the poll connection acts as 1 (auto delete).
+    AutoResetAsAutoDelete,
+    /// A Set of the poll connection's watchdog action is answered with success and ignored.
+    IgnoresWatchdogAction,
+    /// The explicit connection's watchdog never expires (the node is given EPR 0).
+    ExplicitWatchdogNeverExpires,
+    /// Watchdog action 3 (deferred delete) on the explicit connection acts as 1 (auto delete).
+    DeferredAsAutoDelete,
+    /// After a zero-length (idle) poll it answers no poll until the next allocation.
+    StopsAfterIdlePoll,
+    /// The last I/O fragment of the poll response carries the wrong count.
+    WrongLastIoFragmentCount,
+    /// Explicit requests from a master that does not own it are served as the owner's.
+    ServesAnyMaster,
+    /// Poll responses go out 150 ms late.
+    SlowPollResponses,
+    /// Responses on its explicit connection go out 1.2 s late.
+    SlowExplicitResponses,
+}
+
+macro_rules! mutants {
+    ($($id:literal => $target:literal, $fault:literal, $kind:ident;)*) => {
+        /// Every mutant, in the order of the checks they target.
+        pub const MUTANTS: &[Mutant] = &[
+            $(Mutant { id: $id, target: $target, fault: $fault, kind: Fault::$kind },)*
+        ];
+    };
+}
+
+mutants! {
+    "short-produced-size" => "bring-up", "Connection 2 attribute 7 (produced size) reads one byte short", ShortProducedSize;
+    "skips-second-dup-mac" => "dup-mac-startup", "its second duplicate MAC ID request is not sent", SkipsSecondDupMacRequest;
+    "does-not-defend-mac" => "dup-mac-answer", "a duplicate MAC ID request for its MAC gets no response", DoesNotDefendMac;
+    "answers-ucmm" => "ucmm-silent", "answers a UCMM open request with an open response", AnswersUcmm;
+    "accepts-next-mac" => "other-macs-ignored", "takes Group 2 frames for the next MAC ID as its own", AcceptsNextMac;
+    "poll-without-explicit" => "alloc-explicit-not-requested", "allocating poll without explicit succeeds", AllocatesPollWithoutExplicit;
+    "releases-nothing" => "release-nonexistent", "releasing a connection that does not exist succeeds", ReleasesNothing;
+    "accepts-choice-zero" => "alloc-choice-zero", "allocation choice 0 succeeds", AcceptsChoiceZero;
+    "accepts-ack-suppression" => "alloc-ack-suppression", "acknowledge suppression without change of state or cyclic succeeds", AcceptsAckSuppression;
+    "lacking-type-0x08" => "alloc-lacking-type", "a connection type it lacks is refused with 0x08 instead of 0x02/0x02", LackingTypeAsUnsupportedService;
+    "reserved-body-format" => "alloc-group2-only-port", "the explicit connection allocated through the Group 2 Only port reports body format 4", ReservedBodyFormat;
+    "accepts-double-allocation" => "alloc-double", "allocating the explicit connection a second time succeeds", AcceptsDoubleAllocation;
+    "answers-second-master" => "alloc-conflict", "a second master's Allocate succeeds while the device is owned", AnswersSecondMaster;
+    "accepts-release-choice-zero" => "release-choice-zero", "release choice 0 succeeds", AcceptsReleaseChoiceZero;
+    "lacking-release-0x0b" => "release-lacking-type", "releasing a type it lacks is refused with 0x0B/0x02 instead of 0x02/0x02", LackingReleaseAsAlreadyReleased;
+    "group2-only-no-additional-code" => "group2-only-invalid-service", "another service on the Group 2 Only port is refused with 0x02 and no additional code", Group2OnlyWithoutAdditionalCode;
+    "never-shows-owned" => "alloc-explicit-path", "Identity status bit 0 (owned) is never set", NeverShowsOwned;
+    "keeps-released-connections" => "release-reallocate", "a Release through the explicit connection is answered with success and not carried out", KeepsReleasedConnections;
+    "serial-differs" => "identity-attributes", "Identity attribute 6 differs from the serial number its duplicate MAC ID check announced", SerialDiffersFromAnnounced;
+    "short-attributes-all" => "identity-attributes", "Get_Attributes_All of the Identity object is one byte short", ShortAttributesAll;
+    "wrong-mac-attribute" => "devicenet-attributes", "DeviceNet attribute 1 reads another MAC ID", WrongMacAttribute;
+    "wrong-poll-consumed-id" => "connection-attributes", "Connection 2 attribute 5 (consumed connection ID) names another MAC ID", WrongPollConsumedId;
+    "product-name-settable" => "settable-attributes", "Identity attribute 7 (product name) accepts a Set", ProductNameSettable;
+    "unknown-instance-0x14" => "unknown-targets", "an unknown Identity instance is answered 0x14 instead of 0x16", UnknownInstanceAsUnknownAttribute;
+    "unsupported-service-0x14" => "unsupported-service", "a service an object lacks is answered 0x14 instead of 0x08", UnsupportedServiceAsUnknownAttribute;
+    "wrong-last-response-fragment" => "fragmented-response", "the last fragment of a fragmented response carries the wrong count", WrongLastResponseFragmentCount;
+    "loses-fragment-ack" => "fragmented-request", "the acknowledgement of request fragment #1 is lost", LosesSecondFragmentAck;
+    "does-not-wait-for-ack" => "missing-ack", "sends the next response fragment without waiting for the acknowledgement", DoesNotWaitForAck;
+    "no-reack-of-repeat" => "duplicate-fragment", "a repeated request fragment is not acknowledged again", DoesNotReacknowledgeRepeat;
+    "acks-out-of-sequence" => "out-of-sequence-fragment", "an out-of-sequence request fragment is acknowledged with success", AcknowledgesOutOfSequence;
+    "takes-any-length" => "oversized-request", "the acknowledgement \"too much data\" (status 1) goes out as success", TakesAnyLength;
+    "polls-while-configuring" => "poll-before-epr", "answers polls while the poll connection is configuring (before the EPR is set)", PollsWhileConfiguring;
+    "set-epr-without-value" => "epr-round-trip", "the Set EPR response carries no data instead of the EPR applied", SetEprWithoutValue;
+    "watchdog-3x-epr" => "watchdog-poll-timed-out", "the inactivity watchdogs expire at 3 x EPR instead of 4 x", WatchdogAt3Epr;
+    "auto-delete-as-timed-out" => "watchdog-poll-auto-delete", "poll watchdog action 1 (auto delete) acts as 0 (timed out)", AutoDeleteAsTimedOut;
+    "ignores-watchdog-action" => "watchdog-poll-auto-delete", "a Set of the poll watchdog action is answered with success and ignored", IgnoresWatchdogAction;
+    "auto-reset-as-auto-delete" => "watchdog-poll-auto-reset", "poll watchdog action 2 (auto reset) acts as 1 (auto delete)", AutoResetAsAutoDelete;
+    "explicit-watchdog-never-expires" => "watchdog-explicit-auto-delete", "the explicit connection's watchdog never expires", ExplicitWatchdogNeverExpires;
+    "deferred-as-auto-delete" => "deferred-delete", "explicit watchdog action 3 (deferred delete) acts as 1 (auto delete)", DeferredAsAutoDelete;
+    "stops-after-idle-poll" => "idle-poll", "after a zero-length (idle) poll it answers no poll until the next allocation", StopsAfterIdlePoll;
+    "wrong-last-io-fragment" => "io-fragmentation", "the last I/O fragment of the poll response carries the wrong count", WrongLastIoFragmentCount;
+    "serves-any-master" => "non-owner-ignored", "explicit requests from a master that does not own it are served as the owner's", ServesAnyMaster;
+    "slow-poll-responses" => "poll-latency", "poll responses go out 150 ms late", SlowPollResponses;
+    "slow-explicit-responses" => "explicit-latency", "responses on its explicit connection go out 1.2 s late", SlowExplicitResponses;
+}
+
+/// The mutant named `id`.
+pub fn find(id: &str) -> Option<&'static Mutant> {
+    MUTANTS.iter().find(|m| m.id == id)
+}
+
+/// Where a request came in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Port {
+    /// The Group 2 Only Unconnected Explicit Request identifier (message 6).
+    Group2Only,
+    /// The explicit connection (message 4).
+    Explicit,
+}
+
+/// The last request the node received: its header byte and its body from the service code on
+/// (8/8 body format, the suite's), from the first fragment when it was fragmented.
+#[derive(Clone, Debug)]
+struct LastRequest {
+    port: Port,
+    header: u8,
+    body: Vec<u8>,
+}
+
+impl LastRequest {
+    fn service(&self) -> u8 {
+        self.body.first().copied().unwrap_or(0)
+    }
+
+    fn class(&self) -> u16 {
+        self.body.get(1).copied().map_or(0, u16::from)
+    }
+
+    fn instance(&self) -> u16 {
+        self.body.get(2).copied().map_or(0, u16::from)
+    }
+
+    /// The service data after the path.
+    fn data(&self) -> &[u8] {
+        self.body.get(3..).unwrap_or(&[])
+    }
+
+    /// Get_Attribute_Single (0x0E) of `class` instance `instance` attribute `attr`.
+    fn is_get(&self, class_id: u16, instance: u16, attr: u8) -> bool {
+        self.service() == 0x0E && self.class() == class_id && self.instance() == instance && self.data() == [attr]
+    }
+
+    /// Set_Attribute_Single (0x10) of `class` instance `instance` attribute `attr`.
+    fn is_set(&self, class_id: u16, instance: u16, attr: u8) -> bool {
+        self.service() == 0x10
+            && self.class() == class_id
+            && self.instance() == instance
+            && self.data().first() == Some(&attr)
+    }
+
+    /// The choice byte of an Allocate (0x4B) or Release (0x4C) of the DeviceNet object.
+    fn choice(&self, service: u8) -> Option<u8> {
+        (self.service() == service && self.class() == class::DEVICENET).then(|| self.data().first().copied())?
+    }
+}
+
+/// An unfragmented explicit response body: `Ok(data)` for a success, `Err((general, additional))`
+/// for an error.
+fn response(data: &[u8]) -> Option<Result<&[u8], (u8, u8)>> {
+    match data {
+        [h, 0x94, general, rest @ ..] if h & 0x80 == 0 => Some(Err((*general, rest.first().copied().unwrap_or(0xFF)))),
+        [h, service, rest @ ..] if h & 0x80 == 0 && service & 0x80 != 0 => Some(Ok(rest)),
+        _ => None,
+    }
+}
+
+/// Which kind of frame a fragmented explicit frame is: `(kind, count)`.
+fn fragment(data: &[u8]) -> Option<(FragmentKind, u8)> {
+    match data {
+        [h, f, ..] if h & 0x80 != 0 => {
+            let fb = FragmentByte::from_byte(*f);
+            Some((fb.kind, fb.count))
+        }
+        _ => None,
+    }
+}
+
+fn build(id: CanId, data: &[u8]) -> Option<CanFrame> {
+    CanFrame::new(id, data).ok()
+}
+
+/// The reference node with one fault: see the [module docs](self).
+pub struct MutantDevice {
+    inner: SoftSlave,
+    fault: Fault,
+    now: Instant,
+    /// Frames to put on the bus, each with the time it may go.
+    out: VecDeque<(Instant, CanFrame)>,
+    last: Option<LastRequest>,
+    /// The last request fragment received (its bytes).
+    last_fragment: Option<Vec<u8>>,
+    /// Duplicate MAC ID requests sent so far.
+    dup_requests: u32,
+    /// Drop the next acknowledgement ([`Fault::DoesNotReacknowledgeRepeat`]).
+    drop_ack: bool,
+    /// An idle poll was received ([`Fault::StopsAfterIdlePoll`]).
+    idle_seen: bool,
+    /// Per Connection instance 1, 2: the EPR the master last set ([`Fault::WatchdogAt3Epr`],
+    /// [`Fault::ExplicitWatchdogNeverExpires`]).
+    epr_asked: [Option<u16>; 2],
+}
+
+impl MutantDevice {
+    fn new(inner: SoftSlave, fault: Fault) -> MutantDevice {
+        MutantDevice {
+            inner,
+            fault,
+            now: Instant::ZERO,
+            out: VecDeque::new(),
+            last: None,
+            last_fragment: None,
+            dup_requests: 0,
+            drop_ack: false,
+            idle_seen: false,
+            epr_asked: [None; 2],
+        }
+    }
+
+    /// The EPR the node is given when the master sets `asked` on Connection `instance`.
+    fn given_epr(&self, instance: u16, asked: u16) -> u16 {
+        match (self.fault, instance) {
+            (Fault::WatchdogAt3Epr, _) => (u32::from(asked) * 3 / 4) as u16,
+            (Fault::ExplicitWatchdogNeverExpires, 1) => 0,
+            _ => asked,
+        }
+    }
+
+    /// `epr` rounded up to the node's timer resolution, as the node applies it (notes §5.3).
+    fn rounded(&self, epr: u16) -> u16 {
+        let resolution = self.inner.node().config().epr_resolution_ms.max(1);
+        epr.div_ceil(resolution).saturating_mul(resolution)
+    }
+
+    fn id(&self, message: Group2Message) -> CanId {
+        Identifier::group2(self.inner.mac(), message)
+    }
+
+    /// Sends `frame` now, ahead of whatever the node sends next.
+    fn answer(&mut self, frame: Option<CanFrame>) {
+        if let Some(f) = frame {
+            self.out.push_back((self.now, f));
+        }
+    }
+
+    /// A frame from the bus, before the node sees it: the frame the node gets, if any.
+    fn receive(&mut self, frame: &CanFrame) -> Option<CanFrame> {
+        let mac = self.inner.mac();
+        let data = frame.data();
+        let (to_mac, message) = match Identifier::decode(frame.id()) {
+            Identifier::Group2 { mac: m, message } => (m, message),
+            Identifier::Group3 { message, .. } if message == Group3MessageId::UNCONNECTED_REQUEST => {
+                if self.fault == Fault::AnswersUcmm && data.first().map(|d| d & 0x3F) == Some(mac.as_raw()) {
+                    let rsp = Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: mac };
+                    let source = Identifier::decode(frame.id());
+                    let master = match source {
+                        Identifier::Group3 { source, .. } => source.as_raw(),
+                        _ => 0,
+                    };
+                    self.answer(build(rsp.encode(), &[master, 0xCB, 0x00, 0x34, mac.as_raw(), 0x00]));
+                }
+                return Some(*frame);
+            }
+            _ => return Some(*frame),
+        };
+        if self.fault == Fault::AcceptsNextMac && to_mac.as_raw() == mac.as_raw() + 1 {
+            return build(Identifier::group2(mac, message), data);
+        }
+        if to_mac != mac {
+            return Some(*frame);
+        }
+        match message {
+            Group2Message::ExplicitRequest | Group2Message::UnconnectedExplicitRequest => {
+                let port =
+                    if message == Group2Message::ExplicitRequest { Port::Explicit } else { Port::Group2Only };
+                self.request(port, frame)
+            }
+            Group2Message::PollCommand => self.poll_command(frame),
+            _ => Some(*frame),
+        }
+    }
+
+    /// An explicit request (or request fragment, or acknowledgement) for the node.
+    fn request(&mut self, port: Port, frame: &CanFrame) -> Option<CanFrame> {
+        let data = frame.data();
+        let header = data.first().copied().unwrap_or(0);
+        match fragment(data) {
+            Some((FragmentKind::Ack, _)) => return Some(*frame),
+            Some((kind, count)) => {
+                let previous = self.last_fragment.replace(data.to_vec());
+                if kind == FragmentKind::First {
+                    self.last = Some(LastRequest { port, header: header & 0x7F, body: data[2..].to_vec() });
+                }
+                match self.fault {
+                    Fault::DoesNotReacknowledgeRepeat if previous.as_deref() == Some(data) => self.drop_ack = true,
+                    Fault::AcknowledgesOutOfSequence if kind != FragmentKind::First => {
+                        let expected = previous.as_deref().and_then(fragment).map(|(_, c)| next_count(c));
+                        if expected.is_some_and(|e| e != count) {
+                            let ack = FragmentByte::new(FragmentKind::Ack, count).map_or(0, FragmentByte::to_byte);
+                            let rsp = self.id(Group2Message::ExplicitResponse);
+                            self.answer(build(rsp, &[header, ack, 0]));
+                        }
+                    }
+                    _ => {}
+                }
+                return Some(*frame);
+            }
+            None => {}
+        }
+        let body = data.get(1..).unwrap_or(&[]).to_vec();
+        let mut req = LastRequest { port, header, body };
+        if matches!(req.choice(0x4B), Some(_)) {
+            self.idle_seen = false;
+        }
+        let rsp = self.id(Group2Message::ExplicitResponse);
+        let mut deliver = Some(*frame);
+        match self.fault {
+            Fault::KeepsReleasedConnections if port == Port::Explicit && req.choice(0x4C).is_some() => {
+                self.answer(build(rsp, &[header, 0xCC]));
+                deliver = None;
+            }
+            Fault::IgnoresWatchdogAction if req.is_set(class::CONNECTION, 2, 12) => {
+                self.answer(build(rsp, &[header, 0x90]));
+                deliver = None;
+            }
+            Fault::ServesAnyMaster if port == Port::Explicit => {
+                if let (_, Some(owner)) = self.inner.node().allocation() {
+                    let h = (header & 0xC0) | owner.as_raw();
+                    req.header = h;
+                    let mut d = data.to_vec();
+                    d[0] = h;
+                    deliver = build(frame.id(), &d);
+                }
+            }
+            Fault::AutoDeleteAsTimedOut => deliver = self.rewrite_set(frame, &req, (2, 12), |v| if v == [1] { vec![0] } else { v.to_vec() }),
+            Fault::AutoResetAsAutoDelete => deliver = self.rewrite_set(frame, &req, (2, 12), |v| if v == [2] { vec![1] } else { v.to_vec() }),
+            Fault::DeferredAsAutoDelete => deliver = self.rewrite_set(frame, &req, (1, 12), |v| if v == [3] { vec![1] } else { v.to_vec() }),
+            Fault::WatchdogAt3Epr | Fault::ExplicitWatchdogNeverExpires => {
+                for instance in [1u16, 2] {
+                    if let (true, [_, lo, hi]) = (req.is_set(class::CONNECTION, instance, 9), req.data()) {
+                        let asked = u16::from_le_bytes([*lo, *hi]);
+                        self.epr_asked[usize::from(instance - 1)] = Some(asked);
+                        let given = self.given_epr(instance, asked).to_le_bytes();
+                        deliver = self.rewrite_set(frame, &req, (instance, 9), |_| given.to_vec());
+                    }
+                }
+            }
+            _ => {}
+        }
+        self.last = Some(req);
+        deliver
+    }
+
+    /// `frame` with the value of a Set of Connection `(instance, attr)` replaced by `f(value)`.
+    fn rewrite_set(
+        &self,
+        frame: &CanFrame,
+        req: &LastRequest,
+        (instance, attr): (u16, u8),
+        f: impl FnOnce(&[u8]) -> Vec<u8>,
+    ) -> Option<CanFrame> {
+        if !req.is_set(class::CONNECTION, instance, attr) {
+            return Some(*frame);
+        }
+        let data = frame.data();
+        let mut d = data[..5].to_vec();
+        d.extend(f(&data[5..]));
+        CanFrame::new(frame.id(), &d).ok()
+    }
+
+    /// A poll command for the node.
+    fn poll_command(&mut self, frame: &CanFrame) -> Option<CanFrame> {
+        match self.fault {
+            Fault::StopsAfterIdlePoll if frame.data().is_empty() => self.idle_seen = true,
+            Fault::PollsWhileConfiguring if self.inner.node().poll_connection().state == ConnectionState::Configuring => {
+                let input = self.inner.node().input().to_vec();
+                let id = Identifier::group1(Group1MessageId::POLL_RESPONSE, self.inner.mac());
+                if input.len() > 8 {
+                    for part in io_fragments(&input) {
+                        self.answer(build(id, &part));
+                    }
+                } else {
+                    self.answer(build(id, &input));
+                }
+            }
+            _ => {}
+        }
+        Some(*frame)
+    }
+
+    /// A frame the node transmits: what goes on the bus (`None`: dropped), and when.
+    fn transmit(&mut self, f: CanFrame) -> Option<(Instant, CanFrame)> {
+        let now = self.now;
+        let id = f.id();
+        let data = f.data();
+        if id == self.id(Group2Message::DuplicateMacCheck) {
+            let is_request = data.first().is_some_and(|p| p & 0x80 == 0);
+            if is_request {
+                self.dup_requests += 1;
+            }
+            return match self.fault {
+                Fault::SkipsSecondDupMacRequest if is_request && self.dup_requests == 2 => None,
+                Fault::DoesNotDefendMac if !is_request => None,
+                _ => Some((now, f)),
+            };
+        }
+        if id == Identifier::group1(Group1MessageId::POLL_RESPONSE, self.inner.mac()) {
+            return match self.fault {
+                Fault::StopsAfterIdlePoll if self.idle_seen => None,
+                Fault::SlowPollResponses => Some((now + Duration::from_millis(150), f)),
+                Fault::WrongLastIoFragmentCount if self.inner.node().input().len() > 8 => {
+                    let mut d = data.to_vec();
+                    if let Some(b) = d.first_mut() {
+                        let fb = FragmentByte::from_byte(*b);
+                        if fb.kind == FragmentKind::Last {
+                            *b = FragmentByte::new(FragmentKind::Last, next_count(fb.count)).map_or(*b, FragmentByte::to_byte);
+                        }
+                    }
+                    build(id, &d).map(|f| (now, f))
+                }
+                _ => Some((now, f)),
+            };
+        }
+        if id != self.id(Group2Message::ExplicitResponse) {
+            return Some((now, f));
+        }
+        if let Some((kind, count)) = fragment(data) {
+            return self.transmit_fragment(f, kind, count);
+        }
+        let last = self.last.clone();
+        let Some(req) = last else { return Some((now, f)) };
+        let rewritten = match response(data) {
+            Some(Ok(value)) => self.rewrite_success(&req, value),
+            Some(Err((general, additional))) => self.rewrite_error(&req, general, additional),
+            None => None,
+        };
+        let f = match rewritten {
+            Some(body) => {
+                let mut d = vec![data[0]];
+                d.extend(body);
+                build(id, &d)?
+            }
+            None => f,
+        };
+        match self.fault {
+            Fault::SlowExplicitResponses if req.port == Port::Explicit => {
+                Some((now + Duration::from_millis(1200), f))
+            }
+            _ => Some((now, f)),
+        }
+    }
+
+    /// A response fragment or acknowledgement from the node.
+    fn transmit_fragment(&mut self, f: CanFrame, kind: FragmentKind, count: u8) -> Option<(Instant, CanFrame)> {
+        let now = self.now;
+        let data = f.data();
+        let is_gaa = self.last.as_ref().is_some_and(|r| r.service() == 0x01 && r.class() == class::IDENTITY);
+        match (self.fault, kind) {
+            (Fault::DoesNotReacknowledgeRepeat, FragmentKind::Ack) if self.drop_ack => {
+                self.drop_ack = false;
+                None
+            }
+            (Fault::LosesSecondFragmentAck, FragmentKind::Ack) if count == 1 => None,
+            (Fault::TakesAnyLength, FragmentKind::Ack) if data.get(2) == Some(&1) => {
+                build(f.id(), &[data[0], data[1], 0]).map(|f| (now, f))
+            }
+            (Fault::WrongLastResponseFragmentCount, FragmentKind::Last) => {
+                let byte = FragmentByte::new(FragmentKind::Last, next_count(count)).map_or(data[1], FragmentByte::to_byte);
+                let mut d = data.to_vec();
+                d[1] = byte;
+                build(f.id(), &d).map(|f| (now, f))
+            }
+            (Fault::ShortAttributesAll, FragmentKind::Last) if is_gaa && data.len() > 3 => {
+                build(f.id(), &data[..data.len() - 1]).map(|f| (now, f))
+            }
+            (Fault::DoesNotWaitForAck, FragmentKind::First | FragmentKind::Middle) => {
+                // The node hears an acknowledgement nobody sent and goes on with the next fragment.
+                let ack = FragmentByte::new(FragmentKind::Ack, count).map_or(0, FragmentByte::to_byte);
+                if let Some(a) = build(self.id(Group2Message::ExplicitRequest), &[data[0], ack, 0]) {
+                    self.inner.handle_frame(&a, now);
+                }
+                Some((now, f))
+            }
+            (Fault::SlowExplicitResponses, _) if self.last.as_ref().is_some_and(|r| r.port == Port::Explicit) => {
+                Some((now + Duration::from_millis(1200), f))
+            }
+            _ => Some((now, f)),
+        }
+    }
+
+    /// The new body (service code on) of a success response to `req` carrying `value`, if the
+    /// fault rewrites it.
+    fn rewrite_success(&mut self, req: &LastRequest, value: &[u8]) -> Option<Vec<u8>> {
+        let service = req.service() | 0x80;
+        let with = |v: Vec<u8>| {
+            let mut b = vec![service];
+            b.extend(v);
+            Some(b)
+        };
+        match self.fault {
+            Fault::ShortProducedSize if req.is_get(class::CONNECTION, 2, 7) => {
+                let v = u16::from_le_bytes(value.try_into().ok()?);
+                with(v.saturating_sub(1).to_le_bytes().to_vec())
+            }
+            Fault::ReservedBodyFormat if req.port == Port::Group2Only && req.choice(0x4B).is_some() => with(vec![4]),
+            Fault::NeverShowsOwned if req.is_get(class::IDENTITY, 1, 5) => {
+                let mut v = value.to_vec();
+                *v.first_mut()? &= !1;
+                with(v)
+            }
+            Fault::SerialDiffersFromAnnounced if req.is_get(class::IDENTITY, 1, 6) => {
+                let mut v = value.to_vec();
+                *v.first_mut()? ^= 1;
+                with(v)
+            }
+            Fault::WrongMacAttribute if req.is_get(class::DEVICENET, 1, 1) => {
+                with(vec![value.first()?.wrapping_add(1) & 0x3F])
+            }
+            Fault::WrongPollConsumedId if req.is_get(class::CONNECTION, 2, 5) => {
+                let v = u16::from_le_bytes(value.try_into().ok()?) ^ 0x08;
+                with(v.to_le_bytes().to_vec())
+            }
+            Fault::SetEprWithoutValue
+                if req.is_set(class::CONNECTION, 1, 9) || req.is_set(class::CONNECTION, 2, 9) =>
+            {
+                with(Vec::new())
+            }
+            Fault::WatchdogAt3Epr | Fault::ExplicitWatchdogNeverExpires => {
+                let instance = [1u16, 2].into_iter().find(|&i| {
+                    req.is_set(class::CONNECTION, i, 9) || req.is_get(class::CONNECTION, i, 9)
+                })?;
+                let asked = self.epr_asked[usize::from(instance - 1)]?;
+                let v = u16::from_le_bytes(value.try_into().ok()?);
+                // The node's value for what it was given: shown as the EPR the master asked for,
+                // rounded as the node rounds.
+                (v == self.rounded(self.given_epr(instance, asked))).then(|| self.rounded(asked))?;
+                with(self.rounded(asked).to_le_bytes().to_vec())
+            }
+            _ => None,
+        }
+    }
+
+    /// The new body of an error response `general`/`additional` to `req`, if the fault rewrites it.
+    fn rewrite_error(&mut self, req: &LastRequest, general: u8, additional: u8) -> Option<Vec<u8>> {
+        let allocate = req.choice(0x4B);
+        let release = req.choice(0x4C);
+        let allocated = Some(vec![0xCB, 0x00]);
+        match (self.fault, general, additional) {
+            (Fault::AllocatesPollWithoutExplicit, _, _) if allocate == Some(0x02) => allocated,
+            (Fault::ReleasesNothing, 0x0B, _) if release.is_some() => Some(vec![0xCC]),
+            (Fault::AcceptsChoiceZero, _, _) if allocate == Some(0) => allocated,
+            (Fault::AcceptsAckSuppression, _, _) if allocate.is_some_and(|c| c & 0x40 != 0 && c & 0x30 == 0) => allocated,
+            (Fault::LackingTypeAsUnsupportedService, 0x02, 0x02) if allocate.is_some() => Some(vec![0x94, 0x08, 0xFF]),
+            (Fault::AcceptsDoubleAllocation, 0x0B, _) if allocate.is_some() => allocated,
+            (Fault::AnswersSecondMaster, 0x0C, _) if allocate.is_some() => allocated,
+            (Fault::AcceptsReleaseChoiceZero, _, _) if release == Some(0) => Some(vec![0xCC]),
+            (Fault::LackingReleaseAsAlreadyReleased, 0x02, 0x02) if release.is_some() => Some(vec![0x94, 0x0B, 0x02]),
+            (Fault::Group2OnlyWithoutAdditionalCode, 0x02, 0x03) if req.port == Port::Group2Only => Some(vec![0x94, 0x02, 0xFF]),
+            (Fault::ProductNameSettable, 0x0E, _) if req.is_set(class::IDENTITY, 1, 7) => Some(vec![0x90]),
+            (Fault::UnknownInstanceAsUnknownAttribute, 0x16, _)
+                if req.class() == class::IDENTITY && req.instance() != 1 =>
+            {
+                Some(vec![0x94, 0x14, 0xFF])
+            }
+            (Fault::UnsupportedServiceAsUnknownAttribute, 0x08, _) if req.port == Port::Explicit => {
+                Some(vec![0x94, 0x14, 0xFF])
+            }
+            _ => None,
+        }
+    }
+}
+
+impl SimDevice for MutantDevice {
+    fn mac(&self) -> MacId {
+        self.inner.mac()
+    }
+
+    fn power_on(&mut self, now: Instant) {
+        self.now = now;
+        self.inner.power_on(now);
+    }
+
+    fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
+        self.now = now;
+        if let Some(f) = self.receive(frame) {
+            self.inner.handle_frame(&f, now);
+        }
+    }
+
+    fn handle_timeout(&mut self, now: Instant) {
+        self.now = now;
+        if self.inner.poll_at().is_some_and(|at| at <= now) {
+            self.inner.handle_timeout(now);
+        }
+    }
+
+    fn poll_transmit(&mut self) -> Option<CanFrame> {
+        while let Some(f) = self.inner.poll_transmit() {
+            if let Some(timed) = self.transmit(f) {
+                self.out.push_back(timed);
+            }
+        }
+        // Delayed frames wait; the others go in order.
+        let due = self.out.iter().position(|&(at, _)| at <= self.now)?;
+        self.out.remove(due).map(|(_, f)| f)
+    }
+
+    fn poll_at(&self) -> Option<Instant> {
+        let held = self.out.iter().map(|&(at, _)| at).min();
+        [self.inner.poll_at(), held].into_iter().flatten().min()
+    }
+
+    fn handle_bus_off(&mut self, now: Instant) {
+        self.now = now;
+        self.out.clear();
+        self.inner.handle_bus_off(now);
+    }
+}

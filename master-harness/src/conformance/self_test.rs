@@ -1,0 +1,314 @@
+//! `dnet-master --bus sim conformance --self-test`: proves that every check of the suite can fail.
+//!
+//! The suite runs on the simulated bus against the reference soft slave (every check must pass or
+//! be advisory), then against each mutant of [`MUTANTS`] (the reference device with one deliberate
+//! fault, [`super::mutants`]), and the result is a matrix, check × mutant: which checks failed
+//! against which mutant. The self-test passes only when
+//!
+//! - the reference device passes (no check fails, the run completes),
+//! - every mutant fails its target check ("caught"), and
+//! - every check of the suite fails against at least one mutant.
+//!
+//! A check that no mutant makes fail is one that has only ever been seen to pass: nobody can tell
+//! it apart from a check that cannot fail.
+//!
+//! ```
+//! use master_core::master::MasterConfig;
+//! use master_harness::conformance::self_test;
+//! use can_io::bus::Bitrate;
+//!
+//! let report = self_test::run(MasterConfig::default(), Bitrate::K250, &mut ()).unwrap();
+//! assert!(report.passed(), "{:?}", report.uncaught_checks());
+//! ```
+
+use super::mutants::{Mutant, MUTANTS};
+use super::{run as run_suite, Grade, SuiteOptions, SuiteReport};
+use crate::error::HarnessError;
+use can_io::bus::Bitrate;
+use can_io::sim::{PowerOn, SimBus, SimDevice};
+use converter_sim::device::SoftSlave;
+use devicenet::MacId;
+use master_core::master::MasterConfig;
+use master_core::session::Session;
+use serde_json::{json, Value};
+use std::io::{self, Write};
+
+/// The MAC of the device under test in the self-test.
+pub const DEVICE_MAC: u8 = 5;
+
+/// The suite's run against one device: what failed, what was advisory, whether it completed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunSummary {
+    /// The checks run, in order.
+    pub checks: Vec<&'static str>,
+    /// The checks that failed.
+    pub failed: Vec<&'static str>,
+    /// The checks graded advisory.
+    pub advisory: Vec<&'static str>,
+    /// Why the run ended early, if it did.
+    pub stopped: Option<String>,
+    /// Frames of the run.
+    pub frames: usize,
+    /// For each failed check, the texts of its failed expectations.
+    pub findings: Vec<(&'static str, Vec<String>)>,
+}
+
+impl RunSummary {
+    fn of(report: &SuiteReport) -> RunSummary {
+        let ids = |g: Grade| report.checks.iter().filter(|c| c.grade == g).map(|c| c.id).collect();
+        RunSummary {
+            checks: report.checks.iter().map(|c| c.id).collect(),
+            failed: ids(Grade::Fail),
+            advisory: ids(Grade::Advisory),
+            stopped: report.stopped.as_ref().map(|s| s.text()),
+            frames: report.records.len(),
+            findings: report
+                .checks
+                .iter()
+                .filter(|c| c.grade == Grade::Fail)
+                .map(|c| {
+                    let texts = c.expectations.iter().filter(|e| e.grade == Grade::Fail).map(|e| e.text.clone());
+                    (c.id, texts.collect())
+                })
+                .collect(),
+        }
+    }
+}
+
+/// One mutant and how the suite judged it.
+#[derive(Clone, Debug)]
+pub struct MutantOutcome {
+    /// The mutant.
+    pub mutant: &'static Mutant,
+    /// The suite's run against it.
+    pub run: RunSummary,
+}
+
+impl MutantOutcome {
+    /// Its target check failed.
+    pub fn caught(&self) -> bool {
+        self.run.failed.contains(&self.mutant.target)
+    }
+
+    /// Why its target check failed: the texts of the failed expectations.
+    pub fn evidence(&self) -> &[String] {
+        self.run.findings.iter().find(|(c, _)| *c == self.mutant.target).map_or(&[], |(_, t)| t.as_slice())
+    }
+}
+
+/// The whole self-test.
+#[derive(Clone, Debug)]
+pub struct SelfTestReport {
+    /// The suite against the reference device.
+    pub reference: RunSummary,
+    /// The suite against each mutant, in [`MUTANTS`] order.
+    pub mutants: Vec<MutantOutcome>,
+}
+
+impl SelfTestReport {
+    /// The checks of the suite, in order (as run against the reference device).
+    pub fn checks(&self) -> &[&'static str] {
+        &self.reference.checks
+    }
+
+    /// The mutants against which `check` failed.
+    pub fn caught_by(&self, check: &str) -> Vec<&'static str> {
+        self.mutants.iter().filter(|m| m.run.failed.contains(&check)).map(|m| m.mutant.id).collect()
+    }
+
+    /// The checks no mutant made fail.
+    pub fn uncaught_checks(&self) -> Vec<&'static str> {
+        self.checks().iter().copied().filter(|c| self.caught_by(c).is_empty()).collect()
+    }
+
+    /// The mutants whose target check did not fail.
+    pub fn surviving_mutants(&self) -> Vec<&'static str> {
+        self.mutants.iter().filter(|m| !m.caught()).map(|m| m.mutant.id).collect()
+    }
+
+    /// The reference device passed the whole suite.
+    pub fn reference_passed(&self) -> bool {
+        self.reference.stopped.is_none() && self.reference.failed.is_empty()
+    }
+
+    /// The self-test passed: the reference passes, every mutant is caught by its target, every
+    /// check is caught by at least one mutant.
+    pub fn passed(&self) -> bool {
+        self.reference_passed() && self.surviving_mutants().is_empty() && self.uncaught_checks().is_empty()
+    }
+}
+
+/// Follows the self-test run by run.
+pub trait SelfTestObserver {
+    /// Run `n` of `total` starts: the reference (`None`) or a mutant.
+    fn start(&mut self, _n: usize, _total: usize, _mutant: Option<&Mutant>) {}
+}
+
+impl SelfTestObserver for () {}
+
+/// The suite on a fresh simulated bus at `bitrate` with `device` at [`DEVICE_MAC`].
+fn run_against(
+    device: Box<dyn SimDevice>,
+    config: MasterConfig,
+    bitrate: Bitrate,
+) -> Result<RunSummary, HarnessError> {
+    let mut bus = SimBus::new(bitrate);
+    bus.attach(device, PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let report = run_suite(&mut session, config, &SuiteOptions::new(device_mac()))?;
+    Ok(RunSummary::of(&report))
+}
+
+fn device_mac() -> MacId {
+    MacId::from_low_bits(DEVICE_MAC)
+}
+
+/// Runs the suite against the reference device and every mutant, as a master with `config`.
+pub fn run(
+    config: MasterConfig,
+    bitrate: Bitrate,
+    observer: &mut dyn SelfTestObserver,
+) -> Result<SelfTestReport, HarnessError> {
+    if config.mac == device_mac() {
+        return Err(HarnessError::Usage(format!(
+            "the self-test's device is at MAC {DEVICE_MAC}: give the master another MAC (--master-mac)"
+        )));
+    }
+    let total = MUTANTS.len() + 1;
+    observer.start(1, total, None);
+    let reference = run_against(Box::new(SoftSlave::reference(device_mac())), config.clone(), bitrate)?;
+    let mut mutants = Vec::new();
+    for (k, mutant) in MUTANTS.iter().enumerate() {
+        observer.start(k + 2, total, Some(mutant));
+        let run = run_against(Box::new(mutant.device(device_mac())), config.clone(), bitrate)?;
+        mutants.push(MutantOutcome { mutant, run });
+    }
+    Ok(SelfTestReport { reference, mutants })
+}
+
+/// The terminal report: the reference run, each mutant with what it made fail, each check with
+/// the mutants that catch it, and the verdict.
+pub fn write_text(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()> {
+    let r = &report.reference;
+    writeln!(
+        out,
+        "reference device (MAC {DEVICE_MAC}): {} checks, {} fail, {} advisory{}",
+        r.checks.len(),
+        r.failed.len(),
+        r.advisory.len(),
+        r.stopped.as_ref().map(|s| format!(", stopped: {s}")).unwrap_or_default()
+    )?;
+    if !r.failed.is_empty() {
+        writeln!(out, "  FAILED against the reference device: {}", r.failed.join(", "))?;
+    }
+    writeln!(out, "\nmutants ({}): each must fail its target check", report.mutants.len())?;
+    let width = report.mutants.iter().map(|m| m.mutant.id.len()).max().unwrap_or(0);
+    for m in &report.mutants {
+        let others: Vec<&str> = m.run.failed.iter().copied().filter(|c| *c != m.mutant.target).collect();
+        writeln!(
+            out,
+            "  {:<6} {:<width$}  {} -> {}{}",
+            if m.caught() { "caught" } else { "ALIVE" },
+            m.mutant.id,
+            m.mutant.fault,
+            m.mutant.target,
+            if others.is_empty() { String::new() } else { format!(" (also fails: {})", others.join(", ")) },
+        )?;
+        if let Some(first) = m.evidence().first() {
+            writeln!(out, "  {:<6} {:<width$}  {first}", "", "")?;
+        }
+    }
+    writeln!(out, "\nchecks ({}): each must fail against at least one mutant", report.checks().len())?;
+    let width = report.checks().iter().map(|c| c.len()).max().unwrap_or(0);
+    for check in report.checks() {
+        let by = report.caught_by(check);
+        writeln!(
+            out,
+            "  {:<9} {check:<width$}  {}",
+            if by.is_empty() { "NOT CAUGHT" } else { "caught" },
+            if by.is_empty() { "no mutant makes it fail".to_string() } else { by.join(", ") }
+        )?;
+    }
+    let surviving = report.surviving_mutants();
+    let uncaught = report.uncaught_checks();
+    writeln!(
+        out,
+        "\nself-test: {} of {} checks caught, {} of {} mutants caught by their target, reference {}",
+        report.checks().len() - uncaught.len(),
+        report.checks().len(),
+        report.mutants.len() - surviving.len(),
+        report.mutants.len(),
+        if report.reference_passed() { "passes" } else { "FAILS" },
+    )?;
+    if !uncaught.is_empty() {
+        writeln!(out, "checks no mutant makes fail: {}", uncaught.join(", "))?;
+    }
+    if !surviving.is_empty() {
+        writeln!(out, "mutants their target check does not catch: {}", surviving.join(", "))?;
+    }
+    writeln!(out, "result: {}", if report.passed() { "every check can fail" } else { "FAILED" })
+}
+
+/// The JSON document: the reference run, every mutant, and per check the mutants that catch it.
+pub fn report_json(report: &SelfTestReport) -> Value {
+    let run = |r: &RunSummary| {
+        json!({
+            "checks": r.checks.len(),
+            "failed": r.failed,
+            "advisory": r.advisory,
+            "stopped": r.stopped,
+            "frames": r.frames,
+        })
+    };
+    json!({
+        "ok": report.passed(),
+        "reference": {
+            "mac": DEVICE_MAC,
+            "passed": report.reference_passed(),
+            "run": run(&report.reference),
+        },
+        "mutants": report.mutants.iter().map(|m| json!({
+            "id": m.mutant.id,
+            "fault": m.mutant.fault,
+            "target": m.mutant.target,
+            "caught": m.caught(),
+            "evidence": m.evidence(),
+            "run": run(&m.run),
+        })).collect::<Vec<_>>(),
+        "checks": report.checks().iter().map(|c| json!({
+            "id": c,
+            "caught_by": report.caught_by(c),
+        })).collect::<Vec<_>>(),
+        "uncaught_checks": report.uncaught_checks(),
+        "surviving_mutants": report.surviving_mutants(),
+    })
+}
+
+/// The matrix as the README shows it (Markdown): per check, the mutants that make it fail; per
+/// mutant, its fault and every check that fails against it.
+pub fn markdown(report: &SelfTestReport) -> String {
+    let mut s = String::new();
+    s.push_str("| check | caught by (mutants against which it fails) |\n|---|---|\n");
+    for check in report.checks() {
+        let by = report.caught_by(check);
+        let cell = if by.is_empty() {
+            "**not caught**".to_string()
+        } else {
+            by.iter().map(|m| format!("`{m}`")).collect::<Vec<_>>().join(", ")
+        };
+        s.push_str(&format!("| `{check}` | {cell} |\n"));
+    }
+    s.push_str("\n| mutant | fault | target | checks that fail |\n|---|---|---|---|\n");
+    for m in &report.mutants {
+        let failed = m.run.failed.iter().map(|c| format!("`{c}`")).collect::<Vec<_>>().join(", ");
+        s.push_str(&format!(
+            "| `{}` | {} | `{}` {} | {} |\n",
+            m.mutant.id,
+            m.mutant.fault,
+            m.mutant.target,
+            if m.caught() { "caught" } else { "**alive**" },
+            failed
+        ));
+    }
+    s
+}
