@@ -1,16 +1,16 @@
-//! The conformance suite against the soft slave passes; deliberately broken devices fail the check
-//! that names their fault.
+//! The conformance suite against the soft slave passes; every check fails against a mutant device
+//! with the fault it tests (`conformance --self-test`).
 
 use can_io::bus::Bitrate;
-use can_io::sim::{PowerOn, SimBus, SimDevice};
-use converter_sim::device::SoftSlave;
-use devicenet::{CanFrame, Instant, MacId};
+use can_io::sim::{PowerOn, SimBus};
+use devicenet::MacId;
 use master_core::master::MasterConfig;
 use master_core::session::Session;
 use master_harness::cli::{run, run_with};
+use master_harness::conformance::mutants::{self, Mutant, MUTANTS};
+use master_harness::conformance::self_test::{self, SelfTestReport};
 use master_harness::conformance::{self, Category, Grade, Observer, Stopped, SuiteOptions, SuiteReport};
 use master_harness::console::Console;
-use std::collections::VecDeque;
 use system_tests::{mac, sim_bus};
 
 fn suite(bus: &mut can_io::sim::SimBus, target: MacId) -> SuiteReport {
@@ -31,15 +31,23 @@ fn the_soft_slave_passes() {
     assert_eq!(report.checks[0].id, "bring-up");
     assert_eq!(report.checks[0].grade, Grade::Pass);
     assert_eq!(report.frames_of(&report.checks[0]).len(), 28, "the 28-frame bring-up first");
-    // The one advisory: the §3.4 row no master can provoke.
+    // No advisory against the reference device.
     let advisory: Vec<&str> =
         report.checks.iter().filter(|c| c.grade == Grade::Advisory).map(|c| c.id).collect();
-    assert_eq!(advisory, ["alloc-resource-unavailable"]);
-    // Every row of §3.4 has its check.
-    for row in 1..=11 {
+    assert!(advisory.is_empty(), "{advisory:?}");
+    // Every row of §3.4 has its check, but row 11, which no master can provoke: the reports say so.
+    for row in 1..=10 {
         let tag = format!("§3.4 row {row}");
         assert!(report.checks.iter().any(|c| c.section.contains(&tag)), "{tag}");
     }
+    assert!(!report.checks.iter().any(|c| c.section.contains("§3.4 row 11")));
+    assert_eq!(conformance::NOT_EXERCISED[0].section, "§3.4 row 11");
+    assert!(String::from_utf8_lossy(&text).contains(
+        "not checked: §3.4 row 11 (resources for the requested connections unavailable: 0x02/0x04)"
+    ));
+    assert_eq!(conformance::report_json(&report)["not_exercised"][0]["section"], "§3.4 row 11");
+    assert!(conformance::html::render(&report)
+        .contains("Not checked: Predefined Master/Slave Connection Set: Allocate/Release row 11"));
     // Every category ran.
     for cat in Category::ALL {
         assert!(report.checks.iter().any(|c| c.category == cat), "{cat:?}");
@@ -94,7 +102,7 @@ fn no_device_stops_after_the_bring_up_and_exits_1() {
     let (out, err) = (String::from_utf8_lossy(&out), String::from_utf8_lossy(&err));
     assert_eq!(code, 1, "{out}\n{err}");
     assert!(err.contains("error: no device answers at MAC 9"), "{err}");
-    assert!(out.contains("FAIL      bring-up") && out.contains("1 of 43 checks run"), "{out}");
+    assert!(out.contains("FAIL      bring-up") && out.contains("1 of 42 checks run"), "{out}");
     assert!(!out.contains("dup-mac-answer"), "no other check ran:\n{out}");
     // The bring-up alone: the master's network access, the UCMM probes, the allocate.
     let frames = std::fs::read_to_string(&log).unwrap().lines().count();
@@ -224,8 +232,11 @@ fn each_verdict_is_reported_as_its_check_is_judged() {
 
 #[test]
 fn the_html_report_stands_alone_and_names_the_failed_check() {
-    let tx = |f: &CanFrame, _: &mut u32| !(is_dup_mac(f) && f.data()[0] & 0x80 != 0);
-    let (failed, report) = failing(Broken::new(keep_rx, tx, no_answer));
+    let mut bus = SimBus::new(Bitrate::K250);
+    let device = mutants::find("does-not-defend-mac").unwrap().device(mac(5));
+    bus.attach(Box::new(device), PowerOn::WhenMasterOnline);
+    let report = suite(&mut bus, mac(5));
+    let failed: Vec<&str> = report.checks.iter().filter(|c| c.grade == Grade::Fail).map(|c| c.id).collect();
     assert_eq!(failed, ["dup-mac-answer"]);
     let page = conformance::html::render(&report);
     let head = &page[..page.find("<h2>Verdicts").unwrap()];
@@ -276,7 +287,7 @@ fn a_stop_ends_the_run_with_the_checks_completed_and_releases_the_device() {
     let mut text = Vec::new();
     conformance::write_text(&mut text, &report, false).unwrap();
     let text = String::from_utf8(text).unwrap();
-    assert!(text.contains("result: interrupted by SIGINT: 8 of 43 checks completed"), "{text}");
+    assert!(text.contains("result: interrupted by SIGINT: 8 of 42 checks completed"), "{text}");
     let page = conformance::html::render(&report);
     assert!(page.contains("INTERRUPTED") && page.contains("interrupted by SIGINT"));
     assert_eq!(conformance::report_json(&report)["interrupted"], "SIGINT");
@@ -320,128 +331,144 @@ fn sigint_during_the_command_exits_130_with_a_partial_report() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A soft slave with a fault of its own: incoming frames may be rewritten, outgoing ones dropped,
-/// and extra frames answered.
-struct Broken {
-    inner: SoftSlave,
-    /// Rewrites (or drops, `None`) each received frame.
-    rx: fn(&CanFrame) -> Option<CanFrame>,
-    /// Keeps (`true`) or drops each transmitted frame; gets the count of dup-MAC requests so far.
-    tx: fn(&CanFrame, &mut u32) -> bool,
-    /// Extra frames answered to a received one.
-    answer: fn(&CanFrame) -> Option<CanFrame>,
-    extra: VecDeque<CanFrame>,
-    count: u32,
+// ----- every check can fail (conformance --self-test) -----------------------------------------
+
+fn self_test() -> SelfTestReport {
+    self_test::run(MasterConfig::default(), Bitrate::K250, &mut ()).unwrap()
 }
 
-impl Broken {
-    fn new(
-        rx: fn(&CanFrame) -> Option<CanFrame>,
-        tx: fn(&CanFrame, &mut u32) -> bool,
-        answer: fn(&CanFrame) -> Option<CanFrame>,
-    ) -> Broken {
-        Broken { inner: SoftSlave::reference(mac(5)), rx, tx, answer, extra: VecDeque::new(), count: 0 }
+#[test]
+fn every_check_fails_against_a_mutant_and_every_mutant_is_caught_by_its_target() {
+    let report = self_test();
+    let mut text = Vec::new();
+    self_test::write_text(&mut text, &report).unwrap();
+    let text = String::from_utf8(text).unwrap();
+    println!("{text}");
+    assert!(report.reference_passed());
+    assert_eq!(report.checks().len(), conformance::CHECKS);
+    assert_eq!(report.mutants.len(), MUTANTS.len());
+    assert!(report.uncaught_checks().is_empty(), "{:?}", report.uncaught_checks());
+    assert!(report.surviving_mutants().is_empty(), "{:?}", report.surviving_mutants());
+    assert!(report.passed());
+    // Each mutant fails its target with a finding, and each target is a check of the suite.
+    for m in &report.mutants {
+        assert!(
+            report.checks().contains(&m.mutant.target),
+            "{}: unknown target {}",
+            m.mutant.id,
+            m.mutant.target
+        );
+        assert!(!m.evidence().is_empty(), "{}", m.mutant.id);
+        assert!(m.run.stopped.is_none(), "{}: {:?}", m.mutant.id, m.run.stopped);
     }
+    assert!(text.ends_with("result: every check can fail\n"), "{text}");
 }
 
-impl SimDevice for Broken {
-    fn mac(&self) -> MacId {
-        self.inner.mac()
-    }
-    fn power_on(&mut self, now: Instant) {
-        self.inner.power_on(now);
-    }
-    fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
-        if let Some(a) = (self.answer)(frame) {
-            self.extra.push_back(a);
-        }
-        if let Some(f) = (self.rx)(frame) {
-            self.inner.handle_frame(&f, now);
-        }
-    }
-    fn handle_timeout(&mut self, now: Instant) {
-        self.inner.handle_timeout(now);
-    }
-    fn poll_transmit(&mut self) -> Option<CanFrame> {
-        if let Some(f) = self.extra.pop_front() {
-            return Some(f);
-        }
-        loop {
-            let f = self.inner.poll_transmit()?;
-            if (self.tx)(&f, &mut self.count) {
-                return Some(f);
-            }
-        }
-    }
-    fn poll_at(&self) -> Option<Instant> {
-        self.inner.poll_at()
-    }
-}
-
-fn keep_rx(f: &CanFrame) -> Option<CanFrame> {
-    Some(*f)
-}
-fn keep_tx(_: &CanFrame, _: &mut u32) -> bool {
-    true
-}
-fn no_answer(_: &CanFrame) -> Option<CanFrame> {
-    None
-}
-fn is_dup_mac(f: &CanFrame) -> bool {
-    f.id().as_raw() == 0x42F
-}
-
-fn failing(device: Broken) -> (Vec<&'static str>, SuiteReport) {
+#[rstest::rstest]
+#[case::ucmm("answers-ucmm", &["ucmm-silent"])]
+#[case::second_dup_mac("skips-second-dup-mac", &["dup-mac-startup"])]
+#[case::defence("does-not-defend-mac", &["dup-mac-answer"])]
+#[case::any_master("serves-any-master", &["non-owner-ignored"])]
+#[case::choice_zero("accepts-choice-zero", &["alloc-choice-zero"])]
+#[case::group2_only("group2-only-no-additional-code", &["group2-only-invalid-service"])]
+#[case::repeat("no-reack-of-repeat", &["duplicate-fragment"])]
+#[case::gaa("short-attributes-all", &["identity-attributes"])]
+#[case::watchdog("watchdog-3x-epr", &["watchdog-poll-timed-out", "watchdog-poll-auto-delete", "watchdog-explicit-auto-delete"])]
+#[case::auto_reset("auto-reset-as-auto-delete", &["watchdog-poll-auto-reset"])]
+#[case::idle("stops-after-idle-poll", &["idle-poll"])]
+fn a_narrow_fault_fails_exactly_the_checks_that_test_it(#[case] id: &str, #[case] expected: &[&str]) {
+    let mutant = mutants::find(id).unwrap();
     let mut bus = SimBus::new(Bitrate::K250);
-    bus.attach(Box::new(device), PowerOn::WhenMasterOnline);
+    bus.attach(Box::new(mutant.device(mac(5))), PowerOn::WhenMasterOnline);
     let report = suite(&mut bus, mac(5));
-    let ids = report.checks.iter().filter(|c| c.grade == Grade::Fail).map(|c| c.id).collect();
-    (ids, report)
+    let failed: Vec<&str> = report.checks.iter().filter(|c| c.grade == Grade::Fail).map(|c| c.id).collect();
+    assert_eq!(
+        failed,
+        expected,
+        "{:#?}",
+        report.checks.iter().filter(|c| c.grade == Grade::Fail).collect::<Vec<_>>()
+    );
+    assert!(report.stopped.is_none());
 }
 
 #[test]
-fn a_device_answering_ucmm_fails_ucmm_silent() {
-    // Answers every UCMM request to it with an open response (0x745).
-    let answer = |f: &CanFrame| {
-        (f.id().as_raw() == 0x780 && f.data().first() == Some(&0x05))
-            .then(|| CanFrame::from_raw(0x745, &[0x00, 0xCB, 0x00, 0x34, 0x05, 0x00]).unwrap())
-    };
-    let (failed, _) = failing(Broken::new(keep_rx, keep_tx, answer));
-    assert_eq!(failed, ["ucmm-silent"]);
+fn the_self_test_fails_when_a_check_is_caught_by_no_mutant() {
+    // With only two mutants, every check but theirs is caught by none.
+    let some: Vec<&Mutant> =
+        ["answers-ucmm", "does-not-defend-mac"].iter().map(|id| mutants::find(id).unwrap()).collect();
+    let report = self_test::run_mutants(MasterConfig::default(), Bitrate::K250, &some, &mut ()).unwrap();
+    assert!(report.reference_passed());
+    assert!(!report.passed());
+    let uncaught = report.uncaught_checks();
+    assert!(
+        uncaught.contains(&"duplicate-fragment") && uncaught.contains(&"out-of-sequence-fragment"),
+        "{uncaught:?}"
+    );
+    assert!(!uncaught.contains(&"ucmm-silent") && !uncaught.contains(&"dup-mac-answer"));
+    assert_eq!(uncaught.len(), conformance::CHECKS - 2);
+    assert!(report.surviving_mutants().is_empty());
+    let v = self_test::report_json(&report);
+    assert_eq!(v["ok"], false);
+    assert!(v["uncaught_checks"].as_array().unwrap().iter().any(|c| c == "duplicate-fragment"));
+    let dup = v["checks"].as_array().unwrap().iter().find(|c| c["id"] == "duplicate-fragment").unwrap();
+    assert_eq!(dup["caught_by"], serde_json::json!([]));
+    let mut text = Vec::new();
+    self_test::write_text(&mut text, &report).unwrap();
+    let text = String::from_utf8(text).unwrap();
+    assert!(text.contains("NOT CAUGHT duplicate-fragment"), "{text}");
+    assert!(text.ends_with("result: FAILED\n"), "{text}");
 }
 
 #[test]
-fn a_device_skipping_its_second_duplicate_mac_request_fails_dup_mac_startup() {
-    let tx = |f: &CanFrame, n: &mut u32| {
-        if is_dup_mac(f) && f.data()[0] & 0x80 == 0 {
-            *n += 1;
-            return *n != 2;
-        }
-        true
-    };
-    let (failed, report) = failing(Broken::new(keep_rx, tx, no_answer));
-    assert_eq!(failed, ["dup-mac-startup"], "{:#?}", report.check("dup-mac-startup"));
+fn the_self_test_command_prints_the_matrix_and_its_json_lists_the_catchers_of_each_check() {
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = run(["dnet-master", "--bus", "sim", "conformance", "--self-test"], &mut out, &mut err, false);
+    let text = String::from_utf8_lossy(&out);
+    assert_eq!(code, 0, "{text}{}", String::from_utf8_lossy(&err));
+    assert!(text.contains("caught answers-ucmm"), "{text}");
+    assert!(text.contains("self-test: 42 of 42 checks caught"), "{text}");
+
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = run(["dnet-master", "--json", "conformance", "--self-test"], &mut out, &mut err, false);
+    assert_eq!(code, 0, "{}", String::from_utf8_lossy(&err));
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    assert_eq!(v["ok"], true);
+    assert_eq!(v["reference"]["passed"], true);
+    let checks = v["checks"].as_array().unwrap();
+    assert_eq!(checks.len(), conformance::CHECKS);
+    let ucmm = checks.iter().find(|c| c["id"] == "ucmm-silent").unwrap();
+    assert!(ucmm["caught_by"].as_array().unwrap().iter().any(|m| m == "answers-ucmm"), "{ucmm}");
+    let m = v["mutants"].as_array().unwrap().iter().find(|m| m["id"] == "answers-ucmm").unwrap();
+    assert_eq!(m["caught"], true);
+    assert_eq!(m["target"], "ucmm-silent");
+    assert!(m["evidence"][0].as_str().unwrap().contains("answered a UCMM open"), "{m}");
+}
+
+#[rstest::rstest]
+#[case::slcan(&["--bus", "slcan:/dev/null", "conformance", "--self-test"], "needs --bus sim")]
+#[case::log(&["--log", "x.log", "conformance", "--self-test"], "--log has no meaning with --self-test")]
+#[case::mac(&["conformance", "--self-test", "--mac", "7"], "cannot be used with")]
+#[case::markdown_json(&["--json", "conformance", "--self-test", "--markdown"], "choose one")]
+#[case::markdown_alone(&["conformance", "--markdown"], "--self-test")]
+fn self_test_usage_errors_exit_2(#[case] args: &[&str], #[case] message: &str) {
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = run(std::iter::once("dnet-master").chain(args.iter().copied()), &mut out, &mut err, false);
+    let err = String::from_utf8_lossy(&err);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains(message), "{err}");
 }
 
 #[test]
-fn a_device_not_defending_its_mac_fails_dup_mac_answer() {
-    let tx = |f: &CanFrame, _: &mut u32| !(is_dup_mac(f) && f.data()[0] & 0x80 != 0);
-    let (failed, _) = failing(Broken::new(keep_rx, tx, no_answer));
-    assert_eq!(failed, ["dup-mac-answer"]);
-}
-
-#[test]
-fn a_device_serving_any_master_fails_non_owner_ignored() {
-    // Takes every explicit request as if it came from the owner (master MAC 0).
-    let rx = |f: &CanFrame| {
-        let mut data = f.data().to_vec();
-        if f.id().as_raw() == 0x42C {
-            if let Some(h) = data.first_mut() {
-                *h &= 0xC0;
-            }
-        }
-        CanFrame::from_raw(f.id().as_raw(), &data).ok()
-    };
-    let (failed, _) = failing(Broken::new(rx, keep_tx, no_answer));
-    assert_eq!(failed, ["non-owner-ignored"]);
+fn the_readme_shows_the_current_matrix() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
+    let begin = "<!-- self-test matrix: begin (dnet-master conformance --self-test --markdown) -->\n";
+    let end = "<!-- self-test matrix: end -->";
+    let start = readme.find(begin).expect("the README has the self-test matrix") + begin.len();
+    let stop = readme[start..].find(end).expect("its end marker") + start;
+    let shown = &readme[start..stop];
+    let current = self_test::markdown(&self_test());
+    assert!(
+        shown == current,
+        "the README's self-test matrix is out of date: replace it with the output of\n  dnet-master conformance --self-test --markdown\n\n{current}"
+    );
 }

@@ -390,7 +390,7 @@ fn header(s: &mut String, report: &SuiteReport) {
         let _ = write!(
             s,
             "<p class=\"section\">Not checked: {} ({}): {}.</p>",
-            escape(n.section),
+            escape(&clause_names(n.section)),
             escape(n.rule),
             escape(n.why)
         );

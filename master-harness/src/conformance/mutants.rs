@@ -237,7 +237,10 @@ impl LastRequest {
 
     /// Get_Attribute_Single (0x0E) of `class` instance `instance` attribute `attr`.
     fn is_get(&self, class_id: u16, instance: u16, attr: u8) -> bool {
-        self.service() == 0x0E && self.class() == class_id && self.instance() == instance && self.data() == [attr]
+        self.service() == 0x0E
+            && self.class() == class_id
+            && self.instance() == instance
+            && self.data() == [attr]
     }
 
     /// Set_Attribute_Single (0x10) of `class` instance `instance` attribute `attr`.
@@ -250,7 +253,8 @@ impl LastRequest {
 
     /// The choice byte of an Allocate (0x4B) or Release (0x4C) of the DeviceNet object.
     fn choice(&self, service: u8) -> Option<u8> {
-        (self.service() == service && self.class() == class::DEVICENET).then(|| self.data().first().copied())?
+        (self.service() == service && self.class() == class::DEVICENET)
+            .then(|| self.data().first().copied())?
     }
 }
 
@@ -258,7 +262,9 @@ impl LastRequest {
 /// for an error.
 fn response(data: &[u8]) -> Option<Result<&[u8], (u8, u8)>> {
     match data {
-        [h, 0x94, general, rest @ ..] if h & 0x80 == 0 => Some(Err((*general, rest.first().copied().unwrap_or(0xFF)))),
+        [h, 0x94, general, rest @ ..] if h & 0x80 == 0 => {
+            Some(Err((*general, rest.first().copied().unwrap_or(0xFF))))
+        }
         [h, service, rest @ ..] if h & 0x80 == 0 && service & 0x80 != 0 => Some(Ok(rest)),
         _ => None,
     }
@@ -350,7 +356,8 @@ impl MutantDevice {
             Identifier::Group2 { mac: m, message } => (m, message),
             Identifier::Group3 { message, .. } if message == Group3MessageId::UNCONNECTED_REQUEST => {
                 if self.fault == Fault::AnswersUcmm && data.first().map(|d| d & 0x3F) == Some(mac.as_raw()) {
-                    let rsp = Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: mac };
+                    let rsp =
+                        Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: mac };
                     let source = Identifier::decode(frame.id());
                     let master = match source {
                         Identifier::Group3 { source, .. } => source.as_raw(),
@@ -391,11 +398,14 @@ impl MutantDevice {
                     self.last = Some(LastRequest { port, header: header & 0x7F, body: data[2..].to_vec() });
                 }
                 match self.fault {
-                    Fault::DoesNotReacknowledgeRepeat if previous.as_deref() == Some(data) => self.drop_ack = true,
+                    Fault::DoesNotReacknowledgeRepeat if previous.as_deref() == Some(data) => {
+                        self.drop_ack = true
+                    }
                     Fault::AcknowledgesOutOfSequence if kind != FragmentKind::First => {
                         let expected = previous.as_deref().and_then(fragment).map(|(_, c)| next_count(c));
                         if expected.is_some_and(|e| e != count) {
-                            let ack = FragmentByte::new(FragmentKind::Ack, count).map_or(0, FragmentByte::to_byte);
+                            let ack =
+                                FragmentByte::new(FragmentKind::Ack, count).map_or(0, FragmentByte::to_byte);
                             let rsp = self.id(Group2Message::ExplicitResponse);
                             self.answer(build(rsp, &[header, ack, 0]));
                         }
@@ -408,7 +418,7 @@ impl MutantDevice {
         }
         let body = data.get(1..).unwrap_or(&[]).to_vec();
         let mut req = LastRequest { port, header, body };
-        if matches!(req.choice(0x4B), Some(_)) {
+        if req.choice(0x4B).is_some() {
             self.idle_seen = false;
         }
         let rsp = self.id(Group2Message::ExplicitResponse);
@@ -431,9 +441,18 @@ impl MutantDevice {
                     deliver = build(frame.id(), &d);
                 }
             }
-            Fault::AutoDeleteAsTimedOut => deliver = self.rewrite_set(frame, &req, (2, 12), |v| if v == [1] { vec![0] } else { v.to_vec() }),
-            Fault::AutoResetAsAutoDelete => deliver = self.rewrite_set(frame, &req, (2, 12), |v| if v == [2] { vec![1] } else { v.to_vec() }),
-            Fault::DeferredAsAutoDelete => deliver = self.rewrite_set(frame, &req, (1, 12), |v| if v == [3] { vec![1] } else { v.to_vec() }),
+            Fault::AutoDeleteAsTimedOut => {
+                deliver =
+                    self.rewrite_set(frame, &req, (2, 12), |v| if v == [1] { vec![0] } else { v.to_vec() })
+            }
+            Fault::AutoResetAsAutoDelete => {
+                deliver =
+                    self.rewrite_set(frame, &req, (2, 12), |v| if v == [2] { vec![1] } else { v.to_vec() })
+            }
+            Fault::DeferredAsAutoDelete => {
+                deliver =
+                    self.rewrite_set(frame, &req, (1, 12), |v| if v == [3] { vec![1] } else { v.to_vec() })
+            }
             Fault::WatchdogAt3Epr | Fault::ExplicitWatchdogNeverExpires => {
                 for instance in [1u16, 2] {
                     if let (true, [_, lo, hi]) = (req.is_set(class::CONNECTION, instance, 9), req.data()) {
@@ -471,7 +490,9 @@ impl MutantDevice {
     fn poll_command(&mut self, frame: &CanFrame) -> Option<CanFrame> {
         match self.fault {
             Fault::StopsAfterIdlePoll if frame.data().is_empty() => self.idle_seen = true,
-            Fault::PollsWhileConfiguring if self.inner.node().poll_connection().state == ConnectionState::Configuring => {
+            Fault::PollsWhileConfiguring
+                if self.inner.node().poll_connection().state == ConnectionState::Configuring =>
+            {
                 let input = self.inner.node().input().to_vec();
                 let id = Identifier::group1(Group1MessageId::POLL_RESPONSE, self.inner.mac());
                 if input.len() > 8 {
@@ -512,7 +533,8 @@ impl MutantDevice {
                     if let Some(b) = d.first_mut() {
                         let fb = FragmentByte::from_byte(*b);
                         if fb.kind == FragmentKind::Last {
-                            *b = FragmentByte::new(FragmentKind::Last, next_count(fb.count)).map_or(*b, FragmentByte::to_byte);
+                            *b = FragmentByte::new(FragmentKind::Last, next_count(fb.count))
+                                .map_or(*b, FragmentByte::to_byte);
                         }
                     }
                     build(id, &d).map(|f| (now, f))
@@ -550,7 +572,12 @@ impl MutantDevice {
     }
 
     /// A response fragment or acknowledgement from the node.
-    fn transmit_fragment(&mut self, f: CanFrame, kind: FragmentKind, count: u8) -> Option<(Instant, CanFrame)> {
+    fn transmit_fragment(
+        &mut self,
+        f: CanFrame,
+        kind: FragmentKind,
+        count: u8,
+    ) -> Option<(Instant, CanFrame)> {
         let now = self.now;
         let data = f.data();
         let is_gaa = self.last.as_ref().is_some_and(|r| r.service() == 0x01 && r.class() == class::IDENTITY);
@@ -564,7 +591,8 @@ impl MutantDevice {
                 build(f.id(), &[data[0], data[1], 0]).map(|f| (now, f))
             }
             (Fault::WrongLastResponseFragmentCount, FragmentKind::Last) => {
-                let byte = FragmentByte::new(FragmentKind::Last, next_count(count)).map_or(data[1], FragmentByte::to_byte);
+                let byte = FragmentByte::new(FragmentKind::Last, next_count(count))
+                    .map_or(data[1], FragmentByte::to_byte);
                 let mut d = data.to_vec();
                 d[1] = byte;
                 build(f.id(), &d).map(|f| (now, f))
@@ -580,7 +608,9 @@ impl MutantDevice {
                 }
                 Some((now, f))
             }
-            (Fault::SlowExplicitResponses, _) if self.last.as_ref().is_some_and(|r| r.port == Port::Explicit) => {
+            (Fault::SlowExplicitResponses, _)
+                if self.last.as_ref().is_some_and(|r| r.port == Port::Explicit) =>
+            {
                 Some((now + Duration::from_millis(1200), f))
             }
             _ => Some((now, f)),
@@ -601,7 +631,9 @@ impl MutantDevice {
                 let v = u16::from_le_bytes(value.try_into().ok()?);
                 with(v.saturating_sub(1).to_le_bytes().to_vec())
             }
-            Fault::ReservedBodyFormat if req.port == Port::Group2Only && req.choice(0x4B).is_some() => with(vec![4]),
+            Fault::ReservedBodyFormat if req.port == Port::Group2Only && req.choice(0x4B).is_some() => {
+                with(vec![4])
+            }
             Fault::NeverShowsOwned if req.is_get(class::IDENTITY, 1, 5) => {
                 let mut v = value.to_vec();
                 *v.first_mut()? &= !1;
@@ -625,9 +657,9 @@ impl MutantDevice {
                 with(Vec::new())
             }
             Fault::WatchdogAt3Epr | Fault::ExplicitWatchdogNeverExpires => {
-                let instance = [1u16, 2].into_iter().find(|&i| {
-                    req.is_set(class::CONNECTION, i, 9) || req.is_get(class::CONNECTION, i, 9)
-                })?;
+                let instance = [1u16, 2]
+                    .into_iter()
+                    .find(|&i| req.is_set(class::CONNECTION, i, 9) || req.is_get(class::CONNECTION, i, 9))?;
                 let asked = self.epr_asked[usize::from(instance - 1)]?;
                 let v = u16::from_le_bytes(value.try_into().ok()?);
                 // The node's value for what it was given: shown as the EPR the master asked for,
@@ -648,13 +680,23 @@ impl MutantDevice {
             (Fault::AllocatesPollWithoutExplicit, _, _) if allocate == Some(0x02) => allocated,
             (Fault::ReleasesNothing, 0x0B, _) if release.is_some() => Some(vec![0xCC]),
             (Fault::AcceptsChoiceZero, _, _) if allocate == Some(0) => allocated,
-            (Fault::AcceptsAckSuppression, _, _) if allocate.is_some_and(|c| c & 0x40 != 0 && c & 0x30 == 0) => allocated,
-            (Fault::LackingTypeAsUnsupportedService, 0x02, 0x02) if allocate.is_some() => Some(vec![0x94, 0x08, 0xFF]),
+            (Fault::AcceptsAckSuppression, _, _)
+                if allocate.is_some_and(|c| c & 0x40 != 0 && c & 0x30 == 0) =>
+            {
+                allocated
+            }
+            (Fault::LackingTypeAsUnsupportedService, 0x02, 0x02) if allocate.is_some() => {
+                Some(vec![0x94, 0x08, 0xFF])
+            }
             (Fault::AcceptsDoubleAllocation, 0x0B, _) if allocate.is_some() => allocated,
             (Fault::AnswersSecondMaster, 0x0C, _) if allocate.is_some() => allocated,
             (Fault::AcceptsReleaseChoiceZero, _, _) if release == Some(0) => Some(vec![0xCC]),
-            (Fault::LackingReleaseAsAlreadyReleased, 0x02, 0x02) if release.is_some() => Some(vec![0x94, 0x0B, 0x02]),
-            (Fault::Group2OnlyWithoutAdditionalCode, 0x02, 0x03) if req.port == Port::Group2Only => Some(vec![0x94, 0x02, 0xFF]),
+            (Fault::LackingReleaseAsAlreadyReleased, 0x02, 0x02) if release.is_some() => {
+                Some(vec![0x94, 0x0B, 0x02])
+            }
+            (Fault::Group2OnlyWithoutAdditionalCode, 0x02, 0x03) if req.port == Port::Group2Only => {
+                Some(vec![0x94, 0x02, 0xFF])
+            }
             (Fault::ProductNameSettable, 0x0E, _) if req.is_set(class::IDENTITY, 1, 7) => Some(vec![0x90]),
             (Fault::UnknownInstanceAsUnknownAttribute, 0x16, _)
                 if req.class() == class::IDENTITY && req.instance() != 1 =>

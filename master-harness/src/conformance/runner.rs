@@ -476,7 +476,7 @@ impl<'s, 'b> Runner<'s, 'b> {
                 }
             }
             Ok(Reply { body: ReplyBody::Success(d), .. }) => {
-                (format!("{what}: accepted (data {}), expected the error {want}", hex(d)), false)
+                (format!("{what}: accepted ({}), expected the error {want}", data_text(d)), false)
             }
             Err(e) => {
                 (format!("{what}: no answer ({}), expected the error {want}", client_error_text(e)), false)
@@ -743,6 +743,15 @@ impl<'s, 'b> Runner<'s, 'b> {
         self.send(id, frame)?;
         let until = self.now() + wait;
         self.collect(until)
+    }
+}
+
+/// Response data in words: its bytes in hex, or "no data".
+pub(crate) fn data_text(data: &[u8]) -> String {
+    if data.is_empty() {
+        "no data".to_string()
+    } else {
+        format!("data {}", hex(data))
     }
 }
 

@@ -152,7 +152,10 @@ fn epr_round_trip(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessEr
             _ => {
                 c.firm(
                     false,
-                    format!("the Set response carries {} instead of the applied EPR (2 bytes)", hex(&v)),
+                    format!(
+                        "the Set response carries {} instead of the applied EPR (2 bytes)",
+                        super::super::runner::data_text(&v)
+                    ),
                     a.1,
                 );
                 continue;
@@ -302,7 +305,16 @@ fn poll_watchdog(r: &mut Runner<'_, '_>, c: &mut Check, action: u8) -> Result<()
     match action {
         0 => {
             let (before, after) = probe_until(r, from, to, |r| Ok(state(r)? == Ok(4)))?;
-            grade_expiry(c, t0, watchdog, epr_d, r.facts.epr_step, before, after, "poll connection timed out (state 4)");
+            grade_expiry(
+                c,
+                t0,
+                watchdog,
+                epr_d,
+                r.facts.epr_step,
+                before,
+                after,
+                "poll connection timed out (state 4)",
+            );
             if after.is_some() {
                 let until = r.now() + Duration::from_millis(200);
                 let (whole, others) = r.poll_raw(&output, until)?;
@@ -548,7 +560,13 @@ fn non_owner(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> 
             if let Some(i) = rec {
                 r.verdict(i, Verdict::fail("answered a master that does not own the device"));
             }
-            c.firm(false, format!("answered a request with header MAC {second}: {:?}", reply.body), rec);
+            let answer = match &reply.body {
+                ReplyBody::Success(d) => format!("success, {}", super::super::runner::data_text(d)),
+                ReplyBody::Error { general, additional } => {
+                    master_core::decode::error_text(*general, *additional)
+                }
+            };
+            c.firm(false, format!("answered a request with header MAC {second}: {answer}"), rec);
         }
     }
     let a = Runner::outcome(r.get(class::IDENTITY, 1, 1))?;

@@ -119,7 +119,11 @@ fn identity(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
     let mut parts: Vec<Option<Vec<u8>>> = Vec::new();
     let v1 = sized(r, c, Basis::Normative, (id, 1, 1), 2)?;
     if let (Some((v, i)), Some((vendor, _, _))) = (&v1, announced) {
-        c.firm(le(v) == u64::from(vendor), format!("vendor ID equals the duplicate MAC ID check's 0x{vendor:04X}"), *i);
+        c.firm(
+            le(v) == u64::from(vendor),
+            format!("vendor ID equals the duplicate MAC ID check's 0x{vendor:04X}"),
+            *i,
+        );
     }
     parts.push(v1.map(|v| v.0));
     parts.push(sized(r, c, Basis::Normative, (id, 1, 2), 2)?.map(|v| v.0));
@@ -132,7 +136,11 @@ fn identity(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
     parts.push(sized(r, c, Basis::Normative, (id, 1, 5), 2)?.map(|v| v.0));
     let v6 = sized(r, c, Basis::Normative, (id, 1, 6), 4)?;
     if let (Some((v, i)), Some((_, serial, _))) = (&v6, announced) {
-        c.firm(le(v) == u64::from(serial), format!("serial number equals the duplicate MAC ID check's 0x{serial:08X}"), *i);
+        c.firm(
+            le(v) == u64::from(serial),
+            format!("serial number equals the duplicate MAC ID check's 0x{serial:08X}"),
+            *i,
+        );
     }
     parts.push(v6.map(|v| v.0));
     let v7 = r.read(c, Basis::Normative, id, 1, 7)?;
@@ -188,7 +196,8 @@ fn identity(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
 /// Get_Attributes_All of Identity instance 1 (optional, notes §6.2): the attributes concatenated
 /// in order, each whole; `parts` are attributes 1-7 as read with Get_Attribute_Single.
 fn attributes_all(r: &mut Runner<'_, '_>, c: &mut Check, parts: &[Vec<u8>]) -> Result<(), HarnessError> {
-    let a = Runner::outcome(r.request(Port::Explicit, ServiceCode::GetAttributesAll, class::IDENTITY, 1, &[]))?;
+    let a =
+        Runner::outcome(r.request(Port::Explicit, ServiceCode::GetAttributesAll, class::IDENTITY, 1, &[]))?;
     let data = match &a.0 {
         Ok(Reply { body: ReplyBody::Success(d), .. }) => d.clone(),
         Ok(Reply { body: ReplyBody::Error { general: GeneralStatus::ServiceNotSupported, .. }, .. }) => {
@@ -209,7 +218,13 @@ fn attributes_all(r: &mut Runner<'_, '_>, c: &mut Check, parts: &[Vec<u8>]) -> R
     };
     let whole: Vec<u8> = parts.concat();
     // Where each attribute ends in the concatenation: a reply must end on one of these.
-    let ends: Vec<usize> = parts.iter().scan(0, |end, p| { *end += p.len(); Some(*end) }).collect();
+    let ends: Vec<usize> = parts
+        .iter()
+        .scan(0, |end, p| {
+            *end += p.len();
+            Some(*end)
+        })
+        .collect();
     let n = data.len();
     if n >= whole.len() {
         c.firm(
@@ -225,7 +240,9 @@ fn attributes_all(r: &mut Runner<'_, '_>, c: &mut Check, parts: &[Vec<u8>]) -> R
         let k = ends.iter().position(|&e| e == n).map_or(0, |p| p + 1);
         c.advise(
             Basis::Unconfirmed,
-            format!("Get_Attributes_All: {n} bytes, attributes 1-{k} only (the CIP Identity object returns 1-7)"),
+            format!(
+                "Get_Attributes_All: {n} bytes, attributes 1-{k} only (the CIP Identity object returns 1-7)"
+            ),
         );
     } else {
         let inside = ends.iter().position(|&e| e > n).map_or(parts.len(), |p| p + 1);
