@@ -8,7 +8,7 @@
 //!    written is an error at once (exit status 2), and no bus time is spent.
 //! 2. Runs the suite. In text mode each check's verdict line is printed on standard output as soon
 //!    as the check is judged (then the summary at the end); on a terminal a progress line on
-//!    standard error says which check runs and what it waits for (`[12/43] watchdog-poll-timed-out:
+//!    standard error says which check runs and what it waits for (`[12/42] watchdog-poll-timed-out:
 //!    waiting 4 x EPR …`). With `--json` only the final document is printed.
 //! 3. Stops early when no device answers at the MAC after the bring-up (it sent no duplicate MAC ID
 //!    check and did not answer the Allocate through the Group 2 Only port): the error names the

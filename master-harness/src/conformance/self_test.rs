@@ -216,11 +216,12 @@ pub fn write_text(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()
     }
     writeln!(out, "\nmutants ({}): each must fail its target check", report.mutants.len())?;
     let width = report.mutants.iter().map(|m| m.mutant.id.len()).max().unwrap_or(0);
-    for m in &report.mutants {
+    for (k, m) in report.mutants.iter().enumerate() {
         let others: Vec<&str> = m.run.failed.iter().copied().filter(|c| *c != m.mutant.target).collect();
         writeln!(
             out,
-            "  {:<6} {:<width$}  {} -> {}{}",
+            "{:>3} {:<6} {:<width$}  {} -> {}{}",
+            k + 1,
             if m.caught() { "caught" } else { "ALIVE" },
             m.mutant.id,
             m.mutant.fault,
@@ -228,9 +229,10 @@ pub fn write_text(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()
             if others.is_empty() { String::new() } else { format!(" (also fails: {})", others.join(", ")) },
         )?;
         if let Some(first) = m.evidence().first() {
-            writeln!(out, "  {:<6} {:<width$}  {first}", "", "")?;
+            writeln!(out, "    {:<6} {:<width$}  {first}", "", "")?;
         }
     }
+    write_matrix(out, report)?;
     writeln!(out, "\nchecks ({}): each must fail against at least one mutant", report.checks().len())?;
     let width = report.checks().iter().map(|c| c.len()).max().unwrap_or(0);
     for check in report.checks() {
@@ -260,6 +262,40 @@ pub fn write_text(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()
         writeln!(out, "mutants their target check does not catch: {}", surviving.join(", "))?;
     }
     writeln!(out, "result: {}", if report.passed() { "every check can fail" } else { "FAILED" })
+}
+
+/// The matrix, check x mutant: a column per mutant (numbered as listed), `#` where the check is the
+/// mutant's target and fails, `X` where another check fails, `!` where the target check passes
+/// (the mutant is not caught), `.` where the check passes.
+fn write_matrix(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()> {
+    let width = report.checks().iter().map(|c| c.len()).max().unwrap_or(0).max(6);
+    writeln!(
+        out,
+        "\nmatrix, check x mutant (#: its target check fails, X: another check fails, !: its target passes)"
+    )?;
+    for digit in [100, 10, 1] {
+        if report.mutants.len() < digit && digit > 1 {
+            continue;
+        }
+        let row: String = (1..=report.mutants.len())
+            .map(|n| if n >= digit || digit == 1 { char::from(b'0' + (n / digit % 10) as u8) } else { ' ' })
+            .collect();
+        writeln!(out, "  {:<width$}  {row}", if digit == 1 { "mutant" } else { "" })?;
+    }
+    for check in report.checks() {
+        let row: String = report
+            .mutants
+            .iter()
+            .map(|m| match (m.mutant.target == *check, m.run.failed.contains(check)) {
+                (true, true) => '#',
+                (true, false) => '!',
+                (false, true) => 'X',
+                (false, false) => '.',
+            })
+            .collect();
+        writeln!(out, "  {check:<width$}  {row}")?;
+    }
+    Ok(())
 }
 
 /// The JSON document: the reference run, every mutant, and per check the mutants that catch it.
