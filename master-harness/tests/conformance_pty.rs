@@ -3,6 +3,8 @@
 //! passes with its timing checks advisory (the pty buffers frames, so their arrival times say
 //! nothing about the device); an absent device stops the run at once; SIGINT stops the real
 //! `dnet-master` process with exit status 130, its log and report kept and the device released.
+//! Against `dnet-soft-slave --mutant ID` (one deliberate fault, the self-test's mutants on a real
+//! bus) the check that tests the fault fails over SLCAN too, and no other.
 //!
 //! Needs socat and the built programs (`cargo build -p soft-slave -p master-harness`): ignored in
 //! the plain host-test run, run by `scripts/check`; skips with a message without socat, fails in
@@ -115,4 +117,54 @@ fn sigint_stops_the_run_keeps_the_log_and_releases_the_device() {
     };
     assert_eq!(code, 0, "connect after the interrupted run\n{out}\n{err}\n{}", rig.dump());
     assert!(!err.contains("released and allocated again"), "nothing was left allocated: {err}");
+}
+
+/// The failed expectations of a JSON report, one per line.
+fn findings(v: &serde_json::Value) -> String {
+    let mut lines = Vec::new();
+    for c in v["checks"].as_array().into_iter().flatten() {
+        for e in c["expectations"].as_array().into_iter().flatten().filter(|e| e["grade"] == "fail") {
+            lines.push(format!("{}: {}", c["id"], e["text"]));
+        }
+    }
+    lines.join("\n")
+}
+
+/// The suite against `dnet-soft-slave --mutant ID` on the pty pair: the checks that fail.
+fn failed_against_mutant(id: &str) -> (Vec<String>, serde_json::Value, PtyRig) {
+    let rig = PtyRig::breaker_with(
+        &format!("conformance-mutant-{id}"),
+        &["--period", "0.3"],
+        None,
+        &["--mutant", id],
+    );
+    let (code, out, err) = master(&rig, &["--json", "conformance", "--mac", "5"]);
+    assert_eq!(code, 1, "{err}\n{}", rig.dump());
+    let v: serde_json::Value =
+        serde_json::from_str(&out).unwrap_or_else(|e| panic!("{e}\n{out}\n{err}\n{}", rig.dump()));
+    let failed = v["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| c["grade"] == "fail")
+        .map(|c| c["id"].as_str().unwrap().to_string())
+        .collect();
+    (failed, v, rig)
+}
+
+#[test]
+#[ignore = "needs socat: run by scripts/check"]
+fn a_mutant_soft_slave_fails_its_target_check_over_slcan() {
+    if !require_socat() {
+        return;
+    }
+    // Frames added by the fault: an answer to UCMM.
+    let (failed, v, rig) = failed_against_mutant("answers-ucmm");
+    assert_eq!(failed, ["ucmm-silent"], "{}", findings(&v));
+    assert!(rig.slave.as_ref().unwrap().stderr.text().contains("MUTANT answers-ucmm"));
+    let check = v["checks"].as_array().unwrap().iter().find(|c| c["id"] == "ucmm-silent").unwrap();
+    assert!(check["expectations"].to_string().contains("answered a UCMM open"), "{check}");
+    // A frame fed to the node: the acknowledgement it should have waited for.
+    let (failed, v, _rig) = failed_against_mutant("does-not-wait-for-ack");
+    assert_eq!(failed, ["missing-ack"], "{}", findings(&v));
 }

@@ -63,7 +63,7 @@
 mod checks;
 pub mod command;
 pub mod html;
-pub mod mutants;
+pub use converter_sim::mutants;
 pub mod report;
 mod runner;
 pub mod self_test;

@@ -14,6 +14,10 @@
 //!    another node goes to
 //!    [`Converter::handle_can_frame`](slave_fw::converter::Converter::handle_can_frame) at once.
 //!
+//! With a mutant ([`Bridge::set_mutant`], `--mutant`), every frame from the bus passes its
+//! [`FaultHook`] before the converter sees it, and every frame the converter sends passes it before
+//! the bus does (it may rewrite, drop, delay or add frames, or feed the converter a frame).
+//!
 //! The bus reports this program's own frames back ([`Origin::Local`]); they are written to the
 //! log and otherwise ignored. Time is the [`Clock`]'s, the same for the bus side and the serial
 //! threads; bus timestamps are not used.
@@ -24,6 +28,7 @@ use crate::serial::{SerialEvent, SerialLine};
 use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
+use converter_sim::mutants::{FaultHook, Mutant};
 use devicenet::slave::{ConnectionKind, FaultReason};
 use devicenet::{CanFrame, Duration, Event, Instant, MacId};
 use slave_fw::converter::{Converter, ConverterConfig};
@@ -73,6 +78,8 @@ pub struct Bridge {
     last_now: Instant,
     link: LinkState,
     summary: RunSummary,
+    /// The deliberate fault, if any, and its hook (renewed with the converter at a reset).
+    mutant: Option<(&'static Mutant, FaultHook)>,
 }
 
 impl Bridge {
@@ -97,6 +104,7 @@ impl Bridge {
             clock,
             log: None,
             report: Box::new(std::io::sink()),
+            mutant: None,
             last_now: now,
             link,
             summary: RunSummary::default(),
@@ -122,6 +130,11 @@ impl Bridge {
     /// The converter a start or a reset begins with: the stored state on the description.
     fn fresh(&self, now: Instant) -> Result<Converter, SoftSlaveError> {
         Ok(self.state.converter(&self.config, self.mac_override, now)?)
+    }
+
+    /// Runs with `mutant`'s deliberate fault (test equipment: `dnet-soft-slave --mutant`).
+    pub fn set_mutant(&mut self, mutant: &'static Mutant) {
+        self.mutant = Some((mutant, mutant.hook()));
     }
 
     /// Writes every frame seen (received and sent) to `path` in `candump -L` format.
@@ -196,7 +209,8 @@ impl Bridge {
         }
         self.drain(now)?;
         let mut deadline = now + POLL_SLICE;
-        for at in [self.converter.poll_at(), end].into_iter().flatten() {
+        let held = self.mutant.as_ref().and_then(|(_, hook)| hook.poll_at());
+        for at in [self.converter.poll_at(), end, held].into_iter().flatten() {
             deadline = deadline.min(at.max(now));
         }
         // The bus's own clock is only used for its deadline.
@@ -208,7 +222,13 @@ impl Bridge {
             self.log_frame(at, &ev.frame)?;
             if ev.origin == Origin::Remote {
                 self.summary.can_received += 1;
-                self.converter.handle_can_frame(&ev.frame, at);
+                let frame = match &mut self.mutant {
+                    Some((_, hook)) => hook.receive(&ev.frame, at, self.converter.node()),
+                    None => Some(ev.frame),
+                };
+                if let Some(frame) = frame {
+                    self.converter.handle_can_frame(&frame, at);
+                }
                 self.drain(at)?;
             }
         }
@@ -218,8 +238,24 @@ impl Bridge {
     /// Drains the converter: CAN frames, serial bytes, then events.
     fn drain(&mut self, now: Instant) -> Result<(), SoftSlaveError> {
         while let Some(frame) = self.converter.poll_can_transmit() {
-            self.bus.send(&frame)?;
-            self.summary.can_sent += 1;
+            match &mut self.mutant {
+                Some((_, hook)) => {
+                    hook.transmit(frame, now, self.converter.node());
+                    while let Some(fed) = hook.poll_feed() {
+                        self.converter.handle_can_frame(&fed, now);
+                    }
+                }
+                None => {
+                    self.bus.send(&frame)?;
+                    self.summary.can_sent += 1;
+                }
+            }
+        }
+        if let Some((_, hook)) = &mut self.mutant {
+            while let Some(frame) = hook.poll_transmit(now) {
+                self.bus.send(&frame)?;
+                self.summary.can_sent += 1;
+            }
         }
         while let Some(bytes) = self.converter.poll_serial_transmit(now) {
             self.serial.write(bytes);
@@ -247,6 +283,9 @@ impl Bridge {
         // the response), carried out as the board's power cycle.
         if self.converter.poll_reset(now).is_some() {
             self.converter = self.fresh(now)?;
+            if let Some((m, hook)) = &mut self.mutant {
+                *hook = m.hook();
+            }
             self.converter.power_on(now);
             self.summary.resets += 1;
             self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");

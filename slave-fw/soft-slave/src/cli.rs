@@ -61,6 +61,11 @@ pub struct SoftSlaveArgs {
     /// Report nothing but errors (default: events and link changes on stderr).
     #[arg(long, short)]
     pub quiet: bool,
+    /// Run with one deliberate fault: a mutant of `dnet-master conformance --self-test` (e.g.
+    /// `answers-ucmm`), to see that the conformance suite catches it over this bus. Test
+    /// equipment only: never on a plant network.
+    #[arg(long, value_name = "ID", value_parser = converter_sim::mutants::parse)]
+    pub mutant: Option<&'static converter_sim::mutants::Mutant>,
 }
 
 /// `dnet-sim-breaker`: the simulated breaker on a serial port.
@@ -217,8 +222,18 @@ pub fn run_soft_slave(
         settings_text(&serial_settings),
         config.input.instance(),
     );
+    if let Some(m) = args.mutant {
+        let _ = writeln!(
+            report,
+            "dnet-soft-slave: MUTANT {}: {} (the conformance check {} must fail)",
+            m.id, m.fault, m.target
+        );
+    }
     let mut bridge = Bridge::new(base, bus, serial, clock)?;
     bridge.set_state(state, state_file, args.mac)?;
+    if let Some(m) = args.mutant {
+        bridge.set_mutant(m);
+    }
     if let Some((log, path)) = log {
         bridge.set_log(log, &path);
     }

@@ -92,3 +92,11 @@ fn a_missing_serial_port_is_named_with_its_settings() {
         stderr(&o)
     );
 }
+
+#[test]
+fn an_unknown_mutant_is_refused_with_the_list_of_mutants() {
+    let out = soft(&["--bus", "slcan:/dev/null", "--serial", "/dev/null", "--mutant", "nonsense"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = stderr(&out);
+    assert!(err.contains("no mutant \"nonsense\"") && err.contains("answers-ucmm"), "{err}");
+}

@@ -308,13 +308,22 @@ pub struct PtyRig {
 impl PtyRig {
     /// The simulated breaker with `args`, then the soft slave with `config` (None: built-in).
     pub fn breaker(test: &str, args: &[&str], config: Option<&Path>) -> PtyRig {
+        PtyRig::breaker_with(test, args, config, &[])
+    }
+
+    /// [`PtyRig::breaker`], the soft slave started with `extra` arguments from the first (a
+    /// restarted soft slave may leave frames of its first run in the pty).
+    pub fn breaker_with(test: &str, args: &[&str], config: Option<&Path>, extra: &[&str]) -> PtyRig {
         let dir = scratch(test);
         let serial = PtyPair::new();
         let log = dir.join("breaker.log");
         let mut all = vec!["--serial", serial.a.as_str(), "--log", log.to_str().unwrap()];
         all.extend_from_slice(args);
         let instrument = Proc::spawn(bin("dnet-sim-breaker"), &all);
-        PtyRig::with_instrument(dir, serial, instrument, config)
+        let can = PtyPair::new();
+        let mut rig = PtyRig { dir, serial, can, instrument, slave: None };
+        rig.start_slave_with(config, extra);
+        rig
     }
 
     /// tests/modbus/server.py on the serial pty, then the soft slave with `config`.

@@ -1,22 +1,25 @@
-//! Mutant devices for `dnet-master conformance --self-test` ([`super::self_test`]): the reference
-//! soft slave with exactly one deliberate fault each, built as a fault hook around the real node
-//! ([`MutantDevice`]), never as a second implementation of the protocol.
+//! Mutant devices: the reference converter with exactly one deliberate fault each, for
+//! `dnet-master conformance --self-test` (which proves that every conformance check can fail) and
+//! `dnet-soft-slave --mutant ID` (the same faults on a real bus).
 //!
-//! A hook sees every frame the bus delivers to the node and every frame the node transmits, and
-//! may rewrite, drop, delay or add frames, or feed the node a frame of its own. It knows the last
-//! request the node received (to tell which response a frame is) and may read the node's state
-//! (the poll connection's state, its input data, its owner). Everything else is the real node,
-//! so each mutant behaves exactly like the reference device except for its one fault.
+//! A mutant is a fault hook around the real node ([`FaultHook`]), never a second implementation
+//! of the protocol. The hook sees every frame the bus delivers to the node and every frame the
+//! node transmits, and may rewrite, drop, delay or add frames, or feed the node a frame nobody
+//! sent. It knows the last request the node received (to tell which response a frame is) and reads
+//! the node's state (the poll connection's state, the input data, the owner, the EPR resolution).
+//! Everything else is the real node, so a mutant behaves exactly like the reference device but
+//! for its one fault.
 //!
-//! Every check of the suite is the target of at least one mutant ([`MUTANTS`]); the self-test
-//! shows that each target check fails against its mutant, and which other checks fail too.
+//! [`MUTANTS`] lists them, each with the conformance check it targets; [`MutantDevice`] is a
+//! mutant on the simulated bus. Response rewrites assume the 8/8 body format (the one the
+//! reference device's explicit connection uses, notes §3.1).
 
+use crate::device::SoftSlave;
 use can_io::sim::SimDevice;
-use converter_sim::device::SoftSlave;
 use devicenet::fragment::{io_fragments, next_count, FragmentByte, FragmentKind};
 use devicenet::id::{Group1MessageId, Group3MessageId};
 use devicenet::objects::class;
-use devicenet::slave::ConnectionState;
+use devicenet::slave::{ConnectionState, SlaveNode};
 use devicenet::{CanFrame, CanId, Duration, Group2Message, Identifier, Instant, MacId};
 use std::collections::VecDeque;
 
@@ -33,9 +36,14 @@ pub struct Mutant {
 }
 
 impl Mutant {
-    /// The reference soft slave at `mac` with this fault.
+    /// The reference soft slave at `mac` with this fault, for the simulated bus.
     pub fn device(&self, mac: MacId) -> MutantDevice {
-        MutantDevice::new(SoftSlave::reference(mac), self.kind)
+        MutantDevice { inner: SoftSlave::reference(mac), hook: self.hook(), now: Instant::ZERO }
+    }
+
+    /// The fault as a hook around a node of its own (the soft slave's `--mutant`).
+    pub fn hook(&self) -> FaultHook {
+        FaultHook::new(self.kind)
     }
 }
 
@@ -199,6 +207,14 @@ pub fn find(id: &str) -> Option<&'static Mutant> {
     MUTANTS.iter().find(|m| m.id == id)
 }
 
+/// The mutant named `id`, or an error listing every name (for command lines).
+pub fn parse(id: &str) -> Result<&'static Mutant, String> {
+    find(id).ok_or_else(|| {
+        let names: Vec<&str> = MUTANTS.iter().map(|m| m.id).collect();
+        format!("no mutant {id:?}; the mutants are: {}", names.join(", "))
+    })
+}
+
 /// Where a request came in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Port {
@@ -285,13 +301,18 @@ fn build(id: CanId, data: &[u8]) -> Option<CanFrame> {
     CanFrame::new(id, data).ok()
 }
 
-/// The reference node with one fault: see the [module docs](self).
-pub struct MutantDevice {
-    inner: SoftSlave,
+/// One fault around a node: see the [module docs](self). Sans-IO: the caller passes each frame
+/// the bus delivers through [`FaultHook::receive`] before the node sees it, each frame the node
+/// sends through [`FaultHook::transmit`], feeds the node what [`FaultHook::poll_feed`] gives, and
+/// puts on the bus what [`FaultHook::poll_transmit`] gives when [`FaultHook::poll_at`] says.
+#[derive(Clone, Debug)]
+pub struct FaultHook {
     fault: Fault,
     now: Instant,
     /// Frames to put on the bus, each with the time it may go.
     out: VecDeque<(Instant, CanFrame)>,
+    /// Frames to feed the node.
+    feed: VecDeque<CanFrame>,
     last: Option<LastRequest>,
     /// The last request fragment received (its bytes).
     last_fragment: Option<Vec<u8>>,
@@ -306,13 +327,13 @@ pub struct MutantDevice {
     epr_asked: [Option<u16>; 2],
 }
 
-impl MutantDevice {
-    fn new(inner: SoftSlave, fault: Fault) -> MutantDevice {
-        MutantDevice {
-            inner,
+impl FaultHook {
+    fn new(fault: Fault) -> FaultHook {
+        FaultHook {
             fault,
             now: Instant::ZERO,
             out: VecDeque::new(),
+            feed: VecDeque::new(),
             last: None,
             last_fragment: None,
             dup_requests: 0,
@@ -320,6 +341,43 @@ impl MutantDevice {
             idle_seen: false,
             epr_asked: [None; 2],
         }
+    }
+
+    /// A frame the bus delivers at `now`, before `node` sees it: the frame the node gets (`None`:
+    /// withheld). Frames the fault answers itself wait in [`FaultHook::poll_transmit`].
+    pub fn receive(&mut self, frame: &CanFrame, now: Instant, node: &SlaveNode) -> Option<CanFrame> {
+        self.now = now;
+        self.receive_frame(frame, node)
+    }
+
+    /// A frame `node` sends at `now`: it goes out now, later or never through
+    /// [`FaultHook::poll_transmit`].
+    pub fn transmit(&mut self, frame: CanFrame, now: Instant, node: &SlaveNode) {
+        self.now = now;
+        if let Some(timed) = self.transmit_frame(frame, node) {
+            self.out.push_back(timed);
+        }
+    }
+
+    /// A frame to feed the node now, as if it came from the bus (nobody sent it).
+    pub fn poll_feed(&mut self) -> Option<CanFrame> {
+        self.feed.pop_front()
+    }
+
+    /// The next frame due on the bus at `now`. Delayed frames wait; the others go in order.
+    pub fn poll_transmit(&mut self, now: Instant) -> Option<CanFrame> {
+        let due = self.out.iter().position(|&(at, _)| at <= now)?;
+        self.out.remove(due).map(|(_, f)| f)
+    }
+
+    /// When the next held frame falls due.
+    pub fn poll_at(&self) -> Option<Instant> {
+        self.out.iter().map(|&(at, _)| at).min()
+    }
+
+    /// The node's controller went bus-off: what the fault held is lost with its queue.
+    pub fn bus_off(&mut self) {
+        self.out.clear();
     }
 
     /// The EPR the node is given when the master sets `asked` on Connection `instance`.
@@ -331,14 +389,8 @@ impl MutantDevice {
         }
     }
 
-    /// `epr` rounded up to the node's timer resolution, as the node applies it (notes §5.3).
-    fn rounded(&self, epr: u16) -> u16 {
-        let resolution = self.inner.node().config().epr_resolution_ms.max(1);
-        epr.div_ceil(resolution).saturating_mul(resolution)
-    }
-
-    fn id(&self, message: Group2Message) -> CanId {
-        Identifier::group2(self.inner.mac(), message)
+    fn id(node: &SlaveNode, message: Group2Message) -> CanId {
+        Identifier::group2(node.mac_id(), message)
     }
 
     /// Sends `frame` now, ahead of whatever the node sends next.
@@ -348,9 +400,8 @@ impl MutantDevice {
         }
     }
 
-    /// A frame from the bus, before the node sees it: the frame the node gets, if any.
-    fn receive(&mut self, frame: &CanFrame) -> Option<CanFrame> {
-        let mac = self.inner.mac();
+    fn receive_frame(&mut self, frame: &CanFrame, node: &SlaveNode) -> Option<CanFrame> {
+        let mac = node.mac_id();
         let data = frame.data();
         let (to_mac, message) = match Identifier::decode(frame.id()) {
             Identifier::Group2 { mac: m, message } => (m, message),
@@ -379,15 +430,15 @@ impl MutantDevice {
             Group2Message::ExplicitRequest | Group2Message::UnconnectedExplicitRequest => {
                 let port =
                     if message == Group2Message::ExplicitRequest { Port::Explicit } else { Port::Group2Only };
-                self.request(port, frame)
+                self.request(port, frame, node)
             }
-            Group2Message::PollCommand => self.poll_command(frame),
+            Group2Message::PollCommand => self.poll_command(frame, node),
             _ => Some(*frame),
         }
     }
 
     /// An explicit request (or request fragment, or acknowledgement) for the node.
-    fn request(&mut self, port: Port, frame: &CanFrame) -> Option<CanFrame> {
+    fn request(&mut self, port: Port, frame: &CanFrame, node: &SlaveNode) -> Option<CanFrame> {
         let data = frame.data();
         let header = data.first().copied().unwrap_or(0);
         match fragment(data) {
@@ -406,7 +457,7 @@ impl MutantDevice {
                         if expected.is_some_and(|e| e != count) {
                             let ack =
                                 FragmentByte::new(FragmentKind::Ack, count).map_or(0, FragmentByte::to_byte);
-                            let rsp = self.id(Group2Message::ExplicitResponse);
+                            let rsp = Self::id(node, Group2Message::ExplicitResponse);
                             self.answer(build(rsp, &[header, ack, 0]));
                         }
                     }
@@ -421,7 +472,7 @@ impl MutantDevice {
         if req.choice(0x4B).is_some() {
             self.idle_seen = false;
         }
-        let rsp = self.id(Group2Message::ExplicitResponse);
+        let rsp = Self::id(node, Group2Message::ExplicitResponse);
         let mut deliver = Some(*frame);
         match self.fault {
             Fault::KeepsReleasedConnections if port == Port::Explicit && req.choice(0x4C).is_some() => {
@@ -433,7 +484,7 @@ impl MutantDevice {
                 deliver = None;
             }
             Fault::ServesAnyMaster if port == Port::Explicit => {
-                if let (_, Some(owner)) = self.inner.node().allocation() {
+                if let (_, Some(owner)) = node.allocation() {
                     let h = (header & 0xC0) | owner.as_raw();
                     req.header = h;
                     let mut d = data.to_vec();
@@ -487,14 +538,12 @@ impl MutantDevice {
     }
 
     /// A poll command for the node.
-    fn poll_command(&mut self, frame: &CanFrame) -> Option<CanFrame> {
+    fn poll_command(&mut self, frame: &CanFrame, node: &SlaveNode) -> Option<CanFrame> {
         match self.fault {
             Fault::StopsAfterIdlePoll if frame.data().is_empty() => self.idle_seen = true,
-            Fault::PollsWhileConfiguring
-                if self.inner.node().poll_connection().state == ConnectionState::Configuring =>
-            {
-                let input = self.inner.node().input().to_vec();
-                let id = Identifier::group1(Group1MessageId::POLL_RESPONSE, self.inner.mac());
+            Fault::PollsWhileConfiguring if node.poll_connection().state == ConnectionState::Configuring => {
+                let input = node.input().to_vec();
+                let id = Identifier::group1(Group1MessageId::POLL_RESPONSE, node.mac_id());
                 if input.len() > 8 {
                     for part in io_fragments(&input) {
                         self.answer(build(id, &part));
@@ -509,11 +558,11 @@ impl MutantDevice {
     }
 
     /// A frame the node transmits: what goes on the bus (`None`: dropped), and when.
-    fn transmit(&mut self, f: CanFrame) -> Option<(Instant, CanFrame)> {
+    fn transmit_frame(&mut self, f: CanFrame, node: &SlaveNode) -> Option<(Instant, CanFrame)> {
         let now = self.now;
         let id = f.id();
         let data = f.data();
-        if id == self.id(Group2Message::DuplicateMacCheck) {
+        if id == Self::id(node, Group2Message::DuplicateMacCheck) {
             let is_request = data.first().is_some_and(|p| p & 0x80 == 0);
             if is_request {
                 self.dup_requests += 1;
@@ -524,11 +573,11 @@ impl MutantDevice {
                 _ => Some((now, f)),
             };
         }
-        if id == Identifier::group1(Group1MessageId::POLL_RESPONSE, self.inner.mac()) {
+        if id == Identifier::group1(Group1MessageId::POLL_RESPONSE, node.mac_id()) {
             return match self.fault {
                 Fault::StopsAfterIdlePoll if self.idle_seen => None,
                 Fault::SlowPollResponses => Some((now + Duration::from_millis(150), f)),
-                Fault::WrongLastIoFragmentCount if self.inner.node().input().len() > 8 => {
+                Fault::WrongLastIoFragmentCount if node.input().len() > 8 => {
                     let mut d = data.to_vec();
                     if let Some(b) = d.first_mut() {
                         let fb = FragmentByte::from_byte(*b);
@@ -542,16 +591,16 @@ impl MutantDevice {
                 _ => Some((now, f)),
             };
         }
-        if id != self.id(Group2Message::ExplicitResponse) {
+        if id != Self::id(node, Group2Message::ExplicitResponse) {
             return Some((now, f));
         }
         if let Some((kind, count)) = fragment(data) {
-            return self.transmit_fragment(f, kind, count);
+            return self.transmit_fragment(f, kind, count, node);
         }
         let last = self.last.clone();
         let Some(req) = last else { return Some((now, f)) };
         let rewritten = match response(data) {
-            Some(Ok(value)) => self.rewrite_success(&req, value),
+            Some(Ok(value)) => self.rewrite_success(&req, value, node),
             Some(Err((general, additional))) => self.rewrite_error(&req, general, additional),
             None => None,
         };
@@ -577,6 +626,7 @@ impl MutantDevice {
         f: CanFrame,
         kind: FragmentKind,
         count: u8,
+        node: &SlaveNode,
     ) -> Option<(Instant, CanFrame)> {
         let now = self.now;
         let data = f.data();
@@ -603,8 +653,8 @@ impl MutantDevice {
             (Fault::DoesNotWaitForAck, FragmentKind::First | FragmentKind::Middle) => {
                 // The node hears an acknowledgement nobody sent and goes on with the next fragment.
                 let ack = FragmentByte::new(FragmentKind::Ack, count).map_or(0, FragmentByte::to_byte);
-                if let Some(a) = build(self.id(Group2Message::ExplicitRequest), &[data[0], ack, 0]) {
-                    self.inner.handle_frame(&a, now);
+                if let Some(a) = build(Self::id(node, Group2Message::ExplicitRequest), &[data[0], ack, 0]) {
+                    self.feed.push_back(a);
                 }
                 Some((now, f))
             }
@@ -619,7 +669,7 @@ impl MutantDevice {
 
     /// The new body (service code on) of a success response to `req` carrying `value`, if the
     /// fault rewrites it.
-    fn rewrite_success(&mut self, req: &LastRequest, value: &[u8]) -> Option<Vec<u8>> {
+    fn rewrite_success(&mut self, req: &LastRequest, value: &[u8], node: &SlaveNode) -> Option<Vec<u8>> {
         let service = req.service() | 0x80;
         let with = |v: Vec<u8>| {
             let mut b = vec![service];
@@ -664,8 +714,8 @@ impl MutantDevice {
                 let v = u16::from_le_bytes(value.try_into().ok()?);
                 // The node's value for what it was given: shown as the EPR the master asked for,
                 // rounded as the node rounds.
-                (v == self.rounded(self.given_epr(instance, asked))).then(|| self.rounded(asked))?;
-                with(self.rounded(asked).to_le_bytes().to_vec())
+                (v == rounded(node, self.given_epr(instance, asked))).then_some(())?;
+                with(rounded(node, asked).to_le_bytes().to_vec())
             }
             _ => None,
         }
@@ -711,6 +761,19 @@ impl MutantDevice {
     }
 }
 
+/// `epr` rounded up to `node`'s timer resolution, as the node applies it (notes §5.3).
+fn rounded(node: &SlaveNode, epr: u16) -> u16 {
+    let resolution = node.config().epr_resolution_ms.max(1);
+    epr.div_ceil(resolution).saturating_mul(resolution)
+}
+
+/// A mutant on the simulated bus: the reference soft slave behind its [`FaultHook`].
+pub struct MutantDevice {
+    inner: SoftSlave,
+    hook: FaultHook,
+    now: Instant,
+}
+
 impl SimDevice for MutantDevice {
     fn mac(&self) -> MacId {
         self.inner.mac()
@@ -723,7 +786,7 @@ impl SimDevice for MutantDevice {
 
     fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
         self.now = now;
-        if let Some(f) = self.receive(frame) {
+        if let Some(f) = self.hook.receive(frame, now, self.inner.node()) {
             self.inner.handle_frame(&f, now);
         }
     }
@@ -736,24 +799,23 @@ impl SimDevice for MutantDevice {
     }
 
     fn poll_transmit(&mut self) -> Option<CanFrame> {
+        let now = self.now;
         while let Some(f) = self.inner.poll_transmit() {
-            if let Some(timed) = self.transmit(f) {
-                self.out.push_back(timed);
+            self.hook.transmit(f, now, self.inner.node());
+            while let Some(fed) = self.hook.poll_feed() {
+                self.inner.handle_frame(&fed, now);
             }
         }
-        // Delayed frames wait; the others go in order.
-        let due = self.out.iter().position(|&(at, _)| at <= self.now)?;
-        self.out.remove(due).map(|(_, f)| f)
+        self.hook.poll_transmit(now)
     }
 
     fn poll_at(&self) -> Option<Instant> {
-        let held = self.out.iter().map(|&(at, _)| at).min();
-        [self.inner.poll_at(), held].into_iter().flatten().min()
+        [self.inner.poll_at(), self.hook.poll_at()].into_iter().flatten().min()
     }
 
     fn handle_bus_off(&mut self, now: Instant) {
         self.now = now;
-        self.out.clear();
+        self.hook.bus_off();
         self.inner.handle_bus_off(now);
     }
 }
