@@ -17,7 +17,7 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports |
+//! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports; the self-test against mutant devices (`conformance --self-test`) |
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
 //! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
 //! | [`configure`], [`params`] | `configure` (a description downloaded over DeviceNet, read back, applied, checked; `--read` uploads it) and `params` (the Parameter object or an EDS's parameters, read and written) |

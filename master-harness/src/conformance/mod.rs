@@ -42,6 +42,14 @@
 //! Every frame of every check is kept ([`SuiteReport::records`], each check's
 //! [`CheckResult::frames`]) and judged like the rest of the harness's frames.
 //!
+//! ## Every check can fail
+//!
+//! [`self_test`] (`conformance --self-test`) runs the suite against the reference soft slave and
+//! against each of the [`mutants`] (the reference device with one deliberate fault, as a hook
+//! around the real node): the reference must pass, each mutant must fail its target check, and
+//! every check must fail against at least one mutant. A rule no master can provoke is not a check
+//! but a [`NOT_EXERCISED`] entry, named in every report.
+//!
 //! ## Running it
 //!
 //! ```
