@@ -302,14 +302,15 @@ pub enum Command {
         /// The device's MAC ID [default: the --slave-config description's, else 5].
         #[arg(long, value_parser = parse_mac)]
         mac: Option<MacId>,
-        /// Also write a self-contained HTML report with a sequence diagram per check.
+        /// Also write a self-contained HTML report with a sequence diagram per check (with
+        /// --self-test: the matrix and every mutant's finding).
         #[arg(long, value_name = "FILE")]
         html: Option<PathBuf>,
         /// Prove that every check can fail: run the suite on the simulated bus against the
         /// reference device and against mutant devices, each with one deliberate fault, and print
         /// the matrix check x mutant (exit 0 only when every check fails against at least one
         /// mutant, every mutant fails its target check and the reference device passes).
-        #[arg(long, conflicts_with_all = ["mac", "html"])]
+        #[arg(long, conflicts_with = "mac")]
         self_test: bool,
         /// With --self-test: print the matrix as Markdown tables (as in the README).
         #[arg(long, requires = "self_test")]
@@ -523,6 +524,7 @@ fn monitor_layout(cli: &Cli, descriptions: &Descriptions) -> InputLayout {
 fn self_test_command(
     cli: &Cli,
     markdown: bool,
+    html: Option<&std::path::Path>,
     out: &mut dyn Write,
     err: &mut dyn Write,
     stderr_terminal: bool,
@@ -551,6 +553,8 @@ fn self_test_command(
     if markdown && cli.json {
         return Err(HarnessError::Usage("--markdown and --json: choose one".into()));
     }
+    // The page's file is created before the run, so a path that cannot be written fails at once.
+    let mut page = html.map(|p| create_output(p).map(|f| (f, p))).transpose()?;
     let config = MasterConfig {
         mac: cli.master_mac.unwrap_or(MacId::from_low_bits(0)),
         response_timeout: Duration::from_millis(cli.timeout.max(1)),
@@ -580,6 +584,10 @@ fn self_test_command(
     } else {
         self_test::write_text(out, &report).map_err(werr)?;
     }
+    if let Some((file, path)) = &mut page {
+        file.write_all(self_test::render_html(&report).as_bytes())
+            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+    }
     Ok(if report.passed() { 0 } else { 1 })
 }
 
@@ -603,8 +611,8 @@ fn execute(
             other => other,
         });
     }
-    if let Command::Conformance { self_test: true, markdown, .. } = &cli.command {
-        return self_test_command(cli, *markdown, out, err, console.stderr_terminal);
+    if let Command::Conformance { self_test: true, markdown, html, .. } = &cli.command {
+        return self_test_command(cli, *markdown, html.as_deref(), out, err, console.stderr_terminal);
     }
     // Read input files and resolve the defaults before touching the bus.
     let transcript = match &cli.command {

@@ -442,6 +442,19 @@ fn the_self_test_command_prints_the_matrix_and_its_json_lists_the_catchers_of_ea
     assert_eq!(m["caught"], true);
     assert_eq!(m["target"], "ucmm-silent");
     assert!(m["evidence"][0].as_str().unwrap().contains("answered a UCMM open"), "{m}");
+
+    // The HTML page: the matrix and every mutant's finding.
+    let dir = temp_dir("self-test-html");
+    let page = dir.join("self-test.html");
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let args = ["dnet-master", "conformance", "--self-test", "--html", page.to_str().unwrap()];
+    assert_eq!(run(args, &mut out, &mut err, false), 0, "{}", String::from_utf8_lossy(&err));
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains("PASS: every check can fail"), "{html}");
+    assert!(html.contains("<th><code>ucmm-silent</code></th>"));
+    assert!(html.contains("answered a UCMM open explicit connection request"));
+    assert_eq!(html.matches("class=\"t\"").count(), MUTANTS.len(), "one target cell per mutant");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[rstest::rstest]

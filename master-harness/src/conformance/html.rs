@@ -206,7 +206,7 @@ const SVG_STYLE: &str = r#".head{fill:#eef2fb;stroke:#6b7fb3} .headt{font:bold 1
 .mark{font:bold 13px sans-serif} .more{font:italic 11px sans-serif;fill:#777}
 "#;
 
-const STYLE: &str = r#"
+pub(crate) const STYLE: &str = r#"
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:2em;color:#222;max-width:1200px}
 h1{font-size:1.5em} h2{margin-top:2em;border-bottom:1px solid #ccc} h3{font-size:1.05em;margin-bottom:.3em}
 table{border-collapse:collapse;margin:1em 0} td,th{border:1px solid #ddd;padding:3px 8px;text-align:left;font-size:.9em;vertical-align:top}

@@ -361,3 +361,79 @@ pub fn markdown(report: &SelfTestReport) -> String {
     }
     s
 }
+
+/// The self-test as a stand-alone HTML page: the verdict, the matrix (a row per check, a column
+/// per mutant, each cell saying whether the check failed against the mutant), and per mutant its
+/// fault, its target and the finding that caught it.
+pub fn render_html(report: &SelfTestReport) -> String {
+    use super::html::{escape, STYLE};
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let title = "DeviceNet conformance suite: self-test against mutant devices";
+    let _ = write!(
+        s,
+        "<!DOCTYPE html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{title}</title><style>{STYLE}\
+         table.matrix td{{padding:0;width:1.3em;text-align:center;font-family:ui-monospace,monospace}}\
+         td.t{{background:#2e7d32;color:#fff}} td.x{{background:#c5e1a5}} td.alive{{background:#c62828;color:#fff}}\
+         tr.uncaught th{{color:#c62828}}</style></head><body><h1>{title}</h1>"
+    );
+    let verdict = if report.passed() { ("pass", "PASS: every check can fail") } else { ("fail", "FAIL") };
+    let _ = write!(
+        s,
+        "<p class=\"verdict\"><span class=\"grade {}\">{}</span> {} of {} checks caught by at least one mutant; {} of {} mutants caught by their target check; the reference device {}.</p>",
+        verdict.0,
+        verdict.1,
+        report.checks().len() - report.uncaught_checks().len(),
+        report.checks().len(),
+        report.mutants.len() - report.surviving_mutants().len(),
+        report.mutants.len(),
+        if report.reference_passed() { "passes every check" } else { "FAILS" },
+    );
+    let _ = write!(
+        s,
+        "<p class=\"section\">dnet-master {} on the simulated bus; the device at MAC {DEVICE_MAC}. Each mutant is the reference device with one deliberate fault. A green cell: the mutant's target check fails against it; a light cell: another check fails against it; a red cell: its target check passed (the mutant is not caught).</p>",
+        escape(crate::version())
+    );
+    s.push_str("<h2>Matrix</h2><table class=\"matrix\"><tr><th>check</th>");
+    for (k, m) in report.mutants.iter().enumerate() {
+        let _ = write!(s, "<th title=\"{}: {}\">{}</th>", escape(m.mutant.id), escape(m.mutant.fault), k + 1);
+    }
+    s.push_str("</tr>");
+    for check in report.checks() {
+        let uncaught = report.caught_by(check).is_empty();
+        let _ = write!(
+            s,
+            "<tr{}><th><code>{}</code></th>",
+            if uncaught { " class=\"uncaught\"" } else { "" },
+            escape(check)
+        );
+        for m in &report.mutants {
+            let (class, mark) = match (m.mutant.target == *check, m.run.failed.contains(check)) {
+                (true, true) => ("t", "#"),
+                (true, false) => ("alive", "!"),
+                (false, true) => ("x", "X"),
+                (false, false) => ("", ""),
+            };
+            let _ = write!(s, "<td class=\"{class}\" title=\"{}\">{mark}</td>", escape(m.mutant.id));
+        }
+        s.push_str("</tr>");
+    }
+    s.push_str("</table><h2>Mutants</h2><table><tr><th>#</th><th>mutant</th><th>fault</th><th>target</th><th>finding</th><th>also fails</th></tr>");
+    for (k, m) in report.mutants.iter().enumerate() {
+        let others: Vec<&str> = m.run.failed.iter().copied().filter(|c| *c != m.mutant.target).collect();
+        let _ = write!(
+            s,
+            "<tr><td>{}</td><td><code>{}</code></td><td>{}</td><td><code>{}</code> <span class=\"grade {}\">{}</span></td><td>{}</td><td>{}</td></tr>",
+            k + 1,
+            escape(m.mutant.id),
+            escape(m.mutant.fault),
+            escape(m.mutant.target),
+            if m.caught() { "pass" } else { "fail" },
+            if m.caught() { "caught" } else { "ALIVE" },
+            escape(m.evidence().first().map_or("", String::as_str)),
+            escape(&others.join(", ")),
+        );
+    }
+    s.push_str("</table></body></html>\n");
+    s
+}
