@@ -49,6 +49,8 @@ pub struct RunSummary {
     pub stopped: Option<String>,
     /// Frames of the run.
     pub frames: usize,
+    /// Bus time of the run.
+    pub bus_time: devicenet::Duration,
     /// For each failed check, the texts of its failed expectations.
     pub findings: Vec<(&'static str, Vec<String>)>,
 }
@@ -62,6 +64,7 @@ impl RunSummary {
             advisory: ids(Grade::Advisory),
             stopped: report.stopped.as_ref().map(|s| s.text()),
             frames: report.records.len(),
+            bus_time: report.duration,
             findings: report
                 .checks
                 .iter()
@@ -246,9 +249,17 @@ pub fn write_text(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()
     }
     let surviving = report.surviving_mutants();
     let uncaught = report.uncaught_checks();
+    let runs = std::iter::once(&report.reference).chain(report.mutants.iter().map(|m| &m.run));
+    let (frames, micros) = runs.fold((0, 0), |(f, t), r| (f + r.frames, t + r.bus_time.total_micros()));
     writeln!(
         out,
-        "\nself-test: {} of {} checks caught, {} of {} mutants caught by their target, reference {}",
+        "\n{} suite runs: {frames} frames, {:.0} s of bus time",
+        report.mutants.len() + 1,
+        micros as f64 / 1e6
+    )?;
+    writeln!(
+        out,
+        "self-test: {} of {} checks caught, {} of {} mutants caught by their target, reference {}",
         report.checks().len() - uncaught.len(),
         report.checks().len(),
         report.mutants.len() - surviving.len(),
@@ -307,6 +318,7 @@ pub fn report_json(report: &SelfTestReport) -> Value {
             "advisory": r.advisory,
             "stopped": r.stopped,
             "frames": r.frames,
+            "bus_time_us": r.bus_time.total_micros(),
         })
     };
     json!({
