@@ -15,7 +15,7 @@
 //! |---|---|
 //! | network access | the bring-up of §2 (the first diagram); the device's own duplicate MAC ID check (§7.1); it answers a duplicate MAC ID request for its MAC (§7.1 rule 3); it stays silent to UCMM (§3.4, §1.4); it ignores traffic to other MACs (§8) |
 //! | Predefined Master/Slave Connection Set | every row of the validation table of §3.4 but row 11 ([`NOT_EXERCISED`]), allocation through the Group 2 Only port and through the explicit connection, ownership (DeviceNet attribute 5, Identity status bit 0), release and re-allocation |
-//! | explicit messaging | Identity (§6.2), DeviceNet (§6.1) and Connection (§5.1) attributes readable with the right sizes and values; settable vs not settable; unknown class, instance, attribute and service (§3.3); fragmented request and response; a missing acknowledgement, a duplicated fragment, an out-of-sequence fragment, an oversized request (§4.1) |
+//! | explicit messaging | Identity (§6.2), DeviceNet (§6.1) and Connection (§5.1) attributes readable with the right sizes and values; Identity Get_Attributes_All whole attributes in order; settable vs not settable; unknown class, instance, attribute and service (§3.3); fragmented request and response; a missing acknowledgement, a duplicated fragment, an out-of-sequence fragment, an oversized request (§4.1) |
 //! | connections | poll ignored before the EPR is set; EPR round trip; the inactivity watchdog measured against 4 × EPR for each timeout action; deferred delete; idle polls; I/O fragmentation of the poll response; requests from a master that does not own the device ignored (§4.2, §5, §8) |
 //! | timing | poll response latency (min, median, 99th percentile) and explicit response latency, with the limit a scanner applies |
 //!

@@ -1,7 +1,8 @@
-//! Explicit messaging: the Identity (§6.2), DeviceNet (§6.1) and Connection (§5.1) attributes,
-//! settable and not settable ones, errors for unknown targets and services (§3.3), and the
-//! fragmentation protocol (§4.1): fragmented request and response, a missing acknowledgement, a
-//! duplicated fragment, an out-of-sequence fragment, an oversized request.
+//! Explicit messaging: the Identity (§6.2, Get_Attributes_All included), DeviceNet (§6.1) and
+//! Connection (§5.1) attributes, settable and not settable ones, errors for unknown targets and
+//! services (§3.3), and the fragmentation protocol (§4.1): fragmented request and response, a
+//! missing acknowledgement, a duplicated fragment, an out-of-sequence fragment, an oversized
+//! request.
 
 use super::super::runner::{parse_ack, Check, Runner, Value};
 use super::super::{Basis, Category};
