@@ -462,6 +462,11 @@ impl Decoder {
                 // An unfragmented request resets fragmentation both ways (notes §4.1).
                 device.request_rx.reset();
                 device.response_rx.reset();
+            } else {
+                // So does a complete response: a fragment after it begins nothing (the master
+                // waits for one response per request, notes §4.1), so a later last fragment
+                // cannot join an earlier first one into a message nobody sent.
+                device.response_rx.reset();
             }
             return Decoded::frame(format!("{head} {}", self.message_body(mac, body, request)));
         }
@@ -739,6 +744,23 @@ mod tests {
         );
         // A short response is plain data.
         assert_eq!(d.decode(&f(0x3C5, &[0x0F, 0x00])).summary, "poll response from MAC 5: 2 bytes 0F 00");
+    }
+
+    #[test]
+    fn a_complete_response_between_fragments_resets_the_response_reassembly() {
+        // Test vectors of an independent analyzer: a first fragment, a complete response, then a
+        // last fragment. Nothing may be reassembled from the first and the last.
+        let mut d = Decoder::new();
+        let first = d.decode(&f(0x40B, &[0x80, 0x00, 0x8E, 0x01]));
+        assert!(first.summary.contains("fragment first #0"), "{first:?}");
+        let whole = d.decode(&f(0x40B, &[0x00, 0x8E, 0xAA]));
+        assert!(
+            whole.text().contains("Get_Attribute_Single response") && whole.message.is_none(),
+            "{whole:?}"
+        );
+        let last = d.decode(&f(0x40B, &[0x80, 0x81, 0xBB]));
+        assert_eq!(last.message, None, "no invented message: {last:?}");
+        assert!(last.summary.contains("fragment last #1") && last.summary.contains("dropped"), "{last:?}");
     }
 
     #[rstest]
