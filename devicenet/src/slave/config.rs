@@ -256,6 +256,15 @@ mod tests {
     }
 
     #[rstest]
+    #[case::largest_io_sizes(|c: &mut DeviceConfig| { c.produced_size = 128; c.consumed_size = 128; })]
+    #[case::largest_port(|c: &mut DeviceConfig| c.port = 127)]
+    fn limits_are_inclusive(#[case] edit: fn(&mut DeviceConfig)) {
+        let mut c = DeviceConfig::reference();
+        edit(&mut c);
+        assert_eq!(c.validate(), Ok(()));
+    }
+
+    #[rstest]
     #[case::k125(0, BaudRate::Kbps125)]
     #[case::k250(1, BaudRate::Kbps250)]
     #[case::k500(2, BaudRate::Kbps500)]
