@@ -265,6 +265,21 @@ mod tests {
     }
 
     #[rstest]
+    #[case::io_size(ConfigError::IoSizeTooLarge { size: 129 }, "I/O size 129 exceeds the maximum of 128 bytes")]
+    #[case::same_assembly(
+        ConfigError::SameAssemblyInstance,
+        "input and output assembly instances must differ"
+    )]
+    #[case::assembly_zero(ConfigError::AssemblyInstanceZero, "assembly instance 0 is the class")]
+    #[case::port(ConfigError::PortOutOfRange, "port number must be 0..=127")]
+    #[case::epr_resolution(ConfigError::ZeroEprResolution, "EPR resolution must be at least 1 ms")]
+    #[case::name(ConfigError::ProductNameNotAscii, "product name must be printable ASCII")]
+    #[case::major_revision(ConfigError::MajorRevisionOutOfRange, "major revision must be 1..=127")]
+    fn errors_display(#[case] err: ConfigError, #[case] text: &str) {
+        assert_eq!(std::format!("{err}"), text);
+    }
+
+    #[rstest]
     #[case::k125(0, BaudRate::Kbps125)]
     #[case::k250(1, BaudRate::Kbps250)]
     #[case::k500(2, BaudRate::Kbps500)]
