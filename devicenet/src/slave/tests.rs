@@ -449,6 +449,30 @@ fn identity_status_carries_each_application_flag_in_its_bit(
 }
 
 #[test]
+fn identity_get_attributes_all_answers_attributes_1_to_7_in_fragments() {
+    // Get_Attributes_All (notes §3.2): the reply exceeds one frame, so it goes out in acknowledged
+    // fragments (notes §4.1); the master reassembles and acks each one.
+    let mut rig = Rig::explicit();
+    let mut master = crate::fragment::ExplicitReassembler::<MAX_EXPLICIT_SIZE>::new();
+    let mut frames = rig.send(0x42C, &[0x00, 0x01, 0x01, 0x01]);
+    loop {
+        let [(0x42B, frame)] = frames.as_slice() else { panic!("one response fragment: {frames:02X?}") };
+        match master.receive(frame) {
+            crate::fragment::ExplicitReceive::Ack(ack) => frames = rig.send(0x42C, &ack),
+            crate::fragment::ExplicitReceive::Complete(ack) => {
+                assert_eq!(rig.send(0x42C, &ack), Tx::new());
+                break;
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    let mut expected = std::vec![0x00, 0x81, 0x34, 0x12, 0x0C, 0x00, 0x01, 0x00, 0x01, 0x01, 0x31, 0x00];
+    expected.extend_from_slice(&[0x78, 0x56, 0x34, 0x12, 23]);
+    expected.extend_from_slice(b"Serial-DeviceNet Bridge");
+    assert_eq!(master.message(), expected);
+}
+
+#[test]
 fn identity_reset_reports_an_event_after_queueing_the_response() {
     let mut rig = Rig::explicit();
     assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x01, 0x01, 0x01]), tx(0x42B, &[0x00, 0x85]));
