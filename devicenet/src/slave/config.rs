@@ -280,11 +280,12 @@ mod tests {
     }
 
     #[rstest]
-    #[case::k125(0, BaudRate::Kbps125)]
-    #[case::k250(1, BaudRate::Kbps250)]
-    #[case::k500(2, BaudRate::Kbps500)]
-    fn baud_codes(#[case] v: u8, #[case] b: BaudRate) {
+    #[case::k125(0, BaudRate::Kbps125, 125_000)]
+    #[case::k250(1, BaudRate::Kbps250, 250_000)]
+    #[case::k500(2, BaudRate::Kbps500, 500_000)]
+    fn baud_codes(#[case] v: u8, #[case] b: BaudRate, #[case] bps: u32) {
         assert_eq!(BaudRate::from_attribute_value(v), Some(b));
         assert_eq!(b.attribute_value(), v);
+        assert_eq!(b.bits_per_second(), bps);
     }
 }
