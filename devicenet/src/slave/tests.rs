@@ -455,7 +455,8 @@ fn identity_get_attributes_all_answers_attributes_1_to_7_in_fragments() {
     let mut rig = Rig::explicit();
     let mut master = crate::fragment::ExplicitReassembler::<MAX_EXPLICIT_SIZE>::new();
     let mut frames = rig.send(0x42C, &[0x00, 0x01, 0x01, 0x01]);
-    loop {
+    // Header and 39 body bytes: 7 fragments of up to 6 body bytes.
+    for _ in 0..7 {
         let [(0x42B, frame)] = frames.as_slice() else { panic!("one response fragment: {frames:02X?}") };
         match master.receive(frame) {
             crate::fragment::ExplicitReceive::Ack(ack) => frames = rig.send(0x42C, &ack),
