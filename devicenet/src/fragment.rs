@@ -980,6 +980,18 @@ mod tests {
         assert_eq!(frag.to_payload(), p(bytes));
     }
 
+    #[test]
+    fn to_payload_forces_the_fragmentation_bit() {
+        // A fragment built by hand from an unfragmented header still goes out as a fragment
+        // (notes §3.1: bit 7 of the header is the Frag bit).
+        let frag = ExplicitFragment {
+            header: Header::from_byte(0x0A),
+            fragment: FragmentByte::from_byte(0x41),
+            body: &[1, 2],
+        };
+        assert_eq!(frag.to_payload(), p(&[0x8A, 0x41, 1, 2]));
+    }
+
     /// notes §4.1, PICO worked exchange: master MAC 0 (header 80 both ways), slave MAC 3; the
     /// master sends on 0x41C, the slave answers on 0x41B.
     #[test]
@@ -1064,6 +1076,18 @@ mod tests {
         assert_eq!(tx.poll_transmit(ms(3000)).unwrap(), [0xC0, 0x83, 18]);
         assert_eq!(tx.handle_ack(&[0xC0, 0xC3, 0x00], ms(3001)), AckOutcome::Done);
         assert_eq!(tx.poll_event(ms(3001)), Some(TransmitEvent::Completed));
+    }
+
+    #[test]
+    fn a_header_with_the_fragmentation_bit_set_keeps_it_in_every_fragment() {
+        // `start` expects the bit clear; given it set, the frames still read `[header | 0x80, ..]`.
+        let mut message = MSG_20;
+        message[0] = 0xC0;
+        let mut tx = ExplicitTransmitter::<32>::new();
+        tx.start(&message, ms(0)).unwrap();
+        assert_eq!(tx.poll_transmit(ms(0)).unwrap(), [0xC0, 0x00, 0x8E, 1, 2, 3, 4, 5]);
+        assert_eq!(tx.handle_ack(&[0xC0, 0xC0, 0x00], ms(0)), AckOutcome::Progress);
+        assert_eq!(tx.poll_transmit(ms(0)).unwrap(), [0xC0, 0x41, 6, 7, 8, 9, 10, 11]);
     }
 
     #[rstest]
@@ -1300,6 +1324,18 @@ mod tests {
         }
         assert_eq!(rx.receive(last), Ok(Some(data)));
         assert!(!rx.in_progress());
+    }
+
+    #[test]
+    fn io_fragments_report_the_frames_still_to_come() {
+        // 18 bytes: three frames (notes §2, frames 25–27); the exact size shrinks by one per frame.
+        let data: Vec<u8> = (0..18).collect();
+        let mut frames = io_fragments(&data);
+        for left in (0..=3).rev() {
+            assert_eq!(frames.len(), left);
+            assert_eq!(frames.size_hint(), (left, Some(left)));
+            assert_eq!(frames.next().is_some(), left > 0);
+        }
     }
 
     #[test]

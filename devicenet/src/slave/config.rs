@@ -256,11 +256,36 @@ mod tests {
     }
 
     #[rstest]
-    #[case::k125(0, BaudRate::Kbps125)]
-    #[case::k250(1, BaudRate::Kbps250)]
-    #[case::k500(2, BaudRate::Kbps500)]
-    fn baud_codes(#[case] v: u8, #[case] b: BaudRate) {
+    #[case::largest_io_sizes(|c: &mut DeviceConfig| { c.produced_size = 128; c.consumed_size = 128; })]
+    #[case::largest_port(|c: &mut DeviceConfig| c.port = 127)]
+    fn limits_are_inclusive(#[case] edit: fn(&mut DeviceConfig)) {
+        let mut c = DeviceConfig::reference();
+        edit(&mut c);
+        assert_eq!(c.validate(), Ok(()));
+    }
+
+    #[rstest]
+    #[case::io_size(ConfigError::IoSizeTooLarge { size: 129 }, "I/O size 129 exceeds the maximum of 128 bytes")]
+    #[case::same_assembly(
+        ConfigError::SameAssemblyInstance,
+        "input and output assembly instances must differ"
+    )]
+    #[case::assembly_zero(ConfigError::AssemblyInstanceZero, "assembly instance 0 is the class")]
+    #[case::port(ConfigError::PortOutOfRange, "port number must be 0..=127")]
+    #[case::epr_resolution(ConfigError::ZeroEprResolution, "EPR resolution must be at least 1 ms")]
+    #[case::name(ConfigError::ProductNameNotAscii, "product name must be printable ASCII")]
+    #[case::major_revision(ConfigError::MajorRevisionOutOfRange, "major revision must be 1..=127")]
+    fn errors_display(#[case] err: ConfigError, #[case] text: &str) {
+        assert_eq!(std::format!("{err}"), text);
+    }
+
+    #[rstest]
+    #[case::k125(0, BaudRate::Kbps125, 125_000)]
+    #[case::k250(1, BaudRate::Kbps250, 250_000)]
+    #[case::k500(2, BaudRate::Kbps500, 500_000)]
+    fn baud_codes(#[case] v: u8, #[case] b: BaudRate, #[case] bps: u32) {
         assert_eq!(BaudRate::from_attribute_value(v), Some(b));
         assert_eq!(b.attribute_value(), v);
+        assert_eq!(b.bits_per_second(), bps);
     }
 }

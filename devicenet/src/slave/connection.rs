@@ -249,6 +249,13 @@ mod tests {
     }
 
     #[test]
+    fn explicit_is_instance_1_and_poll_instance_2() {
+        // The Predefined Master/Slave Connection Set's instances (notes §5).
+        assert_eq!(ConnectionKind::Explicit.instance(), 1);
+        assert_eq!(ConnectionKind::Poll.instance(), 2);
+    }
+
+    #[test]
     fn explicit_allocation_arms_ten_seconds() {
         let mut c = Connection::new(ConnectionKind::Explicit);
         c.allocate(Instant::from_secs(1));

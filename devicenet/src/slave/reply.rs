@@ -162,6 +162,15 @@ mod tests {
     }
 
     #[test]
+    fn empty_until_something_is_written() {
+        let mut buf = [0u8; 2];
+        let mut r = Reply::new(&mut buf);
+        assert!(r.is_empty());
+        r.u8(7).unwrap();
+        assert!(!r.is_empty());
+    }
+
+    #[test]
     fn short_string() {
         let mut buf = [0u8; 8];
         let mut r = Reply::new(&mut buf);

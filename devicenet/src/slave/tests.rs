@@ -202,6 +202,8 @@ fn nothing_but_dup_mac_before_online() {
 #[case::allocate_wrong_class(&[], 0x42E, &[0x00, 0x4B, 0x01, 0x01, 0x01, 0x00], &[0x00, 0x94, 0x16, 0xFF])]
 #[case::allocate_short(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01], &[0x00, 0x94, 0x13, 0xFF])]
 #[case::allocate_long(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00, 0x00], &[0x00, 0x94, 0x15, 0xFF])]
+#[case::allocate_without_instance(&[], 0x42E, &[0x00, 0x4B, 0x03], &[0x00, 0x94, 0x13, 0xFF])]
+#[case::release_without_instance(&[0x01], 0x42E, &[0x00, 0x4C, 0x03], &[0x00, 0x94, 0x13, 0xFF])]
 #[case::allocator_reserved_bits(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x40], &[0x00, 0x94, 0x09, 0x02])]
 #[case::allocate_poll_through_explicit(&[0x01], 0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00], &[0x00, 0xCB, 0x00])]
 #[case::double_allocation_through_explicit(&[0x03], 0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00], &[0x00, 0x94, 0x0B, 0x02])]
@@ -249,6 +251,31 @@ fn explicit_request_without_connection_is_ignored() {
     assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]), Tx::new());
 }
 
+#[test]
+fn group2_only_port_ignores_fragmented_frames() {
+    // Unconnected messages are never fragmented (notes §3.1, §3.4): a Frag bit means no request.
+    let mut rig = Rig::online();
+    assert_eq!(rig.send(0x42E, &[0x80, 0x4B, 0x03, 0x01, 0x01, 0x00]), Tx::new());
+    assert_eq!(rig.node.allocation(), (AllocationChoice::empty(), None));
+}
+
+#[test]
+fn header_only_explicit_frame_is_ignored_and_does_not_feed_the_watchdog() {
+    let mut rig = Rig::explicit();
+    rig.advance(Duration::from_secs(9));
+    assert_eq!(rig.send(0x42C, &[0x00]), Tx::new());
+    assert_eq!(rig.node.stats().explicit_ignored, 1);
+    // Only a message consumed restarts the inactivity timer (notes §5.3): 10 s after allocation.
+    rig.advance(Duration::from_secs(1));
+    assert_eq!(rig.node.explicit_connection().state, ConnectionState::NonExistent);
+}
+
+#[test]
+fn request_of_header_and_service_only_is_answered_not_enough_data() {
+    let mut rig = Rig::explicit();
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E]), tx(0x42B, &[0x00, 0x94, 0x13, 0xFF]));
+}
+
 // ----- objects ---------------------------------------------------------------------------------
 
 #[rstest]
@@ -260,6 +287,7 @@ fn explicit_request_without_connection_is_ignored() {
 #[case::serial(&[0x0E, 0x01, 0x01, 0x06], &[0x8E, 0x78, 0x56, 0x34, 0x12])]
 #[case::state(&[0x0E, 0x01, 0x01, 0x08], &[0x8E, 0x03])]
 #[case::identity_class_revision(&[0x0E, 0x01, 0x00, 0x01], &[0x8E, 0x01, 0x00])]
+#[case::identity_class_attr_2(&[0x0E, 0x01, 0x00, 0x02], &[0x94, 0x14, 0xFF])]
 #[case::identity_unknown_attr(&[0x0E, 0x01, 0x01, 0x63], &[0x94, 0x14, 0xFF])]
 #[case::identity_set_vendor(&[0x10, 0x01, 0x01, 0x01, 0x00, 0x00], &[0x94, 0x0E, 0xFF])]
 #[case::identity_instance_2(&[0x0E, 0x01, 0x02, 0x01], &[0x94, 0x16, 0xFF])]
@@ -270,6 +298,7 @@ fn explicit_request_without_connection_is_ignored() {
 #[case::get_without_attribute(&[0x0E, 0x01, 0x01], &[0x94, 0x13, 0xFF])]
 #[case::router_class_revision(&[0x0E, 0x02, 0x00, 0x01], &[0x8E, 0x01, 0x00])]
 #[case::router_instance_attr(&[0x0E, 0x02, 0x01, 0x01], &[0x94, 0x14, 0xFF])]
+#[case::router_instance_set(&[0x10, 0x02, 0x01, 0x01, 0x00], &[0x94, 0x08, 0xFF])]
 #[case::unknown_class(&[0x0E, 0x64, 0x01, 0x01], &[0x94, 0x16, 0xFF])]
 #[case::dnet_mac(&[0x0E, 0x03, 0x01, 0x01], &[0x8E, 0x05])]
 #[case::dnet_baud(&[0x0E, 0x03, 0x01, 0x02], &[0x8E, 0x01])]
@@ -277,18 +306,22 @@ fn explicit_request_without_connection_is_ignored() {
 #[case::dnet_bus_off_counter(&[0x0E, 0x03, 0x01, 0x04], &[0x8E, 0x00])]
 #[case::dnet_allocation(&[0x0E, 0x03, 0x01, 0x05], &[0x8E, 0x01, 0x00])]
 #[case::dnet_mac_switch_changed(&[0x0E, 0x03, 0x01, 0x06], &[0x8E, 0x00])]
+#[case::dnet_baud_switch_changed(&[0x0E, 0x03, 0x01, 0x07], &[0x8E, 0x00])]
 #[case::dnet_no_mac_switch(&[0x0E, 0x03, 0x01, 0x08], &[0x94, 0x14, 0xFF])]
 #[case::dnet_class_revision(&[0x0E, 0x03, 0x00, 0x01], &[0x8E, 0x02, 0x00])]
 #[case::dnet_set_mac_not_programmable(&[0x10, 0x03, 0x01, 0x01, 0x07], &[0x94, 0x0E, 0xFF])]
 #[case::dnet_set_boi(&[0x10, 0x03, 0x01, 0x03, 0x01], &[0x90])]
+#[case::dnet_clear_boi(&[0x10, 0x03, 0x01, 0x03, 0x00], &[0x90])]
 #[case::dnet_set_boi_invalid(&[0x10, 0x03, 0x01, 0x03, 0x02], &[0x94, 0x09, 0xFF])]
 #[case::dnet_clear_bus_off_counter(&[0x10, 0x03, 0x01, 0x04, 0x00], &[0x90])]
 #[case::dnet_bus_off_counter_nonzero(&[0x10, 0x03, 0x01, 0x04, 0x05], &[0x94, 0x09, 0xFF])]
 #[case::dnet_set_allocation_info(&[0x10, 0x03, 0x01, 0x05, 0x01, 0x00], &[0x94, 0x0E, 0xFF])]
 #[case::dnet_set_boi_too_long(&[0x10, 0x03, 0x01, 0x03, 0x01, 0x00], &[0x94, 0x15, 0xFF])]
+#[case::dnet_unsupported_service(&[0x05, 0x03, 0x01], &[0x94, 0x08, 0xFF])]
 #[case::assembly_input_size(&[0x0E, 0x04, 0x64, 0x04], &[0x8E, 0x12, 0x00])]
 #[case::assembly_output_empty(&[0x0E, 0x04, 0x96, 0x03], &[0x8E])]
 #[case::assembly_set_input(&[0x10, 0x04, 0x64, 0x03, 0x00], &[0x94, 0x0E, 0xFF])]
+#[case::assembly_set_size(&[0x10, 0x04, 0x96, 0x04, 0x08, 0x00], &[0x94, 0x0E, 0xFF])]
 #[case::assembly_unknown_instance(&[0x0E, 0x04, 0x01, 0x03], &[0x94, 0x16, 0xFF])]
 #[case::assembly_set_output_short(&[0x10, 0x04, 0x96, 0x03, 0x01], &[0x94, 0x13, 0xFF])]
 #[case::connection_class_revision(&[0x0E, 0x05, 0x00, 0x01], &[0x8E, 0x01, 0x00])]
@@ -318,6 +351,7 @@ fn explicit_services(#[case] body: &[u8], #[case] response: &[u8]) {
 #[case::e_produced_path_len(1, 13, &[0x00, 0x00])]
 #[case::e_produced_path(1, 14, &[])]
 #[case::e_consumed_path_len(1, 15, &[0x00, 0x00])]
+#[case::e_consumed_path(1, 16, &[])]
 #[case::e_inhibit(1, 17, &[0x00, 0x00])]
 // Poll (instance 2), after EPR set.
 #[case::p_state(2, 1, &[0x03])]
@@ -395,6 +429,48 @@ fn expected_packet_rate_rounding(#[case] resolution: u16, #[case] requested: u16
     let [alo, ahi] = applied.to_le_bytes();
     assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, lo, hi]), tx(0x42B, &[0x00, 0x90, alo, ahi]));
     assert_eq!(rig.node.poll_connection().state, ConnectionState::Established);
+}
+
+#[rstest]
+#[case::configured(ApplicationStatus { configured: true, ..ApplicationStatus::default() }, [0x35, 0x00])]
+#[case::minor_recoverable(ApplicationStatus { minor_recoverable_fault: true, ..ApplicationStatus::default() }, [0x31, 0x01])]
+#[case::minor_unrecoverable(ApplicationStatus { minor_unrecoverable_fault: true, ..ApplicationStatus::default() }, [0x31, 0x02])]
+#[case::major_recoverable(ApplicationStatus { major_recoverable_fault: true, ..ApplicationStatus::default() }, [0x31, 0x04])]
+#[case::major_unrecoverable(ApplicationStatus { major_unrecoverable_fault: true, ..ApplicationStatus::default() }, [0x31, 0x08])]
+fn identity_status_carries_each_application_flag_in_its_bit(
+    #[case] status: ApplicationStatus,
+    #[case] word: [u8; 2],
+) {
+    // Identity attribute 5 (notes §6.2): owned (bit 0), configured (bit 2), extended status
+    // 0b0011 "no I/O connection established" (bits 4–7), faults in bits 8–11.
+    let mut rig = Rig::explicit();
+    rig.node.set_application_status(status, rig.now);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x05]), tx(0x42B, &[0x00, 0x8E, word[0], word[1]]));
+}
+
+#[test]
+fn identity_get_attributes_all_answers_attributes_1_to_7_in_fragments() {
+    // Get_Attributes_All (notes §3.2): the reply exceeds one frame, so it goes out in acknowledged
+    // fragments (notes §4.1); the master reassembles and acks each one.
+    let mut rig = Rig::explicit();
+    let mut master = crate::fragment::ExplicitReassembler::<MAX_EXPLICIT_SIZE>::new();
+    let mut frames = rig.send(0x42C, &[0x00, 0x01, 0x01, 0x01]);
+    // Header and 39 body bytes: 7 fragments of up to 6 body bytes.
+    for _ in 0..7 {
+        let [(0x42B, frame)] = frames.as_slice() else { panic!("one response fragment: {frames:02X?}") };
+        match master.receive(frame) {
+            crate::fragment::ExplicitReceive::Ack(ack) => frames = rig.send(0x42C, &ack),
+            crate::fragment::ExplicitReceive::Complete(ack) => {
+                assert_eq!(rig.send(0x42C, &ack), Tx::new());
+                break;
+            }
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    let mut expected = std::vec![0x00, 0x81, 0x34, 0x12, 0x0C, 0x00, 0x01, 0x00, 0x01, 0x01, 0x31, 0x00];
+    expected.extend_from_slice(&[0x78, 0x56, 0x34, 0x12, 23]);
+    expected.extend_from_slice(b"Serial-DeviceNet Bridge");
+    assert_eq!(master.message(), expected);
 }
 
 #[test]
@@ -589,6 +665,54 @@ fn short_poll_accepted_long_poll_ignored() {
 }
 
 #[test]
+fn poll_with_data_after_an_idle_poll_ends_idle() {
+    let mut rig = Rig::established();
+    assert!(!rig.node.is_idle());
+    rig.send(0x42D, &[]);
+    assert!(rig.node.is_idle());
+    rig.send(0x42D, &[3; 8]);
+    assert!(!rig.node.is_idle());
+    assert_eq!(rig.events(), std::vec![Event::Idle, Event::OutputReceived]);
+}
+
+#[test]
+fn eight_byte_poll_response_is_one_unfragmented_frame() {
+    // I/O fragmentation starts above 8 bytes (notes §4.2).
+    let mut config = DeviceConfig::reference();
+    config.produced_size = 8;
+    let mut rig = Rig::new(config);
+    rig.node.set_input(&[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
+    assert_eq!(rig.send(0x42D, &[0; 8]), tx(0x3C5, &[1, 2, 3, 4, 5, 6, 7, 8]));
+}
+
+#[test]
+fn fragmented_poll_command_up_to_the_consumed_size_is_accepted() {
+    // Consumed size 10: the command comes in I/O fragments (notes §4.2); a longer one is ignored.
+    let mut config = DeviceConfig::reference();
+    config.consumed_size = 10;
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
+    rig.events();
+    assert_eq!(rig.send(0x42D, &[0x00, 1, 2, 3, 4, 5, 6, 7]), Tx::new());
+    assert_eq!(rig.send(0x42D, &[0x81, 8, 9, 10]).len(), 3, "answered with the 18-byte input");
+    assert_eq!(rig.node.output(), &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+    assert_eq!(rig.events(), std::vec![Event::OutputReceived]);
+    // 14 bytes: one fragment more than the consumed size allows.
+    assert_eq!(rig.send(0x42D, &[0x00, 9, 9, 9, 9, 9, 9, 9]), Tx::new());
+    assert_eq!(rig.send(0x42D, &[0x81, 9, 9, 9, 9, 9, 9, 9]), Tx::new());
+    assert_eq!(rig.node.output(), &[1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
+    assert_eq!(rig.node.stats().polls_ignored, 1);
+    assert_eq!(rig.events(), Vec::<Event>::new());
+}
+
+#[test]
 fn set_input_checks_the_size() {
     let mut rig = Rig::established();
     assert_eq!(rig.node.set_input(&[0; 3]), Err(18));
@@ -621,6 +745,18 @@ fn assembly_output_set_refused_while_polling() {
     rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
     // Established: the poll connection owns them.
     assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x04, 0x96, 0x03, 1, 2]), tx(0x42B, &[0x00, 0x94, 0x10, 0xFF]));
+}
+
+#[test]
+fn setting_the_poll_epr_establishes_it_once() {
+    let mut rig = Rig::explicit();
+    rig.send(0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00]);
+    rig.events();
+    // Configuring -> Established when the EPR is set (notes §5.2); a second Set changes nothing.
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
+    assert_eq!(rig.events(), std::vec![Event::ConnectionEstablished(ConnectionKind::Poll)]);
+    rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0xC8, 0x00]);
+    assert_eq!(rig.events(), Vec::<Event>::new());
 }
 
 // ----- watchdogs (notes §5.2–§5.4) ---------------------------------------------------------------
@@ -661,6 +797,18 @@ fn poll_timeout_with_transition_to_timed_out() {
     assert_eq!(rig.send(0x42D, &[0; 8]), Tx::new());
     assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x05, 0x02]), tx(0x42B, &[0x00, 0x85]));
     assert_eq!(rig.send(0x42D, &[0; 8]).len(), 3);
+}
+
+#[test]
+fn connection_reset_reports_a_timed_out_poll_established_again() {
+    let mut rig = Rig::established();
+    // Reset of an established connection only restarts its timer: no event.
+    assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x05, 0x02]), tx(0x42B, &[0x00, 0x85]));
+    assert_eq!(rig.events(), Vec::<Event>::new());
+    rig.advance(Duration::from_millis(400));
+    assert_eq!(rig.events(), std::vec![Event::ConnectionTimedOut(ConnectionKind::Poll)]);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x05, 0x02]), tx(0x42B, &[0x00, 0x85]));
+    assert_eq!(rig.events(), std::vec![Event::ConnectionEstablished(ConnectionKind::Poll)]);
 }
 
 #[test]
@@ -744,6 +892,24 @@ fn bus_off_with_boi_restarts_the_duplicate_mac_check() {
     assert_eq!(rig.node.bus_off_counter(), 1);
 }
 
+#[test]
+fn bus_off_counter_counts_every_bus_off() {
+    let mut config = DeviceConfig::reference();
+    config.bus_off_interrupt = true;
+    let mut rig = Rig::new(config);
+    rig.node.power_on(Instant::ZERO);
+    rig.advance(Duration::from_secs(2));
+    assert_eq!(rig.node.bus_off_counter(), 0);
+    for _ in 0..2 {
+        rig.node.handle_bus_off(rig.now);
+        rig.advance(Duration::from_secs(2));
+    }
+    assert_eq!(rig.node.bus_off_counter(), 2);
+    // DeviceNet attribute 4 (notes §6.1) reports the same count.
+    rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x04]), tx(0x42B, &[0x00, 0x8E, 0x02]));
+}
+
 // ----- LEDs (notes §7.3) ---------------------------------------------------------------------------
 
 #[test]
@@ -760,6 +926,25 @@ fn led_indications_follow_the_state() {
     rig.node.set_application_status(status, rig.now);
     assert_eq!(rig.node.module_indication(), Indication::FlashingRed);
     assert_eq!(rig.node.identity_status() & 0x100, 0x100);
+}
+
+#[test]
+fn leds_show_the_indications_once_the_power_up_test_is_over() {
+    use led::{Leds, Lit};
+    // Powered on at 0 s (test over at 1.5 s), on-line at 2 s: Module Status solid green,
+    // Network Status flashing green in phase with going on-line, 0.5 s on / 0.5 s off (notes §7.3).
+    let rig = Rig::online();
+    assert_eq!(rig.node.leds(Instant::from_millis(2000)), Leds { module: Lit::Green, network: Lit::Green });
+    assert_eq!(rig.node.leds(Instant::from_millis(2500)), Leds { module: Lit::Green, network: Lit::Off });
+    assert_eq!(rig.node.leds(Instant::from_millis(3000)), Leds { module: Lit::Green, network: Lit::Green });
+}
+
+#[test]
+fn major_unrecoverable_fault_alone_shows_module_status_solid_red() {
+    let mut rig = Rig::online();
+    let status = ApplicationStatus { major_unrecoverable_fault: true, ..ApplicationStatus::default() };
+    rig.node.set_application_status(status, rig.now);
+    assert_eq!(rig.node.module_indication(), Indication::Red);
 }
 
 #[test]
