@@ -104,9 +104,21 @@ impl IoSeries {
     }
 }
 
+/// Where an explicit message travels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Channel {
+    /// A request on the explicit connection (Group 2 message 4): the connection's body format.
+    Request,
+    /// A request on the Group 2 Only port (message 6): always 8/8 (notes §3.1).
+    Group2Only,
+    /// A response (message 3).
+    Response,
+}
+
 #[derive(Clone)]
 struct Device {
-    body_format: BodyFormat,
+    /// The explicit connection's body format, from its Allocate response; `None` until one is seen.
+    body_format: Option<BodyFormat>,
     pending: Option<PendingRequest>,
     request_rx: ExplicitReassembler<MAX_EXPLICIT_MESSAGE>,
     response_rx: ExplicitReassembler<MAX_EXPLICIT_MESSAGE>,
@@ -119,7 +131,7 @@ struct Device {
 impl Device {
     fn new() -> Device {
         Device {
-            body_format: BodyFormat::Class8Instance8,
+            body_format: None,
             pending: None,
             request_rx: ExplicitReassembler::new(),
             response_rx: ExplicitReassembler::new(),
@@ -424,11 +436,15 @@ impl Decoder {
                 ),
                 Err(e) => format!("malformed duplicate MAC ID check for MAC {mac} ({e}): {}", hex(data)),
             }),
-            Group2Message::ExplicitRequest => self.explicit(mac, data, true, "explicit request to MAC"),
-            Group2Message::UnconnectedExplicitRequest => {
-                self.explicit(mac, data, true, "Group 2 Only unconnected request to MAC")
+            Group2Message::ExplicitRequest => {
+                self.explicit(mac, data, Channel::Request, "explicit request to MAC")
             }
-            Group2Message::ExplicitResponse => self.explicit(mac, data, false, "explicit response from MAC"),
+            Group2Message::UnconnectedExplicitRequest => {
+                self.explicit(mac, data, Channel::Group2Only, "Group 2 Only unconnected request to MAC")
+            }
+            Group2Message::ExplicitResponse => {
+                self.explicit(mac, data, Channel::Response, "explicit response from MAC")
+            }
             Group2Message::PollCommand => {
                 let who = format!("poll command to MAC {mac}");
                 let device = self.device(mac);
@@ -448,7 +464,8 @@ impl Decoder {
         }
     }
 
-    fn explicit(&mut self, mac: u8, data: &[u8], request: bool, what: &str) -> Decoded {
+    fn explicit(&mut self, mac: u8, data: &[u8], channel: Channel, what: &str) -> Decoded {
+        let request = channel != Channel::Response;
         let Some(&first) = data.first() else {
             return Decoded::frame(format!("{what} {mac}: empty frame"));
         };
@@ -456,6 +473,11 @@ impl Decoder {
         let head =
             format!("{what} {mac} [{}master MAC {}]", if header.xid { "XID 1, " } else { "" }, header.mac);
         if !header.fragmented {
+            if !request {
+                if let Some(text) = broadcast_text(mac, header.mac.as_raw(), data) {
+                    return Decoded::frame(text);
+                }
+            }
             let body = &data[1..];
             let device = self.device(mac);
             if request {
@@ -468,7 +490,7 @@ impl Decoder {
                 // cannot join an earlier first one into a message nobody sent.
                 device.response_rx.reset();
             }
-            return Decoded::frame(format!("{head} {}", self.message_body(mac, body, request)));
+            return Decoded::frame(format!("{head} {}", self.message_body(mac, body, channel)));
         }
         let frag = match ExplicitFragment::parse(data) {
             Ok(f) => f,
@@ -493,7 +515,7 @@ impl Decoder {
                 rx.reset();
                 let body = whole.get(1..).unwrap_or(&[]);
                 let text =
-                    format!("reassembled {} bytes: {}", whole.len(), self.message_body(mac, body, request));
+                    format!("reassembled {} bytes: {}", whole.len(), self.message_body(mac, body, channel));
                 Decoded { summary, message: Some(text) }
             }
             ExplicitReceive::Ignored(e) => Decoded::frame(format!("{summary} (dropped: {e})")),
@@ -505,17 +527,25 @@ impl Decoder {
 
     /// A whole explicit body, remembering requests and learning sizes and the body format from
     /// responses.
-    fn message_body(&mut self, mac: u8, body: &[u8], request: bool) -> String {
+    fn message_body(&mut self, mac: u8, body: &[u8], channel: Channel) -> String {
         let device = self.device(mac);
-        if request {
-            match Request::parse(body, device.body_format) {
+        if channel != Channel::Response {
+            // The Group 2 Only port always uses 8/8; the explicit connection the format its
+            // Allocate response announced, 8/8 assumed (and said) before one was seen (notes §3.1).
+            let (format, assumed) = match (channel, device.body_format) {
+                (Channel::Group2Only, _) => (BodyFormat::Class8Instance8, false),
+                (_, Some(f)) => (f, false),
+                (_, None) => (BodyFormat::Class8Instance8, true),
+            };
+            let note = if assumed { " [body format 8/8 assumed: no Allocate response seen]" } else { "" };
+            match Request::parse(body, format) {
                 Ok(req) => {
                     device.pending = Some(PendingRequest::of(&req));
-                    request_text(&req)
+                    format!("{}{note}", request_text(&req))
                 }
                 Err(e) => {
                     device.pending = None;
-                    format!("malformed request ({e}): {}", hex(body))
+                    format!("malformed request ({e}){note}: {}", hex(body))
                 }
             }
         } else {
@@ -530,7 +560,7 @@ impl Decoder {
                     }
                     (ServiceCode::AllocateMasterSlave, class::DEVICENET, _, _) => {
                         if let [fmt] = data {
-                            device.body_format = BodyFormat::from_code(*fmt);
+                            device.body_format = Some(BodyFormat::from_code(*fmt));
                         }
                     }
                     _ => {}
@@ -644,34 +674,119 @@ fn group_select_text(g: GroupSelect) -> String {
     }
 }
 
+/// A Communication Faulted selector byte in words (notes §3.8, §II.6: match bit 1 = exact MAC
+/// ID, 0 = MAC ID mask on the value; the arithmetic is UNCONFIRMED, so both are shown as sent).
+fn selector_text(s: devicenet::messages::FaultedSelector) -> String {
+    format!(
+        "match {} ({}), value {}",
+        u8::from(s.match_flag),
+        if s.match_flag { "exact MAC ID" } else { "mask" },
+        s.value
+    )
+}
+
+fn device_text(d: &devicenet::messages::DeviceKey) -> String {
+    format!("vendor 0x{:04X}, serial 0x{:08X}", d.vendor_id, d.serial_number)
+}
+
+/// A Group 4 message with every field (notes §3.8, §II.6).
 fn group4(message: Group4MessageId, data: &[u8]) -> String {
+    const SET: &str = "Offline Connection Set:";
     match OfflineMessage::parse(message, data) {
         Ok(OfflineMessage::WhoRequest { selector, time_delay_offset }) => format!(
-            "Offline Connection Set: Who request (match {}, value {}), time-delay byte offset {time_delay_offset}",
-            selector.match_flag, selector.value
+            "{SET} Who request ({}), time-delay byte offset {time_delay_offset}",
+            selector_text(selector)
         ),
-        Ok(OfflineMessage::WhoResponse { port, device }) => format!(
-            "Offline Connection Set: Who response: port {port}, vendor 0x{:04X}, serial 0x{:08X}",
-            device.vendor_id, device.serial_number
+        Ok(OfflineMessage::WhoResponse { port, device }) => {
+            format!("{SET} Who response from a faulted node: port {port}, {}", device_text(&device))
+        }
+        Ok(OfflineMessage::IdentifyRequest { selector, device: Some(d) }) => format!(
+            "{SET} Identify request, point-to-point ({}): {}",
+            selector_text(selector),
+            device_text(&d)
         ),
-        Ok(OfflineMessage::IdentifyRequest { selector, .. }) => {
-            format!("Offline Connection Set: Identify request (value {})", selector.value)
+        Ok(OfflineMessage::IdentifyRequest { selector, device: None }) => {
+            format!("{SET} Identify request, multicast ({})", selector_text(selector))
         }
         Ok(OfflineMessage::IdentifyResponse { selector }) => {
-            format!("Offline Connection Set: Identify response (value {})", selector.value)
+            format!("{SET} Identify response ({})", selector_text(selector))
         }
-        Ok(OfflineMessage::ChangeMacIdRequest { new_mac, device }) => format!(
-            "Offline Connection Set: Change MAC ID to {new_mac} for vendor 0x{:04X} serial 0x{:08X}",
-            device.vendor_id, device.serial_number
-        ),
-        Ok(OfflineMessage::OwnershipRequest { client, .. }) => {
-            format!("Offline Connection Set: ownership request from MAC {client}")
+        Ok(OfflineMessage::ChangeMacIdRequest { new_mac, device }) => {
+            format!("{SET} Change MAC ID to {new_mac} for {}", device_text(&device))
         }
-        Ok(OfflineMessage::OwnershipResponse { client, .. }) => {
-            format!("Offline Connection Set: ownership response to MAC {client}")
+        Ok(OfflineMessage::OwnershipRequest { client, device }) => {
+            format!("{SET} ownership request from tool MAC {client}: {}", device_text(&device))
+        }
+        Ok(OfflineMessage::OwnershipResponse { client, device }) => {
+            format!("{SET} ownership response to tool MAC {client}: {}", device_text(&device))
         }
         Err(e) => format!("G4 message 0x{:02X}: {} ({e})", message.as_raw(), hex(data)),
     }
+}
+
+/// A heartbeat or shutdown message (notes §3.7, §II.5: a response on the device's explicit
+/// response identifier, header MAC = its own, exactly 8 bytes), if `body` is one; `None` for any
+/// other response.
+fn broadcast_text(mac: u8, header_mac: u8, data: &[u8]) -> Option<String> {
+    let body = data.get(1..)?;
+    let (name, fields) = match body {
+        [0xCD, il, ih, state, flags, cl, ch] => {
+            let state_name = match state {
+                0 => "non-existent",
+                1 => "self-testing",
+                2 => "standby",
+                3 => "operational",
+                4 => "major recoverable fault",
+                5 => "major unrecoverable fault",
+                _ => "unknown state",
+            };
+            let named = [
+                (0x01, "DF device fault"),
+                (0x02, "UF user fault"),
+                (0x04, "SF system fault"),
+                (0x08, "EV event"),
+            ];
+            let set: Vec<&str> = named.iter().filter(|(b, _)| flags & b != 0).map(|(_, n)| *n).collect();
+            let reserved = if flags & 0xF0 != 0 {
+                format!(", reserved bits 0x{:02X} set", flags & 0xF0)
+            } else {
+                String::new()
+            };
+            (
+                "Device Heartbeat",
+                format!(
+                    "Identity instance {}, state {state} ({state_name}), flags 0x{flags:02X} ({}){reserved}, configuration consistency value 0x{:04X}",
+                    u16::from_le_bytes([*il, *ih]),
+                    if set.is_empty() { "none".to_string() } else { set.join(", ") },
+                    u16::from_le_bytes([*cl, *ch])
+                ),
+            )
+        }
+        [0xCE, cl, ch, il, ih, kl, kh] => (
+            "Device Shutdown",
+            format!(
+                "class 0x{:04X} instance {} code 0x{:04X}",
+                u16::from_le_bytes([*cl, *ch]),
+                u16::from_le_bytes([*il, *ih]),
+                u16::from_le_bytes([*kl, *kh])
+            ),
+        ),
+        [0xCD | 0xCE, ..] => {
+            let name = if body[0] == 0xCD { "Device Heartbeat" } else { "Device Shutdown" };
+            return Some(format!(
+                "{name} from MAC {mac}, malformed: {} bytes, a heartbeat or shutdown has exactly 8: {}",
+                data.len(),
+                hex(data)
+            ));
+        }
+        _ => return None,
+    };
+    let warning = if header_mac != mac {
+        format!(" (warning: header MAC {header_mac} is not the identifier's MAC {mac}; a heartbeat or shutdown carries the sender's own MAC)")
+    } else {
+        String::new()
+    };
+    Some(format!("{name} from MAC {mac}: {fields}{warning}"))
 }
 
 #[cfg(test)]
@@ -761,6 +876,49 @@ mod tests {
         let last = d.decode(&f(0x40B, &[0x80, 0x81, 0xBB]));
         assert_eq!(last.message, None, "no invented message: {last:?}");
         assert!(last.summary.contains("fragment last #1") && last.summary.contains("dropped"), "{last:?}");
+    }
+
+    #[test]
+    fn the_body_format_is_said_to_be_assumed_until_an_allocate_response_is_seen() {
+        let mut d = Decoder::new();
+        let get = f(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x01]);
+        let before = d.decode(&get).text();
+        assert!(before.ends_with("[body format 8/8 assumed: no Allocate response seen]"), "{before}");
+        // The Group 2 Only port is 8/8 by definition: nothing assumed.
+        let alloc = d.decode(&f(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00])).text();
+        assert!(!alloc.contains("assumed"), "{alloc}");
+        // Allocate response announcing 8/16: requests on the connection are read with it.
+        d.decode(&f(0x42B, &[0x00, 0xCB, 0x01]));
+        let after = d.decode(&f(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x00, 0x01])).text();
+        assert!(!after.contains("assumed") && after.contains("Identity(1) inst 1 attr 1"), "{after}");
+        // ... while the Group 2 Only port stays 8/8.
+        let release = d.decode(&f(0x42E, &[0x00, 0x4C, 0x03, 0x01, 0x01])).text();
+        assert!(release.contains("Release_Master/Slave_Connection_Set DeviceNet(3) inst 1"), "{release}");
+    }
+
+    #[rstest]
+    #[case::who(0x7ED, &[0x3F, 0x4B, 0x02], "Who request (match 0 (mask), value 63), time-delay byte offset 2")]
+    #[case::who_response(0x7EC, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12], "Who response from a faulted node: port 0, vendor 0x1234, serial 0x12345678")]
+    #[case::identify_short(0x7ED, &[0x45, 0x4C], "Identify request, multicast (match 1 (exact MAC ID), value 5)")]
+    #[case::identify_long(0x7ED, &[0x3F, 0x4C, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12], "Identify request, point-to-point (match 0 (mask), value 63): vendor 0x1234, serial 0x12345678")]
+    #[case::identify_response(0x7EC, &[0x45, 0xCC], "Identify response (match 1 (exact MAC ID), value 5)")]
+    #[case::change_mac(0x7ED, &[0x07, 0x4D, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12], "Change MAC ID to 7 for vendor 0x1234, serial 0x12345678")]
+    #[case::ownership(0x7EF, &[0x0A, 0x4B, 0x01, 0x00, 0x04, 0x03, 0x02, 0x01], "ownership request from tool MAC 10: vendor 0x0001, serial 0x01020304")]
+    #[case::ownership_response(0x7EE, &[0x0A, 0xCB, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12], "ownership response to tool MAC 10: vendor 0x1234, serial 0x12345678")]
+    fn group4_messages_show_every_field(#[case] id: u16, #[case] data: &[u8], #[case] text: &str) {
+        let out = Decoder::new().decode(&f(id, data)).text();
+        assert_eq!(out, format!("Offline Connection Set: {text}"));
+    }
+
+    #[rstest]
+    #[case::heartbeat(&[0x05, 0xCD, 0x01, 0x00, 0x03, 0x00, 0x00, 0x00], "Device Heartbeat from MAC 5: Identity instance 1, state 3 (operational), flags 0x00 (none), configuration consistency value 0x0000")]
+    #[case::heartbeat_faults(&[0x05, 0xCD, 0x01, 0x00, 0x04, 0x05, 0x34, 0x12], "Device Heartbeat from MAC 5: Identity instance 1, state 4 (major recoverable fault), flags 0x05 (DF device fault, SF system fault), configuration consistency value 0x1234")]
+    #[case::shutdown(&[0x05, 0xCE, 0x01, 0x00, 0x01, 0x00, 0x04, 0x00], "Device Shutdown from MAC 5: class 0x0001 instance 1 code 0x0004")]
+    #[case::wrong_header(&[0x00, 0xCD, 0x01, 0x00, 0x03, 0x00, 0x00, 0x00], "Device Heartbeat from MAC 5: Identity instance 1, state 3 (operational), flags 0x00 (none), configuration consistency value 0x0000 (warning: header MAC 0 is not the identifier's MAC 5; a heartbeat or shutdown carries the sender's own MAC)")]
+    #[case::short(&[0x05, 0xCE, 0x01, 0x00], "Device Shutdown from MAC 5, malformed: 4 bytes, a heartbeat or shutdown has exactly 8: 05 CE 01 00")]
+    fn heartbeat_and_shutdown_fields(#[case] data: &[u8], #[case] text: &str) {
+        // Notes §II.5: sent on the device's explicit response identifier (0x42B for MAC 5).
+        assert_eq!(Decoder::new().decode(&f(0x42B, data)).text(), text);
     }
 
     #[rstest]
