@@ -126,7 +126,19 @@ struct Device {
     consumed: Option<u16>,
     poll_response: IoSeries,
     poll_command: IoSeries,
+    /// The other produced I/O connections (notes §II.1-§II.3): Group 1 messages 12 (multicast
+    /// poll response), 13 (change-of-state/cyclic data) and 14 (bit-strobe response), each with
+    /// the produced size of its Connection instance (5, 4, 3) once read.
+    other_io: [(Option<u16>, IoSeries); 3],
 }
+
+/// The Group 1 messages of [`Device::other_io`], each with the Connection instance producing it
+/// (notes §II.1-§II.3), in slot order.
+const OTHER_IO: [(Group1MessageId, u16); 3] = [
+    (Group1MessageId::MULTICAST_POLL_RESPONSE, 5),
+    (Group1MessageId::COS_CYCLIC, 4),
+    (Group1MessageId::BIT_STROBE_RESPONSE, 3),
+];
 
 impl Device {
     fn new() -> Device {
@@ -139,6 +151,7 @@ impl Device {
             consumed: None,
             poll_response: IoSeries::new(),
             poll_command: IoSeries::new(),
+            other_io: [(None, IoSeries::new()), (None, IoSeries::new()), (None, IoSeries::new())],
         }
     }
 }
@@ -421,7 +434,13 @@ impl Decoder {
             let produced = device.produced;
             return io_data(&mut device.poll_response, produced, &who, data);
         }
-        Decoded::frame(format!("{who}: {}", data_text(data)))
+        match OTHER_IO.iter().position(|(m, _)| *m == message) {
+            Some(slot) => {
+                let (size, series) = &mut self.device(source).other_io[slot];
+                io_data(series, *size, &who, data)
+            }
+            None => Decoded::frame(format!("{who}: {}", data_text(data))),
+        }
     }
 
     fn group2(&mut self, message: Group2Message, mac: u8, data: &[u8]) -> Decoded {
@@ -558,6 +577,12 @@ impl Decoder {
                     (ServiceCode::GetAttributeSingle, class::CONNECTION, 2, Some(8)) => {
                         device.consumed = u16_of(data)
                     }
+                    (ServiceCode::GetAttributeSingle, class::CONNECTION, 3..=5, Some(7)) => {
+                        let slot = OTHER_IO.iter().position(|(_, inst)| *inst == p.instance);
+                        if let Some(slot) = slot {
+                            device.other_io[slot].0 = u16_of(data);
+                        }
+                    }
                     (ServiceCode::AllocateMasterSlave, class::DEVICENET, _, _) => {
                         if let [fmt] = data {
                             device.body_format = Some(BodyFormat::from_code(*fmt));
@@ -597,8 +622,15 @@ fn io_data(series: &mut IoSeries, size: Option<u16>, who: &str, data: &[u8]) -> 
         Some(&b) => (FragmentKind::from_bits(b >> 6), b & 0x3F),
         None => (FragmentKind::First, 0),
     };
-    let summary =
-        format!("{who}: I/O fragment {kind} #{count}{inferred}: {}", hex(data.get(1..).unwrap_or(&[])));
+    let single = if kind == FragmentKind::First && count == devicenet::fragment::SINGLE_FRAGMENT_COUNT {
+        " (a one-frame series: the whole message)"
+    } else {
+        ""
+    };
+    let summary = format!(
+        "{who}: I/O fragment {kind} #{count}{single}{inferred}: {}",
+        hex(data.get(1..).unwrap_or(&[]))
+    );
     match series.rx.receive(data) {
         Ok(Some(whole)) => {
             series.next = None;
@@ -876,6 +908,38 @@ mod tests {
         let last = d.decode(&f(0x40B, &[0x80, 0x81, 0xBB]));
         assert_eq!(last.message, None, "no invented message: {last:?}");
         assert!(last.summary.contains("fragment last #1") && last.summary.contains("dropped"), "{last:?}");
+    }
+
+    #[test]
+    fn change_of_state_data_is_reassembled_with_the_size_of_connection_4() {
+        // Notes §II.2.1: 18-byte COS data from MAC 5 on 0x345, fragments back to back.
+        let mut d = Decoder::new();
+        d.decode(&f(0x42C, &[0x00, 0x0E, 0x05, 0x04, 0x07]));
+        d.decode(&f(0x42B, &[0x00, 0x8E, 0x12, 0x00]));
+        let first = d.decode(&f(0x345, &[0x00, 0x00, 0x01, 0x02, 0x03, 0x04, 0x05, 0x06]));
+        assert_eq!(
+            first.summary,
+            "change-of-state/cyclic data from MAC 5: I/O fragment first #0: 00 01 02 03 04 05 06"
+        );
+        d.decode(&f(0x345, &[0x41, 0x07, 0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D]));
+        let last = d.decode(&f(0x345, &[0x82, 0x0E, 0x0F, 0x10, 0x11]));
+        assert_eq!(
+            last.message.as_deref(),
+            Some("change-of-state/cyclic data from MAC 5, 18 bytes: 00 01 02 03 04 05 06 07 08 09 0A 0B 0C 0D 0E 0F 10 11")
+        );
+        // A one-frame series (first fragment, count 0x3F) is a whole message.
+        let single = d.decode(&f(0x345, &[0x3F, 0xAA, 0xBB]));
+        assert!(single.summary.contains("#63 (a one-frame series: the whole message)"), "{single:?}");
+        assert_eq!(single.message.as_deref(), Some("change-of-state/cyclic data from MAC 5, 2 bytes: AA BB"));
+        // Without the size, the fragment bytes tell (as for the poll response).
+        let mut d = Decoder::new();
+        let guessed = d.decode(&f(0x385, &[0x00, 1, 2, 3, 4, 5, 6, 7]));
+        assert!(
+            guessed
+                .summary
+                .starts_with("bit-strobe response from MAC 5: I/O fragment first #0, size inferred"),
+            "{guessed:?}"
+        );
     }
 
     #[test]
