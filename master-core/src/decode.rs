@@ -1,6 +1,13 @@
 //! DeviceNet meaning of CAN frames: identifiers, explicit requests and responses (services,
-//! objects, attributes, error codes by name), fragment reassembly (explicit and I/O), duplicate
-//! MAC ID checks, UCMM and the Offline Connection Set.
+//! objects, attributes, error codes by name; body formats 0-3 and the CIP path of format 4 with
+//! class, instance and attribute segments), fragment reassembly (explicit, and I/O for the poll,
+//! change-of-state/cyclic, bit-strobe and multicast poll connections), duplicate MAC ID checks,
+//! heartbeat and shutdown messages, UCMM and the Offline Connection Set with every field.
+//!
+//! Explicit reassembly follows the node's rules (notes §4.1): an unfragmented request resets
+//! both directions, an unfragmented response resets the response direction. Requests on the
+//! explicit connection are read in the body format its Allocate response announced; before one
+//! was seen, 8/8 is assumed and the text says so. The Group 2 Only port is always 8/8.
 //!
 //! A [`Decoder`] reads a whole exchange in order and keeps, per device MAC, what it needs to make
 //! sense of later frames: the last explicit request (to interpret its response), the message body
@@ -329,6 +336,85 @@ pub fn request_text(req: &Request<'_>) -> String {
     }
 }
 
+/// A request in body format 4 (notes §3.1: `<service> <path size in words> <EPATH> <data>`): the
+/// request with the class and instance of its logical segments, and the attribute of an attribute
+/// segment. Segments (8-bit `20`/`24`/`30 xx`, 16-bit `21`/`25`/`31 00 lo hi`): class first, then
+/// instance, then an optional attribute; anything else is refused with its reason.
+fn path_request(body: &[u8]) -> Result<(Request<'_>, Option<u16>), String> {
+    let [service, words, rest @ ..] = body else {
+        return Err("truncated: no path size".into());
+    };
+    if service & 0x80 != 0 {
+        return Err("not a request (bit 7 of the service set)".into());
+    }
+    let len = usize::from(*words) * 2;
+    if rest.len() < len {
+        return Err(format!("path of {words} words, only {} bytes follow", rest.len()));
+    }
+    let (mut path, data) = rest.split_at(len);
+    let mut ids: [Option<u16>; 3] = [None; 3];
+    while let Some((&seg, tail)) = path.split_first() {
+        let (value, tail) = match (seg, tail) {
+            (0x20 | 0x24 | 0x30, [v, tail @ ..]) => (u16::from(*v), tail),
+            (0x21 | 0x25 | 0x31, [_pad, lo, hi, tail @ ..]) => (u16::from_le_bytes([*lo, *hi]), tail),
+            _ => return Err(format!("unsupported path segment 0x{seg:02X} in {}", hex(&rest[..len]))),
+        };
+        // Class, then instance, then attribute, each once.
+        let slot = match seg {
+            0x20 | 0x21 => 0,
+            0x24 | 0x25 => 1,
+            _ => 2,
+        };
+        if ids[slot].is_some() || ids[..slot].iter().any(Option::is_none) {
+            return Err(format!(
+                "path segments out of order (class, instance, attribute): {}",
+                hex(&rest[..len])
+            ));
+        }
+        ids[slot] = Some(value);
+        path = tail;
+    }
+    match ids {
+        [Some(class), Some(instance), attribute] => {
+            Ok((Request { service: ServiceCode::from(*service), class, instance, data }, attribute))
+        }
+        _ => Err(format!("path without class and instance: {}", hex(&rest[..len]))),
+    }
+}
+
+/// [`request_text`] of a body-format-4 request whose path may end in an attribute segment, and
+/// the request its response answers.
+fn path_request_text(req: &Request<'_>, attribute: Option<u16>) -> (String, PendingRequest) {
+    let single = matches!(req.service, ServiceCode::GetAttributeSingle | ServiceCode::SetAttributeSingle);
+    match attribute.map(u8::try_from) {
+        // The attribute segment read as the attribute ID of an 8/8 request.
+        Some(Ok(attr)) if single => {
+            let mut data = vec![attr];
+            data.extend_from_slice(req.data);
+            let whole = Request { data: &data, ..*req };
+            (format!("{} (CIP path)", request_text(&whole)), PendingRequest::of(&whole))
+        }
+        Some(_) => {
+            let attr = attribute.unwrap_or(0);
+            let service = req
+                .service
+                .name()
+                .map_or_else(|| format!("service 0x{:02X}", req.service.as_raw()), String::from);
+            let data = if req.data.is_empty() { String::new() } else { format!(" data {}", hex(req.data)) };
+            let pending = PendingRequest { attribute: u8::try_from(attr).ok(), ..PendingRequest::of(req) };
+            (
+                format!(
+                    "{service} {} inst {} attr {attr}{data} (CIP path)",
+                    class_text(req.class),
+                    req.instance
+                ),
+                pending,
+            )
+        }
+        None => (format!("{} (CIP path)", request_text(req)), PendingRequest::of(req)),
+    }
+}
+
 /// A response body in words, interpreted with the request it answers when known.
 pub fn response_text(body: &[u8], pending: Option<&PendingRequest>) -> String {
     match Response::parse(body) {
@@ -557,6 +643,19 @@ impl Decoder {
                 (_, None) => (BodyFormat::Class8Instance8, true),
             };
             let note = if assumed { " [body format 8/8 assumed: no Allocate response seen]" } else { "" };
+            if format == BodyFormat::CipPath {
+                return match path_request(body) {
+                    Ok((req, attribute)) => {
+                        let (text, pending) = path_request_text(&req, attribute);
+                        device.pending = Some(pending);
+                        text
+                    }
+                    Err(why) => {
+                        device.pending = None;
+                        format!("malformed request ({why}): {}", hex(body))
+                    }
+                };
+            }
             match Request::parse(body, format) {
                 Ok(req) => {
                     device.pending = Some(PendingRequest::of(&req));
@@ -940,6 +1039,46 @@ mod tests {
                 .starts_with("bit-strobe response from MAC 5: I/O fragment first #0, size inferred"),
             "{guessed:?}"
         );
+    }
+
+    #[test]
+    fn a_cip_path_request_with_an_attribute_segment_is_decoded() {
+        // Issue 16's frames: MAC 3's explicit connection in body format 4 (announced by the
+        // Allocate response), a Get_Attribute_Single whose path ends in an attribute segment.
+        let mut d = Decoder::new();
+        d.decode(&f(0x41E, &[0x0A, 0x4B, 0x03, 0x01, 0x01, 0x0A]));
+        d.decode(&f(0x41B, &[0x0A, 0xCB, 0x04]));
+        d.decode(&f(0x41C, &[0x8A, 0x00, 0x0E, 0x03, 0x20, 0x01, 0x24, 0x01]));
+        let last = d.decode(&f(0x41C, &[0x8A, 0x81, 0x30, 0x01]));
+        assert_eq!(
+            last.message.as_deref(),
+            Some(
+                "reassembled 9 bytes: Get_Attribute_Single Identity(1) inst 1 attr 1 (vendor ID) (CIP path)"
+            )
+        );
+        // Its response is read with the attribute of the path.
+        let rsp = d.decode(&f(0x41B, &[0x0A, 0x8E, 0x34, 0x12])).text();
+        assert!(rsp.contains("Identity(1) inst 1 attr 1 (vendor ID) = 0x1234"), "{rsp}");
+    }
+
+    #[rstest]
+    #[case::sixteen_bit(&[0x01, 0x04, 0x21, 0x00, 0x0F, 0x00, 0x25, 0x00, 0x02, 0x01], "Get_Attributes_All Parameter(15) inst 258 (CIP path)")]
+    #[case::attribute16(&[0x0E, 0x04, 0x20, 0x01, 0x24, 0x01, 0x31, 0x00, 0x00, 0x01], "Get_Attribute_Single Identity(1) inst 1 attr 256 (CIP path)")]
+    #[case::set(&[0x10, 0x03, 0x20, 0x05, 0x24, 0x02, 0x30, 0x09, 0x64, 0x00], "Set_Attribute_Single Connection(5) inst 2 attr 9 (expected packet rate) = 100 ms (CIP path)")]
+    fn cip_path_requests(#[case] body: &[u8], #[case] text: &str) {
+        let (req, attribute) = path_request(body).unwrap();
+        assert_eq!(path_request_text(&req, attribute).0, text);
+    }
+
+    #[rstest]
+    #[case::no_instance(&[0x0E, 0x02, 0x20, 0x01, 0x30, 0x01], "path segments out of order (class, instance, attribute): 20 01 30 01")]
+    #[case::twice(&[0x0E, 0x03, 0x20, 0x01, 0x24, 0x01, 0x24, 0x02], "path segments out of order (class, instance, attribute): 20 01 24 01 24 02")]
+    #[case::port_segment(&[0x0E, 0x02, 0x01, 0x05, 0x20, 0x01], "unsupported path segment 0x01 in 01 05 20 01")]
+    #[case::short(&[0x0E, 0x03, 0x20, 0x01], "path of 3 words, only 2 bytes follow")]
+    #[case::response(&[0x8E, 0x01, 0x20, 0x01], "not a request (bit 7 of the service set)")]
+    #[case::empty(&[0x0E], "truncated: no path size")]
+    fn malformed_cip_paths(#[case] body: &[u8], #[case] why: &str) {
+        assert_eq!(path_request(body).unwrap_err(), why);
     }
 
     #[test]
