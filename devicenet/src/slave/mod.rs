@@ -193,7 +193,9 @@ pub struct SlaveNode {
 }
 
 impl SlaveNode {
-    /// A powered-off node for `config`. The input image starts as zeros.
+    /// A powered-off node for `config`. The input and output images start as zeros of the
+    /// produced and consumed sizes, so the Assembly data reads with its size before any output
+    /// arrived (Connection 2 attribute 8 and the EDS say so).
     pub fn new(config: DeviceConfig) -> Result<SlaveNode, ConfigError> {
         config.validate()?;
         Ok(SlaveNode::build(config))
@@ -207,6 +209,8 @@ impl SlaveNode {
         let mut input = heapless::Vec::new();
         // validate() bounds the produced size by MAX_IO_SIZE, so this cannot fail.
         let _ = input.resize(usize::from(config.produced_size), 0);
+        let mut output = heapless::Vec::new();
+        let _ = output.resize(usize::from(config.consumed_size), 0);
         SlaveNode {
             network: NetworkState::PoweredOff,
             powered_on_at: None,
@@ -215,7 +219,7 @@ impl SlaveNode {
             allocation: AllocationChoice::empty(),
             master: None,
             input,
-            output: heapless::Vec::new(),
+            output,
             io_idle: false,
             poll_rx: IoReassembler::new(),
             explicit_rx: ExplicitReassembler::new(),

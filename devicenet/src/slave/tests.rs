@@ -319,7 +319,6 @@ fn request_of_header_and_service_only_is_answered_not_enough_data() {
 #[case::dnet_set_boi_too_long(&[0x10, 0x03, 0x01, 0x03, 0x01, 0x00], &[0x94, 0x15, 0xFF])]
 #[case::dnet_unsupported_service(&[0x05, 0x03, 0x01], &[0x94, 0x08, 0xFF])]
 #[case::assembly_input_size(&[0x0E, 0x04, 0x64, 0x04], &[0x8E, 0x12, 0x00])]
-#[case::assembly_output_empty(&[0x0E, 0x04, 0x96, 0x03], &[0x8E])]
 #[case::assembly_set_input(&[0x10, 0x04, 0x64, 0x03, 0x00], &[0x94, 0x0E, 0xFF])]
 #[case::assembly_set_size(&[0x10, 0x04, 0x96, 0x04, 0x08, 0x00], &[0x94, 0x0E, 0xFF])]
 #[case::assembly_unknown_instance(&[0x0E, 0x04, 0x01, 0x03], &[0x94, 0x16, 0xFF])]
@@ -525,6 +524,18 @@ fn switch_attributes() {
 }
 
 // ----- explicit fragmentation (notes §4.1) ------------------------------------------------------
+
+#[test]
+fn output_assembly_reads_the_consumed_size_of_zeros_before_any_output() {
+    // Connection 2 attribute 8 and the EDS say 8 bytes: the data reads as 8 bytes from the start
+    // (9 body bytes with the service, so fragmented, notes §4.1).
+    let mut rig = Rig::explicit();
+    let first = rig.send(0x42C, &[0x00, 0x0E, 0x04, 0x96, 0x03]);
+    assert_eq!(first, tx(0x42B, &[0x80, 0x00, 0x8E, 0, 0, 0, 0, 0]));
+    let last = rig.send(0x42C, &[0x80, 0xC0, 0x00]);
+    assert_eq!(last, tx(0x42B, &[0x80, 0x81, 0, 0, 0]));
+    assert_eq!(rig.node.output(), &[0; 8]);
+}
 
 #[test]
 fn product_name_is_sent_fragmented_with_acks() {
