@@ -100,10 +100,18 @@ pub fn parse_log(text: &str, file: &str) -> Result<Vec<LogEntry>, LogError> {
     Ok(entries)
 }
 
-/// Reads and parses a log file; an unreadable file is reported as line 0.
+/// Reads and parses a log file; `-` reads standard input (as the candump tools do; a file named
+/// `-` is `./-`). An unreadable file is reported as line 0.
 pub fn read_log(path: &Path) -> Result<Vec<LogEntry>, LogError> {
-    let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| LogError {
+    let stdin = path.as_os_str() == "-";
+    let file = if stdin { "standard input".to_string() } else { path.display().to_string() };
+    let read = if stdin {
+        let mut bytes = Vec::new();
+        std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut bytes).map(|_| bytes)
+    } else {
+        std::fs::read(path)
+    };
+    let bytes = read.map_err(|e| LogError {
         file: file.clone(),
         line: 0,
         column: 0,

@@ -182,7 +182,7 @@ pub enum Command {
     },
     /// Replay a candump -L transcript against the device at MAC N.
     Replay {
-        /// The transcript (candump -L).
+        /// The transcript (candump -L; `-`: standard input).
         transcript: PathBuf,
         /// The device under test [default: the transcript's device, when it has just one].
         #[arg(long, value_parser = parse_mac)]
@@ -293,7 +293,7 @@ pub enum Command {
     },
     /// Pretty-print a candump -L log as DeviceNet messages.
     Decode {
-        /// The log.
+        /// The log (`-`: standard input).
         logfile: PathBuf,
     },
     /// The conformance suite against a group-2-only slave: network access, connection set,

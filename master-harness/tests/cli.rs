@@ -326,3 +326,34 @@ fn a_stop_request_ends_the_command_with_everything_kept() {
     assert_eq!(frames[frames.len() - 2]["data"], "004C030103");
     assert_eq!(frames[frames.len() - 1]["data"], "00CC");
 }
+
+#[test]
+fn decode_reads_standard_input_given_as_dash() {
+    use std::io::Write as _;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
+        .args(["decode", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run dnet-master");
+    let log = "(0.000100) can0 42C#000E010101\n(0.000300) can0 42B#008E3412\n";
+    child.stdin.take().unwrap().write_all(log.as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.contains("Identity(1) inst 1 attr 1 (vendor ID) = 0x1234"), "{text}");
+    // A bad line is named as on standard input.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
+        .args(["decode", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("run dnet-master");
+    child.stdin.take().unwrap().write_all(b"(0.1) can0 42C#0\n").unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("standard input:1"), "{err}");
+}
