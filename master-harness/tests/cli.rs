@@ -260,6 +260,14 @@ fn replay_takes_the_device_and_master_from_the_transcript() {
     assert!(stdout(&o).contains("replay held: 30 frames, 15 from the device compared"), "{}", stdout(&o));
     let o = dnet(&["--bus", "sim", "replay", log.to_str().unwrap(), "--mac", "63"]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    // The same transcript on standard input.
+    let o = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
+        .args(["--bus", "sim", "replay", "-"])
+        .stdin(std::fs::File::open(&log).unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("replay held: 30 frames, 15 from the device compared"), "{}", stdout(&o));
 }
 
 #[test]
