@@ -261,11 +261,7 @@ fn replay_takes_the_device_and_master_from_the_transcript() {
     let o = dnet(&["--bus", "sim", "replay", log.to_str().unwrap(), "--mac", "63"]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     // The same transcript on standard input.
-    let o = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
-        .args(["--bus", "sim", "replay", "-"])
-        .stdin(std::fs::File::open(&log).unwrap())
-        .output()
-        .unwrap();
+    let o = dnet_with_stdin(&["--bus", "sim", "replay", "-"], &std::fs::read(&log).unwrap());
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     assert!(stdout(&o).contains("replay held: 30 frames, 15 from the device compared"), "{}", stdout(&o));
 }
@@ -335,33 +331,28 @@ fn a_stop_request_ends_the_command_with_everything_kept() {
     assert_eq!(frames[frames.len() - 1]["data"], "00CC");
 }
 
-#[test]
-fn decode_reads_standard_input_given_as_dash() {
+/// `dnet-master args` with `input` on standard input.
+fn dnet_with_stdin(args: &[&str], input: &[u8]) -> Output {
     use std::io::Write as _;
     let mut child = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
-        .args(["decode", "-"])
+        .args(args)
         .stdin(std::process::Stdio::piped())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("run dnet-master");
+    child.stdin.take().unwrap().write_all(input).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn decode_reads_standard_input_given_as_dash() {
     let log = "(0.000100) can0 42C#000E010101\n(0.000300) can0 42B#008E3412\n";
-    child.stdin.take().unwrap().write_all(log.as_bytes()).unwrap();
-    let out = child.wait_with_output().unwrap();
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
-    assert!(text.contains("Identity(1) inst 1 attr 1 (vendor ID) = 0x1234"), "{text}");
+    let out = dnet_with_stdin(&["decode", "-"], log.as_bytes());
+    assert!(out.status.success(), "{}{}", stdout(&out), stderr(&out));
+    assert!(stdout(&out).contains("Identity(1) inst 1 attr 1 (vendor ID) = 0x1234"), "{}", stdout(&out));
     // A bad line is named as on standard input.
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
-        .args(["decode", "-"])
-        .stdin(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .expect("run dnet-master");
-    child.stdin.take().unwrap().write_all(b"(0.1) can0 42C#0\n").unwrap();
-    let out = child.wait_with_output().unwrap();
+    let out = dnet_with_stdin(&["decode", "-"], b"(0.1) can0 42C#0\n");
     assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("standard input:1"), "{err}");
+    assert!(stderr(&out).contains("standard input:1"), "{}", stderr(&out));
 }

@@ -16,6 +16,7 @@
 
 use crate::device::SoftSlave;
 use can_io::sim::SimDevice;
+use devicenet::explicit::Response;
 use devicenet::fragment::{io_fragments, next_count, FragmentByte, FragmentKind};
 use devicenet::id::{Group1MessageId, Group3MessageId};
 use devicenet::objects::class;
@@ -271,18 +272,6 @@ impl LastRequest {
     fn choice(&self, service: u8) -> Option<u8> {
         (self.service() == service && self.class() == class::DEVICENET)
             .then(|| self.data().first().copied())?
-    }
-}
-
-/// An unfragmented explicit response body: `Ok(data)` for a success, `Err((general, additional))`
-/// for an error.
-fn response(data: &[u8]) -> Option<Result<&[u8], (u8, u8)>> {
-    match data {
-        [h, 0x94, general, rest @ ..] if h & 0x80 == 0 => {
-            Some(Err((*general, rest.first().copied().unwrap_or(0xFF))))
-        }
-        [h, service, rest @ ..] if h & 0x80 == 0 && service & 0x80 != 0 => Some(Ok(rest)),
-        _ => None,
     }
 }
 
@@ -601,10 +590,13 @@ impl FaultHook {
         }
         let last = self.last.clone();
         let Some(req) = last else { return Some((now, f)) };
-        let rewritten = match response(data) {
-            Some(Ok(value)) => self.rewrite_success(&req, value, node),
-            Some(Err((general, additional))) => self.rewrite_error(&req, general, additional),
-            None => None,
+        // An unfragmented response (fragments were handled above), read with the core's codec.
+        let rewritten = match Response::parse(data.get(1..).unwrap_or(&[])) {
+            Ok(Response::Success { data: value, .. }) => self.rewrite_success(&req, value, node),
+            Ok(Response::Error { general, additional }) => {
+                self.rewrite_error(&req, general.as_raw(), additional)
+            }
+            Err(_) => None,
         };
         let f = match rewritten {
             Some(body) => {
