@@ -10,6 +10,7 @@
 //! | `bus` | `std` | the [`Bus`](bus::Bus) trait every host program runs on, [`BusSpec`](bus::BusSpec) (`--bus sim`, `socketcan:IFACE`, `slcan:PATH[@BAUD]`) and [`BusSpec::open`](bus::BusSpec::open); the SocketCAN (Linux) and SLCAN-adapter buses |
 //! | `log` | `std` | `candump -L` log lines: writer, and reader with precise errors |
 //! | `pcap` | `std` | a SocketCAN pcap capture (link type 227) written by a wrapper around any bus |
+//! | `trace` | `std` | trace files of every format (candump, pcap, pcapng, PCAN `.trc`, Vector `.asc` and `.blf`, CSV): format detection, readers that skip and count what is not DeviceNet traffic, writers of the text formats |
 //! | `sim` | `sim` | the simulated CAN bus: virtual clock, arbitration, each frame's exact time on the wire, simulated devices ([`SimDevice`](sim::SimDevice)), fault injection ([`sim::fault`]) |
 //!
 //! ## What it must not depend on
@@ -44,3 +45,5 @@ pub mod log;
 pub mod pcap;
 #[cfg(feature = "sim")]
 pub mod sim;
+#[cfg(feature = "std")]
+pub mod trace;

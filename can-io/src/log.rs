@@ -17,10 +17,12 @@ pub struct LogEntry {
     pub line: usize,
     /// The timestamp.
     pub at: Instant,
-    /// The interface name.
+    /// The interface (candump, pcapng) or channel (trc, asc, blf, csv) name.
     pub iface: String,
     /// The frame.
     pub frame: CanFrame,
+    /// The direction, where the format records it (trc, asc, blf, csv).
+    pub direction: Option<crate::trace::Direction>,
 }
 
 /// What is wrong with a log line.
@@ -137,7 +139,7 @@ fn is_hex(s: &str) -> bool {
 }
 
 /// Parses `(seconds.micros) iface ID#DATA`; errors are (1-based column, reason).
-fn parse_line(line: &str, number: usize) -> Result<LogEntry, (usize, String)> {
+pub(crate) fn parse_line(line: &str, number: usize) -> Result<LogEntry, (usize, String)> {
     let col = |part: &str| part.as_ptr() as usize - line.as_ptr() as usize + 1;
     let start = line.len() - line.trim_start().len();
     let rest = &line[start..];
@@ -164,7 +166,7 @@ fn parse_line(line: &str, number: usize) -> Result<LogEntry, (usize, String)> {
         }
     }
     let frame = parse_frame(frame_text).map_err(|(offset, reason)| (col(frame_text) + offset, reason))?;
-    Ok(LogEntry { line: number, at, iface: iface.to_string(), frame })
+    Ok(LogEntry { line: number, at, iface: iface.to_string(), frame, direction: None })
 }
 
 fn parse_timestamp(stamp: &str) -> Result<Instant, String> {
@@ -200,6 +202,9 @@ pub fn parse_frame(text: &str) -> Result<CanFrame, (usize, String)> {
     }
     if !is_hex(id) {
         return Err((0, format!("invalid identifier '{id}': expected 3 hex digits")));
+    }
+    if id.len() == 8 && u32::from_str_radix(id, 16).is_ok_and(|raw| raw & 0x2000_0000 != 0) {
+        return Err((0, format!("error frame '{text}' (CAN_ERR_FLAG set) is not DeviceNet traffic")));
     }
     if id.len() == 8 {
         return Err((
@@ -244,7 +249,13 @@ mod tests {
         let entries = parse_log(&format!("# comment\n\n{line}\n"), "t.log").unwrap();
         assert_eq!(
             entries,
-            vec![LogEntry { line: 3, at: Instant::from_micros(5_000_423), iface: "sim".into(), frame: f }]
+            vec![LogEntry {
+                line: 3,
+                at: Instant::from_micros(5_000_423),
+                iface: "sim".into(),
+                frame: f,
+                direction: None
+            }]
         );
     }
 
