@@ -4,6 +4,13 @@
 //! change-of-state/cyclic, bit-strobe and multicast poll connections), duplicate MAC ID checks,
 //! heartbeat and shutdown messages, UCMM and the Offline Connection Set with every field.
 //!
+//! Explicit connections opened through UCMM (notes §3.6) are followed: the Open request gives the
+//! group, the Open response the body format and the message IDs, and from then on the frames on
+//! those identifiers are read as that connection's explicit requests and responses (fragments
+//! reassembled on it), until a Close response. An Open response whose request was not seen is
+//! named but not followed (the group is unknown), and so is a connection beyond
+//! [`MAX_UCMM_LINKS`].
+//!
 //! Explicit reassembly follows the node's rules (notes §4.1): an unfragmented request resets
 //! both directions, an unfragmented response resets the response direction. Requests on the
 //! explicit connection are read in the body format its Allocate response announced; before one
@@ -37,6 +44,9 @@ use std::fmt::Write as _;
 pub const MAX_EXPLICIT_MESSAGE: usize = 1024;
 /// Largest I/O message reassembled by the decoder (64 fragments of 7 bytes, notes §4.2).
 pub const MAX_IO_MESSAGE: usize = 448;
+
+/// Most UCMM connections followed at once (a trace opening more is not followed beyond them).
+pub const MAX_UCMM_LINKS: usize = 64;
 
 /// The meaning of one frame.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -167,6 +177,54 @@ impl Device {
 #[derive(Clone, Default)]
 pub struct Decoder {
     devices: HashMap<u8, Device>,
+    /// Explicit connections opened through UCMM, by (server MAC, Connection instance).
+    ucmm: HashMap<(u8, u16), UcmmLink>,
+    /// The identifiers of [`Decoder::ucmm`]'s connections: which one, and whether it carries the
+    /// client's requests (else the server's responses).
+    ucmm_ids: HashMap<u16, ((u8, u16), bool)>,
+    /// Open requests seen, by (client, server): the group the client asked for.
+    ucmm_opens: HashMap<(u8, u8), GroupSelect>,
+    /// Close requests seen, by (client, server): the Connection instance to close.
+    ucmm_closes: HashMap<(u8, u8), u16>,
+}
+
+/// An explicit connection opened through UCMM (notes §3.6): its ends, and the state of its
+/// explicit messages (body format from the Open response, reassembly, the last request).
+#[derive(Clone)]
+struct UcmmLink {
+    client: u8,
+    state: Device,
+}
+
+/// Whose explicit messaging state a frame belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Target {
+    /// The predefined explicit connection or the Group 2 Only port of the device at this MAC.
+    Device(u8),
+    /// A UCMM connection: (server MAC, Connection instance).
+    Ucmm(u8, u16),
+}
+
+impl Target {
+    /// The device the learned facts (sizes, body format of the predefined set) belong to.
+    fn server(self) -> u8 {
+        match self {
+            Target::Device(mac) | Target::Ucmm(mac, _) => mac,
+        }
+    }
+}
+
+/// The CAN identifier of message `message` in `group` with `mac` in its MAC field (notes §1.2);
+/// `None` where the group has no such dynamic message.
+fn dynamic_id(group: GroupSelect, message: u8, mac: u8) -> Option<u16> {
+    let mac = u16::from(mac & 0x3F);
+    match group {
+        GroupSelect::Group1 if message < 16 => Some(u16::from(message) << 6 | mac),
+        GroupSelect::Group2 if message < 8 => Some(0x400 | mac << 3 | u16::from(message)),
+        // Group 3 messages 0-4 are the dynamic ones; 5 and 6 are UCMM's own (notes §1.2).
+        GroupSelect::Group3 if message <= 4 => Some(0x600 | u16::from(message) << 6 | mac),
+        _ => None,
+    }
 }
 
 /// Hex bytes separated by spaces.
@@ -488,10 +546,17 @@ impl Decoder {
     /// Decodes the next frame of the exchange.
     pub fn decode(&mut self, frame: &CanFrame) -> Decoded {
         let data = frame.data();
+        if !self.ucmm_ids.is_empty() {
+            if let Some(&(key, request)) = self.ucmm_ids.get(&frame.id().as_raw()) {
+                return self.ucmm_message(key, request, data);
+            }
+        }
         match Identifier::decode(frame.id()) {
             Identifier::Group1 { message, source } => self.group1(message, source.as_raw(), data),
             Identifier::Group2 { mac, message } => self.group2(message, mac.as_raw(), data),
-            Identifier::Group3 { message, source } => Decoded::frame(group3(message, source.as_raw(), data)),
+            Identifier::Group3 { message, source } => {
+                Decoded::frame(self.group3(message, source.as_raw(), data))
+            }
             Identifier::Group4 { message } => Decoded::frame(group4(message, data)),
             Identifier::Invalid(raw) => Decoded::frame(format!(
                 "invalid identifier 0x{raw:03X} (0x7F0-0x7FF are not used): {}",
@@ -542,13 +607,16 @@ impl Decoder {
                 Err(e) => format!("malformed duplicate MAC ID check for MAC {mac} ({e}): {}", hex(data)),
             }),
             Group2Message::ExplicitRequest => {
-                self.explicit(mac, data, Channel::Request, "explicit request to MAC")
+                self.explicit(Target::Device(mac), data, Channel::Request, "explicit request to MAC")
             }
-            Group2Message::UnconnectedExplicitRequest => {
-                self.explicit(mac, data, Channel::Group2Only, "Group 2 Only unconnected request to MAC")
-            }
+            Group2Message::UnconnectedExplicitRequest => self.explicit(
+                Target::Device(mac),
+                data,
+                Channel::Group2Only,
+                "Group 2 Only unconnected request to MAC",
+            ),
             Group2Message::ExplicitResponse => {
-                self.explicit(mac, data, Channel::Response, "explicit response from MAC")
+                self.explicit(Target::Device(mac), data, Channel::Response, "explicit response from MAC")
             }
             Group2Message::PollCommand => {
                 let who = format!("poll command to MAC {mac}");
@@ -569,7 +637,40 @@ impl Decoder {
         }
     }
 
-    fn explicit(&mut self, mac: u8, data: &[u8], channel: Channel, what: &str) -> Decoded {
+    /// The explicit connection's state for `target`.
+    fn state(&mut self, target: Target) -> &mut Device {
+        match target {
+            Target::Device(mac) => self.device(mac),
+            Target::Ucmm(server, instance) => {
+                &mut self
+                    .ucmm
+                    .entry((server, instance))
+                    .or_insert_with(|| UcmmLink { client: 0, state: Device::new() })
+                    .state
+            }
+        }
+    }
+
+    /// A frame of a UCMM connection: explicit messaging in the body format its Open response gave.
+    fn ucmm_message(&mut self, key: (u8, u16), request: bool, data: &[u8]) -> Decoded {
+        let (server, instance) = key;
+        let client = self.ucmm.get(&key).map_or(0, |l| l.client);
+        let (channel, what) = if request {
+            (
+                Channel::Request,
+                format!("explicit request on UCMM connection {instance} (from MAC {client}) to MAC"),
+            )
+        } else {
+            (
+                Channel::Response,
+                format!("explicit response on UCMM connection {instance} (to MAC {client}) from MAC"),
+            )
+        };
+        self.explicit(Target::Ucmm(server, instance), data, channel, &what)
+    }
+
+    fn explicit(&mut self, target: Target, data: &[u8], channel: Channel, what: &str) -> Decoded {
+        let mac = target.server();
         let request = channel != Channel::Response;
         let Some(&first) = data.first() else {
             return Decoded::frame(format!("{what} {mac}: empty frame"));
@@ -578,13 +679,13 @@ impl Decoder {
         let head =
             format!("{what} {mac} [{}master MAC {}]", if header.xid { "XID 1, " } else { "" }, header.mac);
         if !header.fragmented {
-            if !request {
+            if !request && matches!(target, Target::Device(_)) {
                 if let Some(text) = broadcast_text(mac, header.mac.as_raw(), data) {
                     return Decoded::frame(text);
                 }
             }
             let body = &data[1..];
-            let device = self.device(mac);
+            let device = self.state(target);
             if request {
                 // An unfragmented request resets fragmentation both ways (notes §4.1).
                 device.request_rx.reset();
@@ -595,7 +696,7 @@ impl Decoder {
                 // cannot join an earlier first one into a message nobody sent.
                 device.response_rx.reset();
             }
-            return Decoded::frame(format!("{head} {}", self.message_body(mac, body, channel)));
+            return Decoded::frame(format!("{head} {}", self.message_body(target, body, channel)));
         }
         let frag = match ExplicitFragment::parse(data) {
             Ok(f) => f,
@@ -612,15 +713,18 @@ impl Decoder {
             frag.body.len(),
             hex(frag.body)
         );
-        let device = self.device(mac);
+        let device = self.state(target);
         let rx = if request { &mut device.request_rx } else { &mut device.response_rx };
         match rx.receive(data) {
             ExplicitReceive::Complete(_) => {
                 let whole = rx.message().to_vec();
                 rx.reset();
                 let body = whole.get(1..).unwrap_or(&[]);
-                let text =
-                    format!("reassembled {} bytes: {}", whole.len(), self.message_body(mac, body, channel));
+                let text = format!(
+                    "reassembled {} bytes: {}",
+                    whole.len(),
+                    self.message_body(target, body, channel)
+                );
                 Decoded { summary, message: Some(text) }
             }
             ExplicitReceive::Ignored(e) => Decoded::frame(format!("{summary} (dropped: {e})")),
@@ -632,8 +736,8 @@ impl Decoder {
 
     /// A whole explicit body, remembering requests and learning sizes and the body format from
     /// responses.
-    fn message_body(&mut self, mac: u8, body: &[u8], channel: Channel) -> String {
-        let device = self.device(mac);
+    fn message_body(&mut self, target: Target, body: &[u8], channel: Channel) -> String {
+        let device = self.state(target);
         if channel != Channel::Response {
             // The Group 2 Only port always uses 8/8; the explicit connection the format its
             // Allocate response announced, 8/8 assumed (and said) before one was seen (notes §3.1).
@@ -668,6 +772,8 @@ impl Decoder {
             }
         } else {
             let pending = device.pending.take();
+            // What a response teaches belongs to the device, whichever connection carried it.
+            let device = self.device(target.server());
             if let (Some(p), Ok(Response::Success { data, .. })) = (pending, Response::parse(body)) {
                 match (p.service, p.class, p.instance, p.attribute) {
                     (ServiceCode::GetAttributeSingle, class::CONNECTION, 2, Some(7)) => {
@@ -743,6 +849,88 @@ fn io_data(series: &mut IoSeries, size: Option<u16>, who: &str, data: &[u8]) -> 
         Err(e) => {
             series.next = None;
             Decoded::frame(format!("{summary} (dropped: {e})"))
+        }
+    }
+}
+
+impl Decoder {
+    /// UCMM requests and responses (notes §3.6); an Open response opens a connection that later
+    /// frames are read on, a Close response closes it.
+    fn group3(&mut self, message: Group3MessageId, source: u8, data: &[u8]) -> String {
+        match message {
+            Group3MessageId::UNCONNECTED_REQUEST => self.ucmm_request(source, data),
+            Group3MessageId::UNCONNECTED_RESPONSE => self.ucmm_response(source, data),
+            _ => format!(
+                "G3 message {} from MAC {source} (dynamic connection, not opened in this trace): {}",
+                message.as_raw(),
+                hex(data)
+            ),
+        }
+    }
+
+    fn ucmm_request(&mut self, source: u8, data: &[u8]) -> String {
+        if let Ok(r) = UcmmOpenRequest::parse(data) {
+            self.ucmm_opens.insert((source, r.destination.as_raw()), r.group_select);
+        }
+        if let Ok(r) = UcmmCloseRequest::parse(data) {
+            self.ucmm_closes.insert((source, r.destination.as_raw()), r.connection_instance);
+        }
+        group3(Group3MessageId::UNCONNECTED_REQUEST, source, data)
+    }
+
+    fn ucmm_response(&mut self, server: u8, data: &[u8]) -> String {
+        let text = group3(Group3MessageId::UNCONNECTED_RESPONSE, server, data);
+        if let Ok(r) = UcmmOpenResponse::parse(data) {
+            let client = r.destination.as_raw();
+            let Some(group) = self.ucmm_opens.remove(&(client, server)) else {
+                return format!("{text} (its Open request was not seen: the group is unknown, the connection is not followed)");
+            };
+            // In Groups 1 and 3 the identifier carries the sender's MAC, in Group 2 the server's
+            // (notes §1.2): the client's requests go on the message ID the server consumes, the
+            // server's responses on the one it produces (CIP Vol 3 3-5.5; which response field is
+            // which is UNCONFIRMED beyond the field names).
+            let (request_mac, response_mac) = match group {
+                GroupSelect::Group2 => (server, server),
+                _ => (client, server),
+            };
+            let ids = dynamic_id(group, r.destination_message_id, request_mac).zip(dynamic_id(
+                group,
+                r.source_message_id,
+                response_mac,
+            ));
+            let Some((request_id, response_id)) = ids else {
+                return format!(
+                    "{text} (message IDs outside the dynamic range of {}: not followed)",
+                    group_select_text(group)
+                );
+            };
+            let key = (server, r.connection_instance);
+            self.close_link(key);
+            if self.ucmm.len() >= MAX_UCMM_LINKS {
+                return format!("{text} (already {MAX_UCMM_LINKS} UCMM connections open: not followed)");
+            }
+            let mut state = Device::new();
+            state.body_format = Some(r.body_format);
+            self.ucmm.insert(key, UcmmLink { client, state });
+            self.ucmm_ids.insert(request_id, (key, true));
+            self.ucmm_ids.insert(response_id, (key, false));
+            return format!(
+                "{text}; requests on 0x{request_id:03X}, responses on 0x{response_id:03X} ({})",
+                group_select_text(group)
+            );
+        }
+        if let Ok(r) = UcmmCloseResponse::parse(data) {
+            if let Some(instance) = self.ucmm_closes.remove(&(r.destination.as_raw(), server)) {
+                self.close_link((server, instance));
+                return format!("{text}: connection {instance} closed");
+            }
+        }
+        text
+    }
+
+    fn close_link(&mut self, key: (u8, u16)) {
+        if self.ucmm.remove(&key).is_some() {
+            self.ucmm_ids.retain(|_, (k, _)| *k != key);
         }
     }
 }
@@ -1007,6 +1195,65 @@ mod tests {
         let last = d.decode(&f(0x40B, &[0x80, 0x81, 0xBB]));
         assert_eq!(last.message, None, "no invented message: {last:?}");
         assert!(last.summary.contains("fragment last #1") && last.summary.contains("dropped"), "{last:?}");
+    }
+
+    #[test]
+    fn a_connection_opened_through_ucmm_is_followed_in_the_body_format_it_was_given() {
+        // MAC 0 opens a Group 3 connection to MAC 5 (source message ID 4), MAC 5 answers with
+        // body format 8/16, consuming message 4 and producing message 2, Connection instance 6.
+        let mut d = Decoder::new();
+        d.decode(&f(0x780, &[0x05, 0x4B, 0x01, 0x34]));
+        let open = d.decode(&f(0x745, &[0x00, 0xCB, 0x01, 0x42, 0x06, 0x00])).text();
+        assert!(open.ends_with("requests on 0x700, responses on 0x685 (group 3)"), "{open}");
+        // A Get_Attribute_Single in 8/16 on G3 message 4 from MAC 0, and its answer.
+        let get = d.decode(&f(0x700, &[0x05, 0x0E, 0x01, 0x01, 0x00, 0x07])).text();
+        assert_eq!(
+            get,
+            "explicit request on UCMM connection 6 (from MAC 0) to MAC 5 [master MAC 5] Get_Attribute_Single Identity(1) inst 1 attr 7 (product name)"
+        );
+        let rsp = d.decode(&f(0x685, &[0x00, 0x8E, 0x02, b'O', b'K'])).text();
+        assert!(rsp.starts_with("explicit response on UCMM connection 6 (to MAC 0) from MAC 5"), "{rsp}");
+        assert!(rsp.contains("attr 7 (product name) = \"OK\""), "{rsp}");
+        // Fragments on the connection are reassembled on it.
+        d.decode(&f(0x700, &[0x05, 0x0E, 0x01, 0x01, 0x00, 0x07]));
+        d.decode(&f(0x685, &[0x80, 0x00, 0x8E, 0x04, b'a', b'b', b'c']));
+        let last = d.decode(&f(0x685, &[0x80, 0x81, b'd']));
+        assert!(last.message.as_deref().is_some_and(|m| m.contains("\"abcd\"")), "{last:?}");
+        // Closed: the identifiers are raw dynamic traffic again.
+        d.decode(&f(0x780, &[0x05, 0x4C, 0x06, 0x00]));
+        let close = d.decode(&f(0x745, &[0x00, 0xCC])).text();
+        assert!(close.ends_with("connection 6 closed"), "{close}");
+        let after = d.decode(&f(0x700, &[0x05, 0x0E, 0x01, 0x01, 0x00, 0x07])).text();
+        assert!(
+            after.starts_with("G3 message 4 from MAC 0 (dynamic connection, not opened in this trace)"),
+            "{after}"
+        );
+    }
+
+    #[rstest]
+    #[case::group1(0x00, 0x040, 0x085)]
+    #[case::group2(0x10, 0x42D, 0x42B)]
+    fn ucmm_connections_in_groups_1_and_2(#[case] select: u8, #[case] request: u16, #[case] response: u16) {
+        // The Open response's destination message ID (high nibble) is what the server consumes,
+        // its source message ID (low nibble) what it produces.
+        let mut d = Decoder::new();
+        let msgs = if select == 0 { 0x12 } else { 0x53 };
+        d.decode(&f(0x780, &[0x05, 0x4B, 0x00, select | msgs >> 4]));
+        let open = d.decode(&f(0x745, &[0x00, 0xCB, 0x00, msgs, 0x07, 0x00])).text();
+        assert!(
+            open.contains(&format!("requests on 0x{request:03X}, responses on 0x{response:03X}")),
+            "{open}"
+        );
+        let get = d.decode(&f(request, &[0x05, 0x0E, 0x01, 0x01, 0x01])).text();
+        assert!(get.starts_with("explicit request on UCMM connection 7"), "{get}");
+    }
+
+    #[test]
+    fn an_open_response_without_its_request_is_not_followed() {
+        let mut d = Decoder::new();
+        let open = d.decode(&f(0x745, &[0x00, 0xCB, 0x00, 0x42, 0x06, 0x00])).text();
+        assert!(open.ends_with("the connection is not followed)"), "{open}");
+        assert!(d.decode(&f(0x700, &[0x05, 0x0E, 0x01, 0x01, 0x07])).text().starts_with("G3 message 4"));
     }
 
     #[test]

@@ -5,47 +5,18 @@
 //! * `scan` of 63 simulated devices (MAC 1..=63, master at 0) at 500 kbit/s, in simulated bus time.
 
 use can_io::bus::Bitrate;
-use can_io::log::{format_line, parse_log};
+use can_io::log::parse_log;
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
-use devicenet::{Instant, MacId};
+use devicenet::MacId;
 use master_core::decode::Decoder;
-use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
 use master_harness::scan::scan;
 use std::hint::black_box;
 
-/// A realistic exchange (bring-up, product name, 20 polls), repeated with shifted times to reach
-/// `frames` lines.
-fn generated_log(frames: usize) -> String {
-    let mut bus = SimBus::new(Bitrate::K250);
-    bus.attach(Box::new(SoftSlave::reference(MacId::from_low_bits(5))), PowerOn::WhenMasterOnline);
-    let mut session = Session::new(&mut bus);
-    {
-        let mut m = Master::new(&mut session, MasterConfig::default());
-        let opts = ConnectOptions { polls: 20, ..ConnectOptions::default() };
-        m.connect(&opts).expect("bring-up on the simulated bus");
-        m.get(MacId::from_low_bits(5), 1, 1, 7).expect("product name");
-    }
-    let records = session.records().to_vec();
-    let span = records.last().map_or(1, |r| r.at.total_micros() + 1000);
-    let mut text = String::with_capacity(frames * 40);
-    let mut n = 0;
-    let mut round = 0u64;
-    while n < frames {
-        for r in &records {
-            if n == frames {
-                break;
-            }
-            let at = Instant::from_micros(r.at.total_micros() + round * span);
-            text.push_str(&format_line(at, "can0", &r.frame));
-            text.push('\n');
-            n += 1;
-        }
-        round += 1;
-    }
-    text
-}
+mod common;
+use common::generated_log;
 
 fn decode_bench() {
     const FRAMES: usize = 1_000_000;
