@@ -9,6 +9,7 @@ use devicenet::{CanFrame, Instant};
 use std::fmt;
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// One frame of a log.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -17,8 +18,9 @@ pub struct LogEntry {
     pub line: usize,
     /// The timestamp.
     pub at: Instant,
-    /// The interface (candump, pcapng) or channel (trc, asc, blf, csv) name.
-    pub iface: String,
+    /// The interface (candump, pcapng) or channel (trc, asc, blf, csv) name; shared by the
+    /// entries of one interface (a trace has millions of entries and a few interfaces).
+    pub iface: Arc<str>,
     /// The frame.
     pub frame: CanFrame,
     /// The direction, where the format records it (trc, asc, blf, csv).
@@ -166,7 +168,7 @@ pub(crate) fn parse_line(line: &str, number: usize) -> Result<LogEntry, (usize, 
         }
     }
     let frame = parse_frame(frame_text).map_err(|(offset, reason)| (col(frame_text) + offset, reason))?;
-    Ok(LogEntry { line: number, at, iface: iface.to_string(), frame, direction: None })
+    Ok(LogEntry { line: number, at, iface: iface.into(), frame, direction: None })
 }
 
 fn parse_timestamp(stamp: &str) -> Result<Instant, String> {

@@ -19,6 +19,6 @@ fuzz_target!(|data: &[u8]| {
     let reparsed = parse_log(&again, "again").expect("formatted lines parse");
     assert_eq!(reparsed.len(), entries.len());
     for (a, b) in entries.iter().zip(&reparsed) {
-        assert_eq!((a.at, &a.iface, a.frame), (b.at, &b.iface, b.frame));
+        assert_eq!((a.at, &*a.iface, a.frame), (b.at, &*b.iface, b.frame));
     }
 });

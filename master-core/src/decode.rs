@@ -176,7 +176,8 @@ impl Device {
 /// Decodes a stream of frames. See the [module docs](self).
 #[derive(Clone, Default)]
 pub struct Decoder {
-    devices: HashMap<u8, Device>,
+    /// Per MAC ID 0-63, the device's state once it was seen (a table: the decoder's hottest lookup).
+    devices: Vec<Option<Device>>,
     /// Explicit connections opened through UCMM, by (server MAC, Connection instance).
     ucmm: HashMap<(u8, u16), UcmmLink>,
     /// The identifiers of [`Decoder::ucmm`]'s connections: which one, and whether it carries the
@@ -230,13 +231,44 @@ fn dynamic_id(group: GroupSelect, message: u8, mac: u8) -> Option<u16> {
 /// Hex bytes separated by spaces.
 pub fn hex(bytes: &[u8]) -> String {
     let mut s = String::with_capacity(bytes.len() * 3);
-    for (i, b) in bytes.iter().enumerate() {
-        if i > 0 {
-            s.push(' ');
-        }
-        let _ = write!(s, "{b:02X}");
-    }
+    push_hex(&mut s, bytes);
     s
+}
+
+const HEX_DIGITS: &[u8; 16] = b"0123456789ABCDEF";
+
+/// Appends [`hex`]`(bytes)` to `out` (no allocation, no formatting machinery: `decode` writes
+/// one line per frame and this is most of it).
+pub fn push_hex(out: &mut String, bytes: &[u8]) {
+    for (i, &b) in bytes.iter().enumerate() {
+        if i > 0 {
+            out.push(' ');
+        }
+        out.push(char::from(HEX_DIGITS[usize::from(b >> 4)]));
+        out.push(char::from(HEX_DIGITS[usize::from(b & 0xF)]));
+    }
+}
+
+/// Appends `n` in decimal.
+fn push_u8(out: &mut String, n: u8) {
+    if n >= 100 {
+        out.push(char::from(b'0' + n / 100));
+    }
+    if n >= 10 {
+        out.push(char::from(b'0' + n / 10 % 10));
+    }
+    out.push(char::from(b'0' + n % 10));
+}
+
+/// Appends [`data_text`]`(data)`.
+fn push_data_text(out: &mut String, data: &[u8]) {
+    if data.is_empty() {
+        out.push_str("no data");
+    } else {
+        push_u8(out, data.len() as u8);
+        out.push_str(" bytes ");
+        push_hex(out, data);
+    }
 }
 
 /// `Identity(1)` or `class 0x99`.
@@ -524,12 +556,18 @@ impl Decoder {
     }
 
     fn device(&mut self, mac: u8) -> &mut Device {
-        self.devices.entry(mac).or_insert_with(Device::new)
+        if self.devices.len() < 64 {
+            self.devices.resize_with(64, || None);
+        }
+        self.devices[usize::from(mac & 0x3F)].get_or_insert_with(Device::new)
     }
 
     /// The poll connection sizes (produced, consumed) learned for `mac`.
     pub fn connection_sizes(&self, mac: u8) -> (Option<u16>, Option<u16>) {
-        self.devices.get(&mac).map_or((None, None), |d| (d.produced, d.consumed))
+        match self.devices.get(usize::from(mac)) {
+            Some(Some(d)) => (d.produced, d.consumed),
+            _ => (None, None),
+        }
     }
 
     /// Tells the decoder the poll connection sizes of `mac` (when known from elsewhere).
@@ -545,6 +583,41 @@ impl Decoder {
 
     /// Decodes the next frame of the exchange.
     pub fn decode(&mut self, frame: &CanFrame) -> Decoded {
+        let mut out = Decoded::default();
+        self.decode_into(frame, &mut out);
+        out
+    }
+
+    /// [`Decoder::decode`] into `out`, reusing its summary's memory (what `dnet-master decode`
+    /// does for a million frames).
+    pub fn decode_into(&mut self, frame: &CanFrame, out: &mut Decoded) {
+        out.summary.clear();
+        out.message = None;
+        let data = frame.data();
+        // The I/O traffic that makes up most of a trace, written straight into `out`.
+        match Identifier::decode(frame.id()) {
+            Identifier::Group1 { message: Group1MessageId::POLL_RESPONSE, source }
+                if self.ucmm_ids.is_empty() =>
+            {
+                let device = self.device(source.as_raw());
+                let produced = device.produced;
+                let who = Who { name: "poll response from MAC ", mac: source.as_raw() };
+                return io_data_into(&mut device.poll_response, produced, who, data, out);
+            }
+            Identifier::Group2 { mac, message: Group2Message::PollCommand } if self.ucmm_ids.is_empty() => {
+                let device = self.device(mac.as_raw());
+                let consumed = device.consumed;
+                let who = Who { name: "poll command to MAC ", mac: mac.as_raw() };
+                return io_data_into(&mut device.poll_command, consumed, who, data, out);
+            }
+            _ => {}
+        }
+        let Decoded { summary, message } = self.decode_other(frame);
+        out.summary.push_str(&summary);
+        out.message = message;
+    }
+
+    fn decode_other(&mut self, frame: &CanFrame) -> Decoded {
         let data = frame.data();
         if !self.ucmm_ids.is_empty() {
             if let Some(&(key, request)) = self.ucmm_ids.get(&frame.id().as_raw()) {
@@ -567,10 +640,10 @@ impl Decoder {
 
     fn group1(&mut self, message: Group1MessageId, source: u8, data: &[u8]) -> Decoded {
         let name = match message {
-            Group1MessageId::POLL_RESPONSE => "poll response",
-            Group1MessageId::COS_CYCLIC => "change-of-state/cyclic data",
-            Group1MessageId::BIT_STROBE_RESPONSE => "bit-strobe response",
-            Group1MessageId::MULTICAST_POLL_RESPONSE => "multicast poll response",
+            Group1MessageId::POLL_RESPONSE => "poll response from MAC ",
+            Group1MessageId::COS_CYCLIC => "change-of-state/cyclic data from MAC ",
+            Group1MessageId::BIT_STROBE_RESPONSE => "bit-strobe response from MAC ",
+            Group1MessageId::MULTICAST_POLL_RESPONSE => "multicast poll response from MAC ",
             _ => {
                 return Decoded::frame(format!(
                     "G1 message {} from MAC {source} (dynamic connection): {}",
@@ -579,18 +652,18 @@ impl Decoder {
                 ))
             }
         };
-        let who = format!("{name} from MAC {source}");
+        let who = Who { name, mac: source };
         if message == Group1MessageId::POLL_RESPONSE {
             let device = self.device(source);
             let produced = device.produced;
-            return io_data(&mut device.poll_response, produced, &who, data);
+            return io_data(&mut device.poll_response, produced, who, data);
         }
         match OTHER_IO.iter().position(|(m, _)| *m == message) {
             Some(slot) => {
                 let (size, series) = &mut self.device(source).other_io[slot];
-                io_data(series, *size, &who, data)
+                io_data(series, *size, who, data)
             }
-            None => Decoded::frame(format!("{who}: {}", data_text(data))),
+            None => Decoded::frame(format!("{name}{source}: {}", data_text(data))),
         }
     }
 
@@ -619,10 +692,10 @@ impl Decoder {
                 self.explicit(Target::Device(mac), data, Channel::Response, "explicit response from MAC")
             }
             Group2Message::PollCommand => {
-                let who = format!("poll command to MAC {mac}");
+                let who = Who { name: "poll command to MAC ", mac };
                 let device = self.device(mac);
                 let consumed = device.consumed;
-                io_data(&mut device.poll_command, consumed, &who, data)
+                io_data(&mut device.poll_command, consumed, who, data)
             }
             Group2Message::BitStrobeCommand => {
                 Decoded::frame(format!("bit-strobe command from master MAC {mac}: {}", data_text(data)))
@@ -676,8 +749,13 @@ impl Decoder {
             return Decoded::frame(format!("{what} {mac}: empty frame"));
         };
         let header = Header::from_byte(first);
-        let head =
-            format!("{what} {mac} [{}master MAC {}]", if header.xid { "XID 1, " } else { "" }, header.mac);
+        let mut head = String::with_capacity(160);
+        head.push_str(what);
+        head.push(' ');
+        push_u8(&mut head, mac);
+        head.push_str(if header.xid { " [XID 1, master MAC " } else { " [master MAC " });
+        push_u8(&mut head, header.mac.as_raw());
+        head.push(']');
         if !header.fragmented {
             if !request && matches!(target, Target::Device(_)) {
                 if let Some(text) = broadcast_text(mac, header.mac.as_raw(), data) {
@@ -696,7 +774,9 @@ impl Decoder {
                 // cannot join an earlier first one into a message nobody sent.
                 device.response_rx.reset();
             }
-            return Decoded::frame(format!("{head} {}", self.message_body(target, body, channel)));
+            head.push(' ');
+            head.push_str(&self.message_body(target, body, channel));
+            return Decoded::frame(head);
         }
         let frag = match ExplicitFragment::parse(data) {
             Ok(f) => f,
@@ -809,47 +889,85 @@ fn data_text(data: &[u8]) -> String {
     }
 }
 
+/// Who sent I/O data: `name` ends with "MAC ", the MAC follows.
+#[derive(Clone, Copy)]
+struct Who {
+    name: &'static str,
+    mac: u8,
+}
+
+impl Who {
+    fn push(self, out: &mut String) {
+        out.push_str(self.name);
+        push_u8(out, self.mac);
+    }
+}
+
 /// I/O data on a connection of `size` bytes (unknown: inferred from the fragment bytes).
-fn io_data(series: &mut IoSeries, size: Option<u16>, who: &str, data: &[u8]) -> Decoded {
+fn io_data(series: &mut IoSeries, size: Option<u16>, who: Who, data: &[u8]) -> Decoded {
+    let mut out = Decoded::default();
+    io_data_into(series, size, who, data, &mut out);
+    out
+}
+
+/// [`io_data`] into `out` (cleared by the caller).
+fn io_data_into(series: &mut IoSeries, size: Option<u16>, who: Who, data: &[u8], out: &mut Decoded) {
     let fragmented = match size {
         Some(size) => size > 8,
         None => series.looks_fragmented(data),
     };
+    let summary = &mut out.summary;
+    who.push(summary);
+    summary.push_str(": ");
     if !fragmented {
         series.next = None;
         if data.is_empty() {
-            return Decoded::frame(format!("{who}: no data (idle)"));
+            summary.push_str("no data (idle)");
+        } else {
+            push_data_text(summary, data);
         }
-        return Decoded::frame(format!("{who}: {}", data_text(data)));
+        return;
     }
-    let inferred = if size.is_none() { ", size inferred from fragment bytes" } else { "" };
     let (kind, count) = match data.first() {
         Some(&b) => (FragmentKind::from_bits(b >> 6), b & 0x3F),
         None => (FragmentKind::First, 0),
     };
-    let single = if kind == FragmentKind::First && count == devicenet::fragment::SINGLE_FRAGMENT_COUNT {
-        " (a one-frame series: the whole message)"
-    } else {
-        ""
-    };
-    let summary = format!(
-        "{who}: I/O fragment {kind} #{count}{single}{inferred}: {}",
-        hex(data.get(1..).unwrap_or(&[]))
-    );
+    summary.push_str("I/O fragment ");
+    summary.push_str(fragment_name(kind));
+    summary.push_str(" #");
+    push_u8(summary, count);
+    if kind == FragmentKind::First && count == devicenet::fragment::SINGLE_FRAGMENT_COUNT {
+        summary.push_str(" (a one-frame series: the whole message)");
+    }
+    if size.is_none() {
+        summary.push_str(", size inferred from fragment bytes");
+    }
+    summary.push_str(": ");
+    push_hex(summary, data.get(1..).unwrap_or(&[]));
     match series.rx.receive(data) {
         Ok(Some(whole)) => {
             series.next = None;
-            let message = format!("{who}, {} bytes: {}", whole.len(), hex(whole));
-            Decoded { summary, message: Some(message) }
+            let mut message = String::with_capacity(40 + whole.len() * 3);
+            who.push(&mut message);
+            let _ = write!(message, ", {} bytes: ", whole.len());
+            push_hex(&mut message, whole);
+            out.message = Some(message);
         }
-        Ok(None) => {
-            series.next = Some(devicenet::fragment::next_count(count));
-            Decoded::frame(summary)
-        }
+        Ok(None) => series.next = Some(devicenet::fragment::next_count(count)),
         Err(e) => {
             series.next = None;
-            Decoded::frame(format!("{summary} (dropped: {e})"))
+            let _ = write!(summary, " (dropped: {e})");
         }
+    }
+}
+
+/// The fragment type as `FragmentKind`'s `Display` writes it.
+fn fragment_name(kind: FragmentKind) -> &'static str {
+    match kind {
+        FragmentKind::First => "first",
+        FragmentKind::Middle => "middle",
+        FragmentKind::Last => "last",
+        FragmentKind::Ack => "ack",
     }
 }
 

@@ -65,7 +65,7 @@ fn data_reaches_the_poll_response_and_commands_run_exactly_once() {
     assert!(report.contains("commands 2 sent, 0 retried, 0 failed"), "{report}");
     let frames = read_log(&rig.dir.join("can.log")).unwrap();
     assert!(frames.iter().filter(|e| e.frame.id().as_raw() == 0x42D).count() >= 120, "every poll is logged");
-    assert!(frames.iter().all(|e| e.iface == "slcan0"));
+    assert!(frames.iter().all(|e| &*e.iface == "slcan0"));
 }
 
 #[test]

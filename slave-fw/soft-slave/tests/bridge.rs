@@ -97,7 +97,7 @@ fn data_and_exactly_once_commands_through_the_bridge() {
     let frames = read_log(&log).unwrap();
     assert!(frames.iter().filter(|e| e.frame.id().as_raw() == 0x42D).count() > 100);
     assert!(frames.iter().any(|e| e.frame.id().as_raw() == 0x3C5));
-    assert!(frames.iter().all(|e| e.iface == "link0"));
+    assert!(frames.iter().all(|e| &*e.iface == "link0"));
 }
 
 #[test]
