@@ -266,7 +266,7 @@ impl Objects {
         let method = u16_at(object, BASE_HEADER_LEN).unwrap_or(NO_COMPRESSION);
         let data = object.get(BASE_HEADER_LEN + CONTAINER_HEADER_LEN..).unwrap_or_default();
         match method {
-            NO_COMPRESSION => self.feed(data, sink),
+            NO_COMPRESSION => data.chunks(INFLATE_CHUNK).try_for_each(|chunk| self.feed(chunk, sink)),
             ZLIB_DEFLATE => self.inflate(data, pos, sink),
             other => {
                 self.pending.clear();
@@ -450,7 +450,7 @@ fn object_name(kind: u32) -> &'static str {
 }
 
 /// The classic frame in a frame object's body: (channel, frame, direction), or why it is not one.
-pub fn frame(kind: u32, body: &[u8]) -> Result<(u16, CanFrame, Direction), String> {
+fn frame(kind: u32, body: &[u8]) -> Result<(u16, CanFrame, Direction), String> {
     let name = object_name(kind);
     let short = |need: usize| format!("{name} body of {} bytes is too short ({need} expected)", body.len());
     let field8 = |at: usize| body.get(at).copied();

@@ -10,7 +10,7 @@
 //!
 //! | fact | source |
 //! |---|---|
-//! | pcap file header: magic `A1B2C3D4` (µs) or `A1B23C4D` (ns) in the writer's byte order, version 2.4, link type in the last 4 bytes (its low 16 bits) | pcap draft (draft-ietf-opsawg-pcap), libpcap `savefile.c` |
+//! | pcap file header: magic `A1B2C3D4` (µs) or `A1B23C4D` (ns) in the writer's byte order, version 2.4, link type in the last 4 bytes (its low 16 bits) | pcap draft (draft-ietf-opsawg-pcap) |
 //! | pcapng: section header `0A0D0D0A` with its byte-order magic; each Enhanced Packet Block names an interface, numbered by the Interface Description Blocks of its section in order; `if_name` (option 2), `if_tsresol` (9, default 10^-6 s), `if_tsoffset` (14, seconds); EPB `epb_flags` (option 2) bits 0-1: 01 inbound, 10 outbound | pcapng draft (draft-ietf-opsawg-pcapng) |
 //! | link type 227 (`LINKTYPE_CAN_SOCKETCAN`): CAN ID and flags **big-endian** (bottom 29 bits the ID, `0x80000000` extended, `0x40000000` remote, `0x20000000` error), payload length, FD flags (`CANFD_FDF` 0x04, `BRS` 0x01, `ESI` 0x02), 2 reserved bytes, payload; a 72-byte packet is a CAN FD frame when the FD flag is missing (older writers); the 0x80 bit of the length octet marks a CAN XL frame | tcpdump.org `linktypes/LINKTYPE_CAN_SOCKETCAN.html` |
 //! | link type 190 (`LINKTYPE_CAN20B`) | no source found that gives its layout: its records are skipped as another link type |
@@ -35,6 +35,7 @@
 
 use super::{Direction, Sink};
 use crate::log::{LogEntry, LogError};
+use crate::pcap::LINKTYPE_CAN_SOCKETCAN;
 use devicenet::{CanFrame, Instant};
 use pcap_parser::nom;
 use pcap_parser::pcap::{
@@ -47,12 +48,10 @@ use pcap_parser::pcapng::{
 use pcap_parser::traits::PcapNGPacketBlock;
 use pcap_parser::PcapError;
 
-/// The link type of Linux SocketCAN captures.
-pub const LINKTYPE_CAN_SOCKETCAN: u32 = 227;
 /// The size of a SocketCAN record's header (ID and flags, length, FD flags, 2 reserved bytes).
-pub const SOCKETCAN_HEADER_LEN: usize = 8;
+const SOCKETCAN_HEADER_LEN: usize = 8;
 /// The size of a Linux `struct canfd_frame` (`CANFD_MTU`): a packet of this size is a CAN FD frame.
-pub const CANFD_MTU: usize = 72;
+const CANFD_MTU: usize = 72;
 
 const CAN_EFF_FLAG: u32 = 0x8000_0000;
 const CAN_RTR_FLAG: u32 = 0x4000_0000;
@@ -78,7 +77,7 @@ pub fn read(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
 
 /// The SocketCAN frame in one packet, or why it is not a DeviceNet frame. `orig_len` is the
 /// packet's length on the wire (a capture may keep fewer bytes).
-pub fn socketcan_frame(packet: &[u8], orig_len: usize) -> Result<CanFrame, String> {
+fn socketcan_frame(packet: &[u8], orig_len: usize) -> Result<CanFrame, String> {
     let Some((header, payload)) = packet.split_first_chunk::<SOCKETCAN_HEADER_LEN>() else {
         return Err(format!(
             "truncated record: {} captured bytes, a SocketCAN header is {SOCKETCAN_HEADER_LEN}",
@@ -277,17 +276,21 @@ fn read_pcapng(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
                     let b: [u8; 4] = rest.get(at..at + 4)?.try_into().ok()?;
                     Some(if big_endian { u32::from_be_bytes(b) } else { u32::from_le_bytes(b) })
                 };
-                let block_len = word(4).map(|l| l as usize);
-                let fits = block_len.is_some_and(|l| l >= 12 && l <= rest.len());
-                if !fits {
+                let Some(block_len) = word(4).map(|l| l as usize).filter(|&l| l <= rest.len()) else {
                     return half_written(sink, number + 1, rest.len(), "its block");
-                }
+                };
                 let block_type = word(0).unwrap_or(0);
-                if block_type == EPB_MAGIC {
+                if block_type == EPB_MAGIC && block_len >= 12 {
                     number += 1;
                     let reason = match e {
                         nom::Err::Incomplete(_) => "its packet or options overrun the block".to_string(),
-                        nom::Err::Error(e) | nom::Err::Failure(e) => e.to_string(),
+                        nom::Err::Error(PcapError::NomError(_, kind) | PcapError::OwnedNomError(_, kind))
+                        | nom::Err::Failure(
+                            PcapError::NomError(_, kind) | PcapError::OwnedNomError(_, kind),
+                        ) => {
+                            format!("its fields do not agree (parser check {kind:?})")
+                        }
+                        nom::Err::Error(e) | nom::Err::Failure(e) => format!("{e:?}"),
                     };
                     sink.skip(
                         number,
@@ -295,13 +298,15 @@ fn read_pcapng(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
                         format!("corrupt enhanced packet block at byte {offset}: {reason}"),
                         "",
                     )?;
-                    rest = rest.get(block_len.unwrap_or(rest.len())..).unwrap_or_default();
+                    rest = rest.get(block_len..).unwrap_or_default();
                     continue;
                 }
                 return Err(sink.error(
                     number + 1,
                     0,
-                    format!("corrupt pcapng block (type {block_type:#X}) at byte {offset}"),
+                    format!(
+                        "corrupt pcapng block (type {block_type:#X}, {block_len} bytes) at byte {offset}"
+                    ),
                     "",
                 ));
             }
@@ -462,6 +467,73 @@ mod tests {
     fn bad_headers(#[case] bytes: &[u8], #[case] reason: &str) {
         let err = read_all(bytes).unwrap_err();
         assert!(err.reason.contains(reason), "{err}");
+    }
+
+    fn block(kind: u32, body: &[u8]) -> Vec<u8> {
+        let len = (12 + body.len()) as u32;
+        let mut b = kind.to_le_bytes().to_vec();
+        b.extend(len.to_le_bytes());
+        b.extend(body);
+        b.extend(len.to_le_bytes());
+        b
+    }
+
+    fn epb(caplen: u32, packet: &[u8]) -> Vec<u8> {
+        let mut body = vec![0u8; 4];
+        body.extend([0, 0, 0, 0, 0x40, 0x42, 0x0F, 0]); // 1 s in µs
+        body.extend(caplen.to_le_bytes());
+        body.extend((packet.len() as u32).to_le_bytes());
+        body.extend(packet);
+        block(EPB_MAGIC, &body)
+    }
+
+    fn pcapng(blocks: &[Vec<u8>]) -> Vec<u8> {
+        let mut shb = 0x1A2B_3C4Du32.to_le_bytes().to_vec();
+        shb.extend([1, 0, 0, 0]);
+        shb.extend((-1i64).to_le_bytes());
+        let mut file = block(0x0A0D_0D0A, &shb);
+        file.extend(block(1, &[227, 0, 0, 0, 0, 0, 0, 0]));
+        for b in blocks {
+            file.extend(b);
+        }
+        file
+    }
+
+    #[test]
+    fn corrupt_packet_block_is_skipped_and_reading_goes_on() {
+        let packet = socketcan(0x407, 1, 0, &[9, 0, 0, 0, 0, 0, 0, 0]);
+        let file = pcapng(&[epb(200, &packet), epb(16, &packet)]);
+        let trace = read_all(&file).unwrap();
+        assert_eq!(trace.entries.len(), 1);
+        assert_eq!((trace.entries[0].line, trace.entries[0].iface.as_str()), (2, "if0"));
+        assert_eq!(trace.entries[0].at, Instant::from_micros(1_000_000));
+        assert_eq!(trace.skipped[0].line, 1);
+        assert!(
+            trace.skipped[0].reason.starts_with("corrupt enhanced packet block at byte 48"),
+            "{:?}",
+            trace.skipped
+        );
+    }
+
+    #[test]
+    fn packet_of_an_undeclared_interface_is_skipped() {
+        let mut bad = epb(16, &socketcan(0x407, 0, 0, &[0; 8]));
+        bad[8] = 3;
+        let trace = read_all(&pcapng(&[bad])).unwrap();
+        assert!(
+            trace.skipped[0].reason.contains("interface 3, which no interface description"),
+            "{:?}",
+            trace.skipped
+        );
+    }
+
+    #[test]
+    fn corrupt_block_that_is_not_a_packet_stops_the_reading() {
+        let mut idb = block(1, &[227, 0, 0, 0, 0, 0, 0, 0]);
+        let len = idb.len();
+        idb[len - 4] = 0; // trailing length differs from the leading one
+        let err = read_all(&pcapng(&[idb])).unwrap_err();
+        assert!(err.reason.starts_with("corrupt pcapng block (type 0x1, 20 bytes) at byte 48"), "{err}");
     }
 
     #[test]
