@@ -5,6 +5,10 @@
 //! file as a slice, hands out each record's raw fields (so the timestamp arithmetic and the
 //! interface options stay here, checked), and tells a record cut off by the end of the input
 //! (`Incomplete`) from a corrupt one. This module reads the SocketCAN frame inside each record.
+//! `pcap-file` 2.0.0 was the other candidate and was not taken: it turns an Enhanced Packet
+//! Block's timestamp into nanoseconds whatever the interface's `if_tsresol` says (the default is
+//! microseconds, so such files read 1000 times too early) and hides the raw units; its 3.0
+//! release candidate needs Rust 1.93, above this workspace's 1.85.
 //!
 //! # Format facts relied on
 //!
