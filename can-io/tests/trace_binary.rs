@@ -47,7 +47,7 @@ fn bring_up_reads_as_the_log(
     for (i, (got, want)) in trace.entries.iter().zip(&log).enumerate() {
         assert_eq!(got.line, i + 1, "{name}: record numbers are 1-based");
         assert_eq!((got.frame, got.at), (want.frame, want.at), "{name}: record {}", i + 1);
-        assert_eq!((got.iface.as_str(), got.direction), (iface, direction), "{name}: record {}", i + 1);
+        assert_eq!((got.iface.as_ref(), got.direction), (iface, direction), "{name}: record {}", i + 1);
     }
 }
 
@@ -97,7 +97,7 @@ fn foreign_pcapng_reads_names_directions_and_resolution() {
     let frames: Vec<_> = trace
         .entries
         .iter()
-        .map(|e| (e.line, e.iface.as_str(), e.direction, e.frame.to_string(), e.at))
+        .map(|e| (e.line, e.iface.as_ref(), e.direction, e.frame.to_string(), e.at))
         .collect();
     assert_eq!(
         frames,

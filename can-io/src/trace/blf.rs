@@ -85,7 +85,7 @@ const CAN_ID_MASK: u32 = 0x1FFF_FFFF;
 /// Reads a BLF trace into `sink`.
 pub fn read(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
     let (header_len, start) = file_header(bytes).map_err(|reason| sink.error(0, 0, reason, ""))?;
-    let mut objects = Objects { pending: Vec::new(), pass_over: 0, number: 0, start };
+    let mut objects = Objects { pending: Vec::new(), pass_over: 0, number: 0, start, channels: Vec::new() };
     let mut pos = header_len;
     loop {
         let rest = bytes.get(pos..).unwrap_or_default();
@@ -248,9 +248,20 @@ struct Objects {
     number: usize,
     /// The measurement start, in microseconds.
     start: u64,
+    /// The channel names given out so far (entries of one channel share it).
+    channels: Vec<(u16, std::sync::Arc<str>)>,
 }
 
 impl Objects {
+    fn channel_name(&mut self, channel: u16) -> std::sync::Arc<str> {
+        if let Some((_, name)) = self.channels.iter().find(|(c, _)| *c == channel) {
+            return std::sync::Arc::clone(name);
+        }
+        let name: std::sync::Arc<str> = channel.to_string().into();
+        self.channels.push((channel, std::sync::Arc::clone(&name)));
+        name
+    }
+
     fn half_written(&mut self, sink: &mut Sink<'_>, present: usize) -> Result<(), LogError> {
         self.pending.clear();
         sink.skip(
@@ -423,7 +434,7 @@ impl Objects {
                 sink.frame(LogEntry {
                     line: number,
                     at,
-                    iface: channel.to_string(),
+                    iface: self.channel_name(channel),
                     frame,
                     direction: Some(direction),
                 });
@@ -595,11 +606,11 @@ mod tests {
         let trace = read_all(&file, true).unwrap();
         let e = &trace.entries;
         assert_eq!(e.len(), 2);
-        assert_eq!((e[0].line, e[0].iface.as_str(), e[0].direction), (1, "1", Some(Direction::Rx)));
+        assert_eq!((e[0].line, e[0].iface.as_ref(), e[0].direction), (1, "1", Some(Direction::Rx)));
         assert_eq!(e[0].at, Instant::from_micros(423));
         assert_eq!(e[0].frame, CanFrame::from_raw(0x42B, &[0, 0xCB, 0]).unwrap());
         // Version-2 header, 10 µs units, transmitted.
-        assert_eq!((e[1].line, e[1].iface.as_str(), e[1].direction), (3, "2", Some(Direction::Tx)));
+        assert_eq!((e[1].line, e[1].iface.as_ref(), e[1].direction), (3, "2", Some(Direction::Tx)));
         assert_eq!(e[1].at, Instant::from_micros(1000));
         assert_eq!(trace.skipped_count, 0);
     }

@@ -215,7 +215,7 @@ fn read_pcap(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
 /// One interface of a pcapng section.
 struct Interface {
     link_type: u32,
-    name: String,
+    name: std::sync::Arc<str>,
     /// Timestamp units per second (`if_tsresol`); `None` when the option is invalid.
     units_per_second: Option<u64>,
     /// Seconds added to every timestamp (`if_tsoffset`).
@@ -232,7 +232,7 @@ impl Interface {
         };
         Interface {
             link_type: (idb.linktype.0 as u32) & 0xFFFF,
-            name,
+            name: name.into(),
             units_per_second: idb.ts_resolution(),
             offset: idb.ts_offset(),
         }
@@ -382,7 +382,7 @@ fn enhanced_packet(
             sink.frame(LogEntry {
                 line: number,
                 at,
-                iface: interface.name.clone(),
+                iface: std::sync::Arc::clone(&interface.name),
                 frame,
                 direction: epb_direction(epb),
             });
@@ -443,7 +443,7 @@ mod tests {
         assert_eq!(trace.entries.len(), 1);
         assert_eq!(trace.entries[0].frame, frame);
         assert_eq!(trace.entries[0].at, Instant::from_micros(1_000_423));
-        assert_eq!((trace.entries[0].line, trace.entries[0].iface.as_str()), (1, "pcap"));
+        assert_eq!((trace.entries[0].line, trace.entries[0].iface.as_ref()), (1, "pcap"));
     }
 
     #[test]
@@ -509,7 +509,7 @@ mod tests {
         let file = pcapng(&[epb(200, &packet), epb(16, &packet)]);
         let trace = read_all(&file).unwrap();
         assert_eq!(trace.entries.len(), 1);
-        assert_eq!((trace.entries[0].line, trace.entries[0].iface.as_str()), (2, "if0"));
+        assert_eq!((trace.entries[0].line, trace.entries[0].iface.as_ref()), (2, "if0"));
         assert_eq!(trace.entries[0].at, Instant::from_micros(1_000_000));
         assert_eq!(trace.skipped[0].line, 1);
         assert!(
