@@ -1165,6 +1165,7 @@ function dnetx.dissector(tvb, pinfo, tree)
     if not group then
         local text = string.format("invalid identifier 0x%03X (0x7F0-0x7FF are not used): %s", id, hex(data))
         t:add_proto_expert_info(ef_malformed, "identifier 0x7F0-0x7FF is not used by DeviceNet")
+        t:add(F.summary, tvb(0, 0), text):set_generated()
         pinfo.cols.info:set(text)
         t:append_text(": " .. text)
         return tvb:len()
