@@ -1220,6 +1220,22 @@ function dnetx.dissector(tvb, pinfo, tree)
     end
     it:append_text(": " .. mname)
 
+    -- Source and Destination columns: the MAC IDs the identifier and the explicit header name.
+    local hdr_mac = #data >= 1 and bit.band(data:byte(1), 0x3F) or nil
+    local col_src, col_dst
+    if group == 1 or group == 3 then
+        col_src = mac
+        if group == 3 and (msg == 5 or msg == 6) then col_dst = hdr_mac end
+    elseif group == 2 then
+        if msg == 0 or msg == 7 then col_src = mac
+        elseif msg == 3 then col_src, col_dst = mac, hdr_mac
+        elseif msg == 4 or msg == 6 then col_src, col_dst = hdr_mac, mac
+        elseif msg == 2 or msg == 5 then col_dst = mac
+        end
+    end
+    if col_src then pinfo.cols.src:set("MAC " .. col_src) end
+    if col_dst then pinfo.cols.dst:set("MAC " .. col_dst) end
+
     local summary, message
     if group == 1 then
         local who = ({ [12] = "multicast poll response", [13] = "change-of-state/cyclic data",
