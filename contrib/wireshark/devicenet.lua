@@ -581,7 +581,7 @@ local function explicit_receive(rx, data, number, ctx)
     if kind == 0 then
         reset(rx)
         if count ~= 0 and count ~= 0x3F then
-            return "dropped", string.format("first fragment count %d, expected 0", count)
+            return "dropped", string.format("first fragment with count %d", count)
         end
         rx.buf = string.char(bit.band(data:byte(1), 0x7F)) .. body
         rx.frames, rx.ctxs = { number }, { ctx }
@@ -721,7 +721,7 @@ local function io_first_pass(series, size, data, number)
             return ctx
         end
         if count ~= 0 then
-            ctx.why = string.format("first fragment count %d, expected 0", count)
+            ctx.why = string.format("first fragment with count %d", count)
             return ctx
         end
         series.buf, series.frames, series.ctxs = body, { number }, { ctx }
@@ -1021,7 +1021,7 @@ end
 local function dupmac(t, tvb, mac, data)
     if #data ~= 7 then
         t:add_proto_expert_info(ef_malformed, "a duplicate MAC ID check has 7 bytes")
-        return string.format("malformed duplicate MAC ID check for MAC %d (%d bytes, expected 7): %s", mac, #data, hex(data))
+        return string.format("malformed duplicate MAC ID check for MAC %d (wrong length: the message has 7 bytes, got %d): %s", mac, #data, hex(data))
     end
     t:add(F.dup_rr, tvb(0, 1))
     t:add(F.dup_port, tvb(0, 1))
@@ -1149,6 +1149,12 @@ end
 ---------------------------------------------------------------------------------------------
 -- The dissector
 
+-- What the dissector returns: the bytes it took, and at least 1 for a frame without data (a zero
+-- would tell the CAN dissector the frame is not DeviceNet and hand it to its heuristics).
+local function accepted(tvb)
+    return math.max(tvb:len(), 1)
+end
+
 function dnetx.dissector(tvb, pinfo, tree)
     local id = pinfo.match_uint
     if id == nil or id == 0 then
@@ -1168,7 +1174,7 @@ function dnetx.dissector(tvb, pinfo, tree)
         t:add(F.summary, tvb(0, 0), text):set_generated()
         pinfo.cols.info:set(text)
         t:append_text(": " .. text)
-        return tvb:len()
+        return accepted(tvb)
     end
 
     -- First pass: update the per-device state, remember what this frame needs.
@@ -1274,7 +1280,7 @@ function dnetx.dissector(tvb, pinfo, tree)
     t:add(F.summary, tvb(0, 0), text):set_generated()
     t:append_text(": " .. text)
     pinfo.cols.info:set(text)
-    return tvb:len()
+    return accepted(tvb)
 end
 
 -- Every 11-bit identifier DeviceNet uses (notes §1.1: 0x7F0-0x7FF are invalid, shown as such).
