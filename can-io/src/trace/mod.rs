@@ -407,3 +407,23 @@ pub(crate) fn standard_id(raw: u32, extended: bool) -> Result<u16, String> {
         .filter(|&id| id <= 0x7FF)
         .ok_or_else(|| format!("identifier 0x{raw:X} does not fit in 11 bits"))
 }
+
+/// The whitespace-separated tokens of a line with their byte offsets.
+pub(crate) fn tokens(line: &str) -> Vec<(usize, &str)> {
+    let mut out = Vec::new();
+    let mut start = None;
+    for (i, c) in line.char_indices() {
+        match (c.is_whitespace(), start) {
+            (true, Some(s)) => {
+                out.push((s, &line[s..i]));
+                start = None;
+            }
+            (false, None) => start = Some(i),
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push((s, &line[s..]));
+    }
+    out
+}

@@ -43,7 +43,7 @@
 //! follow the layout, and a half-written last line. Comment lines (`;`) and blank lines are neither
 //! frames nor skipped.
 
-use super::{for_each_line, parse_scaled, standard_id, Direction, Sink, TextLine};
+use super::{for_each_line, parse_scaled, standard_id, tokens, Direction, Sink, TextLine};
 use crate::log::{LogEntry, LogError};
 use devicenet::{CanFrame, Instant};
 
@@ -156,25 +156,6 @@ struct Problem {
     reason: String,
 }
 
-/// The whitespace-separated tokens of a line with their byte offsets.
-fn tokens(line: &str) -> Vec<(usize, &str)> {
-    let mut out = Vec::new();
-    let mut start = None;
-    for (i, c) in line.char_indices() {
-        match (c.is_whitespace(), start) {
-            (true, Some(s)) => {
-                out.push((s, &line[s..i]));
-                start = None;
-            }
-            (false, None) => start = Some(i),
-            _ => {}
-        }
-    }
-    if let Some(s) = start {
-        out.push((s, &line[s..]));
-    }
-    out
-}
 
 fn problem(column: usize, reason: impl Into<String>) -> Problem {
     Problem { column, reason: reason.into() }
