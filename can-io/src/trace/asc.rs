@@ -68,9 +68,12 @@ pub fn read(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
                 Ok(())
             }
             Ok(None) => Ok(()),
-            Err((offset, reason)) if line.unterminated => {
-                sink.skip(line.number, lead + offset + 1, format!("half-written last line: {reason}"), line.text)
-            }
+            Err((offset, reason)) if line.unterminated => sink.skip(
+                line.number,
+                lead + offset + 1,
+                format!("half-written last line: {reason}"),
+                line.text,
+            ),
             Err((offset, reason)) => sink.skip(line.number, lead + offset + 1, reason, line.text),
         }
     })
@@ -91,7 +94,12 @@ fn parse_line(state: &mut State, line: &str, number: usize) -> Parsed {
             state.radix = match lower(1).as_str() {
                 "hex" => 16,
                 "dec" => 10,
-                other => return Err((tokens.get(1).map_or(0, |t| t.0), format!("unknown base '{other}': hex or dec"))),
+                other => {
+                    return Err((
+                        tokens.get(1).map_or(0, |t| t.0),
+                        format!("unknown base '{other}': hex or dec"),
+                    ))
+                }
             };
             state.relative = lower(3) == "relative";
             return Ok(None);
@@ -146,7 +154,12 @@ fn parse_line(state: &mut State, line: &str, number: usize) -> Parsed {
     match kind {
         "d" | "D" => {}
         "r" | "R" => return Err((kind_col, "remote frame is not DeviceNet traffic".into())),
-        other => return Err((kind_col, format!("unknown frame kind '{other}': expected 'd' (data) or 'r' (remote)"))),
+        other => {
+            return Err((
+                kind_col,
+                format!("unknown frame kind '{other}': expected 'd' (data) or 'r' (remote)"),
+            ))
+        }
     }
     let Some(&(dlc_col, dlc_text)) = tokens.get(5) else {
         return Err((line.len(), "missing data length code".into()));
@@ -201,7 +214,9 @@ fn extra_fields(mut rest: &[(usize, &str)], radix: u32) -> Result<Option<u16>, (
             Some((n, v)) if !v.is_empty() => (n, Some((col + n.len() + 1, v)), tail),
             Some((n, _)) => (n, tail.first().copied(), tail.get(1..).unwrap_or_default()),
             None => match tail.split_first() {
-                Some((&(_, "="), after)) => (name, after.first().copied(), after.get(1..).unwrap_or_default()),
+                Some((&(_, "="), after)) => {
+                    (name, after.first().copied(), after.get(1..).unwrap_or_default())
+                }
                 Some((&(c, eq), after)) if eq.starts_with('=') => (name, Some((c + 1, &eq[1..])), after),
                 _ => return Err((col, format!("unexpected text '{name}' after the data bytes"))),
             },
@@ -219,7 +234,6 @@ fn extra_fields(mut rest: &[(usize, &str)], radix: u32) -> Result<Option<u16>, (
     Ok(id)
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,8 +250,16 @@ mod tests {
 
     #[rstest]
     #[case::plain("   5.001124 1  42B             Rx   d 3 00 CB 00", 0x42B, 5_001_124)]
-    #[case::fields("   5.001124 2  42B             Tx   d 3 00 CB 00  Length = 111000 BitCount = 57 ID = 42B", 0x42B, 5_001_124)]
-    #[case::symbolic("   5.001124 1  Response        Rx   d 3 00 CB 00  Length = 111000 BitCount = 57 ID = 42B", 0x42B, 5_001_124)]
+    #[case::fields(
+        "   5.001124 2  42B             Tx   d 3 00 CB 00  Length = 111000 BitCount = 57 ID = 42B",
+        0x42B,
+        5_001_124
+    )]
+    #[case::symbolic(
+        "   5.001124 1  Response        Rx   d 3 00 CB 00  Length = 111000 BitCount = 57 ID = 42B",
+        0x42B,
+        5_001_124
+    )]
     #[case::four_digits("   5.0011 1  42B Rx d 3 00 CB 00", 0x42B, 5_001_100)]
     fn frames(#[case] line: &str, #[case] id: u16, #[case] us: u64) {
         let t = read(&format!("{HEAD}{line}\nEnd TriggerBlock\n"));
@@ -261,7 +283,10 @@ mod tests {
     #[case::error("   1.0 1  ErrorFrame", "error frame")]
     #[case::extended("   1.0 1  18EFC034x  Rx   d 1 00", "extended identifier")]
     #[case::remote("   1.0 1  100  Rx   r 3", "remote frame")]
-    #[case::fd("   1.0 CANFD   1 Rx   500  1 0 9 12 01 02 03 04 05 06 07 08 09 0A 0B 0C   0 0   1000 0 0 0 0 0", "CAN FD")]
+    #[case::fd(
+        "   1.0 CANFD   1 Rx   500  1 0 9 12 01 02 03 04 05 06 07 08 09 0A 0B 0C   0 0   1000 0 0 0 0 0",
+        "CAN FD"
+    )]
     #[case::statistic("   1.0 1  Statistic: D 0 R 0 XD 0 XR 0 E 0 O 0 B 0.00%", "not a CAN frame")]
     #[case::short("   1.0 1  42B Rx d 3 00 CB", "fewer data bytes")]
     #[case::junk("hello", "not an event line")]

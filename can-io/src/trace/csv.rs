@@ -104,7 +104,9 @@ fn map_header(names: &[String]) -> Option<Columns> {
     let kinds = names
         .iter()
         .enumerate()
-        .filter(|(_, n)| ["format", "type", "frameformat", "frametype", "帧格式", "帧类型"].contains(&n.as_str()))
+        .filter(|(_, n)| {
+            ["format", "type", "frameformat", "frametype", "帧格式", "帧类型"].contains(&n.as_str())
+        })
         .map(|(i, _)| i)
         .collect();
     Some(Columns {
@@ -127,8 +129,7 @@ fn csv_reader(bytes: &[u8]) -> ::csv::Reader<&[u8]> {
 }
 
 fn header_of(record: &::csv::ByteRecord) -> Option<Columns> {
-    let names: Vec<String> =
-        record.iter().take(64).map(|f| normalize(&String::from_utf8_lossy(f))).collect();
+    let names: Vec<String> = record.iter().take(64).map(|f| normalize(&String::from_utf8_lossy(f))).collect();
     map_header(&names)
 }
 
@@ -199,14 +200,15 @@ pub fn read(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
 }
 
 fn flag(fields: &[&str], column: Option<usize>) -> bool {
-    column.and_then(|c| fields.get(c)).is_some_and(|v| {
-        matches!(v.trim().to_ascii_lowercase().as_str(), "1" | "true" | "yes")
-    })
+    column
+        .and_then(|c| fields.get(c))
+        .is_some_and(|v| matches!(v.trim().to_ascii_lowercase().as_str(), "1" | "true" | "yes"))
 }
 
 /// A row as an entry, or (0-based field index, reason).
 fn parse_row(columns: &Columns, fields: &[&str], line: usize) -> Result<LogEntry, (usize, String)> {
-    let get = |i: usize| fields.get(i).map(|f| f.trim()).ok_or((fields.len(), format!("missing column {}", i + 1)));
+    let get =
+        |i: usize| fields.get(i).map(|f| f.trim()).ok_or((fields.len(), format!("missing column {}", i + 1)));
     for &k in &columns.kinds {
         let value = fields.get(k).map(|f| f.trim().to_lowercase()).unwrap_or_default();
         if value.contains("错误") || value.contains("error") {
@@ -216,7 +218,10 @@ fn parse_row(columns: &Columns, fields: &[&str], line: usize) -> Result<LogEntry
             return Err((k, format!("remote frame ('{value}') is not DeviceNet traffic")));
         }
         if value.contains("扩展") || value.starts_with("ext") {
-            return Err((k, format!("extended frame ('{value}') is not DeviceNet traffic (11-bit identifiers only)")));
+            return Err((
+                k,
+                format!("extended frame ('{value}') is not DeviceNet traffic (11-bit identifiers only)"),
+            ));
         }
         if value.contains("fd") {
             return Err((k, format!("CAN FD frame ('{value}') is not DeviceNet traffic")));
@@ -226,7 +231,10 @@ fn parse_row(columns: &Columns, fields: &[&str], line: usize) -> Result<LogEntry
         return Err((columns.error.unwrap_or(0), "error frame (error = 1) is not DeviceNet traffic".into()));
     }
     if flag(fields, columns.remote) {
-        return Err((columns.remote.unwrap_or(0), "remote frame (remote = 1) is not DeviceNet traffic".into()));
+        return Err((
+            columns.remote.unwrap_or(0),
+            "remote frame (remote = 1) is not DeviceNet traffic".into(),
+        ));
     }
     let at = parse_time(get(columns.time)?).map_err(|r| (columns.time, r))?;
     let id_text = get(columns.id)?;
@@ -234,7 +242,8 @@ fn parse_row(columns: &Columns, fields: &[&str], line: usize) -> Result<LogEntry
     if digits.is_empty() || digits.len() > 8 || !digits.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err((columns.id, format!("invalid identifier '{id_text}': expected hex")));
     }
-    let raw = u32::from_str_radix(digits, 16).map_err(|_| (columns.id, format!("invalid identifier '{id_text}'")))?;
+    let raw = u32::from_str_radix(digits, 16)
+        .map_err(|_| (columns.id, format!("invalid identifier '{id_text}'")))?;
     let id = standard_id(raw, flag(fields, columns.extended)).map_err(|r| (columns.id, r))?;
     let data_text = get(columns.data)?;
     let data = if columns.base64 { parse_base64(data_text) } else { parse_hex(data_text) }
@@ -269,7 +278,9 @@ fn parse_direction(text: &str) -> Result<Option<Direction>, String> {
 
 /// Microseconds from a time column (see the module docs for the forms).
 fn parse_time(text: &str) -> Result<u64, String> {
-    let bad = || format!("invalid time '{text}': expected seconds (5.001124), a time of day (14:20:33.123) or 0x hex");
+    let bad = || {
+        format!("invalid time '{text}': expected seconds (5.001124), a time of day (14:20:33.123) or 0x hex")
+    };
     if let Some(hex) = text.strip_prefix("0x").or_else(|| text.strip_prefix("0X")) {
         if hex.is_empty() || hex.len() > 16 {
             return Err(bad());
@@ -282,9 +293,13 @@ fn parse_time(text: &str) -> Result<u64, String> {
         let (h, m, s) = match parts.as_slice() {
             [h, m, s] => (*h, *m, parse_scaled(s, 6)),
             // HH:mm:ss:fff, milliseconds after a colon.
-            [h, m, s, ms] if ms.len() == 3 => {
-                (*h, *m, parse_scaled(s, 0).zip(parse_scaled(ms, 0)).and_then(|(s, ms)| s.checked_mul(1_000_000)?.checked_add(ms * 1000)))
-            }
+            [h, m, s, ms] if ms.len() == 3 => (
+                *h,
+                *m,
+                parse_scaled(s, 0)
+                    .zip(parse_scaled(ms, 0))
+                    .and_then(|(s, ms)| s.checked_mul(1_000_000)?.checked_add(ms * 1000)),
+            ),
             _ => return Err(bad()),
         };
         let h = parse_scaled(h, 0).filter(|&h| h < 24).ok_or_else(bad)?;

@@ -156,7 +156,6 @@ struct Problem {
     reason: String,
 }
 
-
 fn problem(column: usize, reason: impl Into<String>) -> Problem {
     Problem { column, reason: reason.into() }
 }
@@ -201,7 +200,9 @@ fn parse_message(layout: &Layout, line: &str, number: usize) -> Result<LogEntry,
                 match kind {
                     "Rx" | "Tx" => {}
                     "Error" => return Err(problem(col, "error frame (type Error) is not DeviceNet traffic")),
-                    "Warng" => return Err(problem(col, "error warning (type Warng): a bus status, not a frame")),
+                    "Warng" => {
+                        return Err(problem(col, "error warning (type Warng): a bus status, not a frame"))
+                    }
                     other => return Err(problem(col, format!("message type '{other}' is not a CAN frame"))),
                 }
             }
@@ -225,21 +226,25 @@ fn parse_message(layout: &Layout, line: &str, number: usize) -> Result<LogEntry,
 
 /// Builds the entry from the fields of a data frame.
 fn build(f: Fields<'_>, digits: u32, number: usize) -> Result<LogEntry, Problem> {
-    let micros = parse_scaled(f.offset.1, digits)
-        .and_then(|ms| ms.checked_mul(10u64.pow(3 - digits)))
-        .ok_or_else(|| problem(f.offset.0, format!("invalid time offset '{}': expected milliseconds", f.offset.1)))?;
+    let micros =
+        parse_scaled(f.offset.1, digits).and_then(|ms| ms.checked_mul(10u64.pow(3 - digits))).ok_or_else(
+            || problem(f.offset.0, format!("invalid time offset '{}': expected milliseconds", f.offset.1)),
+        )?;
     let (id_col, id) = f.id;
     if id.is_empty() || id.len() > 8 || !id.bytes().all(|b| b.is_ascii_hexdigit()) {
         return Err(problem(id_col, format!("invalid identifier '{id}': expected 4 (or 8) hex digits")));
     }
-    let raw = u32::from_str_radix(id, 16).map_err(|_| problem(id_col, format!("invalid identifier '{id}'")))?;
+    let raw =
+        u32::from_str_radix(id, 16).map_err(|_| problem(id_col, format!("invalid identifier '{id}'")))?;
     let id = standard_id(raw, id.len() > 4).map_err(|reason| problem(id_col, reason))?;
     let (dlc_col, dlc_text) = f.dlc;
-    let dlc: usize = dlc_text
-        .parse()
-        .map_err(|_| problem(dlc_col, format!("invalid data length code '{dlc_text}'")))?;
+    let dlc: usize =
+        dlc_text.parse().map_err(|_| problem(dlc_col, format!("invalid data length code '{dlc_text}'")))?;
     if dlc > 8 {
-        return Err(problem(dlc_col, format!("data length {dlc}: more than 8 bytes is not a classic CAN frame")));
+        return Err(problem(
+            dlc_col,
+            format!("data length {dlc}: more than 8 bytes is not a classic CAN frame"),
+        ));
     }
     if f.data.len() < dlc {
         let col = f.data.last().map_or(dlc_col + dlc_text.len(), |&(c, t)| c + t.len());
@@ -261,7 +266,9 @@ fn build(f: Fields<'_>, digits: u32, number: usize) -> Result<LogEntry, Problem>
         None => None,
         Some((_, "Rx")) => Some(Direction::Rx),
         Some((_, "Tx")) => Some(Direction::Tx),
-        Some((col, other)) => return Err(problem(col, format!("invalid direction '{other}': expected Rx or Tx"))),
+        Some((col, other)) => {
+            return Err(problem(col, format!("invalid direction '{other}': expected Rx or Tx")))
+        }
     };
     let iface = match f.bus {
         None => "1".to_string(),
@@ -274,7 +281,12 @@ fn build(f: Fields<'_>, digits: u32, number: usize) -> Result<LogEntry, Problem>
     Ok(LogEntry { line: number, at: Instant::from_micros(micros), iface, frame, direction })
 }
 
-fn parse_v2(columns: &[char], tokens: &[(usize, &str)], line: &str, number: usize) -> Result<LogEntry, Problem> {
+fn parse_v2(
+    columns: &[char],
+    tokens: &[(usize, &str)],
+    line: &str,
+    number: usize,
+) -> Result<LogEntry, Problem> {
     let index = |c: char| columns.iter().position(|&x| x == c);
     let missing = |what: &str| problem(line.len(), format!("missing {what}"));
     let Some(t) = index('T') else {
@@ -299,8 +311,10 @@ fn parse_v2(columns: &[char], tokens: &[(usize, &str)], line: &str, number: usiz
             Some(i) => tokens.get(i).copied().map(Some).ok_or_else(|| missing(what)),
         }
     };
-    let offset = field('O', "time offset")?.ok_or_else(|| problem(0, "the ;$COLUMNS line names no time offset column (O)"))?;
-    let id = field('I', "identifier")?.ok_or_else(|| problem(0, "the ;$COLUMNS line names no identifier column (I)"))?;
+    let offset = field('O', "time offset")?
+        .ok_or_else(|| problem(0, "the ;$COLUMNS line names no time offset column (O)"))?;
+    let id = field('I', "identifier")?
+        .ok_or_else(|| problem(0, "the ;$COLUMNS line names no identifier column (I)"))?;
     let dlc = match field('L', "data length code")? {
         Some(l) => l,
         None => field('l', "data length")?
@@ -311,7 +325,8 @@ fn parse_v2(columns: &[char], tokens: &[(usize, &str)], line: &str, number: usiz
         Some(_) => return Err(problem(0, "the data column (D) is not the last of ;$COLUMNS")),
         None => &[],
     };
-    let fields = Fields { offset, bus: field('B', "bus")?, direction: field('d', "direction")?, id, dlc, data };
+    let fields =
+        Fields { offset, bus: field('B', "bus")?, direction: field('d', "direction")?, id, dlc, data };
     build(fields, 3, number)
 }
 
@@ -328,9 +343,24 @@ mod tests {
 
     #[rstest]
     #[case::v1_0("     1)      1841      0001  8  00 00 00 00 00 00 00 00\n", 1_841_000, None, "1")]
-    #[case::v1_1(";$FILEVERSION=1.1\n     1)      1059.9  Rx         0300  7  00 00 00 00 04 00 00\n", 1_059_900, Some(Direction::Rx), "1")]
-    #[case::v1_2(";$FILEVERSION=1.2\n     2)      1283.231  2  Tx         0300  7  00 00 00 00 04 00 00\n", 1_283_231, Some(Direction::Tx), "2")]
-    #[case::v1_3(";$FILEVERSION=1.3\n     1)      1059.900 1  Rx        0300 -  7    00 00 00 00 04 00 00\n", 1_059_900, Some(Direction::Rx), "1")]
+    #[case::v1_1(
+        ";$FILEVERSION=1.1\n     1)      1059.9  Rx         0300  7  00 00 00 00 04 00 00\n",
+        1_059_900,
+        Some(Direction::Rx),
+        "1"
+    )]
+    #[case::v1_2(
+        ";$FILEVERSION=1.2\n     2)      1283.231  2  Tx         0300  7  00 00 00 00 04 00 00\n",
+        1_283_231,
+        Some(Direction::Tx),
+        "2"
+    )]
+    #[case::v1_3(
+        ";$FILEVERSION=1.3\n     1)      1059.900 1  Rx        0300 -  7    00 00 00 00 04 00 00\n",
+        1_059_900,
+        Some(Direction::Rx),
+        "1"
+    )]
     #[case::v2_0(";$FILEVERSION=2.0\n;$COLUMNS=N,O,T,I,d,l,D\n      1      1059.900 DT     0300 Rx 7  00 00 00 00 04 00 00\n", 1_059_900, Some(Direction::Rx), "1")]
     #[case::v2_1(";$FILEVERSION=2.1\n;$COLUMNS=N,O,T,B,I,d,R,L,D\n      1      1059.900 DT 3      0300 Rx -  7    00 00 00 00 04 00 00\n", 1_059_900, Some(Direction::Rx), "3")]
     fn every_version(#[case] text: &str, #[case] us: u64, #[case] dir: Option<Direction>, #[case] bus: &str) {
