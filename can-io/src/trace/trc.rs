@@ -272,8 +272,7 @@ fn build(f: Fields<'_>, digits: u32, number: usize) -> Result<LogEntry, Problem>
     };
     let iface = match f.bus {
         None => "1".to_string(),
-        Some((col, bus)) if !bus.is_empty() && bus.len() <= 3 && bus.bytes().all(|b| b.is_ascii_digit()) => {
-            let _ = col;
+        Some((_, bus)) if !bus.is_empty() && bus.len() <= 3 && bus.bytes().all(|b| b.is_ascii_digit()) => {
             bus.to_string()
         }
         Some((col, bus)) => return Err(problem(col, format!("invalid bus '{bus}': expected a number"))),
