@@ -81,7 +81,7 @@ impl TraceFormat {
         TraceFormat::ALL.into_iter().find(|f| f.name().eq_ignore_ascii_case(name))
     }
 
-    /// The text formats `--format` writes (see [`write`]).
+    /// The text formats `--format` writes (see [`write`](mod@write)).
     pub fn writable(self) -> bool {
         matches!(self, TraceFormat::Candump | TraceFormat::Trc | TraceFormat::Asc | TraceFormat::Csv)
     }
