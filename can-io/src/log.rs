@@ -5,6 +5,8 @@
 //! 0–8 data bytes. Blank lines and lines starting with `#` are skipped. Every other line is an
 //! error naming the file, the line and the column, never a panic.
 
+use crate::trace::write::TraceWriter;
+use crate::trace::{Direction, TraceFormat};
 use devicenet::{CanFrame, Instant};
 use std::fmt;
 use std::io::{self, Write};
@@ -49,38 +51,66 @@ pub fn format_line(at: Instant, iface: &str, frame: &CanFrame) -> String {
     format!("({}.{:06}) {iface} {frame}", us / 1_000_000, us % 1_000_000)
 }
 
-/// Writes log lines to a file as frames are seen.
+/// Writes a trace file as frames are seen: `candump -L` lines ([`LogWriter::create`]) or any
+/// writable text format ([`LogWriter::create_as`]), through a buffer that [`LogWriter::flush`]
+/// empties (see [`crate::trace::write`]).
 pub struct LogWriter {
-    out: Box<dyn Write>,
+    out: TraceWriter,
     path: PathBuf,
 }
 
 impl fmt::Debug for LogWriter {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_struct("LogWriter").field("path", &self.path).finish()
+        f.debug_struct("LogWriter").field("path", &self.path).field("format", &self.out.format()).finish()
     }
 }
 
 impl LogWriter {
-    /// Creates (truncates) `path`.
+    /// Creates (truncates) `path`, a `candump -L` log.
     pub fn create(path: &Path) -> io::Result<LogWriter> {
+        LogWriter::create_as(path, TraceFormat::Candump)
+    }
+
+    /// Creates (truncates) `path`, a trace in `format` (its header written); an error for a format
+    /// that is not written.
+    pub fn create_as(path: &Path, format: TraceFormat) -> io::Result<LogWriter> {
+        if !format.writable() {
+            // Checked before the file is created, so that no empty file is left behind.
+            return Err(crate::trace::write::not_written(format));
+        }
         let file = std::fs::File::create(path)?;
-        Ok(LogWriter { out: Box::new(io::BufWriter::new(file)), path: path.to_path_buf() })
+        Ok(LogWriter { out: TraceWriter::new(Box::new(file), format)?, path: path.to_path_buf() })
     }
 
-    /// A writer into any sink (tests).
+    /// A `candump -L` writer into any sink (tests).
     pub fn from_writer(out: Box<dyn Write>) -> LogWriter {
-        LogWriter { out, path: PathBuf::from("<memory>") }
+        LogWriter { out: TraceWriter::candump(out), path: PathBuf::from("<memory>") }
     }
 
-    /// Appends one line.
+    /// Appends one frame, its direction unknown.
     pub fn write(&mut self, at: Instant, iface: &str, frame: &CanFrame) -> io::Result<()> {
-        writeln!(self.out, "{}", format_line(at, iface, frame))
+        self.out.write(at, iface, None, frame)
+    }
+
+    /// Appends one frame with the direction it travelled (kept by trc and asc).
+    pub fn write_dir(
+        &mut self,
+        at: Instant,
+        iface: &str,
+        direction: Direction,
+        frame: &CanFrame,
+    ) -> io::Result<()> {
+        self.out.write(at, iface, Some(direction), frame)
     }
 
     /// Flushes to the file.
     pub fn flush(&mut self) -> io::Result<()> {
         self.out.flush()
+    }
+
+    /// Writes the format's footer and flushes (also done when the writer is dropped).
+    pub fn finish(&mut self) -> io::Result<()> {
+        self.out.finish()
     }
 }
 

@@ -81,7 +81,7 @@ impl TraceFormat {
         TraceFormat::ALL.into_iter().find(|f| f.name().eq_ignore_ascii_case(name))
     }
 
-    /// The text formats `--format` writes (see [`write`]).
+    /// The text formats `--format` writes (see [`write`](mod@write)).
     pub fn writable(self) -> bool {
         matches!(self, TraceFormat::Candump | TraceFormat::Trc | TraceFormat::Asc | TraceFormat::Csv)
     }
@@ -247,6 +247,7 @@ pub fn detect(bytes: &[u8]) -> Option<TraceFormat> {
     for line in text.lines().map(str::trim).filter(|l| !l.is_empty()).take(40) {
         if line.starts_with(";$FILEVERSION")
             || line.starts_with(";   Start time:")
+            || line.starts_with(";    Start time:")
             || line.starts_with(";$STARTTIME")
         {
             return Some(TraceFormat::Trc);
@@ -257,6 +258,14 @@ pub fn detect(bytes: &[u8]) -> Option<TraceFormat> {
         }
         if line.starts_with('(') && line.contains('#') {
             return Some(TraceFormat::Candump);
+        }
+        // A trc 1.0 file has no `;$FILEVERSION` line: its column description names the time
+        // offset, and its messages are numbered `1)`.
+        if line.starts_with(';') && lower.contains("time offset") {
+            return Some(TraceFormat::Trc);
+        }
+        if trc::is_message_number(line.split_whitespace().next().unwrap_or("")) {
+            return Some(TraceFormat::Trc);
         }
         if line.starts_with(';') || line.starts_with('#') || line.starts_with("//") {
             continue;
@@ -325,4 +334,96 @@ pub fn read_trace(path: &Path, options: ReadOptions) -> Result<Trace, LogError> 
         ..options
     };
     parse_trace(&bytes, &file, options)
+}
+
+/// One line of a text trace, as the text readers see it.
+pub(crate) struct TextLine<'a> {
+    /// 1-based line number.
+    pub number: usize,
+    /// The line without its line ending (and without a byte-order mark on line 1).
+    pub text: &'a str,
+    /// The last line of the file, with no newline after it: perhaps cut off by an interrupted
+    /// recording.
+    pub unterminated: bool,
+}
+
+/// Calls `each` for every line of `bytes`; a line that is not UTF-8 is skipped (named) here.
+pub(crate) fn for_each_line(
+    bytes: &[u8],
+    sink: &mut Sink<'_>,
+    mut each: impl FnMut(&mut Sink<'_>, TextLine<'_>) -> Result<(), LogError>,
+) -> Result<(), LogError> {
+    let complete = bytes.last().is_none_or(|&b| b == b'\n');
+    let mut lines = bytes.split(|&b| b == b'\n').peekable();
+    let mut number = 0;
+    while let Some(raw) = lines.next() {
+        number += 1;
+        let last = lines.peek().is_none();
+        if last && raw.is_empty() {
+            break;
+        }
+        let raw = raw.strip_suffix(b"\r").unwrap_or(raw);
+        let raw = if number == 1 { raw.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(raw) } else { raw };
+        let Ok(text) = std::str::from_utf8(raw) else {
+            sink.skip(number, 1, "the line is not UTF-8 text", &String::from_utf8_lossy(raw))?;
+            continue;
+        };
+        each(sink, TextLine { number, text, unterminated: last && !complete })?;
+    }
+    Ok(())
+}
+
+/// A decimal number `int[.frac]` scaled by `10^digits` (`"12.5"`, 3 → 12500); digits past
+/// `digits` are dropped (truncated). `None` for anything else, a sign included, or an overflow.
+pub(crate) fn parse_scaled(text: &str, digits: u32) -> Option<u64> {
+    let (int, frac) = text.split_once('.').unwrap_or((text, ""));
+    if int.is_empty() || int.len() > 19 || !int.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    if !frac.bytes().all(|b| b.is_ascii_digit()) || frac.len() > 18 {
+        return None;
+    }
+    let mut value: u64 = int.parse().ok()?;
+    let mut taken = 0;
+    for b in frac.bytes().take(digits as usize) {
+        value = value.checked_mul(10)?.checked_add(u64::from(b - b'0'))?;
+        taken += 1;
+    }
+    for _ in taken..digits {
+        value = value.checked_mul(10)?;
+    }
+    Some(value)
+}
+
+/// The 11-bit identifier `raw`, or why a frame with it is not DeviceNet traffic.
+pub(crate) fn standard_id(raw: u32, extended: bool) -> Result<u16, String> {
+    if extended {
+        return Err(format!(
+            "extended identifier 0x{raw:08X} is not DeviceNet traffic (11-bit identifiers only)"
+        ));
+    }
+    u16::try_from(raw)
+        .ok()
+        .filter(|&id| id <= 0x7FF)
+        .ok_or_else(|| format!("identifier 0x{raw:X} does not fit in 11 bits"))
+}
+
+/// The whitespace-separated tokens of a line with their byte offsets.
+pub(crate) fn tokens(line: &str) -> Vec<(usize, &str)> {
+    let mut out = Vec::new();
+    let mut start = None;
+    for (i, c) in line.char_indices() {
+        match (c.is_whitespace(), start) {
+            (true, Some(s)) => {
+                out.push((s, &line[s..i]));
+                start = None;
+            }
+            (false, None) => start = Some(i),
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push((s, &line[s..]));
+    }
+    out
 }
