@@ -6,6 +6,7 @@ use crate::error::MasterError;
 use crate::stop::Stop;
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
+use can_io::trace::Direction;
 use devicenet::{CanFrame, Duration, Identifier, Instant, MacId};
 
 /// How long the session waits on the bus at a time while a [`Stop`] is set, so a stop is seen
@@ -185,7 +186,8 @@ impl<'b> Session<'b> {
         };
         let meaning = self.decoder.decode(&ev.frame).text();
         if let Some(log) = &mut self.log {
-            log.write(ev.at, self.bus.name(), &ev.frame)
+            let direction = if ev.origin == Origin::Local { Direction::Tx } else { Direction::Rx };
+            log.write_dir(ev.at, self.bus.name(), direction, &ev.frame)
                 .map_err(|source| MasterError::LogWrite { source })?;
         }
         let index = self.records.len();

@@ -123,9 +123,13 @@ pub struct Cli {
     /// CAN bit rate: 125k, 250k or 500k (sim and slcan).
     #[arg(long, global = true, default_value = "250k")]
     pub bitrate: Bitrate,
-    /// Write every frame seen to FILE in candump -L format.
+    /// Write every frame seen to FILE (candump -L, or the format given with --format).
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// The --log file's format: candump (default), trc (PCAN-View 2.1), asc (Vector) or csv
+    /// (python-can's layout); each is read back by `decode`, `replay` and python-can.
+    #[arg(long, global = true, value_name = "FORMAT", value_parser = parse_trace_format)]
+    pub format: Option<TraceFormat>,
     /// Write every frame seen to FILE as a pcap capture (link type SocketCAN, for Wireshark).
     #[arg(long, global = true, value_name = "FILE")]
     pub pcap: Option<PathBuf>,
@@ -678,6 +682,19 @@ fn execute(
     console: &Console,
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    match (cli.format, &cli.log) {
+        (Some(_), None) => {
+            return Err(HarnessError::Usage(
+                "--format names the format of the --log file: give --log FILE too".into(),
+            ))
+        }
+        (Some(f), Some(_)) if !f.writable() => {
+            return Err(HarnessError::Usage(format!(
+                "--format {f}: --log writes candump, trc, asc or csv (a pcap capture: --pcap FILE)"
+            )))
+        }
+        _ => {}
+    }
     if let Command::Decode { logfile, input } = &cli.command {
         let trace = read_input(logfile, input, err)?;
         return decode_command(cli, &trace, out).map_err(|e| match e {
@@ -717,6 +734,7 @@ fn execute(
     if let Command::Conformance { html, .. } = &cli.command {
         let run = ConformanceCommand {
             log: cli.log.as_deref(),
+            log_format: cli.format.unwrap_or(TraceFormat::Candump),
             master_mac,
             response_timeout: Duration::from_millis(cli.timeout.max(1)),
             json: cli.json,
@@ -732,7 +750,7 @@ fn execute(
     let mut session = Session::new(bus.as_mut());
     session.set_stop(console.stop.clone());
     if let Some(path) = &cli.log {
-        let log = LogWriter::create(path)
+        let log = LogWriter::create_as(path, cli.format.unwrap_or(TraceFormat::Candump))
             .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
         session.set_log(log);
     }

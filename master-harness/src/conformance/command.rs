@@ -43,8 +43,10 @@ use std::path::Path;
 /// What the `conformance` command was asked to do, besides the device.
 #[derive(Clone, Debug)]
 pub struct ConformanceCommand<'a> {
-    /// `--log`: every frame to this file (`candump -L`).
+    /// `--log`: every frame to this file.
     pub log: Option<&'a Path>,
+    /// `--format`: the `--log` file's format.
+    pub log_format: can_io::trace::TraceFormat,
     /// `--master-mac`.
     pub master_mac: MacId,
     /// `--timeout`: the explicit response timeout.
@@ -125,7 +127,7 @@ pub fn execute(
     };
     // The output files first: a path that cannot be written is an error before any frame is sent.
     let log = match run.log {
-        Some(path) => Some(LogWriter::create(path).map_err(file_err(path))?),
+        Some(path) => Some(LogWriter::create_as(path, run.log_format).map_err(file_err(path))?),
         None => None,
     };
     let mut html_file = match run.html {
