@@ -1253,8 +1253,7 @@ fn decode_command(cli: &Cli, trace: &Trace, out: &mut dyn Write) -> Result<u8, H
         line.push_str(&decoded.summary);
         line.push('\n');
         if let Some(m) = &decoded.message {
-            line.push_str(&" ".repeat(40));
-            line.push_str("   => ");
+            line.push_str(concat!("                                        ", "   => "));
             line.push_str(m);
             line.push('\n');
         }
