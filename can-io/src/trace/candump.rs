@@ -6,7 +6,7 @@
 //! counted.
 //!
 //! Speed: `decode` reads millions of lines, so the canonical form candump writes
-//! (`(digits.digits) iface HHH#HEX`) is read by [`fast_line`] straight from the bytes, and entries
+//! (`(digits.digits) iface HHH#HEX`) is read by `fast_line` straight from the bytes, and entries
 //! of one interface share its name; every other line goes through [`crate::log`]'s parser, which
 //! gives the precise reason when a line is not a frame.
 
