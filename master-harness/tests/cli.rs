@@ -86,10 +86,16 @@ fn malformed_transcript_names_the_line() {
         "(0.000436) sim 407#00010004030201\n(1.000436) sim 407#000100040302\n(2.0) sim 42F\n",
     )
     .unwrap();
-    let o = dnet(&["replay", bad.to_str().unwrap(), "--mac", "5"]);
+    // --strict: the line is an error, named with its column.
+    let o = dnet(&["replay", "--strict", bad.to_str().unwrap(), "--mac", "5"]);
     assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
     assert!(err.contains("malformed.log:3:11: invalid frame '42F': expected ID#DATA"), "{err}");
+    // By default it is skipped and named, and the rest is replayed.
+    let o = dnet(&["replay", bad.to_str().unwrap(), "--mac", "5"]);
+    let err = stderr(&o);
+    assert!(err.contains("malformed.log: 1 line skipped, not DeviceNet traffic"), "{err}");
+    assert!(err.contains("malformed.log:3: invalid frame '42F': expected ID#DATA"), "{err}");
 }
 
 #[test]
@@ -351,8 +357,79 @@ fn decode_reads_standard_input_given_as_dash() {
     let out = dnet_with_stdin(&["decode", "-"], log.as_bytes());
     assert!(out.status.success(), "{}{}", stdout(&out), stderr(&out));
     assert!(stdout(&out).contains("Identity(1) inst 1 attr 1 (vendor ID) = 0x1234"), "{}", stdout(&out));
-    // A bad line is named as on standard input.
+    // A bad line is named as on standard input; with nothing else there, nothing was decoded.
     let out = dnet_with_stdin(&["decode", "-"], b"(0.1) can0 42C#0\n");
+    assert_eq!(out.status.code(), Some(1));
+    assert!(stderr(&out).contains("standard input:1: odd number of hex digits"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("standard input: no DeviceNet frames"), "{}", stderr(&out));
+    let out = dnet_with_stdin(&["decode", "--strict", "-"], b"(0.1) can0 42C#0\n");
     assert_eq!(out.status.code(), Some(2));
-    assert!(stderr(&out).contains("standard input:1"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("standard input:1:"), "{}", stderr(&out));
+}
+
+#[test]
+fn decode_reads_every_format_by_its_content() {
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../can-io/tests/data");
+    for (file, format) in [
+        ("binary/bring-up.pcapng", "pcapng"),
+        ("binary/bring-up.blf", "blf"),
+        ("text/bring-up-v11.trc", "trc"),
+        ("text/bring-up.asc", "asc"),
+        ("text/bring-up.csv", "csv"),
+    ] {
+        // Copied to a name without the extension: the content tells the format.
+        let copy = temp(&format!("no-extension-{format}"));
+        std::fs::copy(format!("{data}/{file}"), &copy).unwrap();
+        let o = dnet(&["--json", "decode", copy.to_str().unwrap()]);
+        assert!(o.status.success(), "{file}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+        assert_eq!(v["format"], format, "{file}");
+        assert_eq!(v["frames"].as_array().unwrap().len(), 30, "{file}");
+        assert!(
+            v["frames"][27]["message"].as_str().unwrap().contains("poll response from MAC 5, 18 bytes"),
+            "{file}: {v}"
+        );
+    }
+    // Foreign records: decoded around, counted and named; the JSON says how many.
+    let o = dnet(&["--json", "decode", &format!("{data}/binary/foreign.blf")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("4 records skipped, not DeviceNet traffic"), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(stdout(&o).trim()).unwrap();
+    assert_eq!(v["skipped"], 4);
+    assert_eq!(
+        v["skipped_first"][0]["reason"],
+        "error frame (CAN_ERROR_EXT object) is not DeviceNet traffic"
+    );
+    assert_eq!(v["frames"][0]["direction"], "Rx");
+    // A named format overrides detection; a wrong one reads nothing and says so.
+    let o = dnet(&["decode", "--input-format", "asc", &format!("{data}/text/bring-up.csv")]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no DeviceNet frames in this asc trace"), "{}", stderr(&o));
+    let o = dnet(&["decode", "--input-format", "xls", &format!("{data}/text/bring-up.csv")]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("unknown trace format 'xls' (one of: candump, pcap, pcapng, trc, asc, blf, csv)"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn format_names_the_log_files_format() {
+    let asc = temp("format.asc");
+    let o =
+        dnet(&["--bus", "sim", "--log", asc.to_str().unwrap(), "--format", "asc", "connect", "--mac", "5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&asc).unwrap();
+    assert!(text.starts_with("date ") && text.trim_end().ends_with("End TriggerBlock"), "{text}");
+    assert!(
+        text.contains("42E             Tx   d 6 00 4B 03 01 01 00"),
+        "the master's own frames are Tx: {text}"
+    );
+    let o = dnet(&["--bus", "sim", "--format", "asc", "connect", "--mac", "5"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--format names the format of the --log file"), "{}", stderr(&o));
+    let o = dnet(&["--bus", "sim", "--log", asc.to_str().unwrap(), "--format", "pcapng", "connect"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--log writes candump, trc, asc or csv"), "{}", stderr(&o));
 }
