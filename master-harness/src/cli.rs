@@ -112,7 +112,7 @@ impl std::str::FromStr for PowerOnArg {
 
 /// `dnet-master`: a bench DeviceNet master.
 #[derive(Debug, Parser)]
-#[command(name = "dnet-master", version = crate::version(), about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes candump logs.", long_about = None)]
+#[command(name = "dnet-master", version = crate::version(), about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes traces of every common format.", long_about = None)]
 pub struct Cli {
     /// The bus: `sim`, `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
     #[arg(long, global = true, default_value = "sim")]
