@@ -74,5 +74,6 @@ pub mod monitor;
 pub mod params;
 pub mod replay;
 pub mod scan;
+pub mod scanner;
 pub mod soak;
 pub mod table;

@@ -1,0 +1,353 @@
+//! What the scanner knows and shows, shared by `dnet-master scanner` (the engine, `super`), the
+//! web console (`crate::ui`), the history database and the MQTT publisher: the scan list, each
+//! node's status with the numeric code scanners display, the scanner's own state, and the commands
+//! the console sends to the engine.
+//!
+//! Node status codes are those of Allen-Bradley's DeviceNet scanners (1756-DNB, 1747-SDN,
+//! 1769-SDN), which every DeviceNet engineer reads off the scanner's display: "DeviceNet Status
+//! Codes", Studio 5000 Logix Designer documentation, Rockwell Automation
+//! (rockwellautomation.com/en-us/docs/studio-5000-logix-designer/.../devicenet-status-codes.html).
+
+use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::mpsc::Sender;
+use std::sync::Mutex;
+use std::time::SystemTime;
+
+/// One node of the scan list: what the scanner expects at a MAC ID.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanEntry {
+    /// MAC ID, 0-63.
+    pub mac: u8,
+    /// The I/O connection: `poll` (strobe, cos and cyclic once the slave offers them).
+    #[serde(default = "poll")]
+    pub connection: String,
+    /// Electronic key: Identity attribute 1; `None`: not checked.
+    #[serde(default)]
+    pub vendor_id: Option<u16>,
+    /// Electronic key: Identity attribute 2.
+    #[serde(default)]
+    pub device_type: Option<u16>,
+    /// Electronic key: Identity attribute 3.
+    #[serde(default)]
+    pub product_code: Option<u16>,
+    /// Electronic key: Identity attribute 4 major revision.
+    #[serde(default)]
+    pub major_revision: Option<u8>,
+    /// The poll response size in bytes (Connection 2 attribute 7).
+    pub input_size: u16,
+    /// The poll command size in bytes (Connection 2 attribute 8).
+    pub output_size: u16,
+    /// A name for the node in reports and the console (default: the product name read).
+    #[serde(default)]
+    pub name: Option<String>,
+}
+
+fn poll() -> String {
+    "poll".into()
+}
+
+/// A scan list file (TOML): `[[node]]` tables, and the scanner's own settings.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanList {
+    /// The inter-scan delay in ms; `None`: computed from the scan list and the data rate.
+    #[serde(default)]
+    pub interscan_delay_ms: Option<u32>,
+    /// The expected packet rate given to every node, ms; `None`: computed.
+    #[serde(default)]
+    pub expected_packet_rate_ms: Option<u16>,
+    /// The nodes, in MAC order.
+    #[serde(default, rename = "node")]
+    pub nodes: Vec<ScanEntry>,
+}
+
+/// A node's status, with the code a DeviceNet scanner shows for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NodeStatus {
+    /// In I/O, data exchanged this cycle (code 0: no fault).
+    Ok,
+    /// In I/O, the device produces idle (zero-length) data (code 86).
+    Idle,
+    /// Nothing answers at the MAC (code 78).
+    NotPresent,
+    /// The identity does not match the scan list's electronic key (code 73).
+    KeyingMismatch,
+    /// The I/O sizes do not match the scan list (code 77).
+    SizeMismatch,
+    /// It stopped answering polls (code 72; 78 if it stays away).
+    TimedOut,
+    /// It answered an allocation or configuration request with an error (code 83).
+    ErrorResponse,
+    /// Its duplicate MAC ID check failed: Communication Faulted (code 70 is the scanner's own
+    /// duplicate; a node's is shown as 78 by AB scanners; ours says it: code 79 is not used for
+    /// this, see [`NodeStatus::code`]).
+    CommunicationFaulted,
+    /// Being brought into I/O (code 84).
+    Initializing,
+}
+
+impl NodeStatus {
+    /// The numeric node status code (Rockwell's DeviceNet status codes): 0 ok, 72 stopped
+    /// communicating, 73 keying mismatch, 77 size mismatch, 78 not present, 83 error response,
+    /// 84 initializing, 86 idle data. Communication Faulted has no code of its own there; it is
+    /// shown as 78 (the node does not take part) with its own status name.
+    pub fn code(self) -> u8 {
+        match self {
+            NodeStatus::Ok => 0,
+            NodeStatus::TimedOut => 72,
+            NodeStatus::KeyingMismatch => 73,
+            NodeStatus::SizeMismatch => 77,
+            NodeStatus::NotPresent | NodeStatus::CommunicationFaulted => 78,
+            NodeStatus::ErrorResponse => 83,
+            NodeStatus::Initializing => 84,
+            NodeStatus::Idle => 86,
+        }
+    }
+
+    /// The name used in text, JSON and the console (`ok`, `not_present`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            NodeStatus::Ok => "ok",
+            NodeStatus::Idle => "idle",
+            NodeStatus::NotPresent => "not_present",
+            NodeStatus::KeyingMismatch => "keying_mismatch",
+            NodeStatus::SizeMismatch => "size_mismatch",
+            NodeStatus::TimedOut => "timed_out",
+            NodeStatus::ErrorResponse => "error_response",
+            NodeStatus::CommunicationFaulted => "communication_faulted",
+            NodeStatus::Initializing => "initializing",
+        }
+    }
+}
+
+/// What was read of a node's identity.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Identity {
+    /// Identity attribute 1.
+    pub vendor_id: Option<u16>,
+    /// Identity attribute 2.
+    pub device_type: Option<u16>,
+    /// Identity attribute 3.
+    pub product_code: Option<u16>,
+    /// Identity attribute 4, `major.minor`.
+    pub revision: Option<String>,
+    /// Identity attribute 6.
+    pub serial_number: Option<u32>,
+    /// Identity attribute 7.
+    pub product_name: Option<String>,
+}
+
+/// One node as the scanner sees it now.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct NodeState {
+    /// MAC ID.
+    pub mac: u8,
+    /// Status.
+    pub status: NodeStatus,
+    /// [`NodeStatus::code`].
+    pub code: u8,
+    /// What the status is about, in words (`expected product code 99, read 100`).
+    pub detail: Option<String>,
+    /// The identity read.
+    pub identity: Identity,
+    /// The I/O sizes read (input = produced by the node, output = consumed).
+    pub input_size: Option<u16>,
+    /// The output size read.
+    pub output_size: Option<u16>,
+    /// The last input image received.
+    pub input: Vec<u8>,
+    /// The output image sent while the node is ok.
+    pub output: Vec<u8>,
+    /// Cycles with data exchanged.
+    pub exchanges: u64,
+    /// Bus time of the last exchange, microseconds.
+    pub last_exchange_us: Option<u64>,
+}
+
+/// The scanner's own status.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ScannerStatus {
+    /// Network access in progress (its duplicate MAC ID check).
+    Starting,
+    /// Scanning.
+    Running,
+    /// The bus is in error-warning state (many transmit or receive errors).
+    BusWarning,
+    /// The controller went bus-off (code 91).
+    BusOff,
+    /// Another node has the scanner's MAC ID (code 70).
+    DuplicateMac,
+    /// Stopped (`--cycles` reached, or a signal).
+    Stopped,
+}
+
+/// Everything the scanner shows: its state, the cycle figures and every node.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScannerState {
+    /// The scanner's MAC ID.
+    pub mac: u8,
+    /// Its status.
+    pub status: ScannerStatus,
+    /// Full scan cycles done.
+    pub cycles: u64,
+    /// Median time of a full scan cycle, ms (over the last cycles).
+    pub cycle_ms: f64,
+    /// Bus load over the last cycles, 0.0-1.0 (time on the wire / time).
+    pub bus_load: f64,
+    /// The inter-scan delay in force, ms.
+    pub interscan_delay_ms: u32,
+    /// The expected packet rate in force, ms.
+    pub expected_packet_rate_ms: u16,
+    /// The nodes of the scan list, in MAC order.
+    pub nodes: Vec<NodeState>,
+}
+
+/// A decoded frame for the console's trace view.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct FrameRow {
+    /// Sequence number (the console asks for rows after the last one it has).
+    pub seq: u64,
+    /// Bus time, microseconds.
+    pub time_us: u64,
+    /// `ID#DATA`.
+    pub frame: String,
+    /// The 11-bit identifier.
+    pub id: u16,
+    /// The data bytes.
+    pub data: Vec<u8>,
+    /// Sent by the scanner.
+    pub own: bool,
+    /// The MAC ID the frame concerns (source or destination), if any.
+    pub mac: Option<u8>,
+    /// The message kind for the filter (`explicit`, `io`, `duplicate_mac`, `ucmm`, `offline`).
+    pub kind: String,
+    /// `dnet-master decode`'s text.
+    pub meaning: String,
+    /// The completed message, for the last fragment of a series.
+    pub message: Option<String>,
+}
+
+/// One input sample of a node, for the history database and MQTT.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// MAC ID.
+    pub mac: u8,
+    /// Wall-clock time, milliseconds since the Unix epoch.
+    pub unix_ms: i64,
+    /// Bus time, microseconds.
+    pub bus_us: u64,
+    /// The input image.
+    pub input: Vec<u8>,
+    /// The values decoded by the node's profile (`name`, number), in order.
+    pub values: Vec<(String, f64)>,
+}
+
+/// Milliseconds since the Unix epoch, now.
+pub fn unix_ms_now() -> i64 {
+    SystemTime::now().duration_since(SystemTime::UNIX_EPOCH).map_or(0, |d| d.as_millis() as i64)
+}
+
+/// The answer to a console command: `Ok` with what was read (empty for a write), or the error in
+/// words (the device's error response by name, a timeout, a node that is not ok).
+pub type Reply = Result<Vec<u8>, String>;
+
+/// What the console asks the scanner to do; the scanner's loop carries it out between cycles and
+/// answers on `reply`.
+#[derive(Debug)]
+pub enum ConsoleCommand {
+    /// Put `data` in the node's output image (sent with each poll while the node is ok; refused
+    /// with an error while it is not, or when the size is not the node's output size).
+    SetOutput {
+        /// MAC ID.
+        mac: u8,
+        /// The whole output image.
+        data: Vec<u8>,
+        /// The answer.
+        reply: Sender<Reply>,
+    },
+    /// Get_Attribute_Single on the node's explicit connection.
+    Get {
+        /// MAC ID.
+        mac: u8,
+        /// Class.
+        class: u16,
+        /// Instance.
+        instance: u16,
+        /// Attribute.
+        attribute: u8,
+        /// The answer: the value's bytes.
+        reply: Sender<Reply>,
+    },
+    /// Set_Attribute_Single on the node's explicit connection.
+    Set {
+        /// MAC ID.
+        mac: u8,
+        /// Class.
+        class: u16,
+        /// Instance.
+        instance: u16,
+        /// Attribute.
+        attribute: u8,
+        /// The value's bytes.
+        value: Vec<u8>,
+        /// The answer (empty on success).
+        reply: Sender<Reply>,
+    },
+}
+
+/// Where the console finds the history of samples (the SQLite database in `crate::history`).
+pub trait HistoryStore: Send + Sync {
+    /// The samples of `mac` with `from_ms <= unix_ms <= to_ms`, oldest first, at most `limit`
+    /// (the newest `limit` when there are more).
+    fn samples(&self, mac: u8, from_ms: i64, to_ms: i64, limit: usize) -> Result<Vec<Sample>, String>;
+    /// Writes the samples of `mac` (every node: `None`) in the time range as CSV with a header
+    /// line (`unix_ms,time,mac,input_hex,` then one column per value name); the number of rows.
+    fn export_csv(
+        &self,
+        mac: Option<u8>,
+        from_ms: i64,
+        to_ms: i64,
+        out: &mut dyn Write,
+    ) -> Result<usize, String>;
+}
+
+/// How many frames the console's trace view keeps (the oldest are dropped).
+pub const FRAME_RING: usize = 5000;
+
+/// What the scanner's loop and the console share: the latest state, the recent frames, the
+/// command queue and the history.
+pub struct Shared {
+    /// The scanner's state after its last cycle.
+    pub state: Mutex<ScannerState>,
+    /// The last [`FRAME_RING`] frames, oldest first.
+    pub frames: Mutex<VecDeque<FrameRow>>,
+    /// Commands for the scanner's loop.
+    pub commands: Mutex<Sender<ConsoleCommand>>,
+    /// The sample history, when kept.
+    pub history: Option<Box<dyn HistoryStore>>,
+    /// Where the console's recordings go (`record-TIMESTAMP.log` / `.pcap`).
+    pub record_dir: PathBuf,
+    /// The MQTT publisher's state in words, when `--mqtt` is given (`connected to URL`,
+    /// `broker unreachable: ...`).
+    pub mqtt: Mutex<Option<String>>,
+}
+
+impl Shared {
+    /// Appends frames to the ring, dropping the oldest beyond [`FRAME_RING`].
+    pub fn push_frames(&self, rows: impl IntoIterator<Item = FrameRow>) {
+        if let Ok(mut ring) = self.frames.lock() {
+            for row in rows {
+                if ring.len() == FRAME_RING {
+                    ring.pop_front();
+                }
+                ring.push_back(row);
+            }
+        }
+    }
+}
