@@ -24,6 +24,8 @@
 //! | [`cli`] | the command line, reports and JSON |
 //! | [`console`] | progress lines on a terminal, the stop asked for by SIGINT / SIGTERM |
 //! | [`table`] | the frame-by-frame table and the JSON form of a record |
+//! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
+//! | [`mqtt`] | `--mqtt URL`: node status and decoded values published to an MQTT broker |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
 //!
 //! ## Example: the bring-up on the simulated bus
@@ -70,7 +72,9 @@ pub mod configure;
 pub mod conformance;
 pub mod console;
 pub mod error;
+pub mod history;
 pub mod monitor;
+pub mod mqtt;
 pub mod params;
 pub mod replay;
 pub mod scan;
