@@ -146,8 +146,8 @@ impl History {
     /// Opens the history in the SQLite file `path`, creating the file and its schema when they do
     /// not exist.
     pub fn open(path: &Path) -> Result<History, HistoryError> {
-        let writer = Connection::open(path)
-            .map_err(|source| HistoryError::Open { path: path.to_owned(), source })?;
+        let writer =
+            Connection::open(path).map_err(|source| HistoryError::Open { path: path.to_owned(), source })?;
         let mut history = History::prepare(path, writer)?;
         let reader = Connection::open_with_flags(
             path,
@@ -186,9 +186,9 @@ impl History {
                 .query_row("SELECT count(*) FROM sqlite_schema", [], |r| r.get(0))
                 .map_err(|e| history.classify(e, "reading the schema"))?;
             if version == 0 && tables > 0 {
-                return Err(history.not_a_history(format!(
-                    "it has {tables} schema object(s) and no schema version"
-                )));
+                return Err(
+                    history.not_a_history(format!("it has {tables} schema object(s) and no schema version"))
+                );
             }
             if version != 0 && version != SCHEMA_VERSION {
                 return Err(history.not_a_history(format!(
@@ -338,11 +338,8 @@ impl History {
             let mut rows = stmt
                 .query(params![mac, from_ms, to_ms])
                 .map_err(|e| self.classify(e, "reading the value names"))?;
-            while let Some(row) =
-                rows.next().map_err(|e| self.classify(e, "reading the value names"))?
-            {
-                let text: String =
-                    row.get(0).map_err(|e| self.classify(e, "reading the value names"))?;
+            while let Some(row) = rows.next().map_err(|e| self.classify(e, "reading the value names"))? {
+                let text: String = row.get(0).map_err(|e| self.classify(e, "reading the value names"))?;
                 for (name, _) in decode_values(&text) {
                     if !names.contains(&name) {
                         names.push(name);
@@ -366,9 +363,8 @@ impl History {
                     "SELECT unix_ms, mac, input, decoded FROM samples {filter} ORDER BY unix_ms, id"
                 ))
                 .map_err(|e| self.classify(e, "preparing the export"))?;
-            let mut rows = stmt
-                .query(params![mac, from_ms, to_ms])
-                .map_err(|e| self.classify(e, "reading samples"))?;
+            let mut rows =
+                stmt.query(params![mac, from_ms, to_ms]).map_err(|e| self.classify(e, "reading samples"))?;
             while let Some(row) = rows.next().map_err(|e| self.classify(e, "reading samples"))? {
                 let get = |e| self.classify(e, "reading samples");
                 let unix_ms: i64 = row.get(0).map_err(get)?;
@@ -409,9 +405,7 @@ impl History {
     /// Names a file that is not a database as such; every other failure as what was being done.
     fn classify(&self, source: rusqlite::Error, what: &'static str) -> HistoryError {
         match source.sqlite_error_code() {
-            Some(ErrorCode::NotADatabase) => {
-                HistoryError::NotADatabase { path: self.path.clone() }
-            }
+            Some(ErrorCode::NotADatabase) => HistoryError::NotADatabase { path: self.path.clone() },
             Some(ErrorCode::CannotOpen) => HistoryError::Open { path: self.path.clone(), source },
             _ => self.sql(what, source),
         }
@@ -419,13 +413,7 @@ impl History {
 }
 
 impl HistoryStore for History {
-    fn samples(
-        &self,
-        mac: u8,
-        from_ms: i64,
-        to_ms: i64,
-        limit: usize,
-    ) -> Result<Vec<Sample>, String> {
+    fn samples(&self, mac: u8, from_ms: i64, to_ms: i64, limit: usize) -> Result<Vec<Sample>, String> {
         self.query(mac, from_ms, to_ms, limit).map_err(|e| e.to_string())
     }
 
