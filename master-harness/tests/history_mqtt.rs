@@ -1,0 +1,486 @@
+//! The sample history (SQLite) and the MQTT publisher.
+//!
+//! The history tests run everywhere. The MQTT tests marked `ignore` need Debian's mosquitto
+//! (`apt-get install -y mosquitto mosquitto-clients`): each starts its own broker on a free port of
+//! 127.0.0.1 and reads what was published with `mosquitto_sub`, an independent client. They fail,
+//! not skip, when mosquitto is missing; `scripts/check` installs it and runs them:
+//! `cargo test -p master-harness --test history_mqtt -- --ignored`.
+
+use master_harness::history::{History, HistoryError, Retention};
+use master_harness::mqtt::Publisher;
+use master_harness::scanner::model::{
+    HistoryStore, Identity, NodeState, NodeStatus, Sample, ScannerState, ScannerStatus,
+};
+use serde_json::Value;
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+
+/// A fresh directory for one test under Cargo's scratch space.
+fn scratch(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("history_mqtt-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn sample(mac: u8, unix_ms: i64, values: &[(&str, f64)]) -> Sample {
+    Sample {
+        mac,
+        unix_ms,
+        bus_us: unix_ms as u64 * 1000,
+        input: vec![mac, (unix_ms & 0xFF) as u8, 0xA5],
+        values: values.iter().map(|(n, v)| (n.to_string(), *v)).collect(),
+    }
+}
+
+fn node(mac: u8, status: NodeStatus, product: &str) -> NodeState {
+    NodeState {
+        mac,
+        status,
+        code: status.code(),
+        detail: None,
+        identity: Identity {
+            vendor_id: Some(1234),
+            device_type: Some(12),
+            product_code: Some(1),
+            revision: Some("1.1".into()),
+            serial_number: Some(0x1234_5678),
+            product_name: Some(product.into()),
+        },
+        input_size: Some(18),
+        output_size: Some(8),
+        input: vec![0; 18],
+        output: vec![0; 8],
+        exchanges: 10,
+        last_exchange_us: Some(1),
+    }
+}
+
+fn state(nodes: Vec<NodeState>) -> ScannerState {
+    ScannerState {
+        mac: 0,
+        status: ScannerStatus::Running,
+        cycles: 42,
+        cycle_ms: 68.5,
+        bus_load: 0.84,
+        interscan_delay_ms: 2,
+        expected_packet_rate_ms: 300,
+        nodes,
+    }
+}
+
+fn wait_until(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {
+    let deadline = Instant::now() + timeout;
+    while !done() {
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// A mosquitto broker of the test's own, killed when dropped.
+struct Broker {
+    child: Child,
+}
+
+impl Broker {
+    fn start(port: u16, dir: &std::path::Path) -> Broker {
+        let conf = dir.join(format!("mosquitto-{port}.conf"));
+        std::fs::write(
+            &conf,
+            format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
+        )
+        .unwrap();
+        let child = Command::new("mosquitto")
+            .arg("-c")
+            .arg(&conf)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| {
+                panic!(
+                    "cannot start mosquitto ({e}): this test needs Debian's mosquitto \
+                     (apt-get install -y mosquitto mosquitto-clients)"
+                )
+            });
+        let mut broker = Broker { child };
+        wait_until("mosquitto to listen", Duration::from_secs(10), || {
+            if let Ok(Some(status)) = broker.child.try_wait() {
+                panic!("mosquitto exited at start: {status}");
+            }
+            TcpStream::connect(("127.0.0.1", port)).is_ok()
+        });
+        broker
+    }
+}
+
+impl Drop for Broker {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// One message as `mosquitto_sub -F '%r %t %p'` prints it.
+#[derive(Debug)]
+struct Message {
+    retained: bool,
+    topic: String,
+    payload: Value,
+}
+
+/// `mosquitto_sub` for `topic`, until `count` messages or `timeout_s`.
+fn subscriber(port: u16, topic: &str, count: usize, timeout_s: u32) -> Child {
+    Command::new("mosquitto_sub")
+        .args(["-h", "127.0.0.1", "-p", &port.to_string(), "-t", topic])
+        .args(["-C", &count.to_string(), "-W", &timeout_s.to_string(), "-F", "%r %t %p"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot run mosquitto_sub ({e}): this test needs Debian's mosquitto-clients \
+                 (apt-get install -y mosquitto mosquitto-clients)"
+            )
+        })
+}
+
+fn messages(sub: Child) -> Vec<Message> {
+    let out = sub.wait_with_output().unwrap();
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|line| {
+            let mut parts = line.splitn(3, ' ');
+            let retained = parts.next().unwrap() == "1";
+            let topic = parts.next().unwrap().to_owned();
+            let payload = serde_json::from_str(parts.next().unwrap())
+                .unwrap_or_else(|e| panic!("payload of `{line}` is not JSON: {e}"));
+            Message { retained, topic, payload }
+        })
+        .collect()
+}
+
+/// The retained messages under `devicenet/#` a subscriber arriving now gets.
+fn retained_now(port: u16, count: usize) -> Vec<Message> {
+    let got = messages(subscriber(port, "devicenet/#", count, 10));
+    assert_eq!(got.len(), count, "retained messages: {got:?}");
+    got
+}
+
+fn find<'a>(msgs: &'a [Message], topic: &str) -> &'a Message {
+    msgs.iter().find(|m| m.topic == topic).unwrap_or_else(|| panic!("no {topic} in {msgs:?}"))
+}
+
+// ---------------------------------------------------------------------------------------------
+// History
+
+#[test]
+fn history_records_and_queries_time_ranges() {
+    let h = History::in_memory().unwrap();
+    let batch: Vec<Sample> =
+        (0..10).flat_map(|i| [sample(5, 1000 + i, &[("a", i as f64)]), sample(6, 1000 + i, &[])]).collect();
+    h.record(&batch).unwrap();
+    assert_eq!(h.len().unwrap(), 20);
+
+    let got = h.samples(5, 1002, 1005, 100).unwrap();
+    assert_eq!(got.iter().map(|s| s.unix_ms).collect::<Vec<_>>(), [1002, 1003, 1004, 1005]);
+    assert_eq!(got[0], batch[4], "a sample comes back whole");
+    // More than the limit: the newest, oldest first.
+    let got = h.samples(5, 0, i64::MAX, 3).unwrap();
+    assert_eq!(got.iter().map(|s| s.unix_ms).collect::<Vec<_>>(), [1007, 1008, 1009]);
+    assert!(h.samples(7, 0, i64::MAX, 10).unwrap().is_empty());
+    assert!(h.samples(5, 2000, 3000, 10).unwrap().is_empty());
+}
+
+#[test]
+fn history_csv_export_has_header_rows_and_values() {
+    let h = History::in_memory().unwrap();
+    h.record(&[
+        sample(5, 1_714_564_800_123, &[("phase_a", 10.0), ("switch", 1.0)]),
+        sample(6, 1_714_564_800_200, &[("temp,C", 21.5)]),
+    ])
+    .unwrap();
+    h.record(&[sample(5, 1_714_564_800_300, &[("phase_a", 12.5), ("phase_b", f64::NAN)])]).unwrap();
+
+    let mut out = Vec::new();
+    let rows = h.export_csv(None, 0, i64::MAX, &mut out).unwrap();
+    assert_eq!(rows, 3);
+    assert_eq!(
+        String::from_utf8(out).unwrap(),
+        "unix_ms,time,mac,input_hex,phase_a,switch,\"temp,C\",phase_b\n\
+         1714564800123,2024-05-01T12:00:00.123Z,5,057BA5,10,1,,\n\
+         1714564800200,2024-05-01T12:00:00.200Z,6,06C8A5,,,21.5,\n\
+         1714564800300,2024-05-01T12:00:00.300Z,5,052CA5,12.5,,,\n"
+    );
+
+    // One node, part of the range: only that node's value names.
+    let mut out = Vec::new();
+    let rows = h.export_csv(Some(5), 1_714_564_800_200, i64::MAX, &mut out).unwrap();
+    assert_eq!(rows, 1);
+    assert_eq!(
+        String::from_utf8(out).unwrap(),
+        "unix_ms,time,mac,input_hex,phase_a,phase_b\n\
+         1714564800300,2024-05-01T12:00:00.300Z,5,052CA5,12.5,\n"
+    );
+
+    // Nothing in the range: the header alone.
+    let mut out = Vec::new();
+    assert_eq!(h.export_csv(Some(9), 0, i64::MAX, &mut out).unwrap(), 0);
+    assert_eq!(out, b"unix_ms,time,mac,input_hex\n");
+}
+
+#[test]
+fn history_reopened_keeps_its_samples() {
+    let path = scratch("reopen").join("history.sqlite");
+    {
+        let h = History::open(&path).unwrap();
+        h.record(&[sample(5, 1000, &[("a", 1.0)]), sample(5, 1001, &[("a", 2.0)])]).unwrap();
+    }
+    let h = History::open(&path).unwrap();
+    let got = h.samples(5, 0, i64::MAX, 10).unwrap();
+    assert_eq!(got, [sample(5, 1000, &[("a", 1.0)]), sample(5, 1001, &[("a", 2.0)])]);
+    // The file is in WAL mode, and another program reads it as it is.
+    let other = rusqlite::Connection::open(&path).unwrap();
+    let mode: String = other.query_row("PRAGMA journal_mode", [], |r| r.get(0)).unwrap();
+    assert_eq!(mode, "wal");
+    let decoded: String =
+        other.query_row("SELECT decoded FROM samples WHERE unix_ms = 1001", [], |r| r.get(0)).unwrap();
+    assert_eq!(decoded, r#"[["a",2.0]]"#);
+}
+
+#[test]
+fn history_reads_while_the_scanner_records() {
+    let path = scratch("concurrent").join("history.sqlite");
+    let h = std::sync::Arc::new(History::open(&path).unwrap());
+    let writer = {
+        let h = std::sync::Arc::clone(&h);
+        std::thread::spawn(move || {
+            for cycle in 0..200 {
+                h.record(&[sample(5, cycle, &[("a", cycle as f64)])]).unwrap();
+            }
+        })
+    };
+    for _ in 0..50 {
+        let got = h.samples(5, 0, i64::MAX, 1000).unwrap();
+        assert!(got.windows(2).all(|w| w[0].unix_ms < w[1].unix_ms));
+        h.export_csv(Some(5), 0, i64::MAX, &mut std::io::sink()).unwrap();
+    }
+    writer.join().unwrap();
+    assert_eq!(h.len().unwrap(), 200);
+}
+
+#[test]
+fn history_retention_keeps_the_newest() {
+    let h = History::in_memory().unwrap();
+    h.set_retention(Retention { max_rows: Some(5), max_age_ms: None });
+    for t in 0..8 {
+        h.record(&[sample(5, t, &[])]).unwrap();
+    }
+    let kept: Vec<i64> = h.samples(5, 0, i64::MAX, 100).unwrap().iter().map(|s| s.unix_ms).collect();
+    assert_eq!(kept, [3, 4, 5, 6, 7]);
+
+    h.set_retention(Retention { max_rows: None, max_age_ms: Some(1000) });
+    h.record(&[sample(5, 1005, &[])]).unwrap();
+    let kept: Vec<i64> = h.samples(5, 0, i64::MAX, 100).unwrap().iter().map(|s| s.unix_ms).collect();
+    assert_eq!(kept, [5, 6, 7, 1005]);
+}
+
+#[test]
+fn history_path_that_cannot_be_created_is_named() {
+    let path = scratch("bad-path").join("no-such-dir").join("history.sqlite");
+    let e = History::open(&path).unwrap_err();
+    assert!(matches!(e, HistoryError::Open { .. }), "{e:?}");
+    let text = e.to_string();
+    assert!(text.starts_with("cannot open or create the history database"), "{text}");
+    assert!(text.contains(&path.display().to_string()), "{text}");
+
+    let dir = scratch("dir-path");
+    let e = History::open(&dir).unwrap_err();
+    assert!(e.to_string().contains(&dir.display().to_string()), "{e}");
+}
+
+#[test]
+fn history_file_that_is_not_a_database_is_named() {
+    let path = scratch("not-db").join("notes.txt");
+    std::fs::write(&path, "these are not the samples you are looking for\n".repeat(100)).unwrap();
+    let e = History::open(&path).unwrap_err();
+    assert!(matches!(e, HistoryError::NotADatabase { .. }), "{e:?}");
+    assert_eq!(
+        e.to_string(),
+        format!(
+            "{} is not an SQLite database (file is not a database), so not a sample history",
+            path.display()
+        )
+    );
+    // Left as it was.
+    assert!(std::fs::read_to_string(&path).unwrap().starts_with("these are not"));
+}
+
+#[test]
+fn history_sqlite_database_of_another_program_is_named() {
+    let path = scratch("other-db").join("other.sqlite");
+    rusqlite::Connection::open(&path).unwrap().execute_batch("CREATE TABLE customers (name TEXT)").unwrap();
+    let e = History::open(&path).unwrap_err();
+    assert!(matches!(e, HistoryError::NotAHistory { .. }), "{e:?}");
+    let text = e.to_string();
+    assert!(text.contains(&path.display().to_string()) && text.contains("not a dnet-master"), "{text}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// MQTT without a broker
+
+#[test]
+fn mqtt_malformed_url_is_an_error() {
+    for url in ["broker:1883", "http://broker", "mqtt://", "mqtt://b:99999", "mqtt://b/#"] {
+        let e = Publisher::start(url, "test").unwrap_err();
+        assert!(e.contains(url), "{e}");
+    }
+}
+
+#[test]
+fn mqtt_broker_down_is_not_an_error_and_publishing_does_not_block() {
+    let port = free_port();
+    let p = Publisher::start(&format!("mqtt://127.0.0.1:{port}"), "down").unwrap();
+    wait_until("the publisher to find the broker down", Duration::from_secs(10), || {
+        p.status().starts_with("broker unreachable: ")
+    });
+    assert!(p.status().ends_with(", retrying"), "{}", p.status());
+    assert!(!p.is_connected());
+    // Publishing returns (its time is printed, not asserted) and drops the values.
+    let started = Instant::now();
+    for i in 0..1000 {
+        p.publish_state(&state(vec![node(5, NodeStatus::Ok, "breaker")]));
+        p.publish_samples(&[sample(5, i, &[("a", 1.0)])]);
+    }
+    eprintln!("1000 publish_state + publish_samples with the broker down: {:?}", started.elapsed());
+    assert_eq!(p.dropped(), 1000);
+}
+
+// ---------------------------------------------------------------------------------------------
+// MQTT against mosquitto
+
+#[test]
+#[ignore = "needs mosquitto: run by scripts/check"]
+fn mqtt_publishes_retained_status_and_values_to_mosquitto() {
+    let dir = scratch("mosquitto");
+    let port = free_port();
+    let _broker = Broker::start(port, &dir);
+    let p = Publisher::start(&format!("mqtt://127.0.0.1:{port}"), "dnet-master-test").unwrap();
+    wait_until("the publisher to connect", Duration::from_secs(10), || p.is_connected());
+    assert_eq!(p.status(), format!("connected to mqtt://127.0.0.1:{port}/devicenet"));
+
+    let mut s = state(vec![node(5, NodeStatus::Ok, "breaker"), node(6, NodeStatus::Ok, "modbus")]);
+    p.publish_state(&s);
+
+    // A subscriber arriving after the fact gets the status: it is retained.
+    let got = retained_now(port, 3);
+    assert!(got.iter().all(|m| m.retained), "{got:?}");
+    let scanner = &find(&got, "devicenet/scanner").payload;
+    assert_eq!(scanner["status"], "running");
+    assert_eq!(scanner["cycles"], 42);
+    assert_eq!(scanner["cycle_ms"], 68.5);
+    assert_eq!(scanner["bus_load"], 0.84);
+    assert_eq!(scanner["nodes"], 2);
+    assert_eq!(scanner["nodes_ok"], 2);
+    let n5 = &find(&got, "devicenet/node/5/status").payload;
+    assert_eq!(
+        *n5,
+        serde_json::json!({"mac":5,"status":"ok","code":0,"detail":null,"product_name":"breaker",
+            "vendor_id":1234,"device_type":12,"product_code":1,"revision":"1.1",
+            "serial_number":0x1234_5678,"input_size":18,"output_size":8})
+    );
+    assert_eq!(find(&got, "devicenet/node/6/status").payload["product_name"], "modbus");
+
+    // A change of status replaces the retained one.
+    s.nodes[1] = node(6, NodeStatus::NotPresent, "modbus");
+    s.nodes[1].detail = Some("no answer".into());
+    s.status = ScannerStatus::BusWarning;
+    p.publish_state(&s);
+    wait_until("node 6's new status", Duration::from_secs(10), || {
+        let got = retained_now(port, 3);
+        find(&got, "devicenet/node/6/status").payload["status"] == "not_present"
+    });
+    let got = retained_now(port, 3);
+    let n6 = &find(&got, "devicenet/node/6/status").payload;
+    assert_eq!((n6["code"].as_u64(), n6["detail"].as_str()), (Some(78), Some("no answer")));
+    assert_eq!(find(&got, "devicenet/scanner").payload["status"], "bus_warning");
+
+    // Values: live, not retained, one topic per node.
+    let sub = subscriber(port, "devicenet/node/5/values", 1, 10);
+    let mut i = 0;
+    let mut sub = sub;
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while sub.try_wait().unwrap().is_none() && Instant::now() < deadline {
+        p.publish_samples(&[
+            sample(5, 2000 + i, &[("phase_a", 12.5), ("switch", 1.0)]),
+            sample(6, 2000 + i, &[("x", 1.0)]),
+        ]);
+        i += 1;
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let got = messages(sub);
+    assert_eq!(got.len(), 1, "{got:?}");
+    assert!(!got[0].retained);
+    assert_eq!(got[0].topic, "devicenet/node/5/values");
+    let v = &got[0].payload;
+    assert_eq!(v["mac"], 5);
+    assert_eq!(v["values"], serde_json::json!({"phase_a":12.5,"switch":1.0}));
+    let unix_ms = v["unix_ms"].as_i64().unwrap();
+    assert_eq!(v["input_hex"], format!("05{:02X}A5", unix_ms & 0xFF));
+    // Values are not retained: a late subscriber gets only the 3 status messages.
+    let late = messages(subscriber(port, "devicenet/#", 4, 2));
+    assert_eq!(late.len(), 3, "{late:?}");
+    assert_eq!(p.dropped(), 0);
+}
+
+#[test]
+#[ignore = "needs mosquitto: run by scripts/check"]
+fn mqtt_connects_when_the_broker_starts_later() {
+    let dir = scratch("mosquitto-later");
+    let port = free_port();
+    let p = Publisher::start(&format!("mqtt://127.0.0.1:{port}/plant/line1"), "late").unwrap();
+    wait_until("the publisher to find the broker down", Duration::from_secs(10), || {
+        p.status().starts_with("broker unreachable: ")
+    });
+    // The scanner goes on: publishing returns while the broker is down.
+    let started = Instant::now();
+    p.publish_state(&state(vec![node(5, NodeStatus::Ok, "breaker")]));
+    p.publish_samples(&[sample(5, 1, &[("a", 1.0)])]);
+    eprintln!("publish with the broker down: {:?}", started.elapsed());
+
+    let _broker = Broker::start(port, &dir);
+    wait_until("the publisher to connect", Duration::from_secs(20), || p.is_connected());
+    assert_eq!(p.status(), format!("connected to mqtt://127.0.0.1:{port}/plant/line1"));
+    // What was published while the broker was down is there now, retained.
+    let got = messages(subscriber(port, "plant/line1/#", 2, 10));
+    assert_eq!(got.len(), 2, "{got:?}");
+    assert!(got.iter().all(|m| m.retained));
+    assert_eq!(find(&got, "plant/line1/node/5/status").payload["status"], "ok");
+    assert_eq!(find(&got, "plant/line1/scanner").payload["status"], "running");
+}
+
+#[test]
+#[ignore = "needs mosquitto: run by scripts/check"]
+fn mqtt_clean_stop_leaves_the_last_state_not_the_last_will() {
+    let dir = scratch("mosquitto-will");
+    let port = free_port();
+    let _broker = Broker::start(port, &dir);
+    {
+        let p = Publisher::start(&format!("mqtt://127.0.0.1:{port}"), "clean").unwrap();
+        wait_until("the publisher to connect", Duration::from_secs(10), || p.is_connected());
+        let mut s = state(vec![]);
+        s.status = ScannerStatus::Stopped;
+        p.publish_state(&s);
+    } // dropped: what was queued is sent, then a clean disconnect.
+    let got = retained_now(port, 1);
+    assert_eq!(find(&got, "devicenet/scanner").payload["status"], "stopped");
+}
