@@ -70,7 +70,7 @@ pub const SCHEMA_VERSION: i64 = 1;
 #[derive(Debug, thiserror::Error)]
 pub enum HistoryError {
     /// The file cannot be opened or created (no such directory, no permission, a directory).
-    #[error("cannot open or create the history database {}: {source}", path.display())]
+    #[error("cannot open or create the history database {}: {}", path.display(), open_reason(source))]
     Open {
         /// The file.
         path: PathBuf,
@@ -134,6 +134,17 @@ pub struct History {
 impl std::fmt::Debug for History {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("History").field("path", &self.path).finish_non_exhaustive()
+    }
+}
+
+/// Why a file cannot be opened, in words (SQLite's own message repeats the path).
+fn open_reason(e: &rusqlite::Error) -> String {
+    match e.sqlite_error_code() {
+        Some(ErrorCode::CannotOpen) => {
+            "SQLite cannot open it (no such directory, no permission, or not a file)".into()
+        }
+        Some(ErrorCode::PermissionDenied | ErrorCode::ReadOnly) => "no permission to write it".into(),
+        _ => e.to_string(),
     }
 }
 

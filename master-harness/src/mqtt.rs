@@ -32,7 +32,7 @@
 //!  "unix_ms":1714564800123}
 //! ```
 //!
-//! `status` is the scanner's ([`ScannerStatus`](crate::scanner::model::ScannerStatus), snake
+//! `status` is the scanner's ([`ScannerStatus`], snake
 //! case). When the scanner's connection to the broker is lost without a goodbye (the process
 //! killed, the network cut), the broker publishes the last will `{"status":"offline"}` there,
 //! retained.
@@ -395,6 +395,7 @@ fn reason(e: &ConnectionError) -> String {
     match e {
         ConnectionError::Io(io) => io.to_string(),
         ConnectionError::NetworkTimeout => "no answer (timed out)".into(),
+        ConnectionError::MqttState(state) => format!("connection lost ({state})"),
         ConnectionError::ConnectionRefused(code) => format!("the broker refused: {code:?}"),
         other => other.to_string(),
     }

@@ -300,11 +300,13 @@ fn history_path_that_cannot_be_created_is_named() {
     let e = History::open(&path).unwrap_err();
     assert!(matches!(e, HistoryError::Open { .. }), "{e:?}");
     let text = e.to_string();
+    eprintln!("{text}");
     assert!(text.starts_with("cannot open or create the history database"), "{text}");
     assert!(text.contains(&path.display().to_string()), "{text}");
 
     let dir = scratch("dir-path");
     let e = History::open(&dir).unwrap_err();
+    eprintln!("{e}");
     assert!(e.to_string().contains(&dir.display().to_string()), "{e}");
 }
 
@@ -332,6 +334,7 @@ fn history_sqlite_database_of_another_program_is_named() {
     let e = History::open(&path).unwrap_err();
     assert!(matches!(e, HistoryError::NotAHistory { .. }), "{e:?}");
     let text = e.to_string();
+    eprintln!("{text}");
     assert!(text.contains(&path.display().to_string()) && text.contains("not a dnet-master"), "{text}");
 }
 
@@ -342,6 +345,7 @@ fn history_sqlite_database_of_another_program_is_named() {
 fn mqtt_malformed_url_is_an_error() {
     for url in ["broker:1883", "http://broker", "mqtt://", "mqtt://b:99999", "mqtt://b/#"] {
         let e = Publisher::start(url, "test").unwrap_err();
+        eprintln!("{e}");
         assert!(e.contains(url), "{e}");
     }
 }
@@ -353,6 +357,7 @@ fn mqtt_broker_down_is_not_an_error_and_publishing_does_not_block() {
     wait_until("the publisher to find the broker down", Duration::from_secs(10), || {
         p.status().starts_with("broker unreachable: ")
     });
+    eprintln!("{}", p.status());
     assert!(p.status().ends_with(", retrying"), "{}", p.status());
     assert!(!p.is_connected());
     // Publishing returns (its time is printed, not asserted) and drops the values.
@@ -466,6 +471,19 @@ fn mqtt_connects_when_the_broker_starts_later() {
     assert!(got.iter().all(|m| m.retained));
     assert_eq!(find(&got, "plant/line1/node/5/status").payload["status"], "ok");
     assert_eq!(find(&got, "plant/line1/scanner").payload["status"], "running");
+
+    // The broker goes away and comes back (empty: no persistence): the publisher says so,
+    // reconnects, and publishes the retained state again.
+    drop(_broker);
+    wait_until("the publisher to see the broker gone", Duration::from_secs(30), || {
+        p.status().starts_with("broker unreachable: ")
+    });
+    eprintln!("{}", p.status());
+    let _broker = Broker::start(port, &dir);
+    wait_until("the publisher to reconnect", Duration::from_secs(20), || p.is_connected());
+    let got = messages(subscriber(port, "plant/line1/#", 2, 10));
+    assert_eq!(got.len(), 2, "{got:?}");
+    assert_eq!(find(&got, "plant/line1/node/5/status").payload["product_name"], "breaker");
 }
 
 #[test]
