@@ -99,18 +99,16 @@ impl Broker {
             format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
         )
         .unwrap();
-        let child = Command::new("mosquitto")
-            .arg("-c")
-            .arg(&conf)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap_or_else(|e| {
-                panic!(
-                    "cannot start mosquitto ({e}): this test needs Debian's mosquitto \
+        // Debian puts it in /usr/sbin, which a non-root PATH may lack.
+        let spawn = |program: &str| {
+            Command::new(program).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn()
+        };
+        let child = spawn("mosquitto").or_else(|_| spawn("/usr/sbin/mosquitto")).unwrap_or_else(|e| {
+            panic!(
+                "cannot start mosquitto ({e}): this test needs Debian's mosquitto \
                      (apt-get install -y mosquitto mosquitto-clients)"
-                )
-            });
+            )
+        });
         let mut broker = Broker { child };
         wait_until("mosquitto to listen", Duration::from_secs(10), || {
             if let Ok(Some(status)) = broker.child.try_wait() {
