@@ -67,8 +67,8 @@
 //! broker cannot keep up, further messages are dropped and counted, never waited for. Memory is
 //! bounded: the queue, and one retained message per node and one for the scanner.
 //!
-//! Dropping the [`Publisher`] sends what is queued and disconnects cleanly (waiting at most about
-//! a second), so the retained state is the last one published, not the last will.
+//! Dropping the [`Publisher`] sends what is queued and disconnects cleanly (waiting at most 1.5 s
+//! for it), so the retained state is the last one published, not the last will.
 
 use crate::history::hex;
 use crate::scanner::model::{NodeState, NodeStatus, Sample, ScannerState, ScannerStatus};
