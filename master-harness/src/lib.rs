@@ -24,6 +24,7 @@
 //! | [`cli`] | the command line, reports and JSON |
 //! | [`console`] | progress lines on a terminal, the stop asked for by SIGINT / SIGTERM |
 //! | [`table`] | the frame-by-frame table and the JSON form of a record |
+//! | [`ui`] | the web console (`ui`): the page and its JSON API over the scanner's shared state |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
 //!
 //! ## Example: the bring-up on the simulated bus
@@ -77,3 +78,4 @@ pub mod scan;
 pub mod scanner;
 pub mod soak;
 pub mod table;
+pub mod ui;
