@@ -7,7 +7,7 @@ use super::{Context, COMMAND_TIMEOUT, MAX_BODY, MAX_EXPORT};
 use crate::monitor::{Field, ImageProfile, InputLayout, LinkView};
 use crate::params::{decode_value, ParamRow, PARAMETER_CLASS};
 use crate::scanner::model::{ConsoleCommand, NodeState, Reply, Shared};
-use master_core::decode::{hex, short_string};
+use master_core::decode::short_string;
 use serde_json::{json, Value};
 use slave_fw::description::DeviceDescription;
 use std::io::{Cursor, Read, Write};
@@ -27,6 +27,11 @@ const HISTORY_DEFAULT: usize = 2000;
 const HISTORY_MAX: usize = 20_000;
 /// Parameter instances read at most.
 const PARAMS_MAX: u16 = 64;
+
+/// Bytes as hex digits without spaces (`0201000000000000`), as the API takes them.
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02X}")).collect()
+}
 
 /// A refused request: the HTTP status and the reason in words.
 #[derive(Debug)]
