@@ -108,9 +108,21 @@ fn console_in_chromium() {
             }
         }
     });
-    let url = rx
-        .recv_timeout(Duration::from_secs(30))
-        .expect("dnet-master printed `console at http://...` within 30 s");
+    let mut program = program;
+    let url = match rx.recv_timeout(Duration::from_secs(30)) {
+        Ok(url) => url,
+        Err(e) => {
+            let mut status = None;
+            for _ in 0..40 {
+                status = program.0.try_wait().ok().flatten();
+                if status.is_some() {
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            panic!("dnet-master did not print `console at http://...` ({e}); it ended with {status:?}")
+        }
+    };
     run_script(&url, &out);
     drop(program);
 }

@@ -653,6 +653,44 @@ mod tests {
         assert_eq!(query(&q, "end"), Some("%4"));
     }
 
+    fn node(vendor: u16, product_code: u16, name: &str, input_size: u16) -> NodeState {
+        NodeState {
+            mac: 5,
+            status: crate::scanner::model::NodeStatus::Ok,
+            code: 0,
+            detail: None,
+            identity: crate::scanner::model::Identity {
+                vendor_id: Some(vendor),
+                product_code: Some(product_code),
+                product_name: Some(name.into()),
+                ..Default::default()
+            },
+            input_size: Some(input_size),
+            output_size: Some(8),
+            input: Vec::new(),
+            output: Vec::new(),
+            exchanges: 0,
+            last_exchange_us: None,
+        }
+    }
+
+    #[test]
+    fn nodes_are_recognised_by_identity_and_size() {
+        let known = known_descriptions();
+        assert_eq!(known.len(), 2, "the breaker and the Modbus meter");
+        let plain = layout_for(&node(0x1234, 1, "Serial-DeviceNet Bridge", 18), known);
+        assert_eq!((plain.profile.clone(), plain.with_status), (ImageProfile::Breaker, false));
+        let status = layout_for(&node(0x1234, 1, "Serial-DeviceNet Bridge", 20), known);
+        assert_eq!((status.profile, status.with_status), (ImageProfile::Breaker, true));
+        let meter = &known[1].converter.device.identity;
+        let m = layout_for(&node(meter.vendor_id, meter.product_code, meter.product_name.as_str(), 0), known);
+        assert!(matches!(m.profile, ImageProfile::Modbus { .. }), "{m:?}");
+        let other = layout_for(&node(0x0001, 1, "Serial-DeviceNet Bridge", 18), known);
+        assert_eq!(other.profile, ImageProfile::Raw);
+        let renamed = layout_for(&node(0x1234, 1, "Something else", 18), known);
+        assert_eq!(renamed.profile, ImageProfile::Raw);
+    }
+
     #[test]
     fn macs_are_checked() {
         assert_eq!(parse_mac("63").unwrap(), 63);
