@@ -26,6 +26,7 @@
 //! | [`table`] | the frame-by-frame table and the JSON form of a record |
 //! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
 //! | [`mqtt`] | `--mqtt URL`: node status and decoded values published to an MQTT broker |
+//! | [`ui`] | the web console (`ui`): the page and its JSON API over the scanner's shared state |
 //! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
 //!
 //! ## Example: the bring-up on the simulated bus
@@ -81,3 +82,4 @@ pub mod scan;
 pub mod scanner;
 pub mod soak;
 pub mod table;
+pub mod ui;

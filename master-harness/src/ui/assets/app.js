@@ -1,0 +1,313 @@
+// dnet-master console: three views over the JSON API (see master-harness/src/ui/mod.rs).
+// Plain JavaScript, no library, nothing loaded from outside: the page works offline.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const el = (tag, attrs, ...kids) => {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (k === "class") e.className = v; else if (k === "text") e.textContent = v; else e.setAttribute(k, v);
+  }
+  for (const k of kids) e.append(k);
+  return e;
+};
+
+async function api(path, opts) {
+  const r = await fetch(path, opts);
+  let body;
+  try { body = await r.json(); } catch (_) { body = { ok: false, error: `HTTP ${r.status}` }; }
+  if (!r.ok && body.ok !== false) body = { ok: false, error: `HTTP ${r.status}` };
+  return body;
+}
+const post = (path, body, json) => api(path, {
+  method: "POST",
+  headers: { "Content-Type": json ? "application/json" : "text/plain" },
+  body: json ? JSON.stringify(body) : body,
+});
+
+let state = null;
+let currentMac = null;
+
+// ---- routing ---------------------------------------------------------------------------------
+function route() {
+  const h = location.hash || "#/network";
+  const m = h.match(/^#\/node\/(\d+)/);
+  const view = m ? "device" : h.startsWith("#/trace") ? "trace" : h.startsWith("#/node") ? "device" : "network";
+  if (m) currentMac = Number(m[1]);
+  for (const v of ["network", "device", "trace"]) {
+    $("view-" + v).hidden = v !== view;
+    $("nav-" + v).classList.toggle("active", v === view);
+  }
+  if (currentMac !== null) $("nav-device").href = "#/node/" + currentMac;
+  if (view === "device") { lastNodeMac = null; refreshNode(); refreshPlot(); }
+  if (view === "trace") refreshTrace();
+}
+window.addEventListener("hashchange", route);
+
+// ---- network view ----------------------------------------------------------------------------
+function buildGrid() {
+  const grid = $("mac-grid");
+  for (let mac = 0; mac < 64; mac++) {
+    const c = el("div", { class: "cell st-empty", id: "cell-" + mac, "data-mac": mac },
+      el("span", { class: "code" }), el("div", { class: "mac", text: "MAC " + mac }),
+      el("div", { class: "name" }), el("div", { class: "sizes" }), el("div", { class: "status" }));
+    c.addEventListener("click", () => { if (c.classList.contains("in-list")) location.hash = "#/node/" + mac; });
+    grid.append(c);
+  }
+}
+
+function fmtPct(x) { return (100 * (x || 0)).toFixed(1) + " %"; }
+
+function renderState(s) {
+  state = s;
+  const line = `scanner MAC ${s.mac} · ${s.status} · cycle ${Number(s.cycle_ms).toFixed(1)} ms · bus load ${fmtPct(s.bus_load)}`
+    + ` · MQTT: ${s.mqtt || "off"}` + (s.recording ? " · ● recording" : "");
+  $("scanner-line").textContent = line;
+  const sum = $("net-summary");
+  sum.replaceChildren(
+    el("span", {}, "scanner ", el("b", { id: "scanner-status", text: s.status })),
+    el("span", {}, "cycles ", el("b", { text: String(s.cycles) })),
+    el("span", {}, "cycle ", el("b", { text: Number(s.cycle_ms).toFixed(1) + " ms" })),
+    el("span", {}, "bus load ", el("b", { id: "bus-load", text: fmtPct(s.bus_load) })),
+    el("span", {}, "EPR ", el("b", { text: s.expected_packet_rate_ms + " ms" })),
+    el("span", {}, "inter-scan delay ", el("b", { text: s.interscan_delay_ms + " ms" })),
+    el("span", {}, "MQTT ", el("b", { id: "mqtt-status", text: s.mqtt || "off" })));
+  const byMac = new Map(s.nodes.map((n) => [n.mac, n]));
+  for (let mac = 0; mac < 64; mac++) {
+    const c = $("cell-" + mac);
+    const n = byMac.get(mac);
+    const [code, name, sizes, status] = c.querySelectorAll(".code, .name, .sizes, .status");
+    if (!n) {
+      c.className = "cell st-empty" + (mac === s.mac ? " scanner" : "");
+      code.textContent = ""; name.textContent = mac === s.mac ? "(this scanner)" : "";
+      sizes.textContent = ""; status.textContent = "";
+      continue;
+    }
+    c.className = "cell in-list st-" + n.status;
+    code.textContent = String(n.code);
+    name.textContent = n.identity.product_name || "";
+    sizes.textContent = `in ${n.input_size ?? "?"} · out ${n.output_size ?? "?"}`;
+    status.textContent = n.status.replace(/_/g, " ");
+    c.title = n.detail || n.status;
+  }
+}
+
+async function refreshState() {
+  try { renderState(await api("/api/state")); } catch (e) { $("scanner-line").textContent = "console unreachable"; }
+}
+
+// ---- device view -----------------------------------------------------------------------------
+let lastNodeMac = null;
+let lastCommand = null;
+
+function kvRows(table, rows) {
+  table.replaceChildren(...rows.map(([k, v, key]) =>
+    el("tr", key ? { "data-field": key } : {}, el("td", { text: k }), el("td", { class: "val", text: v ?? "–" }))));
+}
+
+async function refreshNode() {
+  if (currentMac === null) { $("dev-title").textContent = "Device: choose a node in the network view"; return; }
+  const r = await api("/api/node/" + currentMac);
+  if (!r.ok) { $("dev-title").textContent = `MAC ${currentMac}: ${r.error}`; return; }
+  const n = r.node, id = n.identity;
+  $("dev-title").textContent = `MAC ${n.mac} · ${id.product_name || "unknown product"} · ${n.status.replace(/_/g, " ")} (${n.code})`;
+  const hex4 = (v) => v == null ? null : "0x" + v.toString(16).toUpperCase().padStart(4, "0");
+  kvRows($("dev-identity"), [
+    ["product name", id.product_name], ["vendor ID", hex4(id.vendor_id)], ["device type", hex4(id.device_type)],
+    ["product code", id.product_code == null ? null : String(id.product_code)], ["revision", id.revision],
+    ["serial number", id.serial_number == null ? null : "0x" + id.serial_number.toString(16).toUpperCase().padStart(8, "0")],
+    ["I/O sizes", `in ${n.input_size ?? "?"} · out ${n.output_size ?? "?"}`], ["exchanges", String(n.exchanges)],
+    ["status", `${n.status} (${n.code})${n.detail ? ": " + n.detail : ""}`],
+  ]);
+  $("dev-profile").textContent = r.profile + (r.with_status ? " + status byte" : "");
+  const labels = { phase_a: "phase A", phase_b: "phase B", phase_c: "phase C", neutral: "neutral", switch: "switch state" };
+  const rows = r.fields.map((f) => [labels[f.name] || f.name.replace(/^param_/, "parameter "), f.text, f.name]);
+  if (!rows.length) rows.push(["raw input", r.input_hex || "(no data)", "raw"]);
+  if (r.note) rows.push(["note", r.note, "note"]);
+  kvRows($("dev-fields"), rows);
+  const link = $("dev-link");
+  if (r.link) {
+    link.textContent = `status byte 0x${r.link.status.toString(16).padStart(2, "0").toUpperCase()}: ${r.link.text}`;
+    link.className = "link" + (r.link.stale ? " stale" : "");
+  } else {
+    link.textContent = r.profile === "raw" ? "no profile known: raw bytes" : "input assembly 100: no status byte";
+    link.className = "link";
+  }
+  $("dev-input").textContent = r.input_hex || "–";
+  $("dev-output").textContent = r.output_hex || "–";
+  $("breaker-card").hidden = r.profile !== "breaker";
+  if (lastCommand && r.profile === "breaker") showOutcome(r);
+  if (lastNodeMac !== n.mac) {
+    lastNodeMac = n.mac;
+    $("params").textContent = "";
+    $("explicit-result").textContent = "";
+    $("cmd-outcome").textContent = "";
+    lastCommand = null;
+  }
+  const now = Date.now();
+  $("export-csv").href = `/api/export.csv?mac=${n.mac}&from=${now - 3600e3}&to=${now + 1000}`;
+}
+
+// The outcome of the last breaker command: status bits 4-6 with assembly 101, else the switch.
+function showOutcome(r) {
+  const out = $("cmd-outcome");
+  const sw = (r.fields.find((f) => f.name === "switch") || {}).text;
+  let text = `${lastCommand.label} sent (sequence ${lastCommand.sequence})`;
+  if (r.link) text += ` · outcome: ${r.link.command}`;
+  if (lastCommand.label === "close" || lastCommand.label === "open") text += ` · switch ${sw || "?"}`;
+  const done = lastCommand.label === "close" ? sw === "closed" : lastCommand.label === "open" ? sw === "open" : false;
+  const failed = r.link && ["rejected", "failed", "unsupported"].includes(r.link.command);
+  out.textContent = text;
+  out.className = "outcome " + (failed ? "err" : done || (r.link && r.link.command === "ok") ? "ok" : "");
+}
+
+async function breakerCommand(action, body) {
+  const out = $("cmd-outcome");
+  out.className = "outcome"; out.textContent = action + "…";
+  const r = await post(`/api/node/${currentMac}/breaker/${action}`, body || {}, true);
+  if (!r.ok) { out.className = "outcome err"; out.textContent = `${action}: ${r.error}`; lastCommand = null; return; }
+  lastCommand = { label: action === "param" ? `set parameter ${body.id} = ${body.value}` : action, sequence: r.sequence };
+  refreshNode();
+}
+
+// ---- live plot (canvas) ----------------------------------------------------------------------
+const COLORS = ["#1f5fbf", "#c62828", "#2e9d48", "#e08a00", "#7b3fbf", "#00838f", "#6d4c41", "#ad1457"];
+const PLOT_WINDOW = 60e3;
+
+function drawPlot(samples, from, to) {
+  const cv = $("plot");
+  const dpr = window.devicePixelRatio || 1;
+  const w = cv.clientWidth || 1000, h = cv.clientHeight || 260;
+  cv.width = w * dpr; cv.height = h * dpr;
+  const g = cv.getContext("2d");
+  g.setTransform(dpr, 0, 0, dpr, 0, 0);
+  g.clearRect(0, 0, w, h);
+  const series = new Map();
+  for (const s of samples) {
+    for (const [name, v] of s.values) {
+      if (name === "switch" || name === "status" || name === "freshness") continue;
+      if (!series.has(name)) series.set(name, []);
+      series.get(name).push([s.unix_ms, v]);
+    }
+  }
+  let max = 1;
+  for (const pts of series.values()) for (const [, v] of pts) max = Math.max(max, v);
+  max = Math.ceil(max * 1.1);
+  const L = 46, R = 10, T = 10, B = 24;
+  const x = (t) => L + (w - L - R) * (t - from) / (to - from);
+  const y = (v) => T + (h - T - B) * (1 - v / max);
+  g.strokeStyle = "#e3e6ea"; g.fillStyle = "#69737f"; g.font = "11px system-ui, sans-serif"; g.lineWidth = 1;
+  for (let i = 0; i <= 4; i++) {
+    const v = max * i / 4, yy = y(v);
+    g.beginPath(); g.moveTo(L, yy); g.lineTo(w - R, yy); g.stroke();
+    g.fillText(String(Math.round(v)), 4, yy + 4);
+  }
+  for (let s = 0; s <= 60; s += 10) {
+    const xx = x(to - s * 1000);
+    g.fillText(s ? `-${s} s` : "now", xx - 12, h - 6);
+  }
+  const legend = [];
+  let i = 0;
+  for (const [name, pts] of series) {
+    const c = COLORS[i++ % COLORS.length];
+    g.strokeStyle = c; g.lineWidth = 2; g.beginPath();
+    pts.forEach(([t, v], k) => (k ? g.lineTo(x(t), y(v)) : g.moveTo(x(t), y(v))));
+    g.stroke();
+    const last = pts[pts.length - 1];
+    legend.push(el("span", {}, el("i", { style: "background:" + c }), `${name} ${last ? last[1] : ""}`));
+  }
+  if (!series.size) { g.fillStyle = "#69737f"; g.fillText("no samples in the last 60 s", L + 10, T + 20); }
+  $("plot-legend").replaceChildren(...legend);
+}
+
+async function refreshPlot() {
+  if (currentMac === null || $("view-device").hidden) return;
+  const to = Date.now(), from = to - PLOT_WINDOW;
+  const r = await api(`/api/history?mac=${currentMac}&from=${from}&to=${to}&limit=2000`);
+  if (!r.ok) { $("plot-legend").textContent = r.error; drawPlot([], from, to); return; }
+  drawPlot(r.samples, from, to);
+}
+
+// ---- explicit and parameters -----------------------------------------------------------------
+async function explicit(op) {
+  const out = $("explicit-result");
+  const body = { class: $("ex-class").value, instance: $("ex-instance").value, attribute: $("ex-attribute").value };
+  if (op === "set") body.value = $("ex-value").value;
+  out.className = "outcome"; out.textContent = op + "…";
+  const r = await post(`/api/node/${currentMac}/${op}`, body, true);
+  out.className = "outcome " + (r.ok ? "ok" : "err");
+  out.textContent = r.ok ? (op === "get" ? `${r.data || "(empty)"} · ${r.text}` : "set: ok") : `${op}: ${r.error}`;
+}
+
+async function readParams() {
+  const box = $("params");
+  box.textContent = "reading…";
+  const r = await api(`/api/node/${currentMac}/params`);
+  if (!r.ok) { box.textContent = r.error; return; }
+  if (!r.params.length) { box.textContent = r.note || "none"; return; }
+  const head = el("tr", {}, ...["#", "name", "value", "units", "min", "max", "default", "type", ""].map((t) => el("th", { text: t })));
+  const rows = r.params.map((p) => el("tr", {},
+    ...[p.number, p.name, p.value ?? p.raw, p.units, p.min, p.max, p.default,
+      "0x" + p.data_type.toString(16).toUpperCase(), p.read_only ? "read-only" : ""].map((t) => el("td", { text: t == null ? "–" : String(t) }))));
+  box.replaceChildren(el("table", { class: "params" }, el("thead", {}, head), el("tbody", {}, ...rows)));
+}
+
+// ---- trace view ------------------------------------------------------------------------------
+let traceAfter = 0;
+let traceFilter = "";
+const TRACE_ROWS = 1000;
+
+async function refreshTrace() {
+  if ($("view-trace").hidden || $("tr-pause").checked) return;
+  const mac = $("tr-mac").value, kind = $("tr-kind").value;
+  const filter = `mac=${mac}&kind=${kind}`;
+  const body = $("trace-table").tBodies[0];
+  if (filter !== traceFilter) { traceFilter = filter; traceAfter = 0; body.replaceChildren(); }
+  const r = await api(`/api/frames?after=${traceAfter}&${filter}&limit=${TRACE_ROWS}`);
+  if (!r.ok) return;
+  traceAfter = r.next;
+  const rows = r.frames.map((f) => el("tr", { class: f.own ? "own" : "" },
+    el("td", { text: String(f.seq) }), el("td", { text: (f.time_us / 1e6).toFixed(6) }),
+    el("td", { text: f.own ? "→" : "←" }), el("td", {}, el("code", { text: f.frame })),
+    el("td", { text: f.mac == null ? "" : String(f.mac) }), el("td", { text: f.kind }),
+    el("td", { class: "meaning", text: f.meaning + (f.message ? " ⇒ " + f.message : "") })));
+  body.prepend(...rows.reverse());
+  while (body.rows.length > TRACE_ROWS) body.deleteRow(body.rows.length - 1);
+}
+
+function showRecord(r, verb) {
+  const out = $("rec-files");
+  out.className = "outcome " + (r.ok ? "ok" : "err");
+  if (!r.ok) { out.textContent = r.error; return; }
+  $("rec-start").disabled = r.recording; $("rec-stop").disabled = !r.recording;
+  out.textContent = r.recording === false && !verb ? "not recording" :
+    `${verb || "recording"}: ${r.log} and ${r.pcap} · ${r.frames} frames` + (r.missed ? ` (${r.missed} missed)` : "");
+}
+
+// ---- wiring ----------------------------------------------------------------------------------
+function init() {
+  buildGrid();
+  $("btn-open").addEventListener("click", () => breakerCommand("open"));
+  $("btn-close").addEventListener("click", () => breakerCommand("close"));
+  $("param-form").addEventListener("submit", (e) => {
+    e.preventDefault();
+    breakerCommand("param", { id: Number($("param-id").value), value: Number($("param-value").value) });
+  });
+  $("explicit-form").addEventListener("submit", (e) => { e.preventDefault(); explicit(e.submitter ? e.submitter.dataset.op : "get"); });
+  $("btn-params").addEventListener("click", readParams);
+  $("export-csv").addEventListener("click", () => {
+    const now = Date.now();
+    $("export-csv").href = `/api/export.csv?mac=${currentMac}&from=${now - 3600e3}&to=${now + 1000}`;
+  });
+  $("rec-start").addEventListener("click", async () => showRecord(await post("/api/record/start", ""), "recording to"));
+  $("rec-stop").addEventListener("click", async () => showRecord(await post("/api/record/stop", ""), "recorded"));
+  api("/api/record").then((r) => r.recording && showRecord(r, "recording to"));
+  route();
+  refreshState();
+  setInterval(refreshState, 500);
+  setInterval(() => { if (!$("view-device").hidden) refreshNode(); }, 250);
+  setInterval(refreshPlot, 1000);
+  setInterval(refreshTrace, 300);
+  setInterval(async () => { if ($("rec-stop").disabled === false) showRecord(await api("/api/record"), "recording to"); }, 1000);
+}
+init();

@@ -1,0 +1,156 @@
+// The dnet-master console in a real browser: Debian's chromium driven by playwright-core.
+//
+//   CONSOLE_URL=http://127.0.0.1:PORT/ ARTIFACTS_DIR=DIR [CHROMIUM=/usr/bin/chromium] node console.test.mjs
+//
+// Opens the page, sees MAC 5 and MAC 6 with their product names, opens MAC 5's device view,
+// clicks Close and sees the switch state turn to closed and the phase currents rise within two
+// seconds, exports the CSV and finds the samples in it, records a trace; a screenshot of each
+// view goes into ARTIFACTS_DIR. Any request to another host fails the test (the page must work
+// offline). Run by master-harness/tests/ui_browser.rs.
+import { chromium } from "playwright-core";
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
+
+const url = process.env.CONSOLE_URL;
+const artifacts = process.env.ARTIFACTS_DIR || "browser-artifacts";
+const executablePath = process.env.CHROMIUM || "/usr/bin/chromium";
+if (!url) {
+  console.error("CONSOLE_URL is not set");
+  process.exit(2);
+}
+mkdirSync(artifacts, { recursive: true });
+
+let passed = 0;
+let failed = 0;
+async function step(name, f) {
+  const t0 = Date.now();
+  try {
+    await f();
+    passed++;
+    console.log(`ok   ${name} (${Date.now() - t0} ms)`);
+  } catch (e) {
+    failed++;
+    console.log(`FAIL ${name}: ${e && e.message ? e.message : e}`);
+    throw e;
+  }
+}
+
+const origin = new URL(url).origin;
+const outside = [];
+const pageErrors = [];
+const browser = await chromium.launch({ executablePath, headless: true, args: ["--no-sandbox"] });
+try {
+  const context = await browser.newContext({ viewport: { width: 1280, height: 900 }, acceptDownloads: true });
+  await context.route("**/*", (route) => {
+    const u = route.request().url();
+    if (u.startsWith(origin)) return route.continue();
+    outside.push(u);
+    return route.abort();
+  });
+  const page = await context.newPage();
+  page.on("pageerror", (e) => pageErrors.push(String(e)));
+
+  await step("network view: MAC 5 and MAC 6 with their product names", async () => {
+    await page.goto(url);
+    for (const mac of [5, 6]) {
+      await page.waitForFunction(
+        (m) => /Serial-DeviceNet Bridge|Modbus-DeviceNet Gateway/.test(document.querySelector(`#cell-${m} .name`)?.textContent || ""),
+        mac, { timeout: 15000 });
+    }
+    await page.waitForFunction(() => document.querySelector("#cell-5")?.classList.contains("st-ok"), null, { timeout: 15000 });
+    await page.screenshot({ path: join(artifacts, "console-network.png"), fullPage: true });
+  });
+
+  const sw = () => page.locator('[data-field="switch"] .val').textContent();
+  const phaseA = async () => parseInt(await page.locator('[data-field="phase_a"] .val').textContent(), 10);
+
+  await step("device view of MAC 5: the breaker decoded", async () => {
+    await page.click("#cell-5");
+    await page.waitForFunction(() => /^MAC 5 /.test(document.querySelector("#dev-title")?.textContent || ""));
+    await page.waitForSelector('[data-field="switch"] .val');
+    await page.waitForSelector('[data-field="phase_a"] .val');
+    if ((await sw()) === "closed") {
+      await page.click("#btn-open");
+      await page.waitForFunction(() => document.querySelector('[data-field="switch"] .val')?.textContent === "open",
+        null, { timeout: 5000 });
+    }
+  });
+
+  let before = 0;
+  await step("Close: switch closed and phase currents rising within 2 s", async () => {
+    before = await phaseA();
+    const t0 = Date.now();
+    await page.click("#btn-close");
+    await page.waitForFunction((b) => {
+      const s = document.querySelector('[data-field="switch"] .val')?.textContent;
+      const a = parseInt(document.querySelector('[data-field="phase_a"] .val')?.textContent || "0", 10);
+      return s === "closed" && a > b;
+    }, before, { timeout: 2000, polling: 50 });
+    console.log(`     switch closed, phase A ${before} A -> ${await phaseA()} A after ${Date.now() - t0} ms; ` +
+      `outcome: ${await page.locator("#cmd-outcome").textContent()}`);
+  });
+
+  await step("explicit Get and the parameter table", async () => {
+    await page.click("#btn-get");
+    await page.waitForFunction(() => /Serial-DeviceNet Bridge|Modbus-DeviceNet Gateway/.test(
+      document.querySelector("#explicit-result")?.textContent || ""), null, { timeout: 10000 });
+    await page.click("#btn-params");
+    await page.waitForFunction(() => {
+      const t = document.querySelector("#params")?.textContent || "";
+      return document.querySelectorAll("#params table tbody tr").length > 0 || /^none/.test(t);
+    }, null, { timeout: 20000 });
+    console.log(`     get: ${await page.locator("#explicit-result").textContent()}; ` +
+      `${await page.locator("#params tbody tr").count()} parameter(s)`);
+  });
+
+  await step("device view screenshot with the plot", async () => {
+    // Let the plot show the currents rising.
+    await page.waitForTimeout(2500);
+    await page.waitForFunction(() => document.querySelectorAll("#plot-legend span").length > 0, null, { timeout: 5000 });
+    await page.screenshot({ path: join(artifacts, "console-device.png"), fullPage: true });
+  });
+
+  await step("Export CSV: the samples of MAC 5, with the currents after Close", async () => {
+    const [download] = await Promise.all([page.waitForEvent("download", { timeout: 10000 }), page.click("#export-csv")]);
+    const file = join(artifacts, "export.csv");
+    await download.saveAs(file);
+    const lines = readFileSync(file, "utf8").trim().split("\n");
+    const header = lines[0].split(",");
+    const mac = header.indexOf("mac"), a = header.indexOf("phase_a");
+    if (mac < 0 || a < 0) throw new Error(`CSV header without mac and phase_a: ${lines[0]}`);
+    const rows = lines.slice(1).map((l) => l.split(","));
+    if (!rows.length) throw new Error("no samples in the CSV");
+    if (!rows.every((r) => r[mac] === "5")) throw new Error("rows of another MAC in MAC 5's export");
+    const high = rows.filter((r) => Number(r[a]) > before);
+    if (!high.length) throw new Error(`no sample with phase A above ${before} A among ${rows.length}`);
+    console.log(`     ${rows.length} samples, ${high.length} after Close`);
+  });
+
+  await step("trace view: live frames, recording to candump and pcap", async () => {
+    await page.click("#nav-trace");
+    await page.waitForFunction(() => document.querySelectorAll("#trace-table tbody tr").length > 10, null, { timeout: 5000 });
+    await page.click("#rec-start");
+    await page.waitForFunction(() => /\.log and .*\.pcap/.test(document.querySelector("#rec-files")?.textContent || ""));
+    await page.waitForTimeout(1200);
+    await page.screenshot({ path: join(artifacts, "console-trace.png"), fullPage: false });
+    await page.click("#rec-stop");
+    await page.waitForFunction(() => /^recorded: .* [1-9]\d* frames/.test(document.querySelector("#rec-files")?.textContent || ""));
+    console.log(`     ${await page.locator("#rec-files").textContent()}`);
+    await page.fill("#tr-mac", "6");
+    await page.waitForTimeout(800);
+    const macs = await page.$$eval("#trace-table tbody tr td:nth-child(5)", (tds) => [...new Set(tds.map((t) => t.textContent))]);
+    if (macs.length !== 1 || macs[0] !== "6") throw new Error(`filter MAC 6 shows ${macs}`);
+  });
+
+  await step("nothing from another host, no script error", async () => {
+    if (outside.length) throw new Error(`requests to other hosts: ${outside.join(", ")}`);
+    if (pageErrors.length) throw new Error(`page errors: ${pageErrors.join("; ")}`);
+  });
+} catch (_) {
+  // The failing step said why.
+} finally {
+  await browser.close();
+  writeFileSync(join(artifacts, "result.txt"), `${passed} passed, ${failed} failed\n`);
+  console.log(`${passed} passed, ${failed} failed`);
+  process.exit(failed ? 1 : 0);
+}
