@@ -304,13 +304,34 @@ impl Scanner {
         if let Err(e) = master.await_online(&macs) {
             return Err(self.fail(e));
         }
+        // Duplicate MAC ID checks seen while waiting (two devices at one MAC).
+        let seen: Vec<(u8, DuplicateMacCheck, Instant)> = master
+            .session
+            .records()
+            .iter()
+            .filter(|r| r.index >= self.frames_cursor && r.origin == Origin::Remote)
+            .filter_map(|r| match Identifier::decode(r.frame.id()) {
+                Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } => {
+                    DuplicateMacCheck::parse(r.frame.data()).ok().map(|c| (mac.as_raw(), c, r.at))
+                }
+                _ => None,
+            })
+            .collect();
+        for (mac, check, at) in seen {
+            if let Some(n) = self.nodes.iter_mut().find(|n| n.entry.mac == mac) {
+                Self::note_check(n, &check, at);
+            }
+        }
         let now = master.session.now();
         for i in 0..self.nodes.len() {
             self.begin_bringup(i, master, now)?;
         }
         self.next_reconnect = Some(now + RECONNECT_INTERVAL);
-        let far = now + Duration::from_secs(3600);
-        self.pump(master, far, |s| s.nodes.iter().all(|n| n.tx.is_none()))?;
+        // Nodes already in I/O are polled while the others' bring-up goes on (an absent node
+        // costs a response timeout, longer than a present node's watchdog).
+        while self.nodes.iter().any(|n| n.tx.is_some()) {
+            self.scan(master, false)?;
+        }
         self.state.status = ScannerStatus::Running;
         self.publish();
         Ok(())
@@ -746,6 +767,11 @@ impl Scanner {
 
     /// One full scan cycle and the inter-scan delay. See the [module docs](self).
     pub fn cycle(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
+        self.scan(master, true)
+    }
+
+    /// A scan cycle; `counted`: in the cycle count and statistics (not during [`Scanner::start`]).
+    fn scan(&mut self, master: &mut Master<'_, '_>, counted: bool) -> Result<(), HarnessError> {
         let t0 = master.session.now();
         let first = master.session.next_index();
         if self.next_reconnect.is_none_or(|t| t0 >= t) {
@@ -812,12 +838,14 @@ impl Scanner {
             .filter(|r| r.index >= first)
             .map(|r| u64::from(can_io::sim::frame_bits(&r.frame)))
             .sum();
-        if self.history.len() >= CYCLE_WINDOW {
-            self.history.pop_front();
+        if counted {
+            if self.history.len() >= CYCLE_WINDOW {
+                self.history.pop_front();
+            }
+            self.history.push_back(((now - t0).total_micros(), bits));
+            self.state.cycles += 1;
+            self.stats();
         }
-        self.history.push_back(((now - t0).total_micros(), bits));
-        self.state.cycles += 1;
-        self.stats();
         // Bounded memory: records already taken, and everything beyond the newest RECORDS_KEPT.
         let end = master.session.next_index();
         let forget = end.saturating_sub(RECORDS_KEPT).max(self.frames_cursor.min(end));
