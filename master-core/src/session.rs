@@ -293,3 +293,32 @@ impl<'b> Session<'b> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use can_io::bus::Bitrate;
+    use can_io::sim::SimBus;
+
+    #[test]
+    fn forgotten_records_keep_the_indices_and_the_failure_count() {
+        let mut bus = SimBus::new(Bitrate::K500);
+        let mut s = Session::new(&mut bus);
+        for i in 0..5u8 {
+            s.send(&CanFrame::from_raw(0x400 + u16::from(i), &[i]).unwrap()).unwrap();
+            let at = s.now() + Duration::from_millis(10);
+            s.next(at).unwrap();
+        }
+        s.set_verdict(1, Verdict::fail("bad"));
+        s.forget_records_before(3);
+        assert_eq!(s.first_kept(), 3);
+        assert_eq!(s.records().len(), 2);
+        assert_eq!(s.record(4).index, 4);
+        assert!(s.get(2).is_none());
+        assert_eq!(s.failures(), 1);
+        s.forget_records_before(2);
+        assert_eq!(s.first_kept(), 3);
+        s.forget_records_before(100);
+        assert_eq!((s.records().len(), s.next_index()), (0, 5));
+    }
+}

@@ -42,7 +42,8 @@ fn main() {
             .collect(),
         ..ScanList::default()
     };
-    let mut scanner = Scanner::new(list, 0, ScannerOptions { bitrate: Bitrate::K500, ..ScannerOptions::default() });
+    let mut scanner =
+        Scanner::new(list, 0, ScannerOptions { bitrate: Bitrate::K500, ..ScannerOptions::default() });
     scanner.start(&mut master).expect("start");
     let wall = std::time::Instant::now();
     for _ in 0..CYCLES {

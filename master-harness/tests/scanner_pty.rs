@@ -19,7 +19,8 @@ fn scanner_keeps_the_soft_slave_in_io_over_slcan() {
     let bus = rig.master_bus_arg();
     let list = pty_rig::scratch("scanner-list").join("scanlist.toml");
     let list_arg = list.to_str().unwrap().to_string();
-    let args = ["--bus", bus.as_str(), "--json", "scanner", "--cycles", "20", "--write-scanlist", list_arg.as_str()];
+    let args =
+        ["--bus", bus.as_str(), "--json", "scanner", "--cycles", "20", "--write-scanlist", list_arg.as_str()];
     let mut p = Proc::spawn(env!("CARGO_BIN_EXE_dnet-master"), &args);
     let status = p.wait(Duration::from_secs(90)).unwrap_or_else(|| panic!("scanner hangs\n{}", p.dump()));
     let out = p.stdout.text();

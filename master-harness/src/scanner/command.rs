@@ -25,7 +25,7 @@ use serde_json::json;
 use slave_fw::description::DeviceDescription;
 use std::collections::HashMap;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// What `scanner` was asked.
 #[derive(Clone, Debug, Default)]
@@ -277,9 +277,4 @@ pub fn table(s: &super::model::ScannerState) -> String {
         s.expected_packet_rate_ms
     ));
     t
-}
-
-/// The scan list path for messages.
-pub fn shown(path: &Path) -> String {
-    path.display().to_string()
 }

@@ -355,7 +355,7 @@ impl Scanner {
         n.steps = VecDeque::from([Step::Allocate]);
         n.reallocated = false;
         n.answered = false;
-        n.rx = Box::new(IoReassembler::new());
+        *n.rx = IoReassembler::new();
         Self::start_step(n, master, now, self.timing.epr_ms)
     }
 
@@ -879,7 +879,8 @@ impl Scanner {
         &self.state
     }
 
-    /// The median full-cycle time in µs over the last cycles (also in [`ScannerState::cycle_ms`]).
+    /// The lengths of the last full cycles in µs, oldest first (their median is
+    /// [`ScannerState::cycle_ms`]).
     pub fn cycle_lengths_us(&self) -> Vec<u64> {
         self.history.iter().map(|h| h.0).collect()
     }
