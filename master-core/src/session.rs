@@ -115,6 +115,10 @@ pub struct Session<'b> {
     bus: &'b mut dyn Bus,
     decoder: Decoder,
     records: Vec<Record>,
+    /// The index of `records[0]`: records before it were forgotten ([`Session::forget_records_before`]).
+    base: usize,
+    /// Failures among the forgotten records.
+    forgotten_failures: usize,
     log: Option<LogWriter>,
     stop: Option<Stop>,
 }
@@ -122,7 +126,15 @@ pub struct Session<'b> {
 impl<'b> Session<'b> {
     /// A session on `bus`, without a log file.
     pub fn new(bus: &'b mut dyn Bus) -> Session<'b> {
-        Session { bus, decoder: Decoder::new(), records: Vec::new(), log: None, stop: None }
+        Session {
+            bus,
+            decoder: Decoder::new(),
+            records: Vec::new(),
+            base: 0,
+            forgotten_failures: 0,
+            log: None,
+            stop: None,
+        }
     }
 
     /// Writes every frame to `log` as it is seen.
@@ -190,7 +202,7 @@ impl<'b> Session<'b> {
             log.write_dir(ev.at, self.bus.name(), direction, &ev.frame)
                 .map_err(|source| MasterError::LogWrite { source })?;
         }
-        let index = self.records.len();
+        let index = self.base + self.records.len();
         let verdict = if ev.origin == Origin::Local { Verdict::Sent } else { Verdict::Unchecked };
         self.records.push(Record { index, at: ev.at, origin: ev.origin, frame: ev.frame, meaning, verdict });
         Ok(Some(index))
@@ -204,7 +216,7 @@ impl<'b> Session<'b> {
         mut other: impl FnMut(&mut Session<'b>, usize) -> Result<(), MasterError>,
     ) -> Result<(), MasterError> {
         while let Some(i) = self.next(deadline)? {
-            if self.records[i].origin == Origin::Remote {
+            if self.record(i).origin == Origin::Remote {
                 other(self, i)?;
             }
         }
@@ -212,25 +224,60 @@ impl<'b> Session<'b> {
     }
 
     /// Record `i`.
+    ///
+    /// # Panics
+    ///
+    /// When `i` was never returned by [`Session::next`] or was forgotten
+    /// ([`Session::forget_records_before`]); [`Session::get`] is the checked form.
     pub fn record(&self, i: usize) -> &Record {
-        &self.records[i]
+        &self.records[i - self.base]
     }
 
-    /// Sets the verdict of record `i`.
+    /// Record `i`, if it is kept.
+    pub fn get(&self, i: usize) -> Option<&Record> {
+        i.checked_sub(self.base).and_then(|k| self.records.get(k))
+    }
+
+    /// Sets the verdict of record `i` (nothing for a record not kept).
     pub fn set_verdict(&mut self, i: usize, verdict: Verdict) {
-        if let Some(r) = self.records.get_mut(i) {
+        if let Some(r) = i.checked_sub(self.base).and_then(|k| self.records.get_mut(k)) {
             r.verdict = verdict;
         }
     }
 
-    /// Every frame seen so far.
+    /// Every frame seen so far and still kept (all of them unless
+    /// [`Session::forget_records_before`] was used); `records()[k].index` is `k` plus
+    /// [`Session::first_kept`].
     pub fn records(&self) -> &[Record] {
         &self.records
     }
 
-    /// Frames whose verdict is a failure.
+    /// The index of the first record kept (0 unless records were forgotten).
+    pub fn first_kept(&self) -> usize {
+        self.base
+    }
+
+    /// The index the next record will get.
+    pub fn next_index(&self) -> usize {
+        self.base + self.records.len()
+    }
+
+    /// Drops the records before index `n` (a long-running scanner keeps its memory bounded);
+    /// indices of the records kept do not change, and failures among the dropped ones still count
+    /// in [`Session::failures`]. The log file has every frame regardless.
+    pub fn forget_records_before(&mut self, n: usize) {
+        let drop = n.saturating_sub(self.base).min(self.records.len());
+        if drop == 0 {
+            return;
+        }
+        self.forgotten_failures += self.records[..drop].iter().filter(|r| r.verdict.is_failure()).count();
+        self.records.drain(..drop);
+        self.base += drop;
+    }
+
+    /// Frames whose verdict is a failure (the forgotten ones included).
     pub fn failures(&self) -> usize {
-        self.records.iter().filter(|r| r.verdict.is_failure()).count()
+        self.forgotten_failures + self.records.iter().filter(|r| r.verdict.is_failure()).count()
     }
 
     /// The decoder (what it learned: connection sizes).
@@ -244,5 +291,34 @@ impl<'b> Session<'b> {
             log.flush().map_err(|source| MasterError::LogWrite { source })?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use can_io::bus::Bitrate;
+    use can_io::sim::SimBus;
+
+    #[test]
+    fn forgotten_records_keep_the_indices_and_the_failure_count() {
+        let mut bus = SimBus::new(Bitrate::K500);
+        let mut s = Session::new(&mut bus);
+        for i in 0..5u8 {
+            s.send(&CanFrame::from_raw(0x400 + u16::from(i), &[i]).unwrap()).unwrap();
+            let at = s.now() + Duration::from_millis(10);
+            s.next(at).unwrap();
+        }
+        s.set_verdict(1, Verdict::fail("bad"));
+        s.forget_records_before(3);
+        assert_eq!(s.first_kept(), 3);
+        assert_eq!(s.records().len(), 2);
+        assert_eq!(s.record(4).index, 4);
+        assert!(s.get(2).is_none());
+        assert_eq!(s.failures(), 1);
+        s.forget_records_before(2);
+        assert_eq!(s.first_kept(), 3);
+        s.forget_records_before(100);
+        assert_eq!((s.records().len(), s.next_index()), (0, 5));
     }
 }

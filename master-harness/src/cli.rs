@@ -212,6 +212,19 @@ pub enum Command {
         #[arg(long, default_value_t = 63, value_parser = parse_u8)]
         to: u8,
     },
+    /// Keep every node of a scan list in I/O, as a DeviceNet scanner does (without --scanlist:
+    /// a scan list from a network scan); a table of the nodes' status at the end.
+    Scanner {
+        /// The scan list (TOML).
+        #[arg(long, value_name = "FILE.toml")]
+        scanlist: Option<PathBuf>,
+        /// Write the scan list in force (built by the network scan) to FILE.
+        #[arg(long, value_name = "FILE")]
+        write_scanlist: Option<PathBuf>,
+        /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
+        #[arg(long, value_name = "N")]
+        cycles: Option<u64>,
+    },
     /// Get_Attribute_Single.
     Get {
         /// Device MAC ID.
@@ -501,7 +514,7 @@ fn command_device(
                 }
             }
         }
-        Command::Scan { .. } | Command::Decode { .. } => None,
+        Command::Scan { .. } | Command::Decode { .. } | Command::Scanner { .. } => None,
     })
 }
 
@@ -701,6 +714,14 @@ fn execute(
             HarnessError::Write { source, .. } => werr(source),
             other => other,
         });
+    }
+    if let Command::Scanner { scanlist, write_scanlist, cycles } = &cli.command {
+        let args = crate::scanner::command::ScannerArgs {
+            scanlist: scanlist.clone(),
+            write_scanlist: write_scanlist.clone(),
+            cycles: *cycles,
+        };
+        return crate::scanner::command::execute(cli, &args, out, err, console);
     }
     if let Command::Conformance { self_test: true, markdown, html, .. } = &cli.command {
         return self_test_command(cli, *markdown, html.as_deref(), out, err, console.stderr_terminal);
@@ -909,7 +930,9 @@ fn execute(
         Command::Params { mac, eds: eds_file, set } => {
             params_command(&mut master, *mac, eds_file.as_deref(), set)
         }
-        Command::Decode { .. } | Command::Conformance { .. } => unreachable!("handled above"),
+        Command::Decode { .. } | Command::Conformance { .. } | Command::Scanner { .. } => {
+            unreachable!("handled above")
+        }
     };
     drop(progress);
     // Whatever happened, what was recorded is kept: the device gets back what this command

@@ -1,4 +1,1064 @@
 //! `dnet-master scanner`: keeps every node of a scan list in I/O, as a DeviceNet scanner does.
-//! (The engine is being written; [`model`] holds what it shares with the console.)
+//!
+//! The engine ([`Scanner`]) is used by the `scanner` command ([`command`]) and by the web console.
+//! It is driven by its caller: [`Scanner::start`] once (network access, every node brought into
+//! I/O), then [`Scanner::cycle`] over and over, [`Scanner::command`] between cycles for what the
+//! console asks, [`Scanner::take_samples`] / [`Scanner::take_frames`] to drain what was seen, and
+//! [`Scanner::stop`] to release every node.
+//!
+//! ## A node's life
+//!
+//! Every node not in I/O runs its bring-up as a sequence of explicit transactions, all nodes in
+//! parallel (as [`crate::scan`] does, so absent nodes cost one shared response timeout, and a
+//! bring-up never stops the polling of the others): Allocate explicit + poll through the Group 2
+//! Only port (a set still allocated to this master is released and allocated again), Identity
+//! attributes 1, 2, 3, 4, 7, Connection 2 attributes 7 and 8, then the electronic key and the
+//! sizes are compared with the scan list (a mismatch: the set is released, the node shows 73 or 77),
+//! then Connection 2 attribute 9 (the EPR). Then the node is polled every cycle. A node not in
+//! I/O is tried again every [`RECONNECT_INTERVAL`].
+//!
+//! ## One scan cycle
+//!
+//! Every node in I/O gets its poll command, all back to back; then the responses are collected
+//! (the devices' Group 1 responses win arbitration over the remaining Group 2 commands, so the bus
+//! never idles) until every node answered or the response window ends; then the inter-scan delay.
+//! A node's output image is sent only while its status is ok (otherwise zeros).
+//!
+//! ## Timing: EPR and inter-scan delay (computed unless the scan list sets them)
+//!
+//! - *frame time* of a node = worst-case bits ([`devicenet::CanFrame::worst_case_bits`]) of its
+//!   poll command frames and poll response fragments (7 data bytes per fragment above 8 bytes,
+//!   notes §4.2), at the data rate;
+//! - *minimum cycle* = the sum over the scan list;
+//! - inter-scan delay = max(2 ms, minimum cycle / 10), in whole ms;
+//! - EPR = max(100 ms, 4 × (minimum cycle + inter-scan delay)), rounded up to 10 ms — so the
+//!   device's watchdog (4 × EPR, notes §5.3) spans at least 16 cycles;
+//! - response window = max(20 ms, 2 × minimum cycle), at most the EPR;
+//! - a node in I/O with no complete poll response for 4 × EPR is *timed out* (72): its connection
+//!   is dead at the device too; if the next attempt to bring it up finds nothing it becomes *not
+//!   present* (78).
+//!
+//! ## Status codes
+//!
+//! [`model::NodeStatus::code`]: Rockwell's DeviceNet node status codes (README, "scanner").
+//! Communication Faulted is seen on the bus: a duplicate MAC ID *response* at a node's MAC (an
+//! on-line device keeping a newcomer with the same MAC off the bus), or two devices announcing
+//! different serial numbers at one MAC. The Offline Connection Set (notes §II.6) is not used.
+//!
+//! ## Scanner status
+//!
+//! Another node answering the scanner's duplicate MAC ID check: [`ScannerStatus::DuplicateMac`]
+//! (code 70), and [`Scanner::start`] fails. The [`Bus`](can_io::bus::Bus) trait exposes neither
+//! the controller's error counters nor its bus-off state, so bus warning is never shown, and a bus
+//! that fails (an adapter error, an interface gone) is shown as [`ScannerStatus::BusOff`] (code 91)
+//! with the cycle ending in the error.
+//!
+//! ## Memory
+//!
+//! The session keeps at most [`RECORDS_KEPT`] frames (older ones are forgotten,
+//! [`master_core::session::Session::forget_records_before`]; the log file has them all); samples
+//! not taken are capped at [`SAMPLES_KEPT`]; cycle statistics cover the last [`CYCLE_WINDOW`]
+//! cycles.
 
+pub mod command;
+pub mod list;
 pub mod model;
+
+pub use list::{parse_scan_list, write_scan_list};
+
+use crate::error::HarnessError;
+use crate::monitor::InputLayout;
+use can_io::bus::{Bitrate, Origin};
+use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
+use devicenet::fragment::{io_fragments, IoReassembler};
+use devicenet::id::Group1MessageId;
+use devicenet::messages::{AllocateRequest, AllocationChoice, DuplicateMacCheck, ReleaseRequest};
+use devicenet::objects::class;
+use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use master_core::client::{ClientError, Handled, Port, Reply, ReplyBody, Transaction};
+use master_core::decode::{self, short_string};
+use master_core::error::MasterError;
+use master_core::master::Master;
+use master_core::session::Verdict;
+use model::{
+    ConsoleCommand, FrameRow, Identity, NodeState, NodeStatus, Sample, ScanEntry, ScanList, ScannerState,
+    ScannerStatus,
+};
+use std::collections::{HashMap, VecDeque};
+
+/// How often a node that is not in I/O is tried again.
+pub const RECONNECT_INTERVAL: Duration = Duration::from_secs(1);
+/// Frames the session keeps (the newest).
+pub const RECORDS_KEPT: usize = 20_000;
+/// Samples kept until [`Scanner::take_samples`] (the newest).
+pub const SAMPLES_KEPT: usize = 10_000;
+/// Cycles over which the median cycle time and the bus load are computed.
+pub const CYCLE_WINDOW: usize = 100;
+
+/// How the scanner runs.
+#[derive(Clone, Debug, Default)]
+pub struct ScannerOptions {
+    /// Stop after this many cycles (the caller counts; `None`: until stopped).
+    pub cycles: Option<u64>,
+    /// The data rate (for the EPR and inter-scan delay and the bus load).
+    pub bitrate: Bitrate,
+    /// Per MAC: how to decode its input image into [`Sample::values`] (may be empty).
+    pub layouts: HashMap<u8, InputLayout>,
+}
+
+/// The computed timing of a scan list. See the [module docs](self).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Timing {
+    /// Sum of every node's poll command and response frames, worst-case stuffing.
+    pub min_cycle: Duration,
+    /// The inter-scan delay.
+    pub interscan: Duration,
+    /// The expected packet rate, ms.
+    pub epr_ms: u16,
+    /// How long responses are waited for after the poll commands went out.
+    pub window: Duration,
+}
+
+/// Worst-case bits of the frames carrying `size` bytes of I/O data (fragmented above 8 bytes).
+pub fn io_frame_bits(size: u16) -> u64 {
+    let bits = |n: u32| u64::from(47 + 8 * n + (34 + 8 * n - 1) / 4);
+    let size = u32::from(size);
+    if size <= 8 {
+        return bits(size);
+    }
+    let full = size / 7;
+    let rest = size % 7;
+    full as u64 * bits(8) + if rest > 0 { bits(rest + 1) } else { 0 }
+}
+
+/// The timing of `list` at `bitrate`. See the [module docs](self).
+pub fn timing(list: &ScanList, bitrate: Bitrate) -> Timing {
+    let bits: u64 =
+        list.nodes.iter().map(|n| io_frame_bits(n.output_size) + io_frame_bits(n.input_size)).sum();
+    let bps = u64::from(bitrate.bits_per_second().max(1));
+    let min_cycle = Duration::from_micros((bits * 1_000_000).div_ceil(bps));
+    let isd_ms = match list.interscan_delay_ms {
+        Some(ms) => u64::from(ms),
+        None => (min_cycle.total_micros().div_ceil(10_000)).max(2),
+    };
+    let interscan = Duration::from_millis(isd_ms);
+    let epr_ms = match list.expected_packet_rate_ms {
+        Some(ms) => ms.max(1),
+        None => {
+            let four = 4 * (min_cycle.total_micros() + interscan.total_micros());
+            let ms = four.div_ceil(10_000) * 10;
+            u16::try_from(ms.max(100)).unwrap_or(u16::MAX)
+        }
+    };
+    let window_us = (2 * min_cycle.total_micros()).max(20_000).min(u64::from(epr_ms) * 1000);
+    Timing { min_cycle, interscan, epr_ms, window: Duration::from_micros(window_us) }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Step {
+    Allocate,
+    ReleaseKept(AllocationChoice),
+    Get(u16, u16, u8),
+    Check,
+    SetEpr,
+    Release,
+}
+
+struct Node {
+    entry: ScanEntry,
+    state: NodeState,
+    steps: VecDeque<Step>,
+    tx: Option<Transaction>,
+    reallocated: bool,
+    allocated: AllocationChoice,
+    in_io: bool,
+    in_io_since: Instant,
+    last_exchange: Option<Instant>,
+    awaiting: bool,
+    rx: Box<IoReassembler<{ decode::MAX_IO_MESSAGE }>>,
+    /// The device answered the current bring-up at least once.
+    answered: bool,
+    /// A second device was seen at this MAC (Communication Faulted), and what showed it.
+    duplicate: Option<String>,
+    /// The last duplicate MAC ID request seen at this MAC: serial, time.
+    announced: Option<(u32, Instant)>,
+}
+
+impl Node {
+    fn set(&mut self, status: NodeStatus, detail: Option<String>) {
+        self.state.status = status;
+        self.state.code = status.code();
+        self.state.detail = detail;
+    }
+
+    fn produced(&self) -> u16 {
+        self.state.input_size.unwrap_or(self.entry.input_size)
+    }
+
+    fn consumed(&self) -> u16 {
+        self.state.output_size.unwrap_or(self.entry.output_size)
+    }
+}
+
+/// The scanner. See the [module docs](self).
+pub struct Scanner {
+    nodes: Vec<Node>,
+    state: ScannerState,
+    timing: Timing,
+    options: ScannerOptions,
+    next_reconnect: Option<Instant>,
+    samples: VecDeque<Sample>,
+    frames_cursor: usize,
+    /// (cycle length µs, bits on the wire) of the last cycles.
+    history: VecDeque<(u64, u64)>,
+}
+
+fn u16_of(data: &[u8]) -> Option<u16> {
+    match data {
+        [a, b] => Some(u16::from_le_bytes([*a, *b])),
+        _ => None,
+    }
+}
+
+impl Scanner {
+    /// A scanner for `list`, at MAC `master_mac`.
+    pub fn new(list: ScanList, master_mac: u8, options: ScannerOptions) -> Scanner {
+        let timing = timing(&list, options.bitrate);
+        let nodes: Vec<Node> = list
+            .nodes
+            .iter()
+            .filter(|e| e.mac <= 63 && e.mac != master_mac)
+            .map(|e| Node {
+                entry: e.clone(),
+                state: NodeState {
+                    mac: e.mac,
+                    status: NodeStatus::Initializing,
+                    code: NodeStatus::Initializing.code(),
+                    detail: None,
+                    identity: Identity::default(),
+                    input_size: None,
+                    output_size: None,
+                    input: Vec::new(),
+                    output: vec![0; usize::from(e.output_size)],
+                    exchanges: 0,
+                    last_exchange_us: None,
+                },
+                steps: VecDeque::new(),
+                tx: None,
+                reallocated: false,
+                allocated: AllocationChoice::empty(),
+                in_io: false,
+                in_io_since: Instant::ZERO,
+                last_exchange: None,
+                awaiting: false,
+                rx: Box::new(IoReassembler::new()),
+                answered: false,
+                duplicate: None,
+                announced: None,
+            })
+            .collect();
+        let state = ScannerState {
+            mac: master_mac,
+            status: ScannerStatus::Starting,
+            cycles: 0,
+            cycle_ms: 0.0,
+            bus_load: 0.0,
+            interscan_delay_ms: u32::try_from(timing.interscan.total_millis()).unwrap_or(u32::MAX),
+            expected_packet_rate_ms: timing.epr_ms,
+            nodes: nodes.iter().map(|n| n.state.clone()).collect(),
+        };
+        Scanner {
+            nodes,
+            state,
+            timing,
+            options,
+            next_reconnect: None,
+            samples: VecDeque::new(),
+            frames_cursor: 0,
+            history: VecDeque::new(),
+        }
+    }
+
+    /// The timing in force.
+    pub fn timing(&self) -> Timing {
+        self.timing
+    }
+
+    /// The options given.
+    pub fn options(&self) -> &ScannerOptions {
+        &self.options
+    }
+
+    /// Network access (unless the master is on-line already, e.g. after a network scan), then
+    /// every node's bring-up; returns once every bring-up has ended. A node's fault is its status,
+    /// never an error; errors are the scanner's own (its MAC in use, the bus, a stop).
+    pub fn start(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
+        self.state.status = ScannerStatus::Starting;
+        self.frames_cursor = master.session.next_index();
+        if master.online_at().is_none() {
+            if let Err(e) = master.network_access() {
+                return Err(self.fail(e));
+            }
+        }
+        let macs: Vec<MacId> = self.nodes.iter().filter_map(|n| MacId::new(n.entry.mac)).collect();
+        if let Err(e) = master.await_online(&macs) {
+            return Err(self.fail(e));
+        }
+        // Duplicate MAC ID checks seen while waiting (two devices at one MAC).
+        let seen: Vec<(u8, DuplicateMacCheck, Instant)> = master
+            .session
+            .records()
+            .iter()
+            .filter(|r| r.index >= self.frames_cursor && r.origin == Origin::Remote)
+            .filter_map(|r| match Identifier::decode(r.frame.id()) {
+                Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } => {
+                    DuplicateMacCheck::parse(r.frame.data()).ok().map(|c| (mac.as_raw(), c, r.at))
+                }
+                _ => None,
+            })
+            .collect();
+        for (mac, check, at) in seen {
+            if let Some(n) = self.nodes.iter_mut().find(|n| n.entry.mac == mac) {
+                Self::note_check(n, &check, at);
+            }
+        }
+        let now = master.session.now();
+        for i in 0..self.nodes.len() {
+            self.begin_bringup(i, master, now)?;
+        }
+        self.next_reconnect = Some(now + RECONNECT_INTERVAL);
+        // Nodes already in I/O are polled while the others' bring-up goes on (an absent node
+        // costs a response timeout, longer than a present node's watchdog).
+        while self.nodes.iter().any(|n| n.tx.is_some()) {
+            self.scan(master, false)?;
+        }
+        self.state.status = ScannerStatus::Running;
+        self.publish();
+        Ok(())
+    }
+
+    /// Records the scanner's own failure in its status.
+    fn fail(&mut self, e: MasterError) -> HarnessError {
+        match &e {
+            MasterError::DuplicateMac { mac, .. } if *mac == self.state.mac => {
+                self.state.status = ScannerStatus::DuplicateMac
+            }
+            MasterError::Bus(_) => self.state.status = ScannerStatus::BusOff,
+            _ => {}
+        }
+        self.publish();
+        HarnessError::Master(e)
+    }
+
+    fn begin_bringup(&mut self, i: usize, master: &Master<'_, '_>, now: Instant) -> Result<(), HarnessError> {
+        let Some(n) = self.nodes.get_mut(i) else { return Ok(()) };
+        n.steps = VecDeque::from([Step::Allocate]);
+        n.reallocated = false;
+        n.answered = false;
+        *n.rx = IoReassembler::new();
+        Self::start_step(n, master, now, self.timing.epr_ms)
+    }
+
+    fn start_step(
+        n: &mut Node,
+        master: &Master<'_, '_>,
+        now: Instant,
+        epr_ms: u16,
+    ) -> Result<(), HarnessError> {
+        loop {
+            let Some(&step) = n.steps.front() else {
+                n.tx = None;
+                return Ok(());
+            };
+            let mut data = Vec::new();
+            let (port, service, c, inst) = match step {
+                Step::Check => {
+                    n.steps.pop_front();
+                    Self::check(n);
+                    continue;
+                }
+                Step::Allocate => {
+                    data.extend_from_slice(
+                        &AllocateRequest {
+                            choice: AllocationChoice::EXPLICIT | AllocationChoice::POLL,
+                            allocator: master.config.mac,
+                        }
+                        .emit(),
+                    );
+                    (Port::Group2Only, ServiceCode::AllocateMasterSlave, class::DEVICENET, 1)
+                }
+                Step::ReleaseKept(choice) => {
+                    data.extend_from_slice(&ReleaseRequest { choice }.emit());
+                    (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
+                }
+                Step::Release => {
+                    data.extend_from_slice(&ReleaseRequest { choice: n.allocated }.emit());
+                    (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
+                }
+                Step::Get(c, inst, a) => {
+                    data.push(a);
+                    (Port::Explicit, ServiceCode::GetAttributeSingle, c, inst)
+                }
+                Step::SetEpr => {
+                    data.push(9);
+                    data.extend_from_slice(&epr_ms.to_le_bytes());
+                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, 2)
+                }
+            };
+            let Some(mac) = MacId::new(n.entry.mac) else { return Ok(()) };
+            let req = Request { service, class: c, instance: inst, data: &data };
+            let mut tx = Transaction::new(
+                mac,
+                master.config.mac,
+                port,
+                false,
+                &req,
+                BodyFormat::Class8Instance8,
+                master.config.response_timeout,
+            )?;
+            tx.start(now);
+            n.tx = Some(tx);
+            return Ok(());
+        }
+    }
+
+    /// Electronic key and sizes against the scan list (after the identity and sizes were read).
+    fn check(n: &mut Node) {
+        let e = &n.entry;
+        let id = &n.state.identity;
+        let major =
+            id.revision.as_deref().and_then(|r| r.split('.').next()).and_then(|m| m.parse::<u8>().ok());
+        let mut keying = Vec::new();
+        let mut key = |what: &str, want: Option<u16>, got: Option<u16>, hexa: bool| {
+            if let Some(w) = want {
+                if got != Some(w) {
+                    let show = |v: Option<u16>| match (v, hexa) {
+                        (Some(v), true) => format!("0x{v:04X}"),
+                        (Some(v), false) => v.to_string(),
+                        (None, _) => "nothing".into(),
+                    };
+                    keying.push(format!("expected {what} {}, read {}", show(Some(w)), show(got)));
+                }
+            }
+        };
+        key("vendor ID", e.vendor_id, id.vendor_id, true);
+        key("device type", e.device_type, id.device_type, true);
+        key("product code", e.product_code, id.product_code, false);
+        key("major revision", e.major_revision.map(u16::from), major.map(u16::from), false);
+        if !keying.is_empty() {
+            n.set(NodeStatus::KeyingMismatch, Some(keying.join("; ")));
+            n.steps = VecDeque::from([Step::Release]);
+            return;
+        }
+        let mut sizes = Vec::new();
+        if n.state.input_size != Some(e.input_size) {
+            sizes.push(format!(
+                "input (produced) size {} bytes, scan list {}",
+                n.state.input_size.map_or("?".into(), |v| v.to_string()),
+                e.input_size
+            ));
+        }
+        if n.state.output_size != Some(e.output_size) {
+            sizes.push(format!(
+                "output (consumed) size {} bytes, scan list {}",
+                n.state.output_size.map_or("?".into(), |v| v.to_string()),
+                e.output_size
+            ));
+        }
+        if !sizes.is_empty() {
+            n.set(NodeStatus::SizeMismatch, Some(sizes.join("; ")));
+            n.steps = VecDeque::from([Step::Release]);
+        }
+    }
+
+    /// Takes the outcome of node `n`'s current step.
+    fn finish_step(n: &mut Node, outcome: Result<Reply, ClientError>, now: Instant) {
+        let Some(step) = n.steps.pop_front() else { return };
+        let reply = match outcome {
+            Ok(r) => r,
+            Err(ClientError::Timeout { name, .. }) => {
+                n.steps.clear();
+                if step == Step::Release {
+                    return;
+                }
+                if n.answered {
+                    n.set(
+                        NodeStatus::TimedOut,
+                        Some(format!("stopped answering during its bring-up ({name})")),
+                    );
+                } else if n.state.status == NodeStatus::TimedOut || n.state.status == NodeStatus::NotPresent {
+                    let detail = n.duplicate.clone();
+                    let status = if detail.is_some() {
+                        NodeStatus::CommunicationFaulted
+                    } else {
+                        NodeStatus::NotPresent
+                    };
+                    n.set(status, detail.or_else(|| Some("nothing answers at this MAC".into())));
+                } else {
+                    let status = if n.duplicate.is_some() {
+                        NodeStatus::CommunicationFaulted
+                    } else {
+                        NodeStatus::NotPresent
+                    };
+                    n.set(status, n.duplicate.clone().or_else(|| Some("nothing answers at this MAC".into())));
+                }
+                return;
+            }
+            Err(ClientError::RequestAborted(r)) => {
+                n.steps.clear();
+                n.set(NodeStatus::ErrorResponse, Some(r));
+                return;
+            }
+        };
+        n.answered = true;
+        match (step, reply.body) {
+            (Step::Allocate, ReplyBody::Success(_)) => {
+                n.allocated = AllocationChoice::EXPLICIT | AllocationChoice::POLL;
+                let mut steps: Vec<Step> =
+                    [1u8, 2, 3, 4, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
+                steps.extend([
+                    Step::Get(class::CONNECTION, 2, 7),
+                    Step::Get(class::CONNECTION, 2, 8),
+                    Step::Check,
+                    Step::SetEpr,
+                ]);
+                n.steps = steps.into();
+            }
+            (Step::Allocate, ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. })
+                if !n.reallocated =>
+            {
+                // Still allocated to this master (an earlier run, or a connection the device
+                // still holds): release, allocate again.
+                n.reallocated = true;
+                n.steps = VecDeque::from([
+                    Step::ReleaseKept(AllocationChoice::POLL),
+                    Step::ReleaseKept(AllocationChoice::EXPLICIT),
+                    Step::Allocate,
+                ]);
+            }
+            (Step::Allocate, ReplyBody::Error { general, additional }) => {
+                let why = if general == GeneralStatus::ObjectStateConflict && additional == 0x01 {
+                    "allocated by another master".to_string()
+                } else {
+                    format!("allocation refused: {}", decode::error_text(general, additional))
+                };
+                n.set(NodeStatus::ErrorResponse, Some(why));
+                n.steps.clear();
+            }
+            (Step::ReleaseKept(choice), _) => n.allocated = n.allocated.difference(choice),
+            (Step::Release, _) => n.allocated = AllocationChoice::empty(),
+            (Step::Get(c, i, a), ReplyBody::Success(data)) => {
+                let id = &mut n.state.identity;
+                match (c, i, a) {
+                    (class::IDENTITY, 1, 1) => id.vendor_id = u16_of(&data),
+                    (class::IDENTITY, 1, 2) => id.device_type = u16_of(&data),
+                    (class::IDENTITY, 1, 3) => id.product_code = u16_of(&data),
+                    (class::IDENTITY, 1, 4) => {
+                        id.revision = match data.as_slice() {
+                            [maj, min] => Some(format!("{maj}.{min}")),
+                            _ => None,
+                        }
+                    }
+                    (class::IDENTITY, 1, 7) => id.product_name = short_string(&data),
+                    (class::CONNECTION, 2, 7) => n.state.input_size = u16_of(&data),
+                    (class::CONNECTION, 2, 8) => n.state.output_size = u16_of(&data),
+                    _ => {}
+                }
+            }
+            (Step::Get(c, i, a), ReplyBody::Error { general, additional }) => {
+                // Identity attributes are optional to read (the key then compares "nothing");
+                // the connection sizes are not.
+                if c == class::CONNECTION {
+                    n.set(
+                        NodeStatus::ErrorResponse,
+                        Some(format!(
+                            "{} {}: {}",
+                            decode::class_text(c),
+                            decode::attribute_text(c, i, a),
+                            decode::error_text(general, additional)
+                        )),
+                    );
+                    n.steps = VecDeque::from([Step::Release]);
+                }
+            }
+            (Step::SetEpr, ReplyBody::Success(_)) => {
+                n.in_io = true;
+                n.in_io_since = now;
+                n.last_exchange = None;
+                n.awaiting = false;
+                n.set(NodeStatus::Initializing, Some("in I/O, waiting for the first poll response".into()));
+                if n.state.output.len() != usize::from(n.consumed()) {
+                    n.state.output = vec![0; usize::from(n.consumed())];
+                }
+            }
+            (Step::SetEpr, ReplyBody::Error { general, additional }) => {
+                n.set(
+                    NodeStatus::ErrorResponse,
+                    Some(format!(
+                        "expected packet rate refused: {}",
+                        decode::error_text(general, additional)
+                    )),
+                );
+                n.steps = VecDeque::from([Step::Release]);
+            }
+            (Step::Check, _) => {}
+        }
+    }
+
+    /// Runs the bus until `until`, or until `done` says so: bring-up transactions advanced, poll
+    /// responses taken, everything else judged by the master.
+    fn pump(
+        &mut self,
+        master: &mut Master<'_, '_>,
+        until: Instant,
+        done: impl Fn(&Scanner) -> bool,
+    ) -> Result<(), HarnessError> {
+        loop {
+            let now = master.session.now();
+            let epr = self.timing.epr_ms;
+            for n in &mut self.nodes {
+                loop {
+                    if let Some(tx) = &mut n.tx {
+                        while let Some(f) = tx.poll_transmit() {
+                            master.session.send(&f).map_err(HarnessError::Master)?;
+                        }
+                    }
+                    let Some(outcome) = n.tx.as_mut().filter(|t| t.is_done()).and_then(|t| t.take_outcome())
+                    else {
+                        break;
+                    };
+                    Self::finish_step(n, outcome, now);
+                    if let Some(mac) = MacId::new(n.entry.mac) {
+                        master.set_held(mac, n.allocated);
+                    }
+                    Self::start_step(n, master, now, epr)?;
+                }
+            }
+            if done(self) || now >= until {
+                return Ok(());
+            }
+            let deadline = self
+                .nodes
+                .iter()
+                .filter_map(|n| n.tx.as_ref().and_then(|t| t.poll_at()))
+                .fold(until, Instant::min);
+            match master.session.next(deadline) {
+                Ok(Some(i)) => self.handle_record(master, i)?,
+                Ok(None) => {
+                    let now = master.session.now();
+                    for n in &mut self.nodes {
+                        if let Some(tx) = &mut n.tx {
+                            tx.handle_timeout(now);
+                        }
+                    }
+                }
+                Err(e) => return Err(self.fail(e)),
+            }
+        }
+    }
+
+    fn handle_record(&mut self, master: &mut Master<'_, '_>, i: usize) -> Result<(), HarnessError> {
+        let Some(rec) = master.session.get(i).cloned() else { return Ok(()) };
+        if rec.origin == Origin::Local {
+            return Ok(());
+        }
+        match Identifier::decode(rec.frame.id()) {
+            Identifier::Group1 { message: Group1MessageId::POLL_RESPONSE, source } => {
+                if let Some(n) = self.nodes.iter_mut().find(|n| n.entry.mac == source.as_raw() && n.in_io) {
+                    let verdict =
+                        Self::poll_response(n, rec.frame.data(), rec.at, &self.options, &mut self.samples);
+                    master.session.set_verdict(i, verdict);
+                    return Ok(());
+                }
+            }
+            Identifier::Group2 { mac, message: Group2Message::ExplicitResponse } => {
+                if let Some(tx) =
+                    self.nodes.iter_mut().find(|n| n.entry.mac == mac.as_raw()).and_then(|n| n.tx.as_mut())
+                {
+                    if let Handled::Frame(v) = tx.handle_frame(&rec.frame, rec.at) {
+                        master.session.set_verdict(i, v);
+                        return Ok(());
+                    }
+                }
+            }
+            Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } => {
+                if let (Some(n), Ok(check)) = (
+                    self.nodes.iter_mut().find(|n| n.entry.mac == mac.as_raw()),
+                    DuplicateMacCheck::parse(rec.frame.data()),
+                ) {
+                    Self::note_check(n, &check, rec.at);
+                }
+            }
+            _ => {}
+        }
+        master.other(i).map_err(|e| self.fail(e))
+    }
+
+    /// A duplicate MAC ID check at a node's MAC: a response, or a second serial number, means two
+    /// devices share the MAC (notes §7.1: the newcomer is Communication Faulted).
+    fn note_check(n: &mut Node, check: &DuplicateMacCheck, at: Instant) {
+        if check.response {
+            n.duplicate = Some(format!(
+                "a device at MAC {} answered another's duplicate MAC ID check (vendor 0x{:04X}, serial 0x{:08X} answered): two devices share the MAC, the newcomer is Communication Faulted",
+                n.entry.mac, check.vendor_id, check.serial_number
+            ));
+            return;
+        }
+        if let Some((serial, when)) = n.announced {
+            if serial != check.serial_number && (at - when) < Duration::from_secs(3) {
+                n.duplicate = Some(format!(
+                    "two devices check MAC {} at once (serials 0x{serial:08X} and 0x{:08X}): both are Communication Faulted",
+                    n.entry.mac, check.serial_number
+                ));
+            }
+        }
+        n.announced = Some((check.serial_number, at));
+    }
+
+    fn poll_response(
+        n: &mut Node,
+        data: &[u8],
+        at: Instant,
+        options: &ScannerOptions,
+        samples: &mut VecDeque<Sample>,
+    ) -> Verdict {
+        let produced = n.produced();
+        let whole: Vec<u8> = if data.is_empty() {
+            Vec::new()
+        } else if produced <= 8 {
+            data.to_vec()
+        } else {
+            match n.rx.receive(data) {
+                Ok(Some(w)) => w.to_vec(),
+                Ok(None) => return Verdict::Ok("poll response fragment".into()),
+                Err(e) => return Verdict::fail(format!("poll response fragment rejected: {e}")),
+            }
+        };
+        n.awaiting = false;
+        n.last_exchange = Some(at);
+        n.state.last_exchange_us = Some(at.total_micros());
+        if whole.is_empty() {
+            n.set(NodeStatus::Idle, Some("zero-length poll response (idle)".into()));
+            return Verdict::Ok("poll response: idle (no data)".into());
+        }
+        if whole.len() != usize::from(produced) {
+            n.set(
+                NodeStatus::SizeMismatch,
+                Some(format!("poll response of {} bytes, expected {produced}", whole.len())),
+            );
+            return Verdict::fail(format!("poll response of {} bytes, expected {produced}", whole.len()));
+        }
+        n.state.exchanges += 1;
+        n.set(NodeStatus::Ok, n.duplicate.clone());
+        let values = options.layouts.get(&n.entry.mac).map(|l| sample_values(l, &whole)).unwrap_or_default();
+        if samples.len() >= SAMPLES_KEPT {
+            samples.pop_front();
+        }
+        samples.push_back(Sample {
+            mac: n.entry.mac,
+            unix_ms: model::unix_ms_now(),
+            bus_us: at.total_micros(),
+            input: whole.clone(),
+            values,
+        });
+        n.state.input = whole;
+        Verdict::Ok("poll response".into())
+    }
+
+    /// One full scan cycle and the inter-scan delay. See the [module docs](self).
+    pub fn cycle(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
+        self.scan(master, true)
+    }
+
+    /// A scan cycle; `counted`: in the cycle count and statistics (not during [`Scanner::start`]).
+    fn scan(&mut self, master: &mut Master<'_, '_>, counted: bool) -> Result<(), HarnessError> {
+        let t0 = master.session.now();
+        let first = master.session.next_index();
+        if self.next_reconnect.is_none_or(|t| t0 >= t) {
+            for i in 0..self.nodes.len() {
+                if !self.nodes[i].in_io && self.nodes[i].tx.is_none() {
+                    self.begin_bringup(i, master, t0)?;
+                }
+            }
+            self.next_reconnect = Some(t0 + RECONNECT_INTERVAL);
+        }
+        let mut polls: Vec<CanFrame> = Vec::new();
+        for n in &mut self.nodes {
+            if !n.in_io {
+                continue;
+            }
+            let Some(mac) = MacId::new(n.entry.mac) else { continue };
+            let id = Identifier::group2(mac, Group2Message::PollCommand);
+            let consumed = n.consumed();
+            let zeros;
+            let output: &[u8] =
+                if n.state.status == NodeStatus::Ok && n.state.output.len() == usize::from(consumed) {
+                    &n.state.output
+                } else {
+                    zeros = vec![0; usize::from(consumed)];
+                    &zeros
+                };
+            if consumed > 8 {
+                polls.extend(io_fragments(output).filter_map(|p| CanFrame::new(id, &p).ok()));
+            } else {
+                polls.extend(CanFrame::new(id, output));
+            }
+            n.awaiting = true;
+        }
+        for f in &polls {
+            if let Err(e) = master.session.send(f) {
+                return Err(self.fail(e));
+            }
+        }
+        self.pump(master, t0 + self.timing.window, |s| s.nodes.iter().all(|n| !n.awaiting))?;
+        let isd_end = master.session.now() + self.timing.interscan;
+        self.pump(master, isd_end, |_| false)?;
+        let now = master.session.now();
+        // The device's watchdog is 4 x EPR (notes §5.3): no response for that long, the
+        // connection is gone at both ends.
+        let watchdog = Duration::from_millis(4 * u64::from(self.timing.epr_ms));
+        for n in &mut self.nodes {
+            if n.in_io && now - n.last_exchange.unwrap_or(n.in_io_since) > watchdog {
+                n.in_io = false;
+                n.awaiting = false;
+                n.allocated = AllocationChoice::empty();
+                if let Some(mac) = MacId::new(n.entry.mac) {
+                    master.set_held(mac, n.allocated);
+                }
+                n.set(
+                    NodeStatus::TimedOut,
+                    Some(format!("no poll response for {} ms (4 x EPR)", watchdog.total_millis())),
+                );
+            }
+        }
+        let bits: u64 = master
+            .session
+            .records()
+            .iter()
+            .filter(|r| r.index >= first)
+            .map(|r| u64::from(can_io::sim::frame_bits(&r.frame)))
+            .sum();
+        if counted {
+            if self.history.len() >= CYCLE_WINDOW {
+                self.history.pop_front();
+            }
+            self.history.push_back(((now - t0).total_micros(), bits));
+            self.state.cycles += 1;
+            self.stats();
+        }
+        // Bounded memory: records already taken, and everything beyond the newest RECORDS_KEPT.
+        let end = master.session.next_index();
+        let forget = end.saturating_sub(RECORDS_KEPT).max(self.frames_cursor.min(end));
+        master.session.forget_records_before(forget);
+        self.frames_cursor = self.frames_cursor.max(master.session.first_kept());
+        self.publish();
+        Ok(())
+    }
+
+    fn stats(&mut self) {
+        let mut lengths: Vec<u64> = self.history.iter().map(|h| h.0).collect();
+        lengths.sort_unstable();
+        let median = match lengths.len() {
+            0 => 0.0,
+            n if n % 2 == 1 => lengths[n / 2] as f64,
+            n => (lengths[n / 2 - 1] + lengths[n / 2]) as f64 / 2.0,
+        };
+        self.state.cycle_ms = median / 1000.0;
+        let time: u64 = self.history.iter().map(|h| h.0).sum();
+        let bits: u64 = self.history.iter().map(|h| h.1).sum();
+        let bps = f64::from(self.options.bitrate.bits_per_second().max(1));
+        self.state.bus_load = if time == 0 { 0.0 } else { (bits as f64 / bps) / (time as f64 / 1e6) };
+    }
+
+    fn publish(&mut self) {
+        self.state.nodes = self.nodes.iter().map(|n| n.state.clone()).collect();
+    }
+
+    /// The scanner's state after the last cycle.
+    pub fn state(&self) -> &ScannerState {
+        &self.state
+    }
+
+    /// The lengths of the last full cycles in µs, oldest first (their median is
+    /// [`ScannerState::cycle_ms`]).
+    pub fn cycle_lengths_us(&self) -> Vec<u64> {
+        self.history.iter().map(|h| h.0).collect()
+    }
+
+    /// Carries out a console command and answers on its reply channel (an answer nobody waits for
+    /// any more is dropped).
+    pub fn command(&mut self, master: &mut Master<'_, '_>, cmd: ConsoleCommand) {
+        match cmd {
+            ConsoleCommand::SetOutput { mac, data, reply } => {
+                let answer = match self.nodes.iter_mut().find(|n| n.entry.mac == mac) {
+                    None => Err(format!("MAC {mac} is not in the scan list")),
+                    Some(n) if n.state.status != NodeStatus::Ok => Err(format!(
+                        "MAC {mac} is {} (code {}): outputs go only to a node that is ok",
+                        n.state.status.name(),
+                        n.state.code
+                    )),
+                    Some(n) if data.len() != usize::from(n.consumed()) => {
+                        Err(format!("{} bytes given; MAC {mac} consumes {} bytes", data.len(), n.consumed()))
+                    }
+                    Some(n) => {
+                        n.state.output = data;
+                        Ok(Vec::new())
+                    }
+                };
+                self.publish();
+                let _ = reply.send(answer);
+            }
+            ConsoleCommand::Get { mac, class, instance, attribute, reply } => {
+                let answer = self.explicit(master, mac, class, instance, attribute, None);
+                let _ = reply.send(answer);
+            }
+            ConsoleCommand::Set { mac, class, instance, attribute, value, reply } => {
+                let answer = self.explicit(master, mac, class, instance, attribute, Some(&value));
+                let _ = reply.send(answer);
+            }
+        }
+    }
+
+    fn explicit(
+        &mut self,
+        master: &mut Master<'_, '_>,
+        mac: u8,
+        class_id: u16,
+        instance: u16,
+        attribute: u8,
+        value: Option<&[u8]>,
+    ) -> Result<Vec<u8>, String> {
+        let n = self
+            .nodes
+            .iter()
+            .find(|n| n.entry.mac == mac)
+            .ok_or(format!("MAC {mac} is not in the scan list"))?;
+        if !n.in_io || n.tx.is_some() {
+            return Err(format!("MAC {mac} has no explicit connection now ({})", n.state.status.name()));
+        }
+        let target = MacId::new(mac).ok_or(format!("MAC {mac} is out of range"))?;
+        let r = match value {
+            Some(v) => master.set(target, class_id, instance, attribute, v),
+            None => master.get(target, class_id, instance, attribute),
+        };
+        r.map(|(data, _)| data).map_err(|e| e.to_string())
+    }
+
+    /// The input samples received since the last call, oldest first.
+    pub fn take_samples(&mut self) -> Vec<Sample> {
+        self.samples.drain(..).collect()
+    }
+
+    /// The frames seen since the last call (at most the [`RECORDS_KEPT`] newest), decoded.
+    pub fn take_frames(&mut self, master: &mut Master<'_, '_>) -> Vec<FrameRow> {
+        let from = self.frames_cursor.max(master.session.first_kept());
+        let rows: Vec<FrameRow> = master
+            .session
+            .records()
+            .iter()
+            .filter(|r| r.index >= from)
+            .map(|r| {
+                let (kind, mac) = frame_kind(&r.frame);
+                let (meaning, message) = match r.meaning.split_once(" => ") {
+                    Some((s, m)) => (s.to_string(), Some(m.to_string())),
+                    None => (r.meaning.clone(), None),
+                };
+                FrameRow {
+                    seq: r.index as u64,
+                    time_us: r.at.total_micros(),
+                    frame: r.frame.to_string(),
+                    id: r.frame.id().as_raw(),
+                    data: r.frame.data().to_vec(),
+                    own: r.origin == Origin::Local,
+                    mac,
+                    kind: kind.into(),
+                    meaning,
+                    message,
+                }
+            })
+            .collect();
+        let end = master.session.next_index();
+        self.frames_cursor = end;
+        master.session.forget_records_before(end);
+        rows
+    }
+
+    /// Releases every node this scanner holds (through the Group 2 Only port).
+    pub fn stop(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
+        for n in &mut self.nodes {
+            n.tx = None;
+            n.steps.clear();
+            n.awaiting = false;
+        }
+        let r = master.release_held();
+        for n in &mut self.nodes {
+            n.in_io = false;
+            n.allocated = AllocationChoice::empty();
+        }
+        self.state.status = ScannerStatus::Stopped;
+        self.publish();
+        r.map(|_| ()).map_err(|e| HarnessError::Release(Box::new(e)))
+    }
+}
+
+/// The console's message kind of a frame, and the MAC it concerns.
+pub fn frame_kind(frame: &CanFrame) -> (&'static str, Option<u8>) {
+    match Identifier::decode(frame.id()) {
+        Identifier::Group1 { source, .. } => ("io", Some(source.as_raw())),
+        Identifier::Group2 { mac, message } => match message {
+            Group2Message::DuplicateMacCheck => ("duplicate_mac", Some(mac.as_raw())),
+            Group2Message::PollCommand => ("io", Some(mac.as_raw())),
+            _ => ("explicit", Some(mac.as_raw())),
+        },
+        Identifier::Group3 { source, .. } => ("ucmm", Some(source.as_raw())),
+        Identifier::Group4 { .. } => ("offline", None),
+        Identifier::Invalid(_) => ("invalid", None),
+    }
+}
+
+/// The values of an input image decoded by `layout`: one per field value, a field with several
+/// values named `name[i]`.
+pub fn sample_values(layout: &InputLayout, input: &[u8]) -> Vec<(String, f64)> {
+    let decoded = layout.decode(input);
+    let mut values = Vec::new();
+    for f in decoded.fields {
+        match f.values.as_slice() {
+            [one] => values.push((f.name, f64::from(*one))),
+            many => {
+                for (i, v) in many.iter().enumerate() {
+                    values.push((format!("{}[{i}]", f.name), f64::from(*v)));
+                }
+            }
+        }
+    }
+    values
+}
+
+/// A scan list from a network scan of MAC `from..=to` ([`crate::scan`]): each device with a poll
+/// connection, keyed by what it answered (vendor, device type, product code, major revision),
+/// named by its product name. Devices without a poll connection are left out.
+pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<ScanList, HarnessError> {
+    let report = crate::scan::scan(master, from, to, &mut crate::console::Progress::off())?;
+    let nodes = report
+        .devices
+        .iter()
+        .filter_map(|d| {
+            Some(ScanEntry {
+                mac: d.mac,
+                connection: "poll".into(),
+                vendor_id: d.vendor_id,
+                device_type: d.device_type,
+                product_code: d.product_code,
+                major_revision: d
+                    .revision
+                    .as_deref()
+                    .and_then(|r| r.split('.').next())
+                    .and_then(|m| m.parse().ok()),
+                input_size: d.produced_size?,
+                output_size: d.consumed_size?,
+                name: d.product_name.clone(),
+            })
+        })
+        .collect();
+    Ok(ScanList { interscan_delay_ms: None, expected_packet_rate_ms: None, nodes })
+}

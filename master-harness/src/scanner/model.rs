@@ -7,6 +7,13 @@
 //! 1769-SDN), which every DeviceNet engineer reads off the scanner's display: "DeviceNet Status
 //! Codes", Studio 5000 Logix Designer documentation, Rockwell Automation
 //! (rockwellautomation.com/en-us/docs/studio-5000-logix-designer/.../devicenet-status-codes.html).
+//! Checked against that page for the scanner (issue 15): 70 "the address of the scanner is already
+//! in use by another device", 72 "slave device stopped communicating; if communication is not
+//! reestablished during the next attempt, the status code changes to 78", 73 "identity
+//! information does not match the electronic key (vendor, product code, product type)" read as
+//! stated here; 77 (size), 78 (not present), 83 (error responses), 84 (initializing), 86 (zero
+//! length / idle data) and 91 (bus-off) are the same page's later rows, which the stored copy
+//! used for the check cuts off: taken from the 1756-DNB / 1769-SDN tables, not re-read.
 
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;

@@ -1,0 +1,237 @@
+//! The scan list file (TOML): read with errors naming the file, line, column and key; written
+//! back in the same form.
+//!
+//! ```toml
+//! # interscan_delay_ms = 5           # optional: computed from the list and the data rate
+//! # expected_packet_rate_ms = 100    # optional: computed
+//!
+//! [[node]]
+//! mac = 5
+//! connection = "poll"
+//! vendor_id = 0x1234                 # electronic key: each optional
+//! device_type = 0x000C
+//! product_code = 1
+//! major_revision = 1
+//! input_size = 18                    # poll response (Connection 2 attribute 7)
+//! output_size = 8                    # poll command (Connection 2 attribute 8)
+//! name = "breaker feeder 1"          # optional
+//! ```
+
+use super::model::{ScanEntry, ScanList};
+use crate::error::HarnessError;
+use serde::Deserialize;
+use std::ops::Range;
+
+/// The largest I/O message the scanner reassembles (64 fragments of 7 bytes, notes §4.2).
+pub const MAX_IO_SIZE: u16 = master_core::decode::MAX_IO_MESSAGE as u16;
+
+/// Line and column (1-based) of byte `at` in `text`.
+fn line_col(text: &str, at: usize) -> (usize, usize) {
+    let at = at.min(text.len());
+    let before = text.get(..at).unwrap_or("");
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+/// The key written before `=` on the line holding byte `at`, if any.
+fn key_at(text: &str, at: usize) -> Option<String> {
+    let at = at.min(text.len());
+    let start = text.get(..at)?.rfind('\n').map_or(0, |i| i + 1);
+    let line = text.get(start..)?.lines().next()?;
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim();
+    (!key.is_empty() && !key.starts_with('#')).then(|| key.trim_matches('"').to_string())
+}
+
+fn located(
+    text: &str,
+    file: &str,
+    span: Option<Range<usize>>,
+    key: Option<String>,
+    msg: &str,
+) -> HarnessError {
+    let (line, col) = span.as_ref().map_or((0, 0), |s| line_col(text, s.start));
+    let key = key.or_else(|| span.as_ref().and_then(|s| key_at(text, s.start)));
+    let key_text = key.map_or_else(String::new, |k| format!(" (key `{k}`)"));
+    let at = if line == 0 { String::new() } else { format!("{line}:{col}:") };
+    HarnessError::Usage(format!("{file}:{at} scan list{key_text}: {msg}"))
+}
+
+#[derive(Deserialize)]
+struct SpannedNode {
+    mac: Option<toml::Spanned<toml::Value>>,
+    input_size: Option<toml::Spanned<toml::Value>>,
+    output_size: Option<toml::Spanned<toml::Value>>,
+    connection: Option<toml::Spanned<toml::Value>>,
+}
+
+#[derive(Deserialize)]
+struct SpannedList {
+    #[serde(default)]
+    node: Vec<toml::Spanned<SpannedNode>>,
+}
+
+/// Reads a scan list from `text` (`file` names it in errors). Every error is a usage error naming
+/// the file, line, column and key: TOML syntax, an unknown key, a value of the wrong type, a MAC
+/// above 63 or given twice, a size above 448 bytes, a connection type other than `poll`.
+pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError> {
+    let list: ScanList =
+        toml::from_str(text).map_err(|e| located(text, file, e.span(), None, e.message().trim()))?;
+    // The same text again, keeping where each value is, for the checks below.
+    let spans: Option<SpannedList> = toml::from_str(text).ok();
+    let span_of = |i: usize, pick: fn(&SpannedNode) -> Option<Range<usize>>| -> Option<Range<usize>> {
+        let n = spans.as_ref()?.node.get(i)?;
+        pick(n.get_ref()).or_else(|| Some(n.span()))
+    };
+    let mut seen: Vec<(u8, usize)> = Vec::new();
+    for (i, node) in list.nodes.iter().enumerate() {
+        let mac_span = span_of(i, |n| n.mac.as_ref().map(|v| v.span()));
+        if node.mac > 63 {
+            return Err(located(
+                text,
+                file,
+                mac_span,
+                Some("mac".into()),
+                &format!("MAC {} is out of range 0..=63", node.mac),
+            ));
+        }
+        if let Some((_, first)) = seen.iter().find(|(m, _)| *m == node.mac) {
+            let first_line = span_of(*first, |n| n.mac.as_ref().map(|v| v.span()))
+                .map_or(0, |s| line_col(text, s.start).0);
+            return Err(located(
+                text,
+                file,
+                mac_span,
+                Some("mac".into()),
+                &format!("MAC {} is given twice (first at line {first_line})", node.mac),
+            ));
+        }
+        seen.push((node.mac, i));
+        for (key, value, pick) in [
+            (
+                "input_size",
+                node.input_size,
+                (|n: &SpannedNode| n.input_size.as_ref().map(|v| v.span()))
+                    as fn(&SpannedNode) -> Option<Range<usize>>,
+            ),
+            ("output_size", node.output_size, |n: &SpannedNode| n.output_size.as_ref().map(|v| v.span())),
+        ] {
+            if value > MAX_IO_SIZE {
+                return Err(located(
+                    text,
+                    file,
+                    span_of(i, pick),
+                    Some(key.into()),
+                    &format!(
+                        "{value} bytes: an I/O message has at most {MAX_IO_SIZE} bytes (64 fragments of 7)"
+                    ),
+                ));
+            }
+        }
+        if node.connection != "poll" {
+            return Err(located(
+                text,
+                file,
+                span_of(i, |n| n.connection.as_ref().map(|v| v.span())),
+                Some("connection".into()),
+                &format!("connection type '{}': the scanner polls (\"poll\")", node.connection),
+            ));
+        }
+    }
+    let mut list = list;
+    list.nodes.sort_by_key(|n| n.mac);
+    Ok(list)
+}
+
+/// The scan list as TOML, in the form [`parse_scan_list`] reads (`parse(write(l)) == l`).
+pub fn write_scan_list(list: &ScanList) -> String {
+    let mut out = String::from("# DeviceNet scan list (dnet-master scanner --scanlist FILE)\n");
+    if let Some(d) = list.interscan_delay_ms {
+        out.push_str(&format!("interscan_delay_ms = {d}\n"));
+    }
+    if let Some(e) = list.expected_packet_rate_ms {
+        out.push_str(&format!("expected_packet_rate_ms = {e}\n"));
+    }
+    for n in &list.nodes {
+        out.push_str(&entry_toml(n));
+    }
+    out
+}
+
+fn entry_toml(n: &ScanEntry) -> String {
+    let mut s = format!("\n[[node]]\nmac = {}\nconnection = {}\n", n.mac, toml_string(&n.connection));
+    if let Some(v) = n.vendor_id {
+        s.push_str(&format!("vendor_id = 0x{v:04X}\n"));
+    }
+    if let Some(v) = n.device_type {
+        s.push_str(&format!("device_type = 0x{v:04X}\n"));
+    }
+    if let Some(v) = n.product_code {
+        s.push_str(&format!("product_code = {v}\n"));
+    }
+    if let Some(v) = n.major_revision {
+        s.push_str(&format!("major_revision = {v}\n"));
+    }
+    s.push_str(&format!("input_size = {}\noutput_size = {}\n", n.input_size, n.output_size));
+    if let Some(name) = &n.name {
+        s.push_str(&format!("name = {}\n", toml_string(name)));
+    }
+    s
+}
+
+/// A TOML basic string.
+fn toml_string(s: &str) -> String {
+    toml::Value::String(s.to_string()).to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+
+    const GOOD: &str = "[[node]]\nmac = 5\nvendor_id = 0x1234\nproduct_code = 1\ninput_size = 18\noutput_size = 8\nname = \"breaker \\\"A\\\"\"\n\n[[node]]\nmac = 3\ninput_size = 2\noutput_size = 0\n";
+
+    #[test]
+    fn reads_sorts_and_round_trips() {
+        let list = parse_scan_list(GOOD, "l.toml").unwrap();
+        assert_eq!(list.nodes.iter().map(|n| n.mac).collect::<Vec<_>>(), vec![3, 5]);
+        assert_eq!(list.nodes[1].vendor_id, Some(0x1234));
+        assert_eq!(list.nodes[1].connection, "poll");
+        let again = parse_scan_list(&write_scan_list(&list), "w.toml").unwrap();
+        assert_eq!(again, list);
+    }
+
+    #[rstest]
+    #[case::mac_range(
+        "[[node]]\nmac = 64\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:2:7: scan list (key `mac`): MAC 64 is out of range"
+    )]
+    #[case::mac_not_u8(
+        "[[node]]\nmac = 300\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:2:7: scan list (key `mac`)"
+    )]
+    #[case::duplicate("[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n", "l.toml:6:7: scan list (key `mac`): MAC 5 is given twice (first at line 2)")]
+    #[case::too_big(
+        "[[node]]\nmac = 5\ninput_size = 449\noutput_size = 1\n",
+        "l.toml:3:14: scan list (key `input_size`): 449 bytes"
+    )]
+    #[case::unknown_key(
+        "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\nprodcut_code = 3\n",
+        "unknown field `prodcut_code`"
+    )]
+    #[case::wrong_type(
+        "[[node]]\nmac = \"five\"\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:2:7: scan list (key `mac`)"
+    )]
+    #[case::missing_size("[[node]]\nmac = 5\noutput_size = 1\n", "input_size")]
+    #[case::syntax("[[node]\nmac = 5\n", "l.toml:1:")]
+    #[case::connection(
+        "[[node]]\nmac = 5\nconnection = \"strobe\"\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:3:14: scan list (key `connection`)"
+    )]
+    fn bad_lists(#[case] text: &str, #[case] want: &str) {
+        let e = parse_scan_list(text, "l.toml").unwrap_err().to_string();
+        assert!(e.contains(want), "{e}");
+    }
+}
