@@ -225,6 +225,32 @@ pub enum Command {
         #[arg(long, value_name = "N")]
         cycles: Option<u64>,
     },
+    /// The scanner with its web console: `--listen ADDR` serves the network, device and trace
+    /// views (and their JSON API) while every node of the scan list is kept in I/O; samples go to
+    /// an SQLite history, and with --mqtt to a broker.
+    Ui {
+        /// The address to serve the console on (port 0: any free port; the URL is printed).
+        #[arg(long, default_value = "127.0.0.1:8080", value_name = "ADDR")]
+        listen: String,
+        /// The scan list (TOML) [default: built from a network scan].
+        #[arg(long, value_name = "FILE.toml")]
+        scanlist: Option<PathBuf>,
+        /// The sample history (SQLite; created when missing).
+        #[arg(long, value_name = "FILE", default_value = "dnet-history.sqlite")]
+        history: PathBuf,
+        /// Keep no history (the device view's plot and the CSV export then have nothing).
+        #[arg(long)]
+        no_history: bool,
+        /// Publish node status and decoded values to an MQTT broker: mqtt://HOST[:PORT][/PREFIX].
+        #[arg(long, value_name = "URL")]
+        mqtt: Option<String>,
+        /// Where the console's recordings go.
+        #[arg(long, value_name = "DIR", default_value = ".")]
+        record_dir: PathBuf,
+        /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
+        #[arg(long, value_name = "N")]
+        cycles: Option<u64>,
+    },
     /// Get_Attribute_Single.
     Get {
         /// Device MAC ID.
@@ -390,7 +416,8 @@ pub fn open_bus(
         (PowerOn::WhenMasterOnline, Some(after)) => PowerOn::At(Instant::ZERO + after),
         (policy, _) => policy,
     };
-    setup.realtime = cli.realtime;
+    // The console is watched by people: its simulation runs in real time.
+    setup.realtime = cli.realtime || matches!(cli.command, Command::Ui { .. });
     converter_sim::open_bus(&cli.bus, cli.bitrate, &setup).map_err(|e| match e {
         OpenError::Setup(msg) => HarnessError::Usage(msg),
         OpenError::Bus(e) => HarnessError::from(e),
@@ -514,7 +541,7 @@ fn command_device(
                 }
             }
         }
-        Command::Scan { .. } | Command::Decode { .. } | Command::Scanner { .. } => None,
+        Command::Scan { .. } | Command::Decode { .. } | Command::Scanner { .. } | Command::Ui { .. } => None,
     })
 }
 
@@ -714,6 +741,17 @@ fn execute(
             HarnessError::Write { source, .. } => werr(source),
             other => other,
         });
+    }
+    if let Command::Ui { listen, scanlist, history, no_history, mqtt, record_dir, cycles } = &cli.command {
+        let args = crate::ui::command::UiArgs {
+            listen: listen.clone(),
+            scanlist: scanlist.clone(),
+            history: (!no_history).then(|| history.clone()),
+            mqtt: mqtt.clone(),
+            record_dir: record_dir.clone(),
+            cycles: *cycles,
+        };
+        return crate::ui::command::execute(cli, &args, out, err, console);
     }
     if let Command::Scanner { scanlist, write_scanlist, cycles } = &cli.command {
         let args = crate::scanner::command::ScannerArgs {
@@ -930,7 +968,10 @@ fn execute(
         Command::Params { mac, eds: eds_file, set } => {
             params_command(&mut master, *mac, eds_file.as_deref(), set)
         }
-        Command::Decode { .. } | Command::Conformance { .. } | Command::Scanner { .. } => {
+        Command::Decode { .. }
+        | Command::Conformance { .. }
+        | Command::Scanner { .. }
+        | Command::Ui { .. } => {
             unreachable!("handled above")
         }
     };

@@ -964,7 +964,7 @@ impl Scanner {
                     None => (r.meaning.clone(), None),
                 };
                 FrameRow {
-                    seq: r.index as u64,
+                    seq: r.index as u64 + 1,
                     time_us: r.at.total_micros(),
                     frame: r.frame.to_string(),
                     id: r.frame.id().as_raw(),

@@ -59,6 +59,7 @@
 //! [`ConsoleCommand`]: crate::scanner::model::ConsoleCommand
 
 mod api;
+pub mod command;
 mod record;
 
 pub use api::{known_descriptions, layout_for};

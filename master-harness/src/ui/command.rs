@@ -1,0 +1,273 @@
+//! `dnet-master ui`: the scanner ([`crate::scanner`]) and its web console ([`super::serve`]) in one
+//! program, with the sample history ([`crate::history`]) and, with `--mqtt`, the publisher
+//! ([`crate::mqtt`]).
+//!
+//! The console is served before the bus is touched, and its address printed on a line of its own
+//! (`console at http://127.0.0.1:8080/`), so a page opened at once follows the bring-up. Then the
+//! scanner's loop runs, one full scan cycle at a time; between cycles it carries out the console's
+//! commands, publishes the state and the frames to the console, records the samples and publishes
+//! them. On the simulated bus the simulation runs in real time (a console is watched by people).
+//!
+//! What is kept in the history: every change of a node's input image, and one sample a second while
+//! it stays the same ([`SAMPLE_EVERY_MS`]): a poll every 10 ms of an instrument that reports once a
+//! second would otherwise store a hundred copies of each report.
+//!
+//! It runs until SIGINT / SIGTERM (exit 130 / 143) or `--cycles N`; then every node is released,
+//! the server stopped (a recording closed) and the nodes' table printed. A history file or a
+//! listening address that cannot be used is an error (exit 2) before the bus is touched; a broker
+//! that is down is not: the console and MQTT status say so and the scanner scans on.
+
+use super::serve;
+use crate::cli::{open_bus, Cli};
+use crate::console::{Console, Progress};
+use crate::error::HarnessError;
+use crate::history::History;
+use crate::monitor::InputLayout;
+use crate::mqtt::Publisher;
+use crate::scanner::model::{HistoryStore, Sample, Shared};
+use crate::scanner::{build_scan_list, parse_scan_list, Scanner, ScannerOptions};
+use can_io::bus::BusSpec;
+use devicenet::{Duration, MacId};
+use master_core::error::MasterError;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
+use slave_fw::description::DeviceDescription;
+use std::collections::{HashMap, VecDeque};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::{mpsc, Arc, Mutex};
+
+/// A sample is stored when the input changed, or this long after the node's last stored one.
+pub const SAMPLE_EVERY_MS: i64 = 1000;
+
+/// What `ui` was asked.
+#[derive(Clone, Debug)]
+pub struct UiArgs {
+    /// `--listen ADDR`.
+    pub listen: String,
+    /// `--scanlist FILE.toml`.
+    pub scanlist: Option<PathBuf>,
+    /// `--history FILE` (`None`: `--no-history`).
+    pub history: Option<PathBuf>,
+    /// `--mqtt URL`.
+    pub mqtt: Option<String>,
+    /// `--record-dir DIR`.
+    pub record_dir: PathBuf,
+    /// `--cycles N`.
+    pub cycles: Option<u64>,
+}
+
+/// The history shared by the loop (which records) and the console (which reads).
+struct SharedHistory(Arc<History>);
+
+impl HistoryStore for SharedHistory {
+    fn samples(&self, mac: u8, from_ms: i64, to_ms: i64, limit: usize) -> Result<Vec<Sample>, String> {
+        self.0.samples(mac, from_ms, to_ms, limit)
+    }
+
+    fn export_csv(
+        &self,
+        mac: Option<u8>,
+        from_ms: i64,
+        to_ms: i64,
+        out: &mut dyn Write,
+    ) -> Result<usize, String> {
+        self.0.export_csv(mac, from_ms, to_ms, out)
+    }
+}
+
+/// Keeps the samples worth storing: a changed input, or [`SAMPLE_EVERY_MS`] since the last one.
+#[derive(Default)]
+struct Thinning {
+    last: HashMap<u8, (i64, Vec<u8>)>,
+}
+
+impl Thinning {
+    fn keep(&mut self, samples: Vec<Sample>) -> Vec<Sample> {
+        samples
+            .into_iter()
+            .filter(|s| {
+                let keep = match self.last.get(&s.mac) {
+                    Some((at, input)) => *input != s.input || s.unix_ms - at >= SAMPLE_EVERY_MS,
+                    None => true,
+                };
+                if keep {
+                    self.last.insert(s.mac, (s.unix_ms, s.input.clone()));
+                }
+                keep
+            })
+            .collect()
+    }
+}
+
+fn exit_code(e: &HarnessError) -> u8 {
+    match e {
+        HarnessError::Usage(_)
+        | HarnessError::Log(_)
+        | HarnessError::Description(_)
+        | HarnessError::Write { .. }
+        | HarnessError::Master(MasterError::Invalid(_)) => 2,
+        HarnessError::Master(MasterError::Interrupted { signal }) => master_core::stop::exit_status(*signal),
+        _ => 1,
+    }
+}
+
+/// Runs `ui`; returns the exit status (errors before the bus is touched are returned).
+pub fn execute(
+    cli: &Cli,
+    args: &UiArgs,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+    console: &Console,
+) -> Result<u8, HarnessError> {
+    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    // Everything that can be refused, before the bus is touched.
+    let given = match &args.scanlist {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| {
+                HarnessError::Usage(format!("{}: cannot read the scan list: {e}", path.display()))
+            })?;
+            Some(parse_scan_list(&text, &path.display().to_string())?)
+        }
+        None => None,
+    };
+    let history = match &args.history {
+        Some(path) => Some(Arc::new(History::open(path).map_err(|e| HarnessError::Usage(e.to_string()))?)),
+        None => None,
+    };
+    let publisher = match &args.mqtt {
+        Some(url) => Some(
+            Publisher::start(url, "dnet-master")
+                .map_err(|e| HarnessError::Usage(format!("--mqtt {url}: {e}")))?,
+        ),
+        None => None,
+    };
+    let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
+    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let (commands, command_rx) = mpsc::channel();
+    let placeholder = Scanner::new(Default::default(), master_mac.as_raw(), ScannerOptions::default());
+    let shared = Arc::new(Shared {
+        state: Mutex::new(placeholder.state().clone()),
+        frames: Mutex::new(VecDeque::new()),
+        commands: Mutex::new(commands),
+        history: history.as_ref().map(|h| Box::new(SharedHistory(Arc::clone(h))) as Box<dyn HistoryStore>),
+        record_dir: args.record_dir.clone(),
+        mqtt: Mutex::new(publisher.as_ref().map(Publisher::status)),
+    });
+    let server = serve(&args.listen, Arc::clone(&shared))?;
+    writeln!(out, "console at {}", server.url()).map_err(werr)?;
+    out.flush().map_err(werr)?;
+
+    let mut bus = open_bus(cli, slave.as_ref().map(|d| &d.converter), None, None)?;
+    let mut session = Session::new(bus.as_mut());
+    session.set_stop(console.stop.clone());
+    let config = MasterConfig {
+        mac: master_mac,
+        response_timeout: Duration::from_millis(cli.timeout.max(1)),
+        ..MasterConfig::default()
+    };
+    let mut master = Master::new(&mut session, config);
+    let mut progress = if console.stderr_terminal { Progress::on(&mut *err) } else { Progress::off() };
+    let sim_layout = match (&cli.bus, &slave) {
+        (BusSpec::Sim, Some(d)) => Some(InputLayout::from_converter(&d.converter)),
+        (BusSpec::Sim, None) => Some(InputLayout::from_converter(&DeviceDescription::reference().converter)),
+        _ => None,
+    };
+    let mut scanner: Option<Scanner> = None;
+    let mut thinning = Thinning::default();
+    let mut history_error: Option<String> = None;
+    let result = (|| -> Result<(), HarnessError> {
+        let list = match given.clone() {
+            Some(l) => l,
+            None => {
+                progress.show("ui: building the scan list from a network scan ...");
+                build_scan_list(&mut master, 0, 63)?
+            }
+        };
+        if list.nodes.is_empty() {
+            return Err(HarnessError::NothingCompared("the scan list is empty: no node to scan".into()));
+        }
+        let layouts: HashMap<u8, InputLayout> = match &sim_layout {
+            Some(l) => list.nodes.iter().map(|n| (n.mac, l.clone())).collect(),
+            None => HashMap::new(),
+        };
+        let options = ScannerOptions { cycles: args.cycles, bitrate: cli.bitrate, layouts };
+        let s = scanner.insert(Scanner::new(list, master_mac.as_raw(), options));
+        progress.show(&format!("ui: bringing {} node(s) into I/O ...", s.state().nodes.len()));
+        s.start(&mut master)?;
+        progress.clear();
+        loop {
+            if let Ok(mut state) = shared.state.lock() {
+                state.clone_from(s.state());
+            }
+            shared.push_frames(s.take_frames(&mut master));
+            if args.cycles.is_some_and(|c| s.state().cycles >= c) {
+                return Ok(());
+            }
+            s.cycle(&mut master)?;
+            while let Ok(command) = command_rx.try_recv() {
+                s.command(&mut master, command);
+            }
+            let samples = thinning.keep(s.take_samples());
+            if let (Some(h), false) = (&history, samples.is_empty()) {
+                match h.record(&samples) {
+                    Ok(()) => history_error = None,
+                    // A full disk must not stop the scanner: said once, tried again next cycle.
+                    Err(e) if history_error.is_none() => {
+                        progress.show(&format!("ui: the history cannot record: {e}"));
+                        history_error = Some(e.to_string());
+                    }
+                    Err(_) => {}
+                }
+            }
+            if let Some(p) = &publisher {
+                p.publish_state(s.state());
+                p.publish_samples(&samples);
+                if let Ok(mut status) = shared.mqtt.lock() {
+                    *status = Some(p.status());
+                }
+            }
+        }
+    })();
+    progress.clear();
+    drop(progress);
+    server.stop();
+    let interrupted = match &result {
+        Err(HarnessError::Master(MasterError::Interrupted { signal })) => Some(*signal),
+        _ => None,
+    };
+    master.session.take_stop();
+    let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
+    let mut cleanup: Vec<HarnessError> = Vec::new();
+    if !bus_failed && !cli.keep {
+        if let Some(s) = &mut scanner {
+            if let Err(e) = s.stop(&mut master) {
+                cleanup.push(e);
+            }
+        } else if let Err(e) = master.release_held() {
+            cleanup.push(HarnessError::Release(Box::new(e)));
+        }
+    }
+    drop(publisher);
+    let code = match &result {
+        Ok(()) if cleanup.is_empty() => 0,
+        Ok(()) => 1,
+        Err(e) => exit_code(e),
+    };
+    if let Some(s) = &scanner {
+        write!(out, "{}", crate::scanner::command::table(s.state())).map_err(werr)?;
+    }
+    if let Some(sig) = interrupted {
+        writeln!(err, "interrupted by {}: every node released", master_core::stop::signal_name(sig))
+            .map_err(werr)?;
+    } else if let Err(e) = &result {
+        writeln!(err, "error: {e}").map_err(werr)?;
+    }
+    for e in &cleanup {
+        writeln!(err, "error: {e}").map_err(werr)?;
+    }
+    if let Some(e) = history_error {
+        writeln!(err, "warning: the history could not record every sample: {e}").map_err(werr)?;
+    }
+    Ok(code)
+}
