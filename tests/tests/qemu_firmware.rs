@@ -42,8 +42,12 @@ use devicenet::{CanFrame, Duration, Instant};
 use master_core::error::MasterError;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::{Session, Verdict};
+use master_harness::monitor::InputLayout;
+use master_harness::scanner::model::{ConsoleCommand, NodeStatus, ScanEntry, ScanList};
+use master_harness::scanner::{Scanner, ScannerOptions};
 use master_harness::table::print_table;
 use serialport::SerialPort;
+use slave_fw::description::DeviceDescription;
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
@@ -460,6 +464,69 @@ fn run(session: &mut Session<'_>, breaker: &BreakerRig) -> Result<(), String> {
     let commands = breaker.commands();
     if commands != [BreakerCommand::Close, BreakerCommand::Open] {
         return Err(format!("the breaker received {commands:?}, expected one close and one open"));
+    }
+    scanner(&mut master, breaker)
+}
+
+/// The scanner of `dnet-master scanner` and `ui` keeps the board in I/O (issue 15): its electronic
+/// key and sizes as the scan list says, the input decoded by the breaker's profile, and a close put
+/// in the output image through a console command reaching the breaker once.
+fn scanner(master: &mut Master<'_, '_>, breaker: &BreakerRig) -> Result<(), String> {
+    master.release_held().map_err(|e| e.to_string())?;
+    let node = ScanEntry {
+        mac: 5,
+        connection: "poll".into(),
+        vendor_id: Some(0x1234),
+        device_type: Some(12),
+        product_code: Some(1),
+        major_revision: None,
+        input_size: 18,
+        output_size: 8,
+        name: None,
+    };
+    let list = ScanList { nodes: vec![node], ..ScanList::default() };
+    let layout = InputLayout::from_converter(&DeviceDescription::reference().converter);
+    let options = ScannerOptions { cycles: None, bitrate: Bitrate::K250, layouts: [(5, layout)].into() };
+    let mut scanner = Scanner::new(list, 0, options);
+    scanner.start(master).map_err(|e| format!("scanner start: {e}"))?;
+    for _ in 0..20 {
+        scanner.cycle(master).map_err(|e| format!("scanner cycle: {e}"))?;
+    }
+    let node = scanner.state().nodes[0].clone();
+    if node.status != NodeStatus::Ok
+        || node.identity.product_name.as_deref() != Some("Serial-DeviceNet Bridge")
+    {
+        return Err(format!("the scanner's node 5: {node:?}"));
+    }
+    let samples = scanner.take_samples();
+    if !samples.iter().any(|s| s.mac == 5 && s.values.iter().any(|(name, _)| name == "phase_a")) {
+        return Err(format!("no decoded sample of node 5 in {} samples", samples.len()));
+    }
+    let (reply, answer) = mpsc::channel();
+    let data = vec![COMMAND_CLOSE, 3, 0, 0, 0, 0, 0, 0];
+    scanner.command(master, ConsoleCommand::SetOutput { mac: 5, data, reply });
+    answer.recv().map_err(|e| e.to_string())?.map_err(|e| format!("SetOutput refused: {e}"))?;
+    // The breaker reports once a second: the close shows within STATE_CHANGE_LIMIT of bus time.
+    let deadline = master.session.now() + STATE_CHANGE_LIMIT;
+    let mut closed = false;
+    while master.session.now() < deadline {
+        scanner.cycle(master).map_err(|e| format!("scanner cycle: {e}"))?;
+        if scanner.state().nodes[0].input.get(SWITCH_BYTE) == Some(&SWITCH_CLOSED) {
+            closed = true;
+            break;
+        }
+    }
+    scanner.stop(master).map_err(|e| format!("scanner stop: {e}"))?;
+    if !closed || breaker.switch_state() != SwitchState::Closed {
+        return Err(format!(
+            "the scanner's close: input {:02X?}, breaker {:?}",
+            scanner.state().nodes[0].input,
+            breaker.switch_state()
+        ));
+    }
+    let commands = breaker.commands();
+    if commands != [BreakerCommand::Close, BreakerCommand::Open, BreakerCommand::Close] {
+        return Err(format!("the breaker received {commands:?}, expected close, open, close"));
     }
     Ok(())
 }
