@@ -515,7 +515,7 @@ impl Scanner {
             (Step::Allocate, ReplyBody::Success(_)) => {
                 n.allocated = AllocationChoice::EXPLICIT | AllocationChoice::POLL;
                 let mut steps: Vec<Step> =
-                    [1u8, 2, 3, 4, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
+                    [1u8, 2, 3, 4, 6, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
                 steps.extend([
                     Step::Get(class::CONNECTION, 2, 7),
                     Step::Get(class::CONNECTION, 2, 8),
@@ -556,6 +556,12 @@ impl Scanner {
                     (class::IDENTITY, 1, 4) => {
                         id.revision = match data.as_slice() {
                             [maj, min] => Some(format!("{maj}.{min}")),
+                            _ => None,
+                        }
+                    }
+                    (class::IDENTITY, 1, 6) => {
+                        id.serial_number = match data.as_slice() {
+                            [a, b, c, d] => Some(u32::from_le_bytes([*a, *b, *c, *d])),
                             _ => None,
                         }
                     }

@@ -208,7 +208,15 @@ pub fn execute(
             while let Ok(command) = command_rx.try_recv() {
                 s.command(&mut master, command);
             }
-            let samples = thinning.keep(s.take_samples());
+            let mut samples = thinning.keep(s.take_samples());
+            // Where the bus gave no profile (a real bus), the node's identity does: the values of a
+            // known device are decoded for the history and MQTT as for the device view.
+            for sample in samples.iter_mut().filter(|x| x.values.is_empty()) {
+                if let Some(node) = s.state().nodes.iter().find(|n| n.mac == sample.mac) {
+                    let layout = super::layout_for(node, super::known_descriptions());
+                    sample.values = crate::scanner::sample_values(&layout, &sample.input);
+                }
+            }
             if let (Some(h), false) = (&history, samples.is_empty()) {
                 match h.record(&samples) {
                     Ok(()) => history_error = None,
