@@ -241,7 +241,7 @@ pub enum Command {
         /// Keep no history (the device view's plot and the CSV export then have nothing).
         #[arg(long)]
         no_history: bool,
-        /// Publish node status and decoded values to an MQTT broker: mqtt://HOST[:PORT][/PREFIX].
+        /// Publish node status and decoded values to an MQTT broker: `mqtt://HOST[:PORT][/PREFIX]`.
         #[arg(long, value_name = "URL")]
         mqtt: Option<String>,
         /// Where the console's recordings go.
