@@ -90,9 +90,9 @@ pub enum NodeStatus {
     TimedOut,
     /// It answered an allocation or configuration request with an error (code 83).
     ErrorResponse,
-    /// Its duplicate MAC ID check failed: Communication Faulted (code 70 is the scanner's own
-    /// duplicate; a node's is shown as 78 by AB scanners; ours says it: code 79 is not used for
-    /// this, see [`NodeStatus::code`]).
+    /// Two devices at the MAC: one of them failed its duplicate MAC ID check and is Communication
+    /// Faulted. The scanner codes have none for it (70 is the scanner's own duplicate): shown as 78,
+    /// with this status's name, see [`NodeStatus::code`].
     CommunicationFaulted,
     /// Being brought into I/O (code 84).
     Initializing,
