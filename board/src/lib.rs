@@ -11,8 +11,7 @@
 //! | [`filters`] | the acceptance list: this node's Group 2 identifiers only | yes |
 //! | [`switches`] | DIP switch decoding and the MAC/baud/"changed" decision at reset | yes |
 //! | [`leds`] | MS/NS bicolour LED pin levels | yes |
-//! | [`settings`] | the power-safe settings journal (CRC-32, two sectors, sequence numbers) | yes |
-//! | [`crc32`] | CRC-32 for the settings records | yes |
+//! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
 //! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make | yes |
 //! | `hw` | peripheral set-up, the flash sector driver (the emulated board's: a host file over semihosting), CAN error status (`target_os = "none"` only) | – |
@@ -40,7 +39,6 @@ extern crate std;
 
 pub mod bit_timing;
 pub mod clocks;
-pub mod crc32;
 pub mod filters;
 pub mod leds;
 pub mod memory;

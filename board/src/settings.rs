@@ -45,8 +45,8 @@
 //! | 16–635 | configuration image, then 0 |
 //! | 636–639 | CRC-32 of bytes 0–635 |
 
-use crate::crc32::crc32;
 use core::fmt;
+use devicenet::crc32::crc32;
 use devicenet::slave::BaudRate;
 use devicenet::MacId;
 

@@ -21,6 +21,7 @@
 //! | [`slave`] | the group-2-only [`SlaveNode`], one file per concern (below) |
 //! | [`led`] | Module/Network Status LED indications, flashing and the power-up test |
 //! | [`reference`](mod@reference) | the reference 28-frame bring-up of notes §2, the golden transcript every test compares with |
+//! | [`crc32`](mod@crc32) | CRC-32 (IEEE 802.3), not DeviceNet's: the one the board's settings records and the converter's configuration image share |
 //!
 //! [`messages`] holds one file per message family, every type re-exported as
 //! `devicenet::messages::Name`:
@@ -81,6 +82,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod crc32;
 pub mod explicit;
 pub mod fragment;
 pub mod frame;

@@ -106,14 +106,9 @@ pub const BREAKER_REFERENCE: [u8; 98] = [
     0xED, 0x08, 0x0D, 0x0A, // CRC-32
 ];
 
-/// The CRC-32 of the image (IEEE 802.3 / zlib: `"123456789"` gives `0xCBF43926`), computed bit by
-/// bit: the smallest code, fast enough for a few hundred bytes.
-const CRC32: crc::Crc<u32, crc::NoTable> = crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
-
-/// The CRC-32 (IEEE 802.3, zlib) of `bytes`, as the image trailer holds it.
-pub fn crc32(bytes: &[u8]) -> u32 {
-    CRC32.checksum(bytes)
-}
+/// The CRC-32 (IEEE 802.3, zlib: `"123456789"` gives `0xCBF43926`) of `bytes`, as the image
+/// trailer holds it: the firmware's one CRC-32, shared with the board's settings records.
+pub use devicenet::crc32::crc32;
 
 /// Why an image was refused (or could not be written).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
