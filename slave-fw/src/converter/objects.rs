@@ -25,7 +25,7 @@ use super::InputAssembly;
 use crate::serial::modbus::ModbusConfig;
 use crate::serial::{
     Counter, FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile,
-    ProfileConfig, StalePolicy, StopBits,
+    ProfileConfig, SerialSettings, StalePolicy, StopBits,
 };
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::{ObjectHandler, Reply, ServiceError};
@@ -417,32 +417,50 @@ impl SettingsValues {
 
     fn framed(c: &FramedProfileConfig, input: InputAssembly) -> SettingsValues {
         let s = &c.sequencer;
-        SettingsValues {
-            baud: c.serial.baud,
-            parity: c.serial.parity,
-            stop_bits: c.serial.stop_bits,
-            health: c.health,
+        SettingsValues::new(
+            &c.serial,
+            c.health,
             input,
-            response_timeout_ms: s.response_timeout_ms,
-            retries: s.retries,
-            idle_frame: sends(&s.on_idle),
-            fault_frame: sends(&s.on_fault),
-            modbus: false,
-        }
+            s.response_timeout_ms,
+            s.retries,
+            [&s.on_idle, &s.on_fault],
+            false,
+        )
     }
 
     fn modbus(c: &ModbusConfig, input: InputAssembly) -> SettingsValues {
-        SettingsValues {
-            baud: c.serial.baud,
-            parity: c.serial.parity,
-            stop_bits: c.serial.stop_bits,
-            health: c.health,
+        SettingsValues::new(
+            &c.serial,
+            c.health,
             input,
-            response_timeout_ms: c.response_timeout_ms,
-            retries: c.retries,
-            idle_frame: sends(&c.on_idle),
-            fault_frame: sends(&c.on_fault),
-            modbus: true,
+            c.response_timeout_ms,
+            c.retries,
+            [&c.on_idle, &c.on_fault],
+            true,
+        )
+    }
+
+    /// The values from either profile's parts: one body for both (firmware size budget).
+    fn new(
+        serial: &SerialSettings,
+        health: HealthConfig,
+        input: InputAssembly,
+        response_timeout_ms: u32,
+        retries: u8,
+        [on_idle, on_fault]: [&IdleAction; 2],
+        modbus: bool,
+    ) -> SettingsValues {
+        SettingsValues {
+            baud: serial.baud,
+            parity: serial.parity,
+            stop_bits: serial.stop_bits,
+            health,
+            input,
+            response_timeout_ms,
+            retries,
+            idle_frame: sends(on_idle),
+            fault_frame: sends(on_fault),
+            modbus,
         }
     }
 }
