@@ -436,7 +436,7 @@ struct Outcome {
 /// The exit status for an error: 2 for usage and configuration errors (bad option or file, a
 /// description refused, an output file that cannot be written), 128 + the signal for an
 /// interruption, 1 for everything the device or the bus did.
-fn exit_code(e: &HarnessError) -> u8 {
+pub(crate) fn exit_code(e: &HarnessError) -> u8 {
     match e {
         HarnessError::Usage(_)
         | HarnessError::Log(_)

@@ -8,8 +8,8 @@
 //! full cycle), `bus_load` and `nodes`. Exit 0 when every node ended ok, 1 otherwise, 2 for a usage
 //! or scan list error.
 
-use super::{build_scan_list, parse_scan_list, write_scan_list, Scanner, ScannerOptions};
-use crate::cli::{open_bus, Cli};
+use super::{build_scan_list, read_scan_list, write_scan_list, Scanner, ScannerOptions};
+use crate::cli::{exit_code, open_bus, Cli};
 use crate::console::{Console, Progress};
 use crate::error::HarnessError;
 use crate::monitor::InputLayout;
@@ -38,18 +38,6 @@ pub struct ScannerArgs {
     pub cycles: Option<u64>,
 }
 
-fn exit_code(e: &HarnessError) -> u8 {
-    match e {
-        HarnessError::Usage(_)
-        | HarnessError::Log(_)
-        | HarnessError::Description(_)
-        | HarnessError::Write { .. }
-        | HarnessError::Master(MasterError::Invalid(_)) => 2,
-        HarnessError::Master(MasterError::Interrupted { signal }) => master_core::stop::exit_status(*signal),
-        _ => 1,
-    }
-}
-
 /// Runs `scanner`; returns the exit status (errors before the bus is touched are returned).
 pub fn execute(
     cli: &Cli,
@@ -59,15 +47,7 @@ pub fn execute(
     console: &Console,
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
-    let given = match &args.scanlist {
-        Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|e| {
-                HarnessError::Usage(format!("{}: cannot read the scan list: {e}", path.display()))
-            })?;
-            Some(parse_scan_list(&text, &path.display().to_string())?)
-        }
-        None => None,
-    };
+    let given = args.scanlist.as_deref().map(read_scan_list).transpose()?;
     let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
     let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
     let mut bus = open_bus(cli, slave.as_ref().map(|d| &d.converter), None, None)?;

@@ -72,6 +72,14 @@ struct SpannedList {
     node: Vec<toml::Spanned<SpannedNode>>,
 }
 
+/// Reads the scan list file at `path` ([`parse_scan_list`]); a file that cannot be read is a usage
+/// error naming it.
+pub fn read_scan_list(path: &std::path::Path) -> Result<ScanList, HarnessError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| HarnessError::Usage(format!("{}: cannot read the scan list: {e}", path.display())))?;
+    parse_scan_list(&text, &path.display().to_string())
+}
+
 /// Reads a scan list from `text` (`file` names it in errors). Every error is a usage error naming
 /// the file, line, column and key: TOML syntax, an unknown key, a value of the wrong type, a MAC
 /// above 63 or given twice, a size above 448 bytes, a connection type other than `poll`.

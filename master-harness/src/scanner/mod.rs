@@ -64,7 +64,7 @@ pub mod command;
 pub mod list;
 pub mod model;
 
-pub use list::{parse_scan_list, write_scan_list};
+pub use list::{parse_scan_list, read_scan_list, write_scan_list};
 
 use crate::error::HarnessError;
 use crate::monitor::InputLayout;

@@ -18,14 +18,14 @@
 //! that is down is not: the console and MQTT status say so and the scanner scans on.
 
 use super::serve;
-use crate::cli::{open_bus, Cli};
+use crate::cli::{exit_code, open_bus, Cli};
 use crate::console::{Console, Progress};
 use crate::error::HarnessError;
 use crate::history::History;
 use crate::monitor::InputLayout;
 use crate::mqtt::Publisher;
 use crate::scanner::model::{HistoryStore, Sample, Shared};
-use crate::scanner::{build_scan_list, parse_scan_list, Scanner, ScannerOptions};
+use crate::scanner::{build_scan_list, read_scan_list, Scanner, ScannerOptions};
 use can_io::bus::BusSpec;
 use devicenet::{Duration, MacId};
 use master_core::error::MasterError;
@@ -100,18 +100,6 @@ impl Thinning {
     }
 }
 
-fn exit_code(e: &HarnessError) -> u8 {
-    match e {
-        HarnessError::Usage(_)
-        | HarnessError::Log(_)
-        | HarnessError::Description(_)
-        | HarnessError::Write { .. }
-        | HarnessError::Master(MasterError::Invalid(_)) => 2,
-        HarnessError::Master(MasterError::Interrupted { signal }) => master_core::stop::exit_status(*signal),
-        _ => 1,
-    }
-}
-
 /// Runs `ui`; returns the exit status (errors before the bus is touched are returned).
 pub fn execute(
     cli: &Cli,
@@ -122,15 +110,7 @@ pub fn execute(
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     // Everything that can be refused, before the bus is touched.
-    let given = match &args.scanlist {
-        Some(path) => {
-            let text = std::fs::read_to_string(path).map_err(|e| {
-                HarnessError::Usage(format!("{}: cannot read the scan list: {e}", path.display()))
-            })?;
-            Some(parse_scan_list(&text, &path.display().to_string())?)
-        }
-        None => None,
-    };
+    let given = args.scanlist.as_deref().map(read_scan_list).transpose()?;
     let history = match &args.history {
         Some(path) => Some(Arc::new(History::open(path).map_err(|e| HarnessError::Usage(e.to_string()))?)),
         None => None,
