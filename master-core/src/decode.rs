@@ -308,7 +308,8 @@ pub fn body_format_text(format: BodyFormat) -> String {
     }
 }
 
-fn u16_of(data: &[u8]) -> Option<u16> {
+/// A u16 attribute value (little-endian, exactly 2 bytes).
+pub fn u16_of(data: &[u8]) -> Option<u16> {
     match data {
         [a, b] => Some(u16::from_le_bytes([*a, *b])),
         _ => None,

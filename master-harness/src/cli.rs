@@ -1195,12 +1195,12 @@ fn scan_outcome(r: &ScanReport) -> Outcome {
         text.push_str(&format!(
             "{:>3}  {:<6}  {:<6}  {:>7}  {:<5}  {:<10}  {:<26}  {:<9}  {}\n",
             d.mac,
-            opt16(d.vendor_id),
-            opt16(d.device_type),
-            d.product_code.map_or_else(|| "-".into(), |v| v.to_string()),
-            d.revision.clone().unwrap_or_else(|| "-".into()),
-            d.serial_number.map_or_else(|| "-".into(), |v| format!("0x{v:08X}")),
-            d.product_name.clone().unwrap_or_else(|| "-".into()),
+            opt16(d.identity.vendor_id),
+            opt16(d.identity.device_type),
+            d.identity.product_code.map_or_else(|| "-".into(), |v| v.to_string()),
+            d.identity.revision.clone().unwrap_or_else(|| "-".into()),
+            d.identity.serial_number.map_or_else(|| "-".into(), |v| format!("0x{v:08X}")),
+            d.identity.product_name.clone().unwrap_or_else(|| "-".into()),
             io,
             d.note.as_ref().map_or_else(|| d.status.clone(), |n| format!("{} ({n})", d.status))
         ));

@@ -15,13 +15,14 @@
 
 use crate::console::Progress;
 use crate::error::HarnessError;
+use crate::scanner::model::Identity;
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Identifier, Instant, MacId};
 use master_core::client::{ClientError, Handled, Port, ReplyBody, Transaction};
-use master_core::decode::{self, short_string};
+use master_core::decode;
 use master_core::master::Master;
 use std::collections::VecDeque;
 
@@ -35,18 +36,9 @@ pub struct ScannedDevice {
     /// What else happened (a set of this master's released and allocated again).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
-    /// Identity attribute 1.
-    pub vendor_id: Option<u16>,
-    /// Identity attribute 2.
-    pub device_type: Option<u16>,
-    /// Identity attribute 3.
-    pub product_code: Option<u16>,
-    /// Identity attribute 4, `major.minor`.
-    pub revision: Option<String>,
-    /// Identity attribute 6.
-    pub serial_number: Option<u32>,
-    /// Identity attribute 7.
-    pub product_name: Option<String>,
+    /// Identity attributes 1-4, 6 and 7 (in the JSON as fields of the device).
+    #[serde(flatten)]
+    pub identity: Identity,
     /// Connection 2 attribute 7 (poll response size).
     pub produced_size: Option<u16>,
     /// Connection 2 attribute 8 (poll command size).
@@ -198,30 +190,13 @@ impl Node {
                 self.steps.clear();
             }
             (Step::Get(c, i, a), ReplyBody::Success(data)) => {
-                let u16v = match data.as_slice() {
-                    [x, y] => Some(u16::from_le_bytes([*x, *y])),
-                    _ => None,
-                };
                 let d = &mut self.device;
                 match (c, i, a) {
-                    (class::IDENTITY, 1, 1) => d.vendor_id = u16v,
-                    (class::IDENTITY, 1, 2) => d.device_type = u16v,
-                    (class::IDENTITY, 1, 3) => d.product_code = u16v,
-                    (class::IDENTITY, 1, 4) => {
-                        d.revision = match data.as_slice() {
-                            [maj, min] => Some(format!("{maj}.{min}")),
-                            _ => None,
-                        }
+                    (class::IDENTITY, 1, a) => {
+                        d.identity.take_attribute(a, &data);
                     }
-                    (class::IDENTITY, 1, 6) => {
-                        d.serial_number = match data.as_slice() {
-                            [a, b, c, e] => Some(u32::from_le_bytes([*a, *b, *c, *e])),
-                            _ => None,
-                        }
-                    }
-                    (class::IDENTITY, 1, 7) => d.product_name = short_string(&data),
-                    (class::CONNECTION, 2, 7) => d.produced_size = u16v,
-                    (class::CONNECTION, 2, 8) => d.consumed_size = u16v,
+                    (class::CONNECTION, 2, 7) => d.produced_size = decode::u16_of(&data),
+                    (class::CONNECTION, 2, 8) => d.consumed_size = decode::u16_of(&data),
                     _ => {}
                 }
             }

@@ -20,13 +20,13 @@ fn finds_every_device_with_identity_and_sizes() {
     assert_eq!(report.asked, 63);
     for d in &report.devices {
         assert_eq!(d.status, "ok");
-        assert_eq!(d.vendor_id, Some(0x1234));
-        assert_eq!(d.device_type, Some(0x000C));
-        assert_eq!(d.product_code, Some(1));
-        assert_eq!(d.revision.as_deref(), Some("1.1"));
-        assert_eq!(d.product_name.as_deref(), Some("Serial-DeviceNet Bridge"));
+        assert_eq!(d.identity.vendor_id, Some(0x1234));
+        assert_eq!(d.identity.device_type, Some(0x000C));
+        assert_eq!(d.identity.product_code, Some(1));
+        assert_eq!(d.identity.revision.as_deref(), Some("1.1"));
+        assert_eq!(d.identity.product_name.as_deref(), Some("Serial-DeviceNet Bridge"));
         assert_eq!((d.produced_size, d.consumed_size), (Some(18), Some(8)));
-        assert_eq!(d.serial_number, Some(0x1234_5678 + u32::from(d.mac) - 5));
+        assert_eq!(d.identity.serial_number, Some(0x1234_5678 + u32::from(d.mac) - 5));
     }
     assert_eq!(session.failures(), 0);
 }

@@ -76,7 +76,7 @@ use devicenet::messages::{AllocateRequest, AllocationChoice, DuplicateMacCheck, 
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use master_core::client::{ClientError, Handled, Port, Reply, ReplyBody, Transaction};
-use master_core::decode::{self, short_string};
+use master_core::decode;
 use master_core::error::MasterError;
 use master_core::master::Master;
 use master_core::session::Verdict;
@@ -211,13 +211,6 @@ pub struct Scanner {
     frames_cursor: usize,
     /// (cycle length µs, bits on the wire) of the last cycles.
     history: VecDeque<(u64, u64)>,
-}
-
-fn u16_of(data: &[u8]) -> Option<u16> {
-    match data {
-        [a, b] => Some(u16::from_le_bytes([*a, *b])),
-        _ => None,
-    }
 }
 
 impl Scanner {
@@ -547,30 +540,14 @@ impl Scanner {
             }
             (Step::ReleaseKept(choice), _) => n.allocated = n.allocated.difference(choice),
             (Step::Release, _) => n.allocated = AllocationChoice::empty(),
-            (Step::Get(c, i, a), ReplyBody::Success(data)) => {
-                let id = &mut n.state.identity;
-                match (c, i, a) {
-                    (class::IDENTITY, 1, 1) => id.vendor_id = u16_of(&data),
-                    (class::IDENTITY, 1, 2) => id.device_type = u16_of(&data),
-                    (class::IDENTITY, 1, 3) => id.product_code = u16_of(&data),
-                    (class::IDENTITY, 1, 4) => {
-                        id.revision = match data.as_slice() {
-                            [maj, min] => Some(format!("{maj}.{min}")),
-                            _ => None,
-                        }
-                    }
-                    (class::IDENTITY, 1, 6) => {
-                        id.serial_number = match data.as_slice() {
-                            [a, b, c, d] => Some(u32::from_le_bytes([*a, *b, *c, *d])),
-                            _ => None,
-                        }
-                    }
-                    (class::IDENTITY, 1, 7) => id.product_name = short_string(&data),
-                    (class::CONNECTION, 2, 7) => n.state.input_size = u16_of(&data),
-                    (class::CONNECTION, 2, 8) => n.state.output_size = u16_of(&data),
-                    _ => {}
+            (Step::Get(c, i, a), ReplyBody::Success(data)) => match (c, i, a) {
+                (class::IDENTITY, 1, a) => {
+                    n.state.identity.take_attribute(a, &data);
                 }
-            }
+                (class::CONNECTION, 2, 7) => n.state.input_size = decode::u16_of(&data),
+                (class::CONNECTION, 2, 8) => n.state.output_size = decode::u16_of(&data),
+                _ => {}
+            },
             (Step::Get(c, i, a), ReplyBody::Error { general, additional }) => {
                 // Identity attributes are optional to read (the key then compares "nothing");
                 // the connection sizes are not.
@@ -1052,17 +1029,18 @@ pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<
             Some(ScanEntry {
                 mac: d.mac,
                 connection: "poll".into(),
-                vendor_id: d.vendor_id,
-                device_type: d.device_type,
-                product_code: d.product_code,
+                vendor_id: d.identity.vendor_id,
+                device_type: d.identity.device_type,
+                product_code: d.identity.product_code,
                 major_revision: d
+                    .identity
                     .revision
                     .as_deref()
                     .and_then(|r| r.split('.').next())
                     .and_then(|m| m.parse().ok()),
                 input_size: d.produced_size?,
                 output_size: d.consumed_size?,
-                name: d.product_name.clone(),
+                name: d.identity.product_name.clone(),
             })
         })
         .collect();

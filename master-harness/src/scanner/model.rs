@@ -149,6 +149,34 @@ pub struct Identity {
     pub product_name: Option<String>,
 }
 
+impl Identity {
+    /// Keeps the value of Identity attribute `attribute` (instance 1) as read: 1-3 as u16, 4 as
+    /// `major.minor`, 6 as u32, 7 the product name (a value of the wrong length is kept as
+    /// unknown); `false` for an attribute it does not hold.
+    pub fn take_attribute(&mut self, attribute: u8, data: &[u8]) -> bool {
+        match attribute {
+            1 => self.vendor_id = master_core::decode::u16_of(data),
+            2 => self.device_type = master_core::decode::u16_of(data),
+            3 => self.product_code = master_core::decode::u16_of(data),
+            4 => {
+                self.revision = match data {
+                    [major, minor] => Some(format!("{major}.{minor}")),
+                    _ => None,
+                }
+            }
+            6 => {
+                self.serial_number = match data {
+                    [a, b, c, d] => Some(u32::from_le_bytes([*a, *b, *c, *d])),
+                    _ => None,
+                }
+            }
+            7 => self.product_name = master_core::decode::short_string(data),
+            _ => return false,
+        }
+        true
+    }
+}
+
 /// One node as the scanner sees it now.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct NodeState {
@@ -322,6 +350,23 @@ pub trait HistoryStore: Send + Sync {
         to_ms: i64,
         out: &mut dyn Write,
     ) -> Result<usize, String>;
+}
+
+/// A history shared between the loop that records it and the console that reads it.
+impl<T: HistoryStore + ?Sized> HistoryStore for std::sync::Arc<T> {
+    fn samples(&self, mac: u8, from_ms: i64, to_ms: i64, limit: usize) -> Result<Vec<Sample>, String> {
+        (**self).samples(mac, from_ms, to_ms, limit)
+    }
+
+    fn export_csv(
+        &self,
+        mac: Option<u8>,
+        from_ms: i64,
+        to_ms: i64,
+        out: &mut dyn Write,
+    ) -> Result<usize, String> {
+        (**self).export_csv(mac, from_ms, to_ms, out)
+    }
 }
 
 /// How many frames the console's trace view keeps (the oldest are dropped).

@@ -57,25 +57,6 @@ pub struct UiArgs {
     pub cycles: Option<u64>,
 }
 
-/// The history shared by the loop (which records) and the console (which reads).
-struct SharedHistory(Arc<History>);
-
-impl HistoryStore for SharedHistory {
-    fn samples(&self, mac: u8, from_ms: i64, to_ms: i64, limit: usize) -> Result<Vec<Sample>, String> {
-        self.0.samples(mac, from_ms, to_ms, limit)
-    }
-
-    fn export_csv(
-        &self,
-        mac: Option<u8>,
-        from_ms: i64,
-        to_ms: i64,
-        out: &mut dyn Write,
-    ) -> Result<usize, String> {
-        self.0.export_csv(mac, from_ms, to_ms, out)
-    }
-}
-
 /// Keeps the samples worth storing: a changed input, or [`SAMPLE_EVERY_MS`] since the last one.
 #[derive(Default)]
 struct Thinning {
@@ -130,7 +111,7 @@ pub fn execute(
         state: Mutex::new(placeholder.state().clone()),
         frames: Mutex::new(VecDeque::new()),
         commands: Mutex::new(commands),
-        history: history.as_ref().map(|h| Box::new(SharedHistory(Arc::clone(h))) as Box<dyn HistoryStore>),
+        history: history.as_ref().map(|h| Box::new(Arc::clone(h)) as Box<dyn HistoryStore>),
         record_dir: args.record_dir.clone(),
         mqtt: Mutex::new(publisher.as_ref().map(Publisher::status)),
     });
