@@ -137,6 +137,24 @@ pub fn parse_log(text: &str, file: &str) -> Result<Vec<LogEntry>, LogError> {
 /// Reads and parses a log file; `-` reads standard input (as the candump tools do; a file named
 /// `-` is `./-`). An unreadable file is reported as line 0.
 pub fn read_log(path: &Path) -> Result<Vec<LogEntry>, LogError> {
+    let (bytes, file) = read_source(path)?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let valid = e.utf8_error().valid_up_to();
+        let line = e.as_bytes()[..valid].iter().filter(|&&b| b == b'\n').count() + 1;
+        LogError {
+            file: file.clone(),
+            line,
+            column: 0,
+            reason: "the file is not UTF-8 text".to_string(),
+            text: String::new(),
+        }
+    })?;
+    parse_log(&text, &file)
+}
+
+/// The bytes of a log or trace file and its name for messages; `-` is standard input (read to its
+/// end, named `standard input`). A file that cannot be read is an error at line 0.
+pub(crate) fn read_source(path: &Path) -> Result<(Vec<u8>, String), LogError> {
     let stdin = path.as_os_str() == "-";
     let file = if stdin { "standard input".to_string() } else { path.display().to_string() };
     let read = if stdin {
@@ -152,18 +170,7 @@ pub fn read_log(path: &Path) -> Result<Vec<LogEntry>, LogError> {
         reason: format!("cannot read the file: {e}"),
         text: String::new(),
     })?;
-    let text = String::from_utf8(bytes).map_err(|e| {
-        let valid = e.utf8_error().valid_up_to();
-        let line = e.as_bytes()[..valid].iter().filter(|&&b| b == b'\n').count() + 1;
-        LogError {
-            file: file.clone(),
-            line,
-            column: 0,
-            reason: "the file is not UTF-8 text".to_string(),
-            text: String::new(),
-        }
-    })?;
-    parse_log(&text, &file)
+    Ok((bytes, file))
 }
 
 fn is_hex(s: &str) -> bool {

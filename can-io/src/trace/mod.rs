@@ -308,21 +308,8 @@ pub fn parse_trace(bytes: &[u8], file: &str, options: ReadOptions) -> Result<Tra
 /// Reads a trace file; `-` reads standard input to its end (its name in messages is
 /// `standard input`). An unreadable file is reported as line 0.
 pub fn read_trace(path: &Path, options: ReadOptions) -> Result<Trace, LogError> {
+    let (bytes, file) = crate::log::read_source(path)?;
     let stdin = path.as_os_str() == "-";
-    let file = if stdin { "standard input".to_string() } else { path.display().to_string() };
-    let read = if stdin {
-        let mut bytes = Vec::new();
-        std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut bytes).map(|_| bytes)
-    } else {
-        std::fs::read(path)
-    };
-    let bytes = read.map_err(|e| LogError {
-        file: file.clone(),
-        line: 0,
-        column: 0,
-        reason: format!("cannot read the file: {e}"),
-        text: String::new(),
-    })?;
     let options = ReadOptions {
         format: options.format.or_else(|| detect(&bytes)).or_else(|| {
             if stdin {
