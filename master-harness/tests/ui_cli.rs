@@ -98,3 +98,23 @@ fn a_broker_that_is_down_does_not_stop_the_scanner() {
     assert!(out.contains("  5  ok"), "node 5 kept in I/O: {out}");
     assert!(out.contains("30 cycle(s)"), "{out}");
 }
+
+#[test]
+fn a_run_that_exchanged_nothing_is_not_a_success() {
+    // --cycles 0: the node is allocated but no poll was answered yet: exit 1, as scanner.
+    let dir = scratch("no-cycles");
+    let history = dir.join("h.sqlite");
+    let o = dnet(&[
+        "--bus",
+        "sim",
+        "ui",
+        "--listen",
+        "127.0.0.1:0",
+        "--history",
+        history.to_str().unwrap(),
+        "--cycles",
+        "0",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    assert!(text(&o).contains("initializing"), "{}", text(&o));
+}

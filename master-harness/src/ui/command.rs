@@ -12,8 +12,9 @@
 //! it stays the same ([`SAMPLE_EVERY_MS`]): a poll every 10 ms of an instrument that reports once a
 //! second would otherwise store a hundred copies of each report.
 //!
-//! It runs until SIGINT / SIGTERM (exit 130 / 143) or `--cycles N`; then every node is released,
-//! the server stopped (a recording closed) and the nodes' table printed. A history file or a
+//! It runs until SIGINT / SIGTERM (exit 130 / 143) or `--cycles N` (exit 0 only when every node
+//! ended ok, as `scanner`); then every node is released, the server stopped (a recording closed)
+//! and the nodes' table printed. A history file or a
 //! listening address that cannot be used is an error (exit 2) before the bus is touched; a broker
 //! that is down is not: the console and MQTT status say so and the scanner scans on.
 
@@ -218,8 +219,12 @@ pub fn execute(
         }
     }
     drop(publisher);
+    // As `scanner`: 0 only when every node ended ok (in I/O with data exchanged).
+    let all_ok = scanner
+        .as_ref()
+        .is_some_and(|s| !s.state().nodes.is_empty() && s.state().nodes.iter().all(|n| n.code == 0));
     let code = match &result {
-        Ok(()) if cleanup.is_empty() => 0,
+        Ok(()) if cleanup.is_empty() => u8::from(!all_ok),
         Ok(()) => 1,
         Err(e) => exit_code(e),
     };
