@@ -10,6 +10,19 @@ use core::fmt;
 pub const MAX_IO_SIZE: usize = 128;
 /// Largest explicit message (header + body) the node reassembles or sends.
 pub const MAX_EXPLICIT_SIZE: usize = 64;
+/// The most input data a bit-strobe response carries: a strobe response is never fragmented
+/// (devicenet-notes §II.1.3), so a device with a larger input image answers a strobe with the first
+/// `STROBE_MAX_SIZE` bytes of it (docs/io-connections.md).
+pub const STROBE_MAX_SIZE: u16 = 8;
+
+/// The size of the bit-strobe response of a device that produces `produced` bytes.
+pub const fn strobe_produced_size(produced: u16) -> u16 {
+    if produced < STROBE_MAX_SIZE {
+        produced
+    } else {
+        STROBE_MAX_SIZE
+    }
+}
 /// Longest product name (Identity attribute 7, SHORT_STRING).
 pub const MAX_PRODUCT_NAME: usize = 32;
 

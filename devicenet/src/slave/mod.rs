@@ -49,7 +49,10 @@ mod network;
 mod objects;
 mod polled_io;
 
-pub use config::{BaudRate, ConfigError, DeviceConfig, Identity, Switches, MAX_EXPLICIT_SIZE, MAX_IO_SIZE};
+pub use config::{
+    strobe_produced_size, BaudRate, ConfigError, DeviceConfig, Identity, Switches, MAX_EXPLICIT_SIZE,
+    MAX_IO_SIZE, STROBE_MAX_SIZE,
+};
 pub use connection::{Connection, ConnectionKind, ConnectionState, WatchdogAction};
 pub use network::{FaultReason, NetworkState, DUP_MAC_INTERVAL};
 pub use objects::SettingChanged;
