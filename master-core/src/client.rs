@@ -20,6 +20,7 @@ use devicenet::fragment::{
     AbortReason, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter, FragmentKind,
     TransmitEvent,
 };
+use devicenet::messages::{DEVICE_HEARTBEAT, DEVICE_SHUTDOWN};
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use std::collections::VecDeque;
 
@@ -285,6 +286,9 @@ impl Transaction {
             return Handled::NotMine;
         }
         let data = frame.data();
+        if is_heartbeat_or_shutdown(data, self.master) {
+            return Handled::NotMine;
+        }
         let Some(&first) = data.first() else {
             return Handled::Frame(Verdict::fail("empty response frame (DLC 0)"));
         };
@@ -434,11 +438,31 @@ impl Transaction {
     }
 }
 
+/// `true` for a Device Heartbeat or Device Shutdown (notes §3.7, §II.5): 8 bytes on a device's
+/// explicit response identifier with the device's own MAC in the header (not the master's) and
+/// service 0xCD or 0xCE. It answers no request.
+pub fn is_heartbeat_or_shutdown(data: &[u8], master: MacId) -> bool {
+    match data {
+        [header, service, ..] if data.len() == 8 => {
+            Header::from_byte(*header).mac != master
+                && *header & 0x80 == 0
+                && matches!(*service, DEVICE_HEARTBEAT | DEVICE_SHUTDOWN)
+        }
+        _ => false,
+    }
+}
+
 /// Judges a frame that is not part of the exchange in progress: a frame from `device` is a failure
-/// ("unexpected"), anything else is other traffic.
+/// ("unexpected"), but for its heartbeats and shutdown messages, anything else is other traffic.
 pub fn judge_other(session: &mut Session<'_>, index: usize, device: MacId) {
     let frame = session.record(index).frame;
-    let verdict = if is_from_device(&frame, device) {
+    let own_response_id = Identifier::group2(device, Group2Message::ExplicitResponse);
+    let announced = frame.id() == own_response_id
+        && matches!(frame.data(), [h, s, ..] if frame.data().len() == 8 && h & 0x3F == device.as_raw() && matches!(*s, DEVICE_HEARTBEAT | DEVICE_SHUTDOWN));
+    let verdict = if announced {
+        let name = if frame.data()[1] == DEVICE_HEARTBEAT { "device heartbeat" } else { "device shutdown" };
+        Verdict::Info(format!("{name} (§II.5)"))
+    } else if is_from_device(&frame, device) {
         Verdict::fail("unexpected frame from the device at this point")
     } else {
         Verdict::Info("other traffic".into())

@@ -13,6 +13,8 @@
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the log file |
 //! | [`client`] | one explicit transaction as a sans-IO state machine ([`Transaction`](client::Transaction)): fragmentation both ways, every response frame checked; [`drive`](client::drive) and [`run`](client::run), the one way to drive it |
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of notes §2 |
+//! | [`io`] | the I/O connections next to poll: bit-strobe, change of state and cyclic with their acknowledgements, every frame and interval checked |
+//! | [`recovery`] | a Communication Faulted node found and given a new MAC ID through the Offline Connection Set (Who, Identify, ownership, Change MAC ID) |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly |
 //! | [`error`] | [`MasterError`](error::MasterError): why an operation stopped |
 //! | [`stop`] | [`Stop`](stop::Stop): a stop asked for by a signal, seen by the session while it waits |
@@ -54,3 +56,5 @@ pub mod error;
 pub mod master;
 pub mod session;
 pub mod stop;
+
+pub use master::{io, recovery};

@@ -20,7 +20,7 @@ use crate::error::MasterError;
 use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
-use devicenet::fragment::{io_fragments, IoFragment, IoReassembler};
+use devicenet::fragment::io_fragments;
 use devicenet::id::{Group1MessageId, Group3MessageId};
 use devicenet::messages::{
     AllocateRequest, AllocationChoice, DuplicateMacCheck, GroupSelect, ReleaseRequest, UcmmCloseRequest,
@@ -29,6 +29,9 @@ use devicenet::messages::{
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use std::collections::HashMap;
+
+pub mod io;
+pub mod recovery;
 
 /// Between the two duplicate MAC ID requests, and from the second to on-line (notes §7.1).
 pub const DUP_MAC_INTERVAL: Duration = devicenet::slave::DUP_MAC_INTERVAL;
@@ -101,7 +104,7 @@ impl OnlineTracker {
 }
 
 /// What `connect` learned.
-#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct DeviceSummary {
     /// The device.
     pub mac: u8,
@@ -121,6 +124,9 @@ pub struct DeviceSummary {
     pub expected_packet_rate_ms: Option<u16>,
     /// The last poll response.
     pub last_input: Option<Vec<u8>>,
+    /// The I/O connection other than poll (`--io strobe|cos|cyclic`): what it is and did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub io: Option<io::IoSummary>,
 }
 
 /// Options of `connect`.
@@ -169,6 +175,8 @@ pub struct Master<'s, 'b> {
     held: HashMap<u8, AllocationChoice>,
     /// What the user should know about how the command went (re-allocations).
     notices: Vec<String>,
+    /// The strobe, COS or cyclic connection established ([`Master::establish_io`]).
+    io: Option<io::IoConnection>,
 }
 
 /// The outcome of an explicit request, kept with its record.
@@ -197,6 +205,7 @@ impl<'s, 'b> Master<'s, 'b> {
             last_record: None,
             held: HashMap::new(),
             notices: Vec::new(),
+            io: None,
         }
     }
 
@@ -216,6 +225,9 @@ impl<'s, 'b> Master<'s, 'b> {
     pub fn other(&mut self, i: usize) -> Result<(), MasterError> {
         let rec = self.session.record(i).clone();
         if rec.origin == Origin::Local {
+            return Ok(());
+        }
+        if self.io_claims(i)? {
             return Ok(());
         }
         if let Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } =
@@ -777,9 +789,7 @@ impl<'s, 'b> Master<'s, 'b> {
         }
         let deadline = self.session.now() + timeout;
         let response_id = Identifier::group1(Group1MessageId::POLL_RESPONSE, target);
-        let mut rx: Box<IoReassembler<{ decode::MAX_IO_MESSAGE }>> = Box::new(IoReassembler::new());
-        let fragmented = produced > 8;
-        let mut expected_len = usize::from(produced);
+        let mut series = io::IoSeries::new(produced);
         loop {
             let Some(i) = self.session.next(deadline)? else {
                 return Err(MasterError::Timeout {
@@ -797,56 +807,12 @@ impl<'s, 'b> Master<'s, 'b> {
                 self.other(i)?;
                 continue;
             }
-            let data = rec.frame.data();
-            if !fragmented {
-                let failures = if data.len() == usize::from(produced) {
-                    Vec::new()
-                } else {
-                    vec![format!("DLC {}, expected the produced size {produced}", data.len())]
-                };
-                self.session.set_verdict(
-                    i,
-                    Verdict::Ok(format!("poll response, {} bytes", data.len())).with_failures(failures),
-                );
-                return Ok(data.to_vec());
-            }
-            let mut failures = Vec::new();
-            let remaining = expected_len;
-            if let Ok(frag) = IoFragment::parse(data) {
-                let want = 1 + remaining.min(7);
-                if data.len() != want {
-                    failures.push(format!(
-                        "DLC {}, expected {want} ({} data bytes left)",
-                        data.len(),
-                        remaining
-                    ));
-                }
-                expected_len = remaining.saturating_sub(frag.data.len());
-            }
-            match rx.receive(data) {
-                Ok(Some(whole)) => {
-                    let whole = whole.to_vec();
-                    if whole.len() != usize::from(produced) {
-                        failures.push(format!(
-                            "reassembled {} bytes, expected the produced size {produced}",
-                            whole.len()
-                        ));
-                    }
-                    let note = format!("last fragment; {} bytes reassembled", whole.len());
-                    self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
+            match series.take(rec.frame.data(), "poll response") {
+                io::SeriesStep::Complete(whole, v) => {
+                    self.session.set_verdict(i, v);
                     return Ok(whole);
                 }
-                Ok(None) => {
-                    self.session.set_verdict(
-                        i,
-                        Verdict::Ok("poll response fragment in sequence".into()).with_failures(failures),
-                    );
-                }
-                Err(e) => {
-                    failures.push(format!("fragment rejected: {e}"));
-                    self.session.set_verdict(i, Verdict::Fail(failures));
-                    expected_len = usize::from(produced);
-                }
+                io::SeriesStep::Fragment(v) | io::SeriesStep::Rejected(v) => self.session.set_verdict(i, v),
             }
         }
     }
@@ -854,6 +820,21 @@ impl<'s, 'b> Master<'s, 'b> {
     /// The whole bring-up of notes §2 against `opts.target`. Every frame is recorded in the
     /// session with its verdict; the result summarises what was learned.
     pub fn connect(&mut self, opts: &ConnectOptions) -> Result<DeviceSummary, MasterError> {
+        self.connect_io(opts, &io::IoOptions::default())
+    }
+
+    /// The bring-up with the I/O connection of `io` ([`io::IoKind`]): for poll exactly
+    /// [`Master::connect`]'s; for strobe, COS and cyclic the same up to the Identity reads, then
+    /// that connection allocated through the explicit connection, configured and exchanged on
+    /// for `opts.polls` cycles ([`Master::establish_io`], [`Master::strobe`],
+    /// [`Master::await_production`], [`Master::send_output`]); the connection stays with the
+    /// master for more cycles ([`Master::io_connection`]).
+    pub fn connect_io(
+        &mut self,
+        opts: &ConnectOptions,
+        io: &io::IoOptions,
+    ) -> Result<DeviceSummary, MasterError> {
+        io.validate()?;
         let target = opts.target;
         if target == self.config.mac {
             return Err(MasterError::Invalid(format!("the device's MAC {target} is the master's own MAC")));
@@ -888,6 +869,10 @@ impl<'s, 'b> Master<'s, 'b> {
         }
         summary.device_type = self.get_u16(target, class::IDENTITY, 1, 2)?;
         summary.product_code = self.get_u16(target, class::IDENTITY, 1, 3)?;
+        if io.kind != io::IoKind::Poll {
+            self.exchange_io(opts, io, &mut summary)?;
+            return Ok(summary);
+        }
         self.allocate(target, Port::Explicit, AllocationChoice::POLL)?;
         summary.produced_size = self.get_u16(target, class::CONNECTION, 2, 7)?;
         summary.consumed_size = self.get_u16(target, class::CONNECTION, 2, 8)?;
@@ -950,6 +935,70 @@ impl<'s, 'b> Master<'s, 'b> {
             self.verify_state(target, applied, last_poll, opts.polls > 0)?;
         }
         Ok(summary)
+    }
+
+    /// The strobe, COS or cyclic part of [`Master::connect_io`]: established, then
+    /// `opts.polls` cycles at the EPR.
+    fn exchange_io(
+        &mut self,
+        opts: &ConnectOptions,
+        io: &io::IoOptions,
+        summary: &mut DeviceSummary,
+    ) -> Result<(), MasterError> {
+        let target = opts.target;
+        self.establish_io(target, opts.epr_ms, io)?;
+        let conn =
+            self.io_connection().cloned().ok_or_else(|| MasterError::Invalid("no I/O connection".into()))?;
+        summary.produced_size = Some(conn.produced);
+        summary.consumed_size = Some(conn.consumed);
+        summary.expected_packet_rate_ms = Some(conn.epr_ms);
+        let output =
+            match &opts.output {
+                Some(_) if io.kind == io::IoKind::Strobe => return Err(MasterError::Invalid(
+                    "--output: a bit-strobe command carries one bit per device and no output data (§II.1.2)"
+                        .into(),
+                )),
+                Some(o) if o.len() > usize::from(conn.consumed) => {
+                    return Err(MasterError::Invalid(format!(
+                        "--output has {} bytes; the device consumes {} (Connection 2 attribute 8)",
+                        o.len(),
+                        conn.consumed
+                    )))
+                }
+                Some(o) => o.clone(),
+                None => vec![0; usize::from(conn.consumed)],
+            };
+        let epr = Duration::from_millis(u64::from(conn.epr_ms.max(1)));
+        let mut next = self.session.now();
+        for _ in 0..opts.polls {
+            let input = match io.kind {
+                io::IoKind::Strobe => {
+                    self.idle_until(next)?;
+                    next = self.session.now() + epr;
+                    self.strobe()?
+                }
+                _ => {
+                    let input = self.await_production()?;
+                    if conn.consumed > 0 {
+                        self.send_output(&output)?;
+                    }
+                    input
+                }
+            };
+            summary.last_input = Some(input);
+        }
+        if opts.verify_state {
+            let inst = io.kind.instance();
+            let (data, i) = self.get(target, class::CONNECTION, inst, 1)?;
+            let failures = if data.as_slice() == [3] {
+                Vec::new()
+            } else {
+                vec![format!("Connection {inst} state {}, expected 3 (established)", hex(&data))]
+            };
+            self.judge(i, &format!("{} connection established", io.kind), failures);
+        }
+        summary.io = self.io_connection().map(|c| c.summary.clone());
+        Ok(())
     }
 
     /// Reads the connection states back and checks the poll watchdog fires at 4 × EPR

@@ -31,7 +31,9 @@ use devicenet::{Duration, Instant, MacId};
 use master_core::client::ReplyBody;
 use master_core::decode::{self, Decoder};
 use master_core::error::MasterError;
+use master_core::io::{IoKind, IoOptions, IoSummary};
 use master_core::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
+use master_core::recovery::{RecoverOptions, RecoveryReport};
 use master_core::session::Session;
 use serde_json::json;
 use slave_fw::converter::ConverterConfig;
@@ -110,6 +112,51 @@ impl std::str::FromStr for PowerOnArg {
     }
 }
 
+/// The I/O connection `connect` and `monitor` bring up (`docs/io-connections.md`).
+#[derive(Args, Debug, Clone, Default)]
+pub struct IoArgs {
+    /// The I/O connection: poll (Connection 2, the reference bring-up), strobe (bit-strobe,
+    /// Connection 3), cos (change of state) or cyclic (Connection 4, the master's data on
+    /// Connection 2).
+    #[arg(long, default_value = "poll", value_name = "KIND")]
+    pub io: IoKind,
+    /// cos / cyclic: allocate with acknowledge suppression (0x40): no acknowledgements either way.
+    #[arg(long)]
+    pub ack_suppression: bool,
+    /// cos / cyclic: production inhibit time to set, ms (Connection 4 attribute 17) [default: the
+    /// device's].
+    #[arg(long, value_name = "MS", value_parser = parse_u16)]
+    pub inhibit: Option<u16>,
+    /// cos / cyclic: acknowledge timer to set, ms (Acknowledge Handler attribute 1) [default: the
+    /// device's, read back].
+    #[arg(long, value_name = "MS", value_parser = parse_u16)]
+    pub ack_timer: Option<u16>,
+    /// cos / cyclic: retry limit to set (Acknowledge Handler attribute 2) [default: the device's,
+    /// read back].
+    #[arg(long, value_name = "N", value_parser = parse_u8)]
+    pub retry_limit: Option<u8>,
+}
+
+impl IoArgs {
+    /// The options, timing judged unless the bus buffers frames (SLCAN).
+    pub fn options(&self, bus: &BusSpec) -> IoOptions {
+        IoOptions {
+            kind: self.io,
+            ack_suppression: self.ack_suppression,
+            inhibit_ms: self.inhibit,
+            ack_timer_ms: self.ack_timer,
+            retry_limit: self.retry_limit,
+            judge_timing: judges_timing(bus),
+        }
+    }
+}
+
+/// `false` on SLCAN, whose frames arrive in bursts from a serial line: intervals are noted, not
+/// judged (as the conformance suite does, [`crate::conformance::BUFFERED_TIMING`]).
+fn judges_timing(bus: &BusSpec) -> bool {
+    !matches!(bus, BusSpec::Slcan { .. })
+}
+
 /// `dnet-master`: a bench DeviceNet master.
 #[derive(Debug, Parser)]
 #[command(name = "dnet-master", version = crate::version(), about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes traces of every common format.", long_about = None)]
@@ -184,6 +231,29 @@ pub enum Command {
         /// Read the connection states back and check the 4 x EPR watchdog (adds frames).
         #[arg(long)]
         verify_state: bool,
+        /// The I/O connection.
+        #[command(flatten)]
+        io: IoArgs,
+    },
+    /// Find a node that is Communication Faulted after a duplicate MAC ID (Offline Connection
+    /// Set: Who, then the answers listed); with --to give it a new MAC ID (long Identify, offline
+    /// ownership, Change MAC ID) and watch it come on-line there.
+    Recover {
+        /// The MAC ID at which the node faulted.
+        #[arg(long, value_parser = parse_mac)]
+        mac: MacId,
+        /// The MAC ID to give it [default: only list the faulted nodes].
+        #[arg(long, value_parser = parse_mac)]
+        to: Option<MacId>,
+        /// The serial number of the node to recover, when several answer (decimal or 0x hex).
+        #[arg(long, value_parser = parse_number)]
+        serial: Option<u32>,
+        /// How long the answers to Who are collected, ms.
+        #[arg(long, default_value_t = 500, value_name = "MS")]
+        window: u64,
+        /// Who's time-delay byte offset (0-6): each node answers after byte N of its answer in ms.
+        #[arg(long, default_value_t = master_core::recovery::TIME_DELAY_OFFSET, value_parser = clap::value_parser!(u8).range(0..=6))]
+        delay_byte: u8,
     },
     /// Replay a candump -L transcript against the device at MAC N.
     Replay {
@@ -310,6 +380,9 @@ pub enum Command {
         /// --slave-config description, else the reference breaker; on a real bus: raw bytes].
         #[arg(long, value_name = "FILE")]
         description: Option<PathBuf>,
+        /// The I/O connection.
+        #[command(flatten)]
+        io: IoArgs,
     },
     /// Download a device description to the device: checked, downloaded, read back, reset, and
     /// the device checked against it; with --read, upload the configuration in force as a
@@ -520,7 +593,8 @@ fn command_device(
         Command::Get { mac, .. }
         | Command::Set { mac, .. }
         | Command::Configure { mac, .. }
-        | Command::Params { mac, .. } => Some(*mac),
+        | Command::Params { mac, .. }
+        | Command::Recover { mac, .. } => Some(*mac),
         Command::Replay { mac: Some(m), .. } => Some(*m),
         Command::Replay { mac: None, transcript: path, .. } => {
             let devices = replay::transcript_devices(transcript.unwrap_or_default());
@@ -828,7 +902,7 @@ fn execute(
     // What a command produced before it failed or was interrupted (monitor's samples).
     let mut partial: Option<Outcome> = None;
     let result: Result<Outcome, HarnessError> = match &cli.command {
-        Command::Connect { epr, polls, output, verify_state, .. } => {
+        Command::Connect { epr, polls, output, verify_state, io, .. } => {
             let opts = ConnectOptions {
                 target,
                 epr_ms: *epr,
@@ -836,8 +910,25 @@ fn execute(
                 output: output.clone().map(|h| h.0),
                 verify_state: *verify_state,
             };
-            progress.show(&format!("connect: bringing up MAC {target} ..."));
-            let r = master.connect(&opts).map(|s| connect_outcome(&s)).map_err(HarnessError::from);
+            progress.show(&format!("connect: bringing up MAC {target} ({}) ...", io.io));
+            let r = master
+                .connect_io(&opts, &io.options(&cli.bus))
+                .map(|s| connect_outcome(&s))
+                .map_err(HarnessError::from);
+            progress.clear();
+            r
+        }
+        Command::Recover { mac, to, serial, window, delay_byte } => {
+            let opts = RecoverOptions {
+                mac: *mac,
+                to: *to,
+                serial: *serial,
+                window: Duration::from_millis(*window),
+                time_delay_offset: *delay_byte,
+                judge_timing: judges_timing(&cli.bus),
+            };
+            progress.show(&format!("recover: asking who is Communication Faulted at MAC {mac} ..."));
+            let r = master.recover(&opts).map(|r| recover_outcome(&r)).map_err(HarnessError::from);
             progress.clear();
             r
         }
@@ -874,7 +965,7 @@ fn execute(
         Command::Set { mac, class, instance, attribute, value } => {
             explicit_command(&mut master, *mac, *class, *instance, *attribute, Some(&value.0))
         }
-        Command::Monitor { epr, output, count, duration, reconnect, .. } => {
+        Command::Monitor { epr, output, count, duration, reconnect, io, .. } => {
             let duration = match duration {
                 Some(d) if !(d.is_finite() && *d >= 0.0) => {
                     return Err(HarnessError::Usage(format!("--duration {d}: expected seconds >= 0")))
@@ -898,6 +989,7 @@ fn execute(
                 in_place: console.stdout_terminal && !cli.json,
                 reconnect: *reconnect,
                 layout: monitor_layout(cli, &descriptions),
+                io: io.options(&cli.bus),
             };
             let mut sink = std::io::sink();
             let screen: &mut dyn Write = if cli.json { &mut sink } else { &mut *out };
@@ -1008,7 +1100,8 @@ fn execute(
         finish_errors.push(e.into());
     }
     let failures = session.failures();
-    let show_table = cli.frames || matches!(cli.command, Command::Connect { .. } | Command::Replay { .. });
+    let show_table = cli.frames
+        || matches!(cli.command, Command::Connect { .. } | Command::Replay { .. } | Command::Recover { .. });
     let records = session.records();
     let (mut code, error_text, payload) = match result {
         Ok(o) => (o.code, None, Some(o)),
@@ -1166,8 +1259,13 @@ fn params_command(
 fn connect_outcome(s: &DeviceSummary) -> Outcome {
     let hex16 = |v: Option<u16>| v.map_or_else(|| "?".into(), |v| format!("0x{v:04X}"));
     let num = |v: Option<u16>| v.map_or_else(|| "?".into(), |v| v.to_string());
-    let text = format!(
-        "device MAC {}: {}vendor {}, device type {}, product code {}; poll produced {} / consumed {} bytes, EPR {} ms{}",
+    let kind = match &s.io {
+        None => "poll".to_string(),
+        Some(io) if io.ack_suppression => format!("{} (acknowledge suppression)", io.kind),
+        Some(io) => io.kind.to_string(),
+    };
+    let mut text = format!(
+        "device MAC {}: {}vendor {}, device type {}, product code {}; {kind} produced {} / consumed {} bytes, EPR {} ms{}",
         s.mac,
         if s.ucmm_capable { "UCMM-capable, " } else { "group-2-only, " },
         hex16(s.vendor_id),
@@ -1178,7 +1276,82 @@ fn connect_outcome(s: &DeviceSummary) -> Outcome {
         num(s.expected_packet_rate_ms),
         s.last_input.as_ref().map_or_else(String::new, |i| format!("; last input {}", decode::hex(i)))
     );
+    if let Some(io) = &s.io {
+        text.push_str(&io_text(io));
+    }
     Outcome { json: json!({ "device": s }), text, code: 0 }
+}
+
+/// The second line of `connect --io strobe|cos|cyclic`: identifiers, settings, what was exchanged.
+pub(crate) fn io_text(io: &IoSummary) -> String {
+    let id = |v: Option<u16>| v.map_or_else(|| "?".into(), |v| format!("0x{v:03X}"));
+    let mut parts = vec![format!(
+        "Connection {}: produced ID {}, consumed ID {}",
+        io.instance,
+        id(io.produced_id),
+        id(io.consumed_id)
+    )];
+    if let Some(p) = io.inhibit_time_ms {
+        parts.push(format!("inhibit time {p} ms"));
+    }
+    if let (Some(t), Some(n)) = (io.ack_timer_ms, io.retry_limit) {
+        parts.push(format!("acknowledge timer {t} ms, retry limit {n}"));
+    }
+    if io.kind == IoKind::Strobe {
+        parts.push(format!("{} strobe response(s)", io.strobe_responses));
+    } else {
+        let mut p = format!("{} production(s), {} acknowledged by the master", io.productions, io.acks_sent);
+        if io.re_sent > 0 {
+            p.push_str(&format!(", {} re-sent by the device", io.re_sent));
+        }
+        parts.push(p);
+        if let (Some(lo), Some(hi)) = (io.interval_min_ms, io.interval_max_ms) {
+            parts.push(format!("interval {lo:.1}-{hi:.1} ms"));
+        }
+        if io.outputs_sent > 0 {
+            parts.push(format!(
+                "master data sent {} time(s), {} acknowledged",
+                io.outputs_sent, io.outputs_acknowledged
+            ));
+        }
+    }
+    format!("\n{}", parts.join("; "))
+}
+
+fn recover_outcome(r: &RecoveryReport) -> Outcome {
+    let mut lines = vec![format!(
+        "Who {} for MAC {}: {} Communication Faulted node(s) answered",
+        r.who,
+        r.mac,
+        r.found.len()
+    )];
+    for n in &r.found {
+        lines.push(format!("  {} (answered after {:.1} ms)", n.text(), n.answered_after_ms));
+    }
+    match (r.chosen, r.new_mac) {
+        (Some(node), Some(to)) => {
+            let yes = |b: Option<bool>| if b == Some(true) { "answered" } else { "NOT answered" };
+            lines.push(format!("recovered {}:", node.text()));
+            lines.push(format!(
+                "  long Identify {}; offline ownership {}",
+                yes(r.identified),
+                yes(r.ownership)
+            ));
+            lines.push(format!(
+                "  Change MAC ID to {to}: duplicate MAC ID requests at MAC {to} after {} ms",
+                r.dup_mac_requests_ms.iter().map(|t| format!("{t:.0}")).collect::<Vec<_>>().join(" and ")
+            ));
+            lines.push(format!(
+                "  on-line at MAC {to}: explicit connection allocated, serial number {}",
+                r.serial_at_new_mac.map_or_else(|| "?".into(), |s| format!("0x{s:08X}"))
+            ));
+        }
+        _ => lines.push("nothing changed (give --to MAC to recover a node)".into()),
+    }
+    for f in &r.findings {
+        lines.push(format!("finding: {f}"));
+    }
+    Outcome { json: json!({ "recover": r }), text: lines.join("\n"), code: u8::from(!r.findings.is_empty()) }
 }
 
 fn scan_outcome(r: &ScanReport) -> Outcome {

@@ -53,6 +53,7 @@ use devicenet::objects::class;
 use devicenet::{Duration, Instant, MacId};
 use master_core::client::Port;
 use master_core::error::MasterError;
+use master_core::io::{IoKind, IoOptions};
 use master_core::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
 use master_core::session::Verdict;
 use slave_fw::converter::{ConverterConfig, InputAssembly};
@@ -369,6 +370,9 @@ pub struct MonitorOptions {
     pub reconnect: bool,
     /// How the poll response is decoded.
     pub layout: InputLayout,
+    /// The I/O connection (`--io`): poll, or samples from bit-strobe responses or COS/cyclic
+    /// productions.
+    pub io: IoOptions,
 }
 
 /// How often `--reconnect` tries to get a lost connection back.
@@ -392,6 +396,37 @@ fn accept_last_answer(master: &mut Master<'_, '_>, note: &str) {
     if let Some(i) = master.session.records().iter().rposition(|r| r.origin == can_io::bus::Origin::Remote) {
         master.session.set_verdict(i, Verdict::Ok(note.into()));
     }
+}
+
+/// One attempt to get a strobe, COS or cyclic connection back: explicit through the Group 2 Only
+/// port (or the one still held), the connection released if left over, allocated and configured
+/// again.
+fn reestablish_io(
+    master: &mut Master<'_, '_>,
+    target: MacId,
+    epr_ms: u16,
+    io: &IoOptions,
+) -> Result<PollSetup, MasterError> {
+    master.end_io();
+    match master.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT) {
+        Ok(_) => {}
+        Err(MasterError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
+            accept_last_answer(master, "explicit connection still allocated to this master");
+        }
+        Err(e) => return Err(e),
+    }
+    match master.release(target, io.choice()) {
+        Ok(()) => {}
+        Err(MasterError::ErrorResponse { .. }) => accept_last_answer(master, "no I/O connection left over"),
+        Err(e) => return Err(e),
+    }
+    master.establish_io(target, epr_ms, io)?;
+    let c = master.io_connection().ok_or_else(|| MasterError::Invalid("no I/O connection".into()))?;
+    Ok(PollSetup {
+        produced: c.produced,
+        consumed: c.consumed,
+        epr: Duration::from_millis(u64::from(c.epr_ms.max(1))),
+    })
 }
 
 /// One attempt to get the connections back (see the [module docs](self)).
@@ -582,7 +617,8 @@ fn run(
     let mut connect = opts.connect.clone();
     connect.polls = 0;
     connect.verify_state = false;
-    let summary = master.connect(&connect)?;
+    let summary = master.connect_io(&connect, &opts.io)?;
+    let kind = opts.io.kind;
     progress.clear();
     let consumed = summary.consumed_size.unwrap_or(0);
     let epr_ms = summary.expected_packet_rate_ms.unwrap_or(connect.epr_ms).max(1);
@@ -607,10 +643,25 @@ fn run(
         }
         let timeout = if setup.epr > MIN_POLL_TIMEOUT { setup.epr } else { MIN_POLL_TIMEOUT };
         let mut polled = master.session.now();
-        let cycle = master.idle_until(next).and_then(|()| {
-            polled = master.session.now();
-            master.poll(target, &output, setup.produced, setup.consumed, timeout)
-        });
+        let cycle = match kind {
+            IoKind::Poll => master.idle_until(next).and_then(|()| {
+                polled = master.session.now();
+                master.poll(target, &output, setup.produced, setup.consumed, timeout)
+            }),
+            IoKind::Strobe => master.idle_until(next).and_then(|()| {
+                polled = master.session.now();
+                master.strobe()
+            }),
+            // The device produces on its own schedule: the sample is its production, then the
+            // master's data goes out (Connection 2, when the device consumes any).
+            IoKind::ChangeOfState | IoKind::Cyclic => master.await_production().and_then(|input| {
+                polled = master.session.now();
+                if setup.consumed > 0 {
+                    master.send_output(&output)?;
+                }
+                Ok(input)
+            }),
+        };
         let raw = match cycle {
             Ok(raw) => raw,
             Err(e) if opts.reconnect && is_connection_loss(&e) => {
@@ -632,7 +683,11 @@ fn run(
                         writeln!(out, "not reconnected before the end of the run").map_err(write_err)?;
                         return Ok(());
                     }
-                    match reestablish(master, target, connect.epr_ms) {
+                    let again = match kind {
+                        IoKind::Poll => reestablish(master, target, connect.epr_ms),
+                        _ => reestablish_io(master, target, connect.epr_ms, &opts.io),
+                    };
+                    match again {
                         Ok(s) => {
                             setup = s;
                             break;
@@ -750,6 +805,7 @@ mod tests {
             in_place: false,
             reconnect,
             layout: InputLayout::from_converter(&ConverterConfig::breaker_reference()),
+            io: IoOptions::default(),
         };
         let mut out = Vec::new();
         let r = monitor(&mut master, &opts, &mut out, None, &mut Progress::off());

@@ -182,6 +182,7 @@ fn a_silent_breaker_is_shown_stale() {
         in_place: false,
         reconnect: false,
         layout: layout.clone(),
+        io: master_core::io::IoOptions::default(),
     };
     let (mut out, mut csv) = (Vec::new(), Vec::new());
     let run = monitor::monitor(&mut master, &opts, &mut out, Some(&mut csv), &mut Progress::off());

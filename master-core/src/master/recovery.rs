@@ -1,0 +1,473 @@
+//! Recovering a node that is Communication Faulted after a duplicate MAC ID, through the Offline
+//! Connection Set (Group 4; notes §1.4, §3.8, §7.4, §II.6; `docs/io-connections.md`):
+//!
+//! 1. **Who** on 0x7ED, `[0, match 1, MAC] 4B <time-delay byte offset>` (exactly the faulted
+//!    MAC; [`RecoverOptions::time_delay_offset`]), then every answer on 0x7EC collected for
+//!    [`RecoverOptions::window`]: `<port> <vendor LE16> <serial LE32>`, one per faulted node.
+//! 2. Without a new MAC ([`RecoverOptions::to`]) the nodes found are the result. With one, the
+//!    node is chosen: the only one found, or the one with [`RecoverOptions::serial`].
+//! 3. **Identify**, long form, `3F 4C <vendor> <serial>`: the node answers `3F CC` on 0x7EC (and
+//!    flashes its network LED red/green).
+//! 4. **Offline ownership** on 0x7EF, `<master MAC> 4B <master vendor> <master serial>`: answered
+//!    on 0x7EE with the request echoed and the service `CB` (§II.6 step 0).
+//! 5. **Change MAC ID**, `<new MAC> 4D <vendor> <serial>`: no response is defined; the node takes
+//!    the MAC and runs the duplicate MAC ID check there: two requests ~1 s apart with its vendor
+//!    and serial (notes §7.1). A response to them, or another node's request for the same MAC,
+//!    faults it again ([`MasterError::DuplicateMac`]).
+//! 6. One second after its second request it is on-line: the master allocates its explicit
+//!    connection at the new MAC and reads the Identity serial number and the DeviceNet MAC ID.
+//!
+//! Every frame is judged; what the node failed to send (an Identify or ownership answer) is a
+//! finding of the report ([`RecoveryReport::findings`]).
+
+use super::{Master, DUP_MAC_INTERVAL};
+use crate::client::Port;
+use crate::decode::hex;
+use crate::error::MasterError;
+use crate::session::Verdict;
+use can_io::bus::Origin;
+use devicenet::id::Group4MessageId;
+use devicenet::messages::{AllocationChoice, DeviceKey, DuplicateMacCheck, FaultedSelector, OfflineMessage};
+use devicenet::objects::class;
+use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+
+/// How long the master collects Who answers by default (the time delay is at most 255 ms).
+pub const WHO_WINDOW: Duration = Duration::from_millis(500);
+
+/// The default time-delay byte offset of Who: 3, the low byte of the serial number, which differs
+/// between nodes of one vendor (ICP uses 2, the vendor's high byte).
+pub const TIME_DELAY_OFFSET: u8 = 3;
+
+/// How far the interval between the two duplicate MAC ID requests may be from 1 s.
+pub const DUP_MAC_TOLERANCE: Duration = Duration::from_millis(200);
+
+/// What `recover` does.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RecoverOptions {
+    /// The MAC ID at which the node faulted (`--mac`).
+    pub mac: MacId,
+    /// The MAC ID to give it (`--to`); `None`: only list the faulted nodes.
+    pub to: Option<MacId>,
+    /// The serial number of the node to recover when several answer (`--serial`).
+    pub serial: Option<u32>,
+    /// How long Who answers are collected (`--window`).
+    pub window: Duration,
+    /// Who's time-delay byte offset, 0–6 (`--delay-byte`).
+    pub time_delay_offset: u8,
+    /// Judge the interval of the duplicate MAC ID requests (`false` on SLCAN: noted only).
+    pub judge_timing: bool,
+}
+
+impl RecoverOptions {
+    /// List the faulted nodes at `mac`, the defaults otherwise.
+    pub fn new(mac: MacId) -> RecoverOptions {
+        RecoverOptions {
+            mac,
+            to: None,
+            serial: None,
+            window: WHO_WINDOW,
+            time_delay_offset: TIME_DELAY_OFFSET,
+            judge_timing: true,
+        }
+    }
+}
+
+/// A node that answered Who.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct FaultedNode {
+    /// The port byte of its answer.
+    pub port: u8,
+    /// Its vendor ID.
+    pub vendor_id: u16,
+    /// Its serial number.
+    pub serial_number: u32,
+    /// How long after Who its answer came, ms.
+    pub answered_after_ms: f64,
+}
+
+impl FaultedNode {
+    fn key(&self) -> DeviceKey {
+        DeviceKey { vendor_id: self.vendor_id, serial_number: self.serial_number }
+    }
+
+    /// `vendor 0x1234, serial 0x12345678`.
+    pub fn text(&self) -> String {
+        format!("vendor 0x{:04X}, serial 0x{:08X}, port {}", self.vendor_id, self.serial_number, self.port)
+    }
+}
+
+/// What `recover` found and did.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
+pub struct RecoveryReport {
+    /// The MAC at which the node faulted.
+    pub mac: u8,
+    /// The Who request sent, hex.
+    pub who: String,
+    /// Every node that answered Who.
+    pub found: Vec<FaultedNode>,
+    /// The node recovered.
+    pub chosen: Option<FaultedNode>,
+    /// The node answered the long Identify.
+    pub identified: Option<bool>,
+    /// The node answered the offline ownership request.
+    pub ownership: Option<bool>,
+    /// The MAC it was given.
+    pub new_mac: Option<u8>,
+    /// Its duplicate MAC ID requests at the new MAC, ms after Change MAC ID.
+    pub dup_mac_requests_ms: Vec<f64>,
+    /// It answered at the new MAC (Allocate, Identity).
+    pub online: bool,
+    /// Identity attribute 6 read at the new MAC.
+    pub serial_at_new_mac: Option<u32>,
+    /// What the node did not do that the protocol says it does.
+    pub findings: Vec<String>,
+}
+
+fn offline_frame(msg: &OfflineMessage) -> Result<CanFrame, MasterError> {
+    let mut buf = [0u8; OfflineMessage::MAX_LEN];
+    let n = msg.emit(&mut buf).map_err(|e| MasterError::Invalid(e.to_string()))?;
+    let id = Identifier::Group4 { message: msg.message_id() }.encode();
+    CanFrame::new(id, &buf[..n]).map_err(|e| MasterError::Invalid(e.to_string()))
+}
+
+fn group4_of(frame: &CanFrame) -> Option<Group4MessageId> {
+    match Identifier::decode(frame.id()) {
+        Identifier::Group4 { message } => Some(message),
+        _ => None,
+    }
+}
+
+impl Master<'_, '_> {
+    /// Finds the Communication Faulted nodes at `opts.mac` and, with `opts.to`, recovers one. See
+    /// the [module docs](self).
+    pub fn recover(&mut self, opts: &RecoverOptions) -> Result<RecoveryReport, MasterError> {
+        if opts.time_delay_offset > 6 {
+            return Err(MasterError::Invalid(format!(
+                "time-delay byte offset {}: Who's answer has 7 bytes, 0..=6",
+                opts.time_delay_offset
+            )));
+        }
+        if let Some(to) = opts.to.filter(|t| *t == self.config.mac) {
+            return Err(MasterError::Invalid(format!("--to {to} is the master's own MAC ID")));
+        }
+        let mut report = RecoveryReport { mac: opts.mac.as_raw(), ..RecoveryReport::default() };
+        self.network_access()?;
+        self.await_online(&[opts.mac])?;
+        let who = OfflineMessage::WhoRequest {
+            selector: FaultedSelector { match_flag: true, value: opts.mac.as_raw() },
+            time_delay_offset: opts.time_delay_offset,
+        };
+        let frame = offline_frame(&who)?;
+        report.who = format!("0x{:03X} {}", frame.id().as_raw(), hex(frame.data()));
+        self.session.send(&frame)?;
+        let sent = self.session.now();
+        report.found = self.collect_who(sent, sent + opts.window, opts.time_delay_offset)?;
+        if report.found.is_empty() {
+            return Err(MasterError::Timeout {
+                what: format!(
+                    "Who ({}) for the Communication Faulted node at MAC {}: no node answered on 0x7EC",
+                    report.who, opts.mac
+                ),
+                mac: opts.mac.as_raw(),
+                after: opts.window,
+                timeout: "Who answer window",
+            });
+        }
+        let Some(to) = opts.to else { return Ok(report) };
+        let node = match (opts.serial, report.found.as_slice()) {
+            (Some(serial), found) => *found.iter().find(|n| n.serial_number == serial).ok_or_else(|| {
+                MasterError::Invalid(format!(
+                    "--serial 0x{serial:08X}: no faulted node with it answered; found {}",
+                    list(found)
+                ))
+            })?,
+            (None, [one]) => *one,
+            (None, found) => {
+                return Err(MasterError::Invalid(format!(
+                    "{} faulted nodes answered at MAC {}: {}; choose one with --serial",
+                    found.len(),
+                    opts.mac,
+                    list(found)
+                )))
+            }
+        };
+        report.chosen = Some(node);
+        report.identified = Some(self.identify(&node)?);
+        if report.identified == Some(false) {
+            report.findings.push(format!(
+                "the node ({}) did not answer the long Identify (3F 4C ...) within {}",
+                node.text(),
+                self.config.response_timeout
+            ));
+        }
+        report.ownership = Some(self.offline_ownership()?);
+        if report.ownership == Some(false) {
+            report.findings.push(format!(
+                "no answer on 0x7EE to the offline ownership request within {}",
+                self.config.response_timeout
+            ));
+        }
+        let change = OfflineMessage::ChangeMacIdRequest { new_mac: to, device: node.key() };
+        self.session.send(&offline_frame(&change)?)?;
+        let changed = self.session.now();
+        report.new_mac = Some(to.as_raw());
+        let requests = self.watch_dup_mac(&node, to, changed, opts.judge_timing)?;
+        report.dup_mac_requests_ms =
+            requests.iter().map(|t| (*t - changed).total_micros() as f64 / 1000.0).collect();
+        // On-line 1 s after the second request (notes §7.1).
+        if let Some(second) = requests.get(1) {
+            self.idle_until(*second + DUP_MAC_INTERVAL)?;
+        }
+        self.set_device(to);
+        self.allocate(to, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+        report.online = true;
+        let (serial, i) = self.get(to, class::IDENTITY, 1, 6)?;
+        report.serial_at_new_mac = match serial.as_slice() {
+            [a, b, c, d] => Some(u32::from_le_bytes([*a, *b, *c, *d])),
+            _ => None,
+        };
+        let failures = match report.serial_at_new_mac {
+            Some(s) if s == node.serial_number => Vec::new(),
+            _ => vec![format!(
+                "Identity serial number {} at MAC {to}, the recovered node's is 0x{:08X}",
+                hex(&serial),
+                node.serial_number
+            )],
+        };
+        self.judge(i, &format!("the recovered node answers at MAC {to}"), failures);
+        let (mac, i) = self.get(to, class::DEVICENET, 1, 1)?;
+        let failures = if mac.as_slice() == [to.as_raw()] {
+            Vec::new()
+        } else {
+            vec![format!("DeviceNet MAC ID attribute {}, expected {to}", hex(&mac))]
+        };
+        self.judge(i, "DeviceNet MAC ID is the new one", failures);
+        Ok(report)
+    }
+
+    /// Collects Who answers until `until`.
+    fn collect_who(
+        &mut self,
+        sent: Instant,
+        until: Instant,
+        offset: u8,
+    ) -> Result<Vec<FaultedNode>, MasterError> {
+        let mut found: Vec<FaultedNode> = Vec::new();
+        while let Some(i) = self.session.next(until)? {
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if group4_of(&rec.frame) != Some(Group4MessageId::COMM_FAULTED_RESPONSE) {
+                self.other(i)?;
+                continue;
+            }
+            let after = rec.at - sent;
+            let ms = after.total_micros() as f64 / 1000.0;
+            let verdict = match OfflineMessage::parse(
+                Group4MessageId::COMM_FAULTED_RESPONSE,
+                rec.frame.data(),
+            ) {
+                Ok(OfflineMessage::WhoResponse { port, device }) => {
+                    let node = FaultedNode {
+                        port,
+                        vendor_id: device.vendor_id,
+                        serial_number: device.serial_number,
+                        answered_after_ms: ms,
+                    };
+                    let delay = rec.frame.data().get(usize::from(offset)).copied().unwrap_or(0);
+                    let v = if found.iter().any(|n| n.key() == node.key()) {
+                        Verdict::fail(format!("{} answered Who twice", node.text()))
+                    } else {
+                        Verdict::Ok(format!(
+                            "Who answer: {}, {ms:.1} ms after Who (time-delay byte {offset} = {delay} ms, UNCONFIRMED)",
+                            node.text()
+                        ))
+                    };
+                    found.push(node);
+                    v
+                }
+                Ok(_) => Verdict::fail("an Identify answer where Who answers were expected"),
+                Err(e) => Verdict::fail(format!("malformed Who answer: {e}")),
+            };
+            self.session.set_verdict(i, verdict);
+        }
+        found.dedup_by_key(|n| n.key());
+        Ok(found)
+    }
+
+    /// The long Identify of `node`; `true` when it answered `3F CC`.
+    fn identify(&mut self, node: &FaultedNode) -> Result<bool, MasterError> {
+        let selector = FaultedSelector { match_flag: false, value: 0x3F };
+        let msg = OfflineMessage::IdentifyRequest { selector, device: Some(node.key()) };
+        self.session.send(&offline_frame(&msg)?)?;
+        let deadline = self.session.now() + self.config.response_timeout;
+        while let Some(i) = self.session.next(deadline)? {
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if group4_of(&rec.frame) != Some(Group4MessageId::COMM_FAULTED_RESPONSE) {
+                self.other(i)?;
+                continue;
+            }
+            let v = match OfflineMessage::parse(Group4MessageId::COMM_FAULTED_RESPONSE, rec.frame.data()) {
+                Ok(OfflineMessage::IdentifyResponse { selector: s }) if s == selector => {
+                    self.session.set_verdict(i, Verdict::Ok(format!("Identify answered by {}", node.text())));
+                    return Ok(true);
+                }
+                Ok(OfflineMessage::IdentifyResponse { selector: s }) => Verdict::fail(format!(
+                    "Identify answer with selector 0x{:02X}, the request's is 0x{:02X}",
+                    s.to_byte(),
+                    selector.to_byte()
+                )),
+                Ok(OfflineMessage::WhoResponse { .. }) => Verdict::Info("a late Who answer".into()),
+                Ok(_) | Err(_) => Verdict::fail(format!("not an Identify answer: {}", hex(rec.frame.data()))),
+            };
+            self.session.set_verdict(i, v);
+        }
+        Ok(false)
+    }
+
+    /// The offline ownership request; `true` when answered with the request echoed.
+    fn offline_ownership(&mut self) -> Result<bool, MasterError> {
+        let me = DeviceKey { vendor_id: self.config.vendor_id, serial_number: self.config.serial_number };
+        let msg = OfflineMessage::OwnershipRequest { client: self.config.mac, device: me };
+        self.session.send(&offline_frame(&msg)?)?;
+        let deadline = self.session.now() + self.config.response_timeout;
+        let mut answered = false;
+        while let Some(i) = self.session.next(deadline)? {
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if group4_of(&rec.frame) != Some(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE) {
+                self.other(i)?;
+                continue;
+            }
+            let v = match OfflineMessage::parse(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, rec.frame.data()) {
+                Ok(OfflineMessage::OwnershipResponse { client, device }) if client == self.config.mac && device == me => {
+                    answered = true;
+                    Verdict::Ok("offline ownership granted: the request echoed with CB".into())
+                }
+                Ok(OfflineMessage::OwnershipResponse { client, device }) => Verdict::fail(format!(
+                    "ownership answer for client MAC {client}, vendor 0x{:04X}, serial 0x{:08X}: not the request echoed",
+                    device.vendor_id, device.serial_number
+                )),
+                Ok(_) | Err(_) => Verdict::fail(format!("malformed ownership answer: {}", hex(rec.frame.data()))),
+            };
+            self.session.set_verdict(i, v);
+            if answered {
+                // The answer is complete; what else comes is judged as usual.
+                break;
+            }
+        }
+        Ok(answered)
+    }
+
+    /// Watches the node's duplicate MAC ID check at `to` after Change MAC ID: returns the times of
+    /// its two requests. A response to them, or another node's request for `to`, is
+    /// [`MasterError::DuplicateMac`]; no request is [`MasterError::Timeout`].
+    fn watch_dup_mac(
+        &mut self,
+        node: &FaultedNode,
+        to: MacId,
+        changed: Instant,
+        judge_timing: bool,
+    ) -> Result<Vec<Instant>, MasterError> {
+        let id = Identifier::group2(to, Group2Message::DuplicateMacCheck);
+        let mut requests: Vec<Instant> = Vec::new();
+        loop {
+            let deadline = match requests.last() {
+                None => changed + DUP_MAC_INTERVAL,
+                Some(&t) if requests.len() == 1 => t + DUP_MAC_INTERVAL + DUP_MAC_TOLERANCE,
+                // After the second request: the 1 s window in which another node may object.
+                Some(&t) => t + DUP_MAC_INTERVAL,
+            };
+            let Some(i) = self.session.next(deadline)? else {
+                if requests.len() >= 2 {
+                    return Ok(requests);
+                }
+                let what = if requests.is_empty() {
+                    format!(
+                        "Change MAC ID to {to} sent to {}: the node did not start its duplicate MAC ID check at MAC {to}",
+                        node.text()
+                    )
+                } else {
+                    format!("the node's second duplicate MAC ID request at MAC {to}")
+                };
+                return Err(MasterError::Timeout {
+                    what,
+                    mac: to.as_raw(),
+                    after: DUP_MAC_INTERVAL,
+                    timeout: "duplicate MAC ID interval",
+                });
+            };
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if rec.frame.id() != id {
+                self.other(i)?;
+                continue;
+            }
+            let check = match DuplicateMacCheck::parse(rec.frame.data()) {
+                Ok(c) => c,
+                Err(e) => {
+                    self.session
+                        .set_verdict(i, Verdict::fail(format!("malformed duplicate MAC ID check: {e}")));
+                    continue;
+                }
+            };
+            let ours = check.vendor_id == node.vendor_id && check.serial_number == node.serial_number;
+            if ours && !check.response {
+                let n = requests.len() + 1;
+                let mut note = format!("the recovered node's duplicate MAC ID request #{n} at MAC {to}");
+                let mut failures = Vec::new();
+                if let Some(&prev) = requests.last() {
+                    let gap = rec.at - prev;
+                    let off = gap.total_micros().abs_diff(DUP_MAC_INTERVAL.total_micros());
+                    note.push_str(&format!(
+                        ", {:.1} ms after #{}",
+                        gap.total_micros() as f64 / 1000.0,
+                        n - 1
+                    ));
+                    if off > DUP_MAC_TOLERANCE.total_micros() {
+                        let text = format!("the requests are 1 s apart (notes §7.1), not {gap}");
+                        if judge_timing {
+                            failures.push(text);
+                        } else {
+                            note.push_str(&format!("; timing not judged on this bus: {text}"));
+                        }
+                    }
+                }
+                if n > 2 {
+                    failures.push(format!("request #{n}: a check has two requests (notes §7.1)"));
+                }
+                self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
+                requests.push(rec.at);
+                continue;
+            }
+            let who = format!("vendor 0x{:04X}, serial 0x{:08X}", check.vendor_id, check.serial_number);
+            self.session.set_verdict(
+                i,
+                Verdict::Info(format!(
+                    "another node ({who}) {} MAC {to}: the recovered node is Communication Faulted again",
+                    if check.response { "holds" } else { "checks" }
+                )),
+            );
+            return Err(MasterError::DuplicateMac {
+                mac: to.as_raw(),
+                detail: format!(
+                    "MAC {to} is taken: a node with {who} {} to the recovered node's check ({}), which is Communication Faulted again; recover it to a free MAC",
+                    if check.response { "answered" } else { "checked it at the same time, objecting" },
+                    node.text()
+                ),
+            });
+        }
+    }
+}
+
+fn list(nodes: &[FaultedNode]) -> String {
+    nodes.iter().map(FaultedNode::text).collect::<Vec<_>>().join("; ")
+}
