@@ -32,6 +32,8 @@ use std::collections::HashMap;
 
 pub mod io;
 pub mod recovery;
+#[cfg(test)]
+mod scripted;
 
 /// Between the two duplicate MAC ID requests, and from the second to on-line (notes §7.1).
 pub const DUP_MAC_INTERVAL: Duration = devicenet::slave::DUP_MAC_INTERVAL;

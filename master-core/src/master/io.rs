@@ -802,7 +802,7 @@ impl Master<'_, '_> {
             }
             SeriesStep::Complete(data, v) => {
                 let start = conn.series_start.take().unwrap_or(rec.at);
-                let v = self.judge_production(conn, start, &data, v);
+                let (v, resent) = self.judge_production(conn, start, &data, v);
                 self.session.set_verdict(i, v);
                 if conn.acked() {
                     let ack = CanFrame::new(Identifier::group2(target, Group2Message::CosCyclicAck), &[])
@@ -810,8 +810,11 @@ impl Master<'_, '_> {
                     self.session.send(&ack)?;
                     conn.summary.acks_sent += 1;
                 }
-                let acked_at = conn.acked().then(|| self.session.now());
-                conn.last = Some((start, data, acked_at));
+                if !resent {
+                    let acked_at = conn.acked().then(|| self.session.now());
+                    conn.last = Some((start, data.clone(), acked_at));
+                    conn.pending.push_back(data);
+                }
             }
         }
         Ok(())
@@ -825,7 +828,7 @@ impl Master<'_, '_> {
         start: Instant,
         data: &[u8],
         v: Verdict,
-    ) -> Verdict {
+    ) -> (Verdict, bool) {
         let epr = conn.epr();
         let tol = timing_tolerance(epr);
         let ms = |d: Duration| d.total_micros() as f64 / 1000.0;
@@ -855,8 +858,7 @@ impl Master<'_, '_> {
                     )],
                     _ => Vec::new(),
                 };
-                conn.last = Some((prev, prev_data, acked_at));
-                return v.with_failures(failures).noted(&note);
+                return (v.with_failures(failures).noted(&note), true);
             }
         }
         conn.summary.productions += 1;
@@ -909,13 +911,14 @@ impl Master<'_, '_> {
             }
         }
         let note = format!("{:.1} ms after {since}", ms(interval));
-        if conn.options.judge_timing {
+        let v = if conn.options.judge_timing {
             v.with_failures(timing).noted(&note)
         } else if timing.is_empty() {
             v.noted(&note)
         } else {
             v.noted(&format!("{note}; timing not judged on this bus: {}", timing.join("; ")))
-        }
+        };
+        (v, false)
     }
 }
 

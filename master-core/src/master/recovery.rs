@@ -471,3 +471,122 @@ impl Master<'_, '_> {
 fn list(nodes: &[FaultedNode]) -> String {
     nodes.iter().map(FaultedNode::text).collect::<Vec<_>>().join("; ")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::master::scripted::Scripted;
+    use crate::master::MasterConfig;
+    use crate::session::Session;
+    use can_io::bus::Bitrate;
+    use can_io::sim::{PowerOn, SimBus};
+
+    const WHO_5: [u8; 3] = [0x45, 0x4B, 0x03];
+    const ANSWER: [u8; 7] = [0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+    const IDENTIFY: [u8; 8] = [0x3F, 0x4C, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+    const OWNERSHIP: [u8; 8] = [0x00, 0x4B, 0x01, 0x00, 0x04, 0x03, 0x02, 0x01];
+    const OWNED: [u8; 8] = [0x00, 0xCB, 0x01, 0x00, 0x04, 0x03, 0x02, 0x01];
+    const CHANGE_TO_9: [u8; 8] = [0x09, 0x4D, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+    const DUP_9: [u8; 7] = [0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+
+    /// The faulted node: answers Who after its time delay (byte 3 of its answer, 0x78 = 120 ms),
+    /// Identify and ownership; after Change MAC ID to 9 its duplicate MAC ID check at 9, then
+    /// its explicit connection there.
+    fn faulted() -> Scripted {
+        Scripted::new(5)
+            .on(0x7ED, &WHO_5, &[(120, 0x7EC, &ANSWER)])
+            .on(0x7ED, &IDENTIFY, &[(1, 0x7EC, &[0x3F, 0xCC])])
+            .on(0x7EF, &OWNERSHIP, &[(1, 0x7EE, &OWNED)])
+            .on(0x7ED, &CHANGE_TO_9, &[(1, 0x44F, &DUP_9), (1001, 0x44F, &DUP_9)])
+            .on(0x44E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00], &[(0, 0x44B, &[0x00, 0xCB, 0x00])])
+            .on(0x44C, &[0x00, 0x0E, 0x01, 0x01, 0x06], &[(0, 0x44B, &[0x00, 0x8E, 0x78, 0x56, 0x34, 0x12])])
+            .on(0x44C, &[0x00, 0x0E, 0x03, 0x01, 0x01], &[(0, 0x44B, &[0x00, 0x8E, 0x09])])
+    }
+
+    fn run(
+        devices: Vec<Scripted>,
+        opts: &RecoverOptions,
+    ) -> (Result<RecoveryReport, MasterError>, Vec<String>) {
+        let mut bus = SimBus::new(Bitrate::K250);
+        for d in devices {
+            bus.attach(Box::new(d), PowerOn::AtStart);
+        }
+        let mut session = Session::new(&mut bus);
+        let r = Master::new(&mut session, MasterConfig::default()).recover(opts);
+        let failures = session
+            .records()
+            .iter()
+            .filter(|r| r.verdict.is_failure())
+            .map(|r| format!("#{} {}: {}", r.index, r.frame, r.verdict.label()))
+            .collect();
+        (r, failures)
+    }
+
+    fn to_9() -> RecoverOptions {
+        RecoverOptions { to: Some(MacId::from_low_bits(9)), ..RecoverOptions::new(MacId::from_low_bits(5)) }
+    }
+
+    #[test]
+    fn a_faulted_node_is_found_identified_and_given_a_new_mac() {
+        let (r, failures) = run(vec![faulted()], &to_9());
+        let r = r.unwrap();
+        assert!(failures.is_empty(), "{failures:#?}");
+        assert_eq!(r.found.len(), 1);
+        assert_eq!((r.found[0].vendor_id, r.found[0].serial_number), (0x1234, 0x1234_5678));
+        assert!((120.0..125.0).contains(&r.found[0].answered_after_ms), "{:?}", r.found);
+        assert_eq!((r.identified, r.ownership, r.new_mac), (Some(true), Some(true), Some(9)));
+        assert_eq!(r.dup_mac_requests_ms.len(), 2);
+        assert!(r.online && r.findings.is_empty());
+        assert_eq!(r.serial_at_new_mac, Some(0x1234_5678));
+        assert_eq!(r.who, "0x7ED 45 4B 03");
+    }
+
+    #[test]
+    fn without_a_new_mac_the_nodes_are_listed_only() {
+        let (r, _) = run(vec![faulted()], &RecoverOptions::new(MacId::from_low_bits(5)));
+        let r = r.unwrap();
+        assert_eq!((r.found.len(), r.chosen, r.new_mac), (1, None, None));
+    }
+
+    #[test]
+    fn nothing_answering_says_what_was_sent() {
+        let (r, _) = run(vec![Scripted::new(5)], &to_9());
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("Who (0x7ED 45 4B 03)") && e.contains("no node answered"), "{e}");
+    }
+
+    #[test]
+    fn several_faulted_nodes_need_a_serial_number() {
+        let other =
+            Scripted::new(5).on(0x7ED, &WHO_5, &[(30, 0x7EC, &[0x00, 0x34, 0x12, 0x1E, 0x56, 0x34, 0x12])]);
+        let (r, _) = run(vec![faulted(), other], &to_9());
+        let e = r.unwrap_err();
+        assert!(matches!(e, MasterError::Invalid(_)), "{e}");
+        assert!(e.to_string().contains("2 faulted nodes") && e.to_string().contains("--serial"), "{e}");
+        let other =
+            Scripted::new(5).on(0x7ED, &WHO_5, &[(30, 0x7EC, &[0x00, 0x34, 0x12, 0x1E, 0x56, 0x34, 0x12])]);
+        let opts = RecoverOptions { serial: Some(0x1234_5678), ..to_9() };
+        let (r, failures) = run(vec![faulted(), other], &opts);
+        assert!(r.unwrap().online && failures.is_empty(), "{failures:#?}");
+    }
+
+    #[test]
+    fn a_taken_mac_faults_the_node_again() {
+        let holder =
+            Scripted::new(9).on(0x44F, &DUP_9, &[(0, 0x44F, &[0x80, 0x34, 0x12, 0x01, 0x00, 0x00, 0x00])]);
+        let (r, _) = run(vec![faulted(), holder], &to_9());
+        let e = r.unwrap_err();
+        assert!(matches!(e, MasterError::DuplicateMac { mac: 9, .. }), "{e}");
+        assert!(e.to_string().contains("Communication Faulted again"), "{e}");
+    }
+
+    #[test]
+    fn a_node_that_does_not_take_the_new_mac_is_a_timeout_and_missing_answers_are_findings() {
+        let silent = Scripted::new(5).on(0x7ED, &WHO_5, &[(5, 0x7EC, &ANSWER)]);
+        let (r, _) = run(vec![silent], &to_9());
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("did not start its duplicate MAC ID check at MAC 9"), "{e}");
+        let opts = RecoverOptions { to: Some(MacId::from_low_bits(0)), ..to_9() };
+        assert!(matches!(run(vec![faulted()], &opts).0, Err(MasterError::Invalid(_))));
+    }
+}
