@@ -5,6 +5,7 @@ use std::process::{Command, Output};
 
 const EXTENDED: &str =
     concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/eds-corpus/hilscher_dns_v5_extended.eds");
+const NETX90: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/eds-corpus/hilscher_netx90_dns.eds");
 
 fn corpus(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(name).display().to_string()
@@ -126,9 +127,58 @@ fn parse_syntax_error_exits_1_with_position() {
 
 #[test]
 fn check_clean_file_exits_0() {
-    let output = run(&["check", EXTENDED]);
+    let output = run(&["check", NETX90]);
     assert_eq!(output.status.code(), Some(0));
     assert!(stdout(&output).ends_with("0 errors, 0 warnings\n"));
+}
+
+/// The DNS V5 demo names its 10-byte Input1 for the bit-strobe: a warning at the field, exit 0.
+#[test]
+fn check_a_strobe_input_over_8_bytes_warns_at_the_field() {
+    let output = run(&["check", EXTENDED]);
+    assert_eq!(output.status.code(), Some(0));
+    let text = stdout(&output);
+    assert!(
+        text.contains(&format!(
+            "{EXTENDED}:51:17: warning[strobe-size]: `StrobeInfo` uses Input1 (10 bytes) by default, but a \
+             bit-strobe response carries at most 8 bytes and is never fragmented"
+        )),
+        "{text}"
+    );
+    assert!(text.ends_with("0 errors, 1 warning\n"), "{text}");
+}
+
+/// Bad masks and a missing input in a generated EDS: errors and warnings with positions, exit 1.
+#[test]
+fn check_bad_io_connections_in_an_edited_eds() {
+    let dir = temp_dir("check-io");
+    let bad = dir.join("bad.eds");
+    let text = std::fs::read_to_string(golden("breaker"))
+        .unwrap()
+        .replacen(
+            "        COSInfo =\n                0x0007,",
+            "        COSInfo =\n                0x001F,",
+            1,
+        )
+        .replacen(
+            "                2,                        $ default input",
+            "                3,                        $ default input",
+            1,
+        );
+    std::fs::write(&bad, text).unwrap();
+    let output = run(&["check", bad.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(1));
+    let text = stdout(&output);
+    let at = bad.display();
+    for line in [
+        format!("{at}:34:17: error[io-reference]: `StrobeInfo` names Input3 as its default, but there is no `Input3`"),
+        format!("{at}:37:17: warning[connection-mask]: `COSInfo` mask 0x001F (poll, strobe, cos, cyclic, bit4) sets reserved bits 0x0010"),
+        format!("{at}:37:17: warning[connection-mask]: `COSInfo` mask 0x001F (poll, strobe, cos, cyclic, bit4) combines cos and cyclic"),
+    ] {
+        assert!(text.contains(&line), "{line}\n{text}");
+    }
+    assert!(text.ends_with("1 error, 2 warnings\n"), "{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
