@@ -255,8 +255,8 @@ fn io_info(description: &DeviceDescription) -> IoInfo {
     };
     // The strobe response is the first min(P, 8) bytes of the input assembly. When that is the
     // whole assembly, Input1 serves every connection; otherwise a second entry with the same path
-    // and the strobe size serves the bit-strobe (as WRC1-JDB/48's strobe-only `Input2`, and as the
-    // netX 90 file's inputs of several sizes on one assembly path).
+    // and the strobe size serves the bit-strobe: hilscher_netx90_dns.eds lists inputs of several
+    // sizes on one assembly path and names its 8-byte one for the strobe.
     let strobe_size = strobe_produced_size(device.produced_size);
     let whole = strobe_size == device.produced_size;
     let input_mask = if whole { POLL_STROBE_COMPATIBLE } else { OUTPUT_CONNECTIONS };
