@@ -1,51 +1,63 @@
-//! CAN acceptance filtering: only this node's Group 2 traffic reaches the core (notes §8).
+//! CAN acceptance filtering: only the frames a group-2-only slave consumes reach the core
+//! (notes §8, docs/io-connections.md).
 //!
-//! A group-2-only slave consumes four identifiers, all carrying **its own** MAC ID in the Group 2
-//! MAC field: the master's explicit request (message 4), the poll command (5), the Group 2 Only
-//! Unconnected Explicit Request port (6) and the duplicate MAC ID check (7). Another node's
-//! duplicate MAC check for our MAC uses our MAC in the identifier, so the same list catches it.
-//! Group 1 and Group 3 (UCMM) frames never reach the core; neither do other nodes' Group 2 frames.
+//! - Every Group 2 message carrying **its own** MAC ID in the MAC field (`0x400 | mac << 3 |
+//!   message`): the COS/cyclic acknowledge (message 2), the explicit request (4), the poll command
+//!   or the master's COS/cyclic data (5), the Group 2 Only port (6) and the duplicate MAC ID check
+//!   (7; another node's check for our MAC carries our MAC too). Messages 0, 1 and 3 with our MAC
+//!   pass as well (one mask covers the eight); the core ignores them.
+//! - Every bit-strobe command (Group 2 message 0): it carries the **master's** MAC, which is not
+//!   known before allocation (§II.1.2); the core keeps the owner's.
+//! - The Offline Connection Set's requests, 0x7ED and 0x7EF (§II.6), for a faulted node.
 //!
-//! For MAC 5 the list is 0x42C, 0x42D, 0x42E, 0x42F. On the bxCAN the four identifiers fill one
-//! filter bank in 16-bit list mode, routed to FIFO 0 so that frames keep their bus order; the
-//! emulated board applies [`accepts`] in software to the SLCAN frames it receives.
+//! Group 1, Group 3 (UCMM), other nodes' Group 2 traffic and Group 4 responses never reach the
+//! core. For MAC 5: 0x428-0x42F, 0x400 | n << 3 for every n, 0x7ED, 0x7EF. On the bxCAN, filter
+//! bank 0 holds the two masks (16-bit mask mode) and bank 1 the two Group 4 identifiers (16-bit
+//! list mode), both routed to FIFO 0 so that frames keep their bus order; a MAC ID taken through
+//! the Offline Connection Set rewrites bank 0. The emulated board applies [`accepts`] in software
+//! to the SLCAN frames it receives.
 
 use devicenet::MacId;
 
-/// Group 2 message IDs the slave consumes: explicit request, poll command, Group 2 Only
-/// unconnected explicit request, duplicate MAC ID check (notes §1.2).
-pub const CONSUMED_GROUP2_MESSAGES: [u8; 4] = [4, 5, 6, 7];
-
-/// The filter bank holding the list.
+/// The filter bank holding the two Group 2 masks.
 pub const FILTER_BANK: u8 = 0;
+/// The filter bank holding the Group 4 list.
+pub const OFFLINE_FILTER_BANK: u8 = 1;
 
-/// The 11-bit identifiers the node with `mac` accepts: `0x400 | mac << 3 | message`.
-pub const fn acceptance_list(mac: MacId) -> [u16; 4] {
-    let base = 0x400 | ((mac.as_raw() as u16) << 3);
-    [
-        base | CONSUMED_GROUP2_MESSAGES[0] as u16,
-        base | CONSUMED_GROUP2_MESSAGES[1] as u16,
-        base | CONSUMED_GROUP2_MESSAGES[2] as u16,
-        base | CONSUMED_GROUP2_MESSAGES[3] as u16,
-    ]
+/// The mask of a Group 2 identifier's group and MAC bits: every message of one MAC.
+pub const OWN_MASK: u16 = 0x7F8;
+/// The mask of a Group 2 identifier's group and message bits: one message of every MAC.
+pub const STROBE_MASK: u16 = 0x607;
+/// The bit-strobe command of any master (Group 2 message 0).
+pub const STROBE_ID: u16 = 0x400;
+/// The Offline Connection Set's request identifiers: Communication Faulted request and offline
+/// ownership request (notes §1.4).
+pub const OFFLINE_REQUESTS: [u16; 2] = [0x7ED, 0x7EF];
+
+/// The identifier of Group 2 message 0 for `mac`; with [`OWN_MASK`], all its Group 2 messages.
+pub const fn own_group2(mac: MacId) -> u16 {
+    0x400 | ((mac.as_raw() as u16) << 3)
 }
 
-/// Whether a standard identifier passes the node's acceptance filter (what the bxCAN bank does
+/// Whether a standard identifier passes the node's acceptance filter (what the bxCAN banks do
 /// in hardware).
 pub const fn accepts(mac: MacId, id: u16) -> bool {
-    let list = acceptance_list(mac);
-    id == list[0] || id == list[1] || id == list[2] || id == list[3]
+    id & OWN_MASK == own_group2(mac)
+        || id & STROBE_MASK == STROBE_ID
+        || id == OFFLINE_REQUESTS[0]
+        || id == OFFLINE_REQUESTS[1]
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use devicenet::id::Group4MessageId;
     use devicenet::{CanId, Group2Message, Identifier};
     use rstest::rstest;
 
     #[test]
-    fn mac_5_list_of_notes_8() {
-        assert_eq!(acceptance_list(MacId::new(5).unwrap()), [0x42C, 0x42D, 0x42E, 0x42F]);
+    fn mac_5_own_identifiers() {
+        assert_eq!(own_group2(MacId::new(5).unwrap()), 0x428);
     }
 
     #[rstest]
@@ -53,33 +65,39 @@ mod tests {
     #[case::mac5(5)]
     #[case::mac42(42)]
     #[case::mac63(63)]
-    fn filter_is_exactly_own_group2_consumed(#[case] mac: u8) {
+    fn filter_is_exactly_what_the_node_consumes(#[case] mac: u8) {
         let mac = MacId::new(mac).unwrap();
         let mut accepted = 0;
         for raw in 0..=0x7FFu16 {
-            let wanted = matches!(
-                Identifier::decode(CanId::new(raw).unwrap()),
-                Identifier::Group2 {
-                    mac: m,
-                    message: Group2Message::ExplicitRequest
-                        | Group2Message::PollCommand
-                        | Group2Message::UnconnectedExplicitRequest
-                        | Group2Message::DuplicateMacCheck
-                } if m == mac
-            );
+            let wanted = match Identifier::decode(CanId::new(raw).unwrap()) {
+                Identifier::Group2 { message: Group2Message::BitStrobeCommand, .. } => true,
+                Identifier::Group2 { mac: m, .. } => m == mac,
+                Identifier::Group4 { message } => {
+                    message == Group4MessageId::COMM_FAULTED_REQUEST
+                        || message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST
+                }
+                _ => false,
+            };
             assert_eq!(accepts(mac, raw), wanted, "identifier {raw:03X}");
             accepted += usize::from(wanted);
         }
-        assert_eq!(accepted, 4);
+        // Eight messages of our MAC, the other 63 masters' strobes, two Group 4 requests.
+        assert_eq!(accepted, 8 + 63 + 2);
     }
 
     #[rstest]
     #[case::other_nodes_dup_check_for_our_mac(0x42F, true)]
-    #[case::our_own_explicit_response(0x42B, false)]
+    #[case::our_own_explicit_response_passes_the_mask(0x42B, true)]
     #[case::our_poll_response_group1(0x3C5, false)]
     #[case::ucmm_request_group3(0x780, false)]
     #[case::another_slaves_poll(0x435, false)]
-    #[case::offline_connection_set_group4(0x7EF, false)]
+    #[case::offline_ownership_request(0x7EF, true)]
+    #[case::who_request(0x7ED, true)]
+    #[case::who_response(0x7EC, false)]
+    #[case::cos_ack(0x42A, true)]
+    #[case::strobe_from_master_0(0x400, true)]
+    #[case::strobe_from_master_62(0x5F0, true)]
+    #[case::another_slaves_cos_ack(0x432, false)]
     fn examples(#[case] id: u16, #[case] accepted: bool) {
         assert_eq!(accepts(MacId::new(5).unwrap(), id), accepted);
     }

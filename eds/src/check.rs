@@ -6,7 +6,34 @@
 //! 2. lowering ([`Eds::from_raw`]): duplicates, values of the wrong form, unknown keywords;
 //! 3. the semantic checks of [`check_model`]: required sections and keys, cross references
 //!    (groups, enums, scaling links, default I/O entries), `min <= default <= max`, values that
-//!    fit their data type, data sizes that match the data type code, enum values within range.
+//!    fit their data type, data sizes that match the data type code, enum values within range,
+//!    and the I/O connections of `[IO_Info]` (below).
+//!
+//! ## `[IO_Info]`
+//!
+//! Masks are DeviceNet's four connection bits (0 poll, 1 bit-strobe, 2 change of state, 3
+//! cyclic). The checks, and what they follow (the DeviceNet files of `../shared/eds-corpus/`:
+//! `hilscher_netx90_dns.eds`, `hilscher_dns_v5_simple.eds`, `hilscher_dns_v5_extended.eds`):
+//!
+//! | finding | severity | rule |
+//! |---|---|---|
+//! | a `PollInfo`/`StrobeInfo`/`COSInfo`/`CyclicInfo` default input or output that does not exist | error | `io-reference` |
+//! | a connection with no default input and no `InputN` whose mask includes it: nothing tells a scanner its size | warning | `io-reference` |
+//! | a default input or output whose mask excludes the connection | warning | `connection-mask` |
+//! | `Default` enabling a connection that has no `...Info` | warning | `connection-mask` |
+//! | a reserved mask bit (4–15) in `Default`, an `...Info` or an `InputN`/`OutputN` | warning | `connection-mask` |
+//! | change of state and cyclic combined (`Default`, `COSInfo`, `CyclicInfo`): both are Connection instance 4, a node refuses them together (the corpus writes `COSInfo = 0x0007`, `CyclicInfo = 0x000B`) | warning | `connection-mask` |
+//! | two `...Info` masks that disagree (poll says it combines with bit-strobe, `StrobeInfo` says it does not) | warning | `connection-mask` |
+//! | `StrobeInfo`'s default input over 8 bytes: a bit-strobe response is at most 8 bytes, never fragmented | warning | `strobe-size` |
+//! | an `InputN`/`OutputN` with more bits than bytes | error | `io-size` |
+//!
+//! The strobe size is a warning, not an error: two of the three vendor files name their 10-byte
+//! `Input1` for the bit-strobe, so a real scanner evidently accepts such a file (it configures a
+//! size the device cannot send). Other inputs whose mask includes bit-strobe are not judged by
+//! size: the corpus marks every input `0x000F`, whatever its size, and picks a small one for the
+//! strobe. `StrobeInfo` naming no default output (0) is the corpus's norm; a file that names one
+//! is not faulted. A `[Connection Manager]` section (the CIP connections of EtherNet/IP and
+//! ControlNet) is kept as written and not checked: no DeviceNet file of the corpus has one.
 //!
 //! Positions come from the text, so a model built in code (by a generator) is checked by writing
 //! it first: `check_str(&Writer::new().write(&eds))`.
@@ -17,6 +44,7 @@ use crate::model::{entry_key, Eds, IoEntry, Known, Param};
 use crate::raw::{RawEds, RawEntry};
 use crate::text::{decode, Encoding};
 use crate::value::{parse_int, ConnectionMask, DataType, Value};
+use devicenet::slave::STROBE_MAX_SIZE;
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
@@ -262,6 +290,10 @@ impl Checker<'_> {
             ("COSInfo", &io.cos, ConnectionMask::COS, "cos"),
             ("CyclicInfo", &io.cyclic, ConnectionMask::CYCLIC, "cyclic"),
         ];
+        if let Some(mask) = io.default {
+            let span = self.at.span(Known::IoInfo, "Default");
+            self.mask_bits("Default", mask, span);
+        }
         for (key, info, bit, name) in connections {
             let Some(info) = info else {
                 if io.default.is_some_and(|d| d.has(bit)) {
@@ -274,6 +306,10 @@ impl Checker<'_> {
                 }
                 continue;
             };
+            if let Some(mask) = info.compatible {
+                let span = self.at.field(Known::IoInfo, key, 0);
+                self.mask_bits(key, mask, span);
+            }
             for (index, number, entries, prefix) in [
                 (1, info.default_input, &io.inputs, "Input"),
                 (2, info.default_output, &io.outputs, "Output"),
@@ -294,7 +330,22 @@ impl Checker<'_> {
                     Some(_) => {}
                 }
             }
+            let default_input = info.default_input.filter(|&n| n != 0);
+            if default_input.is_none() && !io.inputs.values().any(|e| e.mask.is_some_and(|m| m.has(bit))) {
+                let span = self.at.field(Known::IoInfo, key, 1);
+                self.warning(
+                    Rule::IoReference,
+                    span,
+                    format!(
+                        "`{key}` names no default input and no InputN's mask includes {name}: nothing \
+                         tells a scanner what the connection produces"
+                    ),
+                );
+            }
         }
+        self.exclusive_cos_cyclic(io);
+        self.symmetric_masks(&connections);
+        self.strobe_size(io);
         for (prefix, entries) in [("Input", &io.inputs), ("Output", &io.outputs)] {
             for (n, entry) in entries {
                 let key = format!("{prefix}{n}");
@@ -311,8 +362,99 @@ impl Checker<'_> {
                         );
                     }
                 }
+                if let Some(mask) = entry.mask {
+                    let span = self.at.field(Known::IoInfo, &key, 2);
+                    self.mask_bits(&key, mask, span);
+                }
                 self.path_size(Known::IoInfo, &key, 4, entry.path_size, entry.path.as_ref());
             }
+        }
+    }
+
+    /// A mask with bits beyond DeviceNet's four connection types.
+    fn mask_bits(&mut self, key: &str, mask: ConnectionMask, span: Span) {
+        let reserved = mask.0 & !ConnectionMask::ALL;
+        if reserved != 0 {
+            self.warning(
+                Rule::ConnectionMask,
+                span,
+                format!(
+                    "`{key}` mask {mask} sets reserved bits 0x{reserved:04X}: only bits 0-3 (poll, strobe, \
+                     cos, cyclic) are defined"
+                ),
+            );
+        }
+    }
+
+    /// Change of state and cyclic are both Connection instance 4: a mask that combines them
+    /// announces an allocation a node refuses.
+    fn exclusive_cos_cyclic(&mut self, io: &crate::model::IoInfo) {
+        let both = ConnectionMask::COS | ConnectionMask::CYCLIC;
+        let masks = [
+            ("Default", io.default, None),
+            ("COSInfo", io.cos.as_ref().and_then(|i| i.compatible), Some(0)),
+            ("CyclicInfo", io.cyclic.as_ref().and_then(|i| i.compatible), Some(0)),
+        ];
+        for (key, mask, field) in masks {
+            let Some(mask) = mask.filter(|m| m.has(both)) else { continue };
+            let span = match field {
+                Some(index) => self.at.field(Known::IoInfo, key, index),
+                None => self.at.span(Known::IoInfo, key),
+            };
+            self.warning(
+                Rule::ConnectionMask,
+                span,
+                format!(
+                    "`{key}` mask {mask} combines cos and cyclic: both are Connection instance 4, one or \
+                     the other (COSInfo 0x0007, CyclicInfo 0x000B)"
+                ),
+            );
+        }
+    }
+
+    /// Two connections whose masks disagree on whether they combine (COS with cyclic is
+    /// [`Self::exclusive_cos_cyclic`]'s).
+    fn symmetric_masks(
+        &mut self,
+        connections: &[(&str, &Option<crate::model::ConnectionInfo>, u16, &str); 4],
+    ) {
+        let mask = |info: &Option<crate::model::ConnectionInfo>| info.as_ref().and_then(|i| i.compatible);
+        for (i, &(key_a, info_a, bit_a, name_a)) in connections.iter().enumerate() {
+            for &(key_b, info_b, bit_b, name_b) in &connections[i + 1..] {
+                if bit_a | bit_b == ConnectionMask::COS | ConnectionMask::CYCLIC {
+                    continue;
+                }
+                let (Some(a), Some(b)) = (mask(info_a), mask(info_b)) else { continue };
+                if a.has(bit_b) != b.has(bit_a) {
+                    let span = self.at.field(Known::IoInfo, key_a, 0);
+                    let (yes, no) = if a.has(bit_b) { (key_a, key_b) } else { (key_b, key_a) };
+                    self.warning(
+                        Rule::ConnectionMask,
+                        span,
+                        format!(
+                            "`{yes}` says {name_a} and {name_b} combine but `{no}` says they do not \
+                             (`{key_a}` {a}, `{key_b}` {b})"
+                        ),
+                    );
+                }
+            }
+        }
+    }
+
+    /// A bit-strobe response carries at most [`STROBE_MAX_SIZE`] bytes and is never fragmented.
+    fn strobe_size(&mut self, io: &crate::model::IoInfo) {
+        let Some(n) = io.strobe.as_ref().and_then(|i| i.default_input).filter(|&n| n != 0) else { return };
+        let Some(size) = io.inputs.get(&n).and_then(|e| e.size) else { return };
+        if size > u32::from(STROBE_MAX_SIZE) {
+            let span = self.at.field(Known::IoInfo, "StrobeInfo", 1);
+            self.warning(
+                Rule::StrobeSize,
+                span,
+                format!(
+                    "`StrobeInfo` uses Input{n} ({size} bytes) by default, but a bit-strobe response \
+                     carries at most {STROBE_MAX_SIZE} bytes and is never fragmented"
+                ),
+            );
         }
     }
 
@@ -762,6 +904,78 @@ mod tests {
             + "\nInput1 = 1, 8, 0x0001, \"i\", 6, \"20 04 24 64 30 03\", \"\";\nOutput1 = 1, 8, 0x0001, \"o\", 6, \"20 04 24 65 30 03\", \"\";\nPollInfo = 0x0001, 1, 1;\nDefault = 0x0001;";
         let report = check_str(&src);
         assert!(report.rules().contains(&rule), "{report}");
+    }
+
+    /// An `[IO_Info]` with every connection type, as the generator writes it for an 18-byte input.
+    const FOUR_CONNECTIONS: &str = "[IO_Info]\nDefault = 0x0001;\nPollInfo = 0x000F, 1, 1;\n\
+        StrobeInfo = 0x000F, 2, 0;\nCOSInfo = 0x0007, 1, 1;\nCyclicInfo = 0x000B, 1, 1;\n\
+        Input1 = 18, 144, 0x000D, \"i\", 6, \"20 04 24 64 30 03\", \"\";\n\
+        Input2 = 8, 64, 0x0002, \"s\", 6, \"20 04 24 64 30 03\", \"\";\n\
+        Output1 = 8, 64, 0x000D, \"o\", 6, \"20 04 24 96 30 03\", \"\";\n";
+
+    /// The header's identity with [`FOUR_CONNECTIONS`] edited by `edits`.
+    fn four_connections(edits: &[(&str, &str)]) -> Report {
+        let mut io = FOUR_CONNECTIONS.to_string();
+        for (find, replace) in edits {
+            assert_eq!(io.matches(find).count(), 1, "{find:?}");
+            io = io.replacen(find, replace, 1);
+        }
+        check_str(&(HEADER.split("[IO_Info]").next().unwrap().to_string() + &io))
+    }
+
+    #[test]
+    fn four_connections_are_clean() {
+        let report = four_connections(&[]);
+        assert!(report.diagnostics.is_empty(), "{report}");
+    }
+
+    #[rstest]
+    #[case::reserved_default_bit(&[("Default = 0x0001", "Default = 0x0011")], Rule::ConnectionMask, Severity::Warning, "`Default` mask 0x0011 (poll, bit4) sets reserved bits 0x0010")]
+    #[case::reserved_input_bit(&[("0x000D, \"i\"", "0x800D, \"i\"")], Rule::ConnectionMask, Severity::Warning, "`Input1` mask 0x800D (poll, cos, cyclic, bit15) sets reserved bits 0x8000")]
+    #[case::reserved_info_bit(&[("PollInfo = 0x000F", "PollInfo = 0x002F")], Rule::ConnectionMask, Severity::Warning, "`PollInfo` mask 0x002F")]
+    #[case::mask_over_16_bits(&[("PollInfo = 0x000F", "PollInfo = 0x1000F")], Rule::InvalidValue, Severity::Error, "`PollInfo` mask: 65551 is out of range")]
+    #[case::cos_with_cyclic(&[("COSInfo = 0x0007", "COSInfo = 0x000F")], Rule::ConnectionMask, Severity::Warning, "`COSInfo` mask 0x000F (poll, strobe, cos, cyclic) combines cos and cyclic")]
+    #[case::default_cos_and_cyclic(&[("Default = 0x0001", "Default = 0x000C")], Rule::ConnectionMask, Severity::Warning, "`Default` mask 0x000C (cos, cyclic) combines cos and cyclic")]
+    #[case::masks_disagree(&[("StrobeInfo = 0x000F", "StrobeInfo = 0x000E")], Rule::ConnectionMask, Severity::Warning, "`PollInfo` says poll and strobe combine but `StrobeInfo` says they do not")]
+    #[case::missing_strobe_input(&[("StrobeInfo = 0x000F, 2", "StrobeInfo = 0x000F, 3")], Rule::IoReference, Severity::Error, "`StrobeInfo` names Input3 as its default, but there is no `Input3`")]
+    #[case::missing_cos_output(&[("COSInfo = 0x0007, 1, 1", "COSInfo = 0x0007, 1, 2")], Rule::IoReference, Severity::Error, "`COSInfo` names Output2 as its default, but there is no `Output2`")]
+    #[case::no_strobe_input_at_all(
+        &[("StrobeInfo = 0x000F, 2", "StrobeInfo = 0x000F, 0"), ("0x0002, \"s\"", "0x0001, \"s\"")],
+        Rule::IoReference, Severity::Warning, "`StrobeInfo` names no default input and no InputN's mask includes strobe")]
+    #[case::strobe_too_large(&[("StrobeInfo = 0x000F, 2", "StrobeInfo = 0x000F, 1"), ("0x000D, \"i\"", "0x000F, \"i\"")],
+        Rule::StrobeSize, Severity::Warning, "`StrobeInfo` uses Input1 (18 bytes) by default, but a bit-strobe response carries at most 8 bytes")]
+    fn io_connection_rules(
+        #[case] edits: &[(&str, &str)],
+        #[case] rule: Rule,
+        #[case] severity: Severity,
+        #[case] message: &str,
+    ) {
+        let report = four_connections(edits);
+        let found: Vec<&Diagnostic> = report.diagnostics.iter().filter(|d| d.rule == rule).collect();
+        assert_eq!(found.len(), 1, "{report}");
+        assert_eq!(found[0].severity, severity, "{report}");
+        assert!(found[0].message.contains(message), "{report}");
+        assert_eq!(report.diagnostics.len(), 1, "one finding only:\n{report}");
+    }
+
+    #[test]
+    fn a_strobe_input_over_8_bytes_is_named_by_file_line_and_key() {
+        let mut report = four_connections(&[("StrobeInfo = 0x000F, 2", "StrobeInfo = 0x000F, 1")]);
+        report.file = Some(PathBuf::from("big.eds"));
+        let text = report.to_string();
+        // StrobeInfo is on line 9; its default input is the second field, at column 22.
+        assert!(
+            text.contains(
+                "big.eds:9:22: warning[strobe-size]: `StrobeInfo` uses Input1 (18 bytes) by default, but a \
+                 bit-strobe response carries at most 8 bytes and is never fragmented"
+            ),
+            "{text}"
+        );
+        // Input1 is not for bit-strobe: its mask says so too.
+        assert!(
+            text.contains("9:22: warning[connection-mask]: `StrobeInfo` uses Input1 by default"),
+            "{text}"
+        );
     }
 
     #[test]

@@ -103,8 +103,11 @@ pub enum Rule {
     IoSize,
     /// A connection's default input or output names an `InputN`/`OutputN` that does not exist.
     IoReference,
-    /// A connection mask and the entries it governs disagree.
+    /// A connection mask sets a reserved bit (4–15), combines change of state with cyclic, or
+    /// disagrees with another connection's mask or with the entries it governs.
     ConnectionMask,
+    /// The bit-strobe connection's default input is larger than a strobe response (8 bytes).
+    StrobeSize,
     /// Parameter scaling that cannot work (divisor 0).
     Scaling,
     /// A reserved field that is not 0.
@@ -144,6 +147,7 @@ impl Rule {
             Rule::IoSize => "io-size",
             Rule::IoReference => "io-reference",
             Rule::ConnectionMask => "connection-mask",
+            Rule::StrobeSize => "strobe-size",
             Rule::Scaling => "scaling",
             Rule::Reserved => "reserved",
             Rule::Classification => "classification",

@@ -10,7 +10,7 @@
 //! | `[File]` | `DescText` from the product name; dates and revision from [`GenerateOptions`] | — |
 //! | `[Device]` | vendor, device type (and its CIP name), product code, revision, product name, catalog | Identity object (class 0x01) attributes 1–4, 7 |
 //! | `[Device Classification]` | `Class1 = DeviceNet` | — |
-//! | `[IO_Info]` | `Default` and `PollInfo` poll only (`0x0001`); `Input1` = produced size, path `20 04 24 <100 or 101> 30 03`; `Output1` = consumed size, path `20 04 24 96 30 03` | Connection 2 attributes 7, 8, 14, 16; Assembly (class 0x04) |
+//! | `[IO_Info]` | `Default` poll (`0x0001`); `PollInfo`, `StrobeInfo`, `COSInfo`, `CyclicInfo` with the compatibility masks [`POLL_STROBE_COMPATIBLE`], [`COS_COMPATIBLE`], [`CYCLIC_COMPATIBLE`]; `Input1` = produced size P, path `20 04 24 <100 or 101> 30 03`, for poll, COS and cyclic (and bit-strobe when P <= 8); when P > 8 `Input2` = the strobe response, min(P, 8) bytes of the same assembly, bit-strobe only; `Output1` = consumed size, path `20 04 24 96 30 03`, for poll, COS and cyclic ([`OUTPUT_CONNECTIONS`]); `StrobeInfo` names no output | Connection instances 2 (poll), 3 (bit-strobe), 4 (COS/cyclic) attributes 7, 8, 14, 16; Assembly (class 0x04) |
 //! | `[ParamClass]` | `MaxInst = 9`, `Descriptor = 0x0B`, `CfgAssembly = 0` | Parameter object (class 0x0F) class attributes 2, 8, 9 |
 //! | `[Params]` 1–9 | the settings a commissioning tool edits (serial line, stale timeout and policy, input assembly, response timeout, retries, Modbus poll period): `ParamN` is Parameter instance N, link path `20 0F 24 NN 30 01` (devicenet-notes §II.4.4); writable, in force after a reset (the poll period is read-only for a framed instrument) | Parameter object ([`slave_fw::converter::PARAMETER_CLASS`]); names, units, help, types, ranges and access from its table, [`PARAMETERS`]; defaults are the description's values, what the device reports as attribute 12 |
 //! | `[Params]` 10–12 | idle action, fault action, serial profile, read-only: `ParamN` is attribute N − 1 | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]); from its attribute table, [`SettingsAttribute`] |
@@ -19,8 +19,15 @@
 //! | `[Params]` `EnumN` | the strings of every parameter that is a choice (the `EnumN` dialect only; no `[EnumPar]`) | — |
 //! | `[Groups]` | serial line, instrument link, I/O behaviour, DeviceNet, statistics | — |
 //!
-//! Only polled I/O is announced: the node refuses bit-strobe, multicast poll, change-of-state and
-//! cyclic allocations (devicenet `slave` module docs), so every connection mask is `0x0001`.
+//! The I/O connections announced are those the node offers (docs/io-connections.md): poll,
+//! bit-strobe, COS and cyclic, poll the default. Multicast poll has no `[IO_Info]` bit and
+//! acknowledge suppression is a scanner setting, so neither appears. The layout follows the
+//! DeviceNet files of `../shared/eds-corpus/` (Hilscher netX 90 and DNS V5): the same `Default`,
+//! the same four compatibility masks, outputs masked `0x000D`, `StrobeInfo`'s default output 0. A
+//! group-2-only DeviceNet slave's EDS has no `[Connection Manager]`: no DeviceNet file of the
+//! corpus has one (it describes CIP connections of EtherNet/IP and ControlNet devices), so none is
+//! written.
+//!
 //! Parameter defaults are the values of the description; ranges are those the description file
 //! accepts (the `validate` limits of `slave_fw`). A setting the device does not serve over the
 //! network (data bits, the Modbus byte order and scan list, the framing) is not a parameter: a
@@ -40,6 +47,7 @@ use crate::model::{
 use crate::value::{ConnectionMask, DataType, Date, Descriptor, LinkPath, Revision, Time, Value};
 use crate::{Param, Writer};
 use devicenet::objects::class;
+use devicenet::slave::{strobe_produced_size, STROBE_MAX_SIZE};
 use slave_fw::converter::objects::{
     Access, AttributeSpec, AttributeType, LinkAttribute, SettingsAttribute, SettingsValues,
 };
@@ -197,10 +205,28 @@ pub fn device_type_name(device_type: u16) -> String {
     name.to_string()
 }
 
+/// `PollInfo` and `StrobeInfo`: combinable with every other I/O connection type.
+/// (hilscher_netx90_dns.eds, hilscher_dns_v5_simple.eds, hilscher_dns_v5_extended.eds: `0x000F`.)
+pub const POLL_STROBE_COMPATIBLE: ConnectionMask = ConnectionMask(
+    ConnectionMask::POLL | ConnectionMask::STROBE | ConnectionMask::COS | ConnectionMask::CYCLIC,
+);
+/// `COSInfo`: poll, bit-strobe and COS, not cyclic: COS and cyclic are the one Connection instance
+/// 4, and the node refuses them together (docs/io-connections.md, Allocation). The Hilscher files
+/// write the same `0x0007`.
+pub const COS_COMPATIBLE: ConnectionMask =
+    ConnectionMask(ConnectionMask::POLL | ConnectionMask::STROBE | ConnectionMask::COS);
+/// `CyclicInfo`: poll, bit-strobe and cyclic, not COS (the Hilscher files' `0x000B`).
+pub const CYCLIC_COMPATIBLE: ConnectionMask =
+    ConnectionMask(ConnectionMask::POLL | ConnectionMask::STROBE | ConnectionMask::CYCLIC);
+/// The connections that carry the output assembly: poll, and COS or cyclic when poll is not
+/// allocated; a bit-strobe consumes one bit of the strobe command instead (the Hilscher files'
+/// `OutputN` mask `0x000D`).
+pub const OUTPUT_CONNECTIONS: ConnectionMask =
+    ConnectionMask(ConnectionMask::POLL | ConnectionMask::COS | ConnectionMask::CYCLIC);
+
 fn io_info(description: &DeviceDescription) -> IoInfo {
     let converter = &description.converter;
     let device = converter.device_config();
-    let poll = ConnectionMask(ConnectionMask::POLL);
     let (input_name, output_name) = match (&converter.profile, converter.input) {
         (ProfileConfig::Framed(_), InputAssembly::Plain) => ("Instrument data", "Command"),
         (ProfileConfig::Framed(_), InputAssembly::WithStatus) => {
@@ -211,36 +237,70 @@ fn io_info(description: &DeviceDescription) -> IoInfo {
             ("Modbus inputs and link status", "Modbus outputs")
         }
     };
-    let entry = |size: u16, name: &str, instance: u8, help: String| IoEntry {
+    let entry = |size: u16, mask: ConnectionMask, name: String, instance: u8, help: String| IoEntry {
         size: Some(u32::from(size)),
         bits: Some(u32::from(size) * 8),
-        mask: Some(poll),
-        name: name.to_string(),
+        mask: Some(mask),
+        name,
         path_size: Some(6),
         path: Some(LinkPath::Bytes(assembly_data_path(instance).to_vec())),
         help,
         extra: Vec::new(),
     };
+    let info = |compatible: ConnectionMask, input: u32, output: u32| crate::model::ConnectionInfo {
+        compatible: Some(compatible),
+        default_input: Some(input),
+        default_output: Some(output),
+        extra: Vec::new(),
+    };
+    // The strobe response is the first min(P, 8) bytes of the input assembly. When that is the
+    // whole assembly, Input1 serves every connection; otherwise a second entry with the same path
+    // and the strobe size serves the bit-strobe: hilscher_netx90_dns.eds lists inputs of several
+    // sizes on one assembly path and names its 8-byte one for the strobe.
+    let strobe_size = strobe_produced_size(device.produced_size);
+    let whole = strobe_size == device.produced_size;
+    let input_mask = if whole { POLL_STROBE_COMPATIBLE } else { OUTPUT_CONNECTIONS };
+    let mut inputs = vec![entry(
+        device.produced_size,
+        input_mask,
+        input_name.to_string(),
+        device.input_assembly,
+        input_help(description),
+    )];
+    if !whole {
+        inputs.push(entry(
+            strobe_size,
+            ConnectionMask(ConnectionMask::STROBE),
+            format!("{input_name}, first {strobe_size} bytes"),
+            device.input_assembly,
+            format!(
+                "{} of Input1: a bit-strobe response carries at most {STROBE_MAX_SIZE} bytes and is \
+                 never fragmented",
+                bytes(0, usize::from(strobe_size))
+            ),
+        ));
+    }
+    let strobe_input = if whole { 1 } else { 2 };
     IoInfo {
-        default: Some(poll),
-        poll: Some(crate::model::ConnectionInfo {
-            compatible: Some(poll),
-            default_input: Some(1),
-            default_output: Some(1),
-            extra: Vec::new(),
-        }),
-        strobe: None,
-        cos: None,
-        cyclic: None,
-        inputs: [(
+        default: Some(ConnectionMask(ConnectionMask::POLL)),
+        poll: Some(info(POLL_STROBE_COMPATIBLE, 1, 1)),
+        // The strobe command is not an output assembly: 0, no default output.
+        strobe: Some(info(POLL_STROBE_COMPATIBLE, strobe_input, 0)),
+        cos: Some(info(COS_COMPATIBLE, 1, 1)),
+        cyclic: Some(info(CYCLIC_COMPATIBLE, 1, 1)),
+        inputs: (1..).zip(inputs).collect(),
+        outputs: [(
             1,
-            entry(device.produced_size, input_name, device.input_assembly, input_help(description)),
+            entry(
+                device.consumed_size,
+                OUTPUT_CONNECTIONS,
+                output_name.to_string(),
+                OUTPUT_ASSEMBLY,
+                output_help(description),
+            ),
         )]
         .into_iter()
         .collect(),
-        outputs: [(1, entry(device.consumed_size, output_name, OUTPUT_ASSEMBLY, output_help(description)))]
-            .into_iter()
-            .collect(),
         other: Vec::new(),
     }
 }
@@ -734,6 +794,70 @@ mod tests {
         let text = generate_text(&DeviceDescription::reference(), &GenerateOptions::default());
         let report = crate::check_str(&text);
         assert!(report.diagnostics.is_empty(), "{report}");
+    }
+
+    /// The reference (framed) description producing `status_len` bytes (plain input assembly).
+    fn framed_producing(status_len: u8) -> DeviceDescription {
+        let mut description = DeviceDescription::reference();
+        if let ProfileConfig::Framed(c) = &mut description.converter.profile {
+            c.status_len = status_len;
+        }
+        description.converter.input = InputAssembly::Plain;
+        description
+    }
+
+    /// The strobe response is min(P, 8) bytes of the input assembly: its own `Input2` above 8
+    /// bytes, `Input1` itself up to 8 (docs/io-connections.md).
+    #[rstest]
+    #[case::breaker(18, 18, Some(8))]
+    #[case::nine(9, 9, Some(8))]
+    #[case::eight(8, 8, None)]
+    #[case::small(3, 3, None)]
+    fn the_strobe_input_is_min_p_8(#[case] status_len: u8, #[case] p: u32, #[case] second: Option<u32>) {
+        let eds = generate(&framed_producing(status_len), &GenerateOptions::default());
+        let io = eds.io_info.unwrap();
+        let input1 = &io.inputs[&1];
+        assert_eq!(input1.size, Some(p));
+        let strobe = io.strobe.as_ref().unwrap();
+        assert_eq!(strobe.default_output, Some(0), "the strobe command is not an output assembly");
+        match second {
+            Some(size) => {
+                let input2 = &io.inputs[&2];
+                assert_eq!((input2.size, input2.bits), (Some(size), Some(size * 8)));
+                assert_eq!(input2.mask, Some(ConnectionMask(ConnectionMask::STROBE)));
+                assert_eq!(input2.path, input1.path, "the first bytes of the same assembly");
+                assert_eq!(input1.mask, Some(OUTPUT_CONNECTIONS), "Input1 is too large for a strobe");
+                assert_eq!(strobe.default_input, Some(2));
+            }
+            None => {
+                assert_eq!(io.inputs.len(), 1);
+                assert_eq!(input1.mask, Some(POLL_STROBE_COMPATIBLE));
+                assert_eq!(strobe.default_input, Some(1));
+            }
+        }
+        let text = generate_text(&framed_producing(status_len), &GenerateOptions::default());
+        let report = crate::check_str(&text);
+        assert!(report.diagnostics.is_empty(), "{report}");
+    }
+
+    #[test]
+    fn every_offered_connection_is_announced_poll_by_default() {
+        let io = generate(&DeviceDescription::reference(), &GenerateOptions::default()).io_info.unwrap();
+        assert_eq!(io.default, Some(ConnectionMask(ConnectionMask::POLL)));
+        let masks =
+            [&io.poll, &io.strobe, &io.cos, &io.cyclic].map(|i| i.as_ref().unwrap().compatible.unwrap().0);
+        assert_eq!(masks, [0x000F, 0x000F, 0x0007, 0x000B], "as the Hilscher files of the corpus");
+        assert_eq!(io.outputs[&1].mask, Some(ConnectionMask(0x000D)));
+        for info in [&io.poll, &io.cos, &io.cyclic] {
+            let info = info.as_ref().unwrap();
+            assert_eq!((info.default_input, info.default_output), (Some(1), Some(1)));
+        }
+        assert!(eds_has_no_connection_manager(&DeviceDescription::reference()));
+    }
+
+    fn eds_has_no_connection_manager(description: &DeviceDescription) -> bool {
+        let text = generate_text(description, &GenerateOptions::default());
+        !text.to_ascii_lowercase().contains("[connection manager]")
     }
 
     #[test]

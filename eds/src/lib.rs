@@ -61,6 +61,16 @@
 //! # Ok::<(), eds::ParseError>(())
 //! ```
 //!
+//! ## I/O connections
+//!
+//! The generated `[IO_Info]` announces what the node offers (docs/io-connections.md): poll (the
+//! default), bit-strobe, change of state and cyclic, with the compatibility masks of the
+//! DeviceNet files in `../shared/eds-corpus/`; the strobe response, min(P, 8) bytes of the input
+//! assembly, is an input entry of its own when the input is larger. [`check()`] checks those
+//! entries (masks, references, the 8-byte strobe limit: [`mod@check`]). A DeviceNet EDS has no
+//! `[Connection Manager]` (no file of the corpus has one; it describes EtherNet/IP and ControlNet
+//! connections), so none is generated, and one found in a file is kept unchecked.
+//!
 //! ## No-panic contract
 //!
 //! Every entry point accepts any bytes and returns a value or an error; no input makes the

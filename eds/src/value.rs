@@ -316,6 +316,8 @@ impl ConnectionMask {
     pub const COS: u16 = 1 << 2;
     /// Bit 3: cyclic I/O.
     pub const CYCLIC: u16 = 1 << 3;
+    /// The four defined bits; bits 4–15 are reserved.
+    pub const ALL: u16 = Self::POLL | Self::STROBE | Self::COS | Self::CYCLIC;
 
     /// `true` when every bit of `mask` is set.
     pub const fn has(self, mask: u16) -> bool {

@@ -100,16 +100,30 @@ fn model_equals_the_description(#[case] name: &str) {
     assert_eq!(device.prod_name.as_deref(), Some(id.product_name.as_str()));
     assert_eq!(device.catalog.as_deref(), Some(d.catalog.as_str()));
 
+    // Poll, bit-strobe, COS and cyclic, as the node offers them (docs/io-connections.md).
     let io = eds.io_info.as_ref().unwrap();
-    let poll_only = Some(ConnectionMask(ConnectionMask::POLL));
-    assert_eq!(io.default, poll_only);
+    assert_eq!(io.default, Some(ConnectionMask(ConnectionMask::POLL)));
     let poll = io.poll.as_ref().unwrap();
-    assert_eq!((poll.compatible, poll.default_input, poll.default_output), (poll_only, Some(1), Some(1)));
-    assert!(io.strobe.is_none() && io.cos.is_none() && io.cyclic.is_none(), "only poll is offered");
+    assert_eq!(
+        (poll.compatible, poll.default_input, poll.default_output),
+        (Some(ConnectionMask(0x000F)), Some(1), Some(1))
+    );
     let (input, output) = (&io.inputs[&1], &io.outputs[&1]);
     assert_eq!(input.size, Some(u32::from(config.produced_size)));
     assert_eq!(output.size, Some(u32::from(config.consumed_size)));
-    assert_eq!((input.mask, output.mask), (poll_only, poll_only));
+    // Both descriptions produce more than 8 bytes: the strobe response is Input2, the first 8.
+    let strobe = io.strobe.as_ref().unwrap();
+    let strobe_input = &io.inputs[&strobe.default_input.unwrap()];
+    let strobe_size = devicenet::slave::strobe_produced_size(config.produced_size);
+    assert_eq!(
+        (strobe_input.size, strobe_input.path.clone()),
+        (Some(u32::from(strobe_size)), input.path.clone())
+    );
+    for (info, n) in [(&io.cos, 1), (&io.cyclic, 1)] {
+        let info = info.as_ref().unwrap();
+        assert_eq!((info.default_input, info.default_output), (Some(n), Some(n)));
+    }
+    assert_eq!((input.mask, output.mask), (Some(ConnectionMask(0x000D)), Some(ConnectionMask(0x000D))));
     let assembly = |e: &eds::model::IoEntry| {
         e.path.as_ref().and_then(LinkPath::attribute).map(|a| (a.class, a.instance, a.attribute))
     };

@@ -232,6 +232,9 @@ pub struct Converter {
     config: ConfigObject,
     /// The stored image was refused ([`ConfigOrigin::Fault`]): ORed into the Identity status.
     configuration_fault: bool,
+    /// The status byte and freshness last seen: a change is new instrument data or a new status,
+    /// what a change-of-state connection produces (docs/io-connections.md).
+    last_status: [u8; 2],
 }
 
 impl Converter {
@@ -289,6 +292,7 @@ impl Converter {
             reset: None,
             config: config_object,
             configuration_fault: matches!(origin, ConfigOrigin::Fault(_)),
+            last_status: [0; 2],
         };
         converter.refresh_image(now);
         Ok(converter)
@@ -423,8 +427,10 @@ impl Converter {
                     self.profile.set_outputs(outputs, now);
                     continue;
                 }
-                Event::ConnectionTimedOut(ConnectionKind::Poll)
-                | Event::ConnectionDeleted(ConnectionKind::Poll)
+                // The connections that carry the master's outputs: poll, and change of state or
+                // cyclic (whose Connection 2 consumes them when poll is not allocated).
+                Event::ConnectionTimedOut(ConnectionKind::Poll | ConnectionKind::ChangeOfState)
+                | Event::ConnectionDeleted(ConnectionKind::Poll | ConnectionKind::ChangeOfState)
                 | Event::CommunicationFaulted(_) => self.profile.connection_fault(now),
                 Event::ResetRequested(kind) if self.reset.is_none() => {
                     self.reset = Some((now + RESET_DELAY, ResetKind::from_raw(kind)));
@@ -461,6 +467,13 @@ impl Converter {
             if fits {
                 head.copy_from_slice(data);
             }
+        }
+        // Freshness counts the instrument's good frames: new data or a new status byte is a
+        // change of state.
+        let bytes = status.to_bytes();
+        if bytes != self.last_status {
+            self.last_status = bytes;
+            self.node.input_changed(now);
         }
         let stale = status.state == LinkState::Timeout;
         let mut app = ApplicationStatus { configured: true, ..ApplicationStatus::default() };

@@ -2,8 +2,9 @@
 //! through the Group 2 Only Unconnected Explicit Request port or through the explicit connection
 //! (DeviceNet object, class 3 instance 1).
 //!
-//! Requests are validated in JB's order and answered with the error codes of notes §3.4. This
-//! node offers the explicit and poll connections only ([`SUPPORTED`]).
+//! Requests are validated in JB's order and answered with the error codes of notes §3.4, with the
+//! change-of-state/cyclic rules of §II.2.5 (docs/io-connections.md). This node offers every
+//! connection but multicast poll ([`SUPPORTED`]).
 
 use super::explicit_messaging::Port;
 use super::{ConnectionKind, Event, ObjectHandler, Reply, ServiceError, SlaveNode};
@@ -13,8 +14,11 @@ use crate::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use crate::objects::class;
 use crate::time::Instant;
 
-/// The connection types this node offers.
-pub(super) const SUPPORTED: AllocationChoice = AllocationChoice::EXPLICIT.union(AllocationChoice::POLL);
+/// The connection types this node offers: all but multicast poll (§II.3).
+pub(super) const SUPPORTED: AllocationChoice = AllocationChoice::from_bits(0x77);
+
+/// Change of state and cyclic: one of them at most (§II.0: NI, OMR).
+const COS_OR_CYCLIC: AllocationChoice = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
 
 impl SlaveNode {
     /// A request on the Group 2 Only Unconnected Explicit Request port (notes §3.4): only
@@ -69,8 +73,12 @@ impl SlaveNode {
         if choice.is_empty() {
             return Err(invalid_choice());
         }
-        let cos_or_cyclic = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
-        if choice.contains(AllocationChoice::ACK_SUPPRESSION) && !choice.intersects(cos_or_cyclic) {
+        if choice.contains(AllocationChoice::ACK_SUPPRESSION) && !choice.intersects(COS_OR_CYCLIC) {
+            return Err(invalid_choice());
+        }
+        // COS and cyclic together, asked at once or one on top of the other: the same invalid
+        // choice (the code is UNCONFIRMED, §II.0; by analogy with JB's).
+        if choice.union(self.allocation).contains(COS_OR_CYCLIC) {
             return Err(invalid_choice());
         }
         if !SUPPORTED.contains(choice) {
@@ -96,6 +104,16 @@ impl SlaveNode {
         }
         if choice.contains(AllocationChoice::POLL) {
             self.poll.allocate(now);
+        }
+        if choice.contains(AllocationChoice::BIT_STROBE) {
+            self.strobe.allocate(now);
+        }
+        if choice.intersects(COS_OR_CYCLIC) {
+            self.cos.allocate(now);
+            // Without poll, Connection 2 consumes the master's COS/cyclic data (§II.2.5).
+            if !self.poll.exists() {
+                self.poll.allocate(now);
+            }
         }
         self.push_event(Event::Allocated { choice, master: req.allocator });
         // Our explicit connection uses message body format 0 (8/8).
@@ -127,6 +145,12 @@ impl SlaveNode {
                 GeneralStatus::AlreadyInRequestedState,
                 additional::INVALID_CHOICE,
             ));
+        }
+        if choice.intersects(COS_OR_CYCLIC) {
+            self.delete_connection(ConnectionKind::ChangeOfState);
+        }
+        if choice.contains(AllocationChoice::BIT_STROBE) {
+            self.delete_connection(ConnectionKind::Strobe);
         }
         if choice.contains(AllocationChoice::POLL) {
             self.delete_connection(ConnectionKind::Poll);

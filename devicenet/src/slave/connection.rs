@@ -1,5 +1,5 @@
-//! Connection object instances of the Predefined Master/Slave Connection Set: 1 explicit and
-//! 2 poll (devicenet-notes §5).
+//! Connection object instances of the Predefined Master/Slave Connection Set: 1 explicit, 2 poll,
+//! 3 bit-strobe and 4 change-of-state/cyclic (devicenet-notes §5, §II.1, §II.2).
 //!
 //! A [`Connection`] holds the state, expected packet rate, watchdog timeout action and the
 //! inactivity deadline (4 × EPR, notes §5.3). Time-driven transitions happen in
@@ -74,6 +74,10 @@ pub enum ConnectionKind {
     Explicit,
     /// Instance 2.
     Poll,
+    /// Instance 3: bit-strobe (notes §II.1).
+    Strobe,
+    /// Instance 4: change of state or cyclic (notes §II.2).
+    ChangeOfState,
 }
 
 impl ConnectionKind {
@@ -82,6 +86,8 @@ impl ConnectionKind {
         match self {
             ConnectionKind::Explicit => 1,
             ConnectionKind::Poll => 2,
+            ConnectionKind::Strobe => 3,
+            ConnectionKind::ChangeOfState => 4,
         }
     }
 
@@ -90,9 +96,11 @@ impl ConnectionKind {
         match (self, value) {
             (ConnectionKind::Explicit, 1) => Some(WatchdogAction::AutoDelete),
             (ConnectionKind::Explicit, 3) => Some(WatchdogAction::DeferredDelete),
-            (ConnectionKind::Poll, 0) => Some(WatchdogAction::TransitionToTimedOut),
-            (ConnectionKind::Poll, 1) => Some(WatchdogAction::AutoDelete),
-            (ConnectionKind::Poll, 2) => Some(WatchdogAction::AutoReset),
+            // Every I/O connection takes the poll connection's actions (notes §5.4, §II.1.1, §II.2.2).
+            (ConnectionKind::Explicit, _) => None,
+            (_, 0) => Some(WatchdogAction::TransitionToTimedOut),
+            (_, 1) => Some(WatchdogAction::AutoDelete),
+            (_, 2) => Some(WatchdogAction::AutoReset),
             _ => None,
         }
     }
@@ -142,7 +150,7 @@ impl Connection {
             expected_packet_rate: 0,
             watchdog_action: match kind {
                 ConnectionKind::Explicit => WatchdogAction::AutoDelete,
-                ConnectionKind::Poll => WatchdogAction::TransitionToTimedOut,
+                _ => WatchdogAction::TransitionToTimedOut,
             },
             deadline: None,
         }
@@ -158,8 +166,8 @@ impl Connection {
         matches!(self.state, ConnectionState::Established)
     }
 
-    /// Allocation (notes §5.2): explicit becomes established with EPR 2500 ms, poll configuring
-    /// with EPR 0.
+    /// Allocation (notes §5.2): explicit becomes established with EPR 2500 ms, the I/O connections
+    /// configuring with EPR 0 (§II.1.1, §II.2.3).
     pub fn allocate(&mut self, now: Instant) {
         *self = Connection::new(self.kind);
         match self.kind {
@@ -168,7 +176,7 @@ impl Connection {
                 self.expected_packet_rate = EXPLICIT_DEFAULT_EPR_MS;
                 self.restart_timer(now);
             }
-            ConnectionKind::Poll => self.state = ConnectionState::Configuring,
+            _ => self.state = ConnectionState::Configuring,
         }
     }
 

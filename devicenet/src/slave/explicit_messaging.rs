@@ -120,6 +120,7 @@ impl SlaveNode {
         } else if self.explicit_tx.start(response, now).is_ok() {
             self.pump_explicit(now);
         }
+        self.send_pending_shutdown();
     }
 
     /// Queues the explicit fragments due at `now`.

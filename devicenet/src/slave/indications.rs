@@ -1,7 +1,7 @@
 //! The Module and Network Status LEDs (devicenet-notes §7.3): what each shows for the node's
 //! state, when the indication last changed (the flashing phase), and the power-up test.
 
-use super::{ConnectionState, NetworkState, SlaveNode};
+use super::{NetworkState, SlaveNode};
 use crate::led::{self, Indication, Leds};
 use crate::time::Instant;
 
@@ -26,8 +26,10 @@ impl SlaveNode {
     pub fn network_indication(&self) -> Indication {
         match self.network {
             NetworkState::PoweredOff | NetworkState::DuplicateMacCheck { .. } => Indication::Off,
+            // A faulted node that accepted an Identify flashes red/green (RA 1734-IN055, §II.0).
+            NetworkState::CommunicationFaulted(_) if self.offline.identified => Indication::FlashingRedGreen,
             NetworkState::CommunicationFaulted(_) => Indication::Red,
-            NetworkState::Online if self.poll.state == ConnectionState::TimedOut => Indication::FlashingRed,
+            NetworkState::Online if self.io_timed_out() => Indication::FlashingRed,
             NetworkState::Online if self.master.is_some() => Indication::Green,
             NetworkState::Online => Indication::FlashingGreen,
         }

@@ -10,18 +10,24 @@
 //! What it does:
 //! - network access: duplicate MAC ID check (two requests 1 s apart, on-line 1 s after the second),
 //!   answering other nodes' checks for our MAC, Communication Faulted on conflict, bus-off with the
-//!   bus-off interrupt setting and counter (notes §7.1, §7.2);
+//!   bus-off interrupt setting and counter (notes §7.1, §7.2); the Offline Connection Set (Group
+//!   4) through which a tool finds a faulted node and gives it a new MAC ID (§II.6);
 //! - the Predefined Master/Slave Connection Set through the Group 2 Only Unconnected Explicit
 //!   Request port and through the explicit connection, with the validation of notes §3.4; every
 //!   Group 3 (UCMM) frame is ignored;
 //! - Identity, Message Router, DeviceNet, Assembly and Connection objects (notes §5, §6), with
 //!   explicit fragmentation both ways (notes §4.1); application objects through [`ObjectHandler`];
-//! - the explicit (instance 1) and poll (instance 2) connections with their watchdogs (notes §5);
-//!   poll responses are sent at once from the input image, fragmented above 8 bytes (notes §4.2).
+//! - the explicit (instance 1), poll (instance 2), bit-strobe (instance 3) and change-of-state or
+//!   cyclic (instance 4) connections with their watchdogs (notes §5, §II.1, §II.2); poll and strobe
+//!   responses are sent at once from the input image, poll responses and COS/cyclic productions
+//!   fragmented above 8 bytes (notes §4.2); the Acknowledge Handler (class 0x2B) for
+//!   acknowledged COS/cyclic productions;
+//! - the device heartbeat (Identity attribute 10) and the shutdown message before an Identity
+//!   Reset (§II.5).
 //!
-//! Bit-strobe, multicast poll, change-of-state and cyclic connections are not offered: allocating
-//! them is answered with 0x02 resource unavailable / 0x02 (notes §3.4, "asks for a connection type
-//! the device lacks").
+//! Multicast poll is not offered: allocating it is answered with 0x02 resource unavailable / 0x02
+//! (notes §3.4, "asks for a connection type the device lacks"; §II.3). What the node does where the
+//! notes are UNCONFIRMED is recorded in `docs/io-connections.md`.
 //!
 //! ## Where each part lives
 //!
@@ -32,6 +38,10 @@
 //! | `allocation.rs` | Allocate/Release of the Predefined Master/Slave Connection Set, the Group 2 Only port |
 //! | `explicit_messaging.rs` | the explicit connection: ownership, fragmentation, serving a whole request |
 //! | `polled_io.rs` | poll commands and poll responses |
+//! | `strobe.rs` | bit-strobe commands and responses |
+//! | `change_of_state.rs` | change-of-state and cyclic production, acknowledgements, the master's COS/cyclic data |
+//! | `heartbeat.rs` | the device heartbeat and shutdown messages |
+//! | `offline.rs` | the Offline Connection Set of a Communication Faulted node |
 //! | `objects/` | Message Router, Identity, DeviceNet, Assembly and Connection objects, one file each |
 //! | `indications.rs` | Module and Network Status LEDs |
 //! | [`config`] | [`DeviceConfig`]: what the application tells the node about the device |
@@ -43,12 +53,17 @@ pub mod connection;
 pub mod reply;
 
 mod allocation;
+mod change_of_state;
 mod explicit_messaging;
+mod heartbeat;
 mod indications;
 mod network;
 mod objects;
+mod offline;
 mod polled_io;
+mod strobe;
 
+pub use change_of_state::AckHandler;
 pub use config::{
     strobe_produced_size, BaudRate, ConfigError, DeviceConfig, Identity, Switches, MAX_EXPLICIT_SIZE,
     MAX_IO_SIZE, STROBE_MAX_SIZE,
@@ -115,6 +130,13 @@ pub enum Event {
     SettingChanged(SettingChanged),
     /// A fragmented explicit response was abandoned (ack timeout or rejection).
     ExplicitTransferAborted,
+    /// A change-of-state or cyclic production went unacknowledged through the Acknowledge
+    /// Handler's retry limit (notes §II.2.4). The connection stays; production goes on at the next
+    /// trigger.
+    RetryLimitReached,
+    /// The node took a new MAC ID through the Offline Connection Set (notes §II.6) and restarted its
+    /// duplicate MAC ID check there: store it like a network-set MAC ID, and receive for it.
+    MacIdChanged(MacId),
 }
 
 /// Serves requests for object classes the core does not implement (vendor objects, the Parameter
@@ -175,6 +197,13 @@ pub struct SlaveNode {
     powered_on_at: Option<Instant>,
     explicit: Connection,
     poll: Connection,
+    strobe: Connection,
+    cos: Connection,
+    strobe_bit: bool,
+    production: change_of_state::Production,
+    ack_handler: AckHandler,
+    heartbeat: heartbeat::Heartbeat,
+    offline: offline::Offline,
     allocation: AllocationChoice,
     master: Option<MacId>,
     input: heapless::Vec<u8, MAX_IO_SIZE>,
@@ -219,6 +248,13 @@ impl SlaveNode {
             powered_on_at: None,
             explicit: Connection::new(ConnectionKind::Explicit),
             poll: Connection::new(ConnectionKind::Poll),
+            strobe: Connection::new(ConnectionKind::Strobe),
+            cos: Connection::new(ConnectionKind::ChangeOfState),
+            strobe_bit: false,
+            production: change_of_state::Production::new(),
+            ack_handler: AckHandler::DEFAULT,
+            heartbeat: heartbeat::Heartbeat::new(),
+            offline: offline::Offline::new(),
             allocation: AllocationChoice::empty(),
             master: None,
             input,
@@ -264,6 +300,26 @@ impl SlaveNode {
     /// The poll connection (instance 2).
     pub fn poll_connection(&self) -> &Connection {
         &self.poll
+    }
+
+    /// The bit-strobe connection (instance 3).
+    pub fn strobe_connection(&self) -> &Connection {
+        &self.strobe
+    }
+
+    /// The change-of-state / cyclic connection (instance 4).
+    pub fn cos_connection(&self) -> &Connection {
+        &self.cos
+    }
+
+    /// This node's bit of the last bit-strobe command consumed (notes §II.1.2).
+    pub fn strobe_bit(&self) -> bool {
+        self.strobe_bit
+    }
+
+    /// The Acknowledge Handler's settings (class 0x2B instance 1, notes §II.2.4).
+    pub fn ack_handler(&self) -> AckHandler {
+        self.ack_handler
     }
 
     /// The allocated connections and the owning master (DeviceNet attribute 5).
@@ -341,19 +397,27 @@ impl SlaveNode {
     pub fn handle_frame_with<H: ObjectHandler>(&mut self, frame: &CanFrame, now: Instant, objects: &mut H) {
         self.handle_timeout(now);
         self.stats.frames_received = self.stats.frames_received.wrapping_add(1);
-        // Only Group 2 concerns a group-2-only slave: Group 1 is produced by slaves, Group 3 is UCMM
-        // (never answered, notes §3.4), Group 4 is the optional Offline Connection Set.
-        if let Identifier::Group2 { mac, message } = Identifier::decode(frame.id()) {
-            if mac == self.config.mac_id {
-                match message {
-                    Group2Message::DuplicateMacCheck => self.on_duplicate_mac(frame.data()),
-                    _ if self.network != NetworkState::Online => {}
-                    Group2Message::UnconnectedExplicitRequest => self.on_group2_only::<H>(frame.data(), now),
-                    Group2Message::ExplicitRequest => self.on_explicit(frame.data(), now, objects),
-                    Group2Message::PollCommand => self.on_poll(frame.data(), now),
-                    _ => {}
-                }
+        // Group 1 is produced by slaves and Group 3 is UCMM (never answered, notes §3.4); Group 2
+        // carries the Predefined Master/Slave Connection Set, Group 4 the Offline Connection Set.
+        let data = frame.data();
+        match Identifier::decode(frame.id()) {
+            // The strobe carries the owning master's MAC, not ours (notes §II.1.2).
+            Identifier::Group2 { mac, message: Group2Message::BitStrobeCommand }
+                if self.network == NetworkState::Online && Some(mac) == self.master =>
+            {
+                self.on_strobe(data, now);
             }
+            Identifier::Group2 { mac, message } if mac == self.config.mac_id => match message {
+                Group2Message::DuplicateMacCheck => self.on_duplicate_mac(data),
+                _ if self.network != NetworkState::Online => {}
+                Group2Message::UnconnectedExplicitRequest => self.on_group2_only::<H>(data, now),
+                Group2Message::ExplicitRequest => self.on_explicit(data, now, objects),
+                Group2Message::PollCommand => self.on_poll(data, now),
+                Group2Message::CosCyclicAck => self.on_cos_ack(data, now),
+                _ => {}
+            },
+            Identifier::Group4 { message } => self.on_offline(message, data, now),
+            _ => {}
         }
         self.update_indications(now);
     }
@@ -382,6 +446,9 @@ impl SlaveNode {
     pub fn handle_timeout(&mut self, now: Instant) {
         self.step_duplicate_mac_check(now);
         self.run_watchdogs(now);
+        self.step_production(now);
+        self.step_heartbeat(now);
+        self.step_offline(now);
         self.pump_explicit(now);
         while let Some(ev) = self.explicit_tx.poll_event(now) {
             if let TransmitEvent::Aborted(_) = ev {
@@ -407,6 +474,11 @@ impl SlaveNode {
             self.duplicate_mac_deadline(),
             self.explicit.deadline,
             self.poll.deadline,
+            self.strobe.deadline,
+            self.cos.deadline,
+            self.production_at(),
+            self.heartbeat.at,
+            self.offline.answer_at,
             self.explicit_tx.poll_at(),
         ]
         .into_iter()
@@ -451,9 +523,21 @@ impl SlaveNode {
 
     /// Back to no connection and no owner (power-on, bus-off, Communication Faulted).
     fn reset_connections(&mut self) {
-        // Deleting both connections also ends the master's ownership (`delete_connection`).
+        // Deleting every connection also ends the master's ownership (`delete_connection`).
+        self.delete_connection(ConnectionKind::ChangeOfState);
+        self.delete_connection(ConnectionKind::Strobe);
         self.delete_connection(ConnectionKind::Poll);
         self.delete_connection(ConnectionKind::Explicit);
+    }
+
+    /// `true` while an I/O connection (poll, strobe, COS/cyclic) is established.
+    fn io_established(&self) -> bool {
+        self.poll.is_established() || self.strobe.is_established() || self.cos.is_established()
+    }
+
+    /// `true` while an I/O connection is timed out.
+    fn io_timed_out(&self) -> bool {
+        [self.poll.state, self.strobe.state, self.cos.state].contains(&ConnectionState::TimedOut)
     }
 }
 

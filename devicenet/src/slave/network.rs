@@ -61,6 +61,7 @@ impl SlaveNode {
                 } else {
                     self.network = NetworkState::Online;
                     self.push_event(Event::Online);
+                    self.restart_heartbeat(now);
                 }
             }
         }
@@ -104,6 +105,7 @@ impl SlaveNode {
     pub(super) fn fault(&mut self, reason: FaultReason) {
         self.network = NetworkState::CommunicationFaulted(reason);
         self.reset_connections();
+        self.offline = super::offline::Offline::new();
         self.push_event(Event::CommunicationFaulted(reason));
     }
 }

@@ -1,9 +1,15 @@
 //! Polled I/O (Connection instance 2; devicenet-notes §4.2, §5.2): a poll command replaces the
 //! output image (a zero-length one means the master is idle) and is answered at once with the
 //! input image, both fragmented above 8 bytes.
+//!
+//! When change of state or cyclic is allocated without poll, Connection 2 consumes the master's
+//! COS/cyclic data on the same identifier instead, and answers it with a zero-length
+//! acknowledgement, or nothing under acknowledge suppression (§II.2.1, §II.2.5).
 
 use super::{Event, SlaveNode};
 use crate::fragment::io_fragments;
+use crate::frame::CanId;
+use crate::messages::AllocationChoice;
 use crate::time::Instant;
 
 impl SlaveNode {
@@ -46,12 +52,20 @@ impl SlaveNode {
         self.poll.restart_timer(now);
         self.io_idle = idle;
         self.push_event(if idle { Event::Idle } else { Event::OutputReceived });
-        self.send_poll_response();
+        let id = self.poll_response_id();
+        if self.allocation.contains(AllocationChoice::POLL) {
+            self.send_input(id);
+        } else if !self.ack_suppressed() {
+            // The master's COS/cyclic data, acknowledged with a zero-length frame; it also keeps
+            // Connection 4 alive (docs/io-connections.md).
+            self.queue_data(id, &[]);
+            self.cos.restart_timer(now);
+        }
     }
 
-    /// Answers at once from the input image, fragmented when the produced size exceeds 8.
-    fn send_poll_response(&mut self) {
-        let id = self.poll_response_id();
+    /// Sends the input image on `id` at once, fragmented when the produced size exceeds 8 (notes
+    /// §4.2): a poll response or a COS/cyclic production.
+    pub(super) fn send_input(&mut self, id: CanId) {
         let input = self.input.clone();
         if input.len() > 8 {
             for payload in io_fragments(&input) {

@@ -7,7 +7,7 @@
 //! [`CanPort::receive`] into the converter task's input queue.
 
 use board::hw::BusState;
-use devicenet::CanFrame;
+use devicenet::{CanFrame, MacId};
 use heapless::Deque;
 
 /// Frames waiting for the controller.
@@ -29,6 +29,8 @@ pub trait CanDriver {
     fn clear_transmit_interrupt(&mut self);
     /// Resets the controller after bus-off (bus-off interrupt setting = 1) and rejoins the bus.
     fn restart(&mut self);
+    /// Receives for MAC ID `mac` from now on (a MAC ID taken through the Offline Connection Set).
+    fn set_mac(&mut self, mac: MacId);
 }
 
 /// A driver with its transmit queue.
@@ -77,6 +79,11 @@ impl<D: CanDriver> CanPort<D> {
     /// The controller's error state.
     pub fn bus_state(&mut self) -> BusState {
         self.driver.bus_state()
+    }
+
+    /// Receives for MAC ID `mac` from now on.
+    pub fn set_mac(&mut self, mac: MacId) {
+        self.driver.set_mac(mac);
     }
 
     /// Drops the queue and resets the controller (bus-off recovery).

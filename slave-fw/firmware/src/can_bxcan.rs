@@ -9,7 +9,7 @@ use crate::can::{Busy, CanDriver};
 use board::bit_timing;
 use board::filters;
 use board::hw::{self, BusState, Can1};
-use bxcan::filter::ListEntry16;
+use bxcan::filter::{ListEntry16, Mask16};
 use bxcan::{Fifo, Interrupts, StandardId};
 use devicenet::slave::BaudRate;
 use devicenet::{CanFrame, MacId};
@@ -21,18 +21,21 @@ pub struct Bxcan {
 }
 
 impl Bxcan {
-    /// Configures timing for `baud`, the acceptance list for `mac` into FIFO 0, the interrupts,
-    /// and joins the bus (without waiting for it to go idle).
+    /// Configures timing for `baud`, the acceptance filters for `mac` into FIFO 0, the
+    /// interrupts, and joins the bus (without waiting for it to go idle).
     pub fn new(can1: Can1, baud: BaudRate, mac: MacId) -> Bxcan {
         let mut can = bxcan::Can::builder(can1)
             .set_bit_timing(bit_timing::for_baud_rate(baud).btr())
             .set_automatic_retransmit(true)
             .leave_disabled();
-        let entries = filters::acceptance_list(mac).map(|id| {
-            // Identifiers of the list are 0x400..=0x5FF by construction.
-            ListEntry16::data_frames_with_id(StandardId::new(id).unwrap_or(StandardId::ZERO))
-        });
-        can.modify_filters().enable_bank(filters::FILTER_BANK, Fifo::Fifo0, entries);
+        let offline = filters::OFFLINE_REQUESTS.map(|id| ListEntry16::data_frames_with_id(std_id(id)));
+        let [who, ownership] = offline;
+        can.modify_filters().enable_bank(
+            filters::OFFLINE_FILTER_BANK,
+            Fifo::Fifo0,
+            [who, ownership, who, ownership],
+        );
+        set_group2_filters(&mut can, mac);
         can.enable_interrupts(
             Interrupts::TRANSMIT_MAILBOX_EMPTY
                 | Interrupts::FIFO0_MESSAGE_PENDING
@@ -44,6 +47,19 @@ impl Bxcan {
         let _ = can.enable_non_blocking();
         Bxcan { can }
     }
+}
+
+/// Filter bank 0: every Group 2 message of `mac`, and every master's bit-strobe
+/// ([`board::filters`]).
+fn set_group2_filters(can: &mut bxcan::Can<Can1>, mac: MacId) {
+    let own = Mask16::frames_with_std_id(std_id(filters::own_group2(mac)), std_id(filters::OWN_MASK));
+    let strobe = Mask16::frames_with_std_id(std_id(filters::STROBE_ID), std_id(filters::STROBE_MASK));
+    can.modify_filters().enable_bank(filters::FILTER_BANK, Fifo::Fifo0, [own, strobe]);
+}
+
+/// An identifier or mask of the filter module, all within 11 bits by construction.
+fn std_id(raw: u16) -> StandardId {
+    StandardId::new(raw).unwrap_or(StandardId::ZERO)
 }
 
 impl CanDriver for Bxcan {
@@ -61,8 +77,8 @@ impl CanDriver for Bxcan {
     fn receive(&mut self) -> Option<CanFrame> {
         loop {
             match self.can.receive() {
-                // Only the four listed data-frame identifiers pass the filter; a conversion
-                // failure cannot happen, but is dropped like any foreign frame.
+                // Only standard identifiers pass the filters; a conversion failure cannot
+                // happen, but is dropped like any foreign frame.
                 Ok(frame) => match CanFrame::from_embedded(&frame) {
                     Ok(f) => return Some(f),
                     Err(_) => continue,
@@ -80,6 +96,10 @@ impl CanDriver for Bxcan {
 
     fn clear_transmit_interrupt(&mut self) {
         self.can.clear_tx_interrupt();
+    }
+
+    fn set_mac(&mut self, mac: MacId) {
+        set_group2_filters(&mut self.can, mac);
     }
 
     fn restart(&mut self) {

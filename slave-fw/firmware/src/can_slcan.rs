@@ -49,6 +49,10 @@ impl Slcan {
 }
 
 impl CanDriver for Slcan {
+    fn set_mac(&mut self, mac: MacId) {
+        self.mac = mac;
+    }
+
     fn try_transmit(&mut self, frame: &CanFrame) -> Result<(), Busy> {
         if !self.adapter.is_open() {
             return Err(Busy);

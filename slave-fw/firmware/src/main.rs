@@ -72,7 +72,7 @@ mod app {
     use board::settings::{Settings, SettingsStore};
     use cortex_m::peripheral::syst::SystClkSource;
     use devicenet::slave::Event;
-    use devicenet::{CanFrame, Duration, Instant};
+    use devicenet::{CanFrame, Duration, Instant, MacId};
     use heapless::Deque;
     use portable_atomic::{AtomicU64, Ordering};
     use rtic::Mutex;
@@ -306,6 +306,10 @@ mod app {
 
         fn restart_can(&mut self) {
             self.can.lock(|can| can.restart());
+        }
+
+        fn set_can_mac(&mut self, mac: MacId) {
+            self.can.lock(|can| can.set_mac(mac));
         }
 
         fn save_settings(&mut self, settings: &Settings) -> bool {

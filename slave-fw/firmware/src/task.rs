@@ -16,7 +16,7 @@ use crate::log::{log_info as info, log_warn as warn};
 use board::settings::Settings;
 use devicenet::led::Leds;
 use devicenet::slave::{Event, SettingChanged};
-use devicenet::{CanFrame, Instant};
+use devicenet::{CanFrame, Instant, MacId};
 use slave_fw::converter::{Converter, ResetKind};
 
 /// Capacity of the converter task's input queue, and the most inputs taken per wake-up.
@@ -43,6 +43,8 @@ pub trait Hardware {
     fn send_serial(&mut self, bytes: &[u8]);
     /// Resets the CAN controller after bus-off (bus-off interrupt setting 1, devicenet-notes §7.2).
     fn restart_can(&mut self);
+    /// Receives for MAC ID `mac` from now on (taken through the Offline Connection Set, §II.6).
+    fn set_can_mac(&mut self, mac: MacId);
     /// Stores `settings` in non-volatile memory; `false` when that failed.
     fn save_settings(&mut self, settings: &Settings) -> bool;
     /// Resets the device (Identity Reset, devicenet-notes §3.2); on the board this does not return.
@@ -181,11 +183,24 @@ impl ConverterTask {
                     SettingChanged::BaudRate(rate) => self.settings.baud_rate = rate,
                     SettingChanged::BusOffInterrupt(boi) => self.settings.bus_off_interrupt = boi,
                 }
-                if !hw.save_settings(&self.settings) {
-                    warn!("settings: save failed");
-                }
+                self.save(hw);
+            }
+            // Taken at once through the Offline Connection Set, and stored like a network-set one.
+            Event::MacIdChanged(mac) => {
+                hw.set_can_mac(mac);
+                self.settings.mac_id = mac;
+                self.save(hw);
             }
             _ => {}
+        }
+    }
+}
+
+impl ConverterTask {
+    /// Stores the settings in force.
+    fn save(&mut self, hw: &mut impl Hardware) {
+        if !hw.save_settings(&self.settings) {
+            warn!("settings: save failed");
         }
     }
 }
@@ -232,6 +247,7 @@ mod tests {
         saved: Vec<Settings>,
         resets: Vec<(usize, ResetKind)>,
         restarts: usize,
+        macs: Vec<MacId>,
     }
 
     impl Hardware for Recorder {
@@ -243,6 +259,9 @@ mod tests {
         }
         fn restart_can(&mut self) {
             self.restarts += 1;
+        }
+        fn set_can_mac(&mut self, mac: MacId) {
+            self.macs.push(mac);
         }
         fn save_settings(&mut self, settings: &Settings) -> bool {
             self.saved.push(settings.clone());

@@ -204,7 +204,12 @@ fn garbage_on_the_serial_line_is_counted_and_survived() {
 fn identity_reset_power_cycles_the_converter() {
     let mut rig = Rig::new(ConverterConfig::breaker_reference());
     rig.established();
-    assert_eq!(rig.send(0x42C, &[0x00, 0x05, 0x01, 0x01]), vec![(0x42B, vec![0x00, 0x85])]);
+    // The response, then the shutdown message (§II.5.2).
+    let shutdown = vec![0x05, 0xCE, 0x01, 0x00, 0x01, 0x00, 0x04, 0x00];
+    assert_eq!(
+        rig.send(0x42C, &[0x00, 0x05, 0x01, 0x01]),
+        vec![(0x42B, vec![0x00, 0x85]), (0x42B, shutdown)]
+    );
     // RESET_DELAY later the node restarts its duplicate MAC ID check, connections gone.
     let before = rig.advance(Duration::from_micros(slave_fw::converter::RESET_DELAY.total_micros() - 1000));
     assert_eq!(before, vec![], "nothing before the converter's reset delay");
@@ -240,7 +245,12 @@ fn identity_reset_is_due_reset_delay_after_the_request_and_once() {
     let (mut c, now) = bare_established();
     c.handle_can_frame(&CanFrame::from_raw(0x42C, &[0x00, 0x05, 0x01, 0x01]).unwrap(), now);
     let response: Vec<_> = std::iter::from_fn(|| c.poll_can_transmit()).collect();
-    assert_eq!(response, vec![CanFrame::from_raw(0x42B, &[0x00, 0x85]).unwrap()], "the response first");
+    let shutdown = CanFrame::from_raw(0x42B, &[0x05, 0xCE, 0x01, 0x00, 0x01, 0x00, 0x04, 0x00]).unwrap();
+    assert_eq!(
+        response,
+        vec![CanFrame::from_raw(0x42B, &[0x00, 0x85]).unwrap(), shutdown],
+        "the response first, then the shutdown message"
+    );
     assert_eq!(c.poll_event(), Some(devicenet::Event::ResetRequested(0)));
     let due = now + RESET_DELAY;
     assert!(c.poll_at().is_some_and(|at| at <= due), "poll_at includes the reset");

@@ -29,7 +29,7 @@ use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
 use converter_sim::mutants::{FaultHook, Mutant};
-use devicenet::slave::{ConnectionKind, FaultReason};
+use devicenet::slave::{ConnectionKind, FaultReason, SettingChanged};
 use devicenet::{CanFrame, Duration, Event, Instant, MacId};
 use slave_fw::converter::{Converter, ConverterConfig};
 use slave_fw::serial::{LinkState, Stats};
@@ -311,7 +311,13 @@ impl Bridge {
         if let Some(text) = event_text(&event) {
             self.note(now, &text);
         }
-        if let Event::SettingChanged(change) = &event {
+        // A MAC ID taken through the Offline Connection Set is kept like a network-set one.
+        let change = match &event {
+            Event::SettingChanged(change) => Some(*change),
+            Event::MacIdChanged(mac) => Some(SettingChanged::MacId(*mac)),
+            _ => None,
+        };
+        if let Some(change) = &change {
             if self.state.note(change) {
                 if let Some(file) = &self.state_file {
                     file.save(&self.state)?;
@@ -357,6 +363,8 @@ pub fn event_text(event: &Event) -> Option<String> {
     let kind = |k: &ConnectionKind| match k {
         ConnectionKind::Explicit => "explicit",
         ConnectionKind::Poll => "poll",
+        ConnectionKind::Strobe => "bit-strobe",
+        ConnectionKind::ChangeOfState => "change-of-state/cyclic",
     };
     Some(match event {
         Event::OutputReceived | Event::Idle => return None,
@@ -378,6 +386,12 @@ pub fn event_text(event: &Event) -> Option<String> {
             format!("setting changed over the network: {s:?} (applies at the next reset)")
         }
         Event::ExplicitTransferAborted => "fragmented explicit response abandoned".into(),
+        Event::RetryLimitReached => {
+            "change-of-state/cyclic production unacknowledged through the retry limit".into()
+        }
+        Event::MacIdChanged(mac) => {
+            format!("MAC ID changed to {mac} through the Offline Connection Set: duplicate MAC ID check")
+        }
     })
 }
 

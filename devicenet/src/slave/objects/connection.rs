@@ -1,16 +1,39 @@
-//! The Connection object (class 0x05, devicenet-notes §5): the attributes of the explicit
-//! (instance 1) and poll (instance 2) connections, Set of the expected packet rate and watchdog
-//! action, the Reset service, and what happens when a watchdog expires or a connection is
-//! deleted. The per-instance state machine is [`Connection`].
+//! The Connection object (class 0x05, devicenet-notes §5, §II.1, §II.2): the attributes of the
+//! explicit (1), poll (2), bit-strobe (3) and change-of-state/cyclic (4) connections, Set of the
+//! expected packet rate, watchdog action and production inhibit time, the Reset service, and what
+//! happens when a watchdog expires or a connection is deleted. The per-instance state machine is [`Connection`].
 
 use crate::explicit::{Request, ServiceCode};
 use crate::id::{Group1MessageId, Group2Message, Identifier};
 use crate::messages::AllocationChoice;
 use crate::objects::class;
+use crate::slave::change_of_state::Production;
 use crate::slave::connection::{Expiry, MAX_EPR_MS};
 use crate::slave::{
-    Connection, ConnectionKind, ConnectionState, Event, Reply, ServiceError, SlaveNode, MAX_EXPLICIT_SIZE,
+    strobe_produced_size, Connection, ConnectionKind, ConnectionState, Event, Reply, ServiceError, SlaveNode,
+    MAX_EXPLICIT_SIZE,
 };
+
+/// The attributes of a connection that follow from its kind and the allocation (notes §5.1,
+/// §II.1.1, §II.2.2, docs/io-connections.md).
+struct IoAttributes {
+    /// Attribute 3, transport class and trigger.
+    transport: u8,
+    /// Attribute 4.
+    produced_id: u16,
+    /// Attribute 5.
+    consumed_id: u16,
+    /// Attribute 6, initial comm characteristics.
+    initial_comm: u8,
+    /// Attribute 7.
+    produced_size: u16,
+    /// Attribute 8.
+    consumed_size: u16,
+    /// Whether attribute 14 (produced path) is present.
+    produced_path: bool,
+    /// Whether attribute 16 (consumed path) is present.
+    consumed_path: bool,
+}
 use crate::time::Instant;
 
 impl SlaveNode {
@@ -46,6 +69,10 @@ impl SlaveNode {
                     }
                     c.restart_timer(now);
                 }
+                if conn.kind == ConnectionKind::ChangeOfState && self.ack_suppressed() {
+                    // It consumes nothing: no watchdog (docs/io-connections.md).
+                    self.cos.deadline = None;
+                }
                 if was_timed_out {
                     self.push_event(Event::ConnectionEstablished(conn.kind));
                 }
@@ -55,49 +82,120 @@ impl SlaveNode {
         }
     }
 
-    /// Instance attribute `attr` of `conn` (notes §5.1 table).
+    /// Instance attribute `attr` of `conn` (notes §5.1, §II.1.1, §II.2.2; the values chosen where
+    /// the notes are UNCONFIRMED are in docs/io-connections.md).
     fn connection_attribute(
         &self,
         conn: &Connection,
         attr: u8,
         reply: &mut Reply<'_>,
     ) -> Result<(), ServiceError> {
-        let mac = self.config.mac_id;
-        let explicit = conn.kind == ConnectionKind::Explicit;
-        // Attributes 14 and 16 (notes §5.1): logical class segment (Assembly), instance segment
-        // (the assembly), attribute segment 3 (data).
-        let path = |asm: u8| [0x20, class::ASSEMBLY as u8, 0x24, asm, 0x30, 0x03];
+        let io = self.io_attributes(conn.kind);
+        // Attributes 14 and 16 (notes §5.1): logical class segment, instance segment, attribute
+        // segment: an assembly's data, or the Acknowledge Handler's first attribute (§II.2.2).
+        let path =
+            |class: u16, instance: u8, attribute: u8| [0x20, class as u8, 0x24, instance, 0x30, attribute];
+        let produced = path(class::ASSEMBLY, self.config.input_assembly, 3);
+        let consumed = match conn.kind {
+            ConnectionKind::ChangeOfState => path(class::ACKNOWLEDGE_HANDLER, 1, 1),
+            _ => path(class::ASSEMBLY, self.config.output_assembly, 3),
+        };
+        let path_len = |present: bool| if present { 6 } else { 0 };
         match attr {
             1 => reply.u8(conn.state.attribute_value()),
-            2 => reply.u8(if explicit { 0 } else { 1 }),
-            3 => reply.u8(if explicit { 0x83 } else { 0x82 }),
-            4 => reply.u16(if explicit {
-                Identifier::group2(mac, Group2Message::ExplicitResponse).as_raw()
-            } else {
-                Identifier::group1(Group1MessageId::POLL_RESPONSE, mac).as_raw()
-            }),
-            5 => reply.u16(if explicit {
-                Identifier::group2(mac, Group2Message::ExplicitRequest).as_raw()
-            } else {
-                Identifier::group2(mac, Group2Message::PollCommand).as_raw()
-            }),
-            6 => reply.u8(if explicit { 0x21 } else { 0x01 }),
-            7 => reply.u16(if explicit { MAX_EXPLICIT_SIZE as u16 } else { self.config.produced_size }),
-            8 => reply.u16(if explicit { MAX_EXPLICIT_SIZE as u16 } else { self.config.consumed_size }),
+            2 => reply.u8(u8::from(conn.kind != ConnectionKind::Explicit)),
+            3 => reply.u8(io.transport),
+            4 => reply.u16(io.produced_id),
+            5 => reply.u16(io.consumed_id),
+            6 => reply.u8(io.initial_comm),
+            7 => reply.u16(io.produced_size),
+            8 => reply.u16(io.consumed_size),
             9 => reply.u16(conn.expected_packet_rate),
             12 => reply.u8(conn.watchdog_action.attribute_value()),
-            13 | 15 => reply.u16(if explicit { 0 } else { 6 }),
-            14 if explicit => Ok(()),
-            14 => reply.bytes(&path(self.config.input_assembly)),
-            16 if explicit => Ok(()),
-            16 => reply.bytes(&path(self.config.output_assembly)),
+            13 => reply.u16(path_len(io.produced_path)),
+            14 if io.produced_path => reply.bytes(&produced),
+            15 => reply.u16(path_len(io.consumed_path)),
+            16 if io.consumed_path => reply.bytes(&consumed),
+            14 | 16 => Ok(()),
+            17 if conn.kind == ConnectionKind::ChangeOfState => reply.u16(self.production.inhibit_ms),
             17 => reply.u16(0),
             _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
         }
     }
 
-    /// Set_Attribute_Single: the expected packet rate (9) and the watchdog timeout action (12)
-    /// are the only settable attributes (notes §5.1, §5.3, §5.4).
+    /// The fixed attributes of connection `kind` as allocated now.
+    fn io_attributes(&self, kind: ConnectionKind) -> IoAttributes {
+        let mac = self.config.mac_id;
+        let p = self.config.produced_size;
+        let c = self.config.consumed_size;
+        let suppressed = self.ack_suppressed();
+        let cyclic = self.allocation.contains(AllocationChoice::CYCLIC);
+        let explicit_size = MAX_EXPLICIT_SIZE as u16;
+        let g1 = |message| Identifier::group1(message, mac).as_raw();
+        let g2 = |message| Identifier::group2(mac, message).as_raw();
+        match kind {
+            ConnectionKind::Explicit => IoAttributes {
+                transport: 0x83,
+                produced_id: g2(Group2Message::ExplicitResponse),
+                consumed_id: g2(Group2Message::ExplicitRequest),
+                initial_comm: 0x21,
+                produced_size: explicit_size,
+                consumed_size: explicit_size,
+                produced_path: false,
+                consumed_path: false,
+            },
+            // Created by COS/cyclic without poll: consumes the master's COS/cyclic data and
+            // produces the zero-length acknowledgement, or nothing when suppressed (§II.2.5, EAT).
+            ConnectionKind::Poll if !self.allocation.contains(AllocationChoice::POLL) => IoAttributes {
+                transport: if suppressed { 0x80 } else { 0x82 },
+                produced_id: g1(Group1MessageId::POLL_RESPONSE),
+                consumed_id: g2(Group2Message::PollCommand),
+                initial_comm: if suppressed { 0xF1 } else { 0x01 },
+                produced_size: 0,
+                consumed_size: c,
+                produced_path: false,
+                consumed_path: true,
+            },
+            ConnectionKind::Poll => IoAttributes {
+                transport: 0x82,
+                produced_id: g1(Group1MessageId::POLL_RESPONSE),
+                consumed_id: g2(Group2Message::PollCommand),
+                initial_comm: 0x01,
+                produced_size: p,
+                consumed_size: c,
+                produced_path: true,
+                consumed_path: true,
+            },
+            // Consumes the owner's strobe: Group 2 message 0 with the master's MAC (§II.1.1).
+            ConnectionKind::Strobe => IoAttributes {
+                transport: 0x82,
+                produced_id: g1(Group1MessageId::BIT_STROBE_RESPONSE),
+                consumed_id: Identifier::group2(self.master.unwrap_or(mac), Group2Message::BitStrobeCommand)
+                    .as_raw(),
+                initial_comm: 0x02,
+                produced_size: strobe_produced_size(p),
+                consumed_size: 8,
+                produced_path: true,
+                consumed_path: false,
+            },
+            // Client, trigger COS (1) or cyclic (0), class 3 acknowledged or 0 suppressed (RA
+            // tables, §II.2.2).
+            ConnectionKind::ChangeOfState => IoAttributes {
+                transport: if cyclic { 0x00 } else { 0x10 } | if suppressed { 0 } else { 0x03 },
+                produced_id: g1(Group1MessageId::COS_CYCLIC),
+                consumed_id: if suppressed { 0xFFFF } else { g2(Group2Message::CosCyclicAck) },
+                initial_comm: if suppressed { 0x0F } else { 0x01 },
+                produced_size: p,
+                consumed_size: 0,
+                produced_path: true,
+                consumed_path: !suppressed,
+            },
+        }
+    }
+
+    /// Set_Attribute_Single: the expected packet rate (9), the watchdog timeout action (12) and,
+    /// of Connection 4, the production inhibit time (17) are settable (notes §5.1, §5.3, §5.4,
+    /// §II.2.2).
     fn set_connection_attribute(
         &mut self,
         kind: ConnectionKind,
@@ -113,15 +211,21 @@ impl SlaveNode {
                     return Err(ServiceError::wrong_length(value, 2));
                 };
                 let requested = u16::from_le_bytes([lo, hi]);
-                if requested > MAX_EPR_MS {
+                // EPR 0 would stop a COS/cyclic connection's productions (HOR rejects it).
+                if requested > MAX_EPR_MS || (requested == 0 && kind == ConnectionKind::ChangeOfState) {
                     return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
                 }
                 // Rounded up to the timer resolution; the response carries the value in use
                 // (notes §5.3).
                 let applied = requested.div_ceil(resolution).saturating_mul(resolution);
-                let conn = if kind == ConnectionKind::Explicit { &mut self.explicit } else { &mut self.poll };
+                let Some(conn) = self.connection_mut(kind.instance()) else {
+                    return Err(ServiceError::OBJECT_DOES_NOT_EXIST);
+                };
                 let was_configuring = conn.state == ConnectionState::Configuring;
                 conn.set_expected_packet_rate(applied, now);
+                if kind == ConnectionKind::ChangeOfState {
+                    self.cos_established(now);
+                }
                 if was_configuring {
                     self.push_event(Event::ConnectionEstablished(kind));
                 }
@@ -132,8 +236,17 @@ impl SlaveNode {
                     return Err(ServiceError::wrong_length(value, 1));
                 };
                 let action = kind.parse_action(value).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
-                let conn = if kind == ConnectionKind::Explicit { &mut self.explicit } else { &mut self.poll };
-                conn.watchdog_action = action;
+                if let Some(conn) = self.connection_mut(kind.instance()) {
+                    conn.watchdog_action = action;
+                }
+                Ok(())
+            }
+            17 if kind == ConnectionKind::ChangeOfState => {
+                let &[lo, hi] = value else {
+                    return Err(ServiceError::wrong_length(value, 2));
+                };
+                // Settable while configuring and established (RA 855T; UNCONFIRMED after).
+                self.production.inhibit_ms = u16::from_le_bytes([lo, hi]);
                 Ok(())
             }
             1..=8 | 13..=17 => Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
@@ -143,23 +256,26 @@ impl SlaveNode {
 
     // ----- watchdogs and deletion (notes §5.2) ----------------------------------------------
 
-    /// Runs both connections' inactivity watchdogs at `now` (notes §5.2, §5.4).
+    /// Runs every connection's inactivity watchdog at `now` (notes §5.2, §5.4).
     pub(in crate::slave) fn run_watchdogs(&mut self, now: Instant) {
-        match self.poll.expire(now) {
-            Expiry::TimedOut => {
-                self.push_event(Event::ConnectionTimedOut(ConnectionKind::Poll));
-                self.after_io_lost();
+        for kind in [ConnectionKind::Poll, ConnectionKind::Strobe, ConnectionKind::ChangeOfState] {
+            let Some(conn) = self.connection_mut(kind.instance()) else { continue };
+            match conn.expire(now) {
+                Expiry::TimedOut => {
+                    self.push_event(Event::ConnectionTimedOut(kind));
+                    self.after_io_lost();
+                }
+                Expiry::Delete => {
+                    self.delete_connection(kind);
+                    self.push_event(Event::ConnectionDeleted(kind));
+                    self.after_io_lost();
+                }
+                Expiry::Reset | Expiry::None | Expiry::DeferredDelete => {}
             }
-            Expiry::Delete => {
-                self.delete_connection(ConnectionKind::Poll);
-                self.push_event(Event::ConnectionDeleted(ConnectionKind::Poll));
-                self.after_io_lost();
-            }
-            Expiry::Reset | Expiry::None | Expiry::DeferredDelete => {}
         }
         match self.explicit.expire(now) {
             Expiry::Delete => self.delete_by_watchdog(ConnectionKind::Explicit),
-            Expiry::DeferredDelete if self.poll.is_established() => {
+            Expiry::DeferredDelete if self.io_established() => {
                 self.explicit.state = ConnectionState::DeferredDelete;
             }
             Expiry::DeferredDelete => self.delete_by_watchdog(ConnectionKind::Explicit),
@@ -197,6 +313,23 @@ impl SlaveNode {
                 self.io_idle = false;
                 self.allocation = self.allocation.difference(AllocationChoice::POLL);
             }
+            ConnectionKind::Strobe => {
+                self.strobe.delete();
+                self.strobe_bit = false;
+                self.allocation = self.allocation.difference(AllocationChoice::BIT_STROBE);
+            }
+            ConnectionKind::ChangeOfState => {
+                self.cos.delete();
+                self.production = Production::new();
+                // The Connection 2 it created goes with it (§II.2.5).
+                if !self.allocation.contains(AllocationChoice::POLL) && self.poll.exists() {
+                    self.poll.delete();
+                    self.poll_rx.reset();
+                    self.io_idle = false;
+                }
+                let cos = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
+                self.allocation = self.allocation.difference(cos.union(AllocationChoice::ACK_SUPPRESSION));
+            }
         }
         // With no connection left the master's ownership ends (JB, notes §3.4).
         if self.allocation.difference(AllocationChoice::ACK_SUPPRESSION).is_empty() {
@@ -212,6 +345,8 @@ impl SlaveNode {
         match instance {
             1 => Some(&mut self.explicit),
             2 => Some(&mut self.poll),
+            3 => Some(&mut self.strobe),
+            4 => Some(&mut self.cos),
             _ => None,
         }
     }

@@ -3,15 +3,16 @@
 //! fault flags, and the Reset service.
 
 use crate::explicit::{Request, ServiceCode};
-use crate::slave::{ConnectionState, Event, Reply, ServiceError, SlaveNode};
+use crate::slave::{Event, Reply, ServiceError, SlaveNode};
+use crate::time::Instant;
 
 impl SlaveNode {
     /// The Identity status word, attribute 5 (notes §6.2).
     pub fn identity_status(&self) -> u16 {
         let s = &self.app_status;
-        let extended: u16 = if self.poll.state == ConnectionState::TimedOut {
+        let extended: u16 = if self.io_timed_out() {
             0b0010 // at least one faulted I/O connection
-        } else if !self.poll.is_established() {
+        } else if !self.io_established() {
             0b0011 // no I/O connection established
         } else if self.io_idle {
             0b0111 // I/O connection established, all idle
@@ -28,7 +29,7 @@ impl SlaveNode {
     }
 
     /// Identity state, attribute 8.
-    fn identity_state(&self) -> u8 {
+    pub(in crate::slave) fn identity_state(&self) -> u8 {
         if self.app_status.major_unrecoverable_fault {
             5
         } else if self.app_status.major_recoverable_fault {
@@ -38,11 +39,13 @@ impl SlaveNode {
         }
     }
 
-    /// Identity services: Get_Attribute_Single/All, Set_Attribute_Single (nothing is settable), Reset.
+    /// Identity services: Get_Attribute_Single/All, Set_Attribute_Single (the heartbeat interval),
+    /// Reset (answered, then the shutdown message, §II.5.2).
     pub(super) fn identity_service(
         &mut self,
         req: &Request<'_>,
         reply: &mut Reply<'_>,
+        now: Instant,
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
             (1, ServiceCode::GetAttributeSingle) => {
@@ -58,9 +61,17 @@ impl SlaveNode {
                 Ok(())
             }
             (1, ServiceCode::SetAttributeSingle) => {
-                let (&attr, _) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
+                let (&attr, value) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
                 match attr {
                     1..=8 => Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
+                    // Heartbeat interval, USINT seconds (TOSH, LIM; §II.5.1).
+                    10 => {
+                        let &[seconds] = value else {
+                            return Err(ServiceError::wrong_length(value, 1));
+                        };
+                        self.set_heartbeat_interval(seconds, now);
+                        Ok(())
+                    }
                     _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
                 }
             }
@@ -72,6 +83,7 @@ impl SlaveNode {
                     _ => return Err(ServiceError::TOO_MUCH_DATA),
                 };
                 self.push_event(Event::ResetRequested(kind));
+                self.heartbeat.shutdown_pending = true;
                 Ok(())
             }
             (1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
@@ -91,6 +103,7 @@ impl SlaveNode {
             6 => reply.u32(id.serial_number),
             7 => reply.short_string(&id.product_name),
             8 => reply.u8(self.identity_state()),
+            10 => reply.u8(self.heartbeat.interval),
             _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
         }
     }

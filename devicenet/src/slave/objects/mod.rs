@@ -8,10 +8,12 @@
 //! | `devicenet.rs` | DeviceNet (class 0x03, notes §6.1), Allocate/Release included |
 //! | `assembly.rs` | Assembly (class 0x04): the poll connection's input and output images |
 //! | `connection.rs` | Connection (class 0x05, notes §5): attributes, Reset, watchdogs and deletion |
+//! | `ack_handler.rs` | Acknowledge Handler (class 0x2B, notes §II.2.4) |
 //!
 //! Requests for any other class go to the application's [`ObjectHandler`](super::ObjectHandler).
 //! Class IDs come from [`crate::objects::class`].
 
+mod ack_handler;
 mod assembly;
 mod connection;
 mod devicenet;

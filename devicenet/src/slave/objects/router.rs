@@ -19,6 +19,10 @@ impl SlaveNode {
         now: Instant,
         objects: &mut H,
     ) -> Result<(), ServiceError> {
+        // The Acknowledge Handler serves two class attributes of its own.
+        if req.class == class::ACKNOWLEDGE_HANDLER {
+            return self.ack_handler_service(req, reply);
+        }
         let revision = match req.class {
             class::IDENTITY | class::MESSAGE_ROUTER | class::CONNECTION => 1,
             class::DEVICENET | class::ASSEMBLY => 2,
@@ -32,7 +36,7 @@ impl SlaveNode {
             };
         }
         match req.class {
-            class::IDENTITY => self.identity_service(req, reply),
+            class::IDENTITY => self.identity_service(req, reply, now),
             class::DEVICENET => self.devicenet_service(req, reply, now),
             class::ASSEMBLY => self.assembly_service(req, reply),
             class::CONNECTION => self.connection_service(req, reply, now),

@@ -1,0 +1,30 @@
+//! Bit-strobe I/O (Connection instance 3; devicenet-notes §II.1, docs/io-connections.md): the
+//! owning master's 8-byte strobe command carries one bit per MAC ID; the node keeps its own bit and
+//! answers every strobe at once with the first bytes of its input image, never fragmented.
+
+use super::{strobe_produced_size, SlaveNode, STROBE_MAX_SIZE};
+use crate::id::{Group1MessageId, Identifier};
+use crate::time::Instant;
+
+impl SlaveNode {
+    /// A bit-strobe command from the owning master (the caller checked the source MAC).
+    pub(super) fn on_strobe(&mut self, data: &[u8], now: Instant) {
+        // Only an established connection consumes, and only the whole 8-byte command: anything
+        // else is ignored, the safe choice of §II.1.2 (UNCONFIRMED).
+        let (true, &[b0, b1, b2, b3, b4, b5, b6, b7]) = (self.strobe.is_established(), data) else {
+            self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
+            return;
+        };
+        // MAC n is byte n / 8, bit n % 8 (NI, DELTA; §II.1.2).
+        let mac = self.config.mac_id.as_raw();
+        let bits = u64::from_le_bytes([b0, b1, b2, b3, b4, b5, b6, b7]);
+        self.strobe_bit = bits >> mac & 1 != 0;
+        self.strobe.restart_timer(now);
+        // Every strobe is answered, whatever the bit (NI, §II.1.3), with at most 8 input bytes.
+        let mut response = [0u8; STROBE_MAX_SIZE as usize];
+        response.iter_mut().zip(&self.input).for_each(|(d, s)| *d = *s);
+        let n = usize::from(strobe_produced_size(self.config.produced_size));
+        let id = Identifier::group1(Group1MessageId::BIT_STROBE_RESPONSE, self.config.mac_id);
+        self.queue_data(id, response.get(..n).unwrap_or(&response));
+    }
+}
