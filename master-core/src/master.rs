@@ -545,8 +545,10 @@ impl<'s, 'b> Master<'s, 'b> {
             data: &data,
         };
         let (data, i) = self.request_ok(target, port, &req)?;
+        // Acknowledge suppression is a property of the allocation, not a connection to release
+        // (a Release with 0x40 is refused, docs/io-connections.md).
         let held = self.held.entry(target.as_raw()).or_insert(AllocationChoice::empty());
-        *held = held.union(choice);
+        *held = held.union(choice.difference(AllocationChoice::ACK_SUPPRESSION));
         let mut failures = Vec::new();
         match data.as_slice() {
             [fmt] => match BodyFormat::from_code(*fmt) {

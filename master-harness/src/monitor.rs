@@ -415,7 +415,7 @@ fn reestablish_io(
         }
         Err(e) => return Err(e),
     }
-    match master.release(target, io.choice()) {
+    match master.release(target, io.kind.choice()) {
         Ok(()) => {}
         Err(MasterError::ErrorResponse { .. }) => accept_last_answer(master, "no I/O connection left over"),
         Err(e) => return Err(e),

@@ -140,12 +140,11 @@ fn a_cos_connection_silent_past_its_epr_fails() {
 }
 
 #[test]
-fn a_production_sent_again_although_acknowledged_in_time_fails() {
-    let (r, failures) =
-        run(cos_device(0x10, 0x42A, 100, Some(20), Some(&[])), IoOptions::of(IoKind::ChangeOfState), 2);
+fn a_cyclic_series_sent_again_although_acknowledged_in_time_fails_the_epr() {
+    let (r, failures) = run(cos_device(0x20, 0x42A, 100, Some(20), Some(&[])), IoOptions::of(IoKind::Cyclic), 3);
     let io = r.unwrap().io.unwrap();
-    assert!(io.re_sent >= 1, "{io:?}");
-    assert!(failures.iter().any(|f| f.contains("re-sent although the master acknowledged")), "{failures:#?}");
+    assert_eq!(io.re_sent, 0, "acknowledged in time: not a re-send");
+    assert!(failures.iter().any(|f| f.contains("20.0 ms after the previous production") && f.contains("every EPR")), "{failures:#?}");
 }
 
 #[test]
