@@ -855,10 +855,17 @@ impl Master<'_, '_> {
             if conn.acked() && missed && prev_data == data && start - prev < window {
                 conn.summary.re_sent += 1;
                 let why = match late {
-                    Some(l) => format!("the master acknowledged {:.1} ms after it, past the {:.0} ms acknowledge timer", ms(l), ms(ack_timer)),
+                    Some(l) => format!(
+                        "the master acknowledged {:.1} ms after it, past the {:.0} ms acknowledge timer",
+                        ms(l),
+                        ms(ack_timer)
+                    ),
                     None => "not acknowledged".to_string(),
                 };
-                let note = format!("the production sent again {:.1} ms after the first ({why}, §II.2.4)", ms(start - prev));
+                let note = format!(
+                    "the production sent again {:.1} ms after the first ({why}, §II.2.4)",
+                    ms(start - prev)
+                );
                 return (v.noted(&note), true);
             }
         }

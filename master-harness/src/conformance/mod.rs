@@ -14,10 +14,12 @@
 //! | category | checks |
 //! |---|---|
 //! | network access | the bring-up of §2 (the first diagram); the device's own duplicate MAC ID check (§7.1); it answers a duplicate MAC ID request for its MAC (§7.1 rule 3); it stays silent to UCMM (§3.4, §1.4); it ignores traffic to other MACs (§8) |
-//! | Predefined Master/Slave Connection Set | every row of the validation table of §3.4 but row 11 ([`NOT_EXERCISED`]), allocation through the Group 2 Only port and through the explicit connection, ownership (DeviceNet attribute 5, Identity status bit 0), release and re-allocation |
+//! | Predefined Master/Slave Connection Set | every row of the validation table of §3.4 but row 11 ([`NOT_EXERCISED`]), allocation through the Group 2 Only port and through the explicit connection, ownership (DeviceNet attribute 5, Identity status bit 0), release and re-allocation; the combinations of §II.2.5, COS with cyclic refused, a release naming acknowledge suppression refused |
 //! | explicit messaging | Identity (§6.2), DeviceNet (§6.1) and Connection (§5.1) attributes readable with the right sizes and values; Identity Get_Attributes_All whole attributes in order; settable vs not settable; unknown class, instance, attribute and service (§3.3); fragmented request and response; a missing acknowledgement, a duplicated fragment, an out-of-sequence fragment, an oversized request (§4.1) |
 //! | connections | poll ignored before the EPR is set; EPR round trip; the inactivity watchdog measured against 4 × EPR for each timeout action; deferred delete; idle polls; I/O fragmentation of the poll response; requests from a master that does not own the device ignored (§4.2, §5, §8) |
+//! | I/O connections (issue 14) | bit-strobe (§II.1), change of state acknowledged and suppressed, cyclic (§II.2), the Acknowledge Handler (§II.2.4), the device heartbeat (§II.5) |
 //! | timing | poll response latency (min, median, 99th percentile) and explicit response latency, with the limit a scanner applies |
+//! | Offline Connection Set | the device faulted by a duplicate MAC ID response (§7.1 rule 3), then Who, Identify, ownership and Change MAC ID (§7.4, §II.6); last, and "not run" (advisory) when the device does not fault |
 //!
 //! ## Timing and transports
 //!
@@ -98,18 +100,25 @@ pub enum Category {
     Explicit,
     /// The explicit and poll connections: states, watchdogs, I/O.
     Connections,
+    /// Bit-strobe, change of state, cyclic, the Acknowledge Handler, the heartbeat (issue 14).
+    IoConnections,
     /// Response latencies.
     Timing,
+    /// The Offline Connection Set: a Communication Faulted node recovered (last: it faults the
+    /// device).
+    OfflineSet,
 }
 
 impl Category {
     /// Every category, in order.
-    pub const ALL: [Category; 5] = [
+    pub const ALL: [Category; 7] = [
         Category::NetworkAccess,
         Category::ConnectionSet,
         Category::Explicit,
         Category::Connections,
+        Category::IoConnections,
         Category::Timing,
+        Category::OfflineSet,
     ];
 
     /// The heading shown in reports.
@@ -119,7 +128,9 @@ impl Category {
             Category::ConnectionSet => "Predefined Master/Slave Connection Set",
             Category::Explicit => "Explicit messaging",
             Category::Connections => "Connections",
+            Category::IoConnections => "I/O connections, Acknowledge Handler, heartbeat",
             Category::Timing => "Timing",
+            Category::OfflineSet => "Offline Connection Set",
         }
     }
 }
@@ -389,7 +400,7 @@ pub trait Observer {
 impl Observer for () {}
 
 /// The number of checks in the suite.
-pub const CHECKS: usize = 42;
+pub const CHECKS: usize = 52;
 
 /// A rule of the notes the suite does not check, and why: listed in every report, so a green
 /// report never suggests it was checked.

@@ -108,6 +108,8 @@ pub(crate) struct Runner<'s, 'b> {
     identity: DeviceIdentity,
     pub opts: SuiteOptions,
     pub facts: Facts,
+    /// A strobe, COS or cyclic connection may be allocated: [`Runner::release_all`] releases them.
+    pub io_allocated: bool,
     /// A MAC the suite uses as a second master.
     pub second: MacId,
     /// A MAC nobody should use (traffic to other nodes).
@@ -147,10 +149,16 @@ impl<'s, 'b> Runner<'s, 'b> {
             identity: DeviceIdentity::default(),
             opts,
             facts: Facts::default(),
+            io_allocated: false,
             second,
             bystander,
             results: Vec::new(),
         }
+    }
+
+    /// `true` where the transport's timestamps show the device's timing (not SLCAN).
+    pub fn timing_judged(&self) -> bool {
+        self.untimed.is_none()
     }
 
     /// The device under test.
@@ -429,6 +437,9 @@ impl<'s, 'b> Runner<'s, 'b> {
         port: Port,
         choice: AllocationChoice,
     ) -> Result<Outcome, HarnessError> {
+        if choice.intersects(AllocationChoice::from_bits(0x34)) {
+            self.io_allocated = true;
+        }
         let data = AllocateRequest { choice, allocator }.emit();
         let req = Request {
             service: ServiceCode::AllocateMasterSlave,
@@ -577,6 +588,16 @@ impl<'s, 'b> Runner<'s, 'b> {
     pub fn release_all(&mut self) -> Result<(), HarnessError> {
         let me = self.master_mac();
         let mut conflict = false;
+        // The strobe, COS and cyclic connections once a check may have allocated them (each
+        // alone: a release naming a connection that does not exist is refused whole).
+        if std::mem::take(&mut self.io_allocated) {
+            self.m.end_io();
+            for choice in
+                [AllocationChoice::BIT_STROBE, AllocationChoice::CHANGE_OF_STATE, AllocationChoice::CYCLIC]
+            {
+                let _ = self.release_as(me, Port::Group2Only, choice)?;
+            }
+        }
         for choice in [AllocationChoice::POLL, AllocationChoice::EXPLICIT] {
             let (r, _) = self.release_as(me, Port::Group2Only, choice)?;
             conflict |= matches!(

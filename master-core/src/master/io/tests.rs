@@ -141,10 +141,16 @@ fn a_cos_connection_silent_past_its_epr_fails() {
 
 #[test]
 fn a_cyclic_series_sent_again_although_acknowledged_in_time_fails_the_epr() {
-    let (r, failures) = run(cos_device(0x20, 0x42A, 100, Some(20), Some(&[])), IoOptions::of(IoKind::Cyclic), 3);
+    let (r, failures) =
+        run(cos_device(0x20, 0x42A, 100, Some(20), Some(&[])), IoOptions::of(IoKind::Cyclic), 3);
     let io = r.unwrap().io.unwrap();
     assert_eq!(io.re_sent, 0, "acknowledged in time: not a re-send");
-    assert!(failures.iter().any(|f| f.contains("20.0 ms after the previous production") && f.contains("every EPR")), "{failures:#?}");
+    assert!(
+        failures
+            .iter()
+            .any(|f| f.contains("20.0 ms after the previous production") && f.contains("every EPR")),
+        "{failures:#?}"
+    );
 }
 
 #[test]

@@ -238,7 +238,116 @@ pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
         CS,
         "§3.4 (release semantics)",
         release_reallocate,
+    )?;
+    r.run(
+        "alloc-io-combinations",
+        "every allocation of bit-strobe, COS and cyclic, with and without poll and acknowledge suppression",
+        CS,
+        "§3.4, §II.2.5",
+        io_combinations,
+    )?;
+    r.run(
+        "alloc-cos-with-cyclic",
+        "change of state and cyclic together, in one request or one after the other: refused (0x09/0x02)",
+        CS,
+        "§3.4, §II.0, §II.2.5",
+        cos_with_cyclic,
+    )?;
+    r.run(
+        "release-ack-suppression",
+        "a release naming acknowledge suppression: 0x09/0x02, the connection kept",
+        CS,
+        "§3.4 (AN)",
+        release_ack_suppression,
     )
+}
+
+/// The valid combinations of issue 14 (§II.2.5), each allocated through the Group 2 Only port,
+/// shown in DeviceNet attribute 5, and released.
+fn io_combinations(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
+    r.release_all()?;
+    let me = r.master_mac();
+    for bits in [0x05u8, 0x11, 0x21, 0x51, 0x61, 0x13, 0x23, 0x53, 0x07] {
+        let choice = AllocationChoice::from_bits(bits);
+        let o = r.allocate_as(me, Port::Group2Only, choice)?;
+        if r.expect_success(c, Basis::Normative, &o, &format!("Allocate 0x{bits:02X} ({choice})")).is_none() {
+            continue;
+        }
+        if let Some((data, i)) = r.read(c, Basis::Normative, class::DEVICENET, 1, 5)? {
+            c.expect(
+                Basis::Unconfirmed,
+                data.as_slice() == [bits, me.as_raw()],
+                format!(
+                    "DeviceNet allocation information {} shows the choice as requested, 0x{bits:02X}",
+                    decode::hex(&data)
+                ),
+                i,
+            );
+        }
+        let release = choice.difference(AllocationChoice::ACK_SUPPRESSION);
+        let o = r.release_as(me, Port::Group2Only, release)?;
+        r.expect_success(c, Basis::Normative, &o, &format!("Release 0x{:02X}", release.bits()));
+    }
+    Ok(())
+}
+
+fn cos_with_cyclic(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
+    r.release_all()?;
+    let me = r.master_mac();
+    // Refused at all: NI and OMR (normative); the code by analogy with JB's invalid choice
+    // (UNCONFIRMED, §II.0).
+    let refused = |r: &mut Runner<'_, '_>, c: &mut Check, o: &super::super::runner::Outcome, what: &str| {
+        let accepted = matches!(o.0, Ok(Reply { body: ReplyBody::Success(_), .. }));
+        c.firm(!accepted, format!("{what}: {}", if accepted { "accepted" } else { "refused" }), o.1);
+        if !accepted {
+            r.expect_error(
+                c,
+                Basis::Unconfirmed,
+                o,
+                GeneralStatus::InvalidAttributeValue,
+                additional::INVALID_CHOICE,
+                what,
+            );
+        }
+        accepted
+    };
+    let o = r.allocate_as(me, Port::Group2Only, AllocationChoice::from_bits(0x31))?;
+    if refused(r, c, &o, "Allocate 0x31 (explicit, COS and cyclic)") {
+        r.release_all()?;
+    }
+    let o = r.allocate_as(me, Port::Group2Only, AllocationChoice::from_bits(0x21))?;
+    r.expect_success(c, Basis::Normative, &o, "Allocate 0x21 (explicit and cyclic)");
+    let o = r.allocate_as(me, Port::Explicit, AllocationChoice::CHANGE_OF_STATE)?;
+    refused(r, c, &o, "Allocate COS while cyclic is allocated");
+    r.release_all()
+}
+
+fn release_ack_suppression(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
+    r.release_all()?;
+    let me = r.master_mac();
+    let o = r.allocate_as(me, Port::Group2Only, AllocationChoice::from_bits(0x51))?;
+    if r.expect_success(c, Basis::Normative, &o, "Allocate 0x51 (explicit, COS, acknowledge suppression)")
+        .is_none()
+    {
+        return Ok(());
+    }
+    let o = r.release_as(me, Port::Explicit, AllocationChoice::ACK_SUPPRESSION)?;
+    r.expect_error(
+        c,
+        Basis::Normative,
+        &o,
+        GeneralStatus::InvalidAttributeValue,
+        additional::INVALID_CHOICE,
+        "Release 0x40 (acknowledge suppression alone)",
+    );
+    if let Some((data, i)) = r.read(c, Basis::Normative, class::DEVICENET, 1, 5)? {
+        c.firm(
+            data.first().is_some_and(|b| b & 0x10 != 0),
+            format!("after it the allocation information {} still has COS", decode::hex(&data)),
+            i,
+        );
+    }
+    r.release_all()
 }
 
 /// Tries each connection type the device may lack (with explicit, so row 5 does not apply).

@@ -5,7 +5,9 @@
 mod connection_set;
 mod connections;
 mod explicit;
+mod io_connections;
 mod network;
+mod offline;
 mod timing;
 
 use super::runner::Runner;
@@ -19,5 +21,7 @@ pub(crate) fn run_all(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
     connection_set::run(r)?;
     explicit::run(r)?;
     connections::run(r)?;
-    timing::run(r)
+    io_connections::run(r)?;
+    timing::run(r)?;
+    offline::run(r)
 }
