@@ -145,6 +145,32 @@ enum Fault {
     SlowPollResponses,
     /// Responses on its explicit connection go out 1.2 s late.
     SlowExplicitResponses,
+    // ----- issue 14: I/O connections, heartbeat, Offline Connection Set (notes §II) -------------
+    /// Allocating change of state and cyclic together (0x31) succeeds (nothing is allocated).
+    AcceptsCosWithCyclic,
+    /// A release naming acknowledge suppression is answered with success and not carried out.
+    ReleasesAckSuppression,
+    /// Bit-strobe with poll (0x07) is refused with 0x02/0x02.
+    RefusesStrobeWithPoll,
+    /// The bit-strobe response loses its last byte.
+    ShortStrobeResponse,
+    /// Connection 4 attribute 5 of an acknowledged connection reads 0x42D (the RA tables' slip)
+    /// instead of the acknowledgement's identifier.
+    CosConsumedIdOfPoll,
+    /// Under acknowledge suppression the master's COS/cyclic data is acknowledged all the same.
+    AcknowledgesUnderSuppression,
+    /// A cyclic connection leaves out every second production (and takes it as acknowledged).
+    SkipsCyclicProductions,
+    /// An unacknowledged production is never sent again.
+    NeverResends,
+    /// Acknowledge Handler attribute 1 (acknowledge timer) = 0 is accepted.
+    AcceptsAckTimerZero,
+    /// The heartbeat carries MAC 0 in its header instead of its own.
+    HeartbeatWithoutOwnMac,
+    /// A duplicate MAC ID response for its MAC is not seen by the node (it does not fault).
+    IgnoresDupMacResponse,
+    /// Its Who answer carries another serial number.
+    WhoAnswerWrongSerial,
 }
 
 macro_rules! mutants {
@@ -201,6 +227,18 @@ mutants! {
     "serves-any-master" => "non-owner-ignored", "explicit requests from a master that does not own it are served as the owner's", ServesAnyMaster;
     "slow-poll-responses" => "poll-latency", "poll responses go out 150 ms late", SlowPollResponses;
     "slow-explicit-responses" => "explicit-latency", "responses on its explicit connection go out 1.2 s late", SlowExplicitResponses;
+    "refuses-strobe-with-poll" => "alloc-io-combinations", "bit-strobe with poll (0x07) is refused with 0x02/0x02", RefusesStrobeWithPoll;
+    "accepts-cos-with-cyclic" => "alloc-cos-with-cyclic", "allocating change of state and cyclic together (0x31) succeeds", AcceptsCosWithCyclic;
+    "releases-ack-suppression" => "release-ack-suppression", "a release naming acknowledge suppression is answered with success", ReleasesAckSuppression;
+    "short-strobe-response" => "bit-strobe", "the bit-strobe response loses its last byte", ShortStrobeResponse;
+    "cos-consumed-id-of-poll" => "cos-acknowledged", "Connection 4 attribute 5 reads 0x42D instead of the acknowledgement's identifier", CosConsumedIdOfPoll;
+    "acks-under-suppression" => "cos-suppressed", "under acknowledge suppression the master's data is acknowledged all the same", AcknowledgesUnderSuppression;
+    "skips-cyclic-productions" => "cyclic", "a cyclic connection leaves out every second production", SkipsCyclicProductions;
+    "never-resends" => "ack-handler", "an unacknowledged production is never sent again", NeverResends;
+    "accepts-ack-timer-zero" => "ack-handler", "Acknowledge Handler attribute 1 (acknowledge timer) = 0 is accepted", AcceptsAckTimerZero;
+    "heartbeat-without-own-mac" => "heartbeat", "the heartbeat carries MAC 0 in its header instead of its own", HeartbeatWithoutOwnMac;
+    "ignores-dup-mac-response" => "offline-recovery", "a duplicate MAC ID response for its MAC does not fault it", IgnoresDupMacResponse;
+    "who-answer-wrong-serial" => "offline-recovery", "its Who answer carries another serial number", WhoAnswerWrongSerial;
 }
 
 /// The mutant named `id`.
@@ -314,6 +352,15 @@ pub struct FaultHook {
     /// Per Connection instance 1, 2: the EPR the master last set ([`Fault::WatchdogAt3Epr`],
     /// [`Fault::ExplicitWatchdogNeverExpires`]).
     epr_asked: [Option<u16>; 2],
+    /// The allocation choices of the Allocates the node accepted so far, as requested (issue 14
+    /// faults tell suppression and cyclic from them).
+    allocated: u8,
+    /// Production series seen (first fragments or whole frames), and whether the current one is
+    /// dropped ([`Fault::SkipsCyclicProductions`], [`Fault::NeverResends`]).
+    series: u32,
+    dropping: bool,
+    /// When the last production series that went out started ([`Fault::NeverResends`]).
+    last_series: Option<Instant>,
 }
 
 impl FaultHook {
@@ -329,6 +376,10 @@ impl FaultHook {
             drop_ack: false,
             idle_seen: false,
             epr_asked: [None; 2],
+            allocated: 0,
+            series: 0,
+            dropping: false,
+            last_series: None,
         }
     }
 
@@ -415,6 +466,20 @@ impl FaultHook {
         if to_mac != mac {
             return Some(*frame);
         }
+        if self.fault == Fault::IgnoresDupMacResponse
+            && message == Group2Message::DuplicateMacCheck
+            && data.first().is_some_and(|b| b & 0x80 != 0)
+        {
+            return None;
+        }
+        if self.fault == Fault::AcknowledgesUnderSuppression
+            && message == Group2Message::PollCommand
+            && self.allocated & 0x40 != 0
+            && self.allocated & 0x30 != 0
+        {
+            let ack = Identifier::group1(Group1MessageId::POLL_RESPONSE, mac);
+            self.answer(build(ack, &[]));
+        }
         match message {
             Group2Message::ExplicitRequest | Group2Message::UnconnectedExplicitRequest => {
                 let port =
@@ -461,9 +526,24 @@ impl FaultHook {
         if req.choice(0x4B).is_some() {
             self.idle_seen = false;
         }
+        if let Some(choice) = req.choice(0x4B) {
+            self.allocated |= choice;
+        }
+        if let Some(choice) = req.choice(0x4C) {
+            if choice & 0x40 == 0 {
+                self.allocated &= !choice;
+                if self.allocated & 0x30 == 0 {
+                    self.allocated &= !0x40;
+                }
+            }
+        }
         let rsp = Self::id(node, Group2Message::ExplicitResponse);
         let mut deliver = Some(*frame);
         match self.fault {
+            Fault::ReleasesAckSuppression if req.choice(0x4C).is_some_and(|c| c & 0x40 != 0) => {
+                self.answer(build(rsp, &[header, 0xCC]));
+                deliver = None;
+            }
             Fault::KeepsReleasedConnections if port == Port::Explicit && req.choice(0x4C).is_some() => {
                 self.answer(build(rsp, &[header, 0xCC]));
                 deliver = None;
@@ -582,8 +662,32 @@ impl FaultHook {
                 _ => Some((now, f)),
             };
         }
+        let mac = node.mac_id();
+        if id == Identifier::group1(Group1MessageId::BIT_STROBE_RESPONSE, mac)
+            && self.fault == Fault::ShortStrobeResponse
+        {
+            return build(id, &data[..data.len().saturating_sub(1)]).map(|f| (now, f));
+        }
+        if id == Identifier::group1(Group1MessageId::COS_CYCLIC, mac) {
+            return self.transmit_production(f, node);
+        }
+        if id
+            == (Identifier::Group4 { message: devicenet::id::Group4MessageId::COMM_FAULTED_RESPONSE })
+                .encode()
+            && self.fault == Fault::WhoAnswerWrongSerial
+            && data.len() == 7
+        {
+            let mut d = data.to_vec();
+            d[3] ^= 0x01;
+            return build(id, &d).map(|f| (now, f));
+        }
         if id != Self::id(node, Group2Message::ExplicitResponse) {
             return Some((now, f));
+        }
+        if self.fault == Fault::HeartbeatWithoutOwnMac && data.len() == 8 && data[1] == 0xCD {
+            let mut d = data.to_vec();
+            d[0] &= 0xC0;
+            return build(id, &d).map(|f| (now, f));
         }
         if let Some((kind, count)) = fragment(data) {
             return self.transmit_fragment(f, kind, count, node);
@@ -611,6 +715,39 @@ impl FaultHook {
                 Some((now + Duration::from_millis(1200), f))
             }
             _ => Some((now, f)),
+        }
+    }
+
+    /// A COS/cyclic production frame from the node: whole series are dropped by the faults that
+    /// leave productions out.
+    fn transmit_production(&mut self, f: CanFrame, node: &SlaveNode) -> Option<(Instant, CanFrame)> {
+        let now = self.now;
+        let data = f.data();
+        let starts = node.input().len() <= 8 || data.first().is_some_and(|b| b & 0xC0 == 0);
+        if starts {
+            self.series += 1;
+            self.dropping = match self.fault {
+                Fault::SkipsCyclicProductions => self.allocated & 0x20 != 0 && self.series % 2 == 0,
+                // A series starting sooner than any trigger but the acknowledge timer can bring
+                // it is a re-send (the reference device's: 16 ms after the previous).
+                Fault::NeverResends => self.last_series.is_some_and(|t| now - t < Duration::from_millis(60)),
+                _ => false,
+            };
+            if !self.dropping {
+                self.last_series = Some(now);
+            }
+        }
+        let last = node.input().len() <= 8 || data.first().is_some_and(|b| b & 0xC0 == 0x80);
+        if self.dropping && last && self.fault == Fault::SkipsCyclicProductions {
+            // The node hears an acknowledgement nobody sent, so it does not send the series again.
+            if let Some(ack) = build(Identifier::group2(node.mac_id(), Group2Message::CosCyclicAck), &[]) {
+                self.feed.push_back(ack);
+            }
+        }
+        if self.dropping {
+            None
+        } else {
+            Some((now, f))
         }
     }
 
@@ -695,6 +832,10 @@ impl FaultHook {
                 let v = u16::from_le_bytes(value.try_into().ok()?) ^ 0x08;
                 with(v.to_le_bytes().to_vec())
             }
+            Fault::RefusesStrobeWithPoll if req.choice(0x4B) == Some(0x07) => Some(vec![0x94, 0x02, 0x02]),
+            Fault::CosConsumedIdOfPoll if req.is_get(class::CONNECTION, 4, 5) && value == [0x2A, 0x04] => {
+                with(vec![0x2D, 0x04])
+            }
             Fault::SetEprWithoutValue
                 if req.is_set(class::CONNECTION, 1, 9) || req.is_set(class::CONNECTION, 2, 9) =>
             {
@@ -742,6 +883,8 @@ impl FaultHook {
                 Some(vec![0x94, 0x02, 0xFF])
             }
             (Fault::ProductNameSettable, 0x0E, _) if req.is_set(class::IDENTITY, 1, 7) => Some(vec![0x90]),
+            (Fault::AcceptsCosWithCyclic, _, _) if allocate.is_some_and(|c| c & 0x30 == 0x30) => allocated,
+            (Fault::AcceptsAckTimerZero, 0x09, _) if req.is_set(0x2B, 1, 1) => Some(vec![0x90]),
             (Fault::UnknownInstanceAsUnknownAttribute, 0x16, _)
                 if req.class() == class::IDENTITY && req.instance() != 1 =>
             {
