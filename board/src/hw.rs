@@ -67,29 +67,8 @@ impl Board {
         let mut rcc = clocks(dp.RCC);
         let gpioa = dp.GPIOA.split(&mut rcc);
         let gpiob = dp.GPIOB.split(&mut rcc);
-        let gpioc = dp.GPIOC.split(&mut rcc);
-
-        let leds = LedPins {
-            ms_green: gpioc.pc0.into_push_pull_output(),
-            ms_red: gpioc.pc1.into_push_pull_output(),
-            ns_green: gpioc.pc2.into_push_pull_output(),
-            ns_red: gpioc.pc3.into_push_pull_output(),
-        };
-
-        let switch_pins = [
-            gpiob.pb0.into_pull_up_input().erase(),
-            gpiob.pb1.into_pull_up_input().erase(),
-            gpiob.pb2.into_pull_up_input().erase(),
-            gpiob.pb3.into_pull_up_input().erase(),
-            gpiob.pb4.into_pull_up_input().erase(),
-            gpiob.pb5.into_pull_up_input().erase(),
-            gpiob.pb6.into_pull_up_input().erase(),
-            gpiob.pb7.into_pull_up_input().erase(),
-        ];
-        // Let the pull-ups charge the switch lines (tens of µs at most).
-        cortex_m::asm::delay(clocks::HSI_HZ / 10_000);
-        let port = switch_pins.iter().enumerate().fold(0u8, |acc, (i, p)| acc | (u8::from(p.is_high()) << i));
-
+        let leds = LedPins::take(dp.GPIOC, &mut rcc);
+        let port = read_switches();
         let service = dp
             .USART1
             .serial(
@@ -141,23 +120,45 @@ fn clocks(rcc: pac::RCC) -> Rcc {
     rcc.constrain()
 }
 
-/// The Module Status and Network Status LEDs (PC0–PC3, see [`crate::leds`]).
+/// The Module Status and Network Status LEDs (PC0–PC3, see [`crate::leds`]): GPIOC as a whole,
+/// so that the four outputs are set up in one register write and shown in one
+/// ([`leds::bsrr`]) rather than pin by pin (firmware size).
 pub struct LedPins {
-    ms_green: Pin<'C', 0, Output<PushPull>>,
-    ms_red: Pin<'C', 1, Output<PushPull>>,
-    ns_green: Pin<'C', 2, Output<PushPull>>,
-    ns_red: Pin<'C', 3, Output<PushPull>>,
+    gpioc: pac::GPIOC,
 }
 
 impl LedPins {
+    /// Enables GPIOC and makes PC0–PC3 push-pull outputs, low (all LEDs off; the output data
+    /// register's reset value).
+    fn take(gpioc: pac::GPIOC, rcc: &mut Rcc) -> LedPins {
+        rcc.ahb1enr().modify(|_, w| w.gpiocen().set_bit());
+        // OTYPER and OSPEEDR stay at reset: push-pull, low speed.
+        gpioc
+            .moder()
+            .modify(|_, w| w.moder0().output().moder1().output().moder2().output().moder3().output());
+        LedPins { gpioc }
+    }
+
     /// Shows `leds`.
     pub fn show(&mut self, leds: Leds) {
-        let [msg, msr, nsg, nsr] = leds::pin_levels(leds);
-        self.ms_green.set_state(msg.into());
-        self.ms_red.set_state(msr.into());
-        self.ns_green.set_state(nsg.into());
-        self.ns_red.set_state(nsr.into());
+        // SAFETY: BSRR only sets or resets output levels; `leds::bsrr` names PC0–PC3 alone, the
+        // LED outputs this struct owns.
+        self.gpioc.bsrr().write(|w| unsafe { w.bits(leds::bsrr(leds)) });
     }
+}
+
+/// Makes PB0–PB7 (the DIP switches, [`crate::switches`]) inputs with pull-ups, lets the pull-ups
+/// charge the switch lines and reads the eight in one read of the input data register.
+fn read_switches() -> u8 {
+    // SAFETY: only PB0–PB7's bits of MODER and PUPDR are written, at set-up with interrupts
+    // disabled; their typed pins are never used, so nothing else configures them. GPIOB's clock
+    // is on (`split`). Reading IDR has no side effect.
+    let gpiob = unsafe { &*pac::GPIOB::ptr() };
+    gpiob.moder().modify(|r, w| unsafe { w.bits(r.bits() & !0xFFFF) });
+    gpiob.pupdr().modify(|r, w| unsafe { w.bits(r.bits() & !0xFFFF | 0x5555) });
+    // Let the pull-ups charge the switch lines (tens of µs at most).
+    cortex_m::asm::delay(clocks::HSI_HZ / 10_000);
+    gpiob.idr().read().bits() as u8
 }
 
 /// USART2 and its pins, before the line format is known.

@@ -10,13 +10,15 @@
 //! | produced and consumed size | the `InputN`/`OutputN` that `PollInfo` names by default | poll connection (Connection instance 2) attributes 7 and 8, after allocating poll; Assembly attribute 4 of the EDS's instances when poll cannot be allocated |
 //! | produced and consumed path | the same entries' paths | Connection 2 attributes 14 and 16 |
 //! | connection types | `PollInfo`, `StrobeInfo`, `COSInfo`, `CyclicInfo`, the `Default` mask and every connection mask | whether the device accepts the allocation (each accepted one is released at once) |
+//! | bit-strobe, change-of-state and cyclic produced size | the size of the `InputN` that `StrobeInfo`, `COSInfo`, `CyclicInfo` name by default | attribute 7 of Connection instance 3 (bit-strobe) or 4 (COS, cyclic), read while the probe holds the allocation |
 //!
 //! Minor revision and product name are shown as notes: a scanner does not key on them.
 //!
 //! The sequence on the bus: the master's duplicate MAC ID check, wait for the device, Allocate
 //! explicit through the Group 2 Only port, the Identity reads, Allocate poll, the connection
-//! reads, the probes of the other connection types, Release poll and explicit. A device that
-//! another master owns refuses the first allocation; that is an error, not a disagreement.
+//! reads, the probes of the other connection types (each: Allocate, the produced size when
+//! accepted, Release), Release poll and explicit. A device that another master owns refuses the
+//! first allocation; that is an error, not a disagreement.
 
 use crate::model::{ConnectionInfo, Eds, IoEntry, Param};
 use crate::value::{AttributePath, ConnectionMask, DataType, LinkPath, Value};
@@ -245,6 +247,10 @@ pub struct Expected {
     /// Per connection type (poll, bit-strobe, change of state, cyclic): where the EDS announces
     /// it (`PollInfo`, `Default`, `Input1 mask`); empty when it does not.
     pub announced: Vec<(ConnectionType, Vec<String>)>,
+    /// Per connection type other than poll whose `...Info` entry the EDS has: the default input's
+    /// keyword (`Input2`) and size, what a scanner expects the connection to produce (size 0 for
+    /// default input 0, none; `None` when the entry or its size is missing).
+    pub produced: Vec<(ConnectionType, String, Option<u32>)>,
 }
 
 /// An I/O connection type of the predefined master/slave set.
@@ -352,6 +358,20 @@ impl Expected {
                 (kind, sources)
             })
             .collect();
+        let produced = ConnectionType::ALL
+            .iter()
+            .zip(infos)
+            .skip(1)
+            .filter_map(|(&kind, info)| {
+                let n = info?.default_input;
+                let (keyword, size) = match n {
+                    Some(0) => (format!("{} default input 0", kind.keyword()), Some(0)),
+                    Some(n) => (format!("Input{n}"), io.inputs.get(&n).and_then(|e| e.size)),
+                    None => (format!("{} default input", kind.keyword()), None),
+                };
+                Some((kind, keyword, size))
+            })
+            .collect();
         Expected {
             vendor_id: device.vend_code,
             device_type: device.prod_type,
@@ -362,11 +382,17 @@ impl Expected {
             poll_input,
             poll_output,
             announced,
+            produced,
         }
     }
 
     fn announces(&self, kind: ConnectionType) -> &[String] {
         self.announced.iter().find(|(k, _)| *k == kind).map_or(&[], |(_, s)| s.as_slice())
+    }
+
+    /// The default input keyword and size of `kind`'s `...Info` entry; `None` without the entry.
+    fn produced(&self, kind: ConnectionType) -> Option<(&str, Option<u32>)> {
+        self.produced.iter().find(|(k, _, _)| *k == kind).map(|(_, keyword, size)| (keyword.as_str(), *size))
     }
 }
 
@@ -576,14 +602,30 @@ pub fn check_device(
         }
     }
 
-    // The other connection types: does the device accept what the EDS announces?
-    for kind in [ConnectionType::BitStrobe, ConnectionType::ChangeOfState, ConnectionType::Cyclic] {
+    // The other connection types: does the device accept what the EDS announces, and does the
+    // connection produce the size of the EDS's default input? (docs/io-connections.md: Connection
+    // 3 produces min(P, 8) bytes, Connection 4 P bytes.)
+    for (kind, instance) in
+        [(ConnectionType::BitStrobe, 3), (ConnectionType::ChangeOfState, 4), (ConnectionType::Cyclic, 4)]
+    {
         let sources = expected.announces(kind).to_vec();
         let outcome = allocate(master, target, kind.choice())?;
+        let size = match (&outcome, expected.produced(kind)) {
+            (Ok(_), Some(eds)) => Some((eds, get(master, target, class::CONNECTION, instance, 7)?)),
+            _ => None,
+        };
         if outcome.is_ok() {
             release(master, target, kind.choice())?;
         }
         findings.push(connection_finding(kind, &sources, &outcome));
+        if let Some(((keyword, eds_size), device)) = size {
+            findings.push(keyed(
+                &format!("{kind} produced size ({keyword})"),
+                eds_size,
+                uint(&device).map(u32::from),
+                show,
+            ));
+        }
     }
 
     if options.params {
@@ -765,6 +807,7 @@ mod tests {
         );
         assert_eq!(e.announces(ConnectionType::ChangeOfState), ["COSInfo", "PollInfo mask", "Input1 mask"]);
         assert!(e.announces(ConnectionType::BitStrobe).is_empty());
+        assert_eq!(e.produced, [(ConnectionType::ChangeOfState, "Input1".to_string(), Some(10))]);
     }
 
     #[test]

@@ -85,7 +85,8 @@ enum Command {
     },
     /// Read a device's identity and poll connection sizes over the bus and report every
     /// disagreement with an EDS (electronic keying: vendor, device type, product code, major
-    /// revision; produced and consumed sizes and paths; connection types). Exit status 0 when
+    /// revision; produced and consumed sizes and paths; connection types and the sizes the
+    /// bit-strobe, COS and cyclic connections produce). Exit status 0 when
     /// everything agrees, 1 on a disagreement or when the device cannot be checked, 2 for usage
     /// and file errors.
     CheckDevice {

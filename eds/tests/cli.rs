@@ -296,28 +296,6 @@ fn generate_refuses_bad_input_with_exit_2() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// The connection types the soft slave (description `name` at `mac`) refuses, as `check-device`
-/// names them (`"bit-strobe connection"`): its probes with an EDS that announces nothing. Empty
-/// once the protocol core offers bit-strobe, COS and cyclic (issue 14); until then the generated
-/// EDS, which announces them, disagrees on exactly these (see `tests/device.rs`).
-fn refused(name: &str, mac: u8) -> Vec<String> {
-    let bus = eds::device::BusOptions {
-        bus: can_io::bus::BusSpec::Sim,
-        bitrate: None,
-        mac: devicenet::MacId::new(mac).unwrap(),
-        slave_config: Some(PathBuf::from(description(name))),
-    };
-    let report =
-        eds::device::check_on_bus(&eds::Eds::default(), &bus, &eds::device::CheckOptions::default(), None)
-            .unwrap();
-    report
-        .findings
-        .into_iter()
-        .filter(|f| f.what.ends_with(" connection") && f.device.starts_with("refuses"))
-        .map(|f| f.what)
-        .collect()
-}
-
 /// The findings that disagree in `check-device --json` output.
 fn disagreements(json: &serde_json::Value) -> Vec<String> {
     json["report"]["findings"]
@@ -331,19 +309,13 @@ fn disagreements(json: &serde_json::Value) -> Vec<String> {
 
 #[test]
 fn check_device_agrees_on_the_simulated_bus() {
-    let refused = refused("breaker", 5);
     let output = run(&["check-device", "--eds", &golden("breaker"), "--mac", "5"]);
     let text = stdout(&output);
+    assert_eq!(output.status.code(), Some(0), "{text}{}", stderr(&output));
     assert!(text.contains("product code (ProdCode)"), "{text}");
-    if refused.is_empty() {
-        assert_eq!(output.status.code(), Some(0), "{text}{}", stderr(&output));
-        assert!(text.ends_with("MAC 5: the device agrees with the EDS\n"), "{text}");
-    } else {
-        assert_eq!(output.status.code(), Some(1), "{text}{}", stderr(&output));
-        for what in &refused {
-            assert!(text.contains(&format!("disagreement: {what}: EDS announced (")), "{text}");
-        }
-    }
+    assert!(text.contains("bit-strobe produced size (Input2)"), "{text}");
+    assert!(!text.contains("DISAGREES"), "{text}");
+    assert!(text.ends_with("MAC 5: the device agrees with the EDS\n"), "{text}");
 
     let output = run(&[
         "check-device",
@@ -357,18 +329,20 @@ fn check_device_agrees_on_the_simulated_bus() {
         "--json",
     ]);
     let json: serde_json::Value = serde_json::from_str(&stdout(&output)).unwrap();
-    let refused = self::refused("modbus-meter", 7);
-    assert_eq!(output.status.code(), Some(if refused.is_empty() { 0 } else { 1 }), "{}", stderr(&output));
-    assert_eq!(json["ok"], refused.is_empty());
-    assert_eq!(disagreements(&json), refused);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    assert_eq!(json["ok"], true);
+    assert_eq!(disagreements(&json), Vec::<String>::new());
     assert_eq!(json["report"]["mac"], 7);
     let findings = json["report"]["findings"].as_array().unwrap();
+    for kind in ["bit-strobe", "change-of-state", "cyclic"] {
+        let connection = findings.iter().find(|f| f["what"] == format!("{kind} connection")).unwrap();
+        assert_eq!((&connection["device"], &connection["verdict"]), (&"accepts".into(), &"agree".into()));
+    }
     assert!(findings.iter().any(|f| f["what"] == "Param1 \"Serial baud rate\"" && f["device"] == "19200"));
 }
 
 #[test]
 fn check_device_disagreement_exits_1_naming_the_field() {
-    let refused = refused("breaker", 5);
     let dir = temp_dir("check-device");
     let wrong = dir.join("wrong.eds");
     let text = std::fs::read_to_string(golden("breaker")).unwrap().replace("ProdCode = 1;", "ProdCode = 7;");
@@ -377,11 +351,9 @@ fn check_device_disagreement_exits_1_naming_the_field() {
     assert_eq!(output.status.code(), Some(1));
     let text = stdout(&output);
     assert!(text.contains("disagreement: product code (ProdCode): EDS 7, device 1"), "{text}");
-    let count = 1 + refused.len();
-    let plural = if count == 1 { "" } else { "s" };
-    assert!(text.ends_with(&format!("MAC 5: {count} disagreement{plural} with the EDS\n")), "{text}");
+    assert!(text.ends_with("MAC 5: 1 disagreement with the EDS\n"), "{text}");
 
-    // The modbus meter's EDS against the breaker: sizes and path too.
+    // The modbus meter's EDS against the breaker: sizes and path too (the strobe's 8 bytes agree).
     let output = run(&["check-device", "--eds", &golden("modbus-meter"), "--mac", "5", "--json"]);
     assert_eq!(output.status.code(), Some(1));
     let json: serde_json::Value = serde_json::from_str(&stdout(&output)).unwrap();
@@ -391,8 +363,9 @@ fn check_device_disagreement_exits_1_naming_the_field() {
         "produced size (Input1)",
         "produced path (Input1)",
         "consumed size (Output1)",
+        "change-of-state produced size (Input1)",
+        "cyclic produced size (Input1)",
     ];
-    let expected: Vec<String> = expected.iter().map(|w| w.to_string()).chain(refused).collect();
     assert_eq!(disagreements(&json), expected);
     std::fs::remove_dir_all(&dir).unwrap();
 }

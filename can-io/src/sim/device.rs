@@ -1,7 +1,7 @@
 //! What the simulated bus drives: the [`SimDevice`] trait every simulated node implements, and
 //! the [`PowerOn`] policy of each.
 
-use devicenet::{CanFrame, Instant, MacId};
+use devicenet::{CanFrame, Duration, Instant, MacId};
 
 /// A simulated device on the bus: a sans-IO node, driven by the bus at the instants it asks for.
 ///
@@ -34,6 +34,9 @@ pub enum PowerOn {
     /// goes on-line. The bus sees this on the wire; the master tells it nothing.
     #[default]
     WhenMasterOnline,
+    /// This long after the master is on-line: a second device at a MAC ID already in use, which
+    /// must find the first one on-line and end Communication Faulted (notes §7.1).
+    AfterMasterOnline(Duration),
     /// At the start of the simulation.
     AtStart,
     /// At a fixed instant (a replayed transcript: the recorded time of the device's first

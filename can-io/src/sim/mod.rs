@@ -300,7 +300,7 @@ impl SimBus {
         let power_at = match power {
             PowerOn::AtStart => Some(self.now),
             PowerOn::At(at) => Some(at),
-            PowerOn::WhenMasterOnline => None,
+            PowerOn::WhenMasterOnline | PowerOn::AfterMasterOnline(_) => None,
         };
         self.devices.push(Attached {
             device,
@@ -323,8 +323,13 @@ impl SimBus {
     fn watch_master(&mut self, frame: &CanFrame) {
         if let Some(online) = self.master_online.sent(frame, self.now) {
             for d in &mut self.devices {
-                if d.power == PowerOn::WhenMasterOnline && !d.powered && d.power_at.is_none() {
-                    d.power_at = Some(online);
+                let delay = match d.power {
+                    PowerOn::WhenMasterOnline => Duration::ZERO,
+                    PowerOn::AfterMasterOnline(delay) => delay,
+                    PowerOn::AtStart | PowerOn::At(_) => continue,
+                };
+                if !d.powered && d.power_at.is_none() {
+                    d.power_at = Some(online + delay);
                 }
             }
         }

@@ -146,6 +146,7 @@ impl SlaveNode {
     }
 
     /// A frame on our COS/cyclic acknowledge identifier (Group 2 message 2): zero length.
+    #[inline(never)]
     pub(super) fn on_cos_ack(&mut self, data: &[u8], now: Instant) {
         if !self.cos.is_established() || self.ack_suppressed() || !data.is_empty() {
             self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);

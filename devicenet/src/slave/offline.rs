@@ -8,14 +8,14 @@
 
 use super::{Event, FaultReason, NetworkState, SlaveNode};
 use crate::id::{Group4MessageId, Identifier, MacId};
-use crate::messages::{DeviceKey, FaultedSelector, OfflineMessage};
+use crate::messages::DeviceKey;
 use crate::time::{Duration, Instant};
 
 /// What the Offline Connection Set of a faulted node holds.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Offline {
-    /// The tool that took offline ownership (its MAC ID and key).
-    owner: Option<(MacId, DeviceKey)>,
+    /// The tool that took offline ownership: its MAC ID, vendor and serial number as sent.
+    owner: Option<[u8; 7]>,
     /// When the answer to a Who is due.
     pub(super) answer_at: Option<Instant>,
     /// An Identify was accepted: the Network Status LED flashes red/green.
@@ -29,51 +29,59 @@ impl Offline {
 }
 
 impl SlaveNode {
-    /// A Group 4 frame.
+    /// A Group 4 frame. The requests are matched byte by byte in place of
+    /// [`OfflineMessage::parse`](crate::messages::OfflineMessage::parse) (the same layouts, §II.6:
+    /// the firmware's flash budget); anything else is ignored.
+    #[inline(never)]
     pub(super) fn on_offline(&mut self, message: Group4MessageId, data: &[u8], now: Instant) {
         if self.network != NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId) {
             return;
         }
-        let Ok(request) = OfflineMessage::parse(message, data) else { return };
-        let own = self.device_key();
-        match request {
-            OfflineMessage::WhoRequest { selector, time_delay_offset } if self.selected(selector) => {
+        let own = self.device_key().to_bytes();
+        let request = message == Group4MessageId::COMM_FAULTED_REQUEST;
+        match data {
+            // Who: `[0,match,value] 4B <time-delay offset>`.
+            &[selector, 0x4B, offset] if request && self.selected(selector) => {
                 // Each answer waits byte `offset` of itself in milliseconds, which spreads the
                 // answers of several faulted nodes (§II.6, an inference: UNCONFIRMED).
                 let answer = self.who_answer();
-                let delay = answer.get(usize::from(time_delay_offset)).copied().unwrap_or(0);
+                let delay = answer.get(usize::from(offset)).copied().unwrap_or(0);
                 self.offline.answer_at = Some(now + Duration::from_millis(u64::from(delay)));
             }
-            OfflineMessage::IdentifyRequest { selector, device }
-                if device.map_or(self.selected(selector), |d| d == own) =>
-            {
-                let answer = [selector.to_byte(), 0xCC];
-                self.offline_send(Group4MessageId::COMM_FAULTED_RESPONSE, &answer);
-                self.offline.identified = true;
-            }
-            OfflineMessage::ChangeMacIdRequest { new_mac, device } if device == own => {
-                // The new MAC is taken at once and reported, to be stored like a network-set one;
-                // then the duplicate MAC ID check runs again there (DR, §II.6).
-                self.config.mac_id = new_mac;
-                self.pending_mac = new_mac;
+            // Identify, short `[0,match,value] 4C`, or long `3F 4C <vendor> <serial>` for us.
+            &[selector, 0x4C] if request && self.selected(selector) => self.identify(selector),
+            [0x3F, 0x4C, key @ ..] if request && key == own => self.identify(0x3F),
+            // Change MAC ID, `<new MAC> 4D <vendor> <serial>` for us: the new MAC is taken at once
+            // and reported, to be stored like a network-set one; then the duplicate MAC ID check
+            // runs again there (DR, §II.6).
+            [new, 0x4D, key @ ..] if request && key == own => {
+                let Some(mac) = MacId::new(*new) else { return };
+                self.config.mac_id = mac;
+                self.pending_mac = mac;
                 self.offline = Offline::new();
-                self.push_event(Event::MacIdChanged(new_mac));
+                self.push_event(Event::MacIdChanged(mac));
                 self.start_duplicate_mac_check(now);
             }
-            OfflineMessage::OwnershipRequest { client, device }
-                if self.offline.owner.is_none_or(|owner| owner == (client, device)) =>
+            // Offline ownership, `<client MAC> 4B <client vendor> <client serial>` on 0x7EF: the
+            // request echoed with CB, so every faulted node sends the same frame and the answers
+            // cannot collide (docs/io-connections.md; who answers is UNCONFIRMED). A second client
+            // is not answered while the first holds it.
+            &[client @ 0..=63, 0x4B, k0, k1, k2, k3, k4, k5]
+                if message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST
+                    && self.offline.owner.is_none_or(|owner| owner == [client, k0, k1, k2, k3, k4, k5]) =>
             {
-                // The request echoed: every faulted node sends the same frame, so the answers
-                // cannot collide (docs/io-connections.md; who answers is UNCONFIRMED).
-                self.offline.owner = Some((client, device));
-                let mut answer = [0u8; 8];
-                answer[0] = client.as_raw();
-                answer[1] = 0xCB;
-                answer[2..].copy_from_slice(&device.to_bytes());
+                self.offline.owner = Some([client, k0, k1, k2, k3, k4, k5]);
+                let answer = [client, 0xCB, k0, k1, k2, k3, k4, k5];
                 self.offline_send(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, &answer);
             }
             _ => {}
         }
+    }
+
+    /// Answers an Identify (`[selector] CC`) and flashes the Network Status LED red/green.
+    fn identify(&mut self, selector: u8) {
+        self.offline_send(Group4MessageId::COMM_FAULTED_RESPONSE, &[selector, 0xCC]);
+        self.offline.identified = true;
     }
 
     /// Sends the answer to a Who when it is due, if the node is still faulted.
@@ -101,15 +109,17 @@ impl SlaveNode {
         answer
     }
 
-    /// Whether `selector` selects this node: match bit set, the value is the MAC ID; clear, the
-    /// value is a mask and `MAC & !mask == 0` (0x3F selects every node, ICP's `3F 4B 02`). AN's
-    /// reading; the arithmetic is UNCONFIRMED (§II.6).
-    fn selected(&self, selector: FaultedSelector) -> bool {
+    /// Whether the selector byte `[0, match, value]` selects this node: match bit set, the value
+    /// is the MAC ID; clear, the value is a mask and `MAC & !mask == 0` (0x3F selects every node,
+    /// ICP's `3F 4B 02`). AN's reading; the arithmetic is UNCONFIRMED (§II.6). Bit 7 is reserved
+    /// and must be 0.
+    fn selected(&self, selector: u8) -> bool {
         let mac = self.config.mac_id.as_raw();
-        if selector.match_flag {
-            mac == selector.value
-        } else {
-            mac & !selector.value == 0
+        let value = selector & 0x3F;
+        match selector & 0xC0 {
+            0x40 => mac == value,
+            0x00 => mac & !value == 0,
+            _ => false,
         }
     }
 

@@ -8,17 +8,18 @@ use crate::time::Instant;
 
 impl SlaveNode {
     /// A bit-strobe command from the owning master (the caller checked the source MAC).
+    #[inline(never)]
     pub(super) fn on_strobe(&mut self, data: &[u8], now: Instant) {
         // Only an established connection consumes, and only the whole 8-byte command: anything
         // else is ignored, the safe choice of §II.1.2 (UNCONFIRMED).
-        let (true, &[b0, b1, b2, b3, b4, b5, b6, b7]) = (self.strobe.is_established(), data) else {
+        // MAC n is byte n / 8, bit n % 8 (NI, DELTA; §II.1.2).
+        let mac = self.config.mac_id.as_raw();
+        let (true, 8, Some(byte)) = (self.strobe.is_established(), data.len(), data.get(usize::from(mac / 8)))
+        else {
             self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
             return;
         };
-        // MAC n is byte n / 8, bit n % 8 (NI, DELTA; §II.1.2).
-        let mac = self.config.mac_id.as_raw();
-        let bits = u64::from_le_bytes([b0, b1, b2, b3, b4, b5, b6, b7]);
-        self.strobe_bit = bits >> mac & 1 != 0;
+        self.strobe_bit = byte >> (mac % 8) & 1 != 0;
         self.strobe.restart_timer(now);
         // Every strobe is answered, whatever the bit (NI, §II.1.3), with at most 8 input bytes.
         let mut response = [0u8; STROBE_MAX_SIZE as usize];

@@ -4,7 +4,7 @@
 use crate::device::SoftSlave;
 use can_io::bus::{Bitrate, Bus, BusError, BusSpec};
 use can_io::sim::{PowerOn, SimBus};
-use devicenet::MacId;
+use devicenet::{Duration, Instant, MacId};
 use slave_fw::converter::ConverterConfig;
 
 /// What runs on the simulated bus: one soft slave per MAC, each running `config`.
@@ -36,39 +36,54 @@ impl SimSetup {
         SimSetup { config, ..SimSetup::reference() }
     }
 
-    /// The simulated devices. A single device keeps the configuration's identity (serial number
-    /// included) at whatever MAC it is placed; when several share the bus, each gets the
-    /// configuration's serial number + (its MAC − the configuration's MAC), so that every one has
-    /// its own.
+    /// The simulated devices, each with its power-on policy. A single device keeps the
+    /// configuration's identity (serial number included) at whatever MAC it is placed; when
+    /// several share the bus, each gets the configuration's serial number + (its MAC − the
+    /// configuration's MAC), so that every one has its own.
+    ///
+    /// A MAC given again puts another device there (`--slave-mac 5,5`): the n-th repeat gets
+    /// 0x10000 × n more on its serial number and powers on [`DUPLICATE_DELAY`] × n after the
+    /// first, which is on-line by then, defends its MAC and leaves the newcomer Communication
+    /// Faulted (notes §7.1): a faulted node for the Offline Connection Set (§II.6).
     ///
     /// # Errors
     ///
-    /// A MAC given twice, or a configuration the converter refuses (the message names the key).
-    pub fn devices(&self) -> Result<Vec<SoftSlave>, String> {
+    /// A configuration the converter refuses (the message names the key).
+    pub fn devices(&self) -> Result<Vec<(SoftSlave, PowerOn)>, String> {
         let own = self.config.device.mac_id;
         let macs = if self.macs.is_empty() { vec![own] } else { self.macs.clone() };
         let mut devices = Vec::with_capacity(macs.len());
         for (i, &mac) in macs.iter().enumerate() {
-            if macs[..i].contains(&mac) {
-                return Err(format!("MAC {mac} is given twice for the simulated devices"));
-            }
+            let repeat = macs[..i].iter().filter(|&&m| m == mac).count() as u32;
             let mut config = self.config.clone();
             config.device.mac_id = mac;
-            if mac != own && macs.len() > 1 {
-                config.device.identity.serial_number = config
-                    .device
-                    .identity
+            if macs.len() > 1 {
+                let id = &mut config.device.identity;
+                id.serial_number = id
                     .serial_number
                     .wrapping_add(u32::from(mac.as_raw()))
-                    .wrapping_sub(u32::from(own.as_raw()));
+                    .wrapping_sub(u32::from(own.as_raw()))
+                    .wrapping_add(repeat << 16);
             }
-            devices.push(
-                SoftSlave::new(config).map_err(|e| format!("the simulated device's configuration: {e}"))?,
-            );
+            let delay = Duration::from_millis(DUPLICATE_DELAY.total_millis() * u64::from(repeat));
+            let power = match self.power_on {
+                PowerOn::WhenMasterOnline if repeat > 0 => PowerOn::AfterMasterOnline(delay),
+                PowerOn::AfterMasterOnline(d) => PowerOn::AfterMasterOnline(d + delay),
+                PowerOn::AtStart if repeat > 0 => PowerOn::At(Instant::ZERO + delay),
+                PowerOn::At(t) => PowerOn::At(t + delay),
+                other => other,
+            };
+            let device =
+                SoftSlave::new(config).map_err(|e| format!("the simulated device's configuration: {e}"))?;
+            devices.push((device, power));
         }
         Ok(devices)
     }
 }
+
+/// How much later a second device at one MAC ID powers on: after the first's duplicate MAC ID
+/// check (2 s, notes §7.1) with room to spare.
+pub const DUPLICATE_DELAY: Duration = Duration::from_secs(3);
 
 /// Why [`open_bus`] failed.
 #[derive(Debug, thiserror::Error)]
@@ -87,8 +102,8 @@ pub fn open_bus(spec: &BusSpec, bitrate: Bitrate, sim: &SimSetup) -> Result<Box<
     match spec {
         BusSpec::Sim => {
             let mut bus = SimBus::new(bitrate);
-            for device in sim.devices().map_err(OpenError::Setup)? {
-                bus.attach(Box::new(device), sim.power_on);
+            for (device, power) in sim.devices().map_err(OpenError::Setup)? {
+                bus.attach(Box::new(device), power);
             }
             bus.set_realtime(sim.realtime);
             Ok(Box::new(bus))
@@ -112,8 +127,8 @@ mod tests {
             setup.macs = vec![mac(at)];
             let devices = setup.devices().unwrap();
             assert_eq!(devices.len(), 1);
-            assert_eq!(devices[0].node().config().mac_id, mac(at));
-            assert_eq!(devices[0].node().config().identity.serial_number, 0x1234_5678, "at MAC {at}");
+            assert_eq!(devices[0].0.node().config().mac_id, mac(at));
+            assert_eq!(devices[0].0.node().config().identity.serial_number, 0x1234_5678, "at MAC {at}");
         }
     }
 
@@ -122,15 +137,54 @@ mod tests {
         let mut setup = SimSetup::reference();
         setup.macs = vec![mac(3), mac(5), mac(12)];
         let serials: Vec<u32> =
-            setup.devices().unwrap().iter().map(|d| d.node().config().identity.serial_number).collect();
+            setup.devices().unwrap().iter().map(|d| d.0.node().config().identity.serial_number).collect();
         assert_eq!(serials, [0x1234_5676, 0x1234_5678, 0x1234_567F]);
     }
 
     #[test]
-    fn a_mac_given_twice_is_refused() {
+    fn a_mac_given_again_is_a_second_device_powered_on_later() {
         let mut setup = SimSetup::reference();
-        setup.macs = vec![mac(3), mac(3)];
-        assert_eq!(setup.devices().err().unwrap(), "MAC 3 is given twice for the simulated devices");
+        setup.macs = vec![mac(5), mac(5), mac(5)];
+        let devices = setup.devices().unwrap();
+        let seen: Vec<(u8, u32, PowerOn)> = devices
+            .iter()
+            .map(|(d, p)| (d.node().config().mac_id.as_raw(), d.node().config().identity.serial_number, *p))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                (5, 0x1234_5678, PowerOn::WhenMasterOnline),
+                (5, 0x1235_5678, PowerOn::AfterMasterOnline(Duration::from_secs(3))),
+                (5, 0x1236_5678, PowerOn::AfterMasterOnline(Duration::from_secs(6))),
+            ]
+        );
+    }
+
+    /// On the bus the later device finds the MAC taken and faults; the first defends it.
+    #[test]
+    fn the_later_device_at_a_taken_mac_ends_communication_faulted() {
+        let mut setup = SimSetup::reference();
+        setup.macs = vec![mac(5), mac(5)];
+        setup.power_on = PowerOn::AtStart;
+        let mut bus = open_bus(&BusSpec::Sim, Bitrate::K250, &setup).unwrap();
+        let mut frames = Vec::new();
+        while let Some(event) = bus.recv(Instant::from_secs(10)).unwrap() {
+            frames.push((event.frame.id().as_raw(), event.frame.data().to_vec()));
+        }
+        let first = [0x34, 0x12, 0x78, 0x56, 0x34, 0x12];
+        let second = [0x34, 0x12, 0x78, 0x56, 0x35, 0x12];
+        let check = |response: u8, key: &[u8]| (0x42F, [&[response][..], key].concat());
+        assert_eq!(
+            frames,
+            [
+                // The first device's two requests, then it is on-line.
+                check(0x00, &first),
+                check(0x00, &first),
+                // The second's first request at 3 s, answered: the MAC is taken, it faults.
+                check(0x00, &second),
+                check(0x80, &first),
+            ]
+        );
     }
 
     #[test]
