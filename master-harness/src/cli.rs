@@ -254,6 +254,9 @@ pub enum Command {
         /// Who's time-delay byte offset (0-6): each node answers after byte N of its answer in ms.
         #[arg(long, default_value_t = master_core::recovery::TIME_DELAY_OFFSET, value_parser = clap::value_parser!(u8).range(0..=6))]
         delay_byte: u8,
+        /// How many times Who is sent, 1 s apart, while no node answers.
+        #[arg(long, default_value_t = master_core::recovery::WHO_ATTEMPTS, value_parser = clap::value_parser!(u8).range(1..))]
+        attempts: u8,
     },
     /// Replay a candump -L transcript against the device at MAC N.
     Replay {
@@ -918,13 +921,14 @@ fn execute(
             progress.clear();
             r
         }
-        Command::Recover { mac, to, serial, window, delay_byte } => {
+        Command::Recover { mac, to, serial, window, delay_byte, attempts } => {
             let opts = RecoverOptions {
                 mac: *mac,
                 to: *to,
                 serial: *serial,
                 window: Duration::from_millis(*window),
                 time_delay_offset: *delay_byte,
+                attempts: *attempts,
                 judge_timing: judges_timing(&cli.bus),
             };
             progress.show(&format!("recover: asking who is Communication Faulted at MAC {mac} ..."));

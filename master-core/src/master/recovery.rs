@@ -4,6 +4,8 @@
 //! 1. **Who** on 0x7ED, `[0, match 1, MAC] 4B <time-delay byte offset>` (exactly the faulted
 //!    MAC; [`RecoverOptions::time_delay_offset`]), then every answer on 0x7EC collected for
 //!    [`RecoverOptions::window`]: `<port> <vendor LE16> <serial LE32>`, one per faulted node.
+//!    Nobody answering, Who is sent again [`WHO_RETRY_PAUSE`] later, [`RecoverOptions::attempts`]
+//!    times in all.
 //! 2. Without a new MAC ([`RecoverOptions::to`]) the nodes found are the result. With one, the
 //!    node is chosen: the only one found, or the one with [`RecoverOptions::serial`].
 //! 3. **Identify**, long form, `3F 4C <vendor> <serial>`: the node answers `3F CC` on 0x7EC (and
@@ -38,6 +40,13 @@ pub const WHO_WINDOW: Duration = Duration::from_millis(500);
 /// between nodes of one vendor (ICP uses 2, the vendor's high byte).
 pub const TIME_DELAY_OFFSET: u8 = 3;
 
+/// How long the master waits before it asks Who again when nobody answered.
+pub const WHO_RETRY_PAUSE: Duration = Duration::from_secs(1);
+
+/// How many times Who is sent by default while nobody answers (a node powering up needs 2 s for
+/// its duplicate MAC ID check before it can be faulted).
+pub const WHO_ATTEMPTS: u8 = 3;
+
 /// How far the interval between the two duplicate MAC ID requests may be from 1 s.
 pub const DUP_MAC_TOLERANCE: Duration = Duration::from_millis(200);
 
@@ -54,6 +63,8 @@ pub struct RecoverOptions {
     pub window: Duration,
     /// Who's time-delay byte offset, 0–6 (`--delay-byte`).
     pub time_delay_offset: u8,
+    /// How many times Who is sent while nobody answers, [`WHO_RETRY_PAUSE`] apart (`--attempts`).
+    pub attempts: u8,
     /// Judge the interval of the duplicate MAC ID requests (`false` on SLCAN: noted only).
     pub judge_timing: bool,
 }
@@ -67,6 +78,7 @@ impl RecoverOptions {
             serial: None,
             window: WHO_WINDOW,
             time_delay_offset: TIME_DELAY_OFFSET,
+            attempts: WHO_ATTEMPTS,
             judge_timing: true,
         }
     }
@@ -159,18 +171,32 @@ impl Master<'_, '_> {
         };
         let frame = offline_frame(&who)?;
         report.who = format!("0x{:03X} {}", frame.id().as_raw(), hex(frame.data()));
-        self.session.send(&frame)?;
-        let sent = self.session.now();
-        report.found = self.collect_who(sent, sent + opts.window, opts.time_delay_offset)?;
+        // Asked again while nobody answers: a node may only now be powering up and faulting.
+        let first = self.session.now();
+        for attempt in 0..opts.attempts.max(1) {
+            if attempt > 0 {
+                let until = self.session.now() + WHO_RETRY_PAUSE;
+                self.idle_until(until)?;
+            }
+            self.session.send(&frame)?;
+            let sent = self.session.now();
+            report.found = self.collect_who(sent, sent + opts.window, opts.time_delay_offset)?;
+            if !report.found.is_empty() {
+                break;
+            }
+        }
         if report.found.is_empty() {
+            let over = self.session.now() - first;
             return Err(MasterError::Timeout {
                 what: format!(
-                    "Who ({}) for the Communication Faulted node at MAC {}: no node answered on 0x7EC",
-                    report.who, opts.mac
+                    "Who ({}) for the Communication Faulted node at MAC {}, sent {} time(s) over {over}: no node answered on 0x7EC",
+                    report.who,
+                    opts.mac,
+                    opts.attempts.max(1)
                 ),
                 mac: opts.mac.as_raw(),
                 after: opts.window,
-                timeout: "Who answer window",
+                timeout: "Who answer window, each time",
             });
         }
         let Some(to) = opts.to else { return Ok(report) };
@@ -552,7 +578,12 @@ mod tests {
     fn nothing_answering_says_what_was_sent() {
         let (r, _) = run(vec![Scripted::new(5)], &to_9());
         let e = r.unwrap_err().to_string();
-        assert!(e.contains("Who (0x7ED 45 4B 03)") && e.contains("no node answered"), "{e}");
+        assert!(
+            e.contains("Who (0x7ED 45 4B 03)")
+                && e.contains("sent 3 time(s)")
+                && e.contains("no node answered"),
+            "{e}"
+        );
     }
 
     #[test]
