@@ -992,7 +992,12 @@ fn execute(
                 duration,
                 in_place: console.stdout_terminal && !cli.json,
                 reconnect: *reconnect,
-                layout: monitor_layout(cli, &descriptions),
+                // A strobe response carries the first 8 input bytes only: shown raw.
+                layout: if io.io == IoKind::Strobe {
+                    InputLayout::raw()
+                } else {
+                    monitor_layout(cli, &descriptions)
+                },
                 io: io.options(&cli.bus),
             };
             let mut sink = std::io::sink();
