@@ -461,7 +461,7 @@ pub fn judge_other(session: &mut Session<'_>, index: usize, device: MacId) {
         && matches!(frame.data(), [h, s, ..] if frame.data().len() == 8 && h & 0x3F == device.as_raw() && matches!(*s, DEVICE_HEARTBEAT | DEVICE_SHUTDOWN));
     let verdict = if announced {
         let name = if frame.data()[1] == DEVICE_HEARTBEAT { "device heartbeat" } else { "device shutdown" };
-        Verdict::Info(format!("{name} (§II.5)"))
+        Verdict::Info(format!("{name} (notes II.5)"))
     } else if is_from_device(&frame, device) {
         Verdict::fail("unexpected frame from the device at this point")
     } else {

@@ -462,7 +462,7 @@ impl Master<'_, '_> {
                         last,
                         "",
                         vec![format!(
-                            "produced size {produced}: a strobe response carries at most 8 bytes (§II.1.3)"
+                            "produced size {produced}: a strobe response carries at most 8 bytes (notes II.1.3)"
                         )],
                     );
                 }
@@ -673,7 +673,7 @@ impl Master<'_, '_> {
             if data.len() != usize::from(conn.produced) {
                 failures.push(format!("DLC {}, expected the produced size {}", data.len(), conn.produced));
             }
-            let note = format!("bit-strobe response, {} bytes (never fragmented, §II.1.3)", data.len());
+            let note = format!("bit-strobe response, {} bytes (never fragmented, notes II.1.3)", data.len());
             self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
             conn.summary.strobe_responses += 1;
             return Ok(data);
@@ -771,7 +771,7 @@ impl Master<'_, '_> {
                 ));
             }
             let note = if conn.options.ack_suppression {
-                failures.push("an acknowledgement under acknowledge suppression (§II.2.1)".into());
+                failures.push("an acknowledgement under acknowledge suppression (notes II.2.1)".into());
                 "acknowledgement".to_string()
             } else if let Some(sent) = conn.output_pending.take() {
                 conn.summary.outputs_acknowledged += 1;
@@ -863,7 +863,7 @@ impl Master<'_, '_> {
                     None => "not acknowledged".to_string(),
                 };
                 let note = format!(
-                    "the production sent again {:.1} ms after the first ({why}, §II.2.4)",
+                    "the production sent again {:.1} ms after the first ({why}, notes II.2.4)",
                     ms(start - prev)
                 );
                 return (v.noted(&note), true);

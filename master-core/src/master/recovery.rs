@@ -459,7 +459,7 @@ impl Master<'_, '_> {
                         n - 1
                     ));
                     if off > DUP_MAC_TOLERANCE.total_micros() {
-                        let text = format!("the requests are 1 s apart (notes §7.1), not {gap}");
+                        let text = format!("the requests are 1 s apart (notes 7.1), not {gap}");
                         if judge_timing {
                             failures.push(text);
                         } else {
@@ -468,7 +468,7 @@ impl Master<'_, '_> {
                     }
                 }
                 if n > 2 {
-                    failures.push(format!("request #{n}: a check has two requests (notes §7.1)"));
+                    failures.push(format!("request #{n}: a check has two requests (notes 7.1)"));
                 }
                 self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
                 requests.push(rec.at);

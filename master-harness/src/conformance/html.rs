@@ -239,7 +239,17 @@ fn clause_name(number: &str) -> Option<&'static str> {
         "5.4" => "Watchdog timeout action",
         "6.1" => "DeviceNet object",
         "6.2" => "Identity object",
+        "3.7" => "Device heartbeat and shutdown",
+        "3.8" => "Offline Connection Set (Group 4)",
         "7" | "7.1" => "Duplicate MAC ID check (network access)",
+        "7.4" => "Communication Faulted node recovery",
+        "II.0" => "Corrections and confirmations (Part II)",
+        "II.2.4" => "Acknowledge Handler object",
+        "II.2.5" => "Allocation combinations",
+        n if n == "II.1" || n.starts_with("II.1.") => "Bit-strobe I/O",
+        n if n == "II.2" || n.starts_with("II.2.") => "Change of state and cyclic I/O",
+        n if n == "II.5" || n.starts_with("II.5.") => "Device heartbeat",
+        n if n == "II.6" || n.starts_with("II.6.") => "Offline Connection Set and faulted-node recovery",
         "8" => "Group 2 only slave behaviour",
         n if n == "9" || n.starts_with("9.") => "Scanner practice (not fixed by the specification)",
         _ => return None,
@@ -255,13 +265,18 @@ pub fn clause_names(text: &str) -> String {
     while let Some(at) = rest.find('§') {
         out.push_str(&rest[..at]);
         let after = &rest[at + '§'.len_utf8()..];
-        let len = after.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(after.len());
-        let number = after[..len].trim_end_matches('.');
-        match clause_name(number) {
+        // Part II sections are cited `§II.2.4`.
+        let (part, body) = match after.strip_prefix("II.") {
+            Some(b) => ("II.", b),
+            None => ("", after),
+        };
+        let len = body.find(|c: char| !(c.is_ascii_digit() || c == '.')).unwrap_or(body.len());
+        let number = body[..len].trim_end_matches('.');
+        match clause_name(&format!("{part}{number}")) {
             Some(name) => out.push_str(name),
             None => out.push_str("clause"),
         }
-        rest = &after[number.len()..];
+        rest = &body[number.len()..];
     }
     out.push_str(rest);
     out
@@ -462,6 +477,10 @@ mod tests {
             "Predefined Master/Slave Connection Set: Allocate/Release row 1."
         );
         assert!(!clause_names("§2 frames 6-7, §6.2 attr 5").contains('§'));
+        assert_eq!(
+            clause_names("§II.1, §II.2.4, §7.4"),
+            "Bit-strobe I/O, Acknowledge Handler object, Communication Faulted node recovery"
+        );
     }
 
     #[test]
