@@ -46,7 +46,7 @@ fn the_suite_passes_over_slcan_with_timing_advisory() {
         .collect();
     assert_eq!(code, 0, "failed checks: {failed:#?}\n{err}");
     assert_eq!(v["summary"]["fail"], 0);
-    assert_eq!(v["summary"]["checks"], 42);
+    assert_eq!(v["summary"]["checks"], 52);
     assert!(v["transport"].as_str().unwrap().starts_with("slcan:"), "{}", v["transport"]);
     assert_eq!(v["timestamps"]["source"], "host_buffered");
     assert_eq!(v["timestamps"]["timing_judged"], false);
@@ -73,7 +73,7 @@ fn an_absent_device_stops_the_run_at_once() {
     eprintln!("conformance against an absent MAC 7 over SLCAN stopped after {took:?}");
     assert_eq!(code, 1, "{out}\n{err}");
     assert!(err.contains("error: no device answers at MAC 7"), "{err}");
-    assert!(out.contains("1 of 42 checks run"), "{out}");
+    assert!(out.contains("1 of 52 checks run"), "{out}");
     assert!(took < Duration::from_secs(20), "{took:?}");
 }
 
@@ -101,7 +101,7 @@ fn sigint_stops_the_run_keeps_the_log_and_releases_the_device() {
     assert_eq!(v["interrupted"], "SIGINT");
     assert_eq!(v["ok"], false);
     let checks = v["summary"]["checks"].as_u64().unwrap();
-    assert!((1..42).contains(&checks), "{checks} checks completed");
+    assert!((1..52).contains(&checks), "{checks} checks completed");
     let logged = std::fs::read_to_string(&log).unwrap();
     assert!(logged.lines().count() > 28, "the log holds the frames:\n{logged}");
     // Released: another master run connects at once.
