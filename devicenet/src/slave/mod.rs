@@ -472,7 +472,7 @@ impl SlaveNode {
     // Out of line: nine deadlines inlined into the firmware's converter task cost more flash.
     #[inline(never)]
     pub fn poll_at(&self) -> Option<Instant> {
-        [
+        let at = [
             self.duplicate_mac_deadline(),
             self.explicit.deadline,
             self.poll.deadline,
@@ -481,11 +481,12 @@ impl SlaveNode {
             self.production_at(),
             self.heartbeat.at,
             self.offline.answer_at,
-            self.explicit_tx.poll_at(),
+            self.explicit_tx.poll_at().unwrap_or(Instant::MAX),
         ]
         .into_iter()
-        .flatten()
         .min()
+        .unwrap_or(Instant::MAX);
+        (at != Instant::MAX).then_some(at)
     }
 
     // ----- outputs -------------------------------------------------------------------------

@@ -16,15 +16,15 @@ use crate::time::{Duration, Instant};
 pub(super) struct Offline {
     /// The tool that took offline ownership: its MAC ID, vendor and serial number as sent.
     owner: Option<[u8; 7]>,
-    /// When the answer to a Who is due.
-    pub(super) answer_at: Option<Instant>,
+    /// When the answer to a Who is due ([`Instant::MAX`]: none).
+    pub(super) answer_at: Instant,
     /// An Identify was accepted: the Network Status LED flashes red/green.
     pub(super) identified: bool,
 }
 
 impl Offline {
     pub(super) const fn new() -> Offline {
-        Offline { owner: None, answer_at: None, identified: false }
+        Offline { owner: None, answer_at: Instant::MAX, identified: false }
     }
 }
 
@@ -46,7 +46,7 @@ impl SlaveNode {
                 // answers of several faulted nodes (§II.6, an inference: UNCONFIRMED).
                 let answer = self.who_answer();
                 let delay = answer.get(usize::from(offset)).copied().unwrap_or(0);
-                self.offline.answer_at = Some(now + Duration::from_millis(u64::from(delay)));
+                self.offline.answer_at = now + Duration::from_millis(u64::from(delay));
             }
             // Identify, short `[0,match,value] 4C`, or long `3F 4C <vendor> <serial>` for us.
             &[selector, 0x4C] if request && self.selected(selector) => self.identify(selector),
@@ -86,8 +86,8 @@ impl SlaveNode {
 
     /// Sends the answer to a Who when it is due, if the node is still faulted.
     pub(super) fn step_offline(&mut self, now: Instant) {
-        if self.offline.answer_at.is_some_and(|at| now >= at) {
-            self.offline.answer_at = None;
+        if now >= self.offline.answer_at {
+            self.offline.answer_at = Instant::MAX;
             if matches!(self.network, NetworkState::CommunicationFaulted(_)) {
                 let answer = self.who_answer();
                 self.offline_send(Group4MessageId::COMM_FAULTED_RESPONSE, &answer);

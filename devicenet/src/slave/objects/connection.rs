@@ -71,7 +71,7 @@ impl SlaveNode {
                 }
                 if conn.kind == ConnectionKind::ChangeOfState && self.ack_suppressed() {
                     // It consumes nothing: no watchdog (docs/io-connections.md).
-                    self.cos.deadline = None;
+                    self.cos.deadline = Instant::MAX;
                 }
                 if was_timed_out {
                     self.push_event(Event::ConnectionEstablished(conn.kind));
