@@ -472,20 +472,17 @@ impl SlaveNode {
     // Out of line: nine deadlines inlined into the firmware's converter task cost more flash.
     #[inline(never)]
     pub fn poll_at(&self) -> Option<Instant> {
-        let at = [
-            self.duplicate_mac_deadline(),
-            self.explicit.deadline,
-            self.poll.deadline,
-            self.strobe.deadline,
-            self.cos.deadline,
-            self.production_at(),
-            self.heartbeat.at,
-            self.offline.answer_at,
-            self.explicit_tx.poll_at().unwrap_or(Instant::MAX),
-        ]
-        .into_iter()
-        .min()
-        .unwrap_or(Instant::MAX);
+        // Chained rather than over an array: no copy of the nine to the stack (firmware size).
+        let at = self
+            .duplicate_mac_deadline()
+            .min(self.explicit.deadline)
+            .min(self.poll.deadline)
+            .min(self.strobe.deadline)
+            .min(self.cos.deadline)
+            .min(self.production_at())
+            .min(self.heartbeat.at)
+            .min(self.offline.answer_at)
+            .min(self.explicit_tx.poll_at().unwrap_or(Instant::MAX));
         (at != Instant::MAX).then_some(at)
     }
 
