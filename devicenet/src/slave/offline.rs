@@ -14,8 +14,9 @@ use crate::time::{Duration, Instant};
 /// What the Offline Connection Set of a faulted node holds.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Offline {
-    /// The tool that took offline ownership: its MAC ID, vendor and serial number as sent.
-    owner: Option<[u8; 7]>,
+    /// The answer to the tool that took offline ownership: its request (MAC ID, vendor and serial
+    /// number as sent) with CB for 4B.
+    owner: Option<[u8; 8]>,
     /// When the answer to a Who is due ([`Instant::MAX`]: none).
     pub(super) answer_at: Instant,
     /// An Identify was accepted: the Network Status LED flashes red/green.
@@ -67,12 +68,13 @@ impl SlaveNode {
             // cannot collide (docs/io-connections.md; who answers is UNCONFIRMED). A second client
             // is not answered while the first holds it.
             &[client @ 0..=63, 0x4B, k0, k1, k2, k3, k4, k5]
-                if message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST
-                    && self.offline.owner.is_none_or(|owner| owner == [client, k0, k1, k2, k3, k4, k5]) =>
+                if message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST =>
             {
-                self.offline.owner = Some([client, k0, k1, k2, k3, k4, k5]);
                 let answer = [client, 0xCB, k0, k1, k2, k3, k4, k5];
-                self.offline_send(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, &answer);
+                if self.offline.owner.is_none_or(|owner| owner == answer) {
+                    self.offline.owner = Some(answer);
+                    self.offline_send(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, &answer);
+                }
             }
             _ => {}
         }
