@@ -54,7 +54,7 @@ impl SlaveNode {
             return;
         }
         self.restart_heartbeat(now);
-        if self.network != NetworkState::Online {
+        if !matches!(self.network, NetworkState::Online) {
             return;
         }
         let s = &self.app_status;

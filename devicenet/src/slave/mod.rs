@@ -403,13 +403,13 @@ impl SlaveNode {
         match Identifier::decode(frame.id()) {
             // The strobe carries the owning master's MAC, not ours (notes §II.1.2).
             Identifier::Group2 { mac, message: Group2Message::BitStrobeCommand }
-                if self.network == NetworkState::Online && Some(mac) == self.master =>
+                if matches!(self.network, NetworkState::Online) && Some(mac) == self.master =>
             {
                 self.on_strobe(data, now);
             }
             Identifier::Group2 { mac, message } if mac == self.config.mac_id => match message {
                 Group2Message::DuplicateMacCheck => self.on_duplicate_mac(data),
-                _ if self.network != NetworkState::Online => {}
+                _ if !matches!(self.network, NetworkState::Online) => {}
                 Group2Message::UnconnectedExplicitRequest => self.on_group2_only::<H>(data, now),
                 Group2Message::ExplicitRequest => self.on_explicit(data, now, objects),
                 Group2Message::PollCommand => self.on_poll(data, now),
@@ -426,7 +426,7 @@ impl SlaveNode {
     /// BOI = 0 the node enters Communication Faulted, with BOI = 1 the application resets the
     /// controller and the node restarts its duplicate MAC check (notes §9.9: GC's behaviour).
     pub fn handle_bus_off(&mut self, now: Instant) {
-        if self.network == NetworkState::PoweredOff {
+        if matches!(self.network, NetworkState::PoweredOff) {
             return;
         }
         self.bus_off_counter = self.bus_off_counter.saturating_add(1);

@@ -35,7 +35,7 @@ impl SlaveNode {
     /// the firmware's flash budget); anything else is ignored.
     #[inline(never)]
     pub(super) fn on_offline(&mut self, message: Group4MessageId, data: &[u8], now: Instant) {
-        if self.network != NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId) {
+        if !matches!(self.network, NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId)) {
             return;
         }
         let own = self.device_key().to_bytes();
