@@ -537,7 +537,8 @@ impl SlaveNode {
 
     /// `true` while an I/O connection is timed out.
     fn io_timed_out(&self) -> bool {
-        [self.poll.state, self.strobe.state, self.cos.state].contains(&ConnectionState::TimedOut)
+        let timed_out = |c: &Connection| matches!(c.state, ConnectionState::TimedOut);
+        timed_out(&self.poll) || timed_out(&self.strobe) || timed_out(&self.cos)
     }
 }
 
