@@ -488,20 +488,9 @@ impl SlaveNode {
 
     // ----- outputs -------------------------------------------------------------------------
 
-    /// Queues `frame` for transmission, counting it or the overflow.
-    fn queue(&mut self, frame: CanFrame) {
-        if self.tx.push_back(frame).is_err() {
-            self.stats.tx_overflows = self.stats.tx_overflows.wrapping_add(1);
-        } else {
-            self.stats.frames_queued = self.stats.frames_queued.wrapping_add(1);
-        }
-    }
-
     /// Queues a frame of `data` (at most 8 bytes) on `id`.
     fn queue_data(&mut self, id: CanId, data: &[u8]) {
-        if let Ok(frame) = CanFrame::new(id, data) {
-            self.queue(frame);
-        }
+        queue_into(&mut self.tx, &mut self.stats, id, data);
     }
 
     /// Queues `ev` for the application, counting an overflow.
@@ -539,6 +528,17 @@ impl SlaveNode {
     fn io_timed_out(&self) -> bool {
         let timed_out = |c: &Connection| matches!(c.state, ConnectionState::TimedOut);
         timed_out(&self.poll) || timed_out(&self.strobe) || timed_out(&self.cos)
+    }
+}
+
+/// Queues a frame of `data` (at most 8 bytes) on `id` into `tx`, counting it or the overflow in
+/// `stats`: [`SlaveNode::queue_data`] for a caller that reads the input image meanwhile.
+fn queue_into(tx: &mut Deque<CanFrame, TX_QUEUE_LEN>, stats: &mut NodeStats, id: CanId, data: &[u8]) {
+    let Ok(frame) = CanFrame::new(id, data) else { return };
+    if tx.push_back(frame).is_err() {
+        stats.tx_overflows = stats.tx_overflows.wrapping_add(1);
+    } else {
+        stats.frames_queued = stats.frames_queued.wrapping_add(1);
     }
 }
 
