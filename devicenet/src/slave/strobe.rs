@@ -14,7 +14,8 @@ impl SlaveNode {
         // else is ignored, the safe choice of §II.1.2 (UNCONFIRMED).
         // MAC n is byte n / 8, bit n % 8 (NI, DELTA; §II.1.2).
         let mac = self.config.mac_id.as_raw();
-        let (true, 8, Some(byte)) = (self.strobe.is_established(), data.len(), data.get(usize::from(mac / 8)))
+        let (true, 8, Some(byte)) =
+            (self.strobe.is_established(), data.len(), data.get(usize::from(mac / 8)))
         else {
             self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
             return;

@@ -51,9 +51,9 @@ fn set_filters(can: &mut bxcan::Can<Can1>, mac: MacId) {
     let mut offline =
         Mask16::frames_with_std_id(std_id(filters::OFFLINE_REQUESTS[0]), std_id(filters::OFFLINE_MASK));
     offline.data_frames_only();
-    can.modify_filters()
-        .enable_bank(filters::FILTER_BANK, Fifo::Fifo0, [own, strobe])
-        .enable_bank(filters::OFFLINE_FILTER_BANK, Fifo::Fifo0, [offline, offline]);
+    let mut banks = can.modify_filters();
+    banks.enable_bank(filters::FILTER_BANK, Fifo::Fifo0, [own, strobe]);
+    banks.enable_bank(filters::OFFLINE_FILTER_BANK, Fifo::Fifo0, [offline, offline]);
 }
 
 /// An identifier or mask of the filter module, all within 11 bits by construction.
