@@ -12,9 +12,9 @@
 //!
 //! Group 1, Group 3 (UCMM), other nodes' Group 2 traffic and Group 4 responses never reach the
 //! core. For MAC 5: 0x428-0x42F, 0x400 | n << 3 for every n, 0x7ED, 0x7EF. On the bxCAN, filter
-//! bank 0 holds the two masks (16-bit mask mode) and bank 1 the two Group 4 identifiers (16-bit
-//! list mode), both routed to FIFO 0 so that frames keep their bus order; a MAC ID taken through
-//! the Offline Connection Set rewrites bank 0. The emulated board applies [`accepts`] in software
+//! bank 0 holds the two Group 2 masks and bank 1 the Group 4 mask (the two requests differ in one
+//! bit, [`OFFLINE_MASK`]), all in 16-bit mask mode and routed to FIFO 0 so that frames keep their
+//! bus order; a MAC ID taken through the Offline Connection Set rewrites bank 0. The emulated board applies [`accepts`] in software
 //! to the SLCAN frames it receives.
 
 use devicenet::MacId;
@@ -33,6 +33,9 @@ pub const STROBE_ID: u16 = 0x400;
 /// The Offline Connection Set's request identifiers: Communication Faulted request and offline
 /// ownership request (notes §1.4).
 pub const OFFLINE_REQUESTS: [u16; 2] = [0x7ED, 0x7EF];
+/// The mask of every bit but the one in which the two [`OFFLINE_REQUESTS`] differ: with the first
+/// of them it passes both and nothing else.
+pub const OFFLINE_MASK: u16 = 0x7FF & !(OFFLINE_REQUESTS[0] ^ OFFLINE_REQUESTS[1]);
 
 /// The identifier of Group 2 message 0 for `mac`; with [`OWN_MASK`], all its Group 2 messages.
 pub const fn own_group2(mac: MacId) -> u16 {
@@ -44,8 +47,7 @@ pub const fn own_group2(mac: MacId) -> u16 {
 pub const fn accepts(mac: MacId, id: u16) -> bool {
     id & OWN_MASK == own_group2(mac)
         || id & STROBE_MASK == STROBE_ID
-        || id == OFFLINE_REQUESTS[0]
-        || id == OFFLINE_REQUESTS[1]
+        || id & OFFLINE_MASK == OFFLINE_REQUESTS[0]
 }
 
 #[cfg(test)]
@@ -54,6 +56,12 @@ mod tests {
     use devicenet::id::Group4MessageId;
     use devicenet::{CanId, Group2Message, Identifier};
     use rstest::rstest;
+
+    #[test]
+    fn offline_mask_passes_both_requests() {
+        assert_eq!(OFFLINE_MASK, 0x7FD);
+        assert!(OFFLINE_REQUESTS.iter().all(|id| id & OFFLINE_MASK == OFFLINE_REQUESTS[0]));
+    }
 
     #[test]
     fn mac_5_own_identifiers() {

@@ -35,7 +35,9 @@ pub struct Board {
     pub leds: LedPins,
     /// The DIP switches as read at reset.
     pub switches: SwitchReading,
-    /// USART1, the service port (SLCAN in the emulated build), 115200 8N1.
+    /// USART1, the service port, 115200 8N1: the SLCAN link of the emulated build. The real
+    /// board's firmware does not use it and leaves it off (below).
+    #[cfg(feature = "emulated")]
     pub service: Serial<pac::USART1>,
     /// USART2 to the instrument, not yet opened: its line format comes from the serial profile,
     /// which the application chooses after reading the switches and the stored settings.
@@ -69,6 +71,7 @@ impl Board {
         let gpiob = dp.GPIOB.split(&mut rcc);
         let leds = LedPins::take(dp.GPIOC, &mut rcc);
         let port = read_switches();
+        #[cfg(feature = "emulated")]
         let service = dp
             .USART1
             .serial(
@@ -77,6 +80,11 @@ impl Board {
                 &mut rcc,
             )
             .map_err(|_| InitError::SerialConfig)?;
+        // The real board's firmware does not use the service port: USART1 stays unclocked and
+        // both pins are inputs with their pull-ups, so that TX rests at the idle (mark) level a
+        // connected adapter expects, as an idle USART would hold it, and RX does not float.
+        #[cfg(not(feature = "emulated"))]
+        let _ = (gpioa.pa9.into_pull_up_input(), gpioa.pa10.into_pull_up_input(), dp.USART1);
         let instrument = InstrumentUart {
             usart: dp.USART2,
             tx: gpioa.pa2,
@@ -92,6 +100,7 @@ impl Board {
         Ok(Board {
             leds,
             switches: SwitchReading::from_port(port),
+            #[cfg(feature = "emulated")]
             service,
             instrument,
             #[cfg(not(feature = "emulated"))]

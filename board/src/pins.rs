@@ -4,7 +4,7 @@
 //! |---|---|---|
 //! | PA1 | RS-485 driver enable (DE, and /RE tied to it) | push-pull output, low = receive |
 //! | PA2 / PA3 | USART2 TX / RX to the instrument (RS-485 or RS-232 transceiver) | AF7 |
-//! | PA9 / PA10 | USART1 TX / RX, service port (SLCAN in the emulated build) | AF7 |
+//! | PA9 / PA10 | USART1 TX / RX, service port (SLCAN in the emulated build) | AF7 (emulated); input, pull-up (real board: unused) |
 //! | PB0–PB7 | DIP switches 1–8 to ground ([`crate::switches`]) | input, pull-up |
 //! | PB8 / PB9 | CAN1 RX / TX to the isolated transceiver | AF9 |
 //! | PC0–PC3 | MS green, MS red, NS green, NS red ([`crate::leds`]) | push-pull output, high = lit |

@@ -24,6 +24,11 @@ impl Instant {
     /// The origin, `0 µs`.
     pub const ZERO: Instant = Instant { micros: 0 };
 
+    /// The end of time, where [`saturating_add`](Self::saturating_add) stops. The slave node
+    /// keeps a timer that is not armed at this instant (its clock never gets there: 584 942 years
+    /// after the origin).
+    pub const MAX: Instant = Instant { micros: u64::MAX };
+
     /// An instant `micros` microseconds after the origin.
     pub const fn from_micros(micros: u64) -> Self {
         Instant { micros }

@@ -15,11 +15,12 @@ fuzz_target!(|data: &[u8]| {
     } else {
         InputAssembly::Plain
     };
-    let mac = config.device.mac_id;
     let mut now = Instant::ZERO;
     let Ok(mut conv) = Converter::new(config.clone(), now) else { return };
     conv.power_on(now);
     let drain = |conv: &mut Converter, now: Instant| {
+        // The MAC in force: the Offline Connection Set may change it (notes §II.6).
+        let mac = conv.node().mac_id();
         while let Some(f) = conv.poll_can_transmit() {
             assert!(slave_may_send(mac, f.id()), "the converter sent {f}");
         }

@@ -8,11 +8,12 @@ use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(mut node) = SlaveNode::new(DeviceConfig::reference()) else { return };
-    let mac = node.mac_id();
     let mut now = Instant::ZERO;
     node.power_on(now);
     let drain = |node: &mut SlaveNode| {
         let mut sent = 0;
+        // The MAC in force: the Offline Connection Set may change it (notes §II.6).
+        let mac = node.mac_id();
         while let Some(f) = node.poll_transmit() {
             assert!(slave_may_send(mac, f.id()), "the node sent {f}");
             sent += 1;

@@ -16,14 +16,20 @@ pub mod steps;
 
 use devicenet::{CanFrame, CanId, MacId};
 
-/// The identifiers a group-2-only slave at `mac` may send (notes §8): its explicit response,
-/// its poll response and its duplicate MAC ID check.
+/// The identifiers a group-2-only slave at `mac` may send (notes §8, §II.1-§II.6): its explicit
+/// response (heartbeat and shutdown included), its poll, bit-strobe and COS/cyclic responses, its
+/// duplicate MAC ID check, and the Offline Connection Set's responses.
 pub fn slave_may_send(mac: MacId, id: CanId) -> bool {
-    use devicenet::id::Group1MessageId;
+    use devicenet::id::{Group1MessageId, Group4MessageId};
     use devicenet::{Group2Message, Identifier};
     id == Identifier::group2(mac, Group2Message::ExplicitResponse)
         || id == Identifier::group2(mac, Group2Message::DuplicateMacCheck)
         || id == Identifier::group1(Group1MessageId::POLL_RESPONSE, mac)
+        || id == Identifier::group1(Group1MessageId::BIT_STROBE_RESPONSE, mac)
+        || id == Identifier::group1(Group1MessageId::COS_CYCLIC, mac)
+        // The Offline Connection Set's responses (a faulted node, notes §II.6).
+        || id == Identifier::Group4 { message: Group4MessageId::COMM_FAULTED_RESPONSE }.encode()
+        || id == Identifier::Group4 { message: Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE }.encode()
 }
 
 /// A CAN frame from fuzz input: the identifier masked to 11 bits, at most 8 bytes.

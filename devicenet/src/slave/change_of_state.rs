@@ -37,16 +37,17 @@ impl AckHandler {
 /// The production state of Connection instance 4.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Production {
-    /// When the next production is due: the cyclic period, or the COS heartbeat.
-    due: Option<Instant>,
+    /// When the next production is due: the cyclic period, or the COS heartbeat
+    /// ([`Instant::MAX`]: none).
+    due: Instant,
     /// A change of state waits for the production inhibit time to end.
     changed: bool,
     /// Attribute 17, production inhibit time, ms.
     pub(super) inhibit_ms: u16,
     /// The earliest instant of the next change-of-state production.
     inhibit_until: Instant,
-    /// Waiting for the master's acknowledgement until then.
-    ack_deadline: Option<Instant>,
+    /// Waiting for the master's acknowledgement until then ([`Instant::MAX`]: not waiting).
+    ack_deadline: Instant,
     /// Acknowledge timeouts since the last acknowledged or triggered production.
     retries: u8,
 }
@@ -54,11 +55,11 @@ pub(super) struct Production {
 impl Production {
     pub(super) const fn new() -> Production {
         Production {
-            due: None,
+            due: Instant::MAX,
             changed: false,
             inhibit_ms: 0,
             inhibit_until: Instant::ZERO,
-            ack_deadline: None,
+            ack_deadline: Instant::MAX,
             retries: 0,
         }
     }
@@ -83,13 +84,13 @@ impl SlaveNode {
     /// created to consume the master's COS/cyclic data is established with it.
     pub(super) fn cos_established(&mut self, now: Instant) {
         self.production = Production { inhibit_ms: self.production.inhibit_ms, ..Production::new() };
-        self.production.due = Some(now);
+        self.production.due = now;
         if !self.allocation.contains(AllocationChoice::POLL) && self.poll.exists() {
             self.poll.state = super::ConnectionState::Established;
         }
         if self.ack_suppressed() {
             // It consumes nothing, so it has no inactivity watchdog (§II.2.3, UNCONFIRMED).
-            self.cos.deadline = None;
+            self.cos.deadline = Instant::MAX;
         }
     }
 
@@ -101,8 +102,8 @@ impl SlaveNode {
         }
         let p = &mut self.production;
         let mut again = false;
-        if p.ack_deadline.is_some_and(|d| now >= d) {
-            p.ack_deadline = None;
+        if now >= p.ack_deadline {
+            p.ack_deadline = Instant::MAX;
             if p.retries < self.ack_handler.retry_limit {
                 p.retries += 1;
                 again = true;
@@ -112,21 +113,22 @@ impl SlaveNode {
             }
         }
         let p = &self.production;
-        let due = p.due.is_some_and(|d| now >= d);
+        let due = now >= p.due;
         let change = p.changed && now >= p.inhibit_until;
         if due || change || again {
             self.produce(now, again);
         }
     }
 
-    /// When [`step_production`](Self::step_production) must run next.
-    pub(super) fn production_at(&self) -> Option<Instant> {
+    /// When [`step_production`](Self::step_production) must run next ([`Instant::MAX`]: not
+    /// before another input).
+    pub(super) fn production_at(&self) -> Instant {
         if !self.cos.is_established() {
-            return None;
+            return Instant::MAX;
         }
         let p = &self.production;
-        let change = if p.changed { Some(p.inhibit_until) } else { None };
-        [p.due, change, p.ack_deadline].into_iter().flatten().min()
+        let change = if p.changed { p.inhibit_until } else { Instant::MAX };
+        p.due.min(change).min(p.ack_deadline)
     }
 
     /// Produces the input image on Group 1 message 13, fragmented above 8 bytes.
@@ -141,8 +143,8 @@ impl SlaveNode {
         }
         p.changed = false;
         p.inhibit_until = now + Duration::from_millis(u64::from(p.inhibit_ms));
-        p.due = Some(now + epr);
-        p.ack_deadline = if suppressed { None } else { Some(now + ack) };
+        p.due = now + epr;
+        p.ack_deadline = if suppressed { Instant::MAX } else { now + ack };
     }
 
     /// A frame on our COS/cyclic acknowledge identifier (Group 2 message 2): zero length.
@@ -152,7 +154,7 @@ impl SlaveNode {
             self.stats.polls_ignored = self.stats.polls_ignored.wrapping_add(1);
             return;
         }
-        self.production.ack_deadline = None;
+        self.production.ack_deadline = Instant::MAX;
         self.production.retries = 0;
         self.cos.restart_timer(now);
     }

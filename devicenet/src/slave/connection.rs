@@ -137,8 +137,8 @@ pub struct Connection {
     pub expected_packet_rate: u16,
     /// Attribute 12.
     pub watchdog_action: WatchdogAction,
-    /// When the inactivity watchdog fires, if armed.
-    pub deadline: Option<Instant>,
+    /// When the inactivity watchdog fires; [`Instant::MAX`] when it is not armed.
+    pub deadline: Instant,
 }
 
 impl Connection {
@@ -152,7 +152,7 @@ impl Connection {
                 ConnectionKind::Explicit => WatchdogAction::AutoDelete,
                 _ => WatchdogAction::TransitionToTimedOut,
             },
-            deadline: None,
+            deadline: Instant::MAX,
         }
     }
 
@@ -195,7 +195,7 @@ impl Connection {
 
     /// Restarts the inactivity timer (a message was consumed, or the EPR changed).
     pub fn restart_timer(&mut self, now: Instant) {
-        self.deadline = self.inactivity_time().map(|t| now + t);
+        self.deadline = self.inactivity_time().map_or(Instant::MAX, |t| now + t);
     }
 
     /// Sets the EPR (already rounded) and restarts the timer; a configuring connection becomes
@@ -210,11 +210,10 @@ impl Connection {
 
     /// Runs the watchdog at `now` (notes §5.2 row "Inactivity timer expiry").
     pub fn expire(&mut self, now: Instant) -> Expiry {
-        match self.deadline {
-            Some(d) if now >= d => {}
-            _ => return Expiry::None,
+        if now < self.deadline {
+            return Expiry::None;
         }
-        self.deadline = None;
+        self.deadline = Instant::MAX;
         match self.watchdog_action {
             WatchdogAction::TransitionToTimedOut => {
                 self.state = ConnectionState::TimedOut;
@@ -269,7 +268,7 @@ mod tests {
         c.allocate(Instant::from_secs(1));
         assert_eq!(c.state, ConnectionState::Established);
         assert_eq!(c.expected_packet_rate, 2500);
-        assert_eq!(c.deadline, Some(Instant::from_secs(11)));
+        assert_eq!(c.deadline, Instant::from_secs(11));
     }
 
     #[test]
@@ -277,10 +276,10 @@ mod tests {
         let mut c = Connection::new(ConnectionKind::Poll);
         c.allocate(Instant::ZERO);
         assert_eq!(c.state, ConnectionState::Configuring);
-        assert_eq!(c.deadline, None);
+        assert_eq!(c.deadline, Instant::MAX);
         c.set_expected_packet_rate(100, Instant::from_secs(1));
         assert_eq!(c.state, ConnectionState::Established);
-        assert_eq!(c.deadline, Some(Instant::from_millis(1400)));
+        assert_eq!(c.deadline, Instant::from_millis(1400));
     }
 
     #[rstest]
@@ -296,7 +295,7 @@ mod tests {
         assert_eq!(c.expire(Instant::from_millis(400)), expiry);
         assert_eq!(c.state, state);
         if expiry == Expiry::Reset {
-            assert_eq!(c.deadline, Some(Instant::from_millis(800)));
+            assert_eq!(c.deadline, Instant::from_millis(800));
         }
     }
 
@@ -306,7 +305,7 @@ mod tests {
         c.allocate(Instant::ZERO);
         c.set_expected_packet_rate(0, Instant::ZERO);
         assert_eq!(c.state, ConnectionState::Established);
-        assert_eq!(c.deadline, None);
+        assert_eq!(c.deadline, Instant::MAX);
         assert_eq!(c.expire(Instant::from_secs(1_000_000)), Expiry::None);
     }
 }

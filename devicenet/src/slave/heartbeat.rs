@@ -21,15 +21,15 @@ const SHUTDOWN_REMOTE_RESET: u16 = 4;
 pub(super) struct Heartbeat {
     /// Identity attribute 10, seconds; 0 = off.
     pub(super) interval: u8,
-    /// When the next heartbeat is due.
-    pub(super) at: Option<Instant>,
+    /// When the next heartbeat is due ([`Instant::MAX`]: off).
+    pub(super) at: Instant,
     /// An Identity Reset was answered: the shutdown message follows the response.
     pub(super) shutdown_pending: bool,
 }
 
 impl Heartbeat {
     pub(super) const fn new() -> Heartbeat {
-        Heartbeat { interval: 0, at: None, shutdown_pending: false }
+        Heartbeat { interval: 0, at: Instant::MAX, shutdown_pending: false }
     }
 }
 
@@ -43,18 +43,18 @@ impl SlaveNode {
     /// The next heartbeat one interval from `now` (on-line, or a new interval).
     pub(super) fn restart_heartbeat(&mut self, now: Instant) {
         self.heartbeat.at = match self.heartbeat.interval {
-            0 => None,
-            s => Some(now + Duration::from_secs(u64::from(s))),
+            0 => Instant::MAX,
+            s => now + Duration::from_secs(u64::from(s)),
         };
     }
 
     /// Sends the heartbeat when it is due; while not on-line it is skipped.
     pub(super) fn step_heartbeat(&mut self, now: Instant) {
-        if self.heartbeat.at.is_none_or(|at| now < at) {
+        if now < self.heartbeat.at {
             return;
         }
         self.restart_heartbeat(now);
-        if self.network != NetworkState::Online {
+        if !matches!(self.network, NetworkState::Online) {
             return;
         }
         let s = &self.app_status;

@@ -38,7 +38,7 @@ impl SlaveNode {
     /// The Module Status indication (notes §7.3).
     pub fn module_indication(&self) -> Indication {
         let s = &self.app_status;
-        if self.network == NetworkState::PoweredOff {
+        if matches!(self.network, NetworkState::PoweredOff) {
             Indication::Off
         } else if s.major_unrecoverable_fault || s.major_recoverable_fault {
             Indication::Red

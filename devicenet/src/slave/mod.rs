@@ -403,13 +403,13 @@ impl SlaveNode {
         match Identifier::decode(frame.id()) {
             // The strobe carries the owning master's MAC, not ours (notes §II.1.2).
             Identifier::Group2 { mac, message: Group2Message::BitStrobeCommand }
-                if self.network == NetworkState::Online && Some(mac) == self.master =>
+                if matches!(self.network, NetworkState::Online) && Some(mac) == self.master =>
             {
                 self.on_strobe(data, now);
             }
             Identifier::Group2 { mac, message } if mac == self.config.mac_id => match message {
                 Group2Message::DuplicateMacCheck => self.on_duplicate_mac(data),
-                _ if self.network != NetworkState::Online => {}
+                _ if !matches!(self.network, NetworkState::Online) => {}
                 Group2Message::UnconnectedExplicitRequest => self.on_group2_only::<H>(data, now),
                 Group2Message::ExplicitRequest => self.on_explicit(data, now, objects),
                 Group2Message::PollCommand => self.on_poll(data, now),
@@ -426,7 +426,7 @@ impl SlaveNode {
     /// BOI = 0 the node enters Communication Faulted, with BOI = 1 the application resets the
     /// controller and the node restarts its duplicate MAC check (notes §9.9: GC's behaviour).
     pub fn handle_bus_off(&mut self, now: Instant) {
-        if self.network == NetworkState::PoweredOff {
+        if matches!(self.network, NetworkState::PoweredOff) {
             return;
         }
         self.bus_off_counter = self.bus_off_counter.saturating_add(1);
@@ -472,38 +472,25 @@ impl SlaveNode {
     // Out of line: nine deadlines inlined into the firmware's converter task cost more flash.
     #[inline(never)]
     pub fn poll_at(&self) -> Option<Instant> {
-        [
-            self.duplicate_mac_deadline(),
-            self.explicit.deadline,
-            self.poll.deadline,
-            self.strobe.deadline,
-            self.cos.deadline,
-            self.production_at(),
-            self.heartbeat.at,
-            self.offline.answer_at,
-            self.explicit_tx.poll_at(),
-        ]
-        .into_iter()
-        .flatten()
-        .min()
+        // Chained rather than over an array: no copy of the nine to the stack (firmware size).
+        let at = self
+            .duplicate_mac_deadline()
+            .min(self.explicit.deadline)
+            .min(self.poll.deadline)
+            .min(self.strobe.deadline)
+            .min(self.cos.deadline)
+            .min(self.production_at())
+            .min(self.heartbeat.at)
+            .min(self.offline.answer_at)
+            .min(self.explicit_tx.poll_at().unwrap_or(Instant::MAX));
+        (at != Instant::MAX).then_some(at)
     }
 
     // ----- outputs -------------------------------------------------------------------------
 
-    /// Queues `frame` for transmission, counting it or the overflow.
-    fn queue(&mut self, frame: CanFrame) {
-        if self.tx.push_back(frame).is_err() {
-            self.stats.tx_overflows = self.stats.tx_overflows.wrapping_add(1);
-        } else {
-            self.stats.frames_queued = self.stats.frames_queued.wrapping_add(1);
-        }
-    }
-
     /// Queues a frame of `data` (at most 8 bytes) on `id`.
     fn queue_data(&mut self, id: CanId, data: &[u8]) {
-        if let Ok(frame) = CanFrame::new(id, data) {
-            self.queue(frame);
-        }
+        queue_into(&mut self.tx, &mut self.stats, id, data);
     }
 
     /// Queues `ev` for the application, counting an overflow.
@@ -539,7 +526,19 @@ impl SlaveNode {
 
     /// `true` while an I/O connection is timed out.
     fn io_timed_out(&self) -> bool {
-        [self.poll.state, self.strobe.state, self.cos.state].contains(&ConnectionState::TimedOut)
+        let timed_out = |c: &Connection| matches!(c.state, ConnectionState::TimedOut);
+        timed_out(&self.poll) || timed_out(&self.strobe) || timed_out(&self.cos)
+    }
+}
+
+/// Queues a frame of `data` (at most 8 bytes) on `id` into `tx`, counting it or the overflow in
+/// `stats`: [`SlaveNode::queue_data`] for a caller that reads the input image meanwhile.
+fn queue_into(tx: &mut Deque<CanFrame, TX_QUEUE_LEN>, stats: &mut NodeStats, id: CanId, data: &[u8]) {
+    let Ok(frame) = CanFrame::new(id, data) else { return };
+    if tx.push_back(frame).is_err() {
+        stats.tx_overflows = stats.tx_overflows.wrapping_add(1);
+    } else {
+        stats.frames_queued = stats.frames_queued.wrapping_add(1);
     }
 }
 

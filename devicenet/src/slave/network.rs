@@ -67,11 +67,11 @@ impl SlaveNode {
         }
     }
 
-    /// When the duplicate MAC ID check's next step is due, if it runs.
-    pub(super) fn duplicate_mac_deadline(&self) -> Option<Instant> {
+    /// When the duplicate MAC ID check's next step is due ([`Instant::MAX`]: it does not run).
+    pub(super) fn duplicate_mac_deadline(&self) -> Instant {
         match self.network {
-            NetworkState::DuplicateMacCheck { deadline, .. } => Some(deadline),
-            _ => None,
+            NetworkState::DuplicateMacCheck { deadline, .. } => deadline,
+            _ => Instant::MAX,
         }
     }
 

@@ -14,17 +14,18 @@ use crate::time::{Duration, Instant};
 /// What the Offline Connection Set of a faulted node holds.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Offline {
-    /// The tool that took offline ownership: its MAC ID, vendor and serial number as sent.
-    owner: Option<[u8; 7]>,
-    /// When the answer to a Who is due.
-    pub(super) answer_at: Option<Instant>,
+    /// The answer to the tool that took offline ownership: its request (MAC ID, vendor and serial
+    /// number as sent) with CB for 4B.
+    owner: Option<[u8; 8]>,
+    /// When the answer to a Who is due ([`Instant::MAX`]: none).
+    pub(super) answer_at: Instant,
     /// An Identify was accepted: the Network Status LED flashes red/green.
     pub(super) identified: bool,
 }
 
 impl Offline {
     pub(super) const fn new() -> Offline {
-        Offline { owner: None, answer_at: None, identified: false }
+        Offline { owner: None, answer_at: Instant::MAX, identified: false }
     }
 }
 
@@ -34,7 +35,7 @@ impl SlaveNode {
     /// the firmware's flash budget); anything else is ignored.
     #[inline(never)]
     pub(super) fn on_offline(&mut self, message: Group4MessageId, data: &[u8], now: Instant) {
-        if self.network != NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId) {
+        if !matches!(self.network, NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId)) {
             return;
         }
         let own = self.device_key().to_bytes();
@@ -46,7 +47,7 @@ impl SlaveNode {
                 // answers of several faulted nodes (§II.6, an inference: UNCONFIRMED).
                 let answer = self.who_answer();
                 let delay = answer.get(usize::from(offset)).copied().unwrap_or(0);
-                self.offline.answer_at = Some(now + Duration::from_millis(u64::from(delay)));
+                self.offline.answer_at = now + Duration::from_millis(u64::from(delay));
             }
             // Identify, short `[0,match,value] 4C`, or long `3F 4C <vendor> <serial>` for us.
             &[selector, 0x4C] if request && self.selected(selector) => self.identify(selector),
@@ -67,12 +68,13 @@ impl SlaveNode {
             // cannot collide (docs/io-connections.md; who answers is UNCONFIRMED). A second client
             // is not answered while the first holds it.
             &[client @ 0..=63, 0x4B, k0, k1, k2, k3, k4, k5]
-                if message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST
-                    && self.offline.owner.is_none_or(|owner| owner == [client, k0, k1, k2, k3, k4, k5]) =>
+                if message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST =>
             {
-                self.offline.owner = Some([client, k0, k1, k2, k3, k4, k5]);
                 let answer = [client, 0xCB, k0, k1, k2, k3, k4, k5];
-                self.offline_send(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, &answer);
+                if self.offline.owner.is_none_or(|owner| owner == answer) {
+                    self.offline.owner = Some(answer);
+                    self.offline_send(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, &answer);
+                }
             }
             _ => {}
         }
@@ -86,8 +88,8 @@ impl SlaveNode {
 
     /// Sends the answer to a Who when it is due, if the node is still faulted.
     pub(super) fn step_offline(&mut self, now: Instant) {
-        if self.offline.answer_at.is_some_and(|at| now >= at) {
-            self.offline.answer_at = None;
+        if now >= self.offline.answer_at {
+            self.offline.answer_at = Instant::MAX;
             if matches!(self.network, NetworkState::CommunicationFaulted(_)) {
                 let answer = self.who_answer();
                 self.offline_send(Group4MessageId::COMM_FAULTED_RESPONSE, &answer);

@@ -66,13 +66,14 @@ impl SlaveNode {
     /// Sends the input image on `id` at once, fragmented when the produced size exceeds 8 (notes
     /// §4.2): a poll response or a COS/cyclic production.
     pub(super) fn send_input(&mut self, id: CanId) {
-        let input = self.input.clone();
+        // The frames go to the queue while the image is read in place (no copy of it).
+        let SlaveNode { input, tx, stats, .. } = self;
         if input.len() > 8 {
-            for payload in io_fragments(&input) {
-                self.queue_data(id, &payload);
+            for payload in io_fragments(input) {
+                super::queue_into(tx, stats, id, &payload);
             }
         } else {
-            self.queue_data(id, &input);
+            super::queue_into(tx, stats, id, input);
         }
     }
 }

@@ -2,7 +2,7 @@
 //! owning master's 8-byte strobe command carries one bit per MAC ID; the node keeps its own bit and
 //! answers every strobe at once with the first bytes of its input image, never fragmented.
 
-use super::{strobe_produced_size, SlaveNode, STROBE_MAX_SIZE};
+use super::{strobe_produced_size, SlaveNode};
 use crate::id::{Group1MessageId, Identifier};
 use crate::time::Instant;
 
@@ -23,10 +23,10 @@ impl SlaveNode {
         self.strobe_bit = byte >> (mac % 8) & 1 != 0;
         self.strobe.restart_timer(now);
         // Every strobe is answered, whatever the bit (NI, §II.1.3), with at most 8 input bytes.
-        let mut response = [0u8; STROBE_MAX_SIZE as usize];
-        response.iter_mut().zip(&self.input).for_each(|(d, s)| *d = *s);
+        // The input image is the produced size, so it holds the response's bytes.
         let n = usize::from(strobe_produced_size(self.config.produced_size));
         let id = Identifier::group1(Group1MessageId::BIT_STROBE_RESPONSE, self.config.mac_id);
-        self.queue_data(id, response.get(..n).unwrap_or(&response));
+        let SlaveNode { input, tx, stats, .. } = self;
+        super::queue_into(tx, stats, id, input.get(..n).unwrap_or(&[]));
     }
 }

@@ -9,7 +9,7 @@ use crate::can::{Busy, CanDriver};
 use board::bit_timing;
 use board::filters;
 use board::hw::{self, BusState, Can1};
-use bxcan::filter::{ListEntry16, Mask16};
+use bxcan::filter::Mask16;
 use bxcan::{Fifo, Interrupts, StandardId};
 use devicenet::slave::BaudRate;
 use devicenet::{CanFrame, MacId};
@@ -28,14 +28,7 @@ impl Bxcan {
             .set_bit_timing(bit_timing::for_baud_rate(baud).btr())
             .set_automatic_retransmit(true)
             .leave_disabled();
-        let offline = filters::OFFLINE_REQUESTS.map(|id| ListEntry16::data_frames_with_id(std_id(id)));
-        let [who, ownership] = offline;
-        can.modify_filters().enable_bank(
-            filters::OFFLINE_FILTER_BANK,
-            Fifo::Fifo0,
-            [who, ownership, who, ownership],
-        );
-        set_group2_filters(&mut can, mac);
+        set_filters(&mut can, mac);
         can.enable_interrupts(
             Interrupts::TRANSMIT_MAILBOX_EMPTY
                 | Interrupts::FIFO0_MESSAGE_PENDING
@@ -49,12 +42,18 @@ impl Bxcan {
     }
 }
 
-/// Filter bank 0: every Group 2 message of `mac`, and every master's bit-strobe
-/// ([`board::filters`]).
-fn set_group2_filters(can: &mut bxcan::Can<Can1>, mac: MacId) {
+/// Filter bank 0: every Group 2 message of `mac`, and every master's bit-strobe; bank 1: the
+/// Offline Connection Set's two requests, data frames only ([`board::filters`]). Both banks in
+/// 16-bit mask mode, so that one bank set-up serves both.
+fn set_filters(can: &mut bxcan::Can<Can1>, mac: MacId) {
     let own = Mask16::frames_with_std_id(std_id(filters::own_group2(mac)), std_id(filters::OWN_MASK));
     let strobe = Mask16::frames_with_std_id(std_id(filters::STROBE_ID), std_id(filters::STROBE_MASK));
-    can.modify_filters().enable_bank(filters::FILTER_BANK, Fifo::Fifo0, [own, strobe]);
+    let mut offline =
+        Mask16::frames_with_std_id(std_id(filters::OFFLINE_REQUESTS[0]), std_id(filters::OFFLINE_MASK));
+    offline.data_frames_only();
+    let mut banks = can.modify_filters();
+    banks.enable_bank(filters::FILTER_BANK, Fifo::Fifo0, [own, strobe]);
+    banks.enable_bank(filters::OFFLINE_FILTER_BANK, Fifo::Fifo0, [offline, offline]);
 }
 
 /// An identifier or mask of the filter module, all within 11 bits by construction.
@@ -99,7 +98,7 @@ impl CanDriver for Bxcan {
     }
 
     fn set_mac(&mut self, mac: MacId) {
-        set_group2_filters(&mut self.can, mac);
+        set_filters(&mut self.can, mac);
     }
 
     fn restart(&mut self) {

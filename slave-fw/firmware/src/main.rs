@@ -174,8 +174,6 @@ mod app {
         let driver = crate::can_bxcan::Bxcan::new(board.can, resolved.baud_rate, resolved.mac_id);
         #[cfg(feature = "emulated")]
         let driver = crate::can_slcan::Slcan::new(board.service, resolved.mac_id);
-        #[cfg(not(feature = "emulated"))]
-        let _ = board.service;
 
         // The converter task's first run powers the converter on.
         rtic::pend(CONVERTER_TASK);

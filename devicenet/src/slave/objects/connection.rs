@@ -71,7 +71,7 @@ impl SlaveNode {
                 }
                 if conn.kind == ConnectionKind::ChangeOfState && self.ack_suppressed() {
                     // It consumes nothing: no watchdog (docs/io-connections.md).
-                    self.cos.deadline = None;
+                    self.cos.deadline = Instant::MAX;
                 }
                 if was_timed_out {
                     self.push_event(Event::ConnectionEstablished(conn.kind));
@@ -300,37 +300,38 @@ impl SlaveNode {
     /// Deletes `kind` (release or watchdog) and ends the master's ownership with the last
     /// connection.
     pub(in crate::slave) fn delete_connection(&mut self, kind: ConnectionKind) {
-        match kind {
+        let released = match kind {
             ConnectionKind::Explicit => {
                 self.explicit.delete();
                 self.explicit_rx.reset();
                 self.explicit_tx.reset();
-                self.allocation = self.allocation.difference(AllocationChoice::EXPLICIT);
+                AllocationChoice::EXPLICIT
             }
             ConnectionKind::Poll => {
                 self.poll.delete();
                 self.poll_rx.reset();
                 self.io_idle = false;
-                self.allocation = self.allocation.difference(AllocationChoice::POLL);
+                AllocationChoice::POLL
             }
             ConnectionKind::Strobe => {
                 self.strobe.delete();
                 self.strobe_bit = false;
-                self.allocation = self.allocation.difference(AllocationChoice::BIT_STROBE);
+                AllocationChoice::BIT_STROBE
             }
             ConnectionKind::ChangeOfState => {
                 self.cos.delete();
                 self.production = Production::new();
-                // The Connection 2 it created goes with it (§II.2.5).
+                // The Connection 2 it created goes with it (§II.2.5); COS/cyclic is still
+                // allocated meanwhile, so the ownership stays.
                 if !self.allocation.contains(AllocationChoice::POLL) && self.poll.exists() {
-                    self.poll.delete();
-                    self.poll_rx.reset();
-                    self.io_idle = false;
+                    self.delete_connection(ConnectionKind::Poll);
                 }
-                let cos = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
-                self.allocation = self.allocation.difference(cos.union(AllocationChoice::ACK_SUPPRESSION));
+                AllocationChoice::CHANGE_OF_STATE
+                    .union(AllocationChoice::CYCLIC)
+                    .union(AllocationChoice::ACK_SUPPRESSION)
             }
-        }
+        };
+        self.allocation = self.allocation.difference(released);
         // With no connection left the master's ownership ends (JB, notes §3.4).
         if self.allocation.difference(AllocationChoice::ACK_SUPPRESSION).is_empty() {
             self.allocation = AllocationChoice::empty();
