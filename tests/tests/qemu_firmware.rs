@@ -1,7 +1,9 @@
 //! End to end on the emulated board: the real firmware (feature `emulated`; on an empty settings
 //! flash the converter runs its factory default, the breaker) runs in QEMU; the bench master
 //! brings it up over SLCAN on USART1 and checks the 28 frames of devicenet-notes §2 byte for byte, then closes and opens the simulated breaker
-//! that answers on USART2, and sees each change in the breaker and in the poll data (byte 9).
+//! that answers on USART2, and sees each change in the breaker and in the poll data (byte 9); the
+//! scanner keeps it in I/O; then change of state (`connect --io cos`) and the recovery of the board
+//! made Communication Faulted (`recover --mac 5 --to 9`, issue 14).
 //!
 //! ```sh
 //! scripts/qemu-firmware --build-only
@@ -37,9 +39,12 @@ use can_io::bus::{Bitrate, Bus, BusError, BusEvent, Origin};
 use can_io::sim::MasterOnlineWatch;
 use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN, LOAD, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use converter_sim::SimulatedBreaker;
+use devicenet::messages::DuplicateMacCheck;
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
 use devicenet::{CanFrame, Duration, Instant};
 use master_core::error::MasterError;
+use master_core::master::io::{IoKind, IoOptions};
+use master_core::master::recovery::RecoverOptions;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::{Session, Verdict};
 use master_harness::monitor::InputLayout;
@@ -58,7 +63,7 @@ use std::time::Duration as StdDuration;
 use system_tests::mac;
 
 /// The whole run's bound, also QEMU's time limit.
-const RUN_LIMIT: StdDuration = StdDuration::from_secs(60);
+const RUN_LIMIT: StdDuration = StdDuration::from_secs(120);
 /// From `cont` to the firmware answering on USART1 (it boots in well under a second).
 const BOOT_LIMIT: StdDuration = StdDuration::from_secs(5);
 /// How long the poll data may take to show a breaker command: the command goes out at once, the
@@ -465,7 +470,55 @@ fn run(session: &mut Session<'_>, breaker: &BreakerRig) -> Result<(), String> {
     if commands != [BreakerCommand::Close, BreakerCommand::Open] {
         return Err(format!("the breaker received {commands:?}, expected one close and one open"));
     }
-    scanner(&mut master, breaker)
+    scanner(&mut master, breaker)?;
+    change_of_state_and_recovery(&mut master)
+}
+
+/// Issue 14 on the board: `connect --io cos` (the breaker's image produced on change and
+/// acknowledged), then the board made Communication Faulted by a duplicate MAC ID response for its
+/// MAC (notes §7.1) and recovered to MAC 9 through the Offline Connection Set (`recover`, §II.6):
+/// the firmware's filters take the Group 4 requests and, after the change, its new MAC.
+fn change_of_state_and_recovery(master: &mut Master<'_, '_>) -> Result<(), String> {
+    master.release_held().map_err(|e| e.to_string())?;
+    // The breaker reports once a second: with a 2 s heartbeat every production is a change.
+    let opts = ConnectOptions { target: mac(5), epr_ms: 2000, polls: 4, ..ConnectOptions::default() };
+    let io = IoOptions { judge_timing: false, ..IoOptions::of(IoKind::ChangeOfState) };
+    let failures = master.session.failures();
+    let summary = master.connect_io(&opts, &io).map_err(|e| format!("connect --io cos: {e}"))?;
+    let cos = summary.io.ok_or("connect --io cos gave no I/O summary")?;
+    if cos.productions < 4 || master.session.failures() != failures {
+        return Err(format!(
+            "connect --io cos: {cos:?}, {} failed frames",
+            master.session.failures() - failures
+        ));
+    }
+    if summary.last_input.as_ref().map(Vec::len) != Some(18) {
+        return Err(format!("COS data {:02X?}, expected the 18-byte image", summary.last_input));
+    }
+    master.release_held().map_err(|e| e.to_string())?;
+
+    // Another node claims MAC 5: the on-line board must fault (notes §7.1).
+    let claim = DuplicateMacCheck::response(0, 0x0FFF, 0xA5A5_0002);
+    master
+        .session
+        .send(&CanFrame::from_raw(0x42F, &claim.emit()).map_err(|e| e.to_string())?)
+        .map_err(|e| e.to_string())?;
+    let settle = master.session.now() + Duration::from_millis(300);
+    master.idle_until(settle).map_err(|e| e.to_string())?;
+    let opts = RecoverOptions { to: Some(mac(9)), judge_timing: false, ..RecoverOptions::new(mac(5)) };
+    let report = master.recover(&opts).map_err(|e| format!("recover --mac 5 --to 9: {e}"))?;
+    if !report.online || report.serial_at_new_mac != Some(0x1234_5678) || !report.findings.is_empty() {
+        return Err(format!("recover --mac 5 --to 9: {report:?}"));
+    }
+    // A device at MAC 9 now (recover left its explicit connection allocated): change of state
+    // there too.
+    master.release_held().map_err(|e| e.to_string())?;
+    let opts = ConnectOptions { target: mac(9), epr_ms: 2000, polls: 2, ..ConnectOptions::default() };
+    let summary = master.connect_io(&opts, &io).map_err(|e| format!("connect --mac 9 --io cos: {e}"))?;
+    match summary.io {
+        Some(cos) if cos.productions >= 2 => Ok(()),
+        other => Err(format!("connect --mac 9 --io cos: {other:?}")),
+    }
 }
 
 /// The scanner of `dnet-master scanner` and `ui` keeps the board in I/O (issue 15): its electronic
