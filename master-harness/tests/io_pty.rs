@@ -69,7 +69,10 @@ fn recover_a_faulted_soft_slave_over_slcan() {
     if !require_socat() {
         return;
     }
-    let rig = PtyRig::breaker("io-recover", &["--period", "0.3"], None);
+    let mut rig = PtyRig::breaker("io-recover", &["--period", "0.3"], None);
+    rig.stop_slave();
+    let state = rig.dir.join("state.json");
+    rig.start_slave_with(None, &["--state", state.to_str().unwrap()]);
     // The soft slave's own duplicate MAC ID check: on-line 2 s after it started.
     std::thread::sleep(Duration::from_secs(3));
     let spec: BusSpec = rig.master_bus_arg().parse().unwrap();
@@ -89,6 +92,9 @@ fn recover_a_faulted_soft_slave_over_slcan() {
     assert_eq!((r["identified"].as_bool(), r["ownership"].as_bool()), (Some(true), Some(true)), "{v}");
     assert_eq!((r["new_mac"].as_u64(), r["online"].as_bool()), (Some(9), Some(true)), "{v}");
     assert_eq!(r["serial_at_new_mac"], 0x1234_5678);
+    // Stored like a network-set MAC ID (docs/io-connections.md).
+    let stored: Value = serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
+    assert_eq!(stored["mac_id"], 9, "{stored}");
     // And it works as a device at MAC 9.
     let (code, v, err) = master(&rig, &["connect", "--mac", "9", "--io", "strobe", "--polls", "2"]);
     assert_eq!((code, &v["failures"]), (0, &Value::from(0)), "{v}\n{err}");
