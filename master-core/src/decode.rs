@@ -32,7 +32,7 @@ use devicenet::fragment::{
 };
 use devicenet::id::{Group1MessageId, Group3MessageId, Group4MessageId};
 use devicenet::messages::{
-    AllocateRequest, AllocationInfo, DuplicateMacCheck, GroupSelect, OfflineMessage, ReleaseRequest,
+    AllocateRequest, AllocationChoice, AllocationInfo, DuplicateMacCheck, GroupSelect, OfflineMessage, ReleaseRequest,
     UcmmCloseRequest, UcmmCloseResponse, UcmmOpenRequest, UcmmOpenResponse,
 };
 use devicenet::objects::{self, class};
@@ -82,6 +82,8 @@ pub struct PendingRequest {
     pub instance: u16,
     /// Attribute, for Get/Set_Attribute_Single.
     pub attribute: Option<u8>,
+    /// The allocation or release choice, for Allocate/Release_Master/Slave_Connection_Set.
+    pub choice: Option<AllocationChoice>,
 }
 
 impl PendingRequest {
@@ -91,7 +93,13 @@ impl PendingRequest {
             ServiceCode::GetAttributeSingle | ServiceCode::SetAttributeSingle => req.data.first().copied(),
             _ => None,
         };
-        PendingRequest { service: req.service, class: req.class, instance: req.instance, attribute }
+        let choice = match req.service {
+            ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => {
+                req.data.first().map(|&b| AllocationChoice::from_bits(b))
+            }
+            _ => None,
+        };
+        PendingRequest { service: req.service, class: req.class, instance: req.instance, attribute, choice }
     }
 }
 
@@ -143,6 +151,10 @@ struct Device {
     consumed: Option<u16>,
     poll_response: IoSeries,
     poll_command: IoSeries,
+    /// The connections allocated, from the Allocate and Release responses seen: with change of
+    /// state or cyclic but no poll, Connection 2 carries the master's COS/cyclic data and the
+    /// device's zero-length acknowledgements (notes §II.2.5).
+    allocated: AllocationChoice,
     /// The other produced I/O connections (notes §II.1-§II.3): Group 1 messages 12 (multicast
     /// poll response), 13 (change-of-state/cyclic data) and 14 (bit-strobe response), each with
     /// the produced size of its Connection instance (5, 4, 3) once read.
@@ -157,7 +169,16 @@ const OTHER_IO: [(Group1MessageId, u16); 3] = [
     (Group1MessageId::BIT_STROBE_RESPONSE, 3),
 ];
 
+/// Change of state and cyclic (allocation bits 0x10, 0x20).
+const COS_OR_CYCLIC: AllocationChoice = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
+
 impl Device {
+    /// `true` when Connection 2 consumes the master's COS/cyclic data: change of state or cyclic
+    /// allocated without poll (notes §II.2.5).
+    fn cos_consumer(&self) -> bool {
+        self.allocated.intersects(COS_OR_CYCLIC) && !self.allocated.contains(AllocationChoice::POLL)
+    }
+
     fn new() -> Device {
         Device {
             body_format: None,
@@ -168,6 +189,7 @@ impl Device {
             consumed: None,
             poll_response: IoSeries::new(),
             poll_command: IoSeries::new(),
+            allocated: AllocationChoice::empty(),
             other_io: [(None, IoSeries::new()), (None, IoSeries::new()), (None, IoSeries::new())],
         }
     }
@@ -601,6 +623,11 @@ impl Decoder {
                 if self.ucmm_ids.is_empty() =>
             {
                 let device = self.device(source.as_raw());
+                if device.cos_consumer() && data.is_empty() {
+                    out.summary.push_str("change-of-state/cyclic acknowledge from MAC ");
+                    push_u8(&mut out.summary, source.as_raw());
+                    return out.summary.push_str(": no data");
+                }
                 let produced = device.produced;
                 let who = Who { name: "poll response from MAC ", mac: source.as_raw() };
                 return io_data_into(&mut device.poll_response, produced, who, data, out);
@@ -608,7 +635,12 @@ impl Decoder {
             Identifier::Group2 { mac, message: Group2Message::PollCommand } if self.ucmm_ids.is_empty() => {
                 let device = self.device(mac.as_raw());
                 let consumed = device.consumed;
-                let who = Who { name: "poll command to MAC ", mac: mac.as_raw() };
+                let name = if device.cos_consumer() {
+                    "change-of-state/cyclic data to MAC "
+                } else {
+                    "poll command to MAC "
+                };
+                let who = Who { name, mac: mac.as_raw() };
                 return io_data_into(&mut device.poll_command, consumed, who, data, out);
             }
             _ => {}
@@ -656,6 +688,9 @@ impl Decoder {
         let who = Who { name, mac: source };
         if message == Group1MessageId::POLL_RESPONSE {
             let device = self.device(source);
+            if device.cos_consumer() && data.is_empty() {
+                return Decoded::frame(format!("change-of-state/cyclic acknowledge from MAC {source}: no data"));
+            }
             let produced = device.produced;
             return io_data(&mut device.poll_response, produced, who, data);
         }
@@ -693,8 +728,13 @@ impl Decoder {
                 self.explicit(Target::Device(mac), data, Channel::Response, "explicit response from MAC")
             }
             Group2Message::PollCommand => {
-                let who = Who { name: "poll command to MAC ", mac };
                 let device = self.device(mac);
+                let name = if device.cos_consumer() {
+                    "change-of-state/cyclic data to MAC "
+                } else {
+                    "poll command to MAC "
+                };
+                let who = Who { name, mac };
                 let consumed = device.consumed;
                 io_data(&mut device.poll_command, consumed, who, data)
             }
@@ -872,6 +912,17 @@ impl Decoder {
                     (ServiceCode::AllocateMasterSlave, class::DEVICENET, _, _) => {
                         if let [fmt] = data {
                             device.body_format = Some(BodyFormat::from_code(*fmt));
+                        }
+                        if let Some(choice) = p.choice {
+                            device.allocated = device.allocated.union(choice);
+                        }
+                    }
+                    (ServiceCode::ReleaseMasterSlave, class::DEVICENET, _, _) => {
+                        if let Some(choice) = p.choice {
+                            device.allocated = device.allocated.difference(choice);
+                            if device.allocated.intersection(COS_OR_CYCLIC).is_empty() {
+                                device.allocated = device.allocated.difference(AllocationChoice::ACK_SUPPRESSION);
+                            }
                         }
                     }
                     _ => {}
@@ -1405,6 +1456,35 @@ mod tests {
                 .starts_with("bit-strobe response from MAC 5: I/O fragment first #0, size inferred"),
             "{guessed:?}"
         );
+    }
+
+    #[test]
+    fn without_poll_connection_2_carries_cos_data_and_acknowledgements() {
+        // Notes §II.2.5: COS allocated without poll; the master's data on 0x42D, the device's
+        // zero-length acknowledgement on 0x3C5. Both directions, whichever way the frame is decoded.
+        for fast in [true, false] {
+            let mut d = Decoder::new();
+            let mut text = |frame: CanFrame| {
+                if fast {
+                    let mut out = Decoded::default();
+                    d.decode_into(&frame, &mut out);
+                    out.summary
+                } else {
+                    d.decode(&frame).summary
+                }
+            };
+            assert_eq!(text(f(0x3C5, &[])), "poll response from MAC 5: no data (idle)");
+            text(f(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x11, 0x00]));
+            text(f(0x42B, &[0x00, 0xCB, 0x00]));
+            assert_eq!(text(f(0x42D, &[1, 2])), "change-of-state/cyclic data to MAC 5: 2 bytes 01 02");
+            assert_eq!(text(f(0x3C5, &[])), "change-of-state/cyclic acknowledge from MAC 5: no data");
+            // Released: Connection 2 is a poll connection again once poll is allocated.
+            text(f(0x42C, &[0x00, 0x4C, 0x03, 0x01, 0x10]));
+            text(f(0x42B, &[0x00, 0xCC]));
+            text(f(0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00]));
+            text(f(0x42B, &[0x00, 0xCB, 0x00]));
+            assert_eq!(text(f(0x42D, &[1, 2])), "poll command to MAC 5: 2 bytes 01 02");
+        }
     }
 
     #[test]

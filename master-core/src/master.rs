@@ -742,6 +742,7 @@ impl<'s, 'b> Master<'s, 'b> {
             class: class_id,
             instance,
             attribute: Some(attribute),
+            choice: None,
         };
         let note = format!(
             "{} = {}",
