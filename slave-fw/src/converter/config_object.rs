@@ -443,9 +443,8 @@ impl ConfigObject {
         // `matches!` on the ranges, not `RangeInclusive::contains`: that was an out-of-line call
         // (some 120 bytes of flash).
         match (req.instance, req.service, req.data) {
-            (1, ServiceCode::GetAttributeSingle, []) => return Err(ServiceError::NOT_ENOUGH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [_, _, ..]) => return Err(ServiceError::TOO_MUCH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [attr]) => return self.get(*attr, reply),
+            (1, ServiceCode::GetAttributeSingle, &[attr]) => return self.get(attr, reply),
+            (1, ServiceCode::GetAttributeSingle, data) => return Err(ServiceError::wrong_length(data, 1)),
             (1, ServiceCode::SetAttributeSingle, [attr, ..]) => {
                 return Err(if matches!(attr, 1..=5) {
                     ServiceError::ATTRIBUTE_NOT_SETTABLE

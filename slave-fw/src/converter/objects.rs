@@ -525,10 +525,9 @@ impl ObjectHandler for VendorObjects<'_> {
         };
         // Class instance 0 is the node's (`class_revision`).
         Some(match (req.instance, req.service, req.data) {
-            (1, ServiceCode::GetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [_, _, ..]) => Err(ServiceError::TOO_MUCH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [attr]) => self.get(req.class, *attr, reply),
-            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => Err(if known(*attr) {
+            (1, ServiceCode::GetAttributeSingle, &[attr]) => self.get(req.class, attr, reply),
+            (1, ServiceCode::GetAttributeSingle, data) => Err(ServiceError::wrong_length(data, 1)),
+            (1, ServiceCode::SetAttributeSingle, &[attr, ..]) => Err(if known(attr) {
                 ServiceError::ATTRIBUTE_NOT_SETTABLE
             } else {
                 ServiceError::ATTRIBUTE_NOT_SUPPORTED
