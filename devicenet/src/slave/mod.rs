@@ -144,6 +144,16 @@ pub enum Event {
 pub trait ObjectHandler {
     /// Serves `request`, writing response data into `reply`.
     fn handle(&mut self, request: &Request<'_>, reply: &mut Reply<'_>) -> Option<Result<(), ServiceError>>;
+
+    /// The revision of `class` when it is one of the handler's classes whose class instance (0)
+    /// serves its revision (attribute 1) and nothing else, as the core's own classes do: the node
+    /// then serves that instance itself, with the core's answers, and [`handle`](Self::handle)
+    /// sees only the other instances of the class. `None` (the default): every request to
+    /// `class` goes to [`handle`](Self::handle).
+    fn class_revision(&self, class: u16) -> Option<u16> {
+        let _ = class;
+        None
+    }
 }
 
 /// An [`ObjectHandler`] with no objects.

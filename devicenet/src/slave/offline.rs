@@ -38,14 +38,15 @@ impl SlaveNode {
         if !matches!(self.network, NetworkState::CommunicationFaulted(FaultReason::DuplicateMacId)) {
             return;
         }
-        let own = self.device_key().to_bytes();
+        // Our vendor and serial number, as in the answer to Who.
+        let answer = self.who_answer();
+        let own = &answer[1..];
         let request = message == Group4MessageId::COMM_FAULTED_REQUEST;
         match data {
             // Who: `[0,match,value] 4B <time-delay offset>`.
             &[selector, 0x4B, offset] if request && self.selected(selector) => {
                 // Each answer waits byte `offset` of itself in milliseconds, which spreads the
                 // answers of several faulted nodes (§II.6, an inference: UNCONFIRMED).
-                let answer = self.who_answer();
                 let delay = answer.get(usize::from(offset)).copied().unwrap_or(0);
                 self.offline.answer_at = now + Duration::from_millis(u64::from(delay));
             }
@@ -97,17 +98,15 @@ impl SlaveNode {
         }
     }
 
-    /// Our vendor ID and serial number.
-    fn device_key(&self) -> DeviceKey {
-        let id = &self.config.identity;
-        DeviceKey { vendor_id: id.vendor_id, serial_number: id.serial_number }
-    }
-
-    /// The answer to Who: `<port> <vendor LE16> <serial LE32>`.
+    /// The answer to Who: `<port> <vendor LE16> <serial LE32>`, our device key after the port.
+    // Out of line: one copy for the Who's answer and the key compares (firmware size).
+    #[inline(never)]
     fn who_answer(&self) -> [u8; 7] {
+        let id = &self.config.identity;
+        let key = DeviceKey { vendor_id: id.vendor_id, serial_number: id.serial_number }.to_bytes();
         let mut answer = [0u8; 7];
         answer[0] = self.config.port;
-        answer[1..].copy_from_slice(&self.device_key().to_bytes());
+        answer[1..].copy_from_slice(&key);
         answer
     }
 

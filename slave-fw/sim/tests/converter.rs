@@ -221,6 +221,29 @@ fn identity_reset_power_cycles_the_converter() {
 
 /// A bare converter (no instrument) brought up as in devicenet-notes §2, with its explicit and
 /// poll connections established; returns it with the time and its drained frames.
+/// The class instance (0) of the serial link, settings and configuration objects: revision 1 and
+/// nothing else, served by the node for them (`ObjectHandler::class_revision`).
+#[test]
+fn vendor_class_instances_serve_their_revision() {
+    let (mut c, now) = bare_established();
+    for class in [0x64, 0x65, 0x66] {
+        let get = |c: &mut Converter, data: &[u8]| {
+            let mut req = vec![0x00, 0x0E, class, 0x00];
+            req.extend_from_slice(data);
+            explicit(c, now, &req)
+        };
+        assert_eq!(get(&mut c, &[1]), vec![vec![0x00, 0x8E, 1, 0]], "class {class:#x} revision");
+        assert_eq!(get(&mut c, &[2]), vec![vec![0x00, 0x94, 0x14, 0xFF]], "class {class:#x} attribute 2");
+        assert_eq!(get(&mut c, &[]), vec![vec![0x00, 0x94, 0x13, 0xFF]], "class {class:#x} no attribute");
+        assert_eq!(get(&mut c, &[1, 2]), vec![vec![0x00, 0x94, 0x15, 0xFF]], "class {class:#x} too much");
+        assert_eq!(
+            explicit(&mut c, now, &[0x00, 0x10, class, 0x00, 0x01, 0x01]),
+            vec![vec![0x00, 0x94, 0x08, 0xFF]],
+            "class {class:#x} Set"
+        );
+    }
+}
+
 fn bare_established() -> (Converter, Instant) {
     let mut c = Converter::new(ConverterConfig::breaker_reference(), Instant::ZERO).unwrap();
     let mut now = Instant::from_millis(2000);

@@ -443,11 +443,8 @@ impl ConfigObject {
         // `matches!` on the ranges, not `RangeInclusive::contains`: that was an out-of-line call
         // (some 120 bytes of flash).
         match (req.instance, req.service, req.data) {
-            (0, ServiceCode::GetAttributeSingle, [1]) => return reply.u16(1),
-            (0, ServiceCode::GetAttributeSingle, [_]) => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-            (0 | 1, ServiceCode::GetAttributeSingle, []) => return Err(ServiceError::NOT_ENOUGH_DATA),
-            (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => return Err(ServiceError::TOO_MUCH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [attr]) => return self.get(*attr, reply),
+            (1, ServiceCode::GetAttributeSingle, &[attr]) => return self.get(attr, reply),
+            (1, ServiceCode::GetAttributeSingle, data) => return Err(ServiceError::wrong_length(data, 1)),
             (1, ServiceCode::SetAttributeSingle, [attr, ..]) => {
                 return Err(if matches!(attr, 1..=5) {
                     ServiceError::ATTRIBUTE_NOT_SETTABLE
@@ -457,7 +454,7 @@ impl ConfigObject {
             }
             (1, ServiceCode::SetAttributeSingle, []) => return Err(ServiceError::NOT_ENOUGH_DATA),
             (1, _, _) if matches!(service, READ_CHUNK..=COMMIT_DOWNLOAD) => {}
-            (0 | 1, _, _) => return Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            (1, _, _) => return Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => return Err(ServiceError::OBJECT_DOES_NOT_EXIST),
         }
         let data = req.data;
@@ -618,7 +615,8 @@ mod tests {
     }
 
     #[rstest]
-    #[case::class_revision(0, 0x0E, &[1], Ok(std::vec![1, 0]))]
+    // Class instance 0 is the node's (`VendorObjects::class_revision`; the converter's tests).
+    #[case::class_instance(0, 0x0E, &[1], Err((0x16, 0xFF)))]
     #[case::version(1, 0x0E, &[1], Ok(std::vec![IMAGE_VERSION]))]
     #[case::size(1, 0x0E, &[2], Ok(std::vec![98, 0]))]
     #[case::state(1, 0x0E, &[3], Ok(std::vec![0]))]

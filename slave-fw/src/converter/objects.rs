@@ -523,21 +523,25 @@ impl ObjectHandler for VendorObjects<'_> {
                 SettingsAttribute::from_id(id).is_some()
             }
         };
+        // Class instance 0 is the node's (`class_revision`).
         Some(match (req.instance, req.service, req.data) {
-            (0, ServiceCode::GetAttributeSingle, [1]) => reply.u16(1),
-            (0, ServiceCode::GetAttributeSingle, [_]) => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-            (0 | 1, ServiceCode::GetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
-            (0 | 1, ServiceCode::GetAttributeSingle, [_, _, ..]) => Err(ServiceError::TOO_MUCH_DATA),
-            (1, ServiceCode::GetAttributeSingle, [attr]) => self.get(req.class, *attr, reply),
-            (1, ServiceCode::SetAttributeSingle, [attr, ..]) => Err(if known(*attr) {
+            (1, ServiceCode::GetAttributeSingle, &[attr]) => self.get(req.class, attr, reply),
+            (1, ServiceCode::GetAttributeSingle, data) => Err(ServiceError::wrong_length(data, 1)),
+            (1, ServiceCode::SetAttributeSingle, &[attr, ..]) => Err(if known(attr) {
                 ServiceError::ATTRIBUTE_NOT_SETTABLE
             } else {
                 ServiceError::ATTRIBUTE_NOT_SUPPORTED
             }),
             (1, ServiceCode::SetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
-            (0 | 1, _, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            (1, _, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
         })
+    }
+
+    /// The serial link, settings and configuration objects serve their revision, 1, and nothing
+    /// else at class instance 0: the node answers there.
+    fn class_revision(&self, class: u16) -> Option<u16> {
+        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | super::CONFIG_CLASS).then_some(1)
     }
 }
 

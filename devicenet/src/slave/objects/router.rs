@@ -26,9 +26,14 @@ impl SlaveNode {
         let revision = match req.class {
             class::IDENTITY | class::MESSAGE_ROUTER | class::CONNECTION => 1,
             class::DEVICENET | class::ASSEMBLY => 2,
-            _ => return application_object(objects, req, reply),
+            // An application class that leaves its class instance to the node.
+            class => match objects.class_revision(class) {
+                Some(revision) if req.instance == 0 => revision,
+                _ => return application_object(objects, req, reply),
+            },
         };
-        // Every core class serves the same class instance (0): its revision, nothing else.
+        // Every core class (and every application class with a `class_revision`) serves the same
+        // class instance (0): its revision, nothing else.
         if req.instance == 0 {
             return match req.service {
                 ServiceCode::GetAttributeSingle => class_revision(req.data, revision, reply),
