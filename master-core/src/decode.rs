@@ -32,8 +32,8 @@ use devicenet::fragment::{
 };
 use devicenet::id::{Group1MessageId, Group3MessageId, Group4MessageId};
 use devicenet::messages::{
-    AllocateRequest, AllocationChoice, AllocationInfo, DuplicateMacCheck, GroupSelect, OfflineMessage, ReleaseRequest,
-    UcmmCloseRequest, UcmmCloseResponse, UcmmOpenRequest, UcmmOpenResponse,
+    AllocateRequest, AllocationChoice, AllocationInfo, DuplicateMacCheck, GroupSelect, OfflineMessage,
+    ReleaseRequest, UcmmCloseRequest, UcmmCloseResponse, UcmmOpenRequest, UcmmOpenResponse,
 };
 use devicenet::objects::{self, class};
 use devicenet::{CanFrame, Group2Message, Identifier};
@@ -689,7 +689,9 @@ impl Decoder {
         if message == Group1MessageId::POLL_RESPONSE {
             let device = self.device(source);
             if device.cos_consumer() && data.is_empty() {
-                return Decoded::frame(format!("change-of-state/cyclic acknowledge from MAC {source}: no data"));
+                return Decoded::frame(format!(
+                    "change-of-state/cyclic acknowledge from MAC {source}: no data"
+                ));
             }
             let produced = device.produced;
             return io_data(&mut device.poll_response, produced, who, data);
@@ -921,7 +923,8 @@ impl Decoder {
                         if let Some(choice) = p.choice {
                             device.allocated = device.allocated.difference(choice);
                             if device.allocated.intersection(COS_OR_CYCLIC).is_empty() {
-                                device.allocated = device.allocated.difference(AllocationChoice::ACK_SUPPRESSION);
+                                device.allocated =
+                                    device.allocated.difference(AllocationChoice::ACK_SUPPRESSION);
                             }
                         }
                     }

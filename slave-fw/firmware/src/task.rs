@@ -309,6 +309,24 @@ mod tests {
         (task, now)
     }
 
+    /// A MAC ID taken through the Offline Connection Set (devicenet-notes §II.6) reaches the CAN
+    /// driver's filters and the stored settings, and the duplicate MAC ID check runs at it.
+    #[test]
+    fn a_mac_changed_offline_is_filtered_for_and_stored() {
+        let mut hw = Recorder::default();
+        let (mut task, now) = established(&mut hw);
+        // Another node claims MAC 5: Communication Faulted.
+        let claim = frame(0x42F, &[0x80, 0xFF, 0x0F, 0x02, 0x00, 0xA5, 0xA5]);
+        task.take_inputs(Input::Frame(claim), || None, now, &mut hw);
+        let change = frame(0x7ED, &[0x09, 0x4D, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12]);
+        task.take_inputs(Input::Frame(change), || None, now, &mut hw);
+        let nine = MacId::new(9).unwrap();
+        assert_eq!(hw.macs, [nine]);
+        assert_eq!(hw.saved.last().map(|s| s.mac_id), Some(nine));
+        assert_eq!(task.settings().mac_id, nine);
+        assert_eq!(hw.frames.last(), Some(&frame(0x44F, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12])));
+    }
+
     /// 64 inputs at once, as a queue full of them after a busy spell: polls, instrument bytes,
     /// a Set of the bus-off interrupt (a stored setting) and an Identity Reset in the middle.
     #[test]
@@ -335,9 +353,11 @@ mod tests {
         let responses: Vec<&CanFrame> = hw.frames.iter().filter(|f| f.id().as_raw() == 0x3C5).collect();
         assert_eq!(responses.len(), 3 * polls, "{polls} polls");
         assert_eq!(responses.iter().filter(|f| f.data()[0] == 0x00).count(), polls, "first fragments");
-        // Both explicit requests answered, in their place among the poll responses.
+        // Both explicit requests answered, in their place among the poll responses; the reset's
+        // shutdown message follows its response (devicenet-notes §II.5.2).
         let explicit: Vec<&CanFrame> = hw.frames.iter().filter(|f| f.id().as_raw() == 0x42B).collect();
-        assert_eq!(explicit, [&frame(0x42B, &[0x00, 0x90]), &frame(0x42B, &[0x00, 0x85])]);
+        let shutdown = frame(0x42B, &[0x05, 0xCE, 0x01, 0x00, 0x01, 0x00, 0x04, 0x00]);
+        assert_eq!(explicit, [&frame(0x42B, &[0x00, 0x90]), &frame(0x42B, &[0x00, 0x85]), &shutdown]);
         let stats = task.converter().node().stats();
         assert_eq!((stats.tx_overflows, stats.event_overflows), (0, 0));
 
