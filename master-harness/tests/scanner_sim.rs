@@ -49,6 +49,8 @@ fn breaker_entry(mac: u8) -> ScanEntry {
     ScanEntry {
         mac,
         connection: "poll".into(),
+        ack_suppression: false,
+        inhibit_ms: None,
         vendor_id: Some(0x1234),
         device_type: Some(0x000C),
         product_code: Some(1),
