@@ -336,7 +336,10 @@ impl Scanner {
                     input_size: None,
                     output_size: None,
                     input: Vec::new(),
-                    output: vec![0; if e.io_kind() == IoKind::Strobe { 1 } else { usize::from(e.output_size) }],
+                    output: vec![
+                        0;
+                        if e.io_kind() == IoKind::Strobe { 1 } else { usize::from(e.output_size) }
+                    ],
                     exchanges: 0,
                     last_exchange_us: None,
                 },
@@ -802,8 +805,9 @@ impl Scanner {
                     (Group1MessageId::COS_CYCLIC, IoKind::ChangeOfState | IoKind::Cyclic) => {
                         let (v, complete) = Self::input(n, data, rec.at, &self.options, &mut self.samples);
                         if complete && !n.entry.ack_suppression {
-                            let ack = CanFrame::new(Identifier::group2(source, Group2Message::CosCyclicAck), &[])
-                                .map_err(|e| HarnessError::Master(MasterError::Invalid(e.to_string())))?;
+                            let ack =
+                                CanFrame::new(Identifier::group2(source, Group2Message::CosCyclicAck), &[])
+                                    .map_err(|e| HarnessError::Master(MasterError::Invalid(e.to_string())))?;
                             master.session.send(&ack).map_err(|e| self.fail(e))?;
                         }
                         v
@@ -1229,9 +1233,9 @@ pub fn frame_kind(frame: &CanFrame) -> (&'static str, Option<u8>) {
         Identifier::Group1 { source, .. } => ("io", Some(source.as_raw())),
         Identifier::Group2 { mac, message } => match message {
             Group2Message::DuplicateMacCheck => ("duplicate_mac", Some(mac.as_raw())),
-            Group2Message::PollCommand
-            | Group2Message::BitStrobeCommand
-            | Group2Message::CosCyclicAck => ("io", Some(mac.as_raw())),
+            Group2Message::PollCommand | Group2Message::BitStrobeCommand | Group2Message::CosCyclicAck => {
+                ("io", Some(mac.as_raw()))
+            }
             _ => ("explicit", Some(mac.as_raw())),
         },
         Identifier::Group3 { source, .. } => ("ucmm", Some(source.as_raw())),
