@@ -95,6 +95,9 @@ struct SpannedNode {
     inhibit_ms: Option<toml::Spanned<toml::Value>>,
 }
 
+/// Where a node's value is written (`None`: not written).
+type SpanOf = fn(&SpannedNode) -> Option<Range<usize>>;
+
 #[derive(Deserialize)]
 struct SpannedList {
     #[serde(default)]
@@ -177,7 +180,7 @@ pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError>
                 &format!("connection type '{}': expected poll, strobe, cos or cyclic", node.connection),
             ));
         };
-        let refusal: Option<(&str, fn(&SpannedNode) -> Option<Range<usize>>, String)> = match kind {
+        let refusal: Option<(&str, SpanOf, String)> = match kind {
             IoKind::Strobe if node.input_size > 8 => Some((
                 "input_size",
                 |n| n.input_size.as_ref().map(|v| v.span()),
