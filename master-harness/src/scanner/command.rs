@@ -231,8 +231,8 @@ pub fn execute(
 /// The node table and the summary line.
 pub fn table(s: &super::model::ScannerState) -> String {
     let mut t = format!(
-        "{:>3}  {:<13}  {:<21}  {:>4}  {:<26}  {:>9}  detail\n",
-        "MAC", "connection", "status", "code", "product", "in/out"
+        "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:>9}  detail\n",
+        "MAC", "status", "code", "connection", "product", "in/out"
     );
     for n in &s.nodes {
         let io = match (n.input_size, n.output_size) {
@@ -242,11 +242,11 @@ pub fn table(s: &super::model::ScannerState) -> String {
         let connection =
             if n.ack_suppression { format!("{} (-ack)", n.connection) } else { n.connection.clone() };
         t.push_str(&format!(
-            "{:>3}  {:<13}  {:<21}  {:>4}  {:<26}  {:>9}  {}\n",
+            "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:>9}  {}\n",
             n.mac,
-            connection,
             n.status.name(),
             n.code,
+            connection,
             n.identity.product_name.as_deref().unwrap_or("-"),
             io,
             n.detail.as_deref().unwrap_or("")
