@@ -642,3 +642,40 @@ fn mixed_scan_list_on_the_command_line_and_a_strobe_input_over_8_bytes_refused()
         "{err}"
     );
 }
+
+#[test]
+fn strobe_and_cos_nodes_are_keyed_and_sized_as_polled_ones() {
+    let mut bus = SimBus::new(Bitrate::K500);
+    for mac in [5, 6, 7, 8] {
+        bus.attach(Box::new(SoftSlave::reference(MacId::new(mac).unwrap())), PowerOn::WhenMasterOnline);
+    }
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let mut strobe_key = entry_as(5, "strobe");
+    strobe_key.product_code = Some(99);
+    let mut strobe_size = entry_as(6, "strobe");
+    strobe_size.input_size = 4;
+    let mut cos_size = entry_as(7, "cos");
+    cos_size.output_size = 4;
+    let mut cyclic_key = entry_as(8, "cyclic");
+    cyclic_key.vendor_id = Some(0x4321);
+    let list = ScanList { nodes: vec![strobe_key, strobe_size, cos_size, cyclic_key], ..ScanList::default() };
+    let mut scanner = library_scanner(list);
+    scanner.start(&mut master).unwrap();
+    for _ in 0..5 {
+        scanner.cycle(&mut master).unwrap();
+    }
+    let st = scanner.state();
+    let want = [
+        (5, NodeStatus::KeyingMismatch, 73, "expected product code 99, read 1"),
+        (6, NodeStatus::SizeMismatch, 77, "input (produced) size 8 bytes, scan list 4"),
+        (7, NodeStatus::SizeMismatch, 77, "output (consumed) size 8 bytes, scan list 4"),
+        (8, NodeStatus::KeyingMismatch, 73, "expected vendor ID 0x4321, read 0x1234"),
+    ];
+    for (n, (mac, status, code, detail)) in st.nodes.iter().zip(want) {
+        assert_eq!((n.mac, n.status, n.code), (mac, status, code), "{n:?}");
+        assert!(n.detail.as_deref().unwrap_or("").contains(detail), "{n:?}");
+        // The set was released: nothing held, no I/O.
+        assert!(master.held(MacId::new(mac).unwrap()).is_empty(), "MAC {mac}");
+    }
+}
