@@ -31,6 +31,8 @@ fn main() {
             .map(|mac| ScanEntry {
                 mac,
                 connection: "poll".into(),
+                ack_suppression: false,
+                inhibit_ms: None,
                 vendor_id: Some(0x1234),
                 device_type: Some(0x000C),
                 product_code: Some(1),

@@ -40,13 +40,15 @@
 //! `PREFIX/node/<mac>/status`:
 //!
 //! ```json
-//! {"mac":5,"status":"ok","code":0,"detail":null,"product_name":"Serial-DeviceNet breaker",
+//! {"mac":5,"connection":"poll","ack_suppression":false,"status":"ok","code":0,"detail":null,
+//!  "product_name":"Serial-DeviceNet breaker",
 //!  "vendor_id":1234,"device_type":12,"product_code":1,"revision":"1.1",
 //!  "serial_number":305419896,"input_size":18,"output_size":8}
 //! ```
 //!
-//! `status` and `code` are [`NodeStatus::name`] and [`NodeStatus::code`] (the scanner status
-//! codes); identity fields not read yet are `null`.
+//! `connection` is the scan list's (`poll`, `strobe`, `cos`, `cyclic`); `status` and `code` are
+//! [`NodeStatus::name`] and [`NodeStatus::code`] (the scanner status codes); identity fields not
+//! read yet are `null`.
 //!
 //! `PREFIX/node/<mac>/values`:
 //!
@@ -407,6 +409,8 @@ fn node_status_payload(node: &NodeState) -> Vec<u8> {
     let id = &node.identity;
     json!({
         "mac": node.mac,
+        "connection": node.connection,
+        "ack_suppression": node.ack_suppression,
         "status": status.name(),
         "code": node.code,
         "detail": node.detail,

@@ -41,6 +41,8 @@ fn sample(mac: u8, unix_ms: i64, values: &[(&str, f64)]) -> Sample {
 fn node(mac: u8, status: NodeStatus, product: &str) -> NodeState {
     NodeState {
         mac,
+        connection: "poll".into(),
+        ack_suppression: false,
         status,
         code: status.code(),
         detail: None,
@@ -397,7 +399,7 @@ fn mqtt_publishes_retained_status_and_values_to_mosquitto() {
     let n5 = &find(&got, "devicenet/node/5/status").payload;
     assert_eq!(
         *n5,
-        serde_json::json!({"mac":5,"status":"ok","code":0,"detail":null,"product_name":"breaker",
+        serde_json::json!({"mac":5,"connection":"poll","ack_suppression":false,"status":"ok","code":0,"detail":null,"product_name":"breaker",
             "vendor_id":1234,"device_type":12,"product_code":1,"revision":"1.1",
             "serial_number":0x1234_5678,"input_size":18,"output_size":8})
     );

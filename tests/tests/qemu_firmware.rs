@@ -529,6 +529,8 @@ fn scanner(master: &mut Master<'_, '_>, breaker: &BreakerRig) -> Result<(), Stri
     let node = ScanEntry {
         mac: 5,
         connection: "poll".into(),
+        ack_suppression: false,
+        inhibit_ms: None,
         vendor_id: Some(0x1234),
         device_type: Some(12),
         product_code: Some(1),

@@ -4,8 +4,9 @@
 //! Without `--scanlist` the scan list is built from a network scan (MAC 0..=63) and, with
 //! `--write-scanlist`, written out. The run goes on until `--cycles` or SIGINT / SIGTERM (exit
 //! 130 / 143 with what it has); every node is released at the end. Text: a progress line while it
-//! runs (on a terminal), then a table of the nodes; `--json`: one object with `cycle_ms` (the median
-//! full cycle), `bus_load` and `nodes`. Exit 0 when every node ended ok, 1 otherwise, 2 for a usage
+//! runs (on a terminal), then a table of the nodes (with each node's connection type, `(-ack)`
+//! under acknowledge suppression); `--json`: one object with `cycle_ms` (the median full cycle),
+//! `bus_load` and `nodes` (each with `connection` and `ack_suppression`). Exit 0 when every node ended ok, 1 otherwise, 2 for a usage
 //! or scan list error.
 
 use super::{build_scan_list, read_scan_list, write_scan_list, Scanner, ScannerOptions};
@@ -176,6 +177,8 @@ pub fn execute(
                 .iter()
                 .map(|n| json!({
                     "mac": n.mac,
+                    "connection": n.connection,
+                    "ack_suppression": n.ack_suppression,
                     "status": n.status.name(),
                     "code": n.code,
                     "detail": n.detail,
@@ -228,19 +231,22 @@ pub fn execute(
 /// The node table and the summary line.
 pub fn table(s: &super::model::ScannerState) -> String {
     let mut t = format!(
-        "{:>3}  {:<21}  {:>4}  {:<26}  {:>9}  detail\n",
-        "MAC", "status", "code", "product", "in/out"
+        "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:>9}  detail\n",
+        "MAC", "status", "code", "connection", "product", "in/out"
     );
     for n in &s.nodes {
         let io = match (n.input_size, n.output_size) {
             (Some(i), Some(o)) => format!("{i}/{o}"),
             _ => "-".into(),
         };
+        let connection =
+            if n.ack_suppression { format!("{} (-ack)", n.connection) } else { n.connection.clone() };
         t.push_str(&format!(
-            "{:>3}  {:<21}  {:>4}  {:<26}  {:>9}  {}\n",
+            "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:>9}  {}\n",
             n.mac,
             n.status.name(),
             n.code,
+            connection,
             n.identity.product_name.as_deref().unwrap_or("-"),
             io,
             n.detail.as_deref().unwrap_or("")

@@ -3,11 +3,11 @@
 //!
 //! ```toml
 //! # interscan_delay_ms = 5           # optional: computed from the list and the data rate
-//! # expected_packet_rate_ms = 100    # optional: computed
+//! # expected_packet_rate_ms = 100    # optional: computed; every node's EPR
 //!
 //! [[node]]
 //! mac = 5
-//! connection = "poll"
+//! connection = "poll"                # poll (default), strobe, cos or cyclic
 //! vendor_id = 0x1234                 # electronic key: each optional
 //! device_type = 0x000C
 //! product_code = 1
@@ -15,10 +15,37 @@
 //! input_size = 18                    # poll response (Connection 2 attribute 7)
 //! output_size = 8                    # poll command (Connection 2 attribute 8)
 //! name = "breaker feeder 1"          # optional
+//!
+//! [[node]]
+//! mac = 6
+//! connection = "strobe"
+//! input_size = 8                     # strobe response (Connection 3 attribute 7), at most 8
+//! output_size = 0                    # always 0: the output is the node's bit of the strobe
+//!
+//! [[node]]
+//! mac = 7
+//! connection = "cos"
+//! input_size = 18                    # production (Connection 4 attribute 7)
+//! output_size = 8                    # the scanner's COS data (Connection 2 attribute 8)
+//! inhibit_ms = 20                    # optional, COS only: production inhibit time (attribute 17)
+//!
+//! [[node]]
+//! mac = 8
+//! connection = "cyclic"
+//! ack_suppression = true             # optional, COS and cyclic: nothing is acknowledged
+//! input_size = 18
+//! output_size = 8
 //! ```
+//!
+//! A strobed node's input is its strobe response, never fragmented (notes §II.1.3): more than 8
+//! bytes is refused. Its output is one bit, byte `MAC / 8` bit `MAC % 8` of the scanner's strobe
+//! command, as Rockwell's scanners map it (1 bit per node); no output assembly is consumed
+//! (the EDS's `StrobeInfo` names no output), so `output_size` is 0, and the node's output image in
+//! the scanner is 1 byte whose bit 0 is that bit.
 
 use super::model::{ScanEntry, ScanList};
 use crate::error::HarnessError;
+use master_core::master::io::IoKind;
 use serde::Deserialize;
 use std::ops::Range;
 
@@ -64,7 +91,12 @@ struct SpannedNode {
     input_size: Option<toml::Spanned<toml::Value>>,
     output_size: Option<toml::Spanned<toml::Value>>,
     connection: Option<toml::Spanned<toml::Value>>,
+    ack_suppression: Option<toml::Spanned<toml::Value>>,
+    inhibit_ms: Option<toml::Spanned<toml::Value>>,
 }
+
+/// Where a node's value is written (`None`: not written).
+type SpanOf = fn(&SpannedNode) -> Option<Range<usize>>;
 
 #[derive(Deserialize)]
 struct SpannedList {
@@ -82,7 +114,9 @@ pub fn read_scan_list(path: &std::path::Path) -> Result<ScanList, HarnessError> 
 
 /// Reads a scan list from `text` (`file` names it in errors). Every error is a usage error naming
 /// the file, line, column and key: TOML syntax, an unknown key, a value of the wrong type, a MAC
-/// above 63 or given twice, a size above 448 bytes, a connection type other than `poll`.
+/// above 63 or given twice, a size above 448 bytes, a connection type other than `poll`,
+/// `strobe`, `cos` or `cyclic`, a strobe input above 8 bytes or a strobe output that is not 0,
+/// `ack_suppression` other than for COS or cyclic, `inhibit_ms` other than for COS.
 pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError> {
     let list: ScanList =
         toml::from_str(text).map_err(|e| located(text, file, e.span(), None, e.message().trim()))?;
@@ -137,14 +171,46 @@ pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError>
                 ));
             }
         }
-        if node.connection != "poll" {
+        let Some(kind) = IoKind::ALL.into_iter().find(|k| k.name() == node.connection) else {
             return Err(located(
                 text,
                 file,
                 span_of(i, |n| n.connection.as_ref().map(|v| v.span())),
                 Some("connection".into()),
-                &format!("connection type '{}': the scanner polls (\"poll\")", node.connection),
+                &format!("connection type '{}': expected poll, strobe, cos or cyclic", node.connection),
             ));
+        };
+        let refusal: Option<(&str, SpanOf, String)> = match kind {
+            IoKind::Strobe if node.input_size > 8 => Some((
+                "input_size",
+                |n| n.input_size.as_ref().map(|v| v.span()),
+                format!(
+                    "{} bytes: a strobe response carries at most 8 bytes, never fragmented (notes §II.1.3); poll the node, or use cos or cyclic",
+                    node.input_size
+                ),
+            )),
+            IoKind::Strobe if node.output_size != 0 => Some((
+                "output_size",
+                |n| n.output_size.as_ref().map(|v| v.span()),
+                format!(
+                    "output_size {}: a strobed node's output is its bit of the strobe command, not an output assembly: output_size = 0",
+                    node.output_size
+                ),
+            )),
+            _ if node.ack_suppression && !kind.is_cos_cyclic() => Some((
+                "ack_suppression",
+                |n| n.ack_suppression.as_ref().map(|v| v.span()),
+                format!("acknowledge suppression applies to cos and cyclic, not to {kind}"),
+            )),
+            _ if node.inhibit_ms.is_some() && kind != IoKind::ChangeOfState => Some((
+                "inhibit_ms",
+                |n| n.inhibit_ms.as_ref().map(|v| v.span()),
+                format!("the production inhibit time applies to cos, not to {kind}"),
+            )),
+            _ => None,
+        };
+        if let Some((key, pick, msg)) = refusal {
+            return Err(located(text, file, span_of(i, pick), Some(key.into()), &msg));
         }
     }
     let mut list = list;
@@ -169,6 +235,12 @@ pub fn write_scan_list(list: &ScanList) -> String {
 
 fn entry_toml(n: &ScanEntry) -> String {
     let mut s = format!("\n[[node]]\nmac = {}\nconnection = {}\n", n.mac, toml_string(&n.connection));
+    if n.ack_suppression {
+        s.push_str("ack_suppression = true\n");
+    }
+    if let Some(v) = n.inhibit_ms {
+        s.push_str(&format!("inhibit_ms = {v}\n"));
+    }
     if let Some(v) = n.vendor_id {
         s.push_str(&format!("vendor_id = 0x{v:04X}\n"));
     }
@@ -198,14 +270,21 @@ mod tests {
     use super::*;
     use rstest::rstest;
 
-    const GOOD: &str = "[[node]]\nmac = 5\nvendor_id = 0x1234\nproduct_code = 1\ninput_size = 18\noutput_size = 8\nname = \"breaker \\\"A\\\"\"\n\n[[node]]\nmac = 3\ninput_size = 2\noutput_size = 0\n";
+    const GOOD: &str = "[[node]]\nmac = 5\nvendor_id = 0x1234\nproduct_code = 1\ninput_size = 18\noutput_size = 8\nname = \"breaker \\\"A\\\"\"\n\n[[node]]\nmac = 3\ninput_size = 2\noutput_size = 0\n\n[[node]]\nmac = 9\nconnection = \"strobe\"\ninput_size = 8\noutput_size = 0\n\n[[node]]\nmac = 10\nconnection = \"cos\"\ninhibit_ms = 20\ninput_size = 18\noutput_size = 8\n\n[[node]]\nmac = 11\nconnection = \"cyclic\"\nack_suppression = true\ninput_size = 18\noutput_size = 8\n";
 
     #[test]
     fn reads_sorts_and_round_trips() {
         let list = parse_scan_list(GOOD, "l.toml").unwrap();
-        assert_eq!(list.nodes.iter().map(|n| n.mac).collect::<Vec<_>>(), vec![3, 5]);
+        assert_eq!(list.nodes.iter().map(|n| n.mac).collect::<Vec<_>>(), vec![3, 5, 9, 10, 11]);
         assert_eq!(list.nodes[1].vendor_id, Some(0x1234));
         assert_eq!(list.nodes[1].connection, "poll");
+        let kinds: Vec<IoKind> = list.nodes.iter().map(ScanEntry::io_kind).collect();
+        assert_eq!(
+            kinds,
+            [IoKind::Poll, IoKind::Poll, IoKind::Strobe, IoKind::ChangeOfState, IoKind::Cyclic]
+        );
+        assert_eq!((list.nodes[3].inhibit_ms, list.nodes[3].ack_suppression), (Some(20), false));
+        assert_eq!((list.nodes[4].inhibit_ms, list.nodes[4].ack_suppression), (None, true));
         let again = parse_scan_list(&write_scan_list(&list), "w.toml").unwrap();
         assert_eq!(again, list);
     }
@@ -235,8 +314,24 @@ mod tests {
     #[case::missing_size("[[node]]\nmac = 5\noutput_size = 1\n", "input_size")]
     #[case::syntax("[[node]\nmac = 5\n", "l.toml:1:")]
     #[case::connection(
-        "[[node]]\nmac = 5\nconnection = \"strobe\"\ninput_size = 1\noutput_size = 1\n",
-        "l.toml:3:14: scan list (key `connection`)"
+        "[[node]]\nmac = 5\nconnection = \"multicast\"\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:3:14: scan list (key `connection`): connection type 'multicast'"
+    )]
+    #[case::strobe_input(
+        "[[node]]\nmac = 5\nconnection = \"strobe\"\ninput_size = 18\noutput_size = 0\n",
+        "l.toml:4:14: scan list (key `input_size`): 18 bytes: a strobe response carries at most 8 bytes"
+    )]
+    #[case::strobe_output(
+        "[[node]]\nmac = 5\nconnection = \"strobe\"\ninput_size = 8\noutput_size = 1\n",
+        "l.toml:5:15: scan list (key `output_size`): output_size 1: a strobed node's output is its bit"
+    )]
+    #[case::suppression_on_poll(
+        "[[node]]\nmac = 5\nack_suppression = true\ninput_size = 8\noutput_size = 1\n",
+        "l.toml:3:19: scan list (key `ack_suppression`): acknowledge suppression applies to cos and cyclic, not to poll"
+    )]
+    #[case::inhibit_on_cyclic(
+        "[[node]]\nmac = 5\nconnection = \"cyclic\"\ninhibit_ms = 5\ninput_size = 8\noutput_size = 1\n",
+        "l.toml:4:14: scan list (key `inhibit_ms`): the production inhibit time applies to cos, not to cyclic"
     )]
     fn bad_lists(#[case] text: &str, #[case] want: &str) {
         let e = parse_scan_list(text, "l.toml").unwrap_err().to_string();

@@ -10,33 +10,64 @@
 //!
 //! Every node not in I/O runs its bring-up as a sequence of explicit transactions, all nodes in
 //! parallel (as [`crate::scan`] does, so absent nodes cost one shared response timeout, and a
-//! bring-up never stops the polling of the others): Allocate explicit + poll through the Group 2
-//! Only port (a set still allocated to this master is released and allocated again), Identity
-//! attributes 1, 2, 3, 4, 7, Connection 2 attributes 7 and 8, then the electronic key and the
-//! sizes are compared with the scan list (a mismatch: the set is released, the node shows 73 or 77),
-//! then Connection 2 attribute 9 (the EPR). Then the node is polled every cycle. A node not in
-//! I/O is tried again every [`RECONNECT_INTERVAL`].
+//! bring-up never stops the polling of the others): Allocate explicit + the node's connection
+//! through the Group 2 Only port (a set still allocated to this master is released and allocated
+//! again), Identity attributes 1, 2, 3, 4, 6, 7, the connection's sizes, then the electronic key
+//! and the sizes are compared with the scan list (a mismatch: the set is released, the node shows
+//! 73 or 77), then (COS with `inhibit_ms`) the production inhibit time, then the EPR (attribute 9),
+//! which establishes the connection. A node not in I/O is tried again every
+//! [`RECONNECT_INTERVAL`].
+//!
+//! | `connection` | allocation | sizes read (input, output) | EPR set on |
+//! |---|---|---|---|
+//! | `poll` | 0x03 | Connection 2 attributes 7, 8 | Connection 2 |
+//! | `strobe` | 0x05 | Connection 3 attribute 7; attribute 8 must be 8 (the strobe command), output 0 | Connection 3 |
+//! | `cos`, `cyclic` | 0x11 / 0x21, + 0x40 with `ack_suppression` | Connection 4 attribute 7, Connection 2 attribute 8 (the scanner's data) | Connection 4 |
+//!
+//! (`docs/io-connections.md`, notes §II.1, §II.2; the master's side of each connection is
+//! [`master_core::master::io`]'s, here run for every node at once.)
 //!
 //! ## One scan cycle
 //!
-//! Every node in I/O gets its poll command, all back to back; then the responses are collected
-//! (the devices' Group 1 responses win arbitration over the remaining Group 2 commands, so the bus
-//! never idles) until every node answered or the response window ends; then the inter-scan delay.
-//! A node's output image is sent only while its status is ok (otherwise zeros).
+//! - *strobe*: when any strobed node is in I/O, one bit-strobe command (8 bytes, Group 2 message
+//!   0 with the scanner's MAC, `0x400 | MAC << 3`) with the bit (byte `MAC / 8`, bit `MAC % 8`) of
+//!   every strobed node whose output bit is set; every strobed node answers it (Group 1 message
+//!   14, at most 8 bytes, never fragmented);
+//! - *poll*: every polled node in I/O gets its poll command, all back to back after the strobe;
+//! - then the responses are collected (the devices' Group 1 responses win arbitration over the
+//!   remaining Group 2 commands, so the bus never idles) until every polled and strobed node
+//!   answered or the response window ends; then the inter-scan delay;
+//! - *COS and cyclic* nodes are not polled: their productions (Group 1 message 13, reassembled
+//!   when over 8 bytes) are taken whenever they come, each acknowledged at once with a zero-length
+//!   frame on Group 2 message 2 (not under acknowledge suppression). The scanner's data goes to
+//!   them on Group 2 message 5 (fragmented over 8 bytes) when established, then on change (COS) or
+//!   every EPR (cyclic), and the node's zero-length acknowledgement on Group 1 message 15 is
+//!   expected (not under suppression); data not acknowledged within max(EPR, 100 ms) is sent
+//!   again (the Acknowledge Handler's way, §II.2.4), and the node's detail says so.
+//!
+//! A node's output image is sent only while its status is ok (otherwise zeros, or its strobe bit
+//! clear).
 //!
 //! ## Timing: EPR and inter-scan delay (computed unless the scan list sets them)
 //!
 //! - *frame time* of a node = worst-case bits ([`devicenet::CanFrame::worst_case_bits`]) of its
-//!   poll command frames and poll response fragments (7 data bytes per fragment above 8 bytes,
-//!   notes §4.2), at the data rate;
+//!   frames in a cycle, at the data rate (7 data bytes per fragment above 8 bytes, notes §4.2):
+//!   poll: its command and response; strobe: its response (the strobe command, 8 bytes, counted
+//!   once for the list); COS and cyclic: one production, one output of the scanner's data and,
+//!   unless suppressed, the two zero-length acknowledgements (at most one of each per cycle for
+//!   the EPR's sake: a COS node changing faster adds to the bus load, which is measured);
 //! - *minimum cycle* = the sum over the scan list;
 //! - inter-scan delay = max(2 ms, minimum cycle / 10), in whole ms;
 //! - EPR = max(100 ms, 4 × (minimum cycle + inter-scan delay)), rounded up to 10 ms — so the
 //!   device's watchdog (4 × EPR, notes §5.3) spans at least 16 cycles;
 //! - response window = max(20 ms, 2 × minimum cycle), at most the EPR;
-//! - a node in I/O with no complete poll response for 4 × EPR is *timed out* (72): its connection
-//!   is dead at the device too; if the next attempt to bring it up finds nothing it becomes *not
-//!   present* (78).
+//! - a node in I/O with no complete poll response, strobe response or COS/cyclic production for
+//!   4 × EPR is *timed out* (72): its connection is dead at the device too (a COS node produces at
+//!   the latest every EPR, its heartbeat); if the next attempt to bring it up finds nothing it
+//!   becomes *not present* (78).
+//!
+//! Every node gets the same EPR: for a cyclic node it is the production period, for a COS node
+//! the heartbeat.
 //!
 //! ## Status codes
 //!
@@ -52,6 +83,12 @@
 //! the controller's error counters nor its bus-off state, so bus warning is never shown, and a bus
 //! that fails (an adapter error, an interface gone) is shown as [`ScannerStatus::BusOff`] (code 91)
 //! with the cycle ending in the error.
+//!
+//! ## Limits
+//!
+//! A console Get or Set ([`Scanner::command`]) waits for its answer between cycles: a COS/cyclic
+//! production that comes meanwhile is not taken nor acknowledged (the node sends it again after
+//! its acknowledge timer, then at its next trigger).
 //!
 //! ## Memory
 //!
@@ -78,7 +115,8 @@ use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use master_core::client::{ClientError, Handled, Port, Reply, ReplyBody, Transaction};
 use master_core::decode;
 use master_core::error::MasterError;
-use master_core::master::Master;
+use master_core::master::io::IoKind;
+use master_core::master::{Master, MIN_POLL_TIMEOUT};
 use master_core::session::Verdict;
 use model::{
     ConsoleCommand, FrameRow, Identity, NodeState, NodeStatus, Sample, ScanEntry, ScanList, ScannerState,
@@ -95,6 +133,9 @@ pub const SAMPLES_KEPT: usize = 10_000;
 /// Cycles over which the median cycle time and the bus load are computed.
 pub const CYCLE_WINDOW: usize = 100;
 
+/// The start of a node's detail while its COS/cyclic node did not acknowledge the scanner's data.
+const UNACKED: &str = "the scanner's data was not acknowledged";
+
 /// How the scanner runs.
 #[derive(Clone, Debug, Default)]
 pub struct ScannerOptions {
@@ -109,13 +150,14 @@ pub struct ScannerOptions {
 /// The computed timing of a scan list. See the [module docs](self).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Timing {
-    /// Sum of every node's poll command and response frames, worst-case stuffing.
+    /// Sum of every node's frames in a cycle (poll command and response, strobe command and
+    /// responses, COS/cyclic production, data and acknowledgements), worst-case stuffing.
     pub min_cycle: Duration,
     /// The inter-scan delay.
     pub interscan: Duration,
     /// The expected packet rate, ms.
     pub epr_ms: u16,
-    /// How long responses are waited for after the poll commands went out.
+    /// How long responses are waited for after the strobe and poll commands went out.
     pub window: Duration,
 }
 
@@ -133,8 +175,17 @@ pub fn io_frame_bits(size: u16) -> u64 {
 
 /// The timing of `list` at `bitrate`. See the [module docs](self).
 pub fn timing(list: &ScanList, bitrate: Bitrate) -> Timing {
-    let bits: u64 =
-        list.nodes.iter().map(|n| io_frame_bits(n.output_size) + io_frame_bits(n.input_size)).sum();
+    let node_bits = |n: &ScanEntry| match n.io_kind() {
+        IoKind::Poll => io_frame_bits(n.output_size) + io_frame_bits(n.input_size),
+        IoKind::Strobe => io_frame_bits(n.input_size.min(8)),
+        IoKind::ChangeOfState | IoKind::Cyclic => {
+            let acks = if n.ack_suppression { 0 } else { 2 * io_frame_bits(0) };
+            io_frame_bits(n.input_size) + io_frame_bits(n.output_size) + acks
+        }
+    };
+    let strobe_command =
+        if list.nodes.iter().any(|n| n.io_kind() == IoKind::Strobe) { io_frame_bits(8) } else { 0 };
+    let bits: u64 = list.nodes.iter().map(node_bits).sum::<u64>() + strobe_command;
     let bps = u64::from(bitrate.bits_per_second().max(1));
     let min_cycle = Duration::from_micros((bits * 1_000_000).div_ceil(bps));
     let isd_ms = match list.interscan_delay_ms {
@@ -160,12 +211,24 @@ enum Step {
     ReleaseKept(AllocationChoice),
     Get(u16, u16, u8),
     Check,
+    /// Connection 4 attribute 17, ms.
+    SetInhibit(u16),
     SetEpr,
     Release,
 }
 
 struct Node {
     entry: ScanEntry,
+    /// The connection type of the entry.
+    kind: IoKind,
+    /// Strobe: Connection 3 attribute 8 as read (8, the strobe command).
+    strobe_consumed: Option<u16>,
+    /// COS/cyclic: the scanner's data last sent (`None`: not yet since established).
+    output_sent: Option<Vec<u8>>,
+    /// Cyclic: when the scanner's data goes next.
+    next_output: Instant,
+    /// COS/cyclic: when the scanner's data went out, while its acknowledgement is awaited.
+    output_ack: Option<Instant>,
     state: NodeState,
     steps: VecDeque<Step>,
     tx: Option<Transaction>,
@@ -198,6 +261,40 @@ impl Node {
     fn consumed(&self) -> u16 {
         self.state.output_size.unwrap_or(self.entry.output_size)
     }
+
+    /// The size of the node's output image: its consumed size, 1 byte for a strobed node (bit 0:
+    /// its strobe bit).
+    fn output_len(&self) -> usize {
+        match self.kind {
+            IoKind::Strobe => 1,
+            _ => usize::from(self.consumed()),
+        }
+    }
+
+    /// The output image as sent now: the node's while it is ok, zeros otherwise.
+    fn output_now(&self) -> Vec<u8> {
+        if self.state.status == NodeStatus::Ok && self.state.output.len() == self.output_len() {
+            self.state.output.clone()
+        } else {
+            vec![0; self.output_len()]
+        }
+    }
+
+    /// What the scanner waits for from the node, in words.
+    fn input_name(&self) -> &'static str {
+        match self.kind {
+            IoKind::Poll => "poll response",
+            IoKind::Strobe => "strobe response",
+            IoKind::ChangeOfState => "change-of-state production",
+            IoKind::Cyclic => "cyclic production",
+        }
+    }
+
+    /// The allocation choice of the node's set (explicit + its connection), without acknowledge
+    /// suppression (which is requested, never held or released, notes §II.2.5).
+    fn choice(&self) -> AllocationChoice {
+        AllocationChoice::EXPLICIT | self.kind.choice()
+    }
 }
 
 /// The scanner. See the [module docs](self).
@@ -223,8 +320,15 @@ impl Scanner {
             .filter(|e| e.mac <= 63 && e.mac != master_mac)
             .map(|e| Node {
                 entry: e.clone(),
+                kind: e.io_kind(),
+                strobe_consumed: None,
+                output_sent: None,
+                next_output: Instant::ZERO,
+                output_ack: None,
                 state: NodeState {
                     mac: e.mac,
+                    connection: e.io_kind().name().into(),
+                    ack_suppression: e.ack_suppression,
                     status: NodeStatus::Initializing,
                     code: NodeStatus::Initializing.code(),
                     detail: None,
@@ -232,7 +336,10 @@ impl Scanner {
                     input_size: None,
                     output_size: None,
                     input: Vec::new(),
-                    output: vec![0; usize::from(e.output_size)],
+                    output: vec![
+                        0;
+                        if e.io_kind() == IoKind::Strobe { 1 } else { usize::from(e.output_size) }
+                    ],
                     exchanges: 0,
                     last_exchange_us: None,
                 },
@@ -371,13 +478,11 @@ impl Scanner {
                     continue;
                 }
                 Step::Allocate => {
-                    data.extend_from_slice(
-                        &AllocateRequest {
-                            choice: AllocationChoice::EXPLICIT | AllocationChoice::POLL,
-                            allocator: master.config.mac,
-                        }
-                        .emit(),
-                    );
+                    let mut choice = n.choice();
+                    if n.entry.ack_suppression && n.kind.is_cos_cyclic() {
+                        choice |= AllocationChoice::ACK_SUPPRESSION;
+                    }
+                    data.extend_from_slice(&AllocateRequest { choice, allocator: master.config.mac }.emit());
                     (Port::Group2Only, ServiceCode::AllocateMasterSlave, class::DEVICENET, 1)
                 }
                 Step::ReleaseKept(choice) => {
@@ -392,10 +497,15 @@ impl Scanner {
                     data.push(a);
                     (Port::Explicit, ServiceCode::GetAttributeSingle, c, inst)
                 }
+                Step::SetInhibit(ms) => {
+                    data.push(17);
+                    data.extend_from_slice(&ms.to_le_bytes());
+                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, 4)
+                }
                 Step::SetEpr => {
                     data.push(9);
                     data.extend_from_slice(&epr_ms.to_le_bytes());
-                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, 2)
+                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, n.kind.instance())
                 }
             };
             let Some(mac) = MacId::new(n.entry.mac) else { return Ok(()) };
@@ -451,7 +561,12 @@ impl Scanner {
                 e.input_size
             ));
         }
-        if n.state.output_size != Some(e.output_size) {
+        if n.kind == IoKind::Strobe && n.strobe_consumed != Some(8) {
+            sizes.push(format!(
+                "strobe consumed size (Connection 3 attribute 8) {} bytes, a strobe command has 8",
+                n.strobe_consumed.map_or("?".into(), |v| v.to_string())
+            ));
+        } else if n.state.output_size != Some(e.output_size) {
             sizes.push(format!(
                 "output (consumed) size {} bytes, scan list {}",
                 n.state.output_size.map_or("?".into(), |v| v.to_string()),
@@ -506,15 +621,22 @@ impl Scanner {
         n.answered = true;
         match (step, reply.body) {
             (Step::Allocate, ReplyBody::Success(_)) => {
-                n.allocated = AllocationChoice::EXPLICIT | AllocationChoice::POLL;
+                n.allocated = n.choice();
                 let mut steps: Vec<Step> =
                     [1u8, 2, 3, 4, 6, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
+                // The input is the connection's produced size; the output what Connection 2
+                // consumes (poll commands, or the scanner's COS/cyclic data, §II.2.5), for a strobe
+                // the strobe command (Connection 3 attribute 8).
+                let output_instance = if n.kind == IoKind::Strobe { 3 } else { 2 };
                 steps.extend([
-                    Step::Get(class::CONNECTION, 2, 7),
-                    Step::Get(class::CONNECTION, 2, 8),
+                    Step::Get(class::CONNECTION, n.kind.instance(), 7),
+                    Step::Get(class::CONNECTION, output_instance, 8),
                     Step::Check,
-                    Step::SetEpr,
                 ]);
+                if let (IoKind::ChangeOfState, Some(ms)) = (n.kind, n.entry.inhibit_ms) {
+                    steps.push(Step::SetInhibit(ms));
+                }
+                steps.push(Step::SetEpr);
                 n.steps = steps.into();
             }
             (Step::Allocate, ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. })
@@ -524,7 +646,7 @@ impl Scanner {
                 // still holds): release, allocate again.
                 n.reallocated = true;
                 n.steps = VecDeque::from([
-                    Step::ReleaseKept(AllocationChoice::POLL),
+                    Step::ReleaseKept(n.kind.choice()),
                     Step::ReleaseKept(AllocationChoice::EXPLICIT),
                     Step::Allocate,
                 ]);
@@ -544,8 +666,15 @@ impl Scanner {
                 (class::IDENTITY, 1, a) => {
                     n.state.identity.take_attribute(a, &data);
                 }
-                (class::CONNECTION, 2, 7) => n.state.input_size = decode::u16_of(&data),
+                (class::CONNECTION, i, 7) if i == n.kind.instance() => {
+                    n.state.input_size = decode::u16_of(&data)
+                }
                 (class::CONNECTION, 2, 8) => n.state.output_size = decode::u16_of(&data),
+                (class::CONNECTION, 3, 8) => {
+                    // The node's output is its bit of the strobe command: no output data.
+                    n.strobe_consumed = decode::u16_of(&data);
+                    n.state.output_size = Some(0);
+                }
                 _ => {}
             },
             (Step::Get(c, i, a), ReplyBody::Error { general, additional }) => {
@@ -564,14 +693,30 @@ impl Scanner {
                     n.steps = VecDeque::from([Step::Release]);
                 }
             }
+            (Step::SetInhibit(_), ReplyBody::Success(_)) => {}
+            (Step::SetInhibit(ms), ReplyBody::Error { general, additional }) => {
+                n.set(
+                    NodeStatus::ErrorResponse,
+                    Some(format!(
+                        "production inhibit time {ms} ms refused: {}",
+                        decode::error_text(general, additional)
+                    )),
+                );
+                n.steps = VecDeque::from([Step::Release]);
+            }
             (Step::SetEpr, ReplyBody::Success(_)) => {
                 n.in_io = true;
                 n.in_io_since = now;
                 n.last_exchange = None;
                 n.awaiting = false;
-                n.set(NodeStatus::Initializing, Some("in I/O, waiting for the first poll response".into()));
-                if n.state.output.len() != usize::from(n.consumed()) {
-                    n.state.output = vec![0; usize::from(n.consumed())];
+                n.output_sent = None;
+                n.output_ack = None;
+                n.next_output = now;
+                *n.rx = IoReassembler::new();
+                let what = n.input_name();
+                n.set(NodeStatus::Initializing, Some(format!("in I/O, waiting for the first {what}")));
+                if n.state.output.len() != n.output_len() {
+                    n.state.output = vec![0; n.output_len()];
                 }
             }
             (Step::SetEpr, ReplyBody::Error { general, additional }) => {
@@ -646,13 +791,34 @@ impl Scanner {
             return Ok(());
         }
         match Identifier::decode(rec.frame.id()) {
-            Identifier::Group1 { message: Group1MessageId::POLL_RESPONSE, source } => {
-                if let Some(n) = self.nodes.iter_mut().find(|n| n.entry.mac == source.as_raw() && n.in_io) {
-                    let verdict =
-                        Self::poll_response(n, rec.frame.data(), rec.at, &self.options, &mut self.samples);
-                    master.session.set_verdict(i, verdict);
-                    return Ok(());
-                }
+            Identifier::Group1 { message, source } => {
+                let Some(n) = self.nodes.iter_mut().find(|n| n.entry.mac == source.as_raw() && n.in_io)
+                else {
+                    return master.other(i).map_err(|e| self.fail(e));
+                };
+                let data = rec.frame.data();
+                let verdict = match (message, n.kind) {
+                    (Group1MessageId::POLL_RESPONSE, IoKind::Poll)
+                    | (Group1MessageId::BIT_STROBE_RESPONSE, IoKind::Strobe) => {
+                        Self::input(n, data, rec.at, &self.options, &mut self.samples).0
+                    }
+                    (Group1MessageId::COS_CYCLIC, IoKind::ChangeOfState | IoKind::Cyclic) => {
+                        let (v, complete) = Self::input(n, data, rec.at, &self.options, &mut self.samples);
+                        if complete && !n.entry.ack_suppression {
+                            let ack =
+                                CanFrame::new(Identifier::group2(source, Group2Message::CosCyclicAck), &[])
+                                    .map_err(|e| HarnessError::Master(MasterError::Invalid(e.to_string())))?;
+                            master.session.send(&ack).map_err(|e| self.fail(e))?;
+                        }
+                        v
+                    }
+                    (Group1MessageId::POLL_RESPONSE, IoKind::ChangeOfState | IoKind::Cyclic) => {
+                        Self::output_acknowledged(n, data, rec.at)
+                    }
+                    _ => return master.other(i).map_err(|e| self.fail(e)),
+                };
+                master.session.set_verdict(i, verdict);
+                return Ok(());
             }
             Identifier::Group2 { mac, message: Group2Message::ExplicitResponse } => {
                 if let Some(tx) =
@@ -698,41 +864,45 @@ impl Scanner {
         n.announced = Some((check.serial_number, at));
     }
 
-    fn poll_response(
+    /// Takes a frame of node `n`'s input (a poll or strobe response, a COS/cyclic production):
+    /// the verdict, and whether the message is complete (a COS/cyclic production is then
+    /// acknowledged).
+    fn input(
         n: &mut Node,
         data: &[u8],
         at: Instant,
         options: &ScannerOptions,
         samples: &mut VecDeque<Sample>,
-    ) -> Verdict {
+    ) -> (Verdict, bool) {
+        let what = n.input_name();
         let produced = n.produced();
-        let whole: Vec<u8> = if data.is_empty() {
-            Vec::new()
-        } else if produced <= 8 {
+        // A strobe response is never fragmented (notes §II.1.3).
+        let whole: Vec<u8> = if data.is_empty() || produced <= 8 || n.kind == IoKind::Strobe {
             data.to_vec()
         } else {
             match n.rx.receive(data) {
                 Ok(Some(w)) => w.to_vec(),
-                Ok(None) => return Verdict::Ok("poll response fragment".into()),
-                Err(e) => return Verdict::fail(format!("poll response fragment rejected: {e}")),
+                Ok(None) => return (Verdict::Ok(format!("{what} fragment")), false),
+                Err(e) => return (Verdict::fail(format!("{what} fragment rejected: {e}")), false),
             }
         };
         n.awaiting = false;
         n.last_exchange = Some(at);
         n.state.last_exchange_us = Some(at.total_micros());
         if whole.is_empty() {
-            n.set(NodeStatus::Idle, Some("zero-length poll response (idle)".into()));
-            return Verdict::Ok("poll response: idle (no data)".into());
+            n.set(NodeStatus::Idle, Some(format!("zero-length {what} (idle)")));
+            return (Verdict::Ok(format!("{what}: idle (no data)")), true);
         }
         if whole.len() != usize::from(produced) {
-            n.set(
-                NodeStatus::SizeMismatch,
-                Some(format!("poll response of {} bytes, expected {produced}", whole.len())),
-            );
-            return Verdict::fail(format!("poll response of {} bytes, expected {produced}", whole.len()));
+            let why = format!("{what} of {} bytes, expected {produced}", whole.len());
+            n.set(NodeStatus::SizeMismatch, Some(why.clone()));
+            return (Verdict::fail(why), true);
         }
         n.state.exchanges += 1;
-        n.set(NodeStatus::Ok, n.duplicate.clone());
+        let detail = if n.state.status == NodeStatus::Ok { n.state.detail.take() } else { None };
+        // A note on the scanner's data stays while the node is ok; a duplicate is always shown.
+        let detail = n.duplicate.clone().or(detail.filter(|d| d.starts_with(UNACKED)));
+        n.set(NodeStatus::Ok, detail);
         let values = options.layouts.get(&n.entry.mac).map(|l| sample_values(l, &whole)).unwrap_or_default();
         if samples.len() >= SAMPLES_KEPT {
             samples.pop_front();
@@ -745,7 +915,35 @@ impl Scanner {
             values,
         });
         n.state.input = whole;
-        Verdict::Ok("poll response".into())
+        (Verdict::Ok(what.into()), true)
+    }
+
+    /// The acknowledgement of the scanner's COS/cyclic data by node `n` (Group 1 message 15,
+    /// zero length, notes §II.2.5).
+    fn output_acknowledged(n: &mut Node, data: &[u8], at: Instant) -> Verdict {
+        let mut failures = Vec::new();
+        if !data.is_empty() {
+            failures.push(format!(
+                "DLC {}, the acknowledgement of the scanner's data is empty (Connection 2 produced size 0)",
+                data.len()
+            ));
+        }
+        let note = if n.entry.ack_suppression {
+            failures.push("an acknowledgement under acknowledge suppression (notes §II.2.1)".into());
+            "acknowledgement".to_string()
+        } else if let Some(sent) = n.output_ack.take() {
+            if n.state.detail.as_deref().is_some_and(|d| d.starts_with(UNACKED)) {
+                n.state.detail = n.duplicate.clone();
+            }
+            format!(
+                "acknowledgement of the scanner's data, {:.1} ms after it",
+                (at - sent).total_micros() as f64 / 1000.0
+            )
+        } else {
+            failures.push("an acknowledgement while no data of the scanner awaits one".into());
+            "acknowledgement".to_string()
+        };
+        Verdict::Ok(note).with_failures(failures)
     }
 
     /// One full scan cycle and the inter-scan delay. See the [module docs](self).
@@ -765,30 +963,69 @@ impl Scanner {
             }
             self.next_reconnect = Some(t0 + RECONNECT_INTERVAL);
         }
-        let mut polls: Vec<CanFrame> = Vec::new();
-        for n in &mut self.nodes {
-            if !n.in_io {
-                continue;
+        let mut commands: Vec<CanFrame> = Vec::new();
+        // One bit-strobe command for every strobed node (notes §II.1.2).
+        let mut strobe = [0u8; 8];
+        let mut strobed = false;
+        for n in self.nodes.iter_mut().filter(|n| n.in_io && n.kind == IoKind::Strobe) {
+            let m = n.entry.mac;
+            if n.output_now().first().is_some_and(|b| b & 1 == 1) {
+                strobe[usize::from(m / 8)] |= 1 << (m % 8);
             }
+            n.awaiting = true;
+            strobed = true;
+        }
+        if strobed {
+            commands.extend(CanFrame::new(master.strobe_id(), &strobe));
+        }
+        for n in self.nodes.iter_mut().filter(|n| n.in_io && n.kind == IoKind::Poll) {
             let Some(mac) = MacId::new(n.entry.mac) else { continue };
             let id = Identifier::group2(mac, Group2Message::PollCommand);
-            let consumed = n.consumed();
-            let zeros;
-            let output: &[u8] =
-                if n.state.status == NodeStatus::Ok && n.state.output.len() == usize::from(consumed) {
-                    &n.state.output
-                } else {
-                    zeros = vec![0; usize::from(consumed)];
-                    &zeros
-                };
-            if consumed > 8 {
-                polls.extend(io_fragments(output).filter_map(|p| CanFrame::new(id, &p).ok()));
+            let output = n.output_now();
+            if n.consumed() > 8 {
+                commands.extend(io_fragments(&output).filter_map(|p| CanFrame::new(id, &p).ok()));
             } else {
-                polls.extend(CanFrame::new(id, output));
+                commands.extend(CanFrame::new(id, &output));
             }
             n.awaiting = true;
         }
-        for f in &polls {
+        // The scanner's COS/cyclic data: on change (COS), every EPR (cyclic), again when not
+        // acknowledged in time.
+        let epr = Duration::from_millis(u64::from(self.timing.epr_ms));
+        let ack_timeout = if epr > MIN_POLL_TIMEOUT { epr } else { MIN_POLL_TIMEOUT };
+        for n in self.nodes.iter_mut().filter(|n| n.in_io && n.kind.is_cos_cyclic()) {
+            let Some(mac) = MacId::new(n.entry.mac) else { continue };
+            let output = n.output_now();
+            let late = n.output_ack.is_some_and(|sent| t0 - sent >= ack_timeout);
+            if late {
+                n.output_ack = None;
+                if n.state.status == NodeStatus::Ok && n.duplicate.is_none() {
+                    n.state.detail =
+                        Some(format!("{UNACKED} within {} ms: sent again", ack_timeout.total_millis()));
+                }
+            }
+            let due = match n.kind {
+                IoKind::Cyclic => t0 >= n.next_output,
+                _ => n.output_sent.as_ref() != Some(&output),
+            };
+            if !(due || late) {
+                continue;
+            }
+            let id = Identifier::group2(mac, Group2Message::PollCommand);
+            if n.consumed() > 8 {
+                commands.extend(io_fragments(&output).filter_map(|p| CanFrame::new(id, &p).ok()));
+            } else {
+                commands.extend(CanFrame::new(id, &output));
+            }
+            if t0 >= n.next_output {
+                n.next_output = t0 + epr;
+            }
+            n.output_sent = Some(output);
+            if !n.entry.ack_suppression {
+                n.output_ack = Some(t0);
+            }
+        }
+        for f in &commands {
             if let Err(e) = master.session.send(f) {
                 return Err(self.fail(e));
             }
@@ -804,13 +1041,15 @@ impl Scanner {
             if n.in_io && now - n.last_exchange.unwrap_or(n.in_io_since) > watchdog {
                 n.in_io = false;
                 n.awaiting = false;
+                n.output_ack = None;
                 n.allocated = AllocationChoice::empty();
                 if let Some(mac) = MacId::new(n.entry.mac) {
                     master.set_held(mac, n.allocated);
                 }
+                let what = n.input_name();
                 n.set(
                     NodeStatus::TimedOut,
-                    Some(format!("no poll response for {} ms (4 x EPR)", watchdog.total_millis())),
+                    Some(format!("no {what} for {} ms (4 x EPR)", watchdog.total_millis())),
                 );
             }
         }
@@ -880,7 +1119,11 @@ impl Scanner {
                         n.state.status.name(),
                         n.state.code
                     )),
-                    Some(n) if data.len() != usize::from(n.consumed()) => {
+                    Some(n) if n.kind == IoKind::Strobe && (data.len() != 1 || data[0] > 1) => Err(format!(
+                        "MAC {mac} is strobed: its output is its strobe bit, 1 byte 00 or 01 ({} bytes given)",
+                        data.len()
+                    )),
+                    Some(n) if data.len() != n.output_len() => {
                         Err(format!("{} bytes given; MAC {mac} consumes {} bytes", data.len(), n.consumed()))
                     }
                     Some(n) => {
@@ -990,7 +1233,9 @@ pub fn frame_kind(frame: &CanFrame) -> (&'static str, Option<u8>) {
         Identifier::Group1 { source, .. } => ("io", Some(source.as_raw())),
         Identifier::Group2 { mac, message } => match message {
             Group2Message::DuplicateMacCheck => ("duplicate_mac", Some(mac.as_raw())),
-            Group2Message::PollCommand => ("io", Some(mac.as_raw())),
+            Group2Message::PollCommand | Group2Message::BitStrobeCommand | Group2Message::CosCyclicAck => {
+                ("io", Some(mac.as_raw()))
+            }
             _ => ("explicit", Some(mac.as_raw())),
         },
         Identifier::Group3 { source, .. } => ("ucmm", Some(source.as_raw())),
@@ -1019,7 +1264,8 @@ pub fn sample_values(layout: &InputLayout, input: &[u8]) -> Vec<(String, f64)> {
 
 /// A scan list from a network scan of MAC `from..=to` ([`crate::scan`]): each device with a poll
 /// connection, keyed by what it answered (vendor, device type, product code, major revision),
-/// named by its product name. Devices without a poll connection are left out.
+/// named by its product name. Devices without a poll connection are left out; every node is
+/// polled (edit `connection` for strobe, COS or cyclic).
 pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<ScanList, HarnessError> {
     let report = crate::scan::scan(master, from, to, &mut crate::console::Progress::off())?;
     let nodes = report
@@ -1029,6 +1275,8 @@ pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<
             Some(ScanEntry {
                 mac: d.mac,
                 connection: "poll".into(),
+                ack_suppression: false,
+                inhibit_ms: None,
                 vendor_id: d.identity.vendor_id,
                 device_type: d.identity.device_type,
                 product_code: d.identity.product_code,

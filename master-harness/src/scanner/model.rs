@@ -15,6 +15,7 @@
 //! length / idle data) and 91 (bus-off) are the same page's later rows, which the stored copy
 //! used for the check cuts off: taken from the 1756-DNB / 1769-SDN tables, not re-read.
 
+use master_core::master::io::IoKind;
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::io::Write;
@@ -29,9 +30,18 @@ use std::time::SystemTime;
 pub struct ScanEntry {
     /// MAC ID, 0-63.
     pub mac: u8,
-    /// The I/O connection: `poll` (strobe, cos and cyclic once the slave offers them).
+    /// The I/O connection: `poll`, `strobe`, `cos` or `cyclic` (the names of
+    /// [`IoKind::name`]; [`ScanEntry::io_kind`]).
     #[serde(default = "poll")]
     pub connection: String,
+    /// COS and cyclic: allocate with acknowledge suppression (allocation bit 0x40, notes §II.2.5):
+    /// the node's productions and the scanner's data are not acknowledged.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub ack_suppression: bool,
+    /// COS: the production inhibit time to set, Connection 4 attribute 17, ms (`None`: the
+    /// device's own, 0 after allocation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inhibit_ms: Option<u16>,
     /// Electronic key: Identity attribute 1; `None`: not checked.
     #[serde(default)]
     pub vendor_id: Option<u16>,
@@ -44,9 +54,13 @@ pub struct ScanEntry {
     /// Electronic key: Identity attribute 4 major revision.
     #[serde(default)]
     pub major_revision: Option<u8>,
-    /// The poll response size in bytes (Connection 2 attribute 7).
+    /// The input size in bytes, what the node produces: poll response (Connection 2 attribute
+    /// 7), strobe response (Connection 3 attribute 7, at most 8), COS/cyclic production
+    /// (Connection 4 attribute 7).
     pub input_size: u16,
-    /// The poll command size in bytes (Connection 2 attribute 8).
+    /// The output size in bytes, what the node consumes: poll command or the scanner's COS/cyclic
+    /// data (Connection 2 attribute 8). 0 for a strobed node: its output is its bit of the strobe
+    /// command (the node's output image is then 1 byte, bit 0 that bit).
     pub output_size: u16,
     /// A name for the node in reports and the console (default: the product name read).
     #[serde(default)]
@@ -55,6 +69,14 @@ pub struct ScanEntry {
 
 fn poll() -> String {
     "poll".into()
+}
+
+impl ScanEntry {
+    /// The connection type: the [`IoKind`] named by `connection` (poll for a name that is none,
+    /// which [`super::parse_scan_list`] refuses).
+    pub fn io_kind(&self) -> IoKind {
+        IoKind::ALL.into_iter().find(|k| k.name() == self.connection).unwrap_or(IoKind::Poll)
+    }
 }
 
 /// A scan list file (TOML): `[[node]]` tables, and the scanner's own settings.
@@ -86,7 +108,8 @@ pub enum NodeStatus {
     KeyingMismatch,
     /// The I/O sizes do not match the scan list (code 77).
     SizeMismatch,
-    /// It stopped answering polls (code 72; 78 if it stays away).
+    /// It stopped answering polls or strobes, or its COS/cyclic productions stopped (code 72; 78
+    /// if it stays away).
     TimedOut,
     /// It answered an allocation or configuration request with an error (code 83).
     ErrorResponse,
@@ -182,6 +205,12 @@ impl Identity {
 pub struct NodeState {
     /// MAC ID.
     pub mac: u8,
+    /// The I/O connection of the scan list: `poll`, `strobe`, `cos` or `cyclic`.
+    #[serde(default = "poll")]
+    pub connection: String,
+    /// COS/cyclic with acknowledge suppression.
+    #[serde(default)]
+    pub ack_suppression: bool,
     /// Status.
     pub status: NodeStatus,
     /// [`NodeStatus::code`].
@@ -196,7 +225,7 @@ pub struct NodeState {
     pub output_size: Option<u16>,
     /// The last input image received.
     pub input: Vec<u8>,
-    /// The output image sent while the node is ok.
+    /// The output image sent while the node is ok (a strobed node: 1 byte, bit 0 its strobe bit).
     pub output: Vec<u8>,
     /// Cycles with data exchanged.
     pub exchanges: u64,
@@ -296,8 +325,9 @@ pub type Reply = Result<Vec<u8>, String>;
 /// answers on `reply`.
 #[derive(Debug)]
 pub enum ConsoleCommand {
-    /// Put `data` in the node's output image (sent with each poll while the node is ok; refused
-    /// with an error while it is not, or when the size is not the node's output size).
+    /// Put `data` in the node's output image (sent with each poll, as its strobe bit, or as the
+    /// scanner's COS/cyclic data while the node is ok; refused with an error while it is not, or
+    /// when the size is not the node's output size; a strobed node takes 1 byte, 0 or 1).
     SetOutput {
         /// MAC ID.
         mac: u8,

@@ -656,6 +656,8 @@ mod tests {
     fn node(vendor: u16, product_code: u16, name: &str, input_size: u16) -> NodeState {
         NodeState {
             mac: 5,
+            connection: "poll".into(),
+            ack_suppression: false,
             status: crate::scanner::model::NodeStatus::Ok,
             code: 0,
             detail: None,

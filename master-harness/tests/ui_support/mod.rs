@@ -156,6 +156,8 @@ impl Breaker {
     fn state(&self, input: Vec<u8>) -> NodeState {
         NodeState {
             mac: self.mac,
+            connection: "poll".into(),
+            ack_suppression: false,
             status: NodeStatus::Ok,
             code: 0,
             detail: None,

@@ -56,6 +56,9 @@ function buildGrid() {
   }
 }
 
+// The node's I/O connection as the scan list names it, "-ack" under acknowledge suppression.
+function connectionName(n) { return (n.connection || "poll") + (n.ack_suppression ? " -ack" : ""); }
+
 function fmtPct(x) { return (100 * (x || 0)).toFixed(1) + " %"; }
 
 function renderState(s) {
@@ -86,7 +89,7 @@ function renderState(s) {
     c.className = "cell in-list st-" + n.status;
     code.textContent = String(n.code);
     name.textContent = n.identity.product_name || "";
-    sizes.textContent = `in ${n.input_size ?? "?"} · out ${n.output_size ?? "?"}`;
+    sizes.textContent = `${connectionName(n)} · in ${n.input_size ?? "?"} · out ${n.output_size ?? "?"}`;
     status.textContent = n.status.replace(/_/g, " ");
     c.title = n.detail || n.status;
   }
@@ -116,6 +119,7 @@ async function refreshNode() {
     ["product name", id.product_name], ["vendor ID", hex4(id.vendor_id)], ["device type", hex4(id.device_type)],
     ["product code", id.product_code == null ? null : String(id.product_code)], ["revision", id.revision],
     ["serial number", id.serial_number == null ? null : "0x" + id.serial_number.toString(16).toUpperCase().padStart(8, "0")],
+    ["I/O connection", (n.connection || "poll") + (n.ack_suppression ? ", acknowledge suppression" : "")],
     ["I/O sizes", `in ${n.input_size ?? "?"} · out ${n.output_size ?? "?"}`], ["exchanges", String(n.exchanges)],
     ["status", `${n.status} (${n.code})${n.detail ? ": " + n.detail : ""}`],
   ]);
