@@ -49,12 +49,12 @@
 //! behind the first and third are small (the node's 16 frames, 8 events): a caller that hands
 //! several inputs over before draining loses frames and events.
 
+use crate::image::ImageError;
 use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig};
 use devicenet::led::Leds;
-use crate::image::ImageError;
 use devicenet::slave::{
-    ApplicationStatus, BaudRate, ConfigError as NodeConfigError, ConnectionKind, ConnectionState, DeviceConfig,
-    Event, Switches,
+    ApplicationStatus, BaudRate, ConfigError as NodeConfigError, ConnectionKind, ConnectionState,
+    DeviceConfig, Event, Switches,
 };
 use devicenet::{CanFrame, Duration, Instant, MacId, SlaveNode};
 use heapless::Deque;
