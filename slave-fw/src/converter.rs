@@ -566,3 +566,59 @@ fn earliest(a: Option<Instant>, b: Option<Instant>) -> Option<Instant> {
         (a, b) => a.or(b),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::BREAKER_REFERENCE;
+    use crate::serial::Conflict;
+
+    fn board() -> BoardFacts {
+        BoardFacts {
+            mac_id: MacId::new(9).unwrap(),
+            baud_rate: BaudRate::Kbps500,
+            switches: Switches { mac_id: Some(9), baud_rate: Some(2), ..Switches::default() },
+            bus_off_interrupt: true,
+        }
+    }
+
+    fn accept(_: &ConverterConfig) -> Result<(), InvalidConfig> {
+        Ok(())
+    }
+
+    fn refuse(_: &ConverterConfig) -> Result<(), InvalidConfig> {
+        let error = ConfigError::conflict("serial.parity", Conflict::SevenBitsNeedParity);
+        Err(InvalidConfig::Profile { modbus: false, error })
+    }
+
+    #[test]
+    fn boot_puts_in_the_board_values() {
+        let converter =
+            Converter::boot(&BREAKER_REFERENCE, ConfigOrigin::Stored, &board(), accept, Instant::ZERO)
+                .unwrap();
+        let device = converter.node().config();
+        assert_eq!(device.mac_id, board().mac_id);
+        assert_eq!(device.baud_rate, BaudRate::Kbps500);
+        assert_eq!(device.switches, board().switches);
+        assert!(device.bus_off_interrupt);
+        assert_eq!(converter.config_state(), ConfigState::Stored);
+    }
+
+    #[test]
+    fn boot_refuses_a_damaged_image() {
+        let mut image = BREAKER_REFERENCE;
+        image[10] ^= 1;
+        let refused = Converter::boot(&image, ConfigOrigin::Stored, &board(), accept, Instant::ZERO);
+        assert!(matches!(refused, Err(ImageError::CrcMismatch { .. })));
+    }
+
+    #[test]
+    fn boot_refuses_what_the_platform_cannot_run() {
+        let refused =
+            Converter::boot(&BREAKER_REFERENCE, ConfigOrigin::Stored, &board(), refuse, Instant::ZERO);
+        assert_eq!(
+            refused.err(),
+            Some(ImageError::Invalid(refuse(&ConverterConfig::breaker_reference()).unwrap_err()))
+        );
+    }
+}
