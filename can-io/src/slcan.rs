@@ -165,8 +165,10 @@ fn frame_fields(rest: &[u8], id_digits: usize, remote: bool) -> Result<(u32, [u8
 }
 
 /// Parses one line, without its `\r`.
-// Out of line: inlined into the firmware's USART1 interrupt, with the adapter, it costs 270 bytes.
-#[inline(never)]
+// Inlined into `Adapter::handle_line`, its one caller in the firmware, which answers every error
+// with one BEL: the error values are never built (132 bytes less than out of line, 24 less than
+// left to the inliner).
+#[inline(always)]
 pub fn parse(line: &[u8]) -> Result<Command, SlcanError> {
     let (&letter, rest) = line.split_first().ok_or(SlcanError::Empty)?;
     match letter {

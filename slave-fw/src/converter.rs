@@ -49,12 +49,14 @@
 //! behind the first and third are small (the node's 16 frames, 8 events): a caller that hands
 //! several inputs over before draining loses frames and events.
 
+use crate::image::ImageError;
 use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig};
 use devicenet::led::Leds;
 use devicenet::slave::{
-    ApplicationStatus, ConfigError as NodeConfigError, ConnectionKind, ConnectionState, DeviceConfig, Event,
+    ApplicationStatus, BaudRate, ConfigError as NodeConfigError, ConnectionKind, ConnectionState,
+    DeviceConfig, Event, Switches,
 };
-use devicenet::{CanFrame, Duration, Instant, SlaveNode};
+use devicenet::{CanFrame, Duration, Instant, MacId, SlaveNode};
 use heapless::Deque;
 
 pub mod check;
@@ -220,6 +222,31 @@ impl ConverterConfig {
     }
 }
 
+/// What the board decides at reset over a stored configuration ([`Converter::boot`]): the MAC
+/// ID and data rate its switches select, the switch attributes, and the bus-off setting kept in
+/// its settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoardFacts {
+    /// The MAC ID in use.
+    pub mac_id: MacId,
+    /// The data rate in use.
+    pub baud_rate: BaudRate,
+    /// The DeviceNet object's switch attributes.
+    pub switches: Switches,
+    /// The DeviceNet object's BOI attribute, as stored.
+    pub bus_off_interrupt: bool,
+}
+
+impl BoardFacts {
+    /// Puts the board's values into `device`.
+    fn apply(&self, device: &mut DeviceConfig) {
+        device.mac_id = self.mac_id;
+        device.baud_rate = self.baud_rate;
+        device.switches = self.switches;
+        device.bus_off_interrupt = self.bus_off_interrupt;
+    }
+}
+
 /// A serial-to-DeviceNet converter. See the [module docs](self).
 pub struct Converter {
     node: SlaveNode,
@@ -284,6 +311,56 @@ impl Converter {
         if let Err(e) = config.profile.validate() {
             return Err(ConverterConfigError::Profile(e));
         }
+        Ok(Converter::build(node, config, config_object, origin, now))
+    }
+
+    /// Boots from a stored `image` (or the factory default's): decodes it ([`image::decode`]
+    /// checks every value, as the description loader does), puts in the `board`'s own values,
+    /// applies the platform's `check` ([`Converter::set_platform_check`], kept for downloads)
+    /// and builds the converter, powered off. Every refusal is an [`ImageError`], as a download's
+    /// would be.
+    ///
+    /// [`image::decode`]: crate::image::decode
+    // One step from image to converter, out of line: the decoded configuration is not checked a
+    // second time nor moved into another builder, and no [`ConverterConfigError`] is mapped to
+    // an [`ImageError`] by the caller (firmware size).
+    #[inline(never)]
+    pub fn boot(
+        image: &[u8],
+        origin: ConfigOrigin,
+        board: &BoardFacts,
+        check: PlatformCheck,
+        now: Instant,
+    ) -> Result<Converter, ImageError> {
+        #[allow(clippy::question_mark)] // No `Try` moves of the large value (firmware size).
+        let mut config = match crate::image::decode(image) {
+            Ok(config) => config,
+            Err(e) => return Err(e),
+        };
+        board.apply(&mut config.device);
+        if let Err(e) = check(&config) {
+            return Err(ImageError::Invalid(e));
+        }
+        // `decode` checked the node's half too (`ConverterConfig::check`), and the board's values
+        // are typed: the node's own check passes, and its error is mapped only for completeness.
+        let node = match SlaveNode::new(config.device_config()) {
+            Ok(node) => node,
+            Err(e) => return Err(ImageError::Invalid(InvalidConfig::Io(e))),
+        };
+        let mut converter = Converter::build(node, config, ConfigObject::new(image, origin), origin, now);
+        converter.set_platform_check(check);
+        Ok(converter)
+    }
+
+    /// The converter for a configuration whose halves were checked: the node built from its
+    /// device half, the profile built from the other.
+    fn build(
+        node: SlaveNode,
+        config: ConverterConfig,
+        config_object: ConfigObject,
+        origin: ConfigOrigin,
+        now: Instant,
+    ) -> Converter {
         let mut converter = Converter {
             node,
             profile: Profile::build(config.profile, now),
@@ -295,7 +372,7 @@ impl Converter {
             last_status: [0; 2],
         };
         converter.refresh_image(now);
-        Ok(converter)
+        converter
     }
 
     /// Power-on: the node starts its duplicate MAC ID check.
@@ -487,5 +564,61 @@ fn earliest(a: Option<Instant>, b: Option<Instant>) -> Option<Instant> {
     match (a, b) {
         (Some(a), Some(b)) => Some(a.min(b)),
         (a, b) => a.or(b),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::image::BREAKER_REFERENCE;
+    use crate::serial::Conflict;
+
+    fn board() -> BoardFacts {
+        BoardFacts {
+            mac_id: MacId::new(9).unwrap(),
+            baud_rate: BaudRate::Kbps500,
+            switches: Switches { mac_id: Some(9), baud_rate: Some(2), ..Switches::default() },
+            bus_off_interrupt: true,
+        }
+    }
+
+    fn accept(_: &ConverterConfig) -> Result<(), InvalidConfig> {
+        Ok(())
+    }
+
+    fn refuse(_: &ConverterConfig) -> Result<(), InvalidConfig> {
+        let error = ConfigError::conflict("serial.parity", Conflict::SevenBitsNeedParity);
+        Err(InvalidConfig::Profile { modbus: false, error })
+    }
+
+    #[test]
+    fn boot_puts_in_the_board_values() {
+        let converter =
+            Converter::boot(&BREAKER_REFERENCE, ConfigOrigin::Stored, &board(), accept, Instant::ZERO)
+                .unwrap();
+        let device = converter.node().config();
+        assert_eq!(device.mac_id, board().mac_id);
+        assert_eq!(device.baud_rate, BaudRate::Kbps500);
+        assert_eq!(device.switches, board().switches);
+        assert!(device.bus_off_interrupt);
+        assert_eq!(converter.config_state(), ConfigState::Stored);
+    }
+
+    #[test]
+    fn boot_refuses_a_damaged_image() {
+        let mut image = BREAKER_REFERENCE;
+        image[10] ^= 1;
+        let refused = Converter::boot(&image, ConfigOrigin::Stored, &board(), accept, Instant::ZERO);
+        assert!(matches!(refused, Err(ImageError::CrcMismatch { .. })));
+    }
+
+    #[test]
+    fn boot_refuses_what_the_platform_cannot_run() {
+        let refused =
+            Converter::boot(&BREAKER_REFERENCE, ConfigOrigin::Stored, &board(), refuse, Instant::ZERO);
+        assert_eq!(
+            refused.err(),
+            Some(ImageError::Invalid(refuse(&ConverterConfig::breaker_reference()).unwrap_err()))
+        );
     }
 }

@@ -28,7 +28,7 @@ use board::Resolved;
 use devicenet::Instant;
 #[cfg(feature = "emulated")]
 use devicenet::MacId;
-use slave_fw::converter::{ConfigOrigin, Converter, ConverterConfig, ConverterConfigError, InvalidConfig};
+use slave_fw::converter::{BoardFacts, ConfigOrigin, Converter, ConverterConfig, InvalidConfig};
 use slave_fw::image::{self, ImageError};
 use slave_fw::serial::{ConfigError, Conflict, DataBits, Parity, ProfileConfig, SerialSettings, StopBits};
 
@@ -83,33 +83,21 @@ fn start(
     stored: &Settings,
     now: Instant,
 ) -> Result<Boot, ImageError> {
-    // Matches rather than `?` and `map_err`: the large values are not moved through the `Try`
-    // machinery (firmware size: 160 bytes).
+    let board = BoardFacts {
+        mac_id: resolved.mac_id,
+        baud_rate: resolved.baud_rate,
+        switches: resolved.switches,
+        bus_off_interrupt: stored.bus_off_interrupt,
+    };
+    // A match rather than `?`: the converter is not moved through the `Try` machinery (firmware
+    // size). A download this board cannot run is refused at once, not found out at the next reset.
     #[allow(clippy::question_mark)]
-    let mut config = match image::decode(image) {
-        Ok(config) => config,
+    let converter = match Converter::boot(image, origin, &board, usart_makes_the_line, now) {
+        Ok(converter) => converter,
         Err(e) => return Err(e),
     };
-    config.device.mac_id = resolved.mac_id;
-    config.device.baud_rate = resolved.baud_rate;
-    config.device.switches = resolved.switches;
-    config.device.bus_off_interrupt = stored.bus_off_interrupt;
-    if let Err(e) = usart_makes_the_line(&config) {
-        return Err(ImageError::Invalid(e));
-    }
-    let line = line_format(config.profile.serial());
-    let modbus = matches!(config.profile, ProfileConfig::Modbus(_));
-    match Converter::with_image(config, origin, image, now) {
-        Ok(mut converter) => {
-            // A download this board cannot run is refused at once, not found out at the next reset.
-            converter.set_platform_check(usart_makes_the_line);
-            Ok(Boot { converter, line, origin })
-        }
-        Err(e) => Err(ImageError::Invalid(match e {
-            ConverterConfigError::Profile(error) => InvalidConfig::Profile { modbus, error },
-            ConverterConfigError::Device(e) => InvalidConfig::Io(e),
-        })),
-    }
+    let line = line_format(converter.profile().serial_settings());
+    Ok(Boot { converter, line, origin })
 }
 
 /// The board's own rule for a configuration ([`slave_fw::converter::PlatformCheck`]): the
