@@ -17,7 +17,7 @@
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
 use crate::decode::{self, hex, PendingRequest};
 use crate::error::MasterError;
-use crate::session::{is_from_device, Session, Verdict};
+use crate::session::{is_from_device, Record, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use devicenet::fragment::io_fragments;
@@ -219,6 +219,27 @@ impl<'s, 'b> Master<'s, 'b> {
     /// When the master went on-line.
     pub fn online_at(&self) -> Option<Instant> {
         self.online_at
+    }
+
+    /// The next frame from another node that `wanted` accepts, before `deadline`, with its index;
+    /// every other frame meanwhile goes to [`Master::other`]. `None` when the deadline passed.
+    pub fn next_wanted(
+        &mut self,
+        deadline: Instant,
+        wanted: impl Fn(&CanFrame) -> bool,
+    ) -> Result<Option<(usize, Record)>, MasterError> {
+        while let Some(i) = self.session.next(deadline)? {
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if !wanted(&rec.frame) {
+                self.other(i)?;
+                continue;
+            }
+            return Ok(Some((i, rec)));
+        }
+        Ok(None)
     }
 
     /// Judges a frame nobody waits for: devices' duplicate MAC ID checks are noted (and checked),
@@ -796,7 +817,7 @@ impl<'s, 'b> Master<'s, 'b> {
         let response_id = Identifier::group1(Group1MessageId::POLL_RESPONSE, target);
         let mut series = io::IoSeries::new(produced);
         loop {
-            let Some(i) = self.session.next(deadline)? else {
+            let Some((i, rec)) = self.next_wanted(deadline, |f| f.id() == response_id)? else {
                 return Err(MasterError::Timeout {
                     what: format!("poll of MAC {target}"),
                     mac: target.as_raw(),
@@ -804,14 +825,6 @@ impl<'s, 'b> Master<'s, 'b> {
                     timeout: "poll response timeout",
                 });
             };
-            let rec = self.session.record(i).clone();
-            if rec.origin == Origin::Local {
-                continue;
-            }
-            if rec.frame.id() != response_id {
-                self.other(i)?;
-                continue;
-            }
             match series.take(rec.frame.data(), "poll response") {
                 io::SeriesStep::Complete(whole, v) => {
                     self.session.set_verdict(i, v);

@@ -651,33 +651,23 @@ impl Master<'_, '_> {
         let timeout = conn.response_timeout();
         let deadline = self.session.now() + timeout;
         let response_id = Identifier::group1(Group1MessageId::BIT_STROBE_RESPONSE, target);
-        loop {
-            let Some(i) = self.session.next(deadline)? else {
-                return Err(MasterError::Timeout {
-                    what: format!("bit-strobe of MAC {target}"),
-                    mac: target.as_raw(),
-                    after: timeout,
-                    timeout: "strobe response timeout",
-                });
-            };
-            let rec = self.session.record(i).clone();
-            if rec.origin == Origin::Local {
-                continue;
-            }
-            if rec.frame.id() != response_id {
-                self.other(i)?;
-                continue;
-            }
-            let data = rec.frame.data().to_vec();
-            let mut failures = Vec::new();
-            if data.len() != usize::from(conn.produced) {
-                failures.push(format!("DLC {}, expected the produced size {}", data.len(), conn.produced));
-            }
-            let note = format!("bit-strobe response, {} bytes (never fragmented, notes II.1.3)", data.len());
-            self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
-            conn.summary.strobe_responses += 1;
-            return Ok(data);
+        let Some((i, rec)) = self.next_wanted(deadline, |f| f.id() == response_id)? else {
+            return Err(MasterError::Timeout {
+                what: format!("bit-strobe of MAC {target}"),
+                mac: target.as_raw(),
+                after: timeout,
+                timeout: "strobe response timeout",
+            });
+        };
+        let data = rec.frame.data().to_vec();
+        let mut failures = Vec::new();
+        if data.len() != usize::from(conn.produced) {
+            failures.push(format!("DLC {}, expected the produced size {}", data.len(), conn.produced));
         }
+        let note = format!("bit-strobe response, {} bytes (never fragmented, notes II.1.3)", data.len());
+        self.session.set_verdict(i, Verdict::Ok(note).with_failures(failures));
+        conn.summary.strobe_responses += 1;
+        Ok(data)
     }
 
     /// Waits for the next COS/cyclic production of `conn` (reassembled, acknowledged unless

@@ -27,7 +27,6 @@ use crate::client::Port;
 use crate::decode::hex;
 use crate::error::MasterError;
 use crate::session::Verdict;
-use can_io::bus::Origin;
 use devicenet::id::Group4MessageId;
 use devicenet::messages::{AllocationChoice, DeviceKey, DuplicateMacCheck, FaultedSelector, OfflineMessage};
 use devicenet::objects::class;
@@ -284,15 +283,8 @@ impl Master<'_, '_> {
         offset: u8,
     ) -> Result<Vec<FaultedNode>, MasterError> {
         let mut found: Vec<FaultedNode> = Vec::new();
-        while let Some(i) = self.session.next(until)? {
-            let rec = self.session.record(i).clone();
-            if rec.origin == Origin::Local {
-                continue;
-            }
-            if group4_of(&rec.frame) != Some(Group4MessageId::COMM_FAULTED_RESPONSE) {
-                self.other(i)?;
-                continue;
-            }
+        let answer = |f: &CanFrame| group4_of(f) == Some(Group4MessageId::COMM_FAULTED_RESPONSE);
+        while let Some((i, rec)) = self.next_wanted(until, answer)? {
             let after = rec.at - sent;
             let ms = after.total_micros() as f64 / 1000.0;
             let verdict = match OfflineMessage::parse(
@@ -333,15 +325,8 @@ impl Master<'_, '_> {
         let msg = OfflineMessage::IdentifyRequest { selector, device: Some(node.key()) };
         self.session.send(&offline_frame(&msg)?)?;
         let deadline = self.session.now() + self.config.response_timeout;
-        while let Some(i) = self.session.next(deadline)? {
-            let rec = self.session.record(i).clone();
-            if rec.origin == Origin::Local {
-                continue;
-            }
-            if group4_of(&rec.frame) != Some(Group4MessageId::COMM_FAULTED_RESPONSE) {
-                self.other(i)?;
-                continue;
-            }
+        let answer = |f: &CanFrame| group4_of(f) == Some(Group4MessageId::COMM_FAULTED_RESPONSE);
+        while let Some((i, rec)) = self.next_wanted(deadline, answer)? {
             let v = match OfflineMessage::parse(Group4MessageId::COMM_FAULTED_RESPONSE, rec.frame.data()) {
                 Ok(OfflineMessage::IdentifyResponse { selector: s }) if s == selector => {
                     self.session.set_verdict(i, Verdict::Ok(format!("Identify answered by {}", node.text())));
@@ -367,15 +352,8 @@ impl Master<'_, '_> {
         self.session.send(&offline_frame(&msg)?)?;
         let deadline = self.session.now() + self.config.response_timeout;
         let mut answered = false;
-        while let Some(i) = self.session.next(deadline)? {
-            let rec = self.session.record(i).clone();
-            if rec.origin == Origin::Local {
-                continue;
-            }
-            if group4_of(&rec.frame) != Some(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE) {
-                self.other(i)?;
-                continue;
-            }
+        let answer = |f: &CanFrame| group4_of(f) == Some(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE);
+        while let Some((i, rec)) = self.next_wanted(deadline, answer)? {
             let v = match OfflineMessage::parse(Group4MessageId::OFFLINE_OWNERSHIP_RESPONSE, rec.frame.data()) {
                 Ok(OfflineMessage::OwnershipResponse { client, device }) if client == self.config.mac && device == me => {
                     answered = true;
@@ -415,7 +393,7 @@ impl Master<'_, '_> {
                 // After the second request: the 1 s window in which another node may object.
                 Some(&t) => t + DUP_MAC_INTERVAL,
             };
-            let Some(i) = self.session.next(deadline)? else {
+            let Some((i, rec)) = self.next_wanted(deadline, |f| f.id() == id)? else {
                 if requests.len() >= 2 {
                     return Ok(requests);
                 }
@@ -434,14 +412,6 @@ impl Master<'_, '_> {
                     timeout: "duplicate MAC ID interval",
                 });
             };
-            let rec = self.session.record(i).clone();
-            if rec.origin == Origin::Local {
-                continue;
-            }
-            if rec.frame.id() != id {
-                self.other(i)?;
-                continue;
-            }
             let check = match DuplicateMacCheck::parse(rec.frame.data()) {
                 Ok(c) => c,
                 Err(e) => {
