@@ -514,12 +514,7 @@ mod tests {
         }
         let mut session = Session::new(&mut bus);
         let r = Master::new(&mut session, MasterConfig::default()).recover(opts);
-        let failures = session
-            .records()
-            .iter()
-            .filter(|r| r.verdict.is_failure())
-            .map(|r| format!("#{} {}: {}", r.index, r.frame, r.verdict.label()))
-            .collect();
+        let failures = crate::master::scripted::failed_frames(&session);
         (r, failures)
     }
 

@@ -142,3 +142,13 @@ impl SimDevice for Scripted {
         [timed, next].into_iter().flatten().min()
     }
 }
+
+/// The frames of `session` that failed their checks, one line each (`#index frame: verdict`).
+pub(crate) fn failed_frames(session: &crate::session::Session<'_>) -> Vec<String> {
+    session
+        .records()
+        .iter()
+        .filter(|r| r.verdict.is_failure())
+        .map(|r| format!("#{} {}: {}", r.index, r.frame, r.verdict.label()))
+        .collect()
+}

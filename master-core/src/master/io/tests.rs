@@ -74,12 +74,7 @@ fn run(
     let mut session = Session::new(&mut bus);
     let opts = ConnectOptions { polls: cycles, ..ConnectOptions::default() };
     let r = Master::new(&mut session, MasterConfig::default()).connect_io(&opts, &io);
-    let failures = session
-        .records()
-        .iter()
-        .filter(|r| r.verdict.is_failure())
-        .map(|r| format!("#{} {}: {}", r.index, r.frame, r.verdict.label()))
-        .collect();
+    let failures = crate::master::scripted::failed_frames(&session);
     (r, failures)
 }
 
