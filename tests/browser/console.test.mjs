@@ -133,9 +133,18 @@ try {
     await page.waitForFunction(() => /\.log and .*\.pcap/.test(document.querySelector("#rec-files")?.textContent || ""));
     await page.waitForTimeout(1200);
     await page.screenshot({ path: join(artifacts, "console-trace.png"), fullPage: false });
+    // The recording status the page polls answers late (1.5 s): one asked before Stop must not
+    // overwrite Stop's outcome when its answer comes after it (a race the check run once showed).
+    const slowStatus = async (route) => { await new Promise((r) => setTimeout(r, 1500)); await route.continue(); };
+    await page.route("**/api/record", slowStatus);
+    await page.waitForTimeout(1100);
     await page.click("#rec-stop");
     await page.waitForFunction(() => /^recorded: .* [1-9]\d* frames/.test(document.querySelector("#rec-files")?.textContent || ""));
-    console.log(`     ${await page.locator("#rec-files").textContent()}`);
+    await page.waitForTimeout(2500);
+    const after = await page.locator("#rec-files").textContent();
+    if (!/^recorded: /.test(after)) throw new Error(`a late status overwrote Stop's outcome: ${after}`);
+    await page.unroute("**/api/record", slowStatus);
+    console.log(`     ${after}`);
     await page.fill("#tr-mac", "6");
     await page.waitForTimeout(800);
     const macs = await page.$$eval("#trace-table tbody tr td:nth-child(5)", (tds) => [...new Set(tds.map((t) => t.textContent))]);

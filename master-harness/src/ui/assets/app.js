@@ -279,6 +279,21 @@ async function refreshTrace() {
   while (body.rows.length > TRACE_ROWS) body.deleteRow(body.rows.length - 1);
 }
 
+// Start/Stop clicks so far: a recording status asked before the last one is stale. While a
+// Start or Stop is on its way the status is not asked at all: its outcome is what the page shows.
+let recordSeq = 0;
+let recordBusy = false;
+
+async function recordCommand(command, verb) {
+  recordSeq++;
+  recordBusy = true;
+  try {
+    showRecord(await post(`/api/record/${command}`, ""), verb);
+  } finally {
+    recordBusy = false;
+  }
+}
+
 function showRecord(r, verb) {
   const out = $("rec-files");
   out.className = "outcome " + (r.ok ? "ok" : "err");
@@ -303,8 +318,8 @@ function init() {
     const now = Date.now();
     $("export-csv").href = `/api/export.csv?mac=${currentMac}&from=${now - 3600e3}&to=${now + 1000}`;
   });
-  $("rec-start").addEventListener("click", async () => showRecord(await post("/api/record/start", ""), "recording to"));
-  $("rec-stop").addEventListener("click", async () => showRecord(await post("/api/record/stop", ""), "recorded"));
+  $("rec-start").addEventListener("click", () => recordCommand("start", "recording to"));
+  $("rec-stop").addEventListener("click", () => recordCommand("stop", "recorded"));
   api("/api/record").then((r) => r.recording && showRecord(r, "recording to"));
   route();
   refreshState();
@@ -312,6 +327,11 @@ function init() {
   setInterval(() => { if (!$("view-device").hidden) refreshNode(); }, 250);
   setInterval(refreshPlot, 1000);
   setInterval(refreshTrace, 300);
-  setInterval(async () => { if ($("rec-stop").disabled === false) showRecord(await api("/api/record"), "recording to"); }, 1000);
+  setInterval(async () => {
+    if ($("rec-stop").disabled || recordBusy) return;
+    const seq = recordSeq;
+    const r = await api("/api/record");
+    if (seq === recordSeq) showRecord(r, r.recording ? "recording to" : undefined);
+  }, 1000);
 }
 init();
