@@ -132,34 +132,8 @@ pub fn execute(
     })();
     progress.clear();
     drop(progress);
-    let interrupted = match &result {
-        Err(HarnessError::Master(MasterError::Interrupted { signal })) => Some(*signal),
-        _ => None,
-    };
-    master.session.take_stop();
-    let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
-    let mut cleanup: Vec<HarnessError> = Vec::new();
-    if !bus_failed && !cli.keep {
-        if let Some(s) = &mut scanner {
-            if let Err(e) = s.stop(&mut master) {
-                cleanup.push(e);
-            }
-        } else if let Err(e) = master.release_held() {
-            cleanup.push(HarnessError::Release(Box::new(e)));
-        }
-    }
-    if let Err(e) = master.session.flush() {
-        cleanup.push(e.into());
-    }
+    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
     let state = scanner.as_ref().map(|s| s.state().clone());
-    let all_ok = state.as_ref().is_some_and(|s| !s.nodes.is_empty() && s.nodes.iter().all(|n| n.code == 0));
-    let mut code = match &result {
-        Ok(()) => u8::from(!all_ok),
-        Err(e) => exit_code(e),
-    };
-    if code == 0 && !cleanup.is_empty() {
-        code = 1;
-    }
     if cli.json {
         let mut v = json!({
             "ok": code == 0,
@@ -263,4 +237,54 @@ pub fn table(s: &super::model::ScannerState) -> String {
         s.expected_packet_rate_ms
     ));
     t
+}
+
+/// How a scanner run ended (`scanner` and `ui` alike).
+pub(crate) struct Ending {
+    /// The signal that stopped it (SIGINT, SIGTERM), if one did.
+    pub interrupted: Option<i32>,
+    /// What went wrong while releasing the nodes and flushing the log.
+    pub cleanup: Vec<HarnessError>,
+    /// The exit status: 0 only when every node ended ok (in I/O with data exchanged) and the
+    /// clean-up went through; else the run's error's own status, or 1.
+    pub code: u8,
+}
+
+/// Ends a scanner run that gave `result`: unless the bus failed or `keep`, every node is released
+/// (through the scanner, or the connections held when it never started); the session's log is
+/// flushed; the exit status is worked out.
+pub(crate) fn finish(
+    master: &mut Master<'_, '_>,
+    mut scanner: Option<&mut Scanner>,
+    result: &Result<(), HarnessError>,
+    keep: bool,
+) -> Ending {
+    let interrupted = match result {
+        Err(HarnessError::Master(MasterError::Interrupted { signal })) => Some(*signal),
+        _ => None,
+    };
+    master.session.take_stop();
+    let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
+    let mut cleanup: Vec<HarnessError> = Vec::new();
+    if !bus_failed && !keep {
+        if let Some(s) = scanner.as_mut() {
+            if let Err(e) = s.stop(master) {
+                cleanup.push(e);
+            }
+        } else if let Err(e) = master.release_held() {
+            cleanup.push(HarnessError::Release(Box::new(e)));
+        }
+    }
+    if let Err(e) = master.session.flush() {
+        cleanup.push(e.into());
+    }
+    let all_ok = scanner
+        .as_ref()
+        .is_some_and(|s| !s.state().nodes.is_empty() && s.state().nodes.iter().all(|n| n.code == 0));
+    let code = match result {
+        Ok(()) if cleanup.is_empty() => u8::from(!all_ok),
+        Ok(()) => 1,
+        Err(e) => exit_code(e),
+    };
+    Ending { interrupted, cleanup, code }
 }

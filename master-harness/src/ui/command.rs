@@ -19,17 +19,17 @@
 //! that is down is not: the console and MQTT status say so and the scanner scans on.
 
 use super::serve;
-use crate::cli::{exit_code, open_bus, Cli};
+use crate::cli::{open_bus, Cli};
 use crate::console::{Console, Progress};
 use crate::error::HarnessError;
 use crate::history::History;
 use crate::monitor::InputLayout;
 use crate::mqtt::Publisher;
+use crate::scanner::command::{finish, Ending};
 use crate::scanner::model::{HistoryStore, Sample, Shared};
 use crate::scanner::{build_scan_list, read_scan_list, Scanner, ScannerOptions};
 use can_io::bus::BusSpec;
 use devicenet::{Duration, MacId};
-use master_core::error::MasterError;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
 use slave_fw::description::DeviceDescription;
@@ -202,32 +202,9 @@ pub fn execute(
     progress.clear();
     drop(progress);
     server.stop();
-    let interrupted = match &result {
-        Err(HarnessError::Master(MasterError::Interrupted { signal })) => Some(*signal),
-        _ => None,
-    };
-    master.session.take_stop();
-    let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
-    let mut cleanup: Vec<HarnessError> = Vec::new();
-    if !bus_failed && !cli.keep {
-        if let Some(s) = &mut scanner {
-            if let Err(e) = s.stop(&mut master) {
-                cleanup.push(e);
-            }
-        } else if let Err(e) = master.release_held() {
-            cleanup.push(HarnessError::Release(Box::new(e)));
-        }
-    }
-    drop(publisher);
     // As `scanner`: 0 only when every node ended ok (in I/O with data exchanged).
-    let all_ok = scanner
-        .as_ref()
-        .is_some_and(|s| !s.state().nodes.is_empty() && s.state().nodes.iter().all(|n| n.code == 0));
-    let code = match &result {
-        Ok(()) if cleanup.is_empty() => u8::from(!all_ok),
-        Ok(()) => 1,
-        Err(e) => exit_code(e),
-    };
+    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
+    drop(publisher);
     if let Some(s) = &scanner {
         write!(out, "{}", crate::scanner::command::table(s.state())).map_err(werr)?;
     }
