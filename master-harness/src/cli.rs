@@ -1021,6 +1021,13 @@ fn execute(
                 code: 0,
             };
             match run.ended {
+                // A run that took no sample showed nothing of the device: not a success.
+                None if run.samples.is_empty() => {
+                    partial = Some(outcome);
+                    Err(HarnessError::NothingCompared(format!(
+                        "monitor: no sample of MAC {target} was taken before --count or --duration ended the run"
+                    )))
+                }
                 None => Ok(outcome),
                 Some(e) => {
                     // Interrupted or failed: the samples taken are still reported.

@@ -306,3 +306,17 @@ fn an_interrupted_monitor_in_text_mode_says_how_many_samples() {
     assert!(err.contains("released MAC 5"), "{err}");
     assert!(err.contains("interrupted by SIGTERM"), "{err}");
 }
+
+/// A run that took no sample compared nothing of the device: exit 1, never a success, whatever
+/// the connection.
+#[test]
+fn a_monitor_run_without_a_sample_is_not_a_success() {
+    for io in ["poll", "strobe", "cos", "cyclic"] {
+        let (code, out, err) = dnet(&["--bus", "sim", "monitor", "--io", io, "--count", "0"]);
+        assert_eq!(code, 1, "{io}: {out}\n{err}");
+        assert!(out.contains("0 samples"), "{io}: {out}");
+        assert!(err.contains("nothing compared: monitor: no sample of MAC 5"), "{io}: {err}");
+    }
+    let (code, out, _) = dnet(&["--bus", "sim", "monitor", "--io", "cos", "--count", "1"]);
+    assert_eq!(code, 0, "{out}");
+}
