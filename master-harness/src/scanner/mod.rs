@@ -254,6 +254,12 @@ impl Node {
         self.state.detail = detail;
     }
 
+    /// The node cannot be brought into I/O: `status` with `detail`, then its connections released.
+    fn give_up(&mut self, status: NodeStatus, detail: String) {
+        self.set(status, Some(detail));
+        self.steps = VecDeque::from([Step::Release]);
+    }
+
     fn produced(&self) -> u16 {
         self.state.input_size.unwrap_or(self.entry.input_size)
     }
@@ -549,8 +555,7 @@ impl Scanner {
         key("product code", e.product_code, id.product_code, false);
         key("major revision", e.major_revision.map(u16::from), major.map(u16::from), false);
         if !keying.is_empty() {
-            n.set(NodeStatus::KeyingMismatch, Some(keying.join("; ")));
-            n.steps = VecDeque::from([Step::Release]);
+            n.give_up(NodeStatus::KeyingMismatch, keying.join("; "));
             return;
         }
         let mut sizes = Vec::new();
@@ -574,8 +579,7 @@ impl Scanner {
             ));
         }
         if !sizes.is_empty() {
-            n.set(NodeStatus::SizeMismatch, Some(sizes.join("; ")));
-            n.steps = VecDeque::from([Step::Release]);
+            n.give_up(NodeStatus::SizeMismatch, sizes.join("; "));
         }
     }
 
@@ -681,28 +685,26 @@ impl Scanner {
                 // Identity attributes are optional to read (the key then compares "nothing");
                 // the connection sizes are not.
                 if c == class::CONNECTION {
-                    n.set(
+                    n.give_up(
                         NodeStatus::ErrorResponse,
-                        Some(format!(
+                        format!(
                             "{} {}: {}",
                             decode::class_text(c),
                             decode::attribute_text(c, i, a),
                             decode::error_text(general, additional)
-                        )),
+                        ),
                     );
-                    n.steps = VecDeque::from([Step::Release]);
                 }
             }
             (Step::SetInhibit(_), ReplyBody::Success(_)) => {}
             (Step::SetInhibit(ms), ReplyBody::Error { general, additional }) => {
-                n.set(
+                n.give_up(
                     NodeStatus::ErrorResponse,
-                    Some(format!(
+                    format!(
                         "production inhibit time {ms} ms refused: {}",
                         decode::error_text(general, additional)
-                    )),
+                    ),
                 );
-                n.steps = VecDeque::from([Step::Release]);
             }
             (Step::SetEpr, ReplyBody::Success(_)) => {
                 n.in_io = true;
@@ -720,14 +722,10 @@ impl Scanner {
                 }
             }
             (Step::SetEpr, ReplyBody::Error { general, additional }) => {
-                n.set(
+                n.give_up(
                     NodeStatus::ErrorResponse,
-                    Some(format!(
-                        "expected packet rate refused: {}",
-                        decode::error_text(general, additional)
-                    )),
+                    format!("expected packet rate refused: {}", decode::error_text(general, additional)),
                 );
-                n.steps = VecDeque::from([Step::Release]);
             }
             (Step::Check, _) => {}
         }
