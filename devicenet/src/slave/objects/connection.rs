@@ -1,7 +1,8 @@
 //! The Connection object (class 0x05, devicenet-notes §5, §II.1, §II.2): the attributes of the
 //! explicit (1), poll (2), bit-strobe (3) and change-of-state/cyclic (4) connections, Set of the
 //! expected packet rate, watchdog action and production inhibit time, the Reset service, and what
-//! happens when a watchdog expires or a connection is deleted. The per-instance state machine is [`Connection`].
+//! happens when a watchdog expires or a connection is deleted. The per-instance state machine is
+//! [`Connection`].
 
 use crate::explicit::{Request, ServiceCode};
 use crate::id::{Group1MessageId, Group2Message, Identifier};
@@ -13,6 +14,7 @@ use crate::slave::{
     strobe_produced_size, Connection, ConnectionKind, ConnectionState, Event, Reply, ServiceError, SlaveNode,
     MAX_EXPLICIT_SIZE,
 };
+use crate::time::Instant;
 
 /// The attributes of a connection that follow from its kind and the allocation (notes §5.1,
 /// §II.1.1, §II.2.2, docs/io-connections.md).
@@ -34,7 +36,6 @@ struct IoAttributes {
     /// Whether attribute 16 (consumed path) is present.
     consumed_path: bool,
 }
-use crate::time::Instant;
 
 impl SlaveNode {
     /// Connection services: Get/Set_Attribute_Single and Reset on an existing instance.
