@@ -64,7 +64,7 @@ pub mod config_object;
 pub mod objects;
 pub mod parameters;
 
-pub use check::InvalidConfig;
+pub use check::{InvalidConfig, KeyCode};
 use config_object::ConfigObject;
 pub use config_object::{ConfigOrigin, ConfigState, PlatformCheck, CONFIG_CLASS};
 
@@ -587,7 +587,7 @@ mod tests {
     }
 
     fn refuse(_: &ConverterConfig) -> Result<(), InvalidConfig> {
-        let error = ConfigError::conflict("serial.parity", Conflict::SevenBitsNeedParity);
+        let error = ConfigError::conflict(crate::serial::Field::SerialParity, Conflict::SevenBitsNeedParity);
         Err(InvalidConfig::Profile { modbus: false, error })
     }
 

@@ -30,7 +30,7 @@ use devicenet::Instant;
 use devicenet::MacId;
 use slave_fw::converter::{BoardFacts, ConfigOrigin, Converter, ConverterConfig, InvalidConfig};
 use slave_fw::image::{self, ImageError};
-use slave_fw::serial::{ConfigError, Conflict, DataBits, Parity, ProfileConfig, SerialSettings, StopBits};
+use slave_fw::serial::{ConfigError, Conflict, DataBits, Field, Parity, ProfileConfig, SerialSettings, StopBits};
 
 /// The stored image is at most what a settings record holds.
 const _: () = assert!(image::MAX_IMAGE <= board::settings::IMAGE_CAPACITY);
@@ -110,9 +110,9 @@ pub fn usart_makes_the_line(config: &ConverterConfig) -> Result<(), InvalidConfi
     }
     let range = LineFormat::baud_range(INSTRUMENT_UART_HZ);
     let error = if line.word_length().is_err() {
-        ConfigError::conflict("serial.parity", Conflict::SevenBitsNeedParity)
+        ConfigError::conflict(Field::SerialParity, Conflict::SevenBitsNeedParity)
     } else {
-        ConfigError::out_of_range("serial.baud", line.baud, *range.start(), *range.end())
+        ConfigError::out_of_range(Field::SerialBaud, line.baud, *range.start(), *range.end())
     };
     Err(InvalidConfig::Profile { modbus: matches!(config.profile, ProfileConfig::Modbus(_)), error })
 }
@@ -300,7 +300,7 @@ mod tests {
         else {
             panic!("{:?}", boot.origin);
         };
-        assert_eq!(error.field, "serial.baud");
+        assert_eq!(error.field, Field::SerialBaud);
         assert_eq!(module_status(&mut boot), Indication::FlashingRed);
         // The same rule refuses the download (the converter's Commit_Download).
         assert_eq!(

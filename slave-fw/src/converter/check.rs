@@ -7,7 +7,7 @@
 //! names for enumerations (`baud_rate = "250k"`) and the optional `io.*_size` cross-checks.
 
 use super::ConverterConfig;
-use crate::serial::{ConfigError, ProfileConfig};
+use crate::serial::{ConfigError, Field, ProfileConfig};
 use core::fmt;
 use devicenet::slave::config::MAX_PRODUCT_NAME;
 use devicenet::slave::ConfigError as NodeConfigError;
@@ -47,6 +47,20 @@ impl InvalidConfig {
         Key(self)
     }
 
+    /// The key as numbers, for the device's refusal record.
+    pub const fn key_code(&self) -> KeyCode {
+        let (scope, number, index) = match self {
+            InvalidConfig::ProductNameLength(_) | InvalidConfig::ProductNameNotAscii => (0, 0, None),
+            InvalidConfig::MajorRevision(_) => (0, 1, None),
+            InvalidConfig::MacId(_) => (0, 2, None),
+            InvalidConfig::BaudRate(_) => (0, 3, None),
+            InvalidConfig::EprResolutionZero => (0, 4, None),
+            InvalidConfig::Io(_) => (0, 5, None),
+            InvalidConfig::Profile { modbus, error } => (if *modbus { 2 } else { 1 }, error.field.code(), error.index),
+        };
+        KeyCode::new(scope, number, index)
+    }
+
     /// What is wrong with the value.
     pub const fn message(&self) -> Message<'_> {
         Message(self)
@@ -64,20 +78,73 @@ pub struct Message<'a>(&'a InvalidConfig);
 impl Key<'_> {
     /// Writes the key (the `Display` text) without `core::fmt` ([`devicenet::text`]).
     pub fn write_text(&self, out: &mut impl TextSink) {
-        out.text(match self.0 {
-            InvalidConfig::ProductNameLength(_) | InvalidConfig::ProductNameNotAscii => {
-                "identity.product_name"
+        self.0.key_code().write_text(out);
+    }
+}
+
+/// The keys outside the serial profile, in the order of their numbers in a [`KeyCode`].
+const TOP_KEYS: [&str; 6] = [
+    "identity.product_name",
+    "identity.major_revision",
+    "network.mac_id",
+    "network.baud_rate",
+    "network.epr_resolution_ms",
+    "io",
+];
+
+/// A key of the configuration as numbers ([`InvalidConfig::key_code`]): what the device's refusal
+/// record carries instead of the key's text, which only hosts link ([`KeyCode::write_text`]).
+///
+/// ```text
+/// byte  value
+/// 0     scope: 0 outside the profile, 1 the framed profile (`profile.`), 2 Modbus (`profile.modbus.`)
+/// 1     outside the profile: 0 identity.product_name, 1 identity.major_revision, 2 network.mac_id,
+///       3 network.baud_rate, 4 network.epr_resolution_ms, 5 io; in a profile: its `Field::code`
+/// 2-3   list index (UINT), 0xFFFF for none
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KeyCode(pub [u8; 4]);
+
+impl KeyCode {
+    /// The key's code: `scope`, `number` and list `index` (see the type's table).
+    pub const fn new(scope: u8, number: u8, index: Option<u16>) -> KeyCode {
+        let [lo, hi] = match index {
+            Some(i) => i.to_le_bytes(),
+            None => [0xFF, 0xFF],
+        };
+        KeyCode([scope, number, lo, hi])
+    }
+
+    /// Writes the key the code stands for, as the description file spells it
+    /// (`profile.modbus.scan[1].offset`); a number no key has is written as such.
+    pub fn write_text(&self, out: &mut impl TextSink) {
+        let [scope, number, lo, hi] = self.0;
+        let index = match u16::from_le_bytes([lo, hi]) {
+            u16::MAX => None,
+            i => Some(i),
+        };
+        let prefix = match scope {
+            0 => match TOP_KEYS.get(usize::from(number)) {
+                Some(key) => return out.text(key),
+                None => "",
+            },
+            1 => "profile.",
+            2 => "profile.modbus.",
+            other => {
+                out.text("(key of unknown scope ");
+                out.decimal(other.into());
+                return out.text(")");
             }
-            InvalidConfig::MajorRevision(_) => "identity.major_revision",
-            InvalidConfig::MacId(_) => "network.mac_id",
-            InvalidConfig::BaudRate(_) => "network.baud_rate",
-            InvalidConfig::EprResolutionZero => "network.epr_resolution_ms",
-            InvalidConfig::Io(_) => "io",
-            InvalidConfig::Profile { modbus, error } => {
-                out.text(if *modbus { "profile.modbus." } else { "profile." });
-                return error.path().write_text(out);
+        };
+        out.text(prefix);
+        match Field::from_code(number).filter(|_| scope != 0) {
+            Some(field) => field.write_path(index, out),
+            None => {
+                out.text("(unknown key ");
+                out.decimal(number.into());
+                out.text(")");
             }
-        })
+        }
     }
 }
 

@@ -32,12 +32,11 @@
 //! Allocate, devicenet-notes §3.4) holds that connection; any other master's allocation is refused
 //! by the node, so no other master can reach this object.
 
-use super::{ConverterConfig, InvalidConfig};
+use super::{ConverterConfig, InvalidConfig, KeyCode};
 use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
 use crate::serial::Problem;
 use core::fmt;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
-use devicenet::slave::config::MAX_EXPLICIT_SIZE;
 use devicenet::slave::config::MAX_PRODUCT_NAME;
 use devicenet::slave::ConfigError as NodeConfigError;
 use devicenet::slave::{Reply, ServiceError};
@@ -56,11 +55,10 @@ pub const WRITE_CHUNK: u8 = 0x4D;
 pub const COMMIT_DOWNLOAD: u8 = 0x4E;
 /// The most image bytes in one Read_Chunk reply or Write_Chunk request.
 pub const MAX_CHUNK: usize = 56;
-/// The longest refusal record (attribute 5): a reply is header, service and the record, within one
-/// explicit message.
-pub const MAX_REFUSAL: usize = MAX_EXPLICIT_SIZE - 2;
 /// The record's fixed part: kind, problem and three numbers ([`RefusalRecord`]).
 pub const REFUSAL_HEADER: usize = 14;
+/// The longest refusal record (attribute 5): the fixed part and a key ([`KeyCode`]).
+pub const MAX_REFUSAL: usize = REFUSAL_HEADER + 4;
 
 /// Where the configuration in force came from; the application says so when it builds the
 /// converter ([`Converter::with_origin`](super::Converter::with_origin)).
@@ -116,9 +114,9 @@ pub const fn refusal_code(e: &ImageError) -> u8 {
     }
 }
 
-/// Attribute 5, why a download or the stored image was refused, as the device sends it: numbers
-/// and the key, not sentences (the device carries no message texts; a tool words the record with
-/// the same words as the description loader, [`RefusalRecord::write_text`]).
+/// Attribute 5, why a download or the stored image was refused, as the device sends it: numbers,
+/// not sentences nor key texts (the device carries neither; a tool words the record with the same
+/// words as the description loader, [`RefusalRecord::write_text`]).
 ///
 /// ```text
 /// offset  size  field
@@ -131,25 +129,23 @@ pub const fn refusal_code(e: &ImageError) -> u8 {
 ///               4 duplicates entry a, 5 not printable ASCII, 6 the node refuses the I/O
 ///               configuration (a = the node's error code 0..=6, b = the I/O size), 0 other
 /// 2       12    a, b, c: UDINT each, 0 where unused
-/// 14      n     kind 8: the key as the description file spells it (ASCII, cut to fit)
+/// 14      4     kind 8: the key, as numbers ([`KeyCode`]: scope, number, list index)
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct RefusalRecord<'a> {
+pub struct RefusalRecord {
     kind: u8,
     problem: u8,
     numbers: [u32; 3],
-    key: &'a [u8],
+    key: Option<KeyCode>,
 }
 
-impl RefusalRecord<'_> {
+impl RefusalRecord {
     /// Writes the record for `e` into `reply` (attribute 5): the fixed part, then the key of an
-    /// invalid configuration, cut to [`MAX_REFUSAL`] bytes in all.
+    /// invalid configuration.
     pub fn write(e: &ImageError, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
         reply.bytes(&RefusalRecord::header(e))?;
         let ImageError::Invalid(invalid) = e else { return Ok(()) };
-        let mut key = KeySink { reply, room: MAX_REFUSAL - REFUSAL_HEADER, result: Ok(()) };
-        invalid.key().write_text(&mut key);
-        key.result
+        reply.bytes(&invalid.key_code().0)
     }
 
     /// The record's fixed part for `e`; the key, if any, follows it ([`RefusalRecord::write`]).
@@ -196,11 +192,12 @@ impl RefusalRecord<'_> {
     }
 }
 
-impl<'a> RefusalRecord<'a> {
+impl RefusalRecord {
     /// Reads attribute 5; `None` when nothing was refused (no bytes) or the record is shorter than
-    /// its fixed part.
-    pub fn parse(bytes: &'a [u8]) -> Option<RefusalRecord<'a>> {
+    /// its fixed part. A key shorter than its four bytes is read as none.
+    pub fn parse(bytes: &[u8]) -> Option<RefusalRecord> {
         let (header, key) = bytes.split_first_chunk::<REFUSAL_HEADER>()?;
+        let key = key.first_chunk::<4>().map(|k| KeyCode(*k));
         let [kind, problem, a0, a1, a2, a3, b0, b1, b2, b3, c0, c1, c2, c3] = *header;
         let numbers = [
             u32::from_le_bytes([a0, a1, a2, a3]),
@@ -225,9 +222,9 @@ impl<'a> RefusalRecord<'a> {
             7 => ImageError::Malformed { offset: short(a) },
             9 => ImageError::BufferTooSmall,
             8 => {
-                match core::str::from_utf8(self.key) {
-                    Ok(key) if key.bytes().all(|b| b.is_ascii_graphic()) => out.text(key),
-                    _ => out.text("(a key that is not ASCII)"),
+                match self.key {
+                    Some(key) => key.write_text(out),
+                    None => out.text("(no key)"),
                 }
                 out.text(": ");
                 return match self.problem {
@@ -288,27 +285,9 @@ fn node_error(code: u32, size: u16) -> Option<NodeConfigError> {
     }
 }
 
-impl fmt::Display for RefusalRecord<'_> {
+impl fmt::Display for RefusalRecord {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         text::display(f, |out| self.write_text(out))
-    }
-}
-
-/// Writes the key of a refusal record into the reply, cut to `room` bytes. The key is ASCII (the
-/// configuration's field names), so a byte cut is a character cut.
-struct KeySink<'r, 'b> {
-    reply: &'r mut Reply<'b>,
-    room: usize,
-    result: Result<(), ServiceError>,
-}
-
-impl TextSink for KeySink<'_, '_> {
-    fn text(&mut self, s: &str) {
-        let n = s.len().min(self.room);
-        self.room -= n;
-        if let Err(e) = self.reply.bytes(s.as_bytes().get(..n).unwrap_or_default()) {
-            self.result = Err(e);
-        }
     }
 }
 
@@ -557,7 +536,6 @@ impl ConfigObject {
             3 => reply.u8(self.state() as u8),
             // The image's own trailer: the CRC-32 of its header and body.
             4 => reply.u32(self.in_force.last_chunk::<4>().map_or(0, |c| u32::from_le_bytes(*c))),
-            // The key goes straight into the reply, not through a string first (firmware size).
             5 => match &self.refusal {
                 Some(e) => RefusalRecord::write(e, reply),
                 None => Ok(()),
@@ -571,6 +549,7 @@ impl ConfigObject {
 mod tests {
     use super::*;
     use crate::converter::ConverterConfig;
+    use devicenet::slave::config::MAX_EXPLICIT_SIZE;
     use rstest::rstest;
     use std::string::{String, ToString};
     use std::vec::Vec;
@@ -728,7 +707,7 @@ mod tests {
                 crate::serial::Parity::Odd => Err(InvalidConfig::Profile {
                     modbus: false,
                     error: crate::serial::ConfigError::conflict(
-                        "serial.parity",
+                        crate::serial::Field::SerialParity,
                         crate::serial::Conflict::SevenBitsNeedParity,
                     ),
                 }),
@@ -751,7 +730,7 @@ mod tests {
     fn a_refused_stored_image_is_a_fault_with_its_reason() {
         let e = ImageError::Invalid(crate::converter::InvalidConfig::Profile {
             modbus: true,
-            error: crate::serial::ConfigError::out_of_range("scan.offset", 30, 0, 4).at(15),
+            error: crate::serial::ConfigError::out_of_range(crate::serial::Field::ScanOffset, 30, 0, 4).at(15),
         });
         let mut o =
             ConfigObject::new(&image_of(&ConverterConfig::breaker_reference()), ConfigOrigin::Fault(e));
@@ -781,16 +760,16 @@ mod tests {
     #[case::buffer(ImageError::BufferTooSmall)]
     #[case::overlap(ImageError::Invalid(InvalidConfig::Profile {
         modbus: true,
-        error: crate::serial::ConfigError { field: "scan.offset", index: Some(2), problem: Problem::Overlap { other: 0 } },
+        error: crate::serial::ConfigError { field: crate::serial::Field::ScanOffset, index: Some(2), problem: Problem::Overlap { other: 0 } },
     }))]
     #[case::duplicate(ImageError::Invalid(InvalidConfig::Profile {
         modbus: false,
-        error: crate::serial::ConfigError { field: "commands.code", index: Some(3), problem: Problem::Duplicate { other: 1 } },
+        error: crate::serial::ConfigError { field: crate::serial::Field::CommandsCode, index: Some(3), problem: Problem::Duplicate { other: 1 } },
     }))]
     #[case::not_ascii(ImageError::Invalid(InvalidConfig::ProductNameNotAscii))]
     #[case::conflict(ImageError::Invalid(InvalidConfig::Profile {
         modbus: true,
-        error: crate::serial::ConfigError::conflict("serial.data_bits", crate::serial::Conflict::ModbusDataBits),
+        error: crate::serial::ConfigError::conflict(crate::serial::Field::SerialDataBits, crate::serial::Conflict::ModbusDataBits),
     }))]
     #[case::io_size(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::IoSizeTooLarge { size: 300 })))]
     #[case::io_instances(ImageError::Invalid(InvalidConfig::Io(NodeConfigError::SameAssemblyInstance)))]
@@ -810,7 +789,7 @@ mod tests {
         "network.epr_resolution_ms: 0 is outside the allowed range 1..=65535"
     )]
     #[case::conflict(
-        InvalidConfig::Profile { modbus: false, error: crate::serial::ConfigError::conflict("framing.end", crate::serial::Conflict::NoEndDelimiter) },
+        InvalidConfig::Profile { modbus: false, error: crate::serial::ConfigError::conflict(crate::serial::Field::FramingEnd, crate::serial::Conflict::NoEndDelimiter) },
         "profile.framing.end: a delimited frame needs an end byte"
     )]
     fn identity_network_and_conflicts_are_worded_from_their_numbers(
@@ -833,9 +812,17 @@ mod tests {
     #[case::empty(&[], None)]
     #[case::short(&[8, 1, 0], None)]
     #[case::unknown_kind(&[42, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], Some("refusal of unknown kind 42"))]
-    #[case::key_not_ascii(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0xFF], Some("(a key that is not ASCII): a delimited frame needs an end byte"))]
-    #[case::unknown_conflict(&[8, 2, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, b'x'], Some("x: conflicts with another setting"))]
-    #[case::unknown_node_error(&[8, 6, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, b'i', b'o'], Some("io: the node refuses the I/O configuration"))]
+    #[case::no_key(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], Some("(no key): a delimited frame needs an end byte"))]
+    #[case::short_key(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 5], Some("(no key): a delimited frame needs an end byte"))]
+    #[case::indexed_key(
+        &[8, 1, 5, 0, 0, 0, 1, 0, 0, 0, 4, 0, 0, 0, 2, 26, 3, 0],
+        Some("profile.modbus.scan[3].offset: 5 is outside the allowed range 1..=4")
+    )]
+    #[case::unknown_conflict(&[8, 2, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0xFF, 0xFF], Some("profile.serial.baud: conflicts with another setting"))]
+    #[case::unknown_node_error(&[8, 6, 99, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 5, 0xFF, 0xFF], Some("io: the node refuses the I/O configuration"))]
+    #[case::unknown_top_key(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 9, 0xFF, 0xFF], Some("(unknown key 9): a delimited frame needs an end byte"))]
+    #[case::unknown_profile_key(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 200, 0xFF, 0xFF], Some("profile.modbus.(unknown key 200): a delimited frame needs an end byte"))]
+    #[case::unknown_scope(&[8, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 7, 0, 0xFF, 0xFF], Some("(key of unknown scope 7): a delimited frame needs an end byte"))]
     fn any_record_bytes_are_worded_or_refused(#[case] bytes: &[u8], #[case] text: Option<&str>) {
         assert_eq!(RefusalRecord::parse(bytes).map(|r| r.to_string()).as_deref(), text);
     }

@@ -620,7 +620,7 @@ mod profile_tests {
     #[case::sequencer(breaker_with(|c| c.sequencer.retries = 200), "sequencer.retries", None)]
     fn validate_rejects(#[case] c: FramedProfileConfig, #[case] field: &str, #[case] index: Option<u16>) {
         let e = c.validate().unwrap_err();
-        assert_eq!((e.field, e.index), (field, index), "{e}");
+        assert_eq!((e.field.key(), e.index), (field, index), "{e}");
         assert!(FramedProfile::new(c, ms(0)).is_err());
     }
 

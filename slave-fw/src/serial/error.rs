@@ -1,9 +1,9 @@
 //! Configuration errors: which field, and what is wrong with it.
 //!
 //! Every configuration type has a `validate()` returning the first [`ConfigError`] it finds. The
-//! error names the field as it is spelled in the configuration (`"scan.count"`), the list index when
-//! the field is inside a list, and the allowed range, so the device description loader can point
-//! at the offending line.
+//! error names the field ([`Field`]: a number, spelled `scan.count` where it is written out), the
+//! list index when the field is inside a list, and the allowed range, so the device description
+//! loader can point at the offending line.
 
 use core::fmt;
 use devicenet::text::{self, TextSink};
@@ -11,12 +11,157 @@ use devicenet::text::{self, TextSink};
 /// A configuration value that a profile cannot run with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ConfigError {
-    /// The field, dotted from the configuration's root (`"framing.max_len"`, `"scan.count"`).
-    pub field: &'static str,
+    /// The field (its key dotted from the configuration's root: `framing.max_len`, `scan.count`).
+    pub field: Field,
     /// The index in the list the field belongs to (`scan[3]`), if any.
     pub index: Option<u16>,
     /// What is wrong with it.
     pub problem: Problem,
+}
+
+/// A field of a serial profile's configuration. A number, not the key: the key texts
+/// ([`Field::key`]) are only linked where an error is written out (hosts), not into the firmware,
+/// which reports the number ([`Field::code`]) in its refusal record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    /// `serial.baud`
+    SerialBaud,
+    /// `serial.data_bits`
+    SerialDataBits,
+    /// `serial.parity`
+    SerialParity,
+    /// `framing.max_len`
+    FramingMaxLen,
+    /// `framing.length`
+    FramingLength,
+    /// `framing.end`
+    FramingEnd,
+    /// `health.stale_timeout_ms`
+    HealthStaleTimeout,
+    /// `status_len`
+    StatusLen,
+    /// `ack.data_len`
+    AckDataLen,
+    /// `ack.flag`
+    AckFlag,
+    /// `commands.code`
+    CommandsCode,
+    /// `commands.args`
+    CommandsArgs,
+    /// `commands.wire`
+    CommandsWire,
+    /// `sequencer.on_idle`
+    SequencerOnIdle,
+    /// `sequencer.on_fault`
+    SequencerOnFault,
+    /// `sequencer.response_timeout_ms`
+    SequencerResponseTimeout,
+    /// `sequencer.retries`
+    SequencerRetries,
+    /// `response_timeout_ms`
+    ResponseTimeout,
+    /// `retries`
+    Retries,
+    /// `poll_period_ms`
+    PollPeriod,
+    /// `input_len`
+    InputLen,
+    /// `output_len`
+    OutputLen,
+    /// `scan`
+    Scan,
+    /// `scan.unit`
+    ScanUnit,
+    /// `scan.count`
+    ScanCount,
+    /// `scan.address`
+    ScanAddress,
+    /// `scan.offset`
+    ScanOffset,
+    /// `on_idle`
+    OnIdle,
+    /// `on_fault`
+    OnFault,
+}
+
+impl Field {
+    /// Every field, in code order.
+    pub const ALL: [Field; 29] = [
+        Field::SerialBaud,
+        Field::SerialDataBits,
+        Field::SerialParity,
+        Field::FramingMaxLen,
+        Field::FramingLength,
+        Field::FramingEnd,
+        Field::HealthStaleTimeout,
+        Field::StatusLen,
+        Field::AckDataLen,
+        Field::AckFlag,
+        Field::CommandsCode,
+        Field::CommandsArgs,
+        Field::CommandsWire,
+        Field::SequencerOnIdle,
+        Field::SequencerOnFault,
+        Field::SequencerResponseTimeout,
+        Field::SequencerRetries,
+        Field::ResponseTimeout,
+        Field::Retries,
+        Field::PollPeriod,
+        Field::InputLen,
+        Field::OutputLen,
+        Field::Scan,
+        Field::ScanUnit,
+        Field::ScanCount,
+        Field::ScanAddress,
+        Field::ScanOffset,
+        Field::OnIdle,
+        Field::OnFault,
+    ];
+
+    /// The key, dotted from the profile's root, as the description file spells it (`scan.count`).
+    pub const fn key(self) -> &'static str {
+        match self {
+            Field::SerialBaud => "serial.baud",
+            Field::SerialDataBits => "serial.data_bits",
+            Field::SerialParity => "serial.parity",
+            Field::FramingMaxLen => "framing.max_len",
+            Field::FramingLength => "framing.length",
+            Field::FramingEnd => "framing.end",
+            Field::HealthStaleTimeout => "health.stale_timeout_ms",
+            Field::StatusLen => "status_len",
+            Field::AckDataLen => "ack.data_len",
+            Field::AckFlag => "ack.flag",
+            Field::CommandsCode => "commands.code",
+            Field::CommandsArgs => "commands.args",
+            Field::CommandsWire => "commands.wire",
+            Field::SequencerOnIdle => "sequencer.on_idle",
+            Field::SequencerOnFault => "sequencer.on_fault",
+            Field::SequencerResponseTimeout => "sequencer.response_timeout_ms",
+            Field::SequencerRetries => "sequencer.retries",
+            Field::ResponseTimeout => "response_timeout_ms",
+            Field::Retries => "retries",
+            Field::PollPeriod => "poll_period_ms",
+            Field::InputLen => "input_len",
+            Field::OutputLen => "output_len",
+            Field::Scan => "scan",
+            Field::ScanUnit => "scan.unit",
+            Field::ScanCount => "scan.count",
+            Field::ScanAddress => "scan.address",
+            Field::ScanOffset => "scan.offset",
+            Field::OnIdle => "on_idle",
+            Field::OnFault => "on_fault",
+        }
+    }
+
+    /// Its number in [`Field::ALL`] (the refusal record's).
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The field numbered `code`.
+    pub fn from_code(code: u8) -> Option<Field> {
+        Field::ALL.get(usize::from(code)).copied()
+    }
 }
 
 /// What is wrong with a configuration field.
@@ -101,12 +246,12 @@ impl Conflict {
 
 impl ConfigError {
     /// An [`Problem::OutOfRange`] error for `field`.
-    pub const fn out_of_range(field: &'static str, value: u32, min: u32, max: u32) -> Self {
+    pub const fn out_of_range(field: Field, value: u32, min: u32, max: u32) -> Self {
         ConfigError { field, index: None, problem: Problem::OutOfRange { value, min, max } }
     }
 
     /// A [`Problem::Conflict`] error for `field`.
-    pub const fn conflict(field: &'static str, why: Conflict) -> Self {
+    pub const fn conflict(field: Field, why: Conflict) -> Self {
         ConfigError { field, index: None, problem: Problem::Conflict(why) }
     }
 
@@ -117,7 +262,7 @@ impl ConfigError {
     }
 
     /// `Ok` when `min <= value <= max`, otherwise an [`Problem::OutOfRange`] error.
-    pub fn check_range(field: &'static str, value: u32, min: u32, max: u32) -> Result<(), ConfigError> {
+    pub fn check_range(field: Field, value: u32, min: u32, max: u32) -> Result<(), ConfigError> {
         if (min..=max).contains(&value) {
             Ok(())
         } else {
@@ -145,13 +290,20 @@ pub struct FieldPath<'a>(&'a ConfigError);
 impl FieldPath<'_> {
     /// Writes the path (the `Display` text) without `core::fmt` ([`devicenet::text`]).
     pub fn write_text(&self, out: &mut impl TextSink) {
-        // `scan[3].count`: the list name is the part before the first dot.
-        let Some(i) = self.0.index else {
-            return out.text(self.0.field);
+        self.0.field.write_path(self.0.index, out);
+    }
+}
+
+impl Field {
+    /// Writes the key with the list index `index`, if any, as the configuration spells it:
+    /// `scan[3].count` (the list name is the part before the first dot).
+    pub fn write_path(self, index: Option<u16>, out: &mut impl TextSink) {
+        let field = self.key();
+        let Some(i) = index else {
+            return out.text(field);
         };
         // A plain loop, not `split_once`: that would pull in `memchr` (flash). The rest keeps its
         // dot.
-        let field = self.0.field;
         let dot = field.bytes().position(|b| b == b'.').unwrap_or(field.len());
         let (list, rest) = field.split_at_checked(dot).unwrap_or((field, ""));
         out.text(list);
@@ -223,16 +375,16 @@ mod tests {
 
     #[rstest]
     #[case::plain(
-        ConfigError::out_of_range("serial.baud", 5, 300, 4_000_000),
+        ConfigError::out_of_range(Field::SerialBaud, 5, 300, 4_000_000),
         "serial.baud: 5 is outside the allowed range 300..=4000000"
     )]
-    #[case::indexed(ConfigError::out_of_range("scan.count", 200, 1, 125).at(3), "scan[3].count: 200 is outside the allowed range 1..=125")]
-    #[case::overlap(ConfigError { field: "scan.offset", index: Some(2), problem: Problem::Overlap { other: 0 } }, "scan[2].offset: overlaps the image bytes of entry 0")]
+    #[case::indexed(ConfigError::out_of_range(Field::ScanCount, 200, 1, 125).at(3), "scan[3].count: 200 is outside the allowed range 1..=125")]
+    #[case::overlap(ConfigError { field: Field::ScanOffset, index: Some(2), problem: Problem::Overlap { other: 0 } }, "scan[2].offset: overlaps the image bytes of entry 0")]
     #[case::conflict(
-        ConfigError::conflict("framing.end", Conflict::NoEndDelimiter),
+        ConfigError::conflict(Field::FramingEnd, Conflict::NoEndDelimiter),
         "framing.end: a delimited frame needs an end byte"
     )]
-    #[case::list_itself(ConfigError::out_of_range("commands", 9, 0, 8).at(8), "commands[8]: 9 is outside the allowed range 0..=8")]
+    #[case::list_itself(ConfigError::out_of_range(Field::Scan, 9, 0, 8).at(8), "scan[8]: 9 is outside the allowed range 0..=8")]
     fn display(#[case] e: ConfigError, #[case] text: &str) {
         assert_eq!(e.to_string(), text);
     }
@@ -247,9 +399,19 @@ mod tests {
     }
 
     #[test]
+    fn field_codes_are_their_place_in_all_and_keys_are_unique() {
+        for (i, f) in Field::ALL.into_iter().enumerate() {
+            assert_eq!(usize::from(f.code()), i);
+            assert_eq!(Field::from_code(i as u8), Some(f));
+            assert_eq!(Field::ALL.iter().filter(|g| g.key() == f.key()).count(), 1, "{}", f.key());
+        }
+        assert_eq!(Field::from_code(Field::ALL.len() as u8), None);
+    }
+
+    #[test]
     fn check_range_bounds_are_inclusive() {
-        assert!(ConfigError::check_range("x", 1, 1, 3).is_ok());
-        assert!(ConfigError::check_range("x", 3, 1, 3).is_ok());
-        assert!(ConfigError::check_range("x", 4, 1, 3).is_err());
+        assert!(ConfigError::check_range(Field::Retries, 1, 1, 3).is_ok());
+        assert!(ConfigError::check_range(Field::Retries, 3, 1, 3).is_ok());
+        assert!(ConfigError::check_range(Field::Retries, 4, 1, 3).is_err());
     }
 }

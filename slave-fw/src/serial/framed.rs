@@ -26,7 +26,7 @@
 //! against `N` when the parser is built), every rejected byte is counted, and nothing allocates.
 
 use super::checksum::Checksum;
-use super::error::{as_u32, ConfigError, Conflict};
+use super::error::{as_u32, ConfigError, Conflict, Field};
 use core::fmt;
 use heapless::Vec;
 
@@ -64,16 +64,16 @@ pub struct FramedConfig {
 impl FramedConfig {
     /// Checks `max_len`, a fixed length against it, and that delimited frames have an end byte.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        ConfigError::check_range("framing.max_len", u32::from(self.max_len), 1, 255)?;
+        ConfigError::check_range(Field::FramingMaxLen, u32::from(self.max_len), 1, 255)?;
         match self.length {
             LengthField::Byte => Ok(()),
             LengthField::Fixed(n) => {
-                ConfigError::check_range("framing.length", u32::from(n), 0, u32::from(self.max_len))
+                ConfigError::check_range(Field::FramingLength, u32::from(n), 0, u32::from(self.max_len))
             }
             LengthField::Delimited => match self.end {
-                None => Err(ConfigError::conflict("framing.end", Conflict::NoEndDelimiter)),
+                None => Err(ConfigError::conflict(Field::FramingEnd, Conflict::NoEndDelimiter)),
                 Some(end) if end == self.start => {
-                    Err(ConfigError::conflict("framing.end", Conflict::EndEqualsStart))
+                    Err(ConfigError::conflict(Field::FramingEnd, Conflict::EndEqualsStart))
                 }
                 Some(_) => Ok(()),
             },
@@ -339,8 +339,8 @@ impl<const N: usize> FrameParser<N> {
             let overhead = config.header_len() + config.trailer_len();
             let max = N.saturating_sub(overhead).min(255);
             let (field, value) = match config.length {
-                LengthField::Fixed(n) => ("framing.length", n),
-                LengthField::Byte | LengthField::Delimited => ("framing.max_len", config.max_len),
+                LengthField::Fixed(n) => (Field::FramingLength, n),
+                LengthField::Byte | LengthField::Delimited => (Field::FramingMaxLen, config.max_len),
             };
             return Err(ConfigError::out_of_range(field, u32::from(value), 0, as_u32(max)));
         }
@@ -723,7 +723,7 @@ mod tests {
     #[case::delimited_without_end(FramedConfig { end: None, ..ASCII_LINE }, "framing.end")]
     #[case::delimited_end_is_start(FramedConfig { end: Some(b':'), ..ASCII_LINE }, "framing.end")]
     fn validate_rejects(#[case] config: FramedConfig, #[case] field: &str) {
-        assert_eq!(config.validate().unwrap_err().field, field);
+        assert_eq!(config.validate().unwrap_err().field.key(), field);
     }
 
     #[test]

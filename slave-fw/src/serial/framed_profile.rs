@@ -13,7 +13,7 @@
 //! Everything that differs between instruments lives in [`FramedProfileConfig`]; the breaker is
 //! [`breaker::profile_config`](super::breaker::profile_config).
 
-use super::error::{as_u32, ConfigError, Conflict, Problem};
+use super::error::{as_u32, ConfigError, Conflict, Field, Problem};
 use super::framed::{FrameError, FrameParser, FramedConfig, LengthField};
 use super::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use super::line::SerialSettings;
@@ -98,15 +98,15 @@ impl FramedProfileConfig {
             LengthField::Byte | LengthField::Delimited => (1, u32::from(self.framing.max_len)),
         };
         ConfigError::check_range(
-            "status_len",
+            Field::StatusLen,
             u32::from(self.status_len),
             min,
             max.min(as_u32(IMAGE_CAPACITY)),
         )?;
 
         if let Some(ack) = self.ack {
-            ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
-            ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
+            ConfigError::check_range(Field::AckDataLen, u32::from(ack.data_len), min, max)?;
+            ConfigError::check_range(Field::AckFlag, u32::from(ack.flag), 1, 255)?;
         }
 
         let max_data = self.max_tx_data();
@@ -121,8 +121,8 @@ impl FramedProfileConfig {
         }
 
         let actions = [
-            ("sequencer.on_idle", &self.sequencer.on_idle),
-            ("sequencer.on_fault", &self.sequencer.on_fault),
+            (Field::SequencerOnIdle, &self.sequencer.on_idle),
+            (Field::SequencerOnFault, &self.sequencer.on_fault),
         ];
         for (field, action) in actions {
             check_idle_frame(field, action, 0, max_data)?;
@@ -146,14 +146,14 @@ fn check_command(
     max_args: u32,
     end: Option<u8>,
 ) -> Result<(), ConfigError> {
-    ConfigError::check_range("commands.code", u32::from(c.code), 1, 255)?;
-    ConfigError::check_range("commands.args", u32::from(c.args), 0, max_args)?;
+    ConfigError::check_range(Field::CommandsCode, u32::from(c.code), 1, 255)?;
+    ConfigError::check_range(Field::CommandsArgs, u32::from(c.args), 0, max_args)?;
     if let Some(other) = before.iter().position(|o| o.code == c.code) {
         let problem = Problem::Duplicate { other: other as u16 };
-        return Err(ConfigError { field: "commands.code", index: None, problem });
+        return Err(ConfigError { field: Field::CommandsCode, index: None, problem });
     }
     if end == Some(c.wire) {
-        return Err(ConfigError::conflict("commands.wire", Conflict::EqualsEndDelimiter));
+        return Err(ConfigError::conflict(Field::CommandsWire, Conflict::EqualsEndDelimiter));
     }
     Ok(())
 }
@@ -481,37 +481,37 @@ mod tests {
             LengthField::Byte | LengthField::Delimited => (1, u32::from(c.framing.max_len)),
         };
         let max = max.min(as_u32(IMAGE_CAPACITY));
-        ConfigError::check_range("status_len", u32::from(c.status_len), min, max)?;
+        ConfigError::check_range(Field::StatusLen, u32::from(c.status_len), min, max)?;
         if let Some(ack) = c.ack {
             let (min, max) = match c.framing.length {
                 LengthField::Fixed(n) => (u32::from(n), u32::from(n)),
                 LengthField::Byte | LengthField::Delimited => (1, u32::from(c.framing.max_len)),
             };
-            ConfigError::check_range("ack.data_len", u32::from(ack.data_len), min, max)?;
-            ConfigError::check_range("ack.flag", u32::from(ack.flag), 1, 255)?;
+            ConfigError::check_range(Field::AckDataLen, u32::from(ack.data_len), min, max)?;
+            ConfigError::check_range(Field::AckFlag, u32::from(ack.flag), 1, 255)?;
         }
         let max_data = c.max_tx_data();
         for (i, f) in c.commands.iter().enumerate() {
-            ConfigError::check_range("commands.code", u32::from(f.code), 1, 255).map_err(|e| e.at(i))?;
+            ConfigError::check_range(Field::CommandsCode, u32::from(f.code), 1, 255).map_err(|e| e.at(i))?;
             let max_args = max_data.saturating_sub(1).min(6);
-            ConfigError::check_range("commands.args", u32::from(f.args), 0, as_u32(max_args))
+            ConfigError::check_range(Field::CommandsArgs, u32::from(f.args), 0, as_u32(max_args))
                 .map_err(|e| e.at(i))?;
             if let Some(other) = c.commands.iter().take(i).position(|o| o.code == f.code) {
                 return Err(ConfigError {
-                    field: "commands.code",
+                    field: Field::CommandsCode,
                     index: None,
                     problem: Problem::Duplicate { other: other as u16 },
                 }
                 .at(i));
             }
             if c.framing.length == LengthField::Delimited && c.framing.end == Some(f.wire) {
-                return Err(ConfigError::conflict("commands.wire", Conflict::EqualsEndDelimiter).at(i));
+                return Err(ConfigError::conflict(Field::CommandsWire, Conflict::EqualsEndDelimiter).at(i));
             }
         }
-        check_idle_frame("sequencer.on_idle", &c.sequencer.on_idle, 0, max_data)?;
-        check_idle_frame("sequencer.on_fault", &c.sequencer.on_fault, 0, max_data)?;
+        check_idle_frame(Field::SequencerOnIdle, &c.sequencer.on_idle, 0, max_data)?;
+        check_idle_frame(Field::SequencerOnFault, &c.sequencer.on_fault, 0, max_data)?;
         for (field, action) in
-            [("sequencer.on_idle", &c.sequencer.on_idle), ("sequencer.on_fault", &c.sequencer.on_fault)]
+            [(Field::SequencerOnIdle, &c.sequencer.on_idle), (Field::SequencerOnFault, &c.sequencer.on_fault)]
         {
             if let (LengthField::Delimited, Some(end), Some(frame)) =
                 (c.framing.length, c.framing.end, action.frame())

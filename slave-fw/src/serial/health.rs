@@ -22,7 +22,7 @@
 //! The freshness counter (the second byte) increments, wrapping, on every good frame from the
 //! instrument, so the scanner can tell new data from held data.
 
-use super::error::ConfigError;
+use super::error::{ConfigError, Field};
 use super::sequencer::CommandOutcome;
 use devicenet::{Duration, Instant};
 
@@ -62,7 +62,7 @@ impl HealthConfig {
     /// Checks the stale timeout range.
     pub fn validate(&self) -> Result<(), ConfigError> {
         ConfigError::check_range(
-            "health.stale_timeout_ms",
+            Field::HealthStaleTimeout,
             self.stale_timeout_ms,
             1,
             Self::MAX_STALE_TIMEOUT_MS,

@@ -5,7 +5,7 @@
 //! takes to send, and the Modbus RTU inter-frame silence (3.5 character times, fixed at 1750 µs
 //! above 19200 baud; Modbus over Serial Line V1.02 §2.5.1.1).
 
-use super::error::ConfigError;
+use super::error::{ConfigError, Field};
 use devicenet::Duration;
 
 /// Data bits per character.
@@ -85,7 +85,7 @@ impl SerialSettings {
 
     /// Checks the baud rate range.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        ConfigError::check_range("serial.baud", self.baud, Self::MIN_BAUD, Self::MAX_BAUD)
+        ConfigError::check_range(Field::SerialBaud, self.baud, Self::MIN_BAUD, Self::MAX_BAUD)
     }
 
     /// Bits on the wire per character: start bit, data bits, parity bit, stop bits
@@ -244,7 +244,7 @@ mod tests {
         let r = SerialSettings::new_8n1(baud).validate();
         assert_eq!(r.is_ok(), ok, "{r:?}");
         if let Err(e) = r {
-            assert_eq!(e.field, "serial.baud");
+            assert_eq!(e.field, Field::SerialBaud);
         }
     }
 

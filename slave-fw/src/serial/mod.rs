@@ -32,7 +32,7 @@ pub mod profile;
 pub mod sequencer;
 
 pub use checksum::Checksum;
-pub use error::{ConfigError, Conflict, FieldPath, Problem};
+pub use error::{ConfigError, Conflict, Field, FieldPath, Problem};
 pub use framed::{Frame, FrameCounters, FrameError, FrameParser, FramedConfig, LengthField};
 pub use framed_profile::{AckFormat, CommandFormat, FramedProfile, FramedProfileConfig};
 pub use health::{Counter, HealthConfig, LinkHealth, LinkState, LinkStatus, StalePolicy, Stats, StatusByte};

@@ -23,7 +23,7 @@
 //! [`SequencerConfig::execute_first`] is `false`, in which case they only set the baseline.
 
 use super::counter::bump;
-use super::error::{as_u32, ConfigError};
+use super::error::{as_u32, ConfigError, Field};
 use super::IDLE_FRAME_CAPACITY;
 use devicenet::{Duration, Instant};
 use heapless::Vec;
@@ -210,13 +210,13 @@ impl SequencerConfig {
     /// Checks the timeout and retry ranges.
     pub fn validate(&self) -> Result<(), ConfigError> {
         ConfigError::check_range(
-            "sequencer.response_timeout_ms",
+            Field::SequencerResponseTimeout,
             self.response_timeout_ms,
             1,
             Self::MAX_RESPONSE_TIMEOUT_MS,
         )?;
         ConfigError::check_range(
-            "sequencer.retries",
+            Field::SequencerRetries,
             u32::from(self.retries),
             0,
             u32::from(Self::MAX_RETRIES),
@@ -231,7 +231,7 @@ impl SequencerConfig {
 
 /// Checks that a configured idle/fault frame is at most `max` bytes.
 pub(crate) fn check_idle_frame(
-    field: &'static str,
+    field: Field,
     action: &IdleAction,
     min: usize,
     max: usize,
@@ -818,7 +818,7 @@ mod tests {
     #[case::timeout_long(SequencerConfig { response_timeout_ms: 60_001, ..SequencerConfig::default() }, "sequencer.response_timeout_ms")]
     #[case::retries(SequencerConfig { retries: 11, ..SequencerConfig::default() }, "sequencer.retries")]
     fn validate_rejects(#[case] c: SequencerConfig, #[case] field: &str) {
-        assert_eq!(c.validate().unwrap_err().field, field);
+        assert_eq!(c.validate().unwrap_err().field.key(), field);
     }
 
     #[test]

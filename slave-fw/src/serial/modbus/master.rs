@@ -33,7 +33,7 @@
 //! and ignored on writes; a single coil is bit 0).
 
 use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
-use crate::serial::error::{as_u32, ConfigError, Conflict, Problem};
+use crate::serial::error::{as_u32, ConfigError, Conflict, Field, Problem};
 use crate::serial::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use crate::serial::line::{DataBits, SerialSettings};
 use crate::serial::sequencer::{check_idle_frame, CommandOutcome, IdleAction, OutputMode};
@@ -151,19 +151,19 @@ impl ModbusConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.serial.validate()?;
         if self.serial.data_bits != DataBits::Eight {
-            return Err(ConfigError::conflict("serial.data_bits", Conflict::ModbusDataBits));
+            return Err(ConfigError::conflict(Field::SerialDataBits, Conflict::ModbusDataBits));
         }
         ConfigError::check_range(
-            "response_timeout_ms",
+            Field::ResponseTimeout,
             self.response_timeout_ms,
             1,
             Self::MAX_RESPONSE_TIMEOUT_MS,
         )?;
-        ConfigError::check_range("retries", u32::from(self.retries), 0, u32::from(Self::MAX_RETRIES))?;
-        ConfigError::check_range("poll_period_ms", self.poll_period_ms, 0, Self::MAX_POLL_PERIOD_MS)?;
-        ConfigError::check_range("input_len", u32::from(self.input_len), 0, as_u32(IMAGE_CAPACITY))?;
-        ConfigError::check_range("output_len", u32::from(self.output_len), 0, as_u32(IMAGE_CAPACITY))?;
-        ConfigError::check_range("scan", as_u32(self.scan.len()), 1, as_u32(SCAN_LIST_CAPACITY))?;
+        ConfigError::check_range(Field::Retries, u32::from(self.retries), 0, u32::from(Self::MAX_RETRIES))?;
+        ConfigError::check_range(Field::PollPeriod, self.poll_period_ms, 0, Self::MAX_POLL_PERIOD_MS)?;
+        ConfigError::check_range(Field::InputLen, u32::from(self.input_len), 0, as_u32(IMAGE_CAPACITY))?;
+        ConfigError::check_range(Field::OutputLen, u32::from(self.output_len), 0, as_u32(IMAGE_CAPACITY))?;
+        ConfigError::check_range(Field::Scan, as_u32(self.scan.len()), 1, as_u32(SCAN_LIST_CAPACITY))?;
         for (i, e) in self.scan.iter().enumerate() {
             self.validate_entry(e).map_err(|err| err.at(i))?;
             if e.function.is_write() {
@@ -176,7 +176,7 @@ impl ModbusConfig {
                 });
             if let Some(other) = overlap {
                 return Err(ConfigError {
-                    field: "scan.offset",
+                    field: Field::ScanOffset,
                     index: None,
                     problem: Problem::Overlap { other: u16::try_from(other).unwrap_or(u16::MAX) },
                 }
@@ -184,8 +184,8 @@ impl ModbusConfig {
             }
         }
         self.health.validate()?;
-        check_idle_frame("on_idle", &self.on_idle, 2, IDLE_FRAME_CAPACITY)?;
-        check_idle_frame("on_fault", &self.on_fault, 2, IDLE_FRAME_CAPACITY)
+        check_idle_frame(Field::OnIdle, &self.on_idle, 2, IDLE_FRAME_CAPACITY)?;
+        check_idle_frame(Field::OnFault, &self.on_fault, 2, IDLE_FRAME_CAPACITY)
     }
 
     /// The frame to send on entry into `mode` (without its CRC), if any.
@@ -198,15 +198,15 @@ impl ModbusConfig {
     }
 
     fn validate_entry(&self, e: &ScanEntry) -> Result<(), ConfigError> {
-        ConfigError::check_range("scan.unit", u32::from(e.unit), 1, 247)?;
+        ConfigError::check_range(Field::ScanUnit, u32::from(e.unit), 1, 247)?;
         let image = usize::from(if e.function.is_write() { self.output_len } else { self.input_len });
         // The most items that fit the image at offset 0, and the protocol maximum.
         let fit = if e.function.is_bits() { image.saturating_mul(8) } else { image / 2 };
         let max = u32::from(e.function.max_count()).min(as_u32(fit));
-        ConfigError::check_range("scan.count", u32::from(e.count), 1, max)?;
-        ConfigError::check_range("scan.address", u32::from(e.address), 0, 0x1_0000 - u32::from(e.count))?;
+        ConfigError::check_range(Field::ScanCount, u32::from(e.count), 1, max)?;
+        ConfigError::check_range(Field::ScanAddress, u32::from(e.address), 0, 0x1_0000 - u32::from(e.count))?;
         ConfigError::check_range(
-            "scan.offset",
+            Field::ScanOffset,
             u32::from(e.offset),
             0,
             as_u32(image.saturating_sub(e.image_len())),
@@ -1281,7 +1281,7 @@ mod tests {
     #[case::health(config_with(|c| c.health.stale_timeout_ms = 0), "health.stale_timeout_ms", None)]
     fn validate_rejects(#[case] c: ModbusConfig, #[case] field: &str, #[case] index: Option<u16>) {
         let e = c.validate().unwrap_err();
-        assert_eq!((e.field, e.index), (field, index), "{e}");
+        assert_eq!((e.field.key(), e.index), (field, index), "{e}");
         assert!(ModbusMaster::new(c, ms(0)).is_err());
     }
 
