@@ -30,7 +30,9 @@ use devicenet::Instant;
 use devicenet::MacId;
 use slave_fw::converter::{BoardFacts, ConfigOrigin, Converter, ConverterConfig, InvalidConfig};
 use slave_fw::image::{self, ImageError};
-use slave_fw::serial::{ConfigError, Conflict, DataBits, Field, Parity, ProfileConfig, SerialSettings, StopBits};
+use slave_fw::serial::{
+    ConfigError, Conflict, DataBits, Field, Parity, ProfileConfig, SerialSettings, StopBits,
+};
 
 /// The stored image is at most what a settings record holds.
 const _: () = assert!(image::MAX_IMAGE <= board::settings::IMAGE_CAPACITY);

@@ -56,7 +56,9 @@ impl InvalidConfig {
             InvalidConfig::BaudRate(_) => (0, 3, None),
             InvalidConfig::EprResolutionZero => (0, 4, None),
             InvalidConfig::Io(_) => (0, 5, None),
-            InvalidConfig::Profile { modbus, error } => (if *modbus { 2 } else { 1 }, error.field.code(), error.index),
+            InvalidConfig::Profile { modbus, error } => {
+                (if *modbus { 2 } else { 1 }, error.field.code(), error.index)
+            }
         };
         KeyCode::new(scope, number, index)
     }

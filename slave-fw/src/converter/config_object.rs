@@ -730,7 +730,8 @@ mod tests {
     fn a_refused_stored_image_is_a_fault_with_its_reason() {
         let e = ImageError::Invalid(crate::converter::InvalidConfig::Profile {
             modbus: true,
-            error: crate::serial::ConfigError::out_of_range(crate::serial::Field::ScanOffset, 30, 0, 4).at(15),
+            error: crate::serial::ConfigError::out_of_range(crate::serial::Field::ScanOffset, 30, 0, 4)
+                .at(15),
         });
         let mut o =
             ConfigObject::new(&image_of(&ConverterConfig::breaker_reference()), ConfigOrigin::Fault(e));
