@@ -13,17 +13,14 @@ use crate::leds;
 use crate::memory;
 use crate::settings::{FlashError, Sector, SettingsFlash};
 use crate::switches::SwitchReading;
-use crate::uart::{self, LineFormat, WordLength};
+use crate::uart::{bits, LineFormat, UsartRegisters};
 use devicenet::led::Leds;
 use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Output, Pin, PushPull};
 use stm32f4xx_hal::pac;
 use stm32f4xx_hal::pac::USART2;
 use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::rcc::Rcc;
-use stm32f4xx_hal::serial::{self, Serial};
-
-pub use stm32f4xx_hal::serial::Event as SerialEvent;
+use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
 
 /// The HAL's CAN1 wrapper (pins PB9 TX / PB8 RX configured), for `bxcan::Can::builder`.
 #[cfg(not(feature = "emulated"))]
@@ -38,7 +35,7 @@ pub struct Board {
     /// USART1, the service port, 115200 8N1: the SLCAN link of the emulated build. The real
     /// board's firmware does not use it and leaves it off (below).
     #[cfg(feature = "emulated")]
-    pub service: Serial<pac::USART1>,
+    pub service: Usart<pac::USART1>,
     /// USART2 to the instrument, not yet opened: its line format comes from the serial profile,
     /// which the application chooses after reading the switches and the stored settings.
     pub instrument: InstrumentUart,
@@ -72,14 +69,16 @@ impl Board {
         let leds = LedPins::take(dp.GPIOC, &mut rcc);
         let port = read_switches();
         #[cfg(feature = "emulated")]
-        let service = dp
-            .USART1
-            .serial(
-                (gpioa.pa9, gpioa.pa10),
-                serial::Config::default().baudrate(clocks::SERVICE_BAUD.bps()),
-                &mut rcc,
-            )
-            .map_err(|_| InitError::SerialConfig)?;
+        let service = {
+            // Computed at compile time: 115200 8N1 from HSI.
+            const SERVICE: UsartRegisters =
+                match LineFormat::new_8n1(clocks::SERVICE_BAUD).registers(clocks::HSI_HZ) {
+                    Ok(registers) => registers,
+                    Err(_) => panic!("the service port's USART cannot make 115200 bit/s"),
+                };
+            let _ = (gpioa.pa9.into_alternate::<7>(), gpioa.pa10.into_alternate::<7>());
+            Usart::open(dp.USART1, SERVICE, &mut rcc)
+        };
         // The real board's firmware does not use the service port: USART1 stays unclocked and
         // both pins are inputs with their pull-ups, so that TX rests at the idle (mark) level a
         // connected adapter expects, as an idle USART would hold it, and RX does not float.
@@ -182,60 +181,132 @@ impl InstrumentUart {
     /// Opens the instrument port with `format` (the serial profile's line settings); the RS-485
     /// driver starts released (receiving).
     pub fn open(self, format: &LineFormat, rcc: &mut Rcc) -> Result<Rs485, InitError> {
-        let word = format.word_length().map_err(|_| InitError::SerialFormat)?;
-        let config = serial::Config::default().baudrate(format.baud.bps());
-        let config = match word {
-            WordLength::Eight => config.wordlength_8(),
-            WordLength::Nine => config.wordlength_9(),
+        let registers = match format.registers(clocks::INSTRUMENT_UART_HZ) {
+            Ok(registers) => registers,
+            Err(_) if format.word_length().is_err() => return Err(InitError::SerialFormat),
+            Err(_) => return Err(InitError::SerialConfig),
         };
-        let config = match format.parity {
-            uart::Parity::None => config.parity_none(),
-            uart::Parity::Even => config.parity_even(),
-            uart::Parity::Odd => config.parity_odd(),
-        };
-        let config = config.stopbits(match format.stop_bits {
-            uart::StopBits::One => serial::config::StopBits::STOP1,
-            uart::StopBits::Two => serial::config::StopBits::STOP2,
-        });
-        let serial =
-            self.usart.serial((self.tx, self.rx), config, rcc).map_err(|_| InitError::SerialConfig)?;
+        let _ = (self.tx.into_alternate::<7>(), self.rx.into_alternate::<7>());
+        let usart = Usart::open(self.usart, registers, rcc);
         let mut de = self.de;
         de.set_low();
-        Ok(Rs485 { serial, de, data_mask: format.data_mask() })
+        Ok(Rs485 { usart, de, data_mask: format.data_mask() })
+    }
+}
+
+/// A USART interrupt ([`Usart::listen`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SerialEvent {
+    /// A received character waits (RXNEIE).
+    RxNotEmpty,
+    /// The transmit data register is empty (TXEIE).
+    TxEmpty,
+    /// The last stop bit is out (TCIE).
+    TransmissionComplete,
+}
+
+impl SerialEvent {
+    const fn cr1_bit(self) -> u16 {
+        match self {
+            SerialEvent::RxNotEmpty => bits::CR1_RXNEIE,
+            SerialEvent::TxEmpty => bits::CR1_TXEIE,
+            SerialEvent::TransmissionComplete => bits::CR1_TCIE,
+        }
+    }
+}
+
+/// A USART driven through its registers with the values [`LineFormat::registers`] computes
+/// (RM0090 §30.6): the HAL's serial driver, with its run-time divider search and typed
+/// configuration, costs some 200 bytes more flash.
+pub struct Usart<U> {
+    usart: U,
+}
+
+impl<U> Usart<U>
+where
+    U: Enable + Reset + core::ops::Deref<Target = pac::usart1::RegisterBlock>,
+{
+    /// Clocks and resets the USART, then sets it up (pins already in their alternate function).
+    fn open(usart: U, registers: UsartRegisters, rcc: &mut Rcc) -> Usart<U> {
+        U::enable(rcc);
+        U::reset(rcc);
+        // SAFETY: the values are the USART's own register layouts (uart::bits, host-tested);
+        // the USART is owned here and was just reset, so no transfer is under way.
+        unsafe {
+            usart.brr().write(|w| w.bits(registers.brr));
+            usart.cr2().write(|w| w.bits(registers.cr2));
+            usart.cr1().write(|w| w.bits(registers.cr1));
+        }
+        Usart { usart }
+    }
+
+    /// A received character, if any. A character with an error (parity, framing, noise,
+    /// overrun) is read and dropped, which clears the error (RM0090 §30.6.1), and the next one is
+    /// tried.
+    pub fn read(&mut self) -> Option<u8> {
+        loop {
+            let sr = self.usart.sr().read().bits();
+            if sr & (bits::SR_ERRORS | bits::SR_RXNE) == 0 {
+                return None;
+            }
+            let byte = self.usart.dr().read().bits() as u8;
+            if sr & bits::SR_ERRORS == 0 {
+                return Some(byte);
+            }
+        }
+    }
+
+    /// Writes a byte if the transmit data register is empty.
+    pub fn try_write(&mut self, byte: u8) -> bool {
+        let empty = self.usart.sr().read().bits() & bits::SR_TXE != 0;
+        if empty {
+            // SAFETY: DR takes any 9-bit value; a byte is written.
+            self.usart.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
+        }
+        empty
+    }
+
+    /// Whether the last byte has completely left the shift register.
+    pub fn is_transmission_complete(&self) -> bool {
+        self.usart.sr().read().bits() & bits::SR_TC != 0
+    }
+
+    /// Enables an interrupt.
+    pub fn listen(&mut self, event: SerialEvent) {
+        // SAFETY: sets one interrupt enable bit of CR1, the rest unchanged.
+        self.usart.cr1().modify(|r, w| unsafe { w.bits(r.bits() | event.cr1_bit()) });
+    }
+
+    /// Disables an interrupt.
+    pub fn unlisten(&mut self, event: SerialEvent) {
+        // SAFETY: clears one interrupt enable bit of CR1, the rest unchanged.
+        self.usart.cr1().modify(|r, w| unsafe { w.bits(r.bits() & !event.cr1_bit()) });
     }
 }
 
 /// USART2 behind the RS-485 transceiver: the driver is enabled while bytes go out and released
 /// once the last stop bit has left (transmission complete), so the instrument can answer.
 pub struct Rs485 {
-    serial: Serial<pac::USART2>,
+    usart: Usart<pac::USART2>,
     de: Pin<'A', 1, Output<PushPull>>,
     data_mask: u8,
 }
 
 impl Rs485 {
-    /// A received character, if any (also clears overrun and framing errors).
+    /// A received character, if any (one with an error is dropped, [`Usart::read`]).
     pub fn read(&mut self) -> Option<u8> {
-        use stm32f4xx_hal::nb;
-        loop {
-            match self.serial.read() {
-                Ok(b) => return Some(b & self.data_mask),
-                Err(nb::Error::WouldBlock) => return None,
-                // The error is cleared by the read; try the next byte.
-                Err(nb::Error::Other(_)) => continue,
-            }
-        }
+        self.usart.read().map(|b| b & self.data_mask)
     }
 
     /// Writes a byte if the transmit register is empty; enables the driver first.
     pub fn try_write(&mut self, byte: u8) -> bool {
         self.de.set_high();
-        self.serial.write(byte).is_ok()
+        self.usart.try_write(byte)
     }
 
     /// Whether the last byte has completely left the shift register.
     pub fn is_transmission_complete(&self) -> bool {
-        self.serial.flags().contains(serial::Flag::TransmissionComplete)
+        self.usart.is_transmission_complete()
     }
 
     /// Releases the RS-485 driver (back to receive).
@@ -245,12 +316,12 @@ impl Rs485 {
 
     /// Enables an interrupt.
     pub fn listen(&mut self, event: SerialEvent) {
-        self.serial.listen(event);
+        self.usart.listen(event);
     }
 
     /// Disables an interrupt.
     pub fn unlisten(&mut self, event: SerialEvent) {
-        self.serial.unlisten(event);
+        self.usart.unlisten(event);
     }
 }
 

@@ -11,16 +11,14 @@
 use crate::can::{Busy, CanDriver};
 use board::filters;
 use board::hw::BusState;
+use board::hw::{SerialEvent, Usart};
 use can_io::slcan::{self, Adapter, LineBuffer};
 use devicenet::{CanFrame, MacId};
-use stm32f4xx_hal::nb;
 use stm32f4xx_hal::pac::USART1;
-use stm32f4xx_hal::prelude::*;
-use stm32f4xx_hal::serial::{Event, Serial};
 
 /// The SLCAN "adapter" on USART1.
 pub struct Slcan {
-    serial: Serial<USART1>,
+    serial: Usart<USART1>,
     lines: LineBuffer,
     adapter: Adapter,
     mac: MacId,
@@ -28,8 +26,8 @@ pub struct Slcan {
 
 impl Slcan {
     /// The adapter for node `mac`, closed, with the receive interrupt on.
-    pub fn new(mut serial: Serial<USART1>, mac: MacId) -> Slcan {
-        serial.listen(Event::RxNotEmpty);
+    pub fn new(mut serial: Usart<USART1>, mac: MacId) -> Slcan {
+        serial.listen(SerialEvent::RxNotEmpty);
         // The adapter is not reset with the board: after an Identity Reset the host's open
         // channel stays open (board::hw::retained; closed after a power-on).
         let adapter = board::hw::retained::load().map_or(Adapter::new(), Adapter::from_bits);
@@ -44,7 +42,7 @@ impl Slcan {
 
     fn write_byte(&mut self, b: u8) {
         // USART1 at 115200 bit/s; QEMU's transmitter is always ready.
-        let _ = nb::block!(self.serial.write(b));
+        while !self.serial.try_write(b) {}
     }
 }
 
@@ -63,11 +61,7 @@ impl CanDriver for Slcan {
 
     fn receive(&mut self) -> Option<CanFrame> {
         loop {
-            let byte = match self.serial.read() {
-                Ok(b) => b,
-                Err(nb::Error::WouldBlock) => return None,
-                Err(nb::Error::Other(_)) => continue,
-            };
+            let byte = self.serial.read()?;
             if let Some(line) = self.lines.push(byte) {
                 let response = self.adapter.handle_line(line);
                 // Stored after every line, changed or not: 56 bytes less than comparing the states.
