@@ -102,26 +102,28 @@ impl SlaveNode {
             _ => path(class::ASSEMBLY, self.config.output_assembly, 3),
         };
         let path_len = |present: bool| if present { 6 } else { 0 };
-        match attr {
-            1 => reply.u8(conn.state.attribute_value()),
-            2 => reply.u8(u8::from(conn.kind != ConnectionKind::Explicit)),
-            3 => reply.u8(io.transport),
-            4 => reply.u16(io.produced_id),
-            5 => reply.u16(io.consumed_id),
-            6 => reply.u8(io.initial_comm),
-            7 => reply.u16(io.produced_size),
-            8 => reply.u16(io.consumed_size),
-            9 => reply.u16(conn.expected_packet_rate),
-            12 => reply.u8(conn.watchdog_action.attribute_value()),
-            13 => reply.u16(path_len(io.produced_path)),
-            14 if io.produced_path => reply.bytes(&produced),
-            15 => reply.u16(path_len(io.consumed_path)),
-            16 if io.consumed_path => reply.bytes(&consumed),
-            14 | 16 => Ok(()),
-            17 if conn.kind == ConnectionKind::ChangeOfState => reply.u16(self.production.inhibit_ms),
-            17 => reply.u16(0),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-        }
+        // The two-byte attributes share one reply (firmware size).
+        let word = match attr {
+            1 => return reply.u8(conn.state.attribute_value()),
+            2 => return reply.u8(u8::from(conn.kind != ConnectionKind::Explicit)),
+            3 => return reply.u8(io.transport),
+            4 => io.produced_id,
+            5 => io.consumed_id,
+            6 => return reply.u8(io.initial_comm),
+            7 => io.produced_size,
+            8 => io.consumed_size,
+            9 => conn.expected_packet_rate,
+            12 => return reply.u8(conn.watchdog_action.attribute_value()),
+            13 => path_len(io.produced_path),
+            14 if io.produced_path => return reply.bytes(&produced),
+            15 => path_len(io.consumed_path),
+            16 if io.consumed_path => return reply.bytes(&consumed),
+            14 | 16 => return Ok(()),
+            17 if conn.kind == ConnectionKind::ChangeOfState => self.production.inhibit_ms,
+            17 => 0,
+            _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        };
+        reply.u16(word)
     }
 
     /// The fixed attributes of connection `kind` as allocated now.
