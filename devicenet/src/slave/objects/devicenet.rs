@@ -56,8 +56,9 @@ impl SlaveNode {
             3 => reply.u8(u8::from(self.bus_off_interrupt)),
             4 => reply.u8(self.bus_off_counter),
             5 => {
-                reply.u8(self.allocation.bits())?;
-                reply.u8(self.master.map_or(0xFF, MacId::as_raw))
+                // Allocation choice, then the master's MAC ID: one reply, no `?` (firmware size).
+                let master = self.master.map_or(0xFF, MacId::as_raw);
+                reply.bytes(&[self.allocation.bits(), master])
             }
             6 => reply.u8(u8::from(sw.mac_id_changed)),
             7 => reply.u8(u8::from(sw.baud_rate_changed)),
