@@ -238,7 +238,9 @@ impl SlaveNode {
                 let &[value] = value else {
                     return Err(ServiceError::wrong_length(value, 1));
                 };
-                let action = kind.parse_action(value).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                let Some(action) = kind.parse_action(value) else {
+                    return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+                };
                 if let Some(conn) = self.connection_mut(kind.instance()) {
                     conn.watchdog_action = action;
                 }

@@ -84,13 +84,16 @@ impl SlaveNode {
                 };
                 match attr {
                     1 => {
-                        let mac = MacId::new(v).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                        let Some(mac) = MacId::new(v) else {
+                            return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+                        };
                         self.pending_mac = mac;
                         Some(SettingChanged::MacId(mac))
                     }
                     2 => {
-                        let baud =
-                            BaudRate::from_attribute_value(v).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                        let Some(baud) = BaudRate::from_attribute_value(v) else {
+                            return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+                        };
                         self.pending_baud = baud;
                         Some(SettingChanged::BaudRate(baud))
                     }
