@@ -102,7 +102,9 @@ impl<'b> Reply<'b> {
     /// Appends bytes; 0x11 "reply data too large" when they do not fit.
     pub fn bytes(&mut self, data: &[u8]) -> Result<(), ServiceError> {
         let end = self.len + data.len();
-        let dst = self.buf.get_mut(self.len..end).ok_or(ServiceError::REPLY_TOO_LARGE)?;
+        let Some(dst) = self.buf.get_mut(self.len..end) else {
+            return Err(ServiceError::REPLY_TOO_LARGE);
+        };
         dst.copy_from_slice(data);
         self.len = end;
         Ok(())
