@@ -92,15 +92,6 @@ impl SlaveNode {
         reply: &mut Reply<'_>,
     ) -> Result<(), ServiceError> {
         let io = self.io_attributes(conn.kind);
-        // Attributes 14 and 16 (notes §5.1): logical class segment, instance segment, attribute
-        // segment: an assembly's data, or the Acknowledge Handler's first attribute (§II.2.2).
-        let path =
-            |class: u16, instance: u8, attribute: u8| [0x20, class as u8, 0x24, instance, 0x30, attribute];
-        let produced = path(class::ASSEMBLY, self.config.input_assembly, 3);
-        let consumed = match conn.kind {
-            ConnectionKind::ChangeOfState => path(class::ACKNOWLEDGE_HANDLER, 1, 1),
-            _ => path(class::ASSEMBLY, self.config.output_assembly, 3),
-        };
         let path_len = |present: bool| if present { 6 } else { 0 };
         // The two-byte attributes share one reply (firmware size).
         let word = match attr {
@@ -115,10 +106,23 @@ impl SlaveNode {
             9 => conn.expected_packet_rate,
             12 => return reply.u8(conn.watchdog_action.attribute_value()),
             13 => path_len(io.produced_path),
-            14 if io.produced_path => return reply.bytes(&produced),
             15 => path_len(io.consumed_path),
-            16 if io.consumed_path => return reply.bytes(&consumed),
-            14 | 16 => return Ok(()),
+            14 | 16 => {
+                // Attributes 14 and 16 (notes §5.1): logical class segment, instance segment,
+                // attribute segment: an assembly's data, or the Acknowledge Handler's first
+                // attribute (§II.2.2); one path built for both (firmware size). Empty when absent.
+                let (present, class, instance, attribute) = match (attr, conn.kind) {
+                    (14, _) => (io.produced_path, class::ASSEMBLY, self.config.input_assembly, 3),
+                    (_, ConnectionKind::ChangeOfState) => {
+                        (io.consumed_path, class::ACKNOWLEDGE_HANDLER, 1, 1)
+                    }
+                    _ => (io.consumed_path, class::ASSEMBLY, self.config.output_assembly, 3),
+                };
+                if !present {
+                    return Ok(());
+                }
+                return reply.bytes(&[0x20, class as u8, 0x24, instance, 0x30, attribute]);
+            }
             17 if conn.kind == ConnectionKind::ChangeOfState => self.production.inhibit_ms,
             17 => 0,
             _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
