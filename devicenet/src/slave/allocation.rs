@@ -10,7 +10,7 @@ use super::explicit_messaging::Port;
 use super::{ConnectionKind, Event, ObjectHandler, Reply, ServiceError, SlaveNode};
 use crate::explicit::{additional, BodyFormat, GeneralStatus, Request, ServiceCode};
 use crate::id::MacId;
-use crate::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
+use crate::messages::AllocationChoice;
 use crate::objects::class;
 use crate::time::Instant;
 
@@ -61,10 +61,15 @@ impl SlaveNode {
         reply: &mut Reply<'_>,
         now: Instant,
     ) -> Result<(), ServiceError> {
-        ServiceError::expect_len(data, 2)?;
-        let req = AllocateRequest::parse(data).map_err(|_| invalid_choice())?;
-        let choice = req.choice;
-        if self.master.is_some_and(|m| m != req.allocator) {
+        // AllocateRequest's layout matched in place, without its parser's Result (firmware size).
+        let &[choice, allocator] = data else {
+            return Err(ServiceError::wrong_length(data, 2));
+        };
+        let choice = AllocationChoice::from_bits(choice);
+        let Some(allocator) = MacId::new(allocator) else {
+            return Err(invalid_choice());
+        };
+        if self.master.is_some_and(|m| m != allocator) {
             return Err(ServiceError::with_additional(
                 GeneralStatus::ObjectStateConflict,
                 additional::ALLOCATION_CONFLICT,
@@ -96,7 +101,7 @@ impl SlaveNode {
                 additional::INVALID_CHOICE,
             ));
         }
-        self.master = Some(req.allocator);
+        self.master = Some(allocator);
         self.allocation = self.allocation.union(choice);
         if choice.contains(AllocationChoice::EXPLICIT) {
             self.explicit.allocate(now);
@@ -115,16 +120,18 @@ impl SlaveNode {
                 self.poll.allocate(now);
             }
         }
-        self.push_event(Event::Allocated { choice, master: req.allocator });
+        self.push_event(Event::Allocated { choice, master: allocator });
         // Our explicit connection uses message body format 0 (8/8).
         reply.u8(BodyFormat::Class8Instance8.code())
     }
 
     /// Release_Master/Slave_Connection_Set (notes §3.4).
     pub(super) fn release(&mut self, requester: MacId, data: &[u8]) -> Result<(), ServiceError> {
-        ServiceError::expect_len(data, 1)?;
-        let req = ReleaseRequest::parse(data).map_err(|_| invalid_choice())?;
-        let choice = req.choice;
+        // ReleaseRequest's layout matched in place (firmware size).
+        let &[choice] = data else {
+            return Err(ServiceError::wrong_length(data, 1));
+        };
+        let choice = AllocationChoice::from_bits(choice);
         if self.master.is_some_and(|m| m != requester) {
             return Err(ServiceError::with_additional(
                 GeneralStatus::ObjectStateConflict,

@@ -43,24 +43,27 @@ impl SlaveNode {
                 self.pump_explicit(now);
                 return;
             }
-            match self.explicit_rx.receive(data) {
+            // Matched by reference: the ack is queued from where `receive` left it, not moved
+            // (firmware size).
+            match &self.explicit_rx.receive(data) {
                 ExplicitReceive::Ack(ack)
                 | ExplicitReceive::Duplicate(ack)
                 | ExplicitReceive::Rejected(ack) => {
-                    self.queue_data(id, &ack);
+                    self.queue_data(id, ack);
                 }
                 ExplicitReceive::Complete(ack) => {
-                    self.queue_data(id, &ack);
+                    self.queue_data(id, ack);
                     // A copy, so the request can be served while the reassembler keeps its state;
                     // the reassembler holds at most MAX_EXPLICIT_SIZE bytes, so it always fits.
+                    // A plain array, not a heapless::Vec moved into place (firmware size).
                     let whole = self.explicit_rx.message();
-                    let Ok(message) = heapless::Vec::<u8, MAX_EXPLICIT_SIZE>::from_slice(whole) else {
-                        return;
-                    };
+                    let mut copy = [0u8; MAX_EXPLICIT_SIZE];
+                    let Some(message) = copy.get_mut(..whole.len()) else { return };
+                    message.copy_from_slice(whole);
                     // The reassembler keeps its last answer (not reset here): a repeat of the last
                     // fragment, whose ack the master missed, is acknowledged again and the request
                     // is not served twice (notes §4.1, JB; found by the conformance suite).
-                    self.serve(&message, now, Port::Explicit(objects));
+                    self.serve(message, now, Port::Explicit(objects));
                 }
                 ExplicitReceive::Ignored(_) => {
                     self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);

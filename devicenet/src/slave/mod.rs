@@ -460,10 +460,9 @@ impl SlaveNode {
         self.step_heartbeat(now);
         self.step_offline(now);
         self.pump_explicit(now);
-        while let Some(ev) = self.explicit_tx.poll_event(now) {
-            if let TransmitEvent::Aborted(_) = ev {
-                self.push_event(Event::ExplicitTransferAborted);
-            }
+        // A transfer ends once: one event at most (firmware size: no loop).
+        if let Some(TransmitEvent::Aborted(_)) = self.explicit_tx.poll_event(now) {
+            self.push_event(Event::ExplicitTransferAborted);
         }
         self.update_indications(now);
     }

@@ -102,7 +102,9 @@ impl<'b> Reply<'b> {
     /// Appends bytes; 0x11 "reply data too large" when they do not fit.
     pub fn bytes(&mut self, data: &[u8]) -> Result<(), ServiceError> {
         let end = self.len + data.len();
-        let dst = self.buf.get_mut(self.len..end).ok_or(ServiceError::REPLY_TOO_LARGE)?;
+        let Some(dst) = self.buf.get_mut(self.len..end) else {
+            return Err(ServiceError::REPLY_TOO_LARGE);
+        };
         dst.copy_from_slice(data);
         self.len = end;
         Ok(())
@@ -130,9 +132,11 @@ impl<'b> Reply<'b> {
 
     /// Appends a SHORT_STRING (length byte + characters).
     pub fn short_string(&mut self, s: &str) -> Result<(), ServiceError> {
-        let len = u8::try_from(s.len()).map_err(|_| ServiceError::REPLY_TOO_LARGE)?;
-        self.u8(len)?;
-        self.bytes(s.as_bytes())
+        // No `?` on Results (firmware size).
+        let Ok(len) = u8::try_from(s.len()) else {
+            return Err(ServiceError::REPLY_TOO_LARGE);
+        };
+        self.u8(len).and_then(|()| self.bytes(s.as_bytes()))
     }
 
     /// Bytes written so far.

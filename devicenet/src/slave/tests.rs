@@ -1091,6 +1091,7 @@ mod connection_types {
     #[case::strobe_consumed_size(0x05, 3, 8, &[0x08, 0x00])]
     #[case::strobe_produced_path(0x05, 3, 14, &[0x20, 0x04, 0x24, 0x64, 0x30, 0x03])]
     #[case::strobe_no_consumed_path(0x05, 3, 15, &[0x00, 0x00])]
+    #[case::strobe_consumed_path_empty(0x05, 3, 16, &[])]
     // COS acknowledged (§II.2.2, RA tables).
     #[case::cos_transport(0x11, 4, 3, &[0x13])]
     #[case::cos_produced_id(0x11, 4, 4, &[0x45, 0x03])]
@@ -1099,6 +1100,7 @@ mod connection_types {
     #[case::cos_produced_size(0x11, 4, 7, &[0x12, 0x00])]
     #[case::cos_consumed_size(0x11, 4, 8, &[0x00, 0x00])]
     #[case::cos_ack_handler_path(0x11, 4, 16, &[0x20, 0x2B, 0x24, 0x01, 0x30, 0x01])]
+    #[case::cos_produced_path(0x11, 4, 14, &[0x20, 0x04, 0x24, 0x64, 0x30, 0x03])]
     #[case::cos_inhibit(0x11, 4, 17, &[0x00, 0x00])]
     // Cyclic and acknowledge suppression.
     #[case::cyclic_transport(0x21, 4, 3, &[0x03])]
@@ -1107,10 +1109,13 @@ mod connection_types {
     #[case::suppressed_consumed_id(0x51, 4, 5, &[0xFF, 0xFF])]
     #[case::suppressed_comm(0x51, 4, 6, &[0x0F])]
     #[case::suppressed_no_consumed_path(0x51, 4, 15, &[0x00, 0x00])]
+    #[case::suppressed_consumed_path_empty(0x51, 4, 16, &[])]
     // Connection 2 created to consume the master's COS data (§II.2.5, EAT).
     #[case::consumer_transport(0x11, 2, 3, &[0x82])]
     #[case::consumer_produced_size(0x11, 2, 7, &[0x00, 0x00])]
     #[case::consumer_consumed_size(0x11, 2, 8, &[0x08, 0x00])]
+    #[case::consumer_produced_path_empty(0x11, 2, 14, &[])]
+    #[case::consumer_consumed_path(0x11, 2, 16, &[0x20, 0x04, 0x24, 0x96, 0x30, 0x03])]
     #[case::consumer_suppressed_transport(0x51, 2, 3, &[0x80])]
     #[case::consumer_suppressed_comm(0x51, 2, 6, &[0xF1])]
     #[case::consumer_state(0x11, 2, 1, &[0x03])]
@@ -1194,6 +1199,12 @@ mod connection_types {
         assert_eq!(get(&mut rig, 0x2B, 1, 3), &[0x04, 0x00]);
         assert_eq!(get(&mut rig, 0x2B, 0, 1), &[0x01, 0x00]);
         assert_eq!(get(&mut rig, 0x2B, 0, 2), &[0x01, 0x00]);
+        // The class instance has no attribute 3, and no Set.
+        assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x2B, 0x00, 0x03]), tx(0x42B, &[0x00, 0x94, 0x14, 0xFF]));
+        assert_eq!(
+            rig.send(0x42C, &[0x00, 0x10, 0x2B, 0x00, 0x01, 0x01]),
+            tx(0x42B, &[0x00, 0x94, 0x08, 0xFF])
+        );
         assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x2B, 0x01, 0x01, 0x28, 0x00]), tx(0x42B, &[0x00, 0x90]));
         assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x2B, 0x01, 0x02, 0x03]), tx(0x42B, &[0x00, 0x90]));
         assert_eq!(rig.node.ack_handler(), AckHandler { acknowledge_timer_ms: 40, retry_limit: 3 });

@@ -10,26 +10,24 @@ use crate::explicit::{Request, ServiceCode};
 use crate::slave::{Reply, ServiceError, SlaveNode};
 
 impl SlaveNode {
-    /// Acknowledge Handler services: Get_Attribute_Single (class and instance),
-    /// Set_Attribute_Single (instance).
+    /// Acknowledge Handler instance services: Get_Attribute_Single, Set_Attribute_Single (the
+    /// Message Router serves the class instance, its revision and max instance).
     pub(super) fn ack_handler_service(
         &mut self,
         req: &Request<'_>,
         reply: &mut Reply<'_>,
     ) -> Result<(), ServiceError> {
         match (req.instance, req.service) {
-            (0 | 1, ServiceCode::GetAttributeSingle) => {
+            (1, ServiceCode::GetAttributeSingle) => {
                 let &[attr] = req.data else {
                     return Err(ServiceError::wrong_length(req.data, 1));
                 };
                 let handler = self.ack_handler;
-                match (req.instance, attr) {
-                    // Revision, max instance.
-                    (0, 1 | 2) => reply.u16(1),
-                    (1, 1) => reply.u16(handler.acknowledge_timer_ms),
-                    (1, 2) => reply.u8(handler.retry_limit),
+                match attr {
+                    1 => reply.u16(handler.acknowledge_timer_ms),
+                    2 => reply.u8(handler.retry_limit),
                     // The COS/cyclic producing connection.
-                    (1, 3) => reply.u16(4),
+                    3 => reply.u16(4),
                     _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
                 }
             }
@@ -51,7 +49,7 @@ impl SlaveNode {
                     _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
                 }
             }
-            (0 | 1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
+            (1, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
         }
     }

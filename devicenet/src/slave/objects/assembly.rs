@@ -41,7 +41,11 @@ impl SlaveNode {
                     // The poll connection owns the outputs while it is established.
                     3 if self.poll.is_established() => Err(ServiceError::DEVICE_STATE_CONFLICT),
                     3 => {
-                        ServiceError::expect_len(value, usize::from(self.config.consumed_size))?;
+                        // Checked in place, not through expect_len's Result (firmware size).
+                        let consumed = usize::from(self.config.consumed_size);
+                        if value.len() != consumed {
+                            return Err(ServiceError::wrong_length(value, consumed));
+                        }
                         self.output.clear();
                         let _ = self.output.extend_from_slice(value);
                         self.push_event(Event::OutputReceived);

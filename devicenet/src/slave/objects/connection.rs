@@ -92,36 +92,42 @@ impl SlaveNode {
         reply: &mut Reply<'_>,
     ) -> Result<(), ServiceError> {
         let io = self.io_attributes(conn.kind);
-        // Attributes 14 and 16 (notes §5.1): logical class segment, instance segment, attribute
-        // segment: an assembly's data, or the Acknowledge Handler's first attribute (§II.2.2).
-        let path =
-            |class: u16, instance: u8, attribute: u8| [0x20, class as u8, 0x24, instance, 0x30, attribute];
-        let produced = path(class::ASSEMBLY, self.config.input_assembly, 3);
-        let consumed = match conn.kind {
-            ConnectionKind::ChangeOfState => path(class::ACKNOWLEDGE_HANDLER, 1, 1),
-            _ => path(class::ASSEMBLY, self.config.output_assembly, 3),
-        };
         let path_len = |present: bool| if present { 6 } else { 0 };
-        match attr {
-            1 => reply.u8(conn.state.attribute_value()),
-            2 => reply.u8(u8::from(conn.kind != ConnectionKind::Explicit)),
-            3 => reply.u8(io.transport),
-            4 => reply.u16(io.produced_id),
-            5 => reply.u16(io.consumed_id),
-            6 => reply.u8(io.initial_comm),
-            7 => reply.u16(io.produced_size),
-            8 => reply.u16(io.consumed_size),
-            9 => reply.u16(conn.expected_packet_rate),
-            12 => reply.u8(conn.watchdog_action.attribute_value()),
-            13 => reply.u16(path_len(io.produced_path)),
-            14 if io.produced_path => reply.bytes(&produced),
-            15 => reply.u16(path_len(io.consumed_path)),
-            16 if io.consumed_path => reply.bytes(&consumed),
-            14 | 16 => Ok(()),
-            17 if conn.kind == ConnectionKind::ChangeOfState => reply.u16(self.production.inhibit_ms),
-            17 => reply.u16(0),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-        }
+        // The two-byte attributes share one reply (firmware size).
+        let word = match attr {
+            1 => return reply.u8(conn.state.attribute_value()),
+            2 => return reply.u8(u8::from(conn.kind != ConnectionKind::Explicit)),
+            3 => return reply.u8(io.transport),
+            4 => io.produced_id,
+            5 => io.consumed_id,
+            6 => return reply.u8(io.initial_comm),
+            7 => io.produced_size,
+            8 => io.consumed_size,
+            9 => conn.expected_packet_rate,
+            12 => return reply.u8(conn.watchdog_action.attribute_value()),
+            13 => path_len(io.produced_path),
+            15 => path_len(io.consumed_path),
+            14 | 16 => {
+                // Attributes 14 and 16 (notes §5.1): logical class segment, instance segment,
+                // attribute segment: an assembly's data, or the Acknowledge Handler's first
+                // attribute (§II.2.2); one path built for both (firmware size). Empty when absent.
+                let (present, class, instance, attribute) = match (attr, conn.kind) {
+                    (14, _) => (io.produced_path, class::ASSEMBLY, self.config.input_assembly, 3),
+                    (_, ConnectionKind::ChangeOfState) => {
+                        (io.consumed_path, class::ACKNOWLEDGE_HANDLER, 1, 1)
+                    }
+                    _ => (io.consumed_path, class::ASSEMBLY, self.config.output_assembly, 3),
+                };
+                if !present {
+                    return Ok(());
+                }
+                return reply.bytes(&[0x20, class as u8, 0x24, instance, 0x30, attribute]);
+            }
+            17 if conn.kind == ConnectionKind::ChangeOfState => self.production.inhibit_ms,
+            17 => 0,
+            _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        };
+        reply.u16(word)
     }
 
     /// The fixed attributes of connection `kind` as allocated now.
@@ -236,7 +242,9 @@ impl SlaveNode {
                 let &[value] = value else {
                     return Err(ServiceError::wrong_length(value, 1));
                 };
-                let action = kind.parse_action(value).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                let Some(action) = kind.parse_action(value) else {
+                    return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+                };
                 if let Some(conn) = self.connection_mut(kind.instance()) {
                     conn.watchdog_action = action;
                 }

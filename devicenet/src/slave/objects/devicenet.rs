@@ -50,21 +50,25 @@ impl SlaveNode {
     /// Instance attribute `attr` (notes §6.1 table).
     fn devicenet_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
         let sw = &self.config.switches;
-        match attr {
-            1 => reply.u8(self.pending_mac.as_raw()),
-            2 => reply.u8(self.pending_baud.attribute_value()),
-            3 => reply.u8(u8::from(self.bus_off_interrupt)),
-            4 => reply.u8(self.bus_off_counter),
+        // The one-byte attributes, `None` where there is none: one reply, no `?` (firmware size).
+        let byte = match attr {
+            1 => Some(self.pending_mac.as_raw()),
+            2 => Some(self.pending_baud.attribute_value()),
+            3 => Some(u8::from(self.bus_off_interrupt)),
+            4 => Some(self.bus_off_counter),
             5 => {
-                reply.u8(self.allocation.bits())?;
-                reply.u8(self.master.map_or(0xFF, MacId::as_raw))
+                // Allocation choice, then the master's MAC ID.
+                let master = self.master.map_or(0xFF, MacId::as_raw);
+                return reply.bytes(&[self.allocation.bits(), master]);
             }
-            6 => reply.u8(u8::from(sw.mac_id_changed)),
-            7 => reply.u8(u8::from(sw.baud_rate_changed)),
-            8 => reply.u8(sw.mac_id.ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)?),
-            9 => reply.u8(sw.baud_rate.ok_or(ServiceError::ATTRIBUTE_NOT_SUPPORTED)?),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-        }
+            6 => Some(u8::from(sw.mac_id_changed)),
+            7 => Some(u8::from(sw.baud_rate_changed)),
+            // The switches' values, where the device has them.
+            8 => sw.mac_id,
+            9 => sw.baud_rate,
+            _ => None,
+        };
+        byte.map_or(Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED), |b| reply.u8(b))
     }
 
     /// Set_Attribute_Single: MAC ID and baud rate only with the switches in "program" (notes
@@ -80,13 +84,16 @@ impl SlaveNode {
                 };
                 match attr {
                     1 => {
-                        let mac = MacId::new(v).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                        let Some(mac) = MacId::new(v) else {
+                            return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+                        };
                         self.pending_mac = mac;
                         Some(SettingChanged::MacId(mac))
                     }
                     2 => {
-                        let baud =
-                            BaudRate::from_attribute_value(v).ok_or(ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+                        let Some(baud) = BaudRate::from_attribute_value(v) else {
+                            return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+                        };
                         self.pending_baud = baud;
                         Some(SettingChanged::BaudRate(baud))
                     }

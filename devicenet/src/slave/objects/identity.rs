@@ -94,17 +94,20 @@ impl SlaveNode {
     /// Instance attribute `attr` (notes §6.2 table).
     fn identity_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
         let id = &self.config.identity;
-        match attr {
-            1 => reply.u16(id.vendor_id),
-            2 => reply.u16(id.device_type),
-            3 => reply.u16(id.product_code),
-            4 => reply.bytes(&[id.major_revision, id.minor_revision]),
-            5 => reply.u16(self.identity_status()),
-            6 => reply.u32(id.serial_number),
-            7 => reply.short_string(&id.product_name),
-            8 => reply.u8(self.identity_state()),
-            10 => reply.u8(self.heartbeat.interval),
-            _ => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
-        }
+        // Attributes 1-5 are two bytes each and share one reply (firmware size).
+        let word = match attr {
+            1 => id.vendor_id,
+            2 => id.device_type,
+            3 => id.product_code,
+            // Revision: major, then minor (the bytes of a little-endian UINT).
+            4 => u16::from_le_bytes([id.major_revision, id.minor_revision]),
+            5 => self.identity_status(),
+            6 => return reply.u32(id.serial_number),
+            7 => return reply.short_string(&id.product_name),
+            8 => return reply.u8(self.identity_state()),
+            10 => return reply.u8(self.heartbeat.interval),
+            _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+        };
+        reply.u16(word)
     }
 }

@@ -24,10 +24,17 @@ pub use devicenet::SettingChanged;
 
 use super::{Reply, ServiceError};
 
-/// Class attribute 1 (revision), the only class attribute served.
-fn class_revision(data: &[u8], revision: u16, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
+/// Class attribute 1 (revision), the only class attribute served; with `max_instance` also
+/// attribute 2 (max instance), the Acknowledge Handler's, whose value 1 equals its revision.
+fn class_revision(
+    data: &[u8],
+    revision: u16,
+    max_instance: bool,
+    reply: &mut Reply<'_>,
+) -> Result<(), ServiceError> {
     match *data {
         [1] => reply.u16(revision),
+        [2] if max_instance => reply.u16(revision),
         [_] => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
         _ => Err(ServiceError::wrong_length(data, 1)),
     }

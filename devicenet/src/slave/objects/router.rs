@@ -19,12 +19,8 @@ impl SlaveNode {
         now: Instant,
         objects: &mut H,
     ) -> Result<(), ServiceError> {
-        // The Acknowledge Handler serves two class attributes of its own.
-        if req.class == class::ACKNOWLEDGE_HANDLER {
-            return self.ack_handler_service(req, reply);
-        }
         let revision = match req.class {
-            class::IDENTITY | class::MESSAGE_ROUTER | class::CONNECTION => 1,
+            class::IDENTITY | class::MESSAGE_ROUTER | class::CONNECTION | class::ACKNOWLEDGE_HANDLER => 1,
             class::DEVICENET | class::ASSEMBLY => 2,
             // An application class that leaves its class instance to the node.
             class => match objects.class_revision(class) {
@@ -33,10 +29,12 @@ impl SlaveNode {
             },
         };
         // Every core class (and every application class with a `class_revision`) serves the same
-        // class instance (0): its revision, nothing else.
+        // class instance (0): its revision, nothing else; the Acknowledge Handler also its max
+        // instance (attribute 2), 1 like its revision.
         if req.instance == 0 {
+            let max_instance = req.class == class::ACKNOWLEDGE_HANDLER;
             return match req.service {
-                ServiceCode::GetAttributeSingle => class_revision(req.data, revision, reply),
+                ServiceCode::GetAttributeSingle => class_revision(req.data, revision, max_instance, reply),
                 _ => Err(ServiceError::SERVICE_NOT_SUPPORTED),
             };
         }
@@ -45,6 +43,7 @@ impl SlaveNode {
             class::DEVICENET => self.devicenet_service(req, reply, now),
             class::ASSEMBLY => self.assembly_service(req, reply),
             class::CONNECTION => self.connection_service(req, reply, now),
+            class::ACKNOWLEDGE_HANDLER => self.ack_handler_service(req, reply),
             _ => router_service(req),
         }
     }
