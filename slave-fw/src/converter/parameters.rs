@@ -406,7 +406,9 @@ pub(super) fn handle(
         }
         (attr, &[][..])
     } else {
-        let (&attr, data) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
+        let Some((&attr, data)) = req.data.split_first() else {
+            return Err(ServiceError::NOT_ENOUGH_DATA);
+        };
         match attr {
             1 => {}
             2..=12 => return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
@@ -419,8 +421,9 @@ pub(super) fn handle(
     // image. `None` (the pending image is gone) is an object state conflict, and so would be an
     // image that does not decode (the image in force always does).
     let bytes = if attr == 12 { Some(config.in_force()) } else { config.base() };
-    let (current, layout) =
-        bytes.and_then(|b| image::decode_with_layout(b).ok()).ok_or(ServiceError::OBJECT_STATE_CONFLICT)?;
+    let Some((current, layout)) = bytes.and_then(|b| image::decode_with_layout(b).ok()) else {
+        return Err(ServiceError::OBJECT_STATE_CONFLICT);
+    };
     if get {
         return match attr {
             4 => reply.u16(p.descriptor(&current)),
@@ -454,7 +457,9 @@ pub(super) fn handle(
     // The whole configuration is checked again, as a download is (the platform's check too).
     p.patch(&mut patched, &layout, &current, value);
     image::reseal(&mut patched);
-    config.check(&patched).map_err(|_| ServiceError::INVALID_ATTRIBUTE_VALUE)?;
+    if config.check(&patched).is_err() {
+        return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
+    }
     config.stage(&patched);
     Ok(())
 }
