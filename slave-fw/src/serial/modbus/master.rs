@@ -827,25 +827,25 @@ fn encode_entry(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) 
     let [address_hi, address_lo] = e.address.to_be_bytes();
     let [count_hi, count_lo] = e.count.to_be_bytes();
     *head = [e.unit, f.code(), address_hi, address_lo, count_hi, count_lo];
-    match f {
-        Function::WriteSingleCoil => {
-            let on = data.first().is_some_and(|b| b & 1 != 0);
-            head[4..].copy_from_slice(if on { &[0xFF, 0x00] } else { &[0x00, 0x00] });
+    // Tested by kind rather than matched on the function: a match copies the header's stores
+    // into every arm (firmware size).
+    if !f.is_write() {
+        return Some(6);
+    }
+    if !single {
+        let (byte_count, payload) = rest.split_first_mut()?;
+        *byte_count = data.len() as u8;
+        convert(e, order, data, payload.get_mut(..data.len())?);
+        return Some(7 + data.len());
+    }
+    // The single writes carry the value where the quantity would be.
+    head[4..].fill(0);
+    if f.is_bits() {
+        if data.first().is_some_and(|b| b & 1 != 0) {
+            head[4] = 0xFF;
         }
-        Function::WriteSingleRegister => {
-            head[4..].fill(0);
-            convert(e, order, data, &mut head[4..]);
-        }
-        Function::WriteMultipleCoils | Function::WriteMultipleRegisters => {
-            let (byte_count, payload) = rest.split_first_mut()?;
-            *byte_count = data.len() as u8;
-            convert(e, order, data, payload.get_mut(..data.len())?);
-            return Some(7 + data.len());
-        }
-        Function::ReadCoils
-        | Function::ReadDiscreteInputs
-        | Function::ReadHoldingRegisters
-        | Function::ReadInputRegisters => {}
+    } else {
+        convert(e, order, data, &mut head[4..]);
     }
     Some(6)
 }
