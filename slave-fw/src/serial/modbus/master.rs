@@ -455,11 +455,9 @@ impl ModbusMaster {
             if self.rx.len() < len {
                 return;
             }
-            let rx = core::mem::take(&mut self.rx);
             self.awaiting = None;
-            let adu = rx.get(..len).unwrap_or(&[]);
-            match pdu::check_delimited_response(adu) {
-                Ok(()) => self.on_response(t, adu, now),
+            match pdu::check_delimited_response(self.rx.get(..len).unwrap_or(&[])) {
+                Ok(()) => self.on_response(t, len, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
                     self.attempt_failed(t, false);
@@ -469,14 +467,19 @@ impl ModbusMaster {
                     self.attempt_failed(t, false);
                 }
             }
+            // Handled where it was received, then dropped with anything after it: the buffer is
+            // not moved out to be read (a 260-byte copy, firmware size).
+            self.rx.clear();
             return;
         }
     }
 
-    /// Handles `adu`, a response to the transaction `t` that [`pdu::Response::parse`] accepts and that
-    /// starts with `t`'s unit and function. Read from its bytes rather than from the parsed
-    /// [`pdu::Response`]: the values are at fixed places, and matching on the parsed enum costs flash.
-    fn on_response(&mut self, t: Transaction, adu: &[u8], now: Instant) {
+    /// Handles the response to the transaction `t` in the first `len` bytes of the receive buffer
+    /// (`adu`), one that [`pdu::Response::parse`] accepts and that starts with `t`'s unit and
+    /// function. Read from its bytes rather than from the parsed [`pdu::Response`]: the values are
+    /// at fixed places, and matching on the parsed enum costs flash.
+    fn on_response(&mut self, t: Transaction, len: usize, now: Instant) {
+        let adu = self.rx.get(..len).unwrap_or(&[]);
         let Job::Entry(i) = t.job else {
             // The idle/fault frame: any well-formed answer will do.
             self.health.on_frame(now);
