@@ -269,7 +269,10 @@ pub struct ModbusMaster {
     entries: [EntryState; SCAN_LIST_CAPACITY],
     mode: OutputMode,
     mode_frame_due: bool,
-    tx: Vec<u8, ADU_CAPACITY>,
+    /// The last request, in its first `tx_len` bytes (0: none). A plain buffer, not a
+    /// `heapless::Vec` zero-filled before each encode (firmware size).
+    tx: [u8; ADU_CAPACITY],
+    tx_len: usize,
     rx: Vec<u8, ADU_CAPACITY>,
     awaiting: Option<Transaction>,
     /// An entry to send again, with its next attempt number.
@@ -316,7 +319,8 @@ impl ModbusMaster {
             entries: [EntryState::default(); SCAN_LIST_CAPACITY],
             mode: OutputMode::Startup,
             mode_frame_due: false,
-            tx: Vec::new(),
+            tx: [0; ADU_CAPACITY],
+            tx_len: 0,
             rx: Vec::new(),
             awaiting: None,
             retry: None,
@@ -430,15 +434,17 @@ impl ModbusMaster {
 
     /// Delimits the response to `t` in the receive buffer and handles it once complete.
     fn try_complete(&mut self, t: Transaction, now: Instant) {
-        let (unit, function) = (self.tx.first().copied(), self.tx.get(1).map(|f| f & 0x7F));
+        // A transaction awaits the answer to the request in `tx` (two bytes at least: its CRC).
+        let [unit, function, ..] = self.tx;
+        let function = function & 0x7F;
         loop {
-            let skip = self.rx.iter().position(|&b| Some(b) == unit).unwrap_or(self.rx.len());
+            let skip = self.rx.iter().position(|&b| b == unit).unwrap_or(self.rx.len());
             if skip > 0 {
                 self.drop_rx_front(skip);
             }
             match self.rx.get(1) {
                 None => return,
-                Some(&code) if Some(code & 0x7F) != function => {
+                Some(&code) if code & 0x7F != function => {
                     self.drop_rx_front(1);
                     continue;
                 }
@@ -508,8 +514,8 @@ impl ModbusMaster {
         // calls for, or the echo of the written address and value or quantity (§6.5, §6.6,
         // §6.11, §6.12: the first six bytes of the request).
         let echo = if write { 6 } else { 2 };
-        let answers = adu.get(..echo).is_some_and(|a| self.tx.get(..echo) == Some(a))
-            && (write || usize::from(byte2) == entry.image_len());
+        let answers =
+            adu.get(..echo) == self.tx.get(..echo) && (write || usize::from(byte2) == entry.image_len());
         if !answers {
             self.health.on_framing_error();
             self.attempt_failed(t, false);
@@ -660,7 +666,7 @@ impl ModbusMaster {
                 }
                 continue;
             }
-            let tx_done = now + self.config.serial.transmit_time(self.tx.len());
+            let tx_done = now + self.config.serial.transmit_time(self.tx_len);
             self.awaiting = Some(Transaction {
                 job,
                 attempt,
@@ -688,16 +694,17 @@ impl ModbusMaster {
                 }
             }
             self.health.count(Counter::FramesSent);
-            return Some(&self.tx);
+            return Some(self.request());
         }
+    }
+
+    /// The last request encoded (empty when it could not be).
+    fn request(&self) -> &[u8] {
+        self.tx.get(..self.tx_len).unwrap_or(&[])
     }
 
     /// Encodes `job` into `self.tx`.
     fn encode(&mut self, job: Job) -> bool {
-        self.tx.clear();
-        if self.tx.resize(ADU_CAPACITY, 0).is_err() {
-            return false;
-        }
         let n = match job {
             Job::ModeFrame => {
                 let body = self.config.mode_frame(self.mode).unwrap_or(&[]);
@@ -709,17 +716,9 @@ impl ModbusMaster {
                 .get(i)
                 .and_then(|e| encode_entry(e, &self.output, self.config.byte_order, &mut self.tx)),
         };
-        let n = n.and_then(|n| append_crc(&mut self.tx, n));
-        match n {
-            Some(n) if n >= 2 => {
-                self.tx.truncate(n);
-                true
-            }
-            _ => {
-                self.tx.clear();
-                false
-            }
-        }
+        // At least the CRC's two bytes when encoded.
+        self.tx_len = n.and_then(|n| append_crc(&mut self.tx, n)).unwrap_or(0);
+        self.tx_len != 0
     }
 
     /// When to call [`poll_transmit`](Self::poll_transmit) next: a response deadline, the end of
