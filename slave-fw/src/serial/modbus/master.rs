@@ -466,11 +466,11 @@ impl ModbusMaster {
                 Ok(()) => self.on_response(t, len, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
-                    self.attempt_failed(t, false);
+                    self.attempt_failed(t.job, t.attempt, false);
                 }
                 Err(_) => {
                     self.health.on_framing_error();
-                    self.attempt_failed(t, false);
+                    self.attempt_failed(t.job, t.attempt, false);
                 }
             }
             // Handled where it was received, then dropped with anything after it: the buffer is
@@ -518,7 +518,7 @@ impl ModbusMaster {
             adu.get(..echo) == self.tx.get(..echo) && (write || usize::from(byte2) == entry.image_len());
         if !answers {
             self.health.on_framing_error();
-            self.attempt_failed(t, false);
+            self.attempt_failed(t.job, t.attempt, false);
             return;
         }
         self.health.on_frame(now);
@@ -531,16 +531,17 @@ impl ModbusMaster {
         self.finish_entry(i);
     }
 
-    /// An attempt ended without a valid answer: retry, or give the transaction up.
-    fn attempt_failed(&mut self, t: Transaction, timed_out: bool) {
-        let Job::Entry(i) = t.job else {
+    /// Attempt `attempt` of `job` ended without a valid answer: retry, or give the transaction
+    /// up. The transaction's fields, not the transaction: passed in registers (firmware size).
+    fn attempt_failed(&mut self, job: Job, attempt: u8, timed_out: bool) {
+        let Job::Entry(i) = job else {
             return;
         };
         if timed_out {
             self.health.count(Counter::Timeouts);
         }
-        if t.attempt <= self.config.retries {
-            self.retry = Some((i, t.attempt.saturating_add(1)));
+        if attempt <= self.config.retries {
+            self.retry = Some((i, attempt.saturating_add(1)));
         } else {
             self.request_timeout.current = true;
             if self.is_write(i) {
@@ -608,7 +609,7 @@ impl ModbusMaster {
             if now >= t.deadline {
                 self.awaiting = None;
                 self.rx.clear();
-                self.attempt_failed(t, true);
+                self.attempt_failed(t.job, t.attempt, true);
             }
         }
         if !self.cycle_running && now >= self.cycle_started + self.poll_period() {
@@ -660,8 +661,7 @@ impl ModbusMaster {
                     Job::ModeFrame => self.mode_frame_due = false,
                     Job::Entry(_) => {
                         self.retry = None;
-                        let t = Transaction { job, attempt: u8::MAX, deadline: now };
-                        self.attempt_failed(t, false);
+                        self.attempt_failed(job, u8::MAX, false);
                     }
                 }
                 continue;
