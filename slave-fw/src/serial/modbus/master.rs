@@ -505,8 +505,9 @@ impl ModbusMaster {
                 self.health.count(Counter::CommandsRejected);
                 self.write_outcome = CommandOutcome::Rejected(byte2);
                 self.write_failed(i);
+            } else {
+                self.finish_read(i);
             }
-            self.finish_entry(i);
             return;
         }
         // What `Response::answers` checks, against the request still in `tx` instead of parsing
@@ -527,8 +528,8 @@ impl ModbusMaster {
         } else {
             let data = adu.get(3..3 + usize::from(byte2)).unwrap_or(&[]);
             store_read(&mut self.input, &entry, data, self.config.byte_order);
+            self.finish_read(i);
         }
-        self.finish_entry(i);
     }
 
     /// Attempt `attempt` of `job` ended without a valid answer: retry, or give the transaction
@@ -548,8 +549,9 @@ impl ModbusMaster {
                 self.health.count(Counter::CommandsFailed);
                 self.write_outcome = CommandOutcome::Failed;
                 self.write_failed(i);
+            } else {
+                self.finish_read(i);
             }
-            self.finish_entry(i);
         }
     }
 
@@ -560,11 +562,9 @@ impl ModbusMaster {
         }
     }
 
-    /// Entry `i` is done for this cycle; a read advances the cycle.
-    fn finish_entry(&mut self, i: usize) {
-        if self.is_write(i) {
-            return;
-        }
+    /// Read entry `i` is done for this cycle: the cycle advances. Called for reads only, whose
+    /// callers know the entry's kind (firmware size); a write is done once sent or failed.
+    fn finish_read(&mut self, i: usize) {
         self.next_read = i + 1;
         if self.cycle_running && self.next_read_entry().is_none() {
             self.complete_cycle();
