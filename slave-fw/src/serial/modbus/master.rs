@@ -350,7 +350,8 @@ impl ModbusMaster {
     }
 
     fn is_write(&self, i: usize) -> bool {
-        self.entry(i).is_some_and(|e| e.function.is_write())
+        // Through a reference, not a copy of the entry (firmware size).
+        self.config.scan.get(i).is_some_and(|e| e.function.is_write())
     }
 
     fn poll_period(&self) -> Duration {
