@@ -288,21 +288,18 @@ pub struct SequencerCounters {
     pub idle_frames: u32,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum ActiveState {
-    /// To be (re)sent as soon as possible; due since this instant.
-    Due(Instant),
-    /// Sent; the answer is due by `deadline`.
-    Awaiting { deadline: Instant },
-}
-
 /// The command in progress; the command itself is [`CommandSequencer::last_command`] (kept once:
 /// every command started is also the last one, firmware size budget).
+///
+/// Its two states share their instant: a flag and one field, not an enum of two variants that
+/// each carry one (firmware size).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Active {
     /// Transmissions so far.
     attempts: u8,
-    state: ActiveState,
+    /// Sent, the answer due by `at`; otherwise to be (re)sent as soon as possible, due since `at`.
+    awaiting: bool,
+    at: Instant,
 }
 
 /// Turns poll outputs into commands sent exactly once, with retries and a reported outcome.
@@ -369,7 +366,7 @@ impl CommandSequencer {
             return;
         }
         // A new command supersedes one still in progress.
-        self.active = Some(Active { attempts: 0, state: ActiveState::Due(now) });
+        self.active = Some(Active { attempts: 0, awaiting: false, at: now });
         self.outcome = CommandOutcome::Pending;
         self.last_command = Command::from_outputs(outputs);
     }
@@ -402,10 +399,7 @@ impl CommandSequencer {
         let Some(active) = self.active.as_mut() else {
             return;
         };
-        let ActiveState::Awaiting { deadline } = active.state else {
-            return;
-        };
-        if now < deadline {
+        if !active.awaiting || now < active.at {
             return;
         }
         bump(&mut self.counters.timeouts);
@@ -414,7 +408,8 @@ impl CommandSequencer {
             self.outcome = CommandOutcome::Failed;
             bump(&mut self.counters.failed);
         } else {
-            active.state = ActiveState::Due(deadline);
+            // Due again since the deadline.
+            active.awaiting = false;
         }
     }
 
@@ -429,13 +424,13 @@ impl CommandSequencer {
             }
         }
         let active = self.active.as_ref()?;
-        match active.state {
-            ActiveState::Due(t) if t <= now => Some(Transmission::Command {
-                command: *self.last_command.as_ref()?,
-                attempt: active.attempts.saturating_add(1),
-            }),
-            ActiveState::Due(_) | ActiveState::Awaiting { .. } => None,
+        if active.awaiting || active.at > now {
+            return None;
         }
+        Some(Transmission::Command {
+            command: *self.last_command.as_ref()?,
+            attempt: active.attempts.saturating_add(1),
+        })
     }
 
     /// `transmission` (from [`next_transmission`](Self::next_transmission)) was handed to the UART
@@ -458,8 +453,8 @@ impl CommandSequencer {
             Transmission::Command { attempt, .. } => {
                 if let Some(active) = self.active.as_mut() {
                     active.attempts = attempt;
-                    active.state =
-                        ActiveState::Awaiting { deadline: tx_done + self.config.response_timeout() };
+                    active.awaiting = true;
+                    active.at = tx_done + self.config.response_timeout();
                     bump(if attempt <= 1 { &mut self.counters.sent } else { &mut self.counters.retried });
                 }
             }
@@ -533,10 +528,7 @@ impl CommandSequencer {
 
     /// When to call [`poll`](Self::poll) / [`next_transmission`](Self::next_transmission) next.
     pub fn poll_at(&self) -> Option<Instant> {
-        let command = self.active.map(|a| match a.state {
-            ActiveState::Due(t) => t,
-            ActiveState::Awaiting { deadline } => deadline,
-        });
+        let command = self.active.map(|a| a.at);
         match (self.mode_frame_due, command) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),

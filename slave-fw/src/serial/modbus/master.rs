@@ -269,7 +269,10 @@ pub struct ModbusMaster {
     entries: [EntryState; SCAN_LIST_CAPACITY],
     mode: OutputMode,
     mode_frame_due: bool,
-    tx: Vec<u8, ADU_CAPACITY>,
+    /// The last request, in its first `tx_len` bytes (0: none). A plain buffer, not a
+    /// `heapless::Vec` zero-filled before each encode (firmware size).
+    tx: [u8; ADU_CAPACITY],
+    tx_len: usize,
     rx: Vec<u8, ADU_CAPACITY>,
     awaiting: Option<Transaction>,
     /// An entry to send again, with its next attempt number.
@@ -316,7 +319,8 @@ impl ModbusMaster {
             entries: [EntryState::default(); SCAN_LIST_CAPACITY],
             mode: OutputMode::Startup,
             mode_frame_due: false,
-            tx: Vec::new(),
+            tx: [0; ADU_CAPACITY],
+            tx_len: 0,
             rx: Vec::new(),
             awaiting: None,
             retry: None,
@@ -346,7 +350,8 @@ impl ModbusMaster {
     }
 
     fn is_write(&self, i: usize) -> bool {
-        self.entry(i).is_some_and(|e| e.function.is_write())
+        // Through a reference, not a copy of the entry (firmware size).
+        self.config.scan.get(i).is_some_and(|e| e.function.is_write())
     }
 
     fn poll_period(&self) -> Duration {
@@ -430,15 +435,17 @@ impl ModbusMaster {
 
     /// Delimits the response to `t` in the receive buffer and handles it once complete.
     fn try_complete(&mut self, t: Transaction, now: Instant) {
-        let (unit, function) = (self.tx.first().copied(), self.tx.get(1).map(|f| f & 0x7F));
+        // A transaction awaits the answer to the request in `tx` (two bytes at least: its CRC).
+        let [unit, function, ..] = self.tx;
+        let function = function & 0x7F;
         loop {
-            let skip = self.rx.iter().position(|&b| Some(b) == unit).unwrap_or(self.rx.len());
+            let skip = self.rx.iter().position(|&b| b == unit).unwrap_or(self.rx.len());
             if skip > 0 {
                 self.drop_rx_front(skip);
             }
             match self.rx.get(1) {
                 None => return,
-                Some(&code) if Some(code & 0x7F) != function => {
+                Some(&code) if code & 0x7F != function => {
                     self.drop_rx_front(1);
                     continue;
                 }
@@ -455,28 +462,31 @@ impl ModbusMaster {
             if self.rx.len() < len {
                 return;
             }
-            let rx = core::mem::take(&mut self.rx);
             self.awaiting = None;
-            let adu = rx.get(..len).unwrap_or(&[]);
-            match pdu::check_delimited_response(adu) {
-                Ok(()) => self.on_response(t, adu, now),
+            match pdu::check_delimited_response(self.rx.get(..len).unwrap_or(&[])) {
+                Ok(()) => self.on_response(t, len, now),
                 Err(CodecError::Crc) => {
                     self.health.on_checksum_error();
-                    self.attempt_failed(t, false);
+                    self.attempt_failed(t.job, t.attempt, false);
                 }
                 Err(_) => {
                     self.health.on_framing_error();
-                    self.attempt_failed(t, false);
+                    self.attempt_failed(t.job, t.attempt, false);
                 }
             }
+            // Handled where it was received, then dropped with anything after it: the buffer is
+            // not moved out to be read (a 260-byte copy, firmware size).
+            self.rx.clear();
             return;
         }
     }
 
-    /// Handles `adu`, a response to the transaction `t` that [`pdu::Response::parse`] accepts and that
-    /// starts with `t`'s unit and function. Read from its bytes rather than from the parsed
-    /// [`pdu::Response`]: the values are at fixed places, and matching on the parsed enum costs flash.
-    fn on_response(&mut self, t: Transaction, adu: &[u8], now: Instant) {
+    /// Handles the response to the transaction `t` in the first `len` bytes of the receive buffer
+    /// (`adu`), one that [`pdu::Response::parse`] accepts and that starts with `t`'s unit and
+    /// function. Read from its bytes rather than from the parsed [`pdu::Response`]: the values are
+    /// at fixed places, and matching on the parsed enum costs flash.
+    fn on_response(&mut self, t: Transaction, len: usize, now: Instant) {
+        let adu = self.rx.get(..len).unwrap_or(&[]);
         let Job::Entry(i) = t.job else {
             // The idle/fault frame: any well-formed answer will do.
             self.health.on_frame(now);
@@ -496,8 +506,9 @@ impl ModbusMaster {
                 self.health.count(Counter::CommandsRejected);
                 self.write_outcome = CommandOutcome::Rejected(byte2);
                 self.write_failed(i);
+            } else {
+                self.finish_read(i);
             }
-            self.finish_entry(i);
             return;
         }
         // What `Response::answers` checks, against the request still in `tx` instead of parsing
@@ -505,11 +516,11 @@ impl ModbusMaster {
         // calls for, or the echo of the written address and value or quantity (§6.5, §6.6,
         // §6.11, §6.12: the first six bytes of the request).
         let echo = if write { 6 } else { 2 };
-        let answers = adu.get(..echo).is_some_and(|a| self.tx.get(..echo) == Some(a))
-            && (write || usize::from(byte2) == entry.image_len());
+        let answers =
+            adu.get(..echo) == self.tx.get(..echo) && (write || usize::from(byte2) == entry.image_len());
         if !answers {
             self.health.on_framing_error();
-            self.attempt_failed(t, false);
+            self.attempt_failed(t.job, t.attempt, false);
             return;
         }
         self.health.on_frame(now);
@@ -518,28 +529,30 @@ impl ModbusMaster {
         } else {
             let data = adu.get(3..3 + usize::from(byte2)).unwrap_or(&[]);
             store_read(&mut self.input, &entry, data, self.config.byte_order);
+            self.finish_read(i);
         }
-        self.finish_entry(i);
     }
 
-    /// An attempt ended without a valid answer: retry, or give the transaction up.
-    fn attempt_failed(&mut self, t: Transaction, timed_out: bool) {
-        let Job::Entry(i) = t.job else {
+    /// Attempt `attempt` of `job` ended without a valid answer: retry, or give the transaction
+    /// up. The transaction's fields, not the transaction: passed in registers (firmware size).
+    fn attempt_failed(&mut self, job: Job, attempt: u8, timed_out: bool) {
+        let Job::Entry(i) = job else {
             return;
         };
         if timed_out {
             self.health.count(Counter::Timeouts);
         }
-        if t.attempt <= self.config.retries {
-            self.retry = Some((i, t.attempt.saturating_add(1)));
+        if attempt <= self.config.retries {
+            self.retry = Some((i, attempt.saturating_add(1)));
         } else {
             self.request_timeout.current = true;
             if self.is_write(i) {
                 self.health.count(Counter::CommandsFailed);
                 self.write_outcome = CommandOutcome::Failed;
                 self.write_failed(i);
+            } else {
+                self.finish_read(i);
             }
-            self.finish_entry(i);
         }
     }
 
@@ -550,11 +563,9 @@ impl ModbusMaster {
         }
     }
 
-    /// Entry `i` is done for this cycle; a read advances the cycle.
-    fn finish_entry(&mut self, i: usize) {
-        if self.is_write(i) {
-            return;
-        }
+    /// Read entry `i` is done for this cycle: the cycle advances. Called for reads only, whose
+    /// callers know the entry's kind (firmware size); a write is done once sent or failed.
+    fn finish_read(&mut self, i: usize) {
         self.next_read = i + 1;
         if self.cycle_running && self.next_read_entry().is_none() {
             self.complete_cycle();
@@ -599,7 +610,7 @@ impl ModbusMaster {
             if now >= t.deadline {
                 self.awaiting = None;
                 self.rx.clear();
-                self.attempt_failed(t, true);
+                self.attempt_failed(t.job, t.attempt, true);
             }
         }
         if !self.cycle_running && now >= self.cycle_started + self.poll_period() {
@@ -651,13 +662,12 @@ impl ModbusMaster {
                     Job::ModeFrame => self.mode_frame_due = false,
                     Job::Entry(_) => {
                         self.retry = None;
-                        let t = Transaction { job, attempt: u8::MAX, deadline: now };
-                        self.attempt_failed(t, false);
+                        self.attempt_failed(job, u8::MAX, false);
                     }
                 }
                 continue;
             }
-            let tx_done = now + self.config.serial.transmit_time(self.tx.len());
+            let tx_done = now + self.config.serial.transmit_time(self.tx_len);
             self.awaiting = Some(Transaction {
                 job,
                 attempt,
@@ -685,16 +695,17 @@ impl ModbusMaster {
                 }
             }
             self.health.count(Counter::FramesSent);
-            return Some(&self.tx);
+            return Some(self.request());
         }
+    }
+
+    /// The last request encoded (empty when it could not be).
+    fn request(&self) -> &[u8] {
+        self.tx.get(..self.tx_len).unwrap_or(&[])
     }
 
     /// Encodes `job` into `self.tx`.
     fn encode(&mut self, job: Job) -> bool {
-        self.tx.clear();
-        if self.tx.resize(ADU_CAPACITY, 0).is_err() {
-            return false;
-        }
         let n = match job {
             Job::ModeFrame => {
                 let body = self.config.mode_frame(self.mode).unwrap_or(&[]);
@@ -706,17 +717,9 @@ impl ModbusMaster {
                 .get(i)
                 .and_then(|e| encode_entry(e, &self.output, self.config.byte_order, &mut self.tx)),
         };
-        let n = n.and_then(|n| append_crc(&mut self.tx, n));
-        match n {
-            Some(n) if n >= 2 => {
-                self.tx.truncate(n);
-                true
-            }
-            _ => {
-                self.tx.clear();
-                false
-            }
-        }
+        // At least the CRC's two bytes when encoded.
+        self.tx_len = n.and_then(|n| append_crc(&mut self.tx, n)).unwrap_or(0);
+        self.tx_len != 0
     }
 
     /// When to call [`poll_transmit`](Self::poll_transmit) next: a response deadline, the end of
@@ -827,25 +830,25 @@ fn encode_entry(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) 
     let [address_hi, address_lo] = e.address.to_be_bytes();
     let [count_hi, count_lo] = e.count.to_be_bytes();
     *head = [e.unit, f.code(), address_hi, address_lo, count_hi, count_lo];
-    match f {
-        Function::WriteSingleCoil => {
-            let on = data.first().is_some_and(|b| b & 1 != 0);
-            head[4..].copy_from_slice(if on { &[0xFF, 0x00] } else { &[0x00, 0x00] });
+    // Tested by kind rather than matched on the function: a match copies the header's stores
+    // into every arm (firmware size).
+    if !f.is_write() {
+        return Some(6);
+    }
+    if !single {
+        let (byte_count, payload) = rest.split_first_mut()?;
+        *byte_count = data.len() as u8;
+        convert(e, order, data, payload.get_mut(..data.len())?);
+        return Some(7 + data.len());
+    }
+    // The single writes carry the value where the quantity would be.
+    head[4..].fill(0);
+    if f.is_bits() {
+        if data.first().is_some_and(|b| b & 1 != 0) {
+            head[4] = 0xFF;
         }
-        Function::WriteSingleRegister => {
-            head[4..].fill(0);
-            convert(e, order, data, &mut head[4..]);
-        }
-        Function::WriteMultipleCoils | Function::WriteMultipleRegisters => {
-            let (byte_count, payload) = rest.split_first_mut()?;
-            *byte_count = data.len() as u8;
-            convert(e, order, data, payload.get_mut(..data.len())?);
-            return Some(7 + data.len());
-        }
-        Function::ReadCoils
-        | Function::ReadDiscreteInputs
-        | Function::ReadHoldingRegisters
-        | Function::ReadInputRegisters => {}
+    } else {
+        convert(e, order, data, &mut head[4..]);
     }
     Some(6)
 }
