@@ -277,7 +277,8 @@ fn payload(prefix: &[u8], rest: &[u8]) -> Payload {
 pub fn ack_frame(header: Header, count: u8, status: AckStatus) -> Payload {
     let header = Header { fragmented: true, ..header };
     let fragment = FragmentByte { kind: FragmentKind::Ack, count };
-    payload(&[header.to_byte(), fragment.to_byte(), u8::from(status)], &[])
+    // Three known bytes, not pushed one by one through `payload` (firmware size).
+    Payload::from_array([header.to_byte(), fragment.to_byte(), u8::from(status)])
 }
 
 /// One explicit fragment frame, parsed: `[header | 0x80, fragment byte, ≤ 6 body bytes]`
