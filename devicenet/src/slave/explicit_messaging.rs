@@ -126,10 +126,12 @@ impl SlaveNode {
         self.send_pending_shutdown();
     }
 
-    /// Queues the explicit fragments due at `now`.
+    /// Queues the explicit fragment due at `now`: one at most, as the next waits for its ack or
+    /// the ack timeout one second on (firmware size: no loop; the two differ only at
+    /// `Instant::MAX`, where the saturated ack deadline made a loop re-send at once).
     pub(super) fn pump_explicit(&mut self, now: Instant) {
         let id = self.response_id();
-        while let Some(payload) = self.explicit_tx.poll_transmit(now) {
+        if let Some(payload) = self.explicit_tx.poll_transmit(now) {
             self.queue_data(id, &payload);
         }
     }
