@@ -7,7 +7,7 @@
 //! acknowledgement, or nothing under acknowledge suppression (§II.2.1, §II.2.5).
 
 use super::{Event, SlaveNode};
-use crate::fragment::io_fragments;
+use crate::fragment::{FragmentByte, FragmentKind, IO_FRAGMENT_DATA};
 use crate::frame::CanId;
 use crate::messages::AllocationChoice;
 use crate::time::Instant;
@@ -68,12 +68,25 @@ impl SlaveNode {
     pub(super) fn send_input(&mut self, id: CanId) {
         // The frames go to the queue while the image is read in place (no copy of it).
         let SlaveNode { input, tx, stats, .. } = self;
-        if input.len() > 8 {
-            for payload in io_fragments(input) {
-                super::queue_into(tx, stats, id, &payload);
-            }
-        } else {
+        if input.len() <= 8 {
             super::queue_into(tx, stats, id, input);
+            return;
+        }
+        // The frames of `io_fragments` (test: `fragments_as_io_fragments`), each written into one
+        // frame buffer, not built as a `Payload` and copied (firmware size). At most
+        // MAX_IO_SIZE / 7 fragments, so the count never wraps.
+        let last = (input.len() - 1) / IO_FRAGMENT_DATA;
+        for (i, chunk) in input.chunks(IO_FRAGMENT_DATA).enumerate() {
+            let kind = match i {
+                0 => FragmentKind::First,
+                _ if i == last => FragmentKind::Last,
+                _ => FragmentKind::Middle,
+            };
+            let mut frame = [FragmentByte { kind, count: i as u8 }.to_byte(), 0, 0, 0, 0, 0, 0, 0];
+            // A chunk holds at most 7 bytes, so it always fits after the fragment byte.
+            let Some(data) = frame.get_mut(1..=chunk.len()) else { return };
+            data.copy_from_slice(chunk);
+            super::queue_into(tx, stats, id, frame.get(..=chunk.len()).unwrap_or(&[]));
         }
     }
 }

@@ -668,6 +668,26 @@ fn poll_answered_at_once_with_three_fragments() {
 }
 
 #[test]
+fn fragments_as_io_fragments() {
+    // Every fragmented produced size: the poll response is the frames of `io_fragments` (the
+    // transmit queue holds the first TX_QUEUE_LEN of them).
+    for size in 9..=MAX_IO_SIZE as u16 {
+        let mut config = DeviceConfig::reference();
+        config.produced_size = size;
+        let mut rig = Rig::new(config);
+        let input: Vec<u8> = (0..size).map(|i| i as u8 ^ 0xA5).collect();
+        rig.node.set_input(&input).unwrap();
+        rig.node.power_on(Instant::ZERO);
+        rig.advance(Duration::from_secs(2));
+        rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x03, 0x00]);
+        rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
+        let expected: Tx =
+            crate::fragment::io_fragments(&input).take(TX_QUEUE_LEN).map(|p| (0x3C5, p.to_vec())).collect();
+        assert_eq!(rig.send(0x42D, &[0; 8]), expected, "produced size {size}");
+    }
+}
+
+#[test]
 fn idle_poll_is_reported_and_answered() {
     let mut rig = Rig::established();
     rig.send(0x42D, &[9; 8]);
