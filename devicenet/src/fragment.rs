@@ -631,7 +631,11 @@ impl<const N: usize> ExplicitTransmitter<N> {
         let header = self.buf.first().copied().unwrap_or(0) | FRAG_BIT;
         let fragment = FragmentByte { kind, count: self.count };
         let chunk = self.body().get(self.offset..self.fragment_end()).unwrap_or(&[]);
-        payload(&[header, fragment.to_byte()], chunk)
+        // The two known bytes, then the chunk (at most 6 bytes, so it fits) in one copy, not
+        // pushed byte by byte through `payload` (firmware size).
+        let mut frame = Payload::from_array([header, fragment.to_byte()]);
+        let _ = frame.extend_from_slice(chunk);
+        frame
     }
 
     /// Aborts the transfer when the re-sent fragment's ack is overdue.
