@@ -308,8 +308,9 @@ struct Active {
 pub struct CommandSequencer {
     config: SequencerConfig,
     mode: OutputMode,
-    /// The idle/fault frame of the current mode is due since this instant.
-    mode_frame_due: Option<Instant>,
+    /// The idle/fault frame of the current mode is due since this instant ([`Instant::MAX`]:
+    /// none; the clock never gets there). Not an `Option`: firmware size.
+    mode_frame_due: Instant,
     /// (code, sequence) of the last outputs seen.
     last_key: Option<(u8, u8)>,
     active: Option<Active>,
@@ -330,7 +331,7 @@ impl CommandSequencer {
         CommandSequencer {
             config,
             mode: OutputMode::Startup,
-            mode_frame_due: None,
+            mode_frame_due: Instant::MAX,
             last_key: None,
             active: None,
             outcome: CommandOutcome::None,
@@ -354,7 +355,7 @@ impl CommandSequencer {
         };
         if self.mode != OutputMode::Run {
             self.mode = OutputMode::Run;
-            self.mode_frame_due = None;
+            self.mode_frame_due = Instant::MAX;
         }
         let key = (code, rest.first().copied().unwrap_or(0));
         let first = self.last_key.is_none();
@@ -382,7 +383,8 @@ impl CommandSequencer {
             return;
         }
         self.mode = mode;
-        self.mode_frame_due = self.mode_action().and_then(IdleAction::frame).map(|_| now);
+        let frame = self.mode_action().and_then(IdleAction::frame).is_some();
+        self.mode_frame_due = if frame { now } else { Instant::MAX };
     }
 
     fn mode_action(&self) -> Option<&IdleAction> {
@@ -416,7 +418,7 @@ impl CommandSequencer {
     /// What must be sent now, if anything: the idle/fault frame first, then a due command.
     /// Report it with [`transmitted`](Self::transmitted) once handed to the UART.
     pub fn next_transmission(&self, now: Instant) -> Option<Transmission> {
-        if self.mode_frame_due.is_some_and(|t| t <= now) {
+        if self.mode_frame_due <= now {
             match self.mode {
                 OutputMode::Idle => return Some(Transmission::Idle),
                 OutputMode::Fault => return Some(Transmission::Fault),
@@ -447,7 +449,7 @@ impl CommandSequencer {
     pub(crate) fn record_transmitted(&mut self, transmission: Transmission, tx_done: Instant) {
         match transmission {
             Transmission::Idle | Transmission::Fault => {
-                self.mode_frame_due = None;
+                self.mode_frame_due = Instant::MAX;
                 bump(&mut self.counters.idle_frames);
             }
             Transmission::Command { attempt, .. } => {
@@ -528,11 +530,8 @@ impl CommandSequencer {
 
     /// When to call [`poll`](Self::poll) / [`next_transmission`](Self::next_transmission) next.
     pub fn poll_at(&self) -> Option<Instant> {
-        let command = self.active.map(|a| a.at);
-        match (self.mode_frame_due, command) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
+        let at = self.active.map_or(Instant::MAX, |a| a.at).min(self.mode_frame_due);
+        (at != Instant::MAX).then_some(at)
     }
 }
 
