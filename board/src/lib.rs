@@ -13,8 +13,8 @@
 //! | [`leds`] | MS/NS bicolour LED pin levels | yes |
 //! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
 //! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
-//! | [`uart`] | the instrument line's character formats the USART can make | yes |
-//! | `hw` | peripheral set-up, the flash sector driver (the emulated board's: a host file over semihosting), CAN error status (`target_os = "none"` only) | – |
+//! | [`uart`] | the instrument line's character formats the USART can make, and the USART register values (`BRR`, `CR1`, `CR2`) that make them | yes |
+//! | `hw` | peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status (`target_os = "none"` only) | – |
 //!
 //! ## Features
 //!
@@ -27,7 +27,8 @@
 //! emulated board speaks is `can_io::slcan`, shared with the host.
 //!
 //! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
-//! does not offer (CAN error status, reading the settings sectors) and for the semihosting calls
+//! does not offer or offers at a flash cost (CAN error status, reading the settings sectors, the
+//! USARTs' configuration and data registers) and for the semihosting calls
 //! of the emulated board's settings file, and in `mem` for the firmware's byte-at-a-time
 //! `memcpy`/`memset` family (1.5 KiB smaller than `compiler_builtins`' word-wise one).
 #![no_std]
