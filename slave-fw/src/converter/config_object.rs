@@ -516,15 +516,15 @@ impl ConfigObject {
     /// Whether `image` may be stored: it decodes ([`image::decode`], which checks the
     /// configuration) and the platform can run it ([`PlatformCheck`]).
     pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
-        // A match rather than `?`: the configuration is not moved through the `Try` machinery
-        // (firmware size).
-        #[allow(clippy::question_mark)]
-        let config = match image::decode(image) {
+        // Read through a reference rather than with `?` or a move out of the `Result`: the
+        // configuration stays where `decode` wrote it (firmware size).
+        let decoded = image::decode(image);
+        let config = match &decoded {
             Ok(config) => config,
-            Err(e) => return Err(e),
+            Err(e) => return Err(*e),
         };
         match self.platform_check {
-            Some(check) => check(&config).map_err(ImageError::Invalid),
+            Some(check) => check(config).map_err(ImageError::Invalid),
             None => Ok(()),
         }
     }
