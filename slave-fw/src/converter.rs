@@ -333,8 +333,10 @@ impl Converter {
         now: Instant,
     ) -> Result<Converter, ImageError> {
         #[allow(clippy::question_mark)] // No `Try` moves of the large value (firmware size).
-        let mut config = match crate::image::decode(image) {
-            Ok(config) => config,
+        // `decode_with_layout`, the firmware's one decoder (`ConfigObject::check`, the Parameter
+        // object), rather than `decode` (firmware size).
+        let mut config = match crate::image::decode_with_layout(image) {
+            Ok((config, _)) => config,
             Err(e) => return Err(e),
         };
         board.apply(&mut config.device);

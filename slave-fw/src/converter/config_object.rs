@@ -518,9 +518,11 @@ impl ConfigObject {
     pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
         // Read through a reference rather than with `?` or a move out of the `Result`: the
         // configuration stays where `decode` wrote it (firmware size).
-        let decoded = image::decode(image);
+        // `decode_with_layout`, which the Parameter object calls too, rather than `decode`: one
+        // decoder in the firmware, not a second copying the configuration out (firmware size).
+        let decoded = image::decode_with_layout(image);
         let config = match &decoded {
-            Ok(config) => config,
+            Ok((config, _)) => config,
             Err(e) => return Err(*e),
         };
         match self.platform_check {
