@@ -349,13 +349,16 @@ impl Converter {
             Ok(node) => node,
             Err(e) => return Err(ImageError::Invalid(InvalidConfig::Io(e))),
         };
-        let mut converter = Converter::build(node, config, ConfigObject::new(image, origin), origin, now);
-        converter.set_platform_check(check);
-        Ok(converter)
+        let mut config_object = ConfigObject::new(image, origin);
+        config_object.set_platform_check(check);
+        Ok(Converter::build(node, config, config_object, origin, now))
     }
 
     /// The converter for a configuration whose halves were checked: the node built from its
     /// device half, the profile built from the other.
+    // Out of line, the platform check set on the configuration object before: the converter is
+    // built in the caller's return slot, not moved through it (firmware size).
+    #[inline(never)]
     fn build(
         node: SlaveNode,
         config: ConverterConfig,
