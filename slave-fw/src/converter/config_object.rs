@@ -484,7 +484,9 @@ impl ConfigObject {
                 if bytes.len() > MAX_CHUNK || self.staged.len() + bytes.len() > usize::from(size) {
                     return Err(ServiceError::TOO_MUCH_DATA);
                 }
-                self.staged.extend_from_slice(bytes).map_err(|_| ServiceError::TOO_MUCH_DATA)
+                // Fits: the size was at most MAX_IMAGE (Begin_Download), checked above.
+                let _ = self.staged.extend_from_slice(bytes);
+                Ok(())
             }
             _ => {
                 if !data.is_empty() {
