@@ -302,7 +302,8 @@ pub fn decode_with_layout(bytes: &[u8]) -> Result<(ConverterConfig, Layout), Ima
     if let Some(e) = reader.invalid {
         return Err(ImageError::Invalid(e));
     }
-    config.check()?;
+    // The reader derived the device half's I/O values (`Reader::config`).
+    config.check_derived()?;
     Ok((config, reader.layout))
 }
 
