@@ -311,7 +311,7 @@ impl Converter {
         if let Err(e) = config.profile.validate() {
             return Err(ConverterConfigError::Profile(e));
         }
-        Ok(Converter::build(node, config, config_object, origin, now))
+        Ok(Converter::build(node, config.profile, config.input, config_object, origin, now))
     }
 
     /// Boots from a stored `image` (or the factory default's): decodes it ([`image::decode`]
@@ -345,13 +345,15 @@ impl Converter {
         }
         // `decode` checked the node's half too (`ConverterConfig::check`), and the board's values
         // are typed: the node's own check passes, and its error is mapped only for completeness.
-        let node = match SlaveNode::new(config.device_config()) {
+        // The device half is moved in as it is: `decode` derived its I/O values, and the board's
+        // values are not among them (firmware size: no `device_config` copy).
+        let node = match SlaveNode::new(config.device) {
             Ok(node) => node,
             Err(e) => return Err(ImageError::Invalid(InvalidConfig::Io(e))),
         };
         let mut config_object = ConfigObject::new(image, origin);
         config_object.set_platform_check(check);
-        Ok(Converter::build(node, config, config_object, origin, now))
+        Ok(Converter::build(node, config.profile, config.input, config_object, origin, now))
     }
 
     /// The converter for a configuration whose halves were checked: the node built from its
@@ -361,15 +363,16 @@ impl Converter {
     #[inline(never)]
     fn build(
         node: SlaveNode,
-        config: ConverterConfig,
+        profile: ProfileConfig,
+        input: InputAssembly,
         config_object: ConfigObject,
         origin: ConfigOrigin,
         now: Instant,
     ) -> Converter {
         let mut converter = Converter {
             node,
-            profile: Profile::build(config.profile, now),
-            input: config.input,
+            profile: Profile::build(profile, now),
+            input,
             events: Deque::new(),
             reset: None,
             config: config_object,
