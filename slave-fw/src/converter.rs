@@ -198,20 +198,13 @@ impl ConverterConfig {
 
     /// The poll command size the profile consumes.
     pub fn consumed_size(&self) -> u16 {
-        match &self.profile {
-            ProfileConfig::Framed(_) => COMMAND_SIZE,
-            ProfileConfig::Modbus(m) => m.output_len,
-        }
+        consumed_size(&self.profile)
     }
 
     /// The node configuration with sizes and assembly instances derived from the profile.
     pub fn device_config(&self) -> DeviceConfig {
         let mut device = self.device.clone();
-        let produced = self.input.produced_size(self.profile.input_len());
-        device.produced_size = u16::try_from(produced).unwrap_or(u16::MAX);
-        device.consumed_size = self.consumed_size();
-        device.input_assembly = self.input.instance();
-        device.output_assembly = OUTPUT_ASSEMBLY;
+        derive_io(&mut device, &self.profile, self.input);
         device
     }
 
@@ -220,6 +213,25 @@ impl ConverterConfig {
         self.profile.validate().map_err(ConverterConfigError::Profile)?;
         self.device_config().validate().map_err(ConverterConfigError::Device)
     }
+}
+
+/// The poll command size `profile` consumes ([`ConverterConfig::consumed_size`]).
+fn consumed_size(profile: &ProfileConfig) -> u16 {
+    match profile {
+        ProfileConfig::Framed(_) => COMMAND_SIZE,
+        ProfileConfig::Modbus(m) => m.output_len,
+    }
+}
+
+/// Sets the I/O sizes and assembly instances of `device` that `profile` and `input` imply
+/// ([`ConverterConfig::device_config`]; the image decoder sets them while it builds the
+/// configuration, without a second copy of the device half).
+pub(crate) fn derive_io(device: &mut DeviceConfig, profile: &ProfileConfig, input: InputAssembly) {
+    let produced = input.produced_size(profile.input_len());
+    device.produced_size = u16::try_from(produced).unwrap_or(u16::MAX);
+    device.consumed_size = consumed_size(profile);
+    device.input_assembly = input.instance();
+    device.output_assembly = OUTPUT_ASSEMBLY;
 }
 
 /// What the board decides at reset over a stored configuration ([`Converter::boot`]): the MAC
