@@ -344,17 +344,22 @@ impl Converter {
         check: PlatformCheck,
         now: Instant,
     ) -> Result<Converter, ImageError> {
-        #[allow(clippy::question_mark)] // No `Try` moves of the large value (firmware size).
         // `decode_with_layout`, the firmware's one decoder (`ConfigObject::check`, the Parameter
-        // object), rather than `decode` (firmware size).
-        let mut config = match crate::image::decode_with_layout(image) {
+        // object), rather than `decode`. The board's values are put in and the platform's check
+        // made where the configuration was decoded, and only then is it taken out of the `Result`
+        // (no `Try` moves of the large value, no copy before the changes; firmware size).
+        let mut decoded = crate::image::decode_with_layout(image);
+        if let Ok((config, _)) = &mut decoded {
+            board.apply(&mut config.device);
+            if let Err(e) = check(config) {
+                return Err(ImageError::Invalid(e));
+            }
+        }
+        #[allow(clippy::question_mark)]
+        let config = match decoded {
             Ok((config, _)) => config,
             Err(e) => return Err(e),
         };
-        board.apply(&mut config.device);
-        if let Err(e) = check(&config) {
-            return Err(ImageError::Invalid(e));
-        }
         // `decode` checked the node's half too (`ConverterConfig::check`), and the board's values
         // are typed: the node's own check passes, and its error is mapped only for completeness.
         // The device half is moved in as it is: `decode` derived its I/O values, and the board's
