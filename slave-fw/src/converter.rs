@@ -198,20 +198,13 @@ impl ConverterConfig {
 
     /// The poll command size the profile consumes.
     pub fn consumed_size(&self) -> u16 {
-        match &self.profile {
-            ProfileConfig::Framed(_) => COMMAND_SIZE,
-            ProfileConfig::Modbus(m) => m.output_len,
-        }
+        consumed_size(&self.profile)
     }
 
     /// The node configuration with sizes and assembly instances derived from the profile.
     pub fn device_config(&self) -> DeviceConfig {
         let mut device = self.device.clone();
-        let produced = self.input.produced_size(self.profile.input_len());
-        device.produced_size = u16::try_from(produced).unwrap_or(u16::MAX);
-        device.consumed_size = self.consumed_size();
-        device.input_assembly = self.input.instance();
-        device.output_assembly = OUTPUT_ASSEMBLY;
+        derive_io(&mut device, &self.profile, self.input);
         device
     }
 
@@ -220,6 +213,25 @@ impl ConverterConfig {
         self.profile.validate().map_err(ConverterConfigError::Profile)?;
         self.device_config().validate().map_err(ConverterConfigError::Device)
     }
+}
+
+/// The poll command size `profile` consumes ([`ConverterConfig::consumed_size`]).
+fn consumed_size(profile: &ProfileConfig) -> u16 {
+    match profile {
+        ProfileConfig::Framed(_) => COMMAND_SIZE,
+        ProfileConfig::Modbus(m) => m.output_len,
+    }
+}
+
+/// Sets the I/O sizes and assembly instances of `device` that `profile` and `input` imply
+/// ([`ConverterConfig::device_config`]; the image decoder sets them while it builds the
+/// configuration, without a second copy of the device half).
+pub(crate) fn derive_io(device: &mut DeviceConfig, profile: &ProfileConfig, input: InputAssembly) {
+    let produced = input.produced_size(profile.input_len());
+    device.produced_size = u16::try_from(produced).unwrap_or(u16::MAX);
+    device.consumed_size = consumed_size(profile);
+    device.input_assembly = input.instance();
+    device.output_assembly = OUTPUT_ASSEMBLY;
 }
 
 /// What the board decides at reset over a stored configuration ([`Converter::boot`]): the MAC
@@ -311,7 +323,7 @@ impl Converter {
         if let Err(e) = config.profile.validate() {
             return Err(ConverterConfigError::Profile(e));
         }
-        Ok(Converter::build(node, config, config_object, origin, now))
+        Ok(Converter::build(node, config.profile, config.input, config_object, origin, now))
     }
 
     /// Boots from a stored `image` (or the factory default's): decodes it ([`image::decode`]
@@ -332,39 +344,52 @@ impl Converter {
         check: PlatformCheck,
         now: Instant,
     ) -> Result<Converter, ImageError> {
-        #[allow(clippy::question_mark)] // No `Try` moves of the large value (firmware size).
-        let mut config = match crate::image::decode(image) {
-            Ok(config) => config,
+        // `decode_with_layout`, the firmware's one decoder (`ConfigObject::check`, the Parameter
+        // object), rather than `decode`. The board's values are put in and the platform's check
+        // made where the configuration was decoded, and only then is it taken out of the `Result`
+        // (no `Try` moves of the large value, no copy before the changes; firmware size).
+        let mut decoded = crate::image::decode_with_layout(image);
+        if let Ok((config, _)) = &mut decoded {
+            board.apply(&mut config.device);
+            if let Err(e) = check(config) {
+                return Err(ImageError::Invalid(e));
+            }
+        }
+        #[allow(clippy::question_mark)]
+        let config = match decoded {
+            Ok((config, _)) => config,
             Err(e) => return Err(e),
         };
-        board.apply(&mut config.device);
-        if let Err(e) = check(&config) {
-            return Err(ImageError::Invalid(e));
-        }
         // `decode` checked the node's half too (`ConverterConfig::check`), and the board's values
         // are typed: the node's own check passes, and its error is mapped only for completeness.
-        let node = match SlaveNode::new(config.device_config()) {
+        // The device half is moved in as it is: `decode` derived its I/O values, and the board's
+        // values are not among them (firmware size: no `device_config` copy).
+        let node = match SlaveNode::new(config.device) {
             Ok(node) => node,
             Err(e) => return Err(ImageError::Invalid(InvalidConfig::Io(e))),
         };
-        let mut converter = Converter::build(node, config, ConfigObject::new(image, origin), origin, now);
-        converter.set_platform_check(check);
-        Ok(converter)
+        let mut config_object = ConfigObject::new(image, origin);
+        config_object.set_platform_check(check);
+        Ok(Converter::build(node, config.profile, config.input, config_object, origin, now))
     }
 
     /// The converter for a configuration whose halves were checked: the node built from its
     /// device half, the profile built from the other.
+    // Out of line, the platform check set on the configuration object before: the converter is
+    // built in the caller's return slot, not moved through it (firmware size).
+    #[inline(never)]
     fn build(
         node: SlaveNode,
-        config: ConverterConfig,
+        profile: ProfileConfig,
+        input: InputAssembly,
         config_object: ConfigObject,
         origin: ConfigOrigin,
         now: Instant,
     ) -> Converter {
         let mut converter = Converter {
             node,
-            profile: Profile::build(config.profile, now),
-            input: config.input,
+            profile: Profile::build(profile, now),
+            input,
             events: Deque::new(),
             reset: None,
             config: config_object,

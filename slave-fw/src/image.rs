@@ -302,7 +302,8 @@ pub fn decode_with_layout(bytes: &[u8]) -> Result<(ConverterConfig, Layout), Ima
     if let Some(e) = reader.invalid {
         return Err(ImageError::Invalid(e));
     }
-    config.check()?;
+    // The reader derived the device half's I/O values (`Reader::config`).
+    config.check_derived()?;
     Ok((config, reader.layout))
 }
 
@@ -602,7 +603,7 @@ impl Reader<'_> {
             self.invalid.get_or_insert(InvalidConfig::BaudRate(baud));
             BaudRate::Kbps125
         });
-        let device = DeviceConfig {
+        let mut device = DeviceConfig {
             identity: Identity {
                 vendor_id,
                 device_type,
@@ -624,9 +625,9 @@ impl Reader<'_> {
             consumed_size: 0,
             epr_resolution_ms,
         };
-        let mut config = ConverterConfig { device, profile, input };
-        config.device = config.device_config();
-        config
+        // Derived in place, not through `device_config`'s copy of the device (firmware size).
+        crate::converter::derive_io(&mut device, &profile, input);
+        ConverterConfig { device, profile, input }
     }
 
     #[inline(never)]

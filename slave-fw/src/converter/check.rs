@@ -11,6 +11,7 @@ use crate::serial::{ConfigError, Field, ProfileConfig};
 use core::fmt;
 use devicenet::slave::config::MAX_PRODUCT_NAME;
 use devicenet::slave::ConfigError as NodeConfigError;
+use devicenet::slave::DeviceConfig;
 use devicenet::text::{self, TextSink};
 
 /// A configuration value the converter cannot run with: the key as the description file spells
@@ -214,6 +215,18 @@ impl ConverterConfig {
     /// raw forms are checked where they are read ([`InvalidConfig::MacId`],
     /// [`InvalidConfig::BaudRate`]).
     pub fn check(&self) -> Result<(), InvalidConfig> {
+        self.check_with(&self.device_config())
+    }
+
+    /// [`ConverterConfig::check`] for a configuration whose device half is derived already, equal
+    /// to its [`ConverterConfig::device_config`] ([`crate::image::decode`] builds it so): the node's
+    /// check reads the device half in place, not a copy of it (firmware size).
+    pub(crate) fn check_derived(&self) -> Result<(), InvalidConfig> {
+        self.check_with(&self.device)
+    }
+
+    /// [`ConverterConfig::check`], with `device` the device half with its derived values.
+    fn check_with(&self, device: &DeviceConfig) -> Result<(), InvalidConfig> {
         let id = &self.device.identity;
         let name_len = id.product_name.len();
         if name_len == 0 || name_len > MAX_PRODUCT_NAME {
@@ -230,7 +243,7 @@ impl ConverterConfig {
         }
         let modbus = matches!(self.profile, ProfileConfig::Modbus(_));
         self.profile.validate().map_err(|error| InvalidConfig::Profile { modbus, error })?;
-        self.device_config().validate().map_err(InvalidConfig::Io)
+        device.validate().map_err(InvalidConfig::Io)
     }
 }
 

@@ -484,7 +484,9 @@ impl ConfigObject {
                 if bytes.len() > MAX_CHUNK || self.staged.len() + bytes.len() > usize::from(size) {
                     return Err(ServiceError::TOO_MUCH_DATA);
                 }
-                self.staged.extend_from_slice(bytes).map_err(|_| ServiceError::TOO_MUCH_DATA)
+                // Fits: the size was at most MAX_IMAGE (Begin_Download), checked above.
+                let _ = self.staged.extend_from_slice(bytes);
+                Ok(())
             }
             _ => {
                 if !data.is_empty() {
@@ -516,15 +518,17 @@ impl ConfigObject {
     /// Whether `image` may be stored: it decodes ([`image::decode`], which checks the
     /// configuration) and the platform can run it ([`PlatformCheck`]).
     pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
-        // A match rather than `?`: the configuration is not moved through the `Try` machinery
-        // (firmware size).
-        #[allow(clippy::question_mark)]
-        let config = match image::decode(image) {
-            Ok(config) => config,
-            Err(e) => return Err(e),
+        // Read through a reference rather than with `?` or a move out of the `Result`: the
+        // configuration stays where `decode` wrote it (firmware size).
+        // `decode_with_layout`, which the Parameter object calls too, rather than `decode`: one
+        // decoder in the firmware, not a second copying the configuration out (firmware size).
+        let decoded = image::decode_with_layout(image);
+        let config = match &decoded {
+            Ok((config, _)) => config,
+            Err(e) => return Err(*e),
         };
         match self.platform_check {
-            Some(check) => check(&config).map_err(ImageError::Invalid),
+            Some(check) => check(config).map_err(ImageError::Invalid),
             None => Ok(()),
         }
     }

@@ -25,7 +25,7 @@ use super::InputAssembly;
 use crate::serial::modbus::ModbusConfig;
 use crate::serial::{
     Counter, FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile,
-    ProfileConfig, SerialSettings, StalePolicy, StopBits,
+    ProfileConfig, StalePolicy, StopBits,
 };
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::{ObjectHandler, Reply, ServiceError};
@@ -401,55 +401,38 @@ pub struct SettingsValues {
 impl SettingsValues {
     /// The values of a configuration.
     pub fn of_config(profile: &ProfileConfig, input: InputAssembly) -> SettingsValues {
-        match profile {
-            ProfileConfig::Framed(c) => SettingsValues::framed(c, input),
-            ProfileConfig::Modbus(c) => SettingsValues::modbus(c, input),
-        }
+        SettingsValues::of(
+            match profile {
+                ProfileConfig::Framed(c) => ConfigRef::Framed(c),
+                ProfileConfig::Modbus(c) => ConfigRef::Modbus(c),
+            },
+            input,
+        )
     }
 
     /// The values a running profile was configured with.
     pub fn of_profile(profile: &Profile, input: InputAssembly) -> SettingsValues {
-        match profile {
-            Profile::Framed(p) => SettingsValues::framed(p.config(), input),
-            Profile::Modbus(p) => SettingsValues::modbus(p.config(), input),
-        }
-    }
-
-    fn framed(c: &FramedProfileConfig, input: InputAssembly) -> SettingsValues {
-        let s = &c.sequencer;
-        SettingsValues::new(
-            &c.serial,
-            c.health,
+        SettingsValues::of(
+            match profile {
+                Profile::Framed(p) => ConfigRef::Framed(p.config()),
+                Profile::Modbus(p) => ConfigRef::Modbus(p.config()),
+            },
             input,
-            s.response_timeout_ms,
-            s.retries,
-            [&s.on_idle, &s.on_fault],
-            false,
         )
     }
 
-    fn modbus(c: &ModbusConfig, input: InputAssembly) -> SettingsValues {
-        SettingsValues::new(
-            &c.serial,
-            c.health,
-            input,
-            c.response_timeout_ms,
-            c.retries,
-            [&c.on_idle, &c.on_fault],
-            true,
-        )
-    }
-
-    /// The values from either profile's parts: one body for both (firmware size budget).
-    fn new(
-        serial: &SerialSettings,
-        health: HealthConfig,
-        input: InputAssembly,
-        response_timeout_ms: u32,
-        retries: u8,
-        [on_idle, on_fault]: [&IdleAction; 2],
-        modbus: bool,
-    ) -> SettingsValues {
+    /// The values of either profile's configuration: one body for both, the profile's parts
+    /// picked by one match (firmware size budget).
+    fn of(config: ConfigRef<'_>, input: InputAssembly) -> SettingsValues {
+        let (serial, health, response_timeout_ms, retries, [on_idle, on_fault], modbus) = match config {
+            ConfigRef::Framed(c) => {
+                let s = &c.sequencer;
+                (&c.serial, c.health, s.response_timeout_ms, s.retries, [&s.on_idle, &s.on_fault], false)
+            }
+            ConfigRef::Modbus(c) => {
+                (&c.serial, c.health, c.response_timeout_ms, c.retries, [&c.on_idle, &c.on_fault], true)
+            }
+        };
         SettingsValues {
             baud: serial.baud,
             parity: serial.parity,
@@ -463,6 +446,13 @@ impl SettingsValues {
             modbus,
         }
     }
+}
+
+/// A profile's configuration, of either kind, as [`SettingsValues::of`] reads it.
+#[derive(Clone, Copy)]
+enum ConfigRef<'a> {
+    Framed(&'a FramedProfileConfig),
+    Modbus(&'a ModbusConfig),
 }
 
 fn sends(action: &IdleAction) -> bool {

@@ -421,19 +421,25 @@ pub(super) fn handle(
     // image. `None` (the pending image is gone) is an object state conflict, and so would be an
     // image that does not decode (the image in force always does).
     let bytes = if attr == 12 { Some(config.in_force()) } else { config.base() };
-    let Some((current, layout)) = bytes.and_then(|b| image::decode_with_layout(b).ok()) else {
+    let Some(bytes) = bytes else {
+        return Err(ServiceError::OBJECT_STATE_CONFLICT);
+    };
+    // Read through a reference: the decoded configuration stays where `decode_with_layout` wrote
+    // it, not moved out of its `Result` (firmware size).
+    let decoded = image::decode_with_layout(bytes);
+    let Ok((current, layout)) = &decoded else {
         return Err(ServiceError::OBJECT_STATE_CONFLICT);
     };
     if get {
         return match attr {
-            4 => reply.u16(p.descriptor(&current)),
-            _ => put(reply, t, p.read(&current)),
+            4 => reply.u16(p.descriptor(current)),
+            _ => put(reply, t, p.read(current)),
         };
     }
     let mut patched: Vec<u8, MAX_IMAGE> = Vec::new();
     // The bytes decoded, so they fit.
-    let _ = patched.extend_from_slice(bytes.unwrap_or_default());
-    if !p.settable(&current) {
+    let _ = patched.extend_from_slice(bytes);
+    if !p.settable(current) {
         return Err(ServiceError::ATTRIBUTE_NOT_SETTABLE);
     }
     let value = match t {
@@ -455,7 +461,7 @@ pub(super) fn handle(
         return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
     }
     // The whole configuration is checked again, as a download is (the platform's check too).
-    p.patch(&mut patched, &layout, &current, value);
+    p.patch(&mut patched, layout, current, value);
     image::reseal(&mut patched);
     if config.check(&patched).is_err() {
         return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
