@@ -17,8 +17,10 @@ use master_harness::scanner::model::{ConsoleCommand, NodeStatus, Reply, ScanEntr
 use master_harness::scanner::{io_frame_bits, timing, Scanner, ScannerOptions};
 use slave_fw::converter::ConverterConfig;
 use slave_fw::description::DeviceDescription;
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::path::PathBuf;
+use std::rc::Rc;
 
 fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("dnet-scanner-sim-{}", std::process::id()));
@@ -215,6 +217,29 @@ impl SimDevice for Removable {
     }
 }
 
+impl Removable {
+    /// A bus with the reference breaker at MAC 5 and a removable one at MAC 6, both powered on
+    /// once the master is on-line; the handle switches MAC 6 off and on.
+    fn bus_with_node_6() -> (SimBus, Rc<RefCell<Removable>>) {
+        let mut bus = SimBus::new(Bitrate::K500);
+        bus.attach(Box::new(SoftSlave::reference(MacId::new(5).unwrap())), PowerOn::WhenMasterOnline);
+        let removable = SharedDevice::new(Removable {
+            inner: SoftSlave::reference(MacId::new(6).unwrap()),
+            present: true,
+        });
+        let handle = removable.handle();
+        bus.attach(Box::new(removable), PowerOn::WhenMasterOnline);
+        (bus, handle)
+    }
+
+    /// Puts the device back on the bus, powered on again at `now`.
+    fn bring_back(handle: &RefCell<Removable>, now: Instant) {
+        let mut d = handle.borrow_mut();
+        d.present = true;
+        SimDevice::power_on(&mut d.inner, now);
+    }
+}
+
 fn library_scanner(list: ScanList) -> Scanner {
     let layout = InputLayout::from_converter(&DeviceDescription::reference().converter);
     let layouts: HashMap<u8, InputLayout> = list.nodes.iter().map(|n| (n.mac, layout.clone())).collect();
@@ -227,12 +252,7 @@ fn status(s: &Scanner, mac: u8) -> NodeStatus {
 
 #[test]
 fn a_node_that_disappears_is_timed_out_then_not_present_and_reconnected_when_it_returns() {
-    let mut bus = SimBus::new(Bitrate::K500);
-    bus.attach(Box::new(SoftSlave::reference(MacId::new(5).unwrap())), PowerOn::WhenMasterOnline);
-    let removable =
-        SharedDevice::new(Removable { inner: SoftSlave::reference(MacId::new(6).unwrap()), present: true });
-    let handle = removable.handle();
-    bus.attach(Box::new(removable), PowerOn::WhenMasterOnline);
+    let (mut bus, handle) = Removable::bus_with_node_6();
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let mut scanner =
@@ -266,12 +286,7 @@ fn a_node_that_disappears_is_timed_out_then_not_present_and_reconnected_when_it_
     assert_eq!(status(&scanner, 5), NodeStatus::Ok, "the other node goes on");
     let exchanges_5 = scanner.state().nodes[0].exchanges;
     // Back (powered on again): reconnected, exchanging again.
-    {
-        let mut d = handle.borrow_mut();
-        d.present = true;
-        let now = master.session.now();
-        SimDevice::power_on(&mut d.inner, now);
-    }
+    Removable::bring_back(&handle, master.session.now());
     let give_up = master.session.now() + devicenet::Duration::from_secs(10);
     while master.session.now() < give_up {
         scanner.cycle(&mut master).unwrap();
@@ -482,12 +497,7 @@ fn a_mixed_list_at_500k_poll_strobe_cos_and_cyclic_every_node_ok() {
 
 #[test]
 fn a_cos_node_that_disappears_is_timed_out_and_reconnected_when_it_returns() {
-    let mut bus = SimBus::new(Bitrate::K500);
-    bus.attach(Box::new(SoftSlave::reference(MacId::new(5).unwrap())), PowerOn::WhenMasterOnline);
-    let removable =
-        SharedDevice::new(Removable { inner: SoftSlave::reference(MacId::new(6).unwrap()), present: true });
-    let handle = removable.handle();
-    bus.attach(Box::new(removable), PowerOn::WhenMasterOnline);
+    let (mut bus, handle) = Removable::bus_with_node_6();
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
     let mut cos = entry_as(6, "cos");
@@ -533,12 +543,7 @@ fn a_cos_node_that_disappears_is_timed_out_and_reconnected_when_it_returns() {
     let after = (timed_out_at.unwrap() - gone).total_millis();
     assert!(after >= 3 * epr && after <= 4 * epr + epr / 2, "timed out {after} ms after it went, EPR {epr}");
     assert_eq!(status(&scanner, 5), NodeStatus::Ok, "the polled node goes on");
-    {
-        let mut d = handle.borrow_mut();
-        d.present = true;
-        let now = master.session.now();
-        SimDevice::power_on(&mut d.inner, now);
-    }
+    Removable::bring_back(&handle, master.session.now());
     let back = master.session.now();
     let give_up = back + devicenet::Duration::from_secs(10);
     while master.session.now() < give_up {
