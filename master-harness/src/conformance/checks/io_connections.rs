@@ -155,20 +155,23 @@ fn exchange(r: &mut Runner<'_, '_>, c: &mut Check, cycles: u32) -> Result<(), Ha
             r.m.send_output(&output)?;
         }
     }
-    if let Some(k) = r.m.io_connection() {
-        let s = &k.summary;
-        c.firm(
-            s.productions >= cycles,
-            format!(
-                "{} production(s) of {} bytes reassembled, {} acknowledgement(s) sent; the master's data sent {} time(s), acknowledged {} time(s)",
-                s.productions, k.produced, s.acks_sent, s.outputs_sent, s.outputs_acknowledged
-            ),
-            None,
-        );
-        if let (Some(lo), Some(hi)) = (s.interval_min_ms, s.interval_max_ms) {
-            c.measure("production interval, shortest", lo, "ms");
-            c.measure("production interval, longest", hi, "ms");
-        }
+    // No connection to judge is a failure, not a silent pass: nothing would have been compared.
+    let Some(k) = r.m.io_connection() else {
+        c.firm(false, "no I/O connection established: nothing exchanged", None);
+        return Ok(());
+    };
+    let s = &k.summary;
+    c.firm(
+        s.productions >= cycles,
+        format!(
+            "{} production(s) of {} bytes reassembled, {} acknowledgement(s) sent; the master's data sent {} time(s), acknowledged {} time(s)",
+            s.productions, k.produced, s.acks_sent, s.outputs_sent, s.outputs_acknowledged
+        ),
+        None,
+    );
+    if let (Some(lo), Some(hi)) = (s.interval_min_ms, s.interval_max_ms) {
+        c.measure("production interval, shortest", lo, "ms");
+        c.measure("production interval, longest", hi, "ms");
     }
     Ok(())
 }
@@ -213,7 +216,10 @@ fn cos_acknowledged(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harness
 /// can trigger a production of its own in between): sent again after the acknowledge timer,
 /// retry limit times, then nothing until the next EPR (§II.2.4; the whole series, UNCONFIRMED).
 fn unacknowledged(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
-    let Some(conn) = r.m.end_io() else { return Ok(()) };
+    let Some(conn) = r.m.end_io() else {
+        c.firm(false, "no I/O connection established: no production to leave unacknowledged", None);
+        return Ok(());
+    };
     let timer = Duration::from_millis(u64::from(conn.summary.ack_timer_ms.unwrap_or(DEFAULT_ACK_TIMER_MS)));
     let retries = conn.summary.retry_limit.unwrap_or(1);
     let epr = Duration::from_millis(u64::from(conn.epr_ms));
