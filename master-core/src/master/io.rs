@@ -258,9 +258,9 @@ pub struct IoConnection {
     pub produced: u16,
     /// What the master sends: poll attribute 8, strobe 8, COS/cyclic Connection 2 attribute 8.
     pub consumed: u16,
-    /// The EPR the device applied, ms.
+    /// The EPR the device applied, ms (the one requested until the Set EPR response is judged).
     pub epr_ms: u16,
-    /// When the Set EPR response completed (the connection established).
+    /// When the master sent the Set EPR request, on which the device establishes the connection.
     pub established_at: Instant,
     /// Counters and attributes for the report.
     pub summary: IoSummary,
@@ -545,15 +545,17 @@ impl Master<'_, '_> {
                 (produced, consumed)
             }
         };
-        let applied = self.set_epr(target, inst, epr_ms, kind)?;
-        let established_at = self.session.now();
+        // The connection is the master's before the Set EPR goes out: the device establishes it on
+        // that request and may produce before the response completes (a COS connection produces
+        // at once, notes §II.2.3), and the master judges the frames around the response only once
+        // the exchange is over. They are the connection's frames, not unexpected ones.
         self.io = Some(IoConnection {
             target,
             options: io.clone(),
             produced,
             consumed,
-            epr_ms: applied,
-            established_at,
+            epr_ms,
+            established_at: self.session.now(),
             summary,
             pending: VecDeque::new(),
             series: IoSeries::new(produced),
@@ -561,7 +563,18 @@ impl Master<'_, '_> {
             output_pending: None,
             series_start: None,
         });
-        Ok(())
+        match self.set_epr(target, inst, epr_ms, kind) {
+            Ok(applied) => {
+                if let Some(conn) = &mut self.io {
+                    conn.epr_ms = applied;
+                }
+                Ok(())
+            }
+            Err(e) => {
+                self.io = None;
+                Err(e)
+            }
+        }
     }
 
     /// The I/O connection brought up by [`Master::establish_io`], while it runs.

@@ -589,14 +589,16 @@ impl<'s, 'b> Runner<'s, 'b> {
         let me = self.master_mac();
         let mut conflict = false;
         // The strobe, COS and cyclic connections once a check may have allocated them (each
-        // alone: a release naming a connection that does not exist is refused whole).
+        // alone: a release naming a connection that does not exist is refused whole). The master
+        // forgets its connection only once they are released: until the device has the Release,
+        // it produces, and those productions are the connection's, not unexpected frames.
         if std::mem::take(&mut self.io_allocated) {
-            self.m.end_io();
             for choice in
                 [AllocationChoice::BIT_STROBE, AllocationChoice::CHANGE_OF_STATE, AllocationChoice::CYCLIC]
             {
                 let _ = self.release_as(me, Port::Group2Only, choice)?;
             }
+            self.m.end_io();
         }
         for choice in [AllocationChoice::POLL, AllocationChoice::EXPLICIT] {
             let (r, _) = self.release_as(me, Port::Group2Only, choice)?;
@@ -806,6 +808,55 @@ pub(crate) fn percentile(sorted: &[f64], p: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use can_io::bus::Bitrate;
+    use can_io::sim::{PowerOn, SimBus};
+    use converter_sim::device::SoftSlave;
+    use master_core::io::{IoKind, IoOptions};
+    use master_core::master::ConnectOptions;
+
+    /// A cyclic connection producing every 10 ms, released by [`Runner::release_all`] at every
+    /// phase of its period: the productions that come while the Releases are under way belong to
+    /// the connection and none is judged unexpected. Some releases must meet a production, or
+    /// the test compared nothing.
+    #[test]
+    fn productions_during_the_release_belong_to_the_connection() {
+        let dut = MacId::from_low_bits(5);
+        let mut bus = SimBus::new(Bitrate::K250);
+        bus.attach(Box::new(SoftSlave::reference(dut)), PowerOn::WhenMasterOnline);
+        let mut session = Session::new(&mut bus);
+        let mut observer = ();
+        let opts = SuiteOptions::new(dut);
+        let mut r = Runner::new(
+            &mut session,
+            MasterConfig::default(),
+            opts,
+            Timestamps::of_transport("sim"),
+            &mut observer,
+        );
+        r.m.connect(&ConnectOptions { target: dut, ..ConnectOptions::default() }).unwrap();
+        let production = Identifier::group1(Group1MessageId::COS_CYCLIC, dut);
+        let mut met = 0;
+        for offset_us in (0..10_000).step_by(500) {
+            r.fresh_explicit().unwrap();
+            r.io_allocated = true;
+            r.m.establish_io(dut, 10, &IoOptions::of(IoKind::Cyclic)).unwrap();
+            r.m.await_production().unwrap();
+            let then = r.now() + Duration::from_micros(offset_us);
+            r.m.idle_until(then).unwrap();
+            let from = r.mark();
+            r.release_all().unwrap();
+            met += r.m.session.records()[from..].iter().filter(|rec| rec.frame.id() == production).count();
+        }
+        let failed: Vec<String> =
+            r.m.session
+                .records()
+                .iter()
+                .filter(|rec| rec.verdict.is_failure())
+                .map(|rec| format!("#{} {}: {}", rec.index, rec.frame, rec.verdict.label()))
+                .collect();
+        assert!(failed.is_empty(), "{failed:#?}");
+        assert!(met > 0, "no release met a production: nothing was compared");
+    }
 
     #[test]
     fn fragments_of_a_message() {

@@ -41,9 +41,31 @@ fn cos_device(
     resend_ms: Option<u64>,
     output_ack: Option<&[u8]>,
 ) -> Scripted {
+    let d = cos_attributes(choice, consumed_id).explicit(&SET_EPR_100, &[0x00, 0x90, 0x64, 0x00]).produce(
+        (0x42C, &SET_EPR_100),
+        2,
+        period_ms,
+        productions(),
+        resend_ms,
+    );
+    match output_ack {
+        Some(ack) => d.on(0x42D, &[0; 8], &[(0, 0x3C5, ack)]),
+        None => d,
+    }
+}
+
+/// The Set EPR request of 100 ms for Connection 4 (explicit header and body).
+const SET_EPR_100: [u8; 7] = [0x00, 0x10, 0x05, 0x04, 0x09, 0x64, 0x00];
+
+/// The fragments of one production of [`INPUT`] on 0x345.
+fn productions() -> Vec<(u16, Vec<u8>)> {
+    io_fragments(&INPUT).map(|p| (0x345u16, p.to_vec())).collect()
+}
+
+/// A COS/cyclic device up to its Set EPR: `choice` allocated, `consumed_id` its attribute 5.
+fn cos_attributes(choice: u8, consumed_id: u16) -> Scripted {
     let [c0, c1] = consumed_id.to_le_bytes();
-    let frames = io_fragments(&INPUT).map(|p| (0x345u16, p.to_vec())).collect();
-    let d = prologue()
+    prologue()
         .explicit(&[0x00, 0x4B, 0x03, 0x01, choice, 0x00], &[0x00, 0xCB, 0x00])
         .explicit(&[0x00, 0x0E, 0x05, 0x04, 0x04], &[0x00, 0x8E, 0x45, 0x03])
         .explicit(&[0x00, 0x0E, 0x05, 0x04, 0x05], &[0x00, 0x8E, c0, c1])
@@ -54,12 +76,6 @@ fn cos_device(
         .explicit(&[0x00, 0x0E, 0x05, 0x04, 0x11], &[0x00, 0x8E, 0x00, 0x00])
         .explicit(&[0x00, 0x0E, 0x2B, 0x01, 0x01], &[0x00, 0x8E, 0x10, 0x00])
         .explicit(&[0x00, 0x0E, 0x2B, 0x01, 0x02], &[0x00, 0x8E, 0x01])
-        .explicit(&[0x00, 0x10, 0x05, 0x04, 0x09, 0x64, 0x00], &[0x00, 0x90, 0x64, 0x00])
-        .produce((0x42C, &[0x00, 0x10, 0x05, 0x04, 0x09, 0x64, 0x00]), 2, period_ms, frames, resend_ms);
-    match output_ack {
-        Some(ack) => d.on(0x42D, &[0; 8], &[(0, 0x3C5, ack)]),
-        None => d,
-    }
 }
 
 /// Runs `connect --io` against `device` for `cycles`; the summary (or the error) and the
@@ -110,6 +126,22 @@ fn cos_productions_are_reassembled_acknowledged_and_the_master_data_acknowledged
     assert_eq!((io.ack_timer_ms, io.retry_limit), (Some(16), Some(1)));
     assert_eq!(s.last_input.as_deref(), Some(&INPUT[..]));
     assert_eq!(io.interval_min_ms, Some(100.0));
+}
+
+#[test]
+fn a_first_production_before_the_set_epr_response_belongs_to_the_connection() {
+    // The device establishes the connection on the Set EPR and produces at once; its response
+    // comes 5 ms later, after the whole production (notes §II.2.3).
+    let device = cos_attributes(0x10, 0x42A)
+        .on(0x42C, &SET_EPR_100, &[(5, 0x42B, &[0x00, 0x90, 0x64, 0x00])])
+        .produce((0x42C, &SET_EPR_100), 0, 100, productions(), None)
+        .on(0x42D, &[0; 8], &[(0, 0x3C5, &[])]);
+    let (r, failures) = run(device, IoOptions::of(IoKind::ChangeOfState), 3);
+    let s = r.unwrap();
+    assert!(failures.is_empty(), "{failures:#?}");
+    let io = s.io.unwrap();
+    assert_eq!((io.productions, io.acks_sent, io.re_sent), (3, 3, 0));
+    assert_eq!(s.last_input.as_deref(), Some(&INPUT[..]));
 }
 
 #[test]
