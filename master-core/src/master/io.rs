@@ -275,6 +275,11 @@ pub struct IoConnection {
     output_pending: Option<Instant>,
     /// The first frame of the series in progress.
     series_start: Option<Instant>,
+    /// Given back by [`Master::resume_io`] at this time: the first production is timed from it.
+    resumed: Option<Instant>,
+    /// Given back, and no production begun since: fragments before the next first fragment end a
+    /// production the master did not see begin.
+    resync: bool,
 }
 
 impl IoConnection {
@@ -562,6 +567,8 @@ impl Master<'_, '_> {
             last: None,
             output_pending: None,
             series_start: None,
+            resumed: None,
+            resync: false,
         });
         match self.set_epr(target, inst, epr_ms, kind) {
             Ok(applied) => {
@@ -585,6 +592,22 @@ impl Master<'_, '_> {
     /// Forgets the I/O connection (released, or lost): its frames are no longer expected.
     pub fn end_io(&mut self) -> Option<IoConnection> {
         self.io.take()
+    }
+
+    /// Gives back `conn`, taken with [`Master::end_io`] while the device still runs it (a check
+    /// watched its frames itself): its frames are the connection's again until it is released.
+    /// What came meanwhile was the taker's to judge, so the master starts afresh: the first
+    /// production is timed from now, and the fragments that end a production begun before now are
+    /// noted, not reassembled.
+    pub fn resume_io(&mut self, mut conn: IoConnection) {
+        conn.pending.clear();
+        conn.series = IoSeries::new(conn.produced);
+        conn.series_start = None;
+        conn.last = None;
+        conn.output_pending = None;
+        conn.resumed = Some(self.session.now());
+        conn.resync = true;
+        self.io = Some(conn);
     }
 
     /// Runs `f` on the I/O connection, taken out of the master meanwhile (so frames that are not
@@ -796,6 +819,17 @@ impl Master<'_, '_> {
             IoKind::Cyclic => "cyclic production",
             _ => "change-of-state production",
         };
+        if conn.resync {
+            let first = conn.produced <= 8 || rec.frame.data().first().is_some_and(|b| b & 0xC0 == 0);
+            if !first {
+                let note = format!(
+                    "{what} fragment: the end of a production begun before the master took the connection back"
+                );
+                self.session.set_verdict(i, Verdict::Info(note));
+                return Ok(());
+            }
+            conn.resync = false;
+        }
         if conn.series_start.is_none() {
             conn.series_start = Some(rec.at);
         }
@@ -873,9 +907,10 @@ impl Master<'_, '_> {
             }
         }
         conn.summary.productions += 1;
-        let (interval, since) = match &conn.last {
-            Some((prev, _, _)) => (start - *prev, "the previous production"),
-            None => (start - conn.established_at, "the Set EPR (established)"),
+        let (interval, since) = match (&conn.last, conn.resumed) {
+            (Some((prev, _, _)), _) => (start - *prev, "the previous production"),
+            (None, Some(back)) => (start - back, "the master took the connection back"),
+            (None, None) => (start - conn.established_at, "the Set EPR (established)"),
         };
         let first = conn.last.is_none();
         if !first {

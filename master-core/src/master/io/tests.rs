@@ -145,6 +145,45 @@ fn a_first_production_before_the_set_epr_response_belongs_to_the_connection() {
 }
 
 #[test]
+fn a_connection_given_back_mid_production_is_followed_again_from_its_next_production() {
+    let mut bus = SimBus::new(Bitrate::K250);
+    bus.attach(Box::new(cos_device(0x20, 0x42A, 100, None, Some(&[]))), PowerOn::AtStart);
+    let mut session = Session::new(&mut bus);
+    let mut m = Master::new(&mut session, MasterConfig::default());
+    let opts = ConnectOptions { polls: 1, ..ConnectOptions::default() };
+    m.connect_io(&opts, &IoOptions::of(IoKind::Cyclic)).unwrap();
+    // A check takes the connection and watches the frames itself, up to the first fragment of a
+    // production: the rest of it comes after the master has the connection back.
+    let conn = m.end_io().unwrap();
+    let deadline = m.session.now() + Duration::from_millis(300);
+    let mut watched = 0;
+    while let Some(i) = m.session.next(deadline).unwrap() {
+        let rec = m.session.record(i).clone();
+        if rec.origin == Origin::Remote {
+            m.session.set_verdict(i, Verdict::Ok("watched by the test".into()));
+            watched += 1;
+            if rec.frame.data()[0] == 0x00 && watched > 1 {
+                break;
+            }
+        }
+    }
+    m.resume_io(conn);
+    assert_eq!(m.await_production().unwrap(), INPUT);
+    assert_eq!(m.await_production().unwrap(), INPUT);
+    let failures = crate::master::scripted::failed_frames(m.session);
+    assert!(failures.is_empty(), "{failures:#?}");
+    let rest = m
+        .session
+        .records()
+        .iter()
+        .filter(|r| matches!(&r.verdict, Verdict::Info(n) if n.contains("before the master took")))
+        .count();
+    assert_eq!(rest, 2, "the middle and last fragments of the production begun before");
+    let io = m.io_connection().unwrap();
+    assert_eq!(io.summary.productions, 1 + 2, "the one of connect and the two after");
+}
+
+#[test]
 fn a_cyclic_connection_producing_off_its_epr_fails_and_is_only_noted_where_timing_is_not_judged() {
     let (r, failures) = run(cos_device(0x20, 0x42A, 150, None, Some(&[])), IoOptions::of(IoKind::Cyclic), 3);
     r.unwrap();

@@ -15,7 +15,7 @@ use devicenet::objects::class;
 use devicenet::{Duration, Identifier, Instant};
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::decode::{self, hex};
-use master_core::io::{IoKind, IoOptions, ACKNOWLEDGE_HANDLER, DEFAULT_ACK_TIMER_MS};
+use master_core::io::{IoConnection, IoKind, IoOptions, ACKNOWLEDGE_HANDLER, DEFAULT_ACK_TIMER_MS};
 use master_core::session::Verdict;
 
 const IO: Category = Category::IoConnections;
@@ -220,6 +220,18 @@ fn unacknowledged(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessEr
         c.firm(false, "no I/O connection established: no production to leave unacknowledged", None);
         return Ok(());
     };
+    let judged = leave_unacknowledged(r, c, &conn);
+    // The device runs the connection until it has the Release: its frames are the master's again.
+    r.m.resume_io(conn);
+    judged
+}
+
+/// [`unacknowledged`] on `conn`, taken from the master: the frames of 2 x EPR judged here.
+fn leave_unacknowledged(
+    r: &mut Runner<'_, '_>,
+    c: &mut Check,
+    conn: &IoConnection,
+) -> Result<(), HarnessError> {
     let timer = Duration::from_millis(u64::from(conn.summary.ack_timer_ms.unwrap_or(DEFAULT_ACK_TIMER_MS)));
     let retries = conn.summary.retry_limit.unwrap_or(1);
     let epr = Duration::from_millis(u64::from(conn.epr_ms));
