@@ -48,24 +48,10 @@ impl ServiceError {
     /// 0x0C object state conflict.
     pub const OBJECT_STATE_CONFLICT: ServiceError = ServiceError::new(GeneralStatus::ObjectStateConflict);
 
-    /// Checks that `data` holds exactly `n` bytes (0x13 / 0x15 otherwise).
-    pub fn expect_len(data: &[u8], n: usize) -> Result<(), ServiceError> {
-        match data.len() {
-            l if l < n => Err(ServiceError::NOT_ENOUGH_DATA),
-            l if l > n => Err(ServiceError::TOO_MUCH_DATA),
-            _ => Ok(()),
-        }
-    }
-
-    /// `data` as exactly `N` bytes (0x13 / 0x15 otherwise, as [`ServiceError::expect_len`]): the
-    /// attribute ID of a Get_Attribute_Single, a USINT or UINT attribute value.
-    pub fn expect_array<const N: usize>(data: &[u8]) -> Result<[u8; N], ServiceError> {
-        <[u8; N]>::try_from(data).map_err(|_| ServiceError::wrong_length(data, N))
-    }
-
     /// The error for request data that is not `n` bytes long: 0x13 not enough data, 0x15 too
-    /// much. With a slice pattern (`let &[attr] = data else { return Err(..) }`) it costs less
-    /// flash than [`ServiceError::expect_array`]'s `Result` and `?` (some 20 to 40 bytes a site).
+    /// much. Every length check of the services goes through it, after a slice pattern
+    /// (`let &[attr] = data else { return Err(..) }`) or a length comparison: that costs less
+    /// flash than a checking helper's `Result` and `?` (some 20 to 40 bytes a site).
     #[inline(never)]
     pub const fn wrong_length(data: &[u8], n: usize) -> ServiceError {
         if data.len() < n {
@@ -191,13 +177,9 @@ mod tests {
     }
 
     #[test]
-    fn expect_len() {
-        assert_eq!(ServiceError::expect_len(&[1], 2), Err(ServiceError::NOT_ENOUGH_DATA));
-        assert_eq!(ServiceError::expect_len(&[1, 2, 3], 2), Err(ServiceError::TOO_MUCH_DATA));
-        assert_eq!(ServiceError::expect_len(&[1, 2], 2), Ok(()));
-        assert_eq!(ServiceError::expect_array::<2>(&[1]), Err(ServiceError::NOT_ENOUGH_DATA));
-        assert_eq!(ServiceError::expect_array::<2>(&[1, 2, 3]), Err(ServiceError::TOO_MUCH_DATA));
-        assert_eq!(ServiceError::expect_array(&[1, 2]), Ok([1, 2]));
+    fn wrong_length() {
+        assert_eq!(ServiceError::wrong_length(&[1], 2), ServiceError::NOT_ENOUGH_DATA);
+        assert_eq!(ServiceError::wrong_length(&[1, 2, 3], 2), ServiceError::TOO_MUCH_DATA);
         assert_eq!(ServiceError::wrong_length(&[], 1), ServiceError::NOT_ENOUGH_DATA);
         assert_eq!(ServiceError::wrong_length(&[1, 2], 1), ServiceError::TOO_MUCH_DATA);
     }

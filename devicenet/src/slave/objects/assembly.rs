@@ -41,7 +41,7 @@ impl SlaveNode {
                     // The poll connection owns the outputs while it is established.
                     3 if self.poll.is_established() => Err(ServiceError::DEVICE_STATE_CONFLICT),
                     3 => {
-                        // Checked in place, not through expect_len's Result (firmware size).
+                        // Checked in place: no helper's Result to carry (firmware size).
                         let consumed = usize::from(self.config.consumed_size);
                         if value.len() != consumed {
                             return Err(ServiceError::wrong_length(value, consumed));
