@@ -25,7 +25,7 @@ pub use devicenet::SettingChanged;
 use super::{Reply, ServiceError};
 
 /// Class attribute 1 (revision), the only class attribute served; with `max_instance` also
-/// attribute 2 (max instance), the Acknowledge Handler's, whose value 1 equals its revision.
+/// attribute 2 (max instance, 1: the Acknowledge Handler's single instance).
 fn class_revision(
     data: &[u8],
     revision: u16,
@@ -34,7 +34,7 @@ fn class_revision(
 ) -> Result<(), ServiceError> {
     match *data {
         [1] => reply.u16(revision),
-        [2] if max_instance => reply.u16(revision),
+        [2] if max_instance => reply.u16(1),
         [_] => Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
         _ => Err(ServiceError::wrong_length(data, 1)),
     }

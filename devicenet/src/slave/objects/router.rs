@@ -30,7 +30,7 @@ impl SlaveNode {
         };
         // Every core class (and every application class with a `class_revision`) serves the same
         // class instance (0): its revision, nothing else; the Acknowledge Handler also its max
-        // instance (attribute 2), 1 like its revision.
+        // instance (attribute 2).
         if req.instance == 0 {
             let max_instance = req.class == class::ACKNOWLEDGE_HANDLER;
             return match req.service {
