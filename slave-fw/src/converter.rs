@@ -360,10 +360,10 @@ impl Converter {
             Ok((config, _)) => config,
             Err(e) => return Err(e),
         };
-        // `decode` checked the node's half too (`ConverterConfig::check`), and the board's values
-        // are typed: the node's own check passes, and its error is mapped only for completeness.
-        // The device half is moved in as it is: `decode` derived its I/O values, and the board's
-        // values are not among them (firmware size: no `device_config` copy).
+        // The decoder checked the node's half too (`ConverterConfig::check`), and the board's
+        // values are typed: the node's own check passes, and its error is mapped only for
+        // completeness. The device half is moved in as it is: the decoder derived its I/O values,
+        // and the board's values are not among them (firmware size: no `device_config` copy).
         let node = match SlaveNode::new(config.device) {
             Ok(node) => node,
             Err(e) => return Err(ImageError::Invalid(InvalidConfig::Io(e))),

@@ -518,10 +518,9 @@ impl ConfigObject {
     /// Whether `image` may be stored: it decodes ([`image::decode`], which checks the
     /// configuration) and the platform can run it ([`PlatformCheck`]).
     pub fn check(&self, image: &[u8]) -> Result<(), ImageError> {
-        // Read through a reference rather than with `?` or a move out of the `Result`: the
-        // configuration stays where `decode` wrote it (firmware size).
-        // `decode_with_layout`, which the Parameter object calls too, rather than `decode`: one
-        // decoder in the firmware, not a second copying the configuration out (firmware size).
+        // `decode_with_layout`, the firmware's one decoder (the Parameter object calls it too),
+        // and the configuration read through a reference to its `Result`, not moved out of it
+        // nor through `?` (firmware size).
         let decoded = image::decode_with_layout(image);
         let config = match &decoded {
             Ok((config, _)) => config,
