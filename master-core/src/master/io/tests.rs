@@ -152,8 +152,8 @@ fn a_connection_given_back_mid_production_is_followed_again_from_its_next_produc
     let mut m = Master::new(&mut session, MasterConfig::default());
     let opts = ConnectOptions { polls: 1, ..ConnectOptions::default() };
     m.connect_io(&opts, &IoOptions::of(IoKind::Cyclic)).unwrap();
-    // A check takes the connection and watches the frames itself, up to the first fragment of a
-    // production: the rest of it comes after the master has the connection back.
+    // A check takes the connection and watches the frames itself: a whole production, then the
+    // first fragment of the next; the rest of that one comes after the master has it back.
     let conn = m.end_io().unwrap();
     let deadline = m.session.now() + Duration::from_millis(300);
     let mut watched = 0;
@@ -162,7 +162,7 @@ fn a_connection_given_back_mid_production_is_followed_again_from_its_next_produc
         if rec.origin == Origin::Remote {
             m.session.set_verdict(i, Verdict::Ok("watched by the test".into()));
             watched += 1;
-            if rec.frame.data()[0] == 0x00 && watched > 1 {
+            if rec.frame.data().first() == Some(&0x00) && watched > 1 {
                 break;
             }
         }
