@@ -5,7 +5,8 @@
 //!
 //! Both tests are ignored by a plain `cargo test` and run by `scripts/check`
 //! (`cargo test -p master-harness --test ui_browser -- --ignored`), after
-//! `apt-get install -y chromium chromium-driver nodejs npm` and `npm ci --prefix tests/browser`.
+//! Debian's `chromium`, a Node.js with npm (from any source), and `npm ci --prefix tests/browser`:
+//! `./scripts/check` installs each that is missing.
 //! A missing chromium, node or `node_modules` is a failure, never a skip. Screenshots and the
 //! CSV go to `$UI_ARTIFACTS_DIR/<test>/` (default: cargo's test tmpdir).
 //!
@@ -38,14 +39,14 @@ fn artifacts(test: &str) -> PathBuf {
 
 fn chromium() -> PathBuf {
     let path = std::env::var_os("CHROMIUM").map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
-    assert!(path.exists(), "{} is missing: apt-get install -y chromium chromium-driver", path.display());
+    assert!(path.exists(), "{} is missing: apt-get install chromium", path.display());
     path
 }
 
 /// Fails (never skips) when node or playwright-core is missing.
 fn check_tools() {
     let node = Command::new("node").arg("--version").output();
-    assert!(node.is_ok_and(|o| o.status.success()), "node is missing: apt-get install -y nodejs npm");
+    assert!(node.is_ok_and(|o| o.status.success()), "node is missing: install Node.js (Debian: apt-get install nodejs)");
     assert!(
         browser_dir().join("node_modules/playwright-core").is_dir(),
         "playwright-core is missing: npm ci --prefix tests/browser"
