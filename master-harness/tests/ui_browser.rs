@@ -46,7 +46,10 @@ fn chromium() -> PathBuf {
 /// Fails (never skips) when node or playwright-core is missing.
 fn check_tools() {
     let node = Command::new("node").arg("--version").output();
-    assert!(node.is_ok_and(|o| o.status.success()), "node is missing: install Node.js (Debian: apt-get install nodejs)");
+    assert!(
+        node.is_ok_and(|o| o.status.success()),
+        "node is missing: install Node.js (Debian: apt-get install nodejs)"
+    );
     assert!(
         browser_dir().join("node_modules/playwright-core").is_dir(),
         "playwright-core is missing: npm ci --prefix tests/browser"
