@@ -3,11 +3,16 @@
 //!
 //! The file holds the settings written over the network (DeviceNet attributes 1–3: MAC ID, data
 //! rate, bus-off interrupt; notes §II.7) and the configuration image downloaded through the
-//! configuration object, as JSON:
+//! configuration object, as JSON, and the device's own serial number:
 //!
 //! ```json
-//! { "mac_id": 9, "baud_rate": "250k", "bus_off_interrupt": false, "configuration": "444E4349..." }
+//! { "mac_id": 9, "baud_rate": "250k", "bus_off_interrupt": false, "configuration": "444E4349...",
+//!   "serial_number": 305419896 }
 //! ```
+//!
+//! The serial number is the device's, as the board's comes from its MCU: a downloaded
+//! configuration never changes it. Without the key the soft slave takes the serial number of the
+//! description it was started with; give each soft slave on one network a state file with its own.
 //!
 //! Every key is optional; what is absent comes from the description. The file is replaced
 //! atomically (written to a temporary file in the same folder, synced, renamed over the old one,
@@ -39,6 +44,9 @@ pub struct StoredState {
     /// The configuration image downloaded over the network, in hex.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub configuration: Option<String>,
+    /// The device's own serial number (Identity attribute 6); absent: the description's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub serial_number: Option<u32>,
 }
 
 impl StoredState {
@@ -97,7 +105,8 @@ impl StoredState {
     /// board's rule, a refused image being a configuration fault), with the settings on top. In
     /// the program position (`network.programmable`, notes §II.7) the MAC ID and data rate set
     /// over the network are used; the bus-off interrupt setting always is. `mac_override`
-    /// (`--mac`) wins over all.
+    /// (`--mac`) wins over all. The serial number is the state's, else `base`'s: never the
+    /// stored image's (module docs).
     pub fn apply(
         &self,
         base: &ConverterConfig,
@@ -117,6 +126,7 @@ impl StoredState {
         if let Some(on) = self.bus_off_interrupt {
             device.bus_off_interrupt = on;
         }
+        device.identity.serial_number = self.serial_number.unwrap_or(base.device.identity.serial_number);
         if let Some(m) = mac_override {
             device.mac_id = m;
         }
@@ -321,6 +331,25 @@ mod tests {
         // Nothing stored: the description's own image.
         let converter = StoredState::default().converter(&base, None, Instant::ZERO).unwrap();
         assert_eq!(converter.image_in_force(), slave_fw::image::encode_to_vec(&base).unwrap());
+    }
+
+    #[test]
+    fn the_serial_number_is_the_states_else_the_descriptions_never_the_images() {
+        let base = ConverterConfig::breaker_reference();
+        let mut downloaded = base.clone();
+        downloaded.device.identity.serial_number = 0x00C0_FFEE;
+        let mut state = StoredState::default();
+        state.set_image(&slave_fw::image::encode_to_vec(&downloaded).unwrap());
+        let (c, origin) = state.apply(&base, None);
+        assert_eq!(origin, ConfigOrigin::Stored);
+        assert_eq!(c.device.identity.serial_number, base.device.identity.serial_number);
+        state.serial_number = Some(0x0BAD_CAFE);
+        let (c, _) = state.apply(&base, None);
+        assert_eq!(c.device.identity.serial_number, 0x0BAD_CAFE);
+        // Kept in the file.
+        let file = StateFile::new(temp("serial.json"));
+        file.save(&state).unwrap();
+        assert_eq!(file.load().unwrap().serial_number, Some(0x0BAD_CAFE));
     }
 
     #[test]
