@@ -453,7 +453,9 @@ pub fn is_heartbeat_or_shutdown(data: &[u8], master: MacId) -> bool {
 }
 
 /// Judges a frame that is not part of the exchange in progress: a frame from `device` is a failure
-/// ("unexpected"), but for its heartbeats and shutdown messages, anything else is other traffic.
+/// ("unexpected"), but for its heartbeats and shutdown messages, and but for a frame that came
+/// before the session asked anything or while it winds down, which is recorded as not judged
+/// ([`Session::not_judged`]); anything else is other traffic.
 pub fn judge_other(session: &mut Session<'_>, index: usize, device: MacId) {
     let frame = session.record(index).frame;
     let own_response_id = Identifier::group2(device, Group2Message::ExplicitResponse);
@@ -463,7 +465,10 @@ pub fn judge_other(session: &mut Session<'_>, index: usize, device: MacId) {
         let name = if frame.data()[1] == DEVICE_HEARTBEAT { "device heartbeat" } else { "device shutdown" };
         Verdict::Info(format!("{name} (notes II.5)"))
     } else if is_from_device(&frame, device) {
-        Verdict::fail("unexpected frame from the device at this point")
+        match session.not_judged(index) {
+            Some(why) => Verdict::Info(format!("not judged: {why}")),
+            None => Verdict::fail("unexpected frame from the device at this point"),
+        }
     } else {
         Verdict::Info("other traffic".into())
     };

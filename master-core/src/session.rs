@@ -1,5 +1,20 @@
 //! A session on a bus: every frame seen is recorded with its time, direction, decoded meaning and
 //! verdict, and written to the `--log` file as it comes.
+//!
+//! ## Frames that are not judged
+//!
+//! A frame from the device that nothing in the session expects is a failure, but for two stretches
+//! of the session where such a frame can only be recognised by its time, not by its content:
+//!
+//! - before the session sent its first request (any frame but a duplicate MAC ID check): the frame
+//!   cannot answer anything this session asked; it answers a request made before the command
+//!   started (a previous run that was interrupted);
+//! - once the session winds down ([`Session::wind_down`]: a stop was seen, or the command took its
+//!   stop watch away to give the device back): an answer to the request the stop cut short, or
+//!   to one the command no longer waits for.
+//!
+//! [`Session::not_judged`] says which stretch a record falls in; the verdict is then
+//! [`Verdict::Info`] `not judged: WHY` instead of a failure ([`crate::client::judge_other`]).
 
 use crate::decode::Decoder;
 use crate::error::MasterError;
@@ -121,6 +136,10 @@ pub struct Session<'b> {
     forgotten_failures: usize,
     log: Option<LogWriter>,
     stop: Option<Stop>,
+    /// The index of the first record after the session's first request; `None` before it.
+    asked_from: Option<usize>,
+    /// From which record on, and why, the session winds down.
+    wind_down: Option<(usize, String)>,
 }
 
 impl<'b> Session<'b> {
@@ -134,6 +153,8 @@ impl<'b> Session<'b> {
             forgotten_failures: 0,
             log: None,
             stop: None,
+            asked_from: None,
+            wind_down: None,
         }
     }
 
@@ -147,10 +168,44 @@ impl<'b> Session<'b> {
         self.stop = Some(stop);
     }
 
-    /// Removes the stop request watch (to release the device and flush after an interruption);
-    /// returns it.
+    /// Removes the stop request watch (to release the device and flush at the end of a command,
+    /// interrupted or not); returns it. The session winds down from here ([`Session::wind_down`]).
     pub fn take_stop(&mut self) -> Option<Stop> {
+        let reason = match self.stop_requested() {
+            Some(signal) => format!("stopped by {}", crate::stop::signal_name(signal)),
+            None => "the command ends and gives the device back".to_string(),
+        };
+        self.wind_down(reason);
         self.stop.take()
+    }
+
+    /// Marks the session as winding down from the next record on, for `reason` (the first reason
+    /// given is kept): frames nothing expects are no longer judged (see the [module docs](self)).
+    pub fn wind_down(&mut self, reason: impl Into<String>) {
+        if self.wind_down.is_none() {
+            self.wind_down = Some((self.next_index(), reason.into()));
+        }
+    }
+
+    /// Why record `i` is not judged when nothing expects it: it arrived before the session's first
+    /// request, or while the session wound down; `None` when it must be judged (or is this
+    /// program's own frame). See the [module docs](self).
+    pub fn not_judged(&self, i: usize) -> Option<String> {
+        if self.get(i).is_some_and(|r| r.origin == Origin::Local) {
+            return None;
+        }
+        if self.asked_from.is_none_or(|from| i < from) {
+            return Some(
+                "it came before this program asked anything: the answer to a request made before the command started"
+                    .into(),
+            );
+        }
+        match &self.wind_down {
+            Some((from, reason)) if i >= *from => {
+                Some(format!("it came while the command wound down ({reason})"))
+            }
+            _ => None,
+        }
     }
 
     /// The signal that asked this session to stop, if one did.
@@ -168,9 +223,17 @@ impl<'b> Session<'b> {
         self.bus.name()
     }
 
-    /// Queues a frame; it is recorded when it comes back from the bus.
+    /// Queues a frame; it is recorded when it comes back from the bus. The first frame that is not
+    /// a duplicate MAC ID check is the session's first request ([`Session::not_judged`]).
     pub fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError> {
         self.bus.send(frame)?;
+        let check = matches!(
+            Identifier::decode(frame.id()),
+            Identifier::Group2 { message: devicenet::Group2Message::DuplicateMacCheck, .. }
+        );
+        if !check && self.asked_from.is_none() {
+            self.asked_from = Some(self.next_index());
+        }
         Ok(())
     }
 
@@ -187,6 +250,7 @@ impl<'b> Session<'b> {
                 }
             };
             if let Some(signal) = stop.requested() {
+                self.wind_down(format!("stopped by {}", crate::stop::signal_name(signal)));
                 return Err(MasterError::Interrupted { signal });
             }
             let slice = (self.bus.now() + STOP_CHECK).min(deadline);
@@ -298,7 +362,140 @@ impl<'b> Session<'b> {
 mod tests {
     use super::*;
     use can_io::bus::Bitrate;
+
     use can_io::sim::SimBus;
+
+    /// A bus that echoes what is sent and delivers the frames a test puts on it (through a
+    /// [`Feed`]) as another node's.
+    struct Script {
+        now: Instant,
+        queue: Feed,
+    }
+
+    type Feed = std::rc::Rc<std::cell::RefCell<std::collections::VecDeque<can_io::bus::BusEvent>>>;
+
+    fn script() -> (Script, Feed) {
+        let feed = Feed::default();
+        (Script { now: Instant::ZERO, queue: feed.clone() }, feed)
+    }
+
+    fn from_device(feed: &Feed, frame: CanFrame) {
+        feed.borrow_mut().push_back(can_io::bus::BusEvent {
+            at: Instant::ZERO,
+            frame,
+            origin: Origin::Remote,
+        });
+    }
+
+    impl Bus for Script {
+        fn name(&self) -> &str {
+            "script"
+        }
+        fn now(&mut self) -> Instant {
+            self.now
+        }
+        fn send(&mut self, frame: &CanFrame) -> Result<(), can_io::bus::BusError> {
+            let ev = can_io::bus::BusEvent { at: self.now, frame: *frame, origin: Origin::Local };
+            self.queue.borrow_mut().push_back(ev);
+            Ok(())
+        }
+        fn recv(
+            &mut self,
+            deadline: Instant,
+        ) -> Result<Option<can_io::bus::BusEvent>, can_io::bus::BusError> {
+            let ev = self.queue.borrow_mut().pop_front();
+            match ev {
+                Some(ev) => Ok(Some(can_io::bus::BusEvent { at: self.now, ..ev })),
+                None => {
+                    self.now = self.now.max(deadline);
+                    Ok(None)
+                }
+            }
+        }
+    }
+
+    /// MAC 5's Release response to master 0: what a request of an earlier run is answered with.
+    fn release_answer() -> CanFrame {
+        CanFrame::from_raw(0x42B, &[0x00, 0xCC]).unwrap()
+    }
+
+    /// The master's duplicate MAC ID check (it asks nothing of any device).
+    fn dup_mac_check() -> CanFrame {
+        CanFrame::from_raw(0x407, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12]).unwrap()
+    }
+
+    /// Get_Attribute_Single Identity 1 / 7 to MAC 5.
+    fn request() -> CanFrame {
+        CanFrame::from_raw(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x07]).unwrap()
+    }
+
+    /// Records everything queued, judging the device's frames as nothing expects them; their
+    /// verdicts.
+    fn judge_all(s: &mut Session<'_>) -> Vec<Verdict> {
+        let mut verdicts = Vec::new();
+        loop {
+            let until = s.now() + Duration::from_millis(10);
+            let Some(i) = s.next(until).unwrap() else { break };
+            if s.record(i).origin == Origin::Remote {
+                crate::client::judge_other(s, i, MacId::from_low_bits(5));
+                verdicts.push(s.record(i).verdict.clone());
+            }
+        }
+        verdicts
+    }
+
+    fn not_judged(v: &Verdict, why: &str) -> bool {
+        matches!(v, Verdict::Info(n) if n.starts_with("not judged: ") && n.contains(why))
+    }
+
+    #[test]
+    fn an_unexpected_frame_while_the_command_runs_fails() {
+        let (mut bus, feed) = script();
+        let mut s = Session::new(&mut bus);
+        s.send(&request()).unwrap();
+        judge_all(&mut s);
+        from_device(&feed, release_answer());
+        assert_eq!(judge_all(&mut s), [Verdict::fail("unexpected frame from the device at this point")]);
+        assert_eq!(s.failures(), 1);
+    }
+
+    #[test]
+    fn a_frame_before_the_first_request_is_not_judged() {
+        let (mut bus, feed) = script();
+        let mut s = Session::new(&mut bus);
+        // Waiting in the buffer when the command starts, and during its network access.
+        from_device(&feed, release_answer());
+        s.send(&dup_mac_check()).unwrap();
+        from_device(&feed, release_answer());
+        let v = judge_all(&mut s);
+        assert_eq!(v.len(), 2);
+        assert!(v.iter().all(|v| not_judged(v, "before this program asked anything")), "{v:?}");
+        assert_eq!(s.failures(), 0);
+    }
+
+    #[rstest::rstest]
+    #[case::stop_seen(true)]
+    #[case::stop_taken_at_the_end(false)]
+    fn a_frame_while_the_session_winds_down_is_not_judged(#[case] seen: bool) {
+        let (mut bus, feed) = script();
+        let mut s = Session::new(&mut bus);
+        let stop = Stop::new();
+        s.set_stop(stop.clone());
+        s.send(&request()).unwrap();
+        judge_all(&mut s);
+        stop.request(crate::stop::SIGINT);
+        if seen {
+            let until = s.now() + Duration::from_millis(10);
+            let e = s.next(until).unwrap_err();
+            assert!(matches!(e, MasterError::Interrupted { .. }), "{e}");
+        }
+        s.take_stop();
+        // The answer to the poll the Ctrl-C cut short, during the Release.
+        from_device(&feed, release_answer());
+        let v = judge_all(&mut s);
+        assert!(not_judged(&v[0], "while the command wound down (stopped by SIGINT)"), "{v:?}");
+        assert_eq!(s.failures(), 0);
+    }
 
     #[test]
     fn forgotten_records_keep_the_indices_and_the_failure_count() {
