@@ -21,15 +21,20 @@
 //! format announced by the Allocate response, and the poll connection sizes read from Connection
 //! instance 2 attributes 7 and 8 (notes §4.2: I/O fragmentation is not signalled per frame, both
 //! ends know it from the size). When the sizes were not seen, poll data is taken as fragmented
-//! when its fragment bytes say so: an 8-byte frame starting with `00` opens a series, and frames
-//! continuing its count belong to it.
+//! when its fragment bytes say so: an 8-byte frame starting with `00` opens a series, middle and
+//! last fragment bytes continue it, and once a whole series was seen every frame of that
+//! connection is a fragment.
+//!
+//! A broken fragment series is named, never quietly dropped or joined: a first fragment whose
+//! count is not 0, a middle or last fragment without a first, a count other than the one due (a
+//! missed or repeated fragment), an I/O series cut off by the next first fragment. Each is a
+//! [`FragmentViolation`]: in the frame's text as `(protocol error: ...)` and in
+//! [`Decoded::protocol_error`].
 //!
 //! All decoding uses the core's codecs; nothing here can panic on any frame.
 
 use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
-use devicenet::fragment::{
-    ExplicitFragment, ExplicitReassembler, ExplicitReceive, FragmentKind, IoReassembler,
-};
+use devicenet::fragment::{ExplicitFragment, ExplicitReassembler, ExplicitReceive, FragmentKind};
 use devicenet::id::{Group1MessageId, Group3MessageId, Group4MessageId};
 use devicenet::messages::{
     AllocateRequest, AllocationChoice, AllocationInfo, DuplicateMacCheck, GroupSelect, OfflineMessage,
@@ -38,7 +43,10 @@ use devicenet::messages::{
 use devicenet::objects::{self, class};
 use devicenet::{CanFrame, Group2Message, Identifier};
 use std::collections::HashMap;
-use std::fmt::Write as _;
+
+mod fragments;
+pub use fragments::FragmentViolation;
+use fragments::{io_data, io_data_into, IoSeries, Who};
 
 /// Largest explicit message reassembled by the decoder (header included).
 pub const MAX_EXPLICIT_MESSAGE: usize = 1024;
@@ -55,11 +63,14 @@ pub struct Decoded {
     pub summary: String,
     /// The whole message this frame completed, for the last fragment of a series.
     pub message: Option<String>,
+    /// The breach of the fragmentation protocol this frame is (notes §4), also named in the
+    /// summary.
+    pub protocol_error: Option<FragmentViolation>,
 }
 
 impl Decoded {
     fn frame(summary: String) -> Decoded {
-        Decoded { summary, message: None }
+        Decoded { summary, message: None, protocol_error: None }
     }
 
     /// The summary, followed by the completed message if any.
@@ -100,32 +111,6 @@ impl PendingRequest {
             _ => None,
         };
         PendingRequest { service: req.service, class: req.class, instance: req.instance, attribute, choice }
-    }
-}
-
-/// Tracks an I/O fragment series on one connection direction.
-#[derive(Clone)]
-struct IoSeries {
-    rx: IoReassembler<MAX_IO_MESSAGE>,
-    /// The count expected next while a series is in progress.
-    next: Option<u8>,
-}
-
-impl IoSeries {
-    fn new() -> IoSeries {
-        IoSeries { rx: IoReassembler::new(), next: None }
-    }
-
-    /// Whether `data` is a fragment when the connection size is not known.
-    fn looks_fragmented(&self, data: &[u8]) -> bool {
-        match (data.first(), self.next) {
-            (Some(&b), Some(next)) => {
-                let kind = FragmentKind::from_bits(b >> 6);
-                (kind == FragmentKind::Middle || kind == FragmentKind::Last) && b & 0x3F == next
-            }
-            (Some(&0x00), None) => data.len() == 8,
-            _ => false,
-        }
     }
 }
 
@@ -616,6 +601,7 @@ impl Decoder {
     pub fn decode_into(&mut self, frame: &CanFrame, out: &mut Decoded) {
         out.summary.clear();
         out.message = None;
+        out.protocol_error = None;
         let data = frame.data();
         // The I/O traffic that makes up most of a trace, written straight into `out`.
         match Identifier::decode(frame.id()) {
@@ -645,9 +631,10 @@ impl Decoder {
             }
             _ => {}
         }
-        let Decoded { summary, message } = self.decode_other(frame);
+        let Decoded { summary, message, protocol_error } = self.decode_other(frame);
         out.summary.push_str(&summary);
         out.message = message;
+        out.protocol_error = protocol_error;
     }
 
     fn decode_other(&mut self, frame: &CanFrame) -> Decoded {
@@ -848,9 +835,18 @@ impl Decoder {
                     whole.len(),
                     self.message_body(target, body, channel)
                 );
-                Decoded { summary, message: Some(text) }
+                Decoded { summary, message: Some(text), protocol_error: None }
             }
-            ExplicitReceive::Ignored(e) => Decoded::frame(format!("{summary} (dropped: {e})")),
+            ExplicitReceive::Ignored(e) => {
+                match FragmentViolation::of(e, frag.fragment.kind, frag.fragment.count) {
+                    Some(v) => {
+                        let mut summary = summary;
+                        v.push(&mut summary);
+                        Decoded { summary, message: None, protocol_error: Some(v) }
+                    }
+                    None => Decoded::frame(format!("{summary} (dropped: {e})")),
+                }
+            }
             ExplicitReceive::Rejected(_) => Decoded::frame(format!("{summary} (dropped: message too long)")),
             ExplicitReceive::Duplicate(_) => Decoded::frame(format!("{summary} (repeated)")),
             ExplicitReceive::Ack(_) => Decoded::frame(summary),
@@ -941,88 +937,6 @@ fn data_text(data: &[u8]) -> String {
         "no data".into()
     } else {
         format!("{} bytes {}", data.len(), hex(data))
-    }
-}
-
-/// Who sent I/O data: `name` ends with "MAC ", the MAC follows.
-#[derive(Clone, Copy)]
-struct Who {
-    name: &'static str,
-    mac: u8,
-}
-
-impl Who {
-    fn push(self, out: &mut String) {
-        out.push_str(self.name);
-        push_u8(out, self.mac);
-    }
-}
-
-/// I/O data on a connection of `size` bytes (unknown: inferred from the fragment bytes).
-fn io_data(series: &mut IoSeries, size: Option<u16>, who: Who, data: &[u8]) -> Decoded {
-    let mut out = Decoded::default();
-    io_data_into(series, size, who, data, &mut out);
-    out
-}
-
-/// [`io_data`] into `out` (cleared by the caller).
-fn io_data_into(series: &mut IoSeries, size: Option<u16>, who: Who, data: &[u8], out: &mut Decoded) {
-    let fragmented = match size {
-        Some(size) => size > 8,
-        None => series.looks_fragmented(data),
-    };
-    let summary = &mut out.summary;
-    who.push(summary);
-    summary.push_str(": ");
-    if !fragmented {
-        series.next = None;
-        if data.is_empty() {
-            summary.push_str("no data (idle)");
-        } else {
-            push_data_text(summary, data);
-        }
-        return;
-    }
-    let (kind, count) = match data.first() {
-        Some(&b) => (FragmentKind::from_bits(b >> 6), b & 0x3F),
-        None => (FragmentKind::First, 0),
-    };
-    summary.push_str("I/O fragment ");
-    summary.push_str(fragment_name(kind));
-    summary.push_str(" #");
-    push_u8(summary, count);
-    if kind == FragmentKind::First && count == devicenet::fragment::SINGLE_FRAGMENT_COUNT {
-        summary.push_str(" (a one-frame series: the whole message)");
-    }
-    if size.is_none() {
-        summary.push_str(", size inferred from fragment bytes");
-    }
-    summary.push_str(": ");
-    push_hex(summary, data.get(1..).unwrap_or(&[]));
-    match series.rx.receive(data) {
-        Ok(Some(whole)) => {
-            series.next = None;
-            let mut message = String::with_capacity(40 + whole.len() * 3);
-            who.push(&mut message);
-            let _ = write!(message, ", {} bytes: ", whole.len());
-            push_hex(&mut message, whole);
-            out.message = Some(message);
-        }
-        Ok(None) => series.next = Some(devicenet::fragment::next_count(count)),
-        Err(e) => {
-            series.next = None;
-            let _ = write!(summary, " (dropped: {e})");
-        }
-    }
-}
-
-/// The fragment type as `FragmentKind`'s `Display` writes it.
-fn fragment_name(kind: FragmentKind) -> &'static str {
-    match kind {
-        FragmentKind::First => "first",
-        FragmentKind::Middle => "middle",
-        FragmentKind::Last => "last",
-        FragmentKind::Ack => "ack",
     }
 }
 
