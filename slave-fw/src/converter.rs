@@ -235,8 +235,9 @@ pub(crate) fn derive_io(device: &mut DeviceConfig, profile: &ProfileConfig, inpu
 }
 
 /// What the board decides at reset over a stored configuration ([`Converter::boot`]): the MAC
-/// ID and data rate its switches select, the switch attributes, and the bus-off setting kept in
-/// its settings.
+/// ID and data rate its switches select, the switch attributes, the bus-off setting kept in its
+/// settings, and its own serial number (the image's is a description's, shared by every device
+/// configured from it).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BoardFacts {
     /// The MAC ID in use.
@@ -247,6 +248,8 @@ pub struct BoardFacts {
     pub switches: Switches,
     /// The DeviceNet object's BOI attribute, as stored.
     pub bus_off_interrupt: bool,
+    /// Identity attribute 6, the board's own (derived from the MCU's unique ID).
+    pub serial_number: u32,
 }
 
 impl BoardFacts {
@@ -256,6 +259,7 @@ impl BoardFacts {
         device.baud_rate = self.baud_rate;
         device.switches = self.switches;
         device.bus_off_interrupt = self.bus_off_interrupt;
+        device.identity.serial_number = self.serial_number;
     }
 }
 
@@ -604,6 +608,7 @@ mod tests {
             baud_rate: BaudRate::Kbps500,
             switches: Switches { mac_id: Some(9), baud_rate: Some(2), ..Switches::default() },
             bus_off_interrupt: true,
+            serial_number: 0x3A5C_0F17,
         }
     }
 
@@ -626,6 +631,7 @@ mod tests {
         assert_eq!(device.baud_rate, BaudRate::Kbps500);
         assert_eq!(device.switches, board().switches);
         assert!(device.bus_off_interrupt);
+        assert_eq!(device.identity.serial_number, 0x3A5C_0F17, "the board's, not the image's");
         assert_eq!(converter.config_state(), ConfigState::Stored);
     }
 

@@ -92,10 +92,14 @@ impl SoftSlave {
     }
 
     /// The converter a reset starts: the stored configuration image, else the factory
-    /// configuration ([`ConfigOrigin::resolve`], as the board does).
+    /// configuration ([`ConfigOrigin::resolve`], as the board does: the device keeps its own
+    /// serial number). A stored image in force is the bytes downloaded, as on the board.
     fn fresh(&self, now: Instant) -> Result<Converter, ConverterConfigError> {
         let (config, origin) = ConfigOrigin::resolve(&self.config, self.stored.as_deref());
-        Converter::with_origin(config, origin, now)
+        match (origin, self.stored.as_deref()) {
+            (ConfigOrigin::Stored, Some(image)) => Converter::with_image(config, origin, image, now),
+            _ => Converter::with_origin(config, origin, now),
+        }
     }
 
     /// The configuration image stored over the network, if one was.

@@ -77,10 +77,17 @@ impl ConfigOrigin {
     /// ([`ConfigOrigin::Stored`]), else `factory` — as [`ConfigOrigin::FactoryDefault`] when
     /// nothing is stored, as [`ConfigOrigin::Fault`] with the reason when the stored image is
     /// refused. The one rule of the firmware, the soft slave and the simulated device.
+    ///
+    /// The serial number stays `factory`'s whatever runs: it is the device's own (the board's
+    /// from its MCU, [`BoardFacts`](super::BoardFacts)), and a stored image's, written by a tool
+    /// from a description shared by many devices, would give them all one.
     pub fn resolve(factory: &ConverterConfig, stored: Option<&[u8]>) -> (ConverterConfig, ConfigOrigin) {
         match stored.filter(|s| !s.is_empty()).map(crate::image::decode) {
             None => (factory.clone(), ConfigOrigin::FactoryDefault),
-            Some(Ok(config)) => (config, ConfigOrigin::Stored),
+            Some(Ok(mut config)) => {
+                config.device.identity.serial_number = factory.device.identity.serial_number;
+                (config, ConfigOrigin::Stored)
+            }
             Some(Err(e)) => (factory.clone(), ConfigOrigin::Fault(e)),
         }
     }
@@ -594,6 +601,18 @@ mod tests {
             call(o, 1, WRITE_CHUNK, &req, false)?;
         }
         call(o, 1, COMMIT_DOWNLOAD, &[], false)
+    }
+
+    #[test]
+    fn a_stored_image_keeps_the_devices_serial_number() {
+        let factory = ConverterConfig::breaker_reference();
+        let mut described = factory.clone();
+        described.device.identity.serial_number = 0x00C0_FFEE;
+        described.device.identity.product_code = 42;
+        let (config, origin) = ConfigOrigin::resolve(&factory, Some(&image_of(&described)));
+        assert_eq!(origin, ConfigOrigin::Stored);
+        assert_eq!(config.device.identity.product_code, 42, "the image runs");
+        assert_eq!(config.device.identity.serial_number, factory.device.identity.serial_number);
     }
 
     #[rstest]
