@@ -364,6 +364,16 @@ pub fn can_bus_state() -> BusState {
     }
 }
 
+/// The MCU's 96-bit unique device ID ([`crate::uid`], RM0090 §39.1), word 0 first. Real board
+/// only: QEMU's `netduinoplus2` maps nothing there (a read would be a bus fault).
+#[cfg(not(feature = "emulated"))]
+pub fn unique_id() -> [u32; 3] {
+    let base = crate::uid::UID_ADDRESS as *const u32;
+    // SAFETY: the unique ID is three aligned, read-only words of the system memory area, present
+    // on every STM32F4 and readable at any time; reading them has no side effect.
+    unsafe { [base.read_volatile(), base.add(1).read_volatile(), base.add(2).read_volatile()] }
+}
+
 /// The settings sectors 10 and 11 of the internal flash ([`memory`]), as a [`SettingsFlash`].
 ///
 /// Erasing a 128 KiB sector stalls the CPU for 1–2 s (the code runs from the same bank); it happens

@@ -14,7 +14,8 @@
 //! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
 //! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make, and the USART register values (`BRR`, `CR1`, `CR2`) that make them | yes |
-//! | `hw` | peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status (`target_os = "none"` only) | – |
+//! | [`uid`] | the DeviceNet serial number, folded from the MCU's 96-bit unique ID (CRC-32) | yes |
+//! | `hw` | peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status, the unique ID's read (real board) (`target_os = "none"` only) | – |
 //!
 //! ## Features
 //!
@@ -28,7 +29,7 @@
 //!
 //! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
 //! does not offer or offers at a flash cost (CAN error status, reading the settings sectors, the
-//! USARTs' configuration and data registers) and for the semihosting calls
+//! USARTs' configuration and data registers, the unique ID) and for the semihosting calls
 //! of the emulated board's settings file, and in `mem` for the firmware's byte-at-a-time
 //! `memcpy`/`memset` family (1.5 KiB smaller than `compiler_builtins`' word-wise one).
 #![no_std]
@@ -47,6 +48,7 @@ pub mod pins;
 pub mod settings;
 pub mod switches;
 pub mod uart;
+pub mod uid;
 
 #[cfg(target_os = "none")]
 pub mod hw;

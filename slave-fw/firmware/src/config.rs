@@ -19,6 +19,15 @@
 //!
 //! Whatever runs, the MAC ID and data rate come from the switches or the stored settings (the
 //! image's own are the soft slave's), and so does the bus-off interrupt setting.
+//!
+//! ## The serial number
+//!
+//! The board's own, never the image's (a description configures many boards, and two devices on
+//! one network must not share vendor and serial): [`serial_number`], folded from the MCU's unique
+//! ID ([`board::uid`]). QEMU's `netduinoplus2` models no unique ID (nothing is mapped at
+//! 0x1FFF_7A10, a read is a bus fault), so the emulated board does not read it and keeps the
+//! reference device's serial number, [`EMULATED_SERIAL`], which the reference sequence of
+//! devicenet-notes §2 carries in its duplicate MAC ID checks.
 
 use board::clocks::INSTRUMENT_UART_HZ;
 use board::settings::Settings;
@@ -47,6 +56,21 @@ pub const fn origin_name(origin: &ConfigOrigin) -> &'static str {
     }
 }
 
+/// The emulated board's serial number: the reference device's (module docs).
+#[cfg_attr(not(feature = "emulated"), allow(dead_code))]
+pub const EMULATED_SERIAL: u32 = 0x1234_5678;
+
+/// The board's serial number (module docs): the real board's from its MCU's unique ID, the
+/// emulated board's [`EMULATED_SERIAL`].
+#[cfg(target_os = "none")]
+pub fn serial_number() -> u32 {
+    #[cfg(not(feature = "emulated"))]
+    let serial = board::uid::serial_number(board::hw::unique_id());
+    #[cfg(feature = "emulated")]
+    let serial = EMULATED_SERIAL;
+    serial
+}
+
 /// What runs after a reset.
 pub struct Boot {
     /// The converter, powered off, built with [`Boot::origin`] (a fault shows in its status).
@@ -57,44 +81,40 @@ pub struct Boot {
     pub origin: ConfigOrigin,
 }
 
-/// The converter the stored `settings` and the switches (`resolved`) make at `now`: the stored
-/// image if it can run, the factory default otherwise (module docs). Never fails.
-pub fn boot(resolved: &Resolved, stored: &Settings, now: Instant) -> Boot {
-    let origin = if stored.image.is_empty() {
-        ConfigOrigin::FactoryDefault
-    } else {
-        match start(&stored.image, ConfigOrigin::Stored, resolved, stored, now) {
-            Ok(boot) => return boot,
-            Err(e) => ConfigOrigin::Fault(e),
-        }
-    };
-    // The factory default is the reference converter, which always starts (a host test proves it).
-    match start(&image::BREAKER_REFERENCE, origin, resolved, stored, now) {
-        Ok(boot) => boot,
-        Err(_) => panic!("factory configuration refused"),
-    }
-}
-
-/// A converter for the configuration in `image` from `origin` with the network settings of
-/// `resolved` and `stored`, and its serial line, if the image decodes and both the converter and
-/// the USART take it. The image in force is `image` as it is.
-fn start(
-    image: &[u8],
-    origin: ConfigOrigin,
-    resolved: &Resolved,
-    stored: &Settings,
-    now: Instant,
-) -> Result<Boot, ImageError> {
+/// The converter the stored `settings` and the switches (`resolved`) make at `now` with the
+/// board's `serial` number: the stored image if it can run, the factory default otherwise
+/// (module docs). Never fails.
+pub fn boot(resolved: &Resolved, stored: &Settings, serial: u32, now: Instant) -> Boot {
     let board = BoardFacts {
         mac_id: resolved.mac_id,
         baud_rate: resolved.baud_rate,
         switches: resolved.switches,
         bus_off_interrupt: stored.bus_off_interrupt,
+        serial_number: serial,
     };
+    let origin = if stored.image.is_empty() {
+        ConfigOrigin::FactoryDefault
+    } else {
+        match start(&stored.image, ConfigOrigin::Stored, &board, now) {
+            Ok(boot) => return boot,
+            Err(e) => ConfigOrigin::Fault(e),
+        }
+    };
+    // The factory default is the reference converter, which always starts (a host test proves it).
+    match start(&image::BREAKER_REFERENCE, origin, &board, now) {
+        Ok(boot) => boot,
+        Err(_) => panic!("factory configuration refused"),
+    }
+}
+
+/// A converter for the configuration in `image` from `origin` with the `board`'s own values,
+/// and its serial line, if the image decodes and both the converter and the USART take it. The
+/// image in force is `image` as it is.
+fn start(image: &[u8], origin: ConfigOrigin, board: &BoardFacts, now: Instant) -> Result<Boot, ImageError> {
     // A match rather than `?`: the converter is not moved through the `Try` machinery (firmware
     // size). A download this board cannot run is refused at once, not found out at the next reset.
     #[allow(clippy::question_mark)]
-    let converter = match Converter::boot(image, origin, &board, usart_makes_the_line, now) {
+    let converter = match Converter::boot(image, origin, board, usart_makes_the_line, now) {
         Ok(converter) => converter,
         Err(e) => return Err(e),
     };
@@ -192,6 +212,9 @@ mod tests {
     use slave_fw::description::DeviceDescription;
     use std::path::Path;
 
+    /// The board's serial number in these tests.
+    const SERIAL: u32 = 0x3A5C_0F17;
+
     /// The switches in the program position with MAC ID 12 at 500 kbit/s, from the settings.
     fn resolved() -> Resolved {
         Resolved {
@@ -243,24 +266,25 @@ mod tests {
 
     #[test]
     fn no_image_runs_the_factory_default() {
-        let mut boot = boot(&resolved(), &settings_with(&[]), Instant::ZERO);
+        let mut boot = boot(&resolved(), &settings_with(&[]), SERIAL, Instant::ZERO);
         assert_eq!(boot.origin, ConfigOrigin::FactoryDefault);
         assert_eq!(boot.line, LineFormat::new_8n1(9600));
-        assert_eq!(
-            boot.converter.node().config().identity,
-            ConverterConfig::breaker_reference().device.identity
-        );
+        let mut identity = ConverterConfig::breaker_reference().device.identity;
+        identity.serial_number = SERIAL;
+        assert_eq!(boot.converter.node().config().identity, identity);
         assert_eq!(module_status(&mut boot), Indication::Green);
     }
 
     #[test]
     fn a_stored_image_runs_with_the_switches_network_settings() {
         let meter = described("modbus-meter.toml");
-        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), Instant::ZERO);
+        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), SERIAL, Instant::ZERO);
         assert_eq!(boot.origin, ConfigOrigin::Stored);
         assert!(matches!(boot.converter.profile(), slave_fw::serial::Profile::Modbus(_)));
         let node = boot.converter.node().config();
-        assert_eq!(node.identity, meter.device.identity);
+        let mut identity = meter.device.identity.clone();
+        identity.serial_number = SERIAL;
+        assert_eq!(node.identity, identity, "the image's identity with the board's serial number");
         assert_eq!((node.mac_id, node.baud_rate), (resolved().mac_id, BaudRate::Kbps500));
         assert_eq!(node.switches, resolved().switches);
         assert!(node.bus_off_interrupt, "the stored setting");
@@ -283,7 +307,7 @@ mod tests {
         for (name, bytes) in
             [("corrupt", &corrupt[..]), ("newer version", &newer[..]), ("garbage", &[0xFF; 40][..])]
         {
-            let mut boot = boot(&resolved(), &settings_with(bytes), Instant::ZERO);
+            let mut boot = boot(&resolved(), &settings_with(bytes), SERIAL, Instant::ZERO);
             assert!(matches!(boot.origin, ConfigOrigin::Fault(_)), "{name}: {:?}", boot.origin);
             assert_eq!(boot.converter.config_state(), ConfigState::Fault, "{name}");
             assert_eq!(boot.line, LineFormat::new_8n1(9600), "{name}");
@@ -297,7 +321,7 @@ mod tests {
         let ProfileConfig::Modbus(modbus) = &mut meter.profile else { unreachable!() };
         // Valid for the converter (300..=4_000_000), beyond the USART's divider.
         modbus.serial.baud = if cfg!(feature = "emulated") { 4_000_000 } else { 300 };
-        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), Instant::ZERO);
+        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), SERIAL, Instant::ZERO);
         let ConfigOrigin::Fault(ImageError::Invalid(InvalidConfig::Profile { error, .. })) = boot.origin
         else {
             panic!("{:?}", boot.origin);
@@ -317,17 +341,28 @@ mod tests {
     fn any_image_bytes_boot() {
         let good = encoded(&described("modbus-meter.toml"));
         for len in 0..good.len() {
-            let b = boot(&resolved(), &settings_with(&good[..len]), Instant::ZERO);
+            let b = boot(&resolved(), &settings_with(&good[..len]), SERIAL, Instant::ZERO);
             assert_ne!(b.origin, ConfigOrigin::Stored, "truncated to {len}");
         }
         for byte in 0..good.len() {
             for bit in 0..8 {
                 let mut bytes = good.clone();
                 bytes[byte] ^= 1 << bit;
-                let b = boot(&resolved(), &settings_with(&bytes), Instant::ZERO);
+                let b = boot(&resolved(), &settings_with(&bytes), SERIAL, Instant::ZERO);
                 assert!(matches!(b.origin, ConfigOrigin::Fault(_)), "byte {byte} bit {bit}");
             }
         }
+    }
+
+    #[test]
+    fn the_emulated_board_keeps_the_reference_serial_number() {
+        assert_eq!(EMULATED_SERIAL, devicenet::slave::DeviceConfig::reference().identity.serial_number);
+        // The meter's description carries another one; a board running it keeps its own.
+        let meter = described("modbus-meter.toml");
+        assert_ne!(meter.device.identity.serial_number, EMULATED_SERIAL);
+        let boot = boot(&resolved(), &settings_with(&encoded(&meter)), EMULATED_SERIAL, Instant::ZERO);
+        assert_eq!(boot.origin, ConfigOrigin::Stored);
+        assert_eq!(boot.converter.node().config().identity.serial_number, EMULATED_SERIAL);
     }
 
     #[test]

@@ -158,7 +158,8 @@ mod app {
                 warn!("settings: could not store the switch reading");
             }
         }
-        let config::Boot { converter, line, origin } = config::boot(&resolved, &settings, now());
+        let config::Boot { converter, line, origin } =
+            config::boot(&resolved, &settings, config::serial_number(), now());
         info!(
             "MAC {=u8}, baud attribute {=u8}, {=str}",
             resolved.mac_id.as_raw(),
