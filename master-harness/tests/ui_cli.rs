@@ -118,3 +118,160 @@ fn a_run_that_exchanged_nothing_is_not_a_success() {
     assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(text(&o).contains("initializing"), "{}", text(&o));
 }
+
+/// `dnet-master --bus sim --slave-mac 5 ui` running, its console's address read from its first
+/// line; SIGINT and a wait when dropped.
+struct Running {
+    child: std::process::Child,
+    addr: String,
+}
+
+impl Running {
+    fn start(name: &str) -> Running {
+        use std::io::BufRead;
+        let dir = scratch(name);
+        let history = dir.join("h.sqlite");
+        let mut child = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
+            .args(["--bus", "sim", "--slave-mac", "5", "ui", "--listen", "127.0.0.1:0", "--history"])
+            .arg(&history)
+            .arg("--record-dir")
+            .arg(&dir)
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("run dnet-master ui");
+        let mut line = String::new();
+        std::io::BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let addr = line
+            .trim()
+            .strip_prefix("console at http://")
+            .and_then(|a| a.strip_suffix('/'))
+            .unwrap_or_else(|| panic!("no console address: {line:?}"))
+            .to_string();
+        let running = Running { child, addr };
+        running.until("node 5 ok", |r| {
+            r.get("/api/state").1.contains(r#""mac":5"#) && r.node5().contains(r#""status":"ok""#)
+        });
+        running
+    }
+
+    /// One request with exactly `headers` (besides Host, Content-Length and Connection).
+    fn request(&self, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> (u16, String) {
+        use std::io::{Read, Write};
+        let mut s = std::net::TcpStream::connect(&self.addr).unwrap();
+        s.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
+        let extra: String = headers.iter().map(|(k, v)| format!("{k}: {v}\r\n")).collect();
+        let head = format!(
+            "{method} {path} HTTP/1.1\r\nHost: {}\r\n{extra}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+            self.addr,
+            body.len()
+        );
+        s.write_all(head.as_bytes()).unwrap();
+        let mut answer = String::new();
+        let _ = s.read_to_string(&mut answer);
+        let status = answer.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+        (status, answer.split_once("\r\n\r\n").map_or(String::new(), |(_, b)| b.to_string()))
+    }
+
+    fn get(&self, path: &str) -> (u16, String) {
+        self.request("GET", path, &[], "")
+    }
+
+    fn node5(&self) -> String {
+        self.get("/api/node/5").1
+    }
+
+    fn token(&self) -> String {
+        let (_, page) = self.get("/");
+        let at = page.find(r#"<meta name="csrf-token" content=""#).expect("the page carries its token") + 33;
+        page[at..].split('"').next().unwrap().to_string()
+    }
+
+    fn threads(&self) -> usize {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).unwrap();
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix("Threads:"))
+            .and_then(|n| n.trim().parse().ok())
+            .expect("Threads: in /proc/PID/status")
+    }
+
+    fn until(&self, what: &str, f: impl Fn(&Running) -> bool) {
+        let start = std::time::Instant::now();
+        while !f(self) {
+            assert!(start.elapsed() < std::time::Duration::from_secs(30), "{what}: not within 30 s");
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        let _ = Command::new("kill").args(["-INT", &self.child.id().to_string()]).status();
+        let _ = self.child.wait();
+    }
+}
+
+#[test]
+fn another_site_cannot_drive_the_console() {
+    let ui = Running::start("csrf");
+    let token = ui.token();
+    let own = format!("http://{}", ui.addr);
+    let json_type = ("Content-Type", "application/json");
+    let hostile: Vec<(&str, Vec<(&str, &str)>)> = vec![
+        // What a page of another site sends with fetch(..., {method: "POST", mode: "no-cors"}).
+        ("a form of another site", vec![("Origin", "http://evil.example"), ("Content-Type", "text/plain")]),
+        ("no token", vec![("Origin", own.as_str()), json_type]),
+        (
+            "a wrong token",
+            vec![("Origin", own.as_str()), json_type, ("X-CSRF-Token", "00000000000000000000000000000000")],
+        ),
+        (
+            "another origin",
+            vec![("Origin", "http://evil.example"), json_type, ("X-CSRF-Token", token.as_str())],
+        ),
+        ("no origin", vec![json_type, ("X-CSRF-Token", token.as_str())]),
+        (
+            "a form's type",
+            vec![
+                ("Origin", own.as_str()),
+                ("Content-Type", "multipart/form-data; boundary=x"),
+                ("X-CSRF-Token", token.as_str()),
+            ],
+        ),
+    ];
+    for (what, headers) in &hostile {
+        let (status, body) = ui.request("POST", "/api/node/5/breaker/close", headers, "");
+        assert_eq!(status, 403, "{what}: {body}");
+        assert!(body.contains(r#""ok":false"#), "{what}: {body}");
+    }
+    // The breaker stayed open: nothing was put in its output image.
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert!(ui.node5().contains(r#""output_hex":"0000000000000000""#), "{}", ui.node5());
+    // The console's own page closes it.
+    let own_headers = [("Origin", own.as_str()), json_type, ("X-CSRF-Token", token.as_str())];
+    let (status, body) = ui.request("POST", "/api/node/5/breaker/close", &own_headers, "");
+    assert_eq!(status, 200, "{body}");
+    ui.until("the switch closed", |r| r.node5().contains(r#""text":"closed""#));
+}
+
+#[test]
+fn idle_connections_take_no_thread_each_and_beyond_the_bound_get_503() {
+    let ui = Running::start("bound");
+    let before = ui.threads();
+    let idle: Vec<std::net::TcpStream> =
+        (0..300).map(|_| std::net::TcpStream::connect(&ui.addr).unwrap()).collect();
+    // Every connection accepted (the last one answered below), then the threads counted.
+    let mut last = idle.last().unwrap().try_clone().unwrap();
+    last.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
+    let mut answer = String::new();
+    let _ = std::io::Read::read_to_string(&mut last, &mut answer);
+    assert!(answer.starts_with("HTTP/1.1 503"), "beyond the bound: {answer:?}");
+    assert!(answer.contains("the console is busy"), "{answer}");
+    let during = ui.threads();
+    assert!(during <= before + 2, "{before} threads before 300 idle connections, {during} with them");
+    drop(idle);
+    // Once they are gone the console answers again.
+    ui.until("the console answers again", |r| r.get("/api/state").0 == 200);
+}

@@ -11,13 +11,42 @@ use std::net::{SocketAddr, TcpStream};
 use std::time::{Duration, Instant};
 use ui_support::FakeScanner;
 
-/// One HTTP/1.1 exchange on a fresh connection: the status, the headers (lower-case names) and the
-/// body.
+/// The token the served page carries (`<meta name="csrf-token" content="...">`).
+fn page_token(addr: SocketAddr) -> String {
+    let (status, _, page) = raw(addr, "GET", "/", &[], b"");
+    assert_eq!(status, 200);
+    let page = String::from_utf8(page).unwrap();
+    let at = page.find(r#"<meta name="csrf-token" content=""#).expect("the page carries its token") + 33;
+    page[at..].split('"').next().unwrap().to_string()
+}
+
+/// One HTTP/1.1 exchange as the console's page makes it: a state-changing request carries the
+/// page's token, the console's own origin and the JSON content type.
 fn http(addr: SocketAddr, method: &str, path: &str, body: &[u8]) -> (u16, Vec<(String, String)>, Vec<u8>) {
+    if method == "GET" || method == "HEAD" {
+        return raw(addr, method, path, &[], body);
+    }
+    let token = page_token(addr);
+    let origin = format!("http://{addr}");
+    let headers =
+        [("Origin", origin.as_str()), ("Content-Type", "application/json"), ("X-CSRF-Token", token.as_str())];
+    raw(addr, method, path, &headers, body)
+}
+
+/// One HTTP/1.1 exchange on a fresh connection with exactly `headers` besides `Host`,
+/// `Connection` and `Content-Length`: the status, the headers (lower-case names) and the body.
+fn raw(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    headers: &[(&str, &str)],
+    body: &[u8],
+) -> (u16, Vec<(String, String)>, Vec<u8>) {
     let mut s = TcpStream::connect(addr).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(15))).unwrap();
+    let extra: String = headers.iter().map(|(k, v)| format!("{k}: {v}\r\n")).collect();
     let head = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n\r\n",
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n{extra}Content-Length: {}\r\n\r\n",
         body.len()
     );
     s.write_all(head.as_bytes()).unwrap();
@@ -214,9 +243,9 @@ fn explicit_get_set_output_and_parameters() {
     );
     assert_eq!((status, r["ok"].clone()), (409, Value::Bool(false)));
     assert!(r["error"].as_str().unwrap().contains("not settable"));
-    let (status, r) = json(rig.addr(), "POST", "/api/node/6/output", "0000000000000000");
+    let (status, r) = json(rig.addr(), "POST", "/api/node/6/output", r#"{"data": "0000000000000000"}"#);
     assert_eq!((status, r["ok"].clone()), (200, Value::Bool(true)), "{r}");
-    let (status, r) = json(rig.addr(), "POST", "/api/node/6/output", "00");
+    let (status, r) = json(rig.addr(), "POST", "/api/node/6/output", r#""00""#);
     assert_eq!(status, 409);
     assert!(r["error"].as_str().unwrap().contains("8 bytes"), "{r}");
     let (_, p) = json(rig.addr(), "GET", "/api/node/5/params", "");
@@ -297,8 +326,10 @@ fn bad_input_is_answered_with_precise_json_errors() {
         ("GET", "/api/node/64", "", 400, "bad MAC \"64\""),
         ("GET", "/api/node/x", "", 400, "bad MAC \"x\""),
         ("GET", "/api/node/7", "", 404, "MAC 7 is not in the scan list"),
-        ("POST", "/api/node/5/output", "02g1", 400, "bad hex"),
-        ("POST", "/api/node/5/output", "021", 400, "bad hex"),
+        ("POST", "/api/node/5/output", r#"{"data": "02g1"}"#, 400, "bad hex"),
+        ("POST", "/api/node/5/output", r#""021""#, 400, "bad hex"),
+        ("POST", "/api/node/5/output", "0201", 400, "bad JSON body"),
+        ("POST", "/api/node/5/output", "{}", 400, "missing \"data\""),
         ("POST", "/api/node/5/get", "{", 400, "bad JSON body"),
         ("POST", "/api/node/5/get", r#"{"class": 1}"#, 400, "missing \"instance\""),
         (
@@ -420,4 +451,67 @@ fn a_stopped_server_releases_its_port() {
     std::thread::sleep(Duration::from_millis(100));
     let again = ui::serve(&addr.to_string(), scanner.shared.clone()).expect("the port is free again");
     assert_eq!(json(again.addr(), "GET", "/api/state", "").0, 200);
+}
+
+#[test]
+fn state_changes_without_the_page_s_token_origin_and_content_type_are_refused() {
+    let rig = Rig::start("csrf", true);
+    let a = rig.addr();
+    let token = page_token(a);
+    assert_eq!(token.len(), 32, "{token}");
+    assert_eq!(json(a, "GET", "/api/token", "").1["token"], token.as_str());
+    let own = format!("http://{a}");
+    let json_type = ("Content-Type", "application/json");
+    type Headers<'a> = Vec<(&'a str, &'a str)>;
+    let cases: Vec<(&str, Headers, &str)> = vec![
+        ("no token", vec![("Origin", own.as_str()), json_type], "no X-CSRF-Token"),
+        (
+            "wrong token",
+            vec![("Origin", own.as_str()), json_type, ("X-CSRF-Token", "0123456789abcdef0123456789abcdef")],
+            "wrong X-CSRF-Token",
+        ),
+        (
+            "foreign origin",
+            vec![("Origin", "http://evil.example"), json_type, ("X-CSRF-Token", token.as_str())],
+            "is not the console's own",
+        ),
+        ("no origin", vec![json_type, ("X-CSRF-Token", token.as_str())], "no Origin"),
+        (
+            "form content type",
+            vec![
+                ("Origin", own.as_str()),
+                ("Content-Type", "application/x-www-form-urlencoded"),
+                ("X-CSRF-Token", token.as_str()),
+            ],
+            "application/x-www-form-urlencoded",
+        ),
+        (
+            "text content type",
+            vec![("Origin", own.as_str()), ("Content-Type", "text/plain"), ("X-CSRF-Token", token.as_str())],
+            "text/plain",
+        ),
+    ];
+    for path in ["/api/node/5/breaker/close", "/api/record/start", "/api/node/5/output"] {
+        for (what, headers, needle) in &cases {
+            let (status, _, body) = raw(a, "POST", path, headers, b"{}");
+            let body = String::from_utf8_lossy(&body);
+            assert_eq!(status, 403, "{what} on {path}: {body}");
+            assert!(body.contains(needle), "{what} on {path}: {body} lacks {needle:?}");
+        }
+    }
+    // A page served under another name (DNS rebinding) cannot even read.
+    let mut s = TcpStream::connect(a).unwrap();
+    s.write_all(b"GET /api/state HTTP/1.1\r\nHost: evil.example:80\r\nConnection: close\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap();
+    assert!(answer.starts_with("HTTP/1.1 403"), "{answer}");
+    assert!(answer.contains("is not this console's address"), "{answer}");
+    // Nothing changed: the breaker is open, nothing records, no output was put.
+    let (_, n5) = json(a, "GET", "/api/node/5", "");
+    assert_eq!(field(&n5, "switch")["text"], "open");
+    assert_eq!(n5["output_hex"], "0000000000000000");
+    assert_eq!(json(a, "GET", "/api/state", "").1["recording"], false);
+    // The page's own request goes through.
+    let (status, r) = json(a, "POST", "/api/node/5/breaker/close", "");
+    assert_eq!(status, 200, "{r}");
 }

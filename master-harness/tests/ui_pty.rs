@@ -12,12 +12,19 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
 
-/// One HTTP/1.1 request; the status and the body.
+/// One HTTP/1.1 request; the status and the body. A state-changing one carries what the page
+/// sends: the console's token (`GET /api/token`) and its own origin.
 fn http(addr: &str, method: &str, path: &str, body: &str) -> (u16, String) {
+    let guard = if method == "GET" {
+        String::new()
+    } else {
+        let token = json(addr, "/api/token")["token"].as_str().unwrap_or_default().to_string();
+        format!("Origin: http://{addr}\r\nX-CSRF-Token: {token}\r\n")
+    };
     let mut s = TcpStream::connect(addr).unwrap_or_else(|e| panic!("connect {addr}: {e}"));
     s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
     let request = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\n{guard}Content-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
         body.len()
     );
     s.write_all(request.as_bytes()).unwrap();

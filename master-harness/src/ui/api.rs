@@ -2,21 +2,24 @@
 //! docs](super)). Every handler returns a response or an [`ApiError`]; nothing here panics on
 //! what a client sends.
 
+use super::http::{Request, Response};
 use super::record::Recorder;
-use super::{Context, COMMAND_TIMEOUT, MAX_BODY, MAX_EXPORT};
+use super::{Context, COMMAND_TIMEOUT, MAX_EXPORT};
 use crate::monitor::{Field, ImageProfile, InputLayout, LinkView};
 use crate::params::{decode_value, ParamRow, PARAMETER_CLASS};
 use crate::scanner::model::{ConsoleCommand, NodeState, Reply, Shared};
 use master_core::decode::short_string;
 use serde_json::{json, Value};
 use slave_fw::description::DeviceDescription;
-use std::io::{Cursor, Read, Write};
+use std::io::Write;
 use std::sync::mpsc;
 use std::sync::{Arc, OnceLock};
 
 const INDEX_HTML: &str = include_str!("assets/index.html");
 const APP_JS: &str = include_str!("assets/app.js");
 const STYLE_CSS: &str = include_str!("assets/style.css");
+/// Where the served page carries the token (`<meta name="csrf-token" content="...">`).
+const TOKEN_PLACEHOLDER: &str = "{{CSRF_TOKEN}}";
 const MODBUS_METER: &str = include_str!("../../../slave-fw/descriptions/modbus-meter.toml");
 
 /// Frames returned by one `/api/frames` by default, and at most.
@@ -44,19 +47,10 @@ fn err(status: u16, message: impl Into<String>) -> ApiError {
     ApiError { status, message: message.into() }
 }
 
-type Resp = tiny_http::Response<Cursor<Vec<u8>>>;
-
-fn header(name: &str, value: &str) -> Option<tiny_http::Header> {
-    tiny_http::Header::from_bytes(name.as_bytes(), value.as_bytes()).ok()
-}
+type Resp = Response;
 
 fn bytes_response(status: u16, content_type: &str, body: Vec<u8>) -> Resp {
-    let mut r = tiny_http::Response::from_data(body).with_status_code(status);
-    for h in [header("Content-Type", content_type), header("Cache-Control", "no-store")].into_iter().flatten()
-    {
-        r.add_header(h);
-    }
-    r
+    Response::new(status, content_type, body)
 }
 
 fn json_response(status: u16, value: &Value) -> Resp {
@@ -68,36 +62,14 @@ pub(crate) fn error_response(status: u16, message: &str) -> Resp {
     json_response(status, &json!({"ok": false, "error": message}))
 }
 
-/// Answers one request (on its own thread). A client that went away makes the write fail, and
-/// that is all.
-pub(crate) fn handle(ctx: &Arc<Context>, mut request: tiny_http::Request) {
-    let response = match read_body(&mut request) {
-        Ok(body) => {
-            let method = request.method().clone();
-            let url = request.url().to_string();
-            route(ctx, &method, &url, &body).unwrap_or_else(|e| error_response(e.status, &e.message))
-        }
-        Err(e) => error_response(e.status, &e.message),
-    };
-    let _ = request.respond(response);
-}
-
-/// The body, when it is small enough to have been read already (see [`MAX_BODY`]).
-fn read_body(request: &mut tiny_http::Request) -> Result<Vec<u8>, ApiError> {
-    match request.body_length() {
-        Some(0) => return Ok(Vec::new()),
-        Some(n) if n <= MAX_BODY => {}
-        Some(n) => return Err(err(413, format!("request body of {n} bytes: at most {MAX_BODY}"))),
-        None if *request.method() == tiny_http::Method::Get => return Ok(Vec::new()),
-        None => return Err(err(411, "a request body needs a Content-Length")),
+/// Answers one request (on a worker of the server): the guard's checks ([`super::guard`]), then
+/// the route.
+pub(crate) fn handle(ctx: &Arc<Context>, request: &Request) -> Resp {
+    if let Err(e) = ctx.guard.check(&request.method, request.header_pairs()) {
+        return error_response(403, &e.to_string());
     }
-    let mut body = Vec::new();
-    request
-        .as_reader()
-        .take(MAX_BODY as u64 + 1)
-        .read_to_end(&mut body)
-        .map_err(|e| err(400, format!("cannot read the request body: {e}")))?;
-    Ok(body)
+    route(ctx, &request.method, &request.url, &request.body)
+        .unwrap_or_else(|e| error_response(e.status, &e.message))
 }
 
 /// The query parameter `name`, percent-decoded.
@@ -198,30 +170,41 @@ fn json_uint(body: &Value, name: &str, max: u64) -> Result<u64, ApiError> {
     }
 }
 
-fn route(ctx: &Arc<Context>, method: &tiny_http::Method, url: &str, body: &[u8]) -> Result<Resp, ApiError> {
-    use tiny_http::Method::{Get, Head, Post};
+fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Resp, ApiError> {
     let (path, q) = url.split_once('?').unwrap_or((url, ""));
     let pairs = parse_query(q);
     let segments: Vec<&str> = path.split('/').filter(|s| !s.is_empty()).collect();
     let shared = &ctx.shared;
-    let get = matches!(method, Get | Head);
-    let post = *method == Post;
+    let get = method == "GET" || method == "HEAD";
+    let post = method == "POST";
     let wrong = || err(405, format!("{method} is not allowed on {path}"));
     match segments.as_slice() {
-        [] | ["index.html"] if get => Ok(bytes_response(200, "text/html; charset=utf-8", INDEX_HTML.into())),
+        [] | ["index.html"] if get => Ok(bytes_response(
+            200,
+            "text/html; charset=utf-8",
+            INDEX_HTML.replace(TOKEN_PLACEHOLDER, ctx.guard.token()).into(),
+        )),
         ["app.js"] if get => Ok(bytes_response(200, "text/javascript; charset=utf-8", APP_JS.into())),
         ["style.css"] if get => Ok(bytes_response(200, "text/css; charset=utf-8", STYLE_CSS.into())),
         ["favicon.ico"] => Ok(bytes_response(204, "image/x-icon", Vec::new())),
         [] | ["index.html"] | ["app.js"] | ["style.css"] => Err(wrong()),
         ["api", rest @ ..] => match (rest, get, post) {
             (["state"], true, _) => Ok(json_response(200, &state(ctx))),
+            (["token"], true, _) => Ok(json_response(200, &json!({"ok": true, "token": ctx.guard.token()}))),
             (["frames"], true, _) => frames(shared, &pairs),
             (["node", mac], true, _) => node(shared, parse_mac(mac)?),
             (["node", mac, "params"], true, _) => params(shared, parse_mac(mac)?),
             (["node", mac, "output"], _, true) => {
                 let mac = parse_mac(mac)?;
-                let text = std::str::from_utf8(body).map_err(|_| err(400, "bad hex: not text"))?;
-                set_output(shared, mac, parse_hex(text)?)
+                let data = match parse_json(body)? {
+                    Value::String(s) => parse_hex(&s)?,
+                    Value::Object(o) => match o.get("data") {
+                        Some(Value::String(s)) => parse_hex(s)?,
+                        _ => return Err(err(400, "missing \"data\": the output image in hex")),
+                    },
+                    _ => return Err(err(400, "expected {\"data\": hex}: the output image in hex")),
+                };
+                set_output(shared, mac, data)
             }
             (["node", mac, "get"], _, true) => explicit_get(shared, parse_mac(mac)?, &parse_json(body)?),
             (["node", mac, "set"], _, true) => explicit_set(shared, parse_mac(mac)?, &parse_json(body)?),
@@ -233,6 +216,7 @@ fn route(ctx: &Arc<Context>, method: &tiny_http::Method, url: &str, body: &[u8])
             (["record", "stop"], _, true) => record_stop(ctx),
             (
                 ["state"]
+                | ["token"]
                 | ["frames"]
                 | ["node", _]
                 | ["node", _, "params" | "output" | "get" | "set"]
@@ -588,9 +572,7 @@ fn export_csv(shared: &Shared, pairs: &[(String, String)]) -> Result<Resp, ApiEr
         None => format!("history-{from}-{to}.csv"),
     };
     let mut r = bytes_response(200, "text/csv; charset=utf-8", out.0);
-    if let Some(h) = header("Content-Disposition", &format!("attachment; filename=\"{name}\"")) {
-        r.add_header(h);
-    }
+    r.add_header("Content-Disposition", &format!("attachment; filename=\"{name}\""));
     Ok(r)
 }
 

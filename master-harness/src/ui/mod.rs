@@ -5,10 +5,16 @@
 //! and its script (plots drawn on a canvas by a few lines of vanilla JavaScript) are compiled into
 //! the binary: the console needs no internet access and nothing installed but `dnet-master`.
 //!
-//! The HTTP server is `tiny_http`: small, synchronous (like the rest of the program, no async
-//! runtime), long maintained, with no dependencies beyond a few tiny crates. One dispatcher thread
-//! takes requests and hands each to a thread of its own (at most [`MAX_IN_FLIGHT`] at a time; past
-//! that `503`), so a slow or vanished client never holds up the others.
+//! The HTTP server ([`http`]) is the program's own, synchronous like the rest of it: one thread
+//! accepts, a fixed pool of [`http::WORKERS`] threads answers, [`http::QUEUE`] connections may
+//! wait, beyond that `503` at once; so a slow, silent or vanished client never holds up the
+//! others for long, and no number of connections makes threads.
+//!
+//! Every request is checked first ([`guard`]): `Host` must name the console; a state-changing
+//! request (anything but `GET` / `HEAD`) must also carry the page's token in `X-CSRF-Token`,
+//! come from the console's own `Origin` and be `Content-Type: application/json`. Anything else is
+//! `403` with the reason: another web page open in the same browser cannot drive the console.
+//! Scripts read the token from `GET /api/token` (or the page's `<meta name="csrf-token">`).
 //!
 //! ## The page: three views
 //!
@@ -35,7 +41,8 @@
 //! | `GET /api/node/MAC/params` | `{"params": [ParamRow...], "note"}`: the Parameter object (class 0x0F) read with Get_Attribute_Single; empty with a note when the device has none |
 //! | `GET /api/history?mac=N&from=MS&to=MS&limit=L` | `{"mac", "samples": [{unix_ms, bus_us, input, values: [[name, number]...]}]}` from the history database (default: the last 60 s, at most 2000 samples, the newest when there are more) |
 //! | `GET /api/export.csv?mac=N&from=MS&to=MS` | the samples as a CSV download (`mac` left out: every node), at most [`MAX_EXPORT`] bytes |
-//! | `POST /api/node/MAC/output` body hex (`0201000000000000`) | puts the output image (ConsoleCommand::SetOutput) |
+//! | `GET /api/token` | `{"ok", "token"}`: the token every state-changing request carries in `X-CSRF-Token` |
+//! | `POST /api/node/MAC/output` `{"data": hex}` (`"0201000000000000"`) | puts the output image (ConsoleCommand::SetOutput) |
 //! | `POST /api/node/MAC/get` `{"class", "instance", "attribute"}` | Get_Attribute_Single: `{"ok", "data": hex, "text"}` |
 //! | `POST /api/node/MAC/set` `{"class", "instance", "attribute", "value": hex}` | Set_Attribute_Single |
 //! | `POST /api/node/MAC/breaker/open`, `/breaker/close` | the breaker's command 1 / 2 in the output image, with the next sequence number (README, "Commands through the poll output") |
@@ -60,35 +67,34 @@
 
 mod api;
 pub mod command;
+mod guard;
+pub mod http;
 mod record;
 
 pub use api::{known_descriptions, layout_for};
+pub use guard::{GuardError, TOKEN_HEADER};
 
 use crate::error::HarnessError;
 use crate::scanner::model::Shared;
+use guard::Guard;
 use record::Recorder;
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::thread::JoinHandle;
 use std::time::Duration;
 
 /// The largest request body accepted, bytes (an output image or an attribute value in hex fits
-/// many times over). `tiny_http` reads bodies this small before the request is handed over.
+/// many times over); a larger one is refused unread.
 pub const MAX_BODY: usize = 1024;
 /// The longest a command waits for the scanner's answer.
 pub const COMMAND_TIMEOUT: Duration = Duration::from_secs(5);
 /// The largest CSV export, bytes: a longer range is refused with a request for a shorter one.
 pub const MAX_EXPORT: usize = 64 << 20;
-/// Requests handled at once; more are answered `503` at once.
-pub const MAX_IN_FLIGHT: usize = 64;
 
-/// A running console server. [`UiServer::stop`] (or dropping it) stops taking requests, ends a
-/// recording and joins the dispatcher.
+/// A running console server. [`UiServer::stop`] (or dropping it) stops taking requests (the port
+/// is released) and ends a recording.
 pub struct UiServer {
     addr: SocketAddr,
-    stop: Arc<AtomicBool>,
-    dispatcher: Option<JoinHandle<()>>,
+    server: http::Server,
     context: Arc<Context>,
 }
 
@@ -96,7 +102,7 @@ pub struct UiServer {
 pub(crate) struct Context {
     pub(crate) shared: Arc<Shared>,
     pub(crate) recorder: Mutex<Option<Recorder>>,
-    in_flight: AtomicUsize,
+    pub(crate) guard: Guard,
 }
 
 impl UiServer {
@@ -110,6 +116,11 @@ impl UiServer {
         format!("http://{}/", self.addr)
     }
 
+    /// The token a state-changing request carries in [`TOKEN_HEADER`] (the page has it too).
+    pub fn token(&self) -> &str {
+        self.context.guard.token()
+    }
+
     /// Stops the server: no new requests; a recording is closed. Requests being answered finish
     /// on their own threads.
     pub fn stop(mut self) {
@@ -117,10 +128,7 @@ impl UiServer {
     }
 
     fn shutdown(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(handle) = self.dispatcher.take() {
-            let _ = handle.join();
-        }
+        self.server.stop();
         if let Ok(mut recorder) = self.context.recorder.lock() {
             if let Some(r) = recorder.take() {
                 let _ = r.stop();
@@ -139,51 +147,16 @@ impl Drop for UiServer {
 /// [`UiServer::addr`]). The address is bound before this returns: an address in use or not
 /// available is a [`HarnessError::Usage`] naming it.
 pub fn serve(listen: &str, shared: Arc<Shared>) -> Result<UiServer, HarnessError> {
-    let server = tiny_http::Server::http(listen)
-        .map_err(|e| HarnessError::Usage(format!("cannot listen on {listen}: {e}")))?;
-    let addr = server
-        .server_addr()
-        .to_ip()
-        .ok_or_else(|| HarnessError::Usage(format!("cannot listen on {listen}: not an IP address")))?;
-    let context = Arc::new(Context { shared, recorder: Mutex::new(None), in_flight: AtomicUsize::new(0) });
-    let stop = Arc::new(AtomicBool::new(false));
-    let dispatcher = {
+    let (listener, addr) =
+        http::bind(listen).map_err(|e| HarnessError::Usage(format!("cannot listen on {listen}: {e}")))?;
+    let token = guard::new_token()
+        .map_err(|e| HarnessError::Usage(format!("cannot start the console: no random token: {e}")))?;
+    let context = Arc::new(Context { shared, recorder: Mutex::new(None), guard: Guard::new(addr, token) });
+    let handler = {
         let context = Arc::clone(&context);
-        let stop = Arc::clone(&stop);
-        std::thread::Builder::new()
-            .name("ui-dispatch".into())
-            .spawn(move || dispatch(&server, &context, &stop))
-            .map_err(|e| HarnessError::Usage(format!("cannot start the console on {listen}: {e}")))?
+        Arc::new(move |r: &http::Request| api::handle(&context, r)) as Arc<http::Handler>
     };
-    Ok(UiServer { addr, stop, dispatcher: Some(dispatcher), context })
-}
-
-/// Takes requests until `stop`, each answered on a thread of its own.
-fn dispatch(server: &tiny_http::Server, context: &Arc<Context>, stop: &AtomicBool) {
-    while !stop.load(Ordering::SeqCst) {
-        let request = match server.recv_timeout(Duration::from_millis(100)) {
-            Ok(Some(r)) => r,
-            Ok(None) => continue,
-            Err(_) => {
-                std::thread::sleep(Duration::from_millis(10));
-                continue;
-            }
-        };
-        if context.in_flight.fetch_add(1, Ordering::SeqCst) >= MAX_IN_FLIGHT {
-            context.in_flight.fetch_sub(1, Ordering::SeqCst);
-            // Answered from a thread of its own all the same: the response may block.
-            let _ = std::thread::Builder::new().spawn(move || {
-                let _ = request.respond(api::error_response(503, "too many requests at once; try again"));
-            });
-            continue;
-        }
-        let ctx = Arc::clone(context);
-        let spawned = std::thread::Builder::new().name("ui-request".into()).spawn(move || {
-            api::handle(&ctx, request);
-            ctx.in_flight.fetch_sub(1, Ordering::SeqCst);
-        });
-        if spawned.is_err() {
-            context.in_flight.fetch_sub(1, Ordering::SeqCst);
-        }
-    }
+    let server = http::Server::start(listener, handler, api::error_response, MAX_BODY)
+        .map_err(|e| HarnessError::Usage(format!("cannot start the console on {listen}: {e}")))?;
+    Ok(UiServer { addr, server, context })
 }

@@ -19,10 +19,13 @@ async function api(path, opts) {
   if (!r.ok && body.ok !== false) body = { ok: false, error: `HTTP ${r.status}` };
   return body;
 }
-const post = (path, body, json) => api(path, {
+// Every change carries the page's token (the server refuses it otherwise, as it refuses other
+// origins and other content types): see master-harness/src/ui/guard.rs.
+const TOKEN = (document.querySelector('meta[name="csrf-token"]') || {}).content || "";
+const post = (path, body) => api(path, {
   method: "POST",
-  headers: { "Content-Type": json ? "application/json" : "text/plain" },
-  body: json ? JSON.stringify(body) : body,
+  headers: { "Content-Type": "application/json", "X-CSRF-Token": TOKEN },
+  body: JSON.stringify(body ?? {}),
 });
 
 let state = null;
@@ -168,7 +171,7 @@ function showOutcome(r) {
 async function breakerCommand(action, body) {
   const out = $("cmd-outcome");
   out.className = "outcome"; out.textContent = action + "…";
-  const r = await post(`/api/node/${currentMac}/breaker/${action}`, body || {}, true);
+  const r = await post(`/api/node/${currentMac}/breaker/${action}`, body || {});
   if (!r.ok) { out.className = "outcome err"; out.textContent = `${action}: ${r.error}`; lastCommand = null; return; }
   lastCommand = { label: action === "param" ? `set parameter ${body.id} = ${body.value}` : action, sequence: r.sequence };
   refreshNode();
@@ -238,7 +241,7 @@ async function explicit(op) {
   const body = { class: $("ex-class").value, instance: $("ex-instance").value, attribute: $("ex-attribute").value };
   if (op === "set") body.value = $("ex-value").value;
   out.className = "outcome"; out.textContent = op + "…";
-  const r = await post(`/api/node/${currentMac}/${op}`, body, true);
+  const r = await post(`/api/node/${currentMac}/${op}`, body);
   out.className = "outcome " + (r.ok ? "ok" : "err");
   out.textContent = r.ok ? (op === "get" ? `${r.data || "(empty)"} · ${r.text}` : "set: ok") : `${op}: ${r.error}`;
 }
@@ -288,7 +291,7 @@ async function recordCommand(command, verb) {
   recordSeq++;
   recordBusy = true;
   try {
-    showRecord(await post(`/api/record/${command}`, ""), verb);
+    showRecord(await post(`/api/record/${command}`, {}), verb);
   } finally {
     recordBusy = false;
   }
