@@ -27,8 +27,12 @@
 //!
 //! Every field is checked; an error names the file, the key (`profile.modbus.scan[1].offset`),
 //! the value and the allowed range, or the line and column of a syntax error. Unknown keys are
-//! errors too, so a misspelt setting never goes unnoticed. The complete reference, with every
-//! optional key, is in the README and in `slave-fw/descriptions/`.
+//! errors too, in every table at every depth, so a misspelt setting never goes unnoticed: every
+//! configuration type read from the file refuses keys it does not know (`deny_unknown_fields`;
+//! none is flattened or untagged, which would defeat it), and the error gives the line, the column
+//! and the dotted key (`breaker.toml: TOML parse error at line 35, column 1:
+//! profile.serial.parityy: unknown key ...`). The complete reference, with every optional key, is
+//! in the README and in `slave-fw/descriptions/`.
 
 use crate::converter::{ConverterConfig, InputAssembly, InvalidConfig};
 use crate::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
@@ -66,8 +70,8 @@ pub struct DescriptionError {
 pub enum DescriptionErrorKind {
     /// The file could not be read.
     Io(std::io::Error),
-    /// TOML syntax, a missing or unknown key, or a value of the wrong type (with line and column).
-    Syntax(String),
+    /// TOML syntax, a missing or unknown key, or a value of the wrong type, where it is.
+    Toml(TomlError),
     /// A value outside its range or in conflict with another.
     Invalid {
         /// The dotted key.
@@ -84,13 +88,100 @@ impl fmt::Display for DescriptionError {
         }
         match &self.kind {
             DescriptionErrorKind::Io(e) => write!(f, "cannot read the device description: {e}"),
-            DescriptionErrorKind::Syntax(e) => write!(f, "{}", e.trim_end()),
+            DescriptionErrorKind::Toml(e) => write!(f, "{e}"),
             DescriptionErrorKind::Invalid { key, message } => write!(f, "{key}: {message}"),
         }
     }
 }
 
 impl std::error::Error for DescriptionError {}
+
+/// What the TOML reader refused, and where: the line and column (1-based, counted in characters)
+/// and the dotted key there (`profile.modbus.scan[1].offset`; none for a syntax error outside any
+/// key).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TomlError {
+    /// 1-based line.
+    pub line: usize,
+    /// 1-based column, in characters.
+    pub column: usize,
+    /// The dotted key at that place, when there is one.
+    pub key: Option<String>,
+    /// What is wrong (`unknown key `parityy`, expected one of ...`, `missing field `parity``).
+    pub message: String,
+}
+
+impl fmt::Display for TomlError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "TOML parse error at line {}, column {}: ", self.line, self.column)?;
+        if let Some(key) = &self.key {
+            write!(f, "{key}: ")?;
+        }
+        f.write_str(&self.message)
+    }
+}
+
+impl TomlError {
+    /// Locates `e` in `text`: its line and column, and the dotted key of the innermost entry
+    /// whose key or value holds the error's first character (a table header stands for its
+    /// table: a missing key is reported there). Serde's "unknown field" is called a key, as TOML
+    /// names it.
+    fn new(e: &toml::de::Error, text: &str) -> TomlError {
+        let at = e.span().map_or(0, |s| s.start).min(text.len());
+        let before = text.get(..at).unwrap_or_default();
+        let line = before.matches('\n').count() + 1;
+        let column = before.rsplit('\n').next().unwrap_or_default().chars().count() + 1;
+        let key = toml::de::DeTable::parse(text).ok().and_then(|root| {
+            let mut best = None;
+            key_at(root.get_ref(), at, &mut String::new(), &mut best);
+            best
+        });
+        let message = e.message().trim_end();
+        let message = match message.strip_prefix("unknown field ") {
+            Some(rest) => format!("unknown key {rest}"),
+            None => message.to_string(),
+        };
+        TomlError { line, column, key, message }
+    }
+}
+
+/// Finds the deepest entry of `table` (at dotted `path`) whose key or value span holds `at`, into
+/// `best`.
+fn key_at(table: &toml::de::DeTable<'_>, at: usize, path: &mut String, best: &mut Option<String>) {
+    for (key, value) in table {
+        let len = path.len();
+        if !path.is_empty() {
+            path.push('.');
+        }
+        path.push_str(key.get_ref());
+        value_at(value, key.span().contains(&at), at, path, best);
+        path.truncate(len);
+    }
+}
+
+fn value_at(
+    value: &toml::Spanned<toml::de::DeValue<'_>>,
+    on_key: bool,
+    at: usize,
+    path: &mut String,
+    best: &mut Option<String>,
+) {
+    if on_key || value.span().contains(&at) {
+        *best = Some(path.clone());
+    }
+    match value.get_ref() {
+        toml::de::DeValue::Table(t) => key_at(t, at, path, best),
+        toml::de::DeValue::Array(items) => {
+            for (i, item) in items.iter().enumerate() {
+                let len = path.len();
+                path.push_str(&format!("[{i}]"));
+                value_at(item, false, at, path, best);
+                path.truncate(len);
+            }
+        }
+        _ => {}
+    }
+}
 
 fn invalid(key: impl Into<String>, message: impl Into<String>) -> DescriptionErrorKind {
     DescriptionErrorKind::Invalid { key: key.into(), message: message.into() }
@@ -204,8 +295,8 @@ impl DeviceDescription {
     /// Parses and validates description text.
     pub fn parse(text: &str) -> Result<DeviceDescription, DescriptionError> {
         let no_file = |kind| DescriptionError { file: None, kind };
-        let file: File =
-            toml::from_str(text).map_err(|e| no_file(DescriptionErrorKind::Syntax(e.to_string())))?;
+        let file: File = toml::from_str(text)
+            .map_err(|e| no_file(DescriptionErrorKind::Toml(TomlError::new(&e, text))))?;
         build(file).map_err(no_file)
     }
 }

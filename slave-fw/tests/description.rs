@@ -62,7 +62,11 @@ kind = "breaker"
 #[case::mac_out_of_range("mac_id = 5", "mac_id = 64", "network.mac_id: 64 is outside 0..=63")]
 #[case::baud("baud_rate = \"250k\"", "baud_rate = \"1M\"", "network.baud_rate: \"1m\" is not one of")]
 #[case::vendor_too_big("vendor_id = 0x1234 ", "vendor_id = 0x12345 ", "vendor_id")]
-#[case::unknown_key("catalog = \"SDN-1\"", "catalogue = \"SDN-1\"", "unknown field `catalogue`")]
+#[case::unknown_key(
+    "catalog = \"SDN-1\"",
+    "catalogue = \"SDN-1\"",
+    "identity.catalogue: unknown key `catalogue`"
+)]
 #[case::name_too_long(
     "product_name = \"Serial-DeviceNet Bridge\"",
     "product_name = \"Serial-DeviceNet Bridge with a very long name\"",
@@ -109,4 +113,147 @@ fn modbus_scan_errors_name_the_entry() {
 fn missing_file_names_the_file() {
     let err = DeviceDescription::load(Path::new("/nonexistent/device.toml")).unwrap_err().to_string();
     assert!(err.starts_with("/nonexistent/device.toml: cannot read"), "{err}");
+}
+
+/// `text` with `find` replaced by `replace`, written to a file of its own and loaded: the error,
+/// the file and the text written.
+fn load_error(name: &str, text: &str, find: &str, replace: &str) -> (String, std::path::PathBuf, String) {
+    assert!(text.contains(find), "test setup: {find:?}");
+    let bad = text.replacen(find, replace, 1);
+    let dir = std::env::temp_dir().join(format!("slave-fw-description-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, &bad).unwrap();
+    let err = DeviceDescription::load(&path).map(|_| ()).unwrap_err().to_string();
+    (err, path, bad)
+}
+
+/// The 1-based line of `text` that sets `key`.
+fn line_of(text: &str, key: &str) -> usize {
+    let at = text.lines().position(|l| l.starts_with(&format!("{key} ="))).expect("the key is in the text");
+    at + 1
+}
+
+/// A misspelt key in any table of either shipped description is refused, with the file, the line
+/// and the dotted key (issue 33: these tables used to ignore unknown keys).
+#[rstest]
+#[case::serial(
+    "breaker.toml",
+    "parity = \"none\"",
+    "parity = \"none\"\nparityy = \"even\"",
+    "profile.serial.parityy"
+)]
+#[case::health(
+    "breaker.toml",
+    "stale_policy = \"hold_last_value\"",
+    "stale_policy = \"hold_last_value\"\nstale_polcy = \"clear\"",
+    "profile.health.stale_polcy"
+)]
+#[case::sequencer(
+    "breaker.toml",
+    "execute_first = true",
+    "execute_first = true\nexecute_frist = false",
+    "profile.sequencer.execute_frist"
+)]
+#[case::modbus_serial(
+    "modbus-meter.toml",
+    "parity = \"even\"",
+    "parity = \"even\"\nstopbits = \"two\"",
+    "profile.modbus.serial.stopbits"
+)]
+#[case::modbus_health(
+    "modbus-meter.toml",
+    "stale_policy = \"clear\"",
+    "stale_policy = \"clear\"\nstale_timeout = 5",
+    "profile.modbus.health.stale_timeout"
+)]
+#[case::modbus_scan(
+    "modbus-meter.toml",
+    "function = 3",
+    "function = 3\nfunctions = 4",
+    "profile.modbus.scan[1].functions"
+)]
+#[case::modbus("modbus-meter.toml", "retries = 1", "retry = 1", "profile.modbus.retry")]
+#[case::identity("breaker.toml", "catalog = \"SDN-1\"", "catalogue = \"SDN-1\"", "identity.catalogue")]
+#[case::top_level("breaker.toml", "[identity]", "vendor = 1\n[identity]", "vendor")]
+fn unknown_keys_are_refused_with_file_line_and_key(
+    #[case] file: &str,
+    #[case] find: &str,
+    #[case] replace: &str,
+    #[case] key: &str,
+) {
+    let text = std::fs::read_to_string(example(file)).unwrap();
+    // A file of its own per case: the cases run in parallel.
+    let name = format!("{}-{file}", key.replace(['.', '[', ']'], "-"));
+    let (err, path, bad) = load_error(&name, &text, find, replace);
+    let unknown = key.rsplit('.').next().unwrap();
+    let line = line_of(&bad, unknown);
+    let expected = format!(
+        "{}: TOML parse error at line {line}, column 1: {key}: unknown key `{unknown}`",
+        path.display()
+    );
+    assert!(err.starts_with(&expected), "error {err:?} should start with {expected:?}");
+}
+
+/// The dotted path of every table header in `text` (`profile.modbus.scan[2]` for the third
+/// `[[profile.modbus.scan]]`), with the line it is on (1-based); the top level first, as line 0.
+fn tables(text: &str) -> Vec<(String, usize)> {
+    let mut found = vec![(String::new(), 0)];
+    let mut arrays: std::collections::HashMap<String, usize> = Default::default();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap().trim();
+        if let Some(name) = line.strip_prefix("[[").and_then(|l| l.strip_suffix("]]")) {
+            let n = arrays.entry(name.to_string()).or_default();
+            found.push((format!("{name}[{n}]"), i + 1));
+            *n += 1;
+        } else if let Some(name) = line.strip_prefix('[').and_then(|l| l.strip_suffix(']')) {
+            found.push((name.to_string(), i + 1));
+        }
+    }
+    found
+}
+
+/// A framed description (not the breaker preset): every table of `[profile.framed]` written out.
+fn framed_text() -> String {
+    let mut d = DeviceDescription::reference();
+    let ProfileConfig::Framed(c) = &mut d.converter.profile else { panic!("the reference is framed") };
+    c.framing.start = 0x67;
+    let text = d.to_toml().unwrap();
+    assert!(text.contains("[profile.framed.framing]"), "{text}");
+    DeviceDescription::parse(&text).unwrap();
+    text
+}
+
+/// Every table, at every depth, of every kind of description refuses a key it does not know:
+/// an unknown key is put into each table in turn (table headers found in the text, so a table
+/// added later is covered too), and the error names the line it is on and its dotted key.
+#[test]
+fn every_table_at_every_depth_refuses_unknown_keys() {
+    let texts = [
+        ("breaker.toml", reference_text()),
+        ("modbus-meter.toml", std::fs::read_to_string(example("modbus-meter.toml")).unwrap()),
+        ("framed.toml", framed_text()),
+    ];
+    let mut checked = 0;
+    for (name, text) in &texts {
+        for (table, header_line) in tables(text) {
+            let mut lines: Vec<&str> = text.lines().collect();
+            lines.insert(header_line, "misspelt_key = 1");
+            let bad = lines.join("\n");
+            let Err(err) = DeviceDescription::parse(&bad).map(|_| ()) else {
+                panic!("{name}: an unknown key in [{table}] was accepted");
+            };
+            let err = err.to_string();
+            let key =
+                if table.is_empty() { "misspelt_key".to_string() } else { format!("{table}.misspelt_key") };
+            let expected = format!(
+                "TOML parse error at line {}, column 1: {key}: unknown key `misspelt_key`",
+                header_line + 1
+            );
+            assert!(err.starts_with(&expected), "{name}: error {err:?} should start with {expected:?}");
+            checked += 1;
+        }
+    }
+    // breaker: 7 tables and the top level; modbus: 9 and the top level; framed: at least 8.
+    assert!(checked >= 25, "only {checked} tables found");
 }

@@ -48,6 +48,7 @@ pub enum LengthField {
 /// The framing of a framed-serial instrument.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct FramedConfig {
     /// The byte that starts every frame (`0x68` for the breaker).
     pub start: u8,

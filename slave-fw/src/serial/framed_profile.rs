@@ -30,6 +30,7 @@ pub const MAX_COMMAND_FORMATS: usize = 8;
 /// How the instrument acknowledges a command.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct AckFormat {
     /// Data bytes in an acknowledgement (2 for the breaker: `cmd | flag, status`). With one byte
     /// there is no status and every acknowledgement is an acceptance.
@@ -44,6 +45,7 @@ pub struct AckFormat {
 /// How one poll command code is sent: `wire`, then the first `args` argument bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct CommandFormat {
     /// The poll command code (byte 0 of the outputs), `1..=255`.
     pub code: u8,
@@ -56,6 +58,7 @@ pub struct CommandFormat {
 /// Everything that describes a framed-serial instrument.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct FramedProfileConfig {
     /// The serial line (timing of transmissions).
     pub serial: SerialSettings,

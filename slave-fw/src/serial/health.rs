@@ -41,6 +41,7 @@ pub enum StalePolicy {
 /// Stale detection settings.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct HealthConfig {
     /// Milliseconds without a good frame after which the link is stale, `1..=3_600_000`.
     pub stale_timeout_ms: u32,

@@ -49,6 +49,7 @@ pub enum StopBits {
 /// Baud rate and character format of the instrument's serial line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct SerialSettings {
     /// Bits per second, `300..=4_000_000`.
     pub baud: u32,

@@ -172,6 +172,7 @@ impl IdleAction {
 /// Timing and idle/fault behaviour of the [`CommandSequencer`].
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct SequencerConfig {
     /// Milliseconds to wait for the answer, counted from the end of the command's transmission,
     /// `1..=60_000`.

@@ -59,6 +59,7 @@ pub enum ByteOrder {
 /// One transaction of the scan list.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct ScanEntry {
     /// The slave's unit address, `1..=247` (broadcast is not used).
     pub unit: u8,
@@ -88,6 +89,7 @@ impl ScanEntry {
 /// Everything that describes a Modbus RTU gateway.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
 pub struct ModbusConfig {
     /// The serial line; RTU requires 8 data bits.
     pub serial: SerialSettings,
