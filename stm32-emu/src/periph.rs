@@ -1,0 +1,93 @@
+//! The interface every peripheral model implements, and what a model may ask of the machine.
+//!
+//! A model owns one register block (a base address and a size, RM0090 §2.3 "Memory map").
+//! The machine decodes each CPU access to the model and the offset within its block, and calls
+//! [`Peripheral::read`] or [`Peripheral::write`] with the access size. Time moves only through
+//! [`Peripheral::advance`]. What a model needs from the rest of the chip (the bus clocks set by
+//! RCC, its interrupt lines to the NVIC) it gets through [`Machine`].
+
+/// The width of one bus access.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Width {
+    /// 8 bits.
+    Byte,
+    /// 16 bits.
+    Half,
+    /// 32 bits.
+    Word,
+}
+
+impl Width {
+    /// The access size in bytes.
+    pub const fn bytes(self) -> u32 {
+        match self {
+            Width::Byte => 1,
+            Width::Half => 2,
+            Width::Word => 4,
+        }
+    }
+}
+
+/// Time since the emulated power-up, in nanoseconds.
+pub type Nanos = u64;
+
+/// The clock frequencies the reset and clock control (RCC) model derives from its registers
+/// (RM0090 §7.2 "Clocks"), in hertz. A peripheral whose clock is not enabled reads as such
+/// through [`Machine::clock_enabled`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Clocks {
+    /// The system clock, SYSCLK.
+    pub sysclk: u32,
+    /// The AHB clock, HCLK (the core and SysTick).
+    pub hclk: u32,
+    /// The APB1 peripheral clock, PCLK1 (bxCAN, USART2/3, UART4/5).
+    pub pclk1: u32,
+    /// The APB2 peripheral clock, PCLK2 (USART1/6).
+    pub pclk2: u32,
+}
+
+impl Clocks {
+    /// The clocks at reset: the 16 MHz HSI, no prescaler (RM0090 §7.2).
+    pub const RESET: Clocks =
+        Clocks { sysclk: 16_000_000, hclk: 16_000_000, pclk1: 16_000_000, pclk2: 16_000_000 };
+}
+
+/// A peripheral clock-enable bit of RCC: the register (AHB1ENR, APB1ENR, APB2ENR) and bit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ClockGate {
+    /// RCC_AHB1ENR bit n (GPIOx, RM0090 §7.3.10).
+    Ahb1(u8),
+    /// RCC_APB1ENR bit n (CAN1 = 25, USART2 = 17, RM0090 §7.3.13).
+    Apb1(u8),
+    /// RCC_APB2ENR bit n (USART1 = 4, USART6 = 5, RM0090 §7.3.14).
+    Apb2(u8),
+}
+
+/// What a model may ask of the rest of the machine during an access or an [`Peripheral::advance`].
+pub trait Machine {
+    /// The clock frequencies now in force.
+    fn clocks(&self) -> Clocks;
+    /// Whether the clock gate of a peripheral is open.
+    fn clock_enabled(&self, gate: ClockGate) -> bool;
+    /// Drives an interrupt line of the NVIC (its position in the vector table, RM0090 §12.2
+    /// table 61): level-sensitive, as the STM32's peripheral interrupt lines are.
+    fn set_irq(&mut self, irq: u16, level: bool);
+    /// Time since power-up.
+    fn now(&self) -> Nanos;
+}
+
+/// A register-level model of one peripheral.
+pub trait Peripheral {
+    /// A short name for messages (`"bxCAN1"`, `"USART2"`).
+    fn name(&self) -> &'static str;
+    /// Reads `width` bytes at `offset` within the block. Reserved addresses read 0.
+    fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32;
+    /// Writes `width` bytes at `offset` within the block. What the hardware ignores, the model
+    /// ignores; what the hardware refuses (a protected register outside its mode), the model
+    /// refuses the same way.
+    fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine);
+    /// Advances the model's time to `now` (nanoseconds since power-up).
+    fn advance(&mut self, now: Nanos, machine: &mut dyn Machine) {
+        let _ = (now, machine);
+    }
+}
