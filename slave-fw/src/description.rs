@@ -30,7 +30,7 @@
 //! errors too, in every table at every depth, so a misspelt setting never goes unnoticed: every
 //! configuration type read from the file refuses keys it does not know (`deny_unknown_fields`;
 //! none is flattened or untagged, which would defeat it), and the error gives the line, the column
-//! and the dotted key (`breaker.toml: TOML parse error at line 35, column 1:
+//! and the dotted key (`breaker.toml: TOML parse error at line 36, column 1:
 //! profile.serial.parityy: unknown key ...`). The complete reference, with every optional key, is
 //! in the README and in `slave-fw/descriptions/`.
 
