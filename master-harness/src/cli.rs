@@ -1039,7 +1039,9 @@ fn execute(
         Command::Configure { mac, description: Some(path), .. } => {
             progress.show(&format!("configure: downloading {} to MAC {mac} ...", path.display()));
             let r = match &descriptions.command {
-                Some(description) => configure::download(&mut master, *mac, description),
+                Some(description) => configure::download(&mut master, *mac, description, &mut |note| {
+                    progress.show(&format!("configure: {note}"));
+                }),
                 None => unreachable!("Descriptions::load reads configure's file"),
             };
             progress.clear();
@@ -1205,7 +1207,9 @@ fn execute(
 }
 
 fn configure_outcome(r: &configure::DownloadReport, path: &std::path::Path) -> Outcome {
-    let mut text = format!(
+    // What the master said before the reset comes first.
+    let mut text: String = r.notes.iter().map(|n| format!("note: {n}\n")).collect();
+    text += &format!(
         "MAC {}: {} downloaded ({} bytes in {} chunks), read back and verified; reset; on-line again at MAC {} after {} ms",
         r.mac,
         path.display(),

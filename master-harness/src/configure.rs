@@ -14,10 +14,19 @@
 //! 3. the stored image is read back (Read_Chunk 0x4B of the pending image) and compared byte for
 //!    byte;
 //! 4. Identity Reset; the master watches for the device's duplicate MAC ID check (at `--mac` or at
-//!    the description's MAC) and waits until it is on-line;
+//!    the description's MAC) and waits until it is on-line. When the description's data rate is
+//!    not the one the device runs at (the bus's), the master says so first ([`DownloadReport::notes`],
+//!    and the `note` callback at once): a device that takes its data rate from the description
+//!    (the soft slave, the simulated device) leaves this bus at its reset;
 //! 5. the device is checked against the description: configuration state "stored image in force"
-//!    and the image's CRC, Identity vendor, device type, product code, revision, serial number and
-//!    product name, and the poll connection's produced and consumed sizes.
+//!    and the image's CRC, Identity vendor, device type, product code, revision and product name,
+//!    and the poll connection's produced and consumed sizes; and the serial number is the one the
+//!    device had before: a device keeps its own (the board's from its MCU's unique ID, the soft
+//!    slave's from its state file), the description's is a default for simulated devices only.
+//!
+//! Values are written as `dnet-master decode` writes them ([`value_text`]); every error names the
+//! request that failed ([`request_name`] for the configuration object's own services, whose codes
+//! other classes use for other services).
 //!
 //! Upload ([`upload`]): the image in force is read in chunks, decoded and written as a
 //! description file ([`slave_fw::description::DeviceDescription::to_toml`]).
@@ -30,9 +39,10 @@ use crate::error::HarnessError;
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
+use devicenet::slave::BaudRate;
 use devicenet::{Duration, MacId};
 use master_core::client::Port;
-use master_core::decode::short_string;
+use master_core::decode::value_text;
 use master_core::error::MasterError;
 use master_core::master::Master;
 use slave_fw::converter::config_object::RefusalRecord;
@@ -97,6 +107,8 @@ pub struct DownloadReport {
     pub back_online_ms: Option<u64>,
     /// The device against the description.
     pub checks: Vec<Check>,
+    /// What the master said before the reset (a data rate other than the bus's).
+    pub notes: Vec<String>,
 }
 
 impl DownloadReport {
@@ -110,8 +122,39 @@ fn service(code: u8) -> ServiceCode {
     ServiceCode::from(code)
 }
 
+/// The configuration object's request `code` with `data`, by name: `Read_Chunk (0x4B) of the
+/// stored image at offset 56, 42 bytes, configuration object (class 0x66, instance 1)`. Its
+/// services are class-specific (notes §3.2): the decoder's names for their codes are other
+/// classes' services (0x4B is the DeviceNet object's Allocate).
+pub fn request_name(code: u8, data: &[u8]) -> String {
+    let what = match (code, data) {
+        (READ_CHUNK, &[which, lo, hi, count]) => format!(
+            "Read_Chunk (0x4B) of the {} image at offset {}, {count} bytes",
+            match which {
+                0 => "in force",
+                1 => "stored",
+                _ => "unknown",
+            },
+            u16::from_le_bytes([lo, hi])
+        ),
+        (BEGIN_DOWNLOAD, &[lo, hi]) => {
+            format!("Begin_Download (0x4C) of {} bytes", u16::from_le_bytes([lo, hi]))
+        }
+        (WRITE_CHUNK, &[lo, hi, ref part @ ..]) => {
+            format!("Write_Chunk (0x4D) at offset {}, {} bytes", u16::from_le_bytes([lo, hi]), part.len())
+        }
+        (COMMIT_DOWNLOAD, _) => "Commit_Download (0x4E)".to_string(),
+        (READ_CHUNK, _) => "Read_Chunk (0x4B)".to_string(),
+        (BEGIN_DOWNLOAD, _) => "Begin_Download (0x4C)".to_string(),
+        (WRITE_CHUNK, _) => "Write_Chunk (0x4D)".to_string(),
+        (other, _) => format!("service 0x{other:02X}"),
+    };
+    format!("{what}, configuration object (class 0x{CONFIGURATION_CLASS:02X}, instance 1)")
+}
+
 /// A class-specific request to the configuration object; an error response becomes
-/// [`MasterError::ErrorResponse`] (and the record a failure).
+/// [`MasterError::ErrorResponse`] (and the record a failure). Every error names the request
+/// ([`request_name`]).
 fn config_request(
     master: &mut Master<'_, '_>,
     mac: MacId,
@@ -119,7 +162,18 @@ fn config_request(
     data: &[u8],
 ) -> Result<Vec<u8>, MasterError> {
     let req = Request { service: service(code), class: CONFIGURATION_CLASS, instance: 1, data };
-    master.request_ok(mac, Port::Explicit, &req).map(|(d, _)| d)
+    master.request_ok(mac, Port::Explicit, &req).map(|(d, _)| d).map_err(|e| match e {
+        MasterError::ErrorResponse { mac, general, additional, text, .. } => {
+            MasterError::ErrorResponse { what: request_name(code, data), mac, general, additional, text }
+        }
+        MasterError::Timeout { mac, after, timeout, .. } => {
+            MasterError::Timeout { what: request_name(code, data), mac, after, timeout }
+        }
+        MasterError::Protocol { reason, .. } => {
+            MasterError::Protocol { what: request_name(code, data), reason }
+        }
+        other => other,
+    })
 }
 
 /// The device's reason for its last refusal (configuration object attribute 5).
@@ -132,8 +186,9 @@ fn refusal_reason(master: &mut Master<'_, '_>, mac: MacId) -> String {
     }
 }
 
-/// Reads `size` bytes of image `which` (0 in force, 1 stored) in chunks.
-fn read_image(
+/// Reads `size` bytes of image `which` (0 in force, 1 stored) from the device at `mac` in chunks
+/// (Read_Chunk; an explicit connection must be open).
+pub fn read_image(
     master: &mut Master<'_, '_>,
     mac: MacId,
     which: u8,
@@ -147,7 +202,7 @@ fn read_image(
         let part = config_request(master, mac, READ_CHUNK, &[which, lo, hi, count])?;
         if part.is_empty() || part.len() > usize::from(count) {
             return Err(MasterError::Protocol {
-                what: format!("Read_Chunk at offset {offset}"),
+                what: request_name(READ_CHUNK, &[which, lo, hi, count]),
                 reason: format!("{} bytes answered, {count} asked", part.len()),
             });
         }
@@ -156,28 +211,69 @@ fn read_image(
     Ok(image)
 }
 
-fn u16_attr(
+/// Attribute `attr` of `class_id` instance `instance` at `mac`, as `decode` writes it.
+fn attr_text(
     master: &mut Master<'_, '_>,
     mac: MacId,
     class_id: u16,
     instance: u16,
     attr: u8,
 ) -> Result<String, MasterError> {
-    Ok(master.get_u16(mac, class_id, instance, attr)?.map_or_else(|| "?".into(), |v| v.to_string()))
+    let (data, _) = master.get(mac, class_id, instance, attr)?;
+    Ok(value_text(class_id, instance, attr, &data))
+}
+
+/// A data rate as people write it.
+fn rate_text(rate: BaudRate) -> String {
+    format!("{} kbit/s", rate.bits_per_second() / 1000)
+}
+
+/// The configuration object's attribute 3 (the converter's `ConfigState`), in words.
+fn config_state_text(data: &[u8]) -> String {
+    match data {
+        [0] => "0 (factory default in force)".into(),
+        [1] => "1 (stored image in force)".into(),
+        [2] => "2 (new image pending, applies at reset)".into(),
+        [3] => "3 (stored image refused, factory default in force)".into(),
+        other => value_text(CONFIGURATION_CLASS, 1, 3, other),
+    }
+}
+
+/// A CRC-32 (configuration object attribute 4, a UDINT) as `decode` writes a UDINT.
+fn crc_text(data: &[u8]) -> String {
+    match data {
+        &[a, b, c, d] => format!("0x{:08X}", u32::from_le_bytes([a, b, c, d])),
+        other => value_text(CONFIGURATION_CLASS, 1, 4, other),
+    }
+}
+
+/// What the device at `mac` runs before the download: its data rate (the bus's, DeviceNet object
+/// attribute 2) and its serial number (Identity attribute 6).
+fn before_download(
+    master: &mut Master<'_, '_>,
+    mac: MacId,
+) -> Result<(Option<BaudRate>, Vec<u8>), MasterError> {
+    let (rate, _) = master.get(mac, class::DEVICENET, 1, 2)?;
+    let rate = rate.first().copied().and_then(BaudRate::from_attribute_value);
+    let (serial, _) = master.get(mac, class::IDENTITY, 1, 6)?;
+    Ok((rate, serial))
 }
 
 /// Downloads `description` to the device at `mac`, verifies, resets and checks it. See the
-/// [module docs](self).
+/// [module docs](self). `note` hears, as it happens, what the master says before the reset (also
+/// kept in [`DownloadReport::notes`]).
 pub fn download(
     master: &mut Master<'_, '_>,
     mac: MacId,
     description: &DeviceDescription,
+    note: &mut dyn FnMut(&str),
 ) -> Result<DownloadReport, HarnessError> {
     let image = slave_fw::image::encode_to_vec(&description.converter)
         .map_err(|e| HarnessError::Usage(format!("the description cannot be encoded: {e}")))?;
     let mut report = DownloadReport { mac: mac.as_raw(), bytes: image.len(), ..DownloadReport::default() };
 
     master.open_explicit(mac)?;
+    let (bus_rate, serial_before) = before_download(master, mac)?;
     let size = u16::try_from(image.len()).map_err(|_| HarnessError::Usage("image too long".into()))?;
     let refused = |master: &mut Master<'_, '_>, step: &str, e: MasterError| -> HarnessError {
         match e {
@@ -209,6 +305,19 @@ pub fn download(
         )));
     }
 
+    let described_rate = description.converter.device.baud_rate;
+    if let Some(bus) = bus_rate.filter(|&bus| bus != described_rate) {
+        let text = format!(
+            "the description's data rate is {}, MAC {mac} runs at {} (this bus's): a device that takes \
+             its data rate from its configuration leaves this bus when it applies it (the board takes \
+             it from its switches, the soft slave at its next start)",
+            rate_text(described_rate),
+            rate_text(bus)
+        );
+        note(&text);
+        report.notes.push(text);
+    }
+
     // Identity Reset: the new configuration applies.
     let reset = Request { service: ServiceCode::Reset, class: class::IDENTITY, instance: 1, data: &[] };
     master.request_ok(mac, Port::Explicit, &reset)?;
@@ -226,8 +335,9 @@ pub fn download(
         }
         if master.session.now() >= deadline {
             return Err(HarnessError::Refused(format!(
-                "MAC {mac} did not come back on-line within {BACK_ONLINE} of its reset (watched MAC {})",
-                candidates.iter().map(ToString::to_string).collect::<Vec<_>>().join(" and ")
+                "MAC {mac} did not come back on-line within {BACK_ONLINE} of its reset (watched MAC {}){}",
+                candidates.iter().map(ToString::to_string).collect::<Vec<_>>().join(" and "),
+                report.notes.iter().map(|n| format!("; {n}")).collect::<String>()
             )));
         }
         let until = candidates
@@ -256,16 +366,17 @@ pub fn download(
             Err(e) => return Err(e.into()),
         }
     }
-    check_against(master, back_at, description, &image, &mut report)?;
+    check_against(master, back_at, description, (&image, &serial_before), &mut report)?;
     Ok(report)
 }
 
-/// Compares the device at `mac` with `description` (see the [module docs](self), step 5).
+/// Compares the device at `mac` with `description`, the `image` downloaded and the serial number
+/// it had before (see the [module docs](self), step 5).
 fn check_against(
     master: &mut Master<'_, '_>,
     mac: MacId,
     description: &DeviceDescription,
-    image: &[u8],
+    (image, serial_before): (&[u8], &[u8]),
     report: &mut DownloadReport,
 ) -> Result<(), HarnessError> {
     let config: &ConverterConfig = &description.converter;
@@ -273,37 +384,45 @@ fn check_against(
     let mut check = |what: &str, expected: String, actual: String| {
         report.checks.push(Check { what: what.into(), expected, actual });
     };
+    let identity = |attr: u8, bytes: &[u8]| value_text(class::IDENTITY, 1, attr, bytes);
     let (state, _) = master.get(mac, CONFIGURATION_CLASS, 1, 3)?;
-    check("configuration state", "[1]".into(), format!("{state:?}"));
+    check("configuration state", config_state_text(&[1]), config_state_text(&state));
     let (crc, _) = master.get(mac, CONFIGURATION_CLASS, 1, 4)?;
-    let expected_crc = image.get(image.len().saturating_sub(4)..).unwrap_or_default().to_vec();
-    check("configuration CRC-32", format!("{expected_crc:02X?}"), format!("{crc:02X?}"));
-    check("Identity vendor ID", id.vendor_id.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 1)?);
-    check("Identity device type", id.device_type.to_string(), u16_attr(master, mac, class::IDENTITY, 1, 2)?);
-    check(
-        "Identity product code",
-        id.product_code.to_string(),
-        u16_attr(master, mac, class::IDENTITY, 1, 3)?,
-    );
-    let (rev, _) = master.get(mac, class::IDENTITY, 1, 4)?;
-    check("Identity revision", format!("[{}, {}]", id.major_revision, id.minor_revision), format!("{rev:?}"));
-    let (serial, _) = master.get(mac, class::IDENTITY, 1, 6)?;
-    check("Identity serial number", format!("{:?}", id.serial_number.to_le_bytes()), format!("{serial:?}"));
-    let (name, _) = master.get(mac, class::IDENTITY, 1, 7)?;
-    check("Identity product name", id.product_name.to_string(), short_string(&name).unwrap_or_default());
+    let expected_crc = image.get(image.len().saturating_sub(4)..).unwrap_or_default();
+    check("configuration CRC-32", crc_text(expected_crc), crc_text(&crc));
+    let id_checks: [(&str, u8, Vec<u8>); 6] = [
+        ("Identity vendor ID", 1, id.vendor_id.to_le_bytes().to_vec()),
+        ("Identity device type", 2, id.device_type.to_le_bytes().to_vec()),
+        ("Identity product code", 3, id.product_code.to_le_bytes().to_vec()),
+        ("Identity revision", 4, vec![id.major_revision, id.minor_revision]),
+        // The device's own, kept (module docs): not the description's.
+        ("Identity serial number", 6, serial_before.to_vec()),
+        ("Identity product name", 7, short_string_bytes(&id.product_name)),
+    ];
+    for (what, attr, expected) in id_checks {
+        check(what, identity(attr, &expected), attr_text(master, mac, class::IDENTITY, 1, attr)?);
+    }
     master.allocate(mac, Port::Explicit, AllocationChoice::POLL)?;
     let device = config.device_config();
+    let connection = |size: u16| value_text(class::CONNECTION, 2, 7, &size.to_le_bytes());
     check(
         "poll produced size",
-        device.produced_size.to_string(),
-        u16_attr(master, mac, class::CONNECTION, 2, 7)?,
+        connection(device.produced_size),
+        attr_text(master, mac, class::CONNECTION, 2, 7)?,
     );
     check(
         "poll consumed size",
-        device.consumed_size.to_string(),
-        u16_attr(master, mac, class::CONNECTION, 2, 8)?,
+        connection(device.consumed_size),
+        attr_text(master, mac, class::CONNECTION, 2, 8)?,
     );
     Ok(())
+}
+
+/// `name` as a SHORT_STRING (a length byte, then the characters), as Identity attribute 7 is sent.
+fn short_string_bytes(name: &str) -> Vec<u8> {
+    let mut bytes = vec![u8::try_from(name.len()).unwrap_or(u8::MAX)];
+    bytes.extend_from_slice(name.as_bytes());
+    bytes
 }
 
 /// Reads the configuration in force at `mac` and gives it back as a description.

@@ -43,6 +43,96 @@ fn the_reference_device_becomes_the_meter_and_reads_back() {
     assert!(!out.contains("FAIL"), "{out}");
 }
 
+/// The line of `out` that reports `what`.
+fn line_of<'a>(out: &'a str, what: &str) -> &'a str {
+    out.lines().find(|l| l.contains(what)).unwrap_or_else(|| panic!("no {what} line in\n{out}"))
+}
+
+#[test]
+fn values_are_written_as_decode_writes_them_and_the_serial_number_is_the_devices() {
+    let meter = workspace_file("slave-fw/descriptions/modbus-meter.toml");
+    let (code, out, err) = dnet(&["--bus", "sim", "configure", "--mac", "5", &meter]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(!out.contains('['), "no byte lists: {out}");
+    // The reference device's own serial number, kept: not the description's 0x00C0FFEE.
+    assert!(line_of(&out, "Identity serial number").ends_with(" 0x12345678"), "{out}");
+    assert!(!out.contains("C0FFEE"), "{out}");
+    let crc = line_of(&out, "configuration CRC-32").split_whitespace().last().unwrap();
+    assert!(crc.len() == 10 && crc.starts_with("0x"), "a UDINT: {out}");
+    assert!(line_of(&out, "Identity vendor ID").ends_with(" 0x1234 (4660)"), "{out}");
+    assert!(line_of(&out, "Identity revision").ends_with(" 1.0"), "{out}");
+    assert!(line_of(&out, "Identity product name").ends_with(" \"Modbus-DeviceNet Gateway\""), "{out}");
+    assert!(line_of(&out, "poll produced size").ends_with(" 14 bytes"), "{out}");
+    assert!(line_of(&out, "configuration state").ends_with(" 1 (stored image in force)"), "{out}");
+}
+
+#[test]
+fn a_data_rate_other_than_the_buss_is_said_before_the_reset() {
+    // The meter's description says 500k; the simulated bus runs at 250k.
+    let meter = workspace_file("slave-fw/descriptions/modbus-meter.toml");
+    let (code, out, err) = dnet(&["--bus", "sim", "configure", "--mac", "5", &meter]);
+    assert_eq!(code, 0, "{out}{err}");
+    let note = out
+        .find("note: the description's data rate is 500 kbit/s, MAC 5 runs at 250 kbit/s")
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(note < out.find("; reset;").unwrap(), "said before the reset: {out}");
+    // The same rate as the bus: nothing said.
+    let same = temp("meter-250k.toml");
+    let text =
+        std::fs::read_to_string(&meter).unwrap().replace("baud_rate = \"500k\"", "baud_rate = \"250k\"");
+    std::fs::write(&same, text).unwrap();
+    let (code, out, err) = dnet(&["--bus", "sim", "configure", "--mac", "5", same.to_str().unwrap()]);
+    assert_eq!(code, 0, "{out}{err}");
+    assert!(!out.contains("data rate"), "{out}");
+}
+
+#[test]
+fn a_failing_read_chunk_names_the_read_chunk() {
+    let mut bus = system_bus();
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let mac = MacId::new(5).unwrap();
+    master.open_explicit(mac).unwrap();
+    // Nothing was downloaded: the stored image cannot be read (object state conflict).
+    let e = master_harness::configure::read_image(&mut master, mac, 1, 10).unwrap_err().to_string();
+    assert!(
+        e.starts_with(
+            "Read_Chunk (0x4B) of the stored image at offset 0, 10 bytes, configuration object (class 0x66, instance 1): MAC 5 answered with an error"
+        ),
+        "{e}"
+    );
+    assert!(!e.contains("Allocate"), "{e}");
+}
+
+#[test]
+fn two_devices_configured_from_one_file_keep_their_own_serial_numbers() {
+    let mut bus = can_io::sim::SimBus::new(can_io::bus::Bitrate::K250);
+    for mac in [5, 6] {
+        bus.attach(
+            Box::new(converter_sim::SoftSlave::reference(MacId::new(mac).unwrap())),
+            can_io::sim::PowerOn::WhenMasterOnline,
+        );
+    }
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let mut meter = DeviceDescription::load(std::path::Path::new(&workspace_file(
+        "slave-fw/descriptions/modbus-meter.toml",
+    )))
+    .unwrap();
+    let mut serials = Vec::new();
+    for mac in [5, 6] {
+        let mac = MacId::new(mac).unwrap();
+        // The file's MAC is the device's own, so that the two stay apart.
+        meter.converter.device.mac_id = mac;
+        let report = master_harness::configure::download(&mut master, mac, &meter, &mut |_| {}).unwrap();
+        assert!(report.failures().is_empty(), "{report:?}");
+        serials.push(master.get(mac, 1, 1, 6).unwrap().0);
+        master.release_held().unwrap();
+    }
+    // The reference devices' own (0x12345678 + MAC - 5), not the description's.
+    assert_eq!(serials, [0x1234_5678u32.to_le_bytes(), 0x1234_5679u32.to_le_bytes()]);
+}
+
 #[test]
 fn a_description_that_fails_validation_names_the_key_and_sends_nothing() {
     let bad = temp("bad-meter.toml");
@@ -187,7 +277,8 @@ fn a_download_from_a_second_master_is_refused_and_changes_nothing() {
         "slave-fw/descriptions/modbus-meter.toml",
     )))
     .unwrap();
-    let e = master_harness::configure::download(&mut second, mac, &meter).unwrap_err().to_string();
+    let e =
+        master_harness::configure::download(&mut second, mac, &meter, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("MAC 5 is allocated to another master (MAC 1)"), "{e}");
     // Nothing was downloaded: no request of the second master reached the configuration object.
     let requests_to_0x66 = second
