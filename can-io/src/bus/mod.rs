@@ -60,6 +60,22 @@ pub enum BusError {
     /// The adapter answered with an error or something unintelligible.
     #[error("{0}")]
     Adapter(String),
+    /// The serial port does not answer the set-up commands as an SLCAN adapter does.
+    #[error("{port} does not answer as an SLCAN adapter: {reason}")]
+    NotAnAdapter {
+        /// The serial port.
+        port: String,
+        /// Silent, or what came back.
+        reason: slcan::NotAnAdapter,
+    },
+    /// The SLCAN adapter refused a set-up command (BEL).
+    #[error("the SLCAN adapter on {port} refused `{command}` (BEL)")]
+    Refused {
+        /// The serial port.
+        port: String,
+        /// The command (`S5`, `O`).
+        command: &'static str,
+    },
     /// The bus cannot be opened here: `sim` outside a program that simulates devices, or
     /// SocketCAN off Linux.
     #[error("{0}")]
@@ -205,13 +221,22 @@ impl fmt::Display for BusSpec {
 
 impl BusSpec {
     /// Opens a real bus: the SocketCAN interface, or the SLCAN adapter set up for `bitrate` (on
-    /// SocketCAN the bit rate belongs to the interface: `ip link set can0 type can bitrate ...`).
+    /// SocketCAN the bit rate belongs to the interface: `ip link set can0 type can bitrate ...`);
+    /// the SLCAN adapter must answer its set-up commands ([`slcan::SetUp::Adapter`]).
     ///
     /// The simulated bus has devices only a program that simulates them can attach; `sim` gives
     /// [`BusError::Unavailable`] here (the master harness and the EDS tool open it through
     /// `converter_sim::open_bus`, which attaches the simulated converters and calls this for the
     /// real buses).
     pub fn open(&self, bitrate: Bitrate) -> Result<Box<dyn Bus>, BusError> {
+        self.open_as(bitrate, slcan::SetUp::Adapter)
+    }
+
+    /// [`BusSpec::open`], with what an SLCAN port's far end must answer to the set-up commands:
+    /// [`slcan::SetUp::Adapter`] (what `open` asks: a port that stays silent or answers garbage is
+    /// [`BusError::NotAnAdapter`]) or [`slcan::SetUp::Peer`] (a device program whose far end may be
+    /// a host that starts later). Other buses ignore `setup`.
+    pub fn open_as(&self, bitrate: Bitrate, setup: slcan::SetUp) -> Result<Box<dyn Bus>, BusError> {
         match self {
             BusSpec::Sim => Err(BusError::Unavailable(
                 "the simulated bus runs inside dnet-master and dnet-eds (--bus sim); this program needs a real bus (socketcan:IFACE or slcan:PATH[@SERIALBAUD])".into(),
@@ -222,7 +247,7 @@ impl BusSpec {
             BusSpec::SocketCan { .. } => {
                 Err(BusError::Unavailable("SocketCAN is only available on Linux".into()))
             }
-            BusSpec::Slcan { path, baud } => Ok(Box::new(slcan::open(path, *baud, bitrate)?)),
+            BusSpec::Slcan { path, baud } => Ok(Box::new(slcan::open_as(path, *baud, bitrate, setup)?)),
         }
     }
 }

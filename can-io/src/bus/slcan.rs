@@ -14,6 +14,23 @@
 //! by a 4-digit timestamp. Extended (`T`) and remote (`r`, `R`) frames are not DeviceNet traffic
 //! and are skipped. [`Receiver`] turns the adapter's byte stream into [`AdapterLine`]s;
 //! [`SlcanBus`] runs it over any [`SerialLink`].
+//!
+//! ## Opening
+//!
+//! 1. What waits in the port's input is read and thrown away (at most [`DRAIN_LIMIT`]): frames
+//!    and answers left from a previous program belong to no request of this one.
+//! 2. `C`, `Sn`, `O` are sent one at a time, and with [`SetUp::Adapter`] each must be answered
+//!    within [`ANSWER_TIMEOUT`]: `\r`, or BEL to `C` (a Lawicel adapter refuses to close a closed
+//!    channel). BEL to `Sn` or `O` is [`BusError::Refused`]; silence or bytes that are not SLCAN
+//!    are [`BusError::NotAnAdapter`], naming the port (a wrong port, the instrument's serial line,
+//!    a device that is not an adapter). CANable's slcan firmware, Lawicel's CANUSB and the
+//!    emulated firmware ([`crate::slcan::Adapter`]) answer so.
+//! 3. With [`SetUp::Peer`] the answers are not awaited: the far end may be a host program that
+//!    starts later, as on the pty rig's back-to-back link.
+//!
+//! Two host endpoints joined back to back (a null-modem pty pair) see each other's set-up
+//! commands; each answers them `\r` as an adapter would ([`AdapterLine::HostCommand`]), so a
+//! program that opens with [`SetUp::Adapter`] finds a peer that runs as an adapter.
 
 use super::{Bitrate, Bus, BusError, BusEvent, Origin};
 use crate::slcan::{self, Command, LineBuffer};
@@ -27,6 +44,48 @@ pub fn bitrate_command(bitrate: Bitrate) -> [u8; 3] {
     [b'S', b'0' + code, b'\r']
 }
 
+/// How long an adapter has to answer each set-up command.
+pub const ANSWER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// The longest time opening spends throwing away what waits in the port's input.
+pub const DRAIN_LIMIT: std::time::Duration = std::time::Duration::from_millis(500);
+
+/// A read that brings nothing for this long ends the drain: the port's input is empty.
+const DRAIN_QUIET: std::time::Duration = std::time::Duration::from_millis(20);
+
+/// What opening requires of the far end (see the [module docs](self)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SetUp {
+    /// An adapter: each set-up command is answered within [`ANSWER_TIMEOUT`].
+    Adapter,
+    /// Anything that speaks SLCAN, maybe later: the set-up commands are sent, answers not awaited
+    /// (a device program whose far end is a host that may start after it).
+    Peer,
+}
+
+/// Why a port is not taken for an SLCAN adapter.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum NotAnAdapter {
+    /// Nothing came back.
+    #[error("no answer to `{command}` within {} ms", .after.as_millis())]
+    Silent {
+        /// The set-up command (`C`, `S5`, `O`).
+        command: &'static str,
+        /// How long it waited.
+        after: std::time::Duration,
+    },
+    /// Bytes came back, but no SLCAN answer among them.
+    #[error("`{command}` was answered with {count} byte(s) that are not SLCAN ({shown})")]
+    Garbage {
+        /// The set-up command.
+        command: &'static str,
+        /// How many bytes came.
+        count: usize,
+        /// The first of them, printable ASCII as is, others as `\xNN`.
+        shown: String,
+    },
+}
+
 /// One line the adapter sent.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum AdapterLine {
@@ -38,6 +97,9 @@ pub enum AdapterLine {
     Transmitted,
     /// BEL: the last command was refused.
     Error,
+    /// A set-up command (`C`, `Sn`, `O`, `L`): only a host sends these, so the far end is another
+    /// host program on a back-to-back link. Answered `\r`.
+    HostCommand(Command),
     /// A line that is not a standard data frame (extended, remote, version, status, noise).
     Other(String),
 }
@@ -49,6 +111,9 @@ pub fn classify(line: &[u8]) -> AdapterLine {
         b"z" | b"Z" => AdapterLine::Transmitted,
         _ => match slcan::parse_received(line) {
             Ok(Command::Frame(frame)) => AdapterLine::Frame(frame),
+            Ok(c @ (Command::Open | Command::ListenOnly | Command::Close | Command::Bitrate(_))) => {
+                AdapterLine::HostCommand(c)
+            }
             _ => AdapterLine::Other(String::from_utf8_lossy(line).into_owned()),
         },
     }
@@ -102,41 +167,163 @@ impl SerialLink for Box<dyn serialport::SerialPort> {
 pub struct SlcanBus<L: SerialLink> {
     link: L,
     name: String,
+    /// The port, for errors.
+    port: String,
     opened: std::time::Instant,
     receiver: Receiver,
     pending: VecDeque<BusEvent>,
 }
 
-/// Opens the serial port `path` at `baud` and sets the adapter up for `bitrate`.
+/// Opens the serial port `path` at `baud` and sets the adapter up for `bitrate`; the adapter must
+/// answer ([`SetUp::Adapter`]).
 pub fn open(
     path: &str,
     baud: u32,
     bitrate: Bitrate,
 ) -> Result<SlcanBus<Box<dyn serialport::SerialPort>>, BusError> {
+    open_as(path, baud, bitrate, SetUp::Adapter)
+}
+
+/// Opens the serial port `path` at `baud` and sets the adapter up for `bitrate`, as `setup` says.
+pub fn open_as(
+    path: &str,
+    baud: u32,
+    bitrate: Bitrate,
+    setup: SetUp,
+) -> Result<SlcanBus<Box<dyn serialport::SerialPort>>, BusError> {
     let port =
         serialport::new(path, baud).timeout(std::time::Duration::from_millis(10)).open().map_err(|e| {
             BusError::Open { what: format!("serial port '{path}'"), source: std::io::Error::from(e) }
         })?;
-    SlcanBus::new(port, bitrate)
+    SlcanBus::set_up(port, bitrate, path, setup)
 }
 
 impl<L: SerialLink> SlcanBus<L> {
-    /// Sets the adapter up on `link`: close, bit rate, open. The adapter's answers are not
-    /// required (some adapters stay silent); a BEL is an error.
-    pub fn new(mut link: L, bitrate: Bitrate) -> Result<SlcanBus<L>, BusError> {
-        let mut setup = b"C\r".to_vec();
-        setup.extend_from_slice(&bitrate_command(bitrate));
-        setup.extend_from_slice(b"O\r");
-        link.write_all(&setup)
-            .and_then(|()| link.flush())
-            .map_err(|source| BusError::Io { what: "setting the SLCAN adapter up".into(), source })?;
-        Ok(SlcanBus {
+    /// Sets the adapter up on `link` ([`SetUp::Adapter`]; the link named `the SLCAN link` in
+    /// errors). See [`SlcanBus::set_up`].
+    pub fn new(link: L, bitrate: Bitrate) -> Result<SlcanBus<L>, BusError> {
+        SlcanBus::set_up(link, bitrate, "the SLCAN link", SetUp::Adapter)
+    }
+
+    /// Sets the adapter on `link` (named `port` in errors) up: its input drained, then close, bit
+    /// rate, open, each answered as `setup` requires (see the [module docs](self)).
+    pub fn set_up(link: L, bitrate: Bitrate, port: &str, setup: SetUp) -> Result<SlcanBus<L>, BusError> {
+        let mut bus = SlcanBus {
             link,
             name: "slcan0".into(),
+            port: port.to_string(),
             opened: std::time::Instant::now(),
             receiver: Receiver::new(),
             pending: VecDeque::new(),
-        })
+        };
+        bus.drain()?;
+        let rate = bitrate_command(bitrate);
+        let rate_name = ["S0", "S1", "S2", "S3", "S4", "S5", "S6", "S7", "S8"]
+            .get(usize::from(rate[1].wrapping_sub(b'0')))
+            .copied()
+            .unwrap_or("S");
+        for (name, line) in [("C", &b"C\r"[..]), (rate_name, &rate[..]), ("O", &b"O\r"[..])] {
+            bus.link.write_all(line).and_then(|()| bus.link.flush()).map_err(|source| BusError::Io {
+                what: format!("setting the SLCAN adapter on {port} up (`{name}`)"),
+                source,
+            })?;
+            if setup == SetUp::Adapter {
+                bus.await_answer(name)?;
+            }
+        }
+        bus.opened = std::time::Instant::now();
+        Ok(bus)
+    }
+
+    /// Reads and throws away what waits in the port's input, for at most [`DRAIN_LIMIT`].
+    fn drain(&mut self) -> Result<(), BusError> {
+        let end = std::time::Instant::now() + DRAIN_LIMIT;
+        let mut buf = [0u8; 256];
+        self.link
+            .set_read_timeout(DRAIN_QUIET)
+            .map_err(|source| self.io("setting the serial timeout", source))?;
+        while std::time::Instant::now() < end {
+            match self.link.read(&mut buf) {
+                Ok(0) => break,
+                Ok(_) => {}
+                Err(e) if is_no_data(&e) => break,
+                Err(source) => return Err(self.io("draining the port's input", source)),
+            }
+        }
+        self.receiver = Receiver::new();
+        Ok(())
+    }
+
+    /// Waits for the answer to set-up command `command`: `\r`, or BEL to `C`. Frames that come
+    /// before the answer to `O` are from before this program opened the channel and are dropped;
+    /// after it, they are the bus's and kept.
+    fn await_answer(&mut self, command: &'static str) -> Result<(), BusError> {
+        let end = std::time::Instant::now() + ANSWER_TIMEOUT;
+        let mut seen: Vec<u8> = Vec::new();
+        let mut buf = [0u8; 256];
+        loop {
+            let left = end.saturating_duration_since(std::time::Instant::now());
+            if left.is_zero() {
+                let reason = if seen.is_empty() {
+                    NotAnAdapter::Silent { command, after: ANSWER_TIMEOUT }
+                } else {
+                    NotAnAdapter::Garbage { command, count: seen.len(), shown: shown(&seen) }
+                };
+                return Err(BusError::NotAnAdapter { port: self.port.clone(), reason });
+            }
+            self.link
+                .set_read_timeout(left.min(std::time::Duration::from_millis(50)))
+                .map_err(|source| self.io("setting the serial timeout", source))?;
+            let n = match self.link.read(&mut buf) {
+                Ok(n) => n,
+                Err(e) if is_no_data(&e) => 0,
+                Err(source) => return Err(self.io("reading the SLCAN adapter's answer", source)),
+            };
+            seen.extend_from_slice(&buf[..n]);
+            let mut answered = false;
+            for line in self.receiver.feed(&buf[..n]) {
+                match line {
+                    _ if answered => self.after_answer(command, line)?,
+                    AdapterLine::Ok => answered = true,
+                    AdapterLine::Error if command == "C" => answered = true,
+                    AdapterLine::Error => return Err(BusError::Refused { port: self.port.clone(), command }),
+                    AdapterLine::HostCommand(_) => self.answer_peer()?,
+                    AdapterLine::Frame(_) | AdapterLine::Transmitted | AdapterLine::Other(_) => {}
+                }
+            }
+            if answered {
+                return Ok(());
+            }
+            if n == 0 {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+        }
+    }
+
+    /// A line that came after the answer to `command`, in the same read: a frame after `O` is
+    /// the bus's.
+    fn after_answer(&mut self, command: &str, line: AdapterLine) -> Result<(), BusError> {
+        match line {
+            AdapterLine::Frame(frame) if command == "O" => {
+                let at = self.clock();
+                self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote });
+            }
+            AdapterLine::HostCommand(_) => self.answer_peer()?,
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Answers a peer's set-up command `\r`, as an adapter would.
+    fn answer_peer(&mut self) -> Result<(), BusError> {
+        self.link
+            .write_all(slcan::OK)
+            .and_then(|()| self.link.flush())
+            .map_err(|source| self.io("answering the far end's set-up command", source))
+    }
+
+    fn io(&self, what: &str, source: std::io::Error) -> BusError {
+        BusError::Io { what: format!("{}: {what}", self.port), source }
     }
 
     /// The link (tests read what was written).
@@ -188,12 +375,7 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                     0
                 }
                 Ok(n) => n,
-                Err(e)
-                    if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) =>
-                {
-                    0
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => 0,
+                Err(e) if is_no_data(&e) => 0,
                 Err(source) => {
                     return Err(BusError::Io { what: "reading from the SLCAN adapter".into(), source })
                 }
@@ -207,6 +389,7 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                     AdapterLine::Error => {
                         return Err(BusError::Adapter("the SLCAN adapter refused a command (BEL)".into()))
                     }
+                    AdapterLine::HostCommand(_) => self.answer_peer()?,
                     AdapterLine::Ok | AdapterLine::Transmitted | AdapterLine::Other(_) => {}
                 }
             }
@@ -214,15 +397,45 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
     }
 }
 
+/// A read that ended without data: the timeout passed, or a signal came.
+fn is_no_data(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock | std::io::ErrorKind::Interrupted
+    )
+}
+
+/// Up to 16 of `bytes`: printable ASCII as is, the rest as `\xNN`, `\r` as `\r`.
+fn shown(bytes: &[u8]) -> String {
+    let mut text: String =
+        bytes.iter().take(16).map(|b| std::ascii::escape_default(*b).to_string()).collect();
+    if bytes.len() > 16 {
+        text.push_str("...");
+    }
+    text
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use rstest::rstest;
 
-    /// A scripted adapter: what it will say, and what it was told.
+    /// A scripted adapter: what waits in its input, what it answers to each write (in order),
+    /// and what it was told.
     struct FakeLink {
         input: VecDeque<u8>,
+        replies: VecDeque<&'static str>,
         written: Vec<u8>,
+    }
+
+    impl FakeLink {
+        fn new(waiting: &[u8], replies: &[&'static str]) -> FakeLink {
+            FakeLink {
+                input: waiting.iter().copied().collect(),
+                replies: replies.iter().copied().collect(),
+                written: Vec::new(),
+            }
+        }
     }
 
     impl Read for FakeLink {
@@ -241,6 +454,9 @@ mod tests {
     impl Write for FakeLink {
         fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
             self.written.extend_from_slice(buf);
+            if let Some(reply) = self.replies.pop_front() {
+                self.input.extend(reply.bytes());
+            }
             Ok(buf.len())
         }
         fn flush(&mut self) -> std::io::Result<()> {
@@ -253,6 +469,9 @@ mod tests {
             Ok(())
         }
     }
+
+    /// A CANable or the emulated firmware: `\r` to each set-up command.
+    const ANSWERS: [&str; 3] = ["\r", "\r", "\r"];
 
     fn f(id: u16, data: &[u8]) -> CanFrame {
         CanFrame::from_raw(id, data).unwrap()
@@ -277,6 +496,9 @@ mod tests {
     #[case::short("t42B300CB", AdapterLine::Other("t42B300CB".into()))]
     #[case::bad_hex("t42B1GG", AdapterLine::Other("t42B1GG".into()))]
     #[case::big_id("t8001FF", AdapterLine::Other("t8001FF".into()))]
+    #[case::peer_close("C", AdapterLine::HostCommand(Command::Close))]
+    #[case::peer_rate("S5", AdapterLine::HostCommand(Command::Bitrate(5)))]
+    #[case::version("V1013", AdapterLine::Other("V1013".into()))]
     fn lines(#[case] line: &str, #[case] msg: AdapterLine) {
         assert_eq!(classify(line.as_bytes()), msg);
     }
@@ -297,8 +519,7 @@ mod tests {
 
     #[test]
     fn bus_sets_up_sends_and_receives() {
-        let link =
-            FakeLink { input: b"\r\r\rz\rt42B300CB00\r".iter().copied().collect(), written: Vec::new() };
+        let link = FakeLink::new(b"", &["\r", "\r", "\r", "z\rt42B300CB00\r"]);
         let mut bus = SlcanBus::new(link, Bitrate::K500).unwrap();
         bus.send(&f(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00])).unwrap();
         let deadline = bus.now() + devicenet::Duration::from_secs(1);
@@ -314,10 +535,74 @@ mod tests {
 
     #[test]
     fn adapter_error_is_reported() {
-        let link = FakeLink { input: b"\x07".iter().copied().collect(), written: Vec::new() };
+        let link = FakeLink::new(b"", &["\r", "\r", "\r", "\x07"]);
         let mut bus = SlcanBus::new(link, Bitrate::K250).unwrap();
+        bus.send(&f(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00])).unwrap();
         let deadline = bus.now() + devicenet::Duration::from_secs(1);
+        assert_eq!(bus.recv(deadline).unwrap().map(|e| e.origin), Some(Origin::Local));
         assert!(matches!(bus.recv(deadline), Err(BusError::Adapter(_))));
+    }
+
+    #[test]
+    fn what_waits_in_the_port_is_thrown_away_on_open() {
+        // An interrupted run's Release answer, and half a line, wait in the port.
+        let link = FakeLink::new(b"t42B200CC\rt42B30", &ANSWERS);
+        let mut bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/9", SetUp::Adapter).unwrap();
+        let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        assert_eq!(bus.recv(deadline).unwrap(), None);
+    }
+
+    #[test]
+    fn frames_after_the_open_answer_are_kept() {
+        let link = FakeLink::new(b"", &["\r", "\r", "\rt42B200CC\r"]);
+        let mut bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/9", SetUp::Adapter).unwrap();
+        let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        assert_eq!(bus.recv(deadline).unwrap().map(|e| e.frame), Some(f(0x42B, &[0x00, 0xCC])));
+    }
+
+    #[rstest]
+    #[case::canable(&ANSWERS)]
+    #[case::lawicel_refuses_to_close_a_closed_channel(&["\x07", "\r", "\r"])]
+    #[case::transmit_confirmation_left_over(&["z\r\r", "\r", "\r"])]
+    fn adapters_that_answer_are_taken(#[case] replies: &[&'static str]) {
+        let link = FakeLink::new(b"", replies);
+        assert!(SlcanBus::set_up(link, Bitrate::K250, "/dev/ttyACM0", SetUp::Adapter).is_ok());
+    }
+
+    #[rstest]
+    #[case::silent(&[], "/dev/ttyS7 does not answer as an SLCAN adapter: no answer to `C` within 1000 ms")]
+    #[case::instrument(
+        &["\x02\x41\x55\x00\x1a\x03"],
+        "/dev/ttyS7 does not answer as an SLCAN adapter: `C` was answered with 6 byte(s) that are not SLCAN (\\x02AU\\x00\\x1a\\x03)"
+    )]
+    #[case::text(&["login: "], "`C` was answered with 7 byte(s) that are not SLCAN (login: )")]
+    #[case::refused_rate(&["\r", "\x07"], "the SLCAN adapter on /dev/ttyS7 refused `S5` (BEL)")]
+    #[case::refused_open(&["\r", "\r", "\x07"], "the SLCAN adapter on /dev/ttyS7 refused `O` (BEL)")]
+    fn ports_that_do_not_answer_as_an_adapter_are_named(
+        #[case] replies: &[&'static str],
+        #[case] message: &str,
+    ) {
+        let link = FakeLink::new(b"", replies);
+        let e = SlcanBus::set_up(link, Bitrate::K250, "/dev/ttyS7", SetUp::Adapter).err().unwrap();
+        assert!(matches!(e, BusError::NotAnAdapter { .. } | BusError::Refused { .. }), "{e:?}");
+        assert!(e.to_string().contains(message), "{e}");
+    }
+
+    #[test]
+    fn a_peer_need_not_answer() {
+        let link = FakeLink::new(b"", &[]);
+        let bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/3", SetUp::Peer).unwrap();
+        assert_eq!(String::from_utf8_lossy(&bus.link().written), "C\rS5\rO\r");
+    }
+
+    #[test]
+    fn a_peers_set_up_commands_are_answered_as_an_adapter_would() {
+        let link = FakeLink::new(b"", &[]);
+        let mut bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/3", SetUp::Peer).unwrap();
+        bus.link.input.extend(b"C\rS5\rO\r".iter().copied());
+        let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        assert_eq!(bus.recv(deadline).unwrap(), None);
+        assert_eq!(String::from_utf8_lossy(&bus.link().written), "C\rS5\rO\r\r\r\r");
     }
 
     proptest::proptest! {

@@ -10,6 +10,8 @@ use crate::serial::{settings_text, SerialLine};
 use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bitrate, BusSpec};
 use can_io::log::LogWriter;
+use can_io::trace::write::log_format;
+use can_io::trace::TraceFormat;
 use clap::Parser;
 use devicenet::{Duration, MacId};
 use slave_fw::description::DeviceDescription;
@@ -46,9 +48,15 @@ pub struct SoftSlaveArgs {
     /// Use this MAC ID instead of the description's.
     #[arg(long, value_name = "N", value_parser = parse_mac)]
     pub mac: Option<MacId>,
-    /// Write every CAN frame seen (received and sent) to FILE in candump -L format.
+    /// Write every CAN frame seen (received and sent) to FILE, in the format --format names, else
+    /// the one FILE's extension names (.asc Vector, .trc PCAN-View 2.1, .csv python-can), else
+    /// candump -L.
     #[arg(long, value_name = "FILE")]
     pub log: Option<PathBuf>,
+    /// The --log file's format: candump, trc, asc or csv [default: from the file's extension,
+    /// else candump].
+    #[arg(long, value_name = "FORMAT", value_parser = parse_log_format, requires = "log")]
+    pub format: Option<TraceFormat>,
     /// Keep what the board keeps in flash in FILE (JSON, replaced atomically): MAC ID, data rate
     /// and bus-off interrupt set over the network, and the configuration downloaded over the
     /// network; read at start, so a restart behaves like the board's power cycle [default: kept
@@ -116,6 +124,11 @@ pub fn parse_real_bus(s: &str) -> Result<BusSpec, String> {
         Ok(spec) => Ok(spec),
         Err(e) => Err(e.replace("expected sim, ", "expected ")),
     }
+}
+
+/// `--format`: a trace format's name.
+pub fn parse_log_format(s: &str) -> Result<TraceFormat, String> {
+    TraceFormat::from_name(s).ok_or_else(|| format!("unknown trace format '{s}' (one of: candump, trc, asc, csv)"))
 }
 
 /// A MAC ID, `0..=63`.
@@ -191,7 +204,11 @@ pub fn run_soft_slave(
     let description = load_description(args)?;
     let state_file = args.state.as_ref().map(StateFile::new);
     let state = match &state_file {
-        Some(f) => f.load()?,
+        Some(f) => {
+            let state = f.load()?;
+            f.check_writable()?;
+            state
+        }
         None => StoredState::default(),
     };
     let base = description.converter;
@@ -203,7 +220,7 @@ pub fn run_soft_slave(
     let rate = Bitrate::from(config.device.baud_rate);
     let log = match &args.log {
         Some(path) => Some((
-            LogWriter::create(path)
+            LogWriter::create_as(path, log_format(path, args.format)?)
                 .map_err(|source| SoftSlaveError::Log { path: path.display().to_string(), source })?,
             path.display().to_string(),
         )),
@@ -212,7 +229,9 @@ pub fn run_soft_slave(
     let clock = Clock::start();
     let serial_path = args.serial.display().to_string();
     let serial = SerialLine::open(&serial_path, &serial_settings, clock)?;
-    let bus = args.bus.open(rate)?;
+    // The far end of an SLCAN line may be a host that starts later (the pty rig's master): the
+    // set-up answers are not awaited.
+    let bus = args.bus.open_as(rate, can_io::bus::slcan::SetUp::Peer)?;
     let _ = writeln!(
         report,
         "dnet-soft-slave: MAC {} at {rate} on {}, {} profile on {serial_path} ({}), input assembly {}",
