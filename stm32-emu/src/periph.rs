@@ -63,6 +63,17 @@ pub enum ClockGate {
     Apb2(u8),
 }
 
+/// Which reset the machine performs (RM0090 §7.1 "Reset").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResetKind {
+    /// Power-on reset (RM0090 §7.1.3): every register to its reset value, and what only a power
+    /// cycle clears (the backup domain, the RCC_CSR reset flags as "POR") too.
+    PowerOn,
+    /// System reset (RM0090 §7.1.2), e.g. the core's SYSRESETREQ: every register to its reset
+    /// value except the RCC_CSR reset flags and the backup domain; flash contents and SRAM stay.
+    System,
+}
+
 /// What a model may ask of the rest of the machine during an access or an [`Peripheral::advance`].
 pub trait Machine {
     /// The clock frequencies now in force.
@@ -89,5 +100,27 @@ pub trait Peripheral {
     /// Advances the model's time to `now` (nanoseconds since power-up).
     fn advance(&mut self, now: Nanos, machine: &mut dyn Machine) {
         let _ = (now, machine);
+    }
+    /// Puts the model's registers to their reset values (RM0090 §7.1). The default does nothing,
+    /// for a model that the machine builds anew instead.
+    fn reset(&mut self, kind: ResetKind) {
+        let _ = kind;
+    }
+    /// The next time at which the model changes state on its own (a frame's last bit, a
+    /// character's stop bit), so that a sleeping core (WFI) can skip straight to it. `None`: the
+    /// model has nothing scheduled; the machine still advances it at its regular period.
+    fn next_event(&self) -> Option<Nanos> {
+        None
+    }
+    /// For the RCC model only: the clocks its registers now select. The machine answers
+    /// [`Machine::clocks`] from the registered model that returns `Some`.
+    fn clocks(&self) -> Option<Clocks> {
+        None
+    }
+    /// For the RCC model only: whether `gate` is open. The machine answers
+    /// [`Machine::clock_enabled`] from the registered model that returns `Some`.
+    fn clock_gate(&self, gate: ClockGate) -> Option<bool> {
+        let _ = gate;
+        None
     }
 }
