@@ -467,6 +467,40 @@ fn wait_through_errors(master: &mut Master<'_, '_>, deadline: Instant) -> Result
     Ok(())
 }
 
+/// Tries every [`RECONNECT_INTERVAL`] to get the I/O connection of `opts` back (see the
+/// [module docs](self)) until it is, or until `end`; the connection and the attempts it took, or
+/// `None` (said on `out`) when the run ended first. A stop asked for ends the wait.
+fn get_back(
+    master: &mut Master<'_, '_>,
+    opts: &MonitorOptions,
+    end: Option<Instant>,
+    out: &mut dyn Write,
+) -> Result<Option<(PollSetup, u32)>, HarnessError> {
+    let target = opts.connect.target;
+    let epr_ms = opts.connect.epr_ms;
+    let mut attempts = 0u32;
+    loop {
+        attempts += 1;
+        let tried = master.session.now();
+        if end.is_some_and(|e| tried > e) {
+            writeln!(out, "not reconnected before the end of the run")
+                .map_err(|source| HarnessError::Write { path: "the output".into(), source })?;
+            return Ok(None);
+        }
+        let again = match opts.io.kind {
+            IoKind::Poll => reestablish(master, target, epr_ms),
+            _ => reestablish_io(master, target, epr_ms, &opts.io),
+        };
+        match again {
+            Ok(s) => return Ok(Some((s, attempts))),
+            Err(e) if is_connection_loss(&e) || matches!(e, MasterError::ErrorResponse { .. }) => {
+                wait_through_errors(master, tried + RECONNECT_INTERVAL)?;
+            }
+            Err(e) => return Err(e.into()),
+        }
+    }
+}
+
 /// One sample.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct Sample {
@@ -617,25 +651,47 @@ fn run(
     let mut connect = opts.connect.clone();
     connect.polls = 0;
     connect.verify_state = false;
-    let summary = master.connect_io(&connect, &opts.io)?;
-    let kind = opts.io.kind;
-    progress.clear();
-    let consumed = summary.consumed_size.unwrap_or(0);
-    let epr_ms = summary.expected_packet_rate_ms.unwrap_or(connect.epr_ms).max(1);
-    let mut setup = PollSetup {
-        produced: summary.produced_size.unwrap_or(0),
-        consumed,
-        epr: Duration::from_millis(u64::from(epr_ms)),
-    };
-    let output = connect.output.clone().unwrap_or_else(|| vec![0; usize::from(consumed)]);
     let write_err = |source| HarnessError::Write { path: "the output".into(), source };
     let csv_err = |source| HarnessError::Write { path: "the CSV file".into(), source };
+    // The header first: a run stopped or failed before its first sample still leaves a CSV file
+    // a reader can take.
     if let Some(w) = csv.as_deref_mut() {
         writeln!(w, "{}", csv_header(&opts.layout)).map_err(csv_err)?;
         w.flush().map_err(csv_err)?;
     }
-    let start = master.session.now();
-    let end: Option<Instant> = opts.duration.map(|d| start + d);
+    let kind = opts.io.kind;
+    let begun = master.session.now();
+    let (mut setup, consumed, start, end) = match master.connect_io(&connect, &opts.io) {
+        Ok(summary) => {
+            progress.clear();
+            let consumed = summary.consumed_size.unwrap_or(0);
+            let epr_ms = summary.expected_packet_rate_ms.unwrap_or(connect.epr_ms).max(1);
+            let setup = PollSetup {
+                produced: summary.produced_size.unwrap_or(0),
+                consumed,
+                epr: Duration::from_millis(u64::from(epr_ms)),
+            };
+            let start = master.session.now();
+            (setup, consumed, start, opts.duration.map(|d| start + d))
+        }
+        // The master is on-line and the device does not answer: `--reconnect` waits for it, within
+        // the run's --duration counted from the start.
+        Err(e) if opts.reconnect && is_connection_loss(&e) && master.online_at().is_some() => {
+            progress.clear();
+            writeln!(out, "MAC {target} does not answer: {e}; waiting for it (--reconnect)")
+                .map_err(write_err)?;
+            let end = opts.duration.map(|d| begun + d);
+            let Some((setup, attempts)) = get_back(master, opts, end, out)? else {
+                return Ok(());
+            };
+            let start = master.session.now();
+            writeln!(out, "connected at {} after {attempts} attempt(s)", seconds_text(start.total_micros()))
+                .map_err(write_err)?;
+            (setup, setup.consumed, start, end)
+        }
+        Err(e) => return Err(e.into()),
+    };
+    let output = connect.output.clone().unwrap_or_else(|| vec![0; usize::from(consumed)]);
     let mut next = start;
     loop {
         if opts.count.is_some_and(|c| samples.len() as u64 >= c) || end.is_some_and(|e| next > e) {
@@ -675,31 +731,10 @@ fn run(
                 )
                 .map_err(write_err)?;
                 *shown = false;
-                let mut attempts = 0u32;
-                loop {
-                    attempts += 1;
-                    let tried = master.session.now();
-                    if end.is_some_and(|e| tried > e) {
-                        writeln!(out, "not reconnected before the end of the run").map_err(write_err)?;
-                        return Ok(());
-                    }
-                    let again = match kind {
-                        IoKind::Poll => reestablish(master, target, connect.epr_ms),
-                        _ => reestablish_io(master, target, connect.epr_ms, &opts.io),
-                    };
-                    match again {
-                        Ok(s) => {
-                            setup = s;
-                            break;
-                        }
-                        Err(e)
-                            if is_connection_loss(&e) || matches!(e, MasterError::ErrorResponse { .. }) =>
-                        {
-                            wait_through_errors(master, tried + RECONNECT_INTERVAL)?;
-                        }
-                        Err(e) => return Err(e.into()),
-                    }
-                }
+                let Some((again, attempts)) = get_back(master, opts, end, out)? else {
+                    return Ok(());
+                };
+                setup = again;
                 let back = master.session.now();
                 writeln!(out, "reconnected at {} after {attempts} attempt(s)", at(back))
                     .map_err(write_err)?;

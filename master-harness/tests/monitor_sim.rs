@@ -320,3 +320,48 @@ fn a_monitor_run_without_a_sample_is_not_a_success() {
     let (code, out, _) = dnet(&["--bus", "sim", "monitor", "--io", "cos", "--count", "1"]);
     assert_eq!(code, 0, "{out}");
 }
+
+/// `--reconnect` waits for a device that is not there when the run starts (issue 33, item 4):
+/// it says so, gets the connection once the device is on-line, and samples until the end.
+#[test]
+fn reconnect_waits_for_a_device_absent_at_the_start() {
+    let (code, out, err) =
+        dnet(&["--slave-power-on", "6000", "monitor", "--reconnect", "--duration", "12", "--epr", "200"]);
+    assert_eq!(code, 0, "{out}\n{err}");
+    assert!(out.contains("MAC 5 does not answer: "), "{out}");
+    assert!(out.contains("waiting for it (--reconnect)"), "{out}");
+    let connected = out.lines().position(|l| l.starts_with("connected at ")).expect("connected");
+    let samples = sample_lines(&out);
+    assert!(samples.len() > 5, "{out}");
+    assert!(samples.iter().all(|l| l.contains("switch open")), "{out}");
+    assert!(out.lines().skip(connected).filter(|l| samples.contains(l)).count() == samples.len(), "{out}");
+    assert!(!out.contains("check(s) failed"), "{out}");
+    // Without --reconnect the same start ends the run: the device does not answer.
+    let (code, _, err) = dnet(&["--slave-power-on", "6000", "monitor", "--duration", "12"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("no answer from MAC 5"), "{err}");
+}
+
+/// A run that ends before its first sample, stopped or failed, leaves a CSV file with its header
+/// (issue 33, item 7), not an empty file.
+#[test]
+fn a_run_ended_before_its_first_sample_leaves_the_csv_header() {
+    // Failed: the device never comes on-line.
+    let csv = temp("absent.csv");
+    let (code, _, err) =
+        dnet(&["--slave-power-on", "600000", "monitor", "--duration", "5", "--csv", csv.to_str().unwrap()]);
+    assert_eq!(code, 1, "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(text, "time_s,phase_a,phase_b,phase_c,neutral,switch,status,freshness,stale,raw\n");
+    // Stopped: a stop asked before the run started, as a Ctrl-C during the network access.
+    let csv = temp("stopped.csv");
+    let stop = Stop::new();
+    stop.request(master_core::stop::SIGINT);
+    let console = Console { stop, ..Console::plain() };
+    let args = ["dnet-master", "monitor", "--csv", csv.to_str().unwrap()];
+    let (mut out, mut err) = (Vec::new(), Vec::new());
+    let code = master_harness::cli::run_with(args, &mut out, &mut err, &console);
+    assert_eq!(code, 130, "{}", String::from_utf8_lossy(&err));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(text, "time_s,phase_a,phase_b,phase_c,neutral,switch,status,freshness,stale,raw\n");
+}
