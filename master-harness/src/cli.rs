@@ -275,6 +275,17 @@ pub enum Command {
         /// How long to watch for extra frames after the transcript, ms.
         #[arg(long, default_value_t = 500)]
         settle: u64,
+        /// Begin where the device is on-line, for a device that is not powered on in step with
+        /// the transcript: `--from-online` skips the transcript's start-up (the device is on-line
+        /// already); `--from-online=wait` first waits for the device's own duplicate MAC ID
+        /// check (power it on after starting the replay).
+        #[arg(long, value_name = "WAIT", num_args = 0..=1, require_equals = true, default_missing_value = "now")]
+        from_online: Option<replay::FromOnline>,
+        /// Data not compared: `io`, the data of the device's I/O messages (poll, bit-strobe,
+        /// change-of-state/cyclic responses), which differs from a recording of live values;
+        /// their identifier and length are still compared, and they are reported as not compared.
+        #[arg(long, value_name = "WHAT", value_parser = ["io"])]
+        ignore_data: Option<String>,
     },
     /// Find every device: identity and I/O sizes.
     Scan {
@@ -471,14 +482,14 @@ impl Descriptions {
 /// Opens the bus the options name: on `sim`, the simulated converters of `slave` (the
 /// `--slave-config` description, else the reference device) / `--slave-mac` / `--slave-power-on`
 /// ([`converter_sim::open_bus`], the one way every program opens a bus); with no `--slave-mac`,
-/// one device at `device` (the command's `--mac`). `replay_power_on` is when a replayed
-/// transcript's device powered on: a simulated device with the default power-on policy is powered
-/// on then.
+/// one device at `device` (the command's `--mac`). `replay_power_on` is how a replayed
+/// transcript meets its device ([`replay::sim_start`]): a simulated device with the default
+/// power-on policy is powered on, or brought on-line before the first frame, as it says.
 pub fn open_bus(
     cli: &Cli,
     slave: Option<&ConverterConfig>,
     device: Option<MacId>,
-    replay_power_on: Option<Duration>,
+    replay_power_on: Option<replay::SimStart>,
 ) -> Result<Box<dyn Bus>, HarnessError> {
     let mut setup = match slave {
         Some(config) => SimSetup::described(config.clone()),
@@ -489,7 +500,14 @@ pub fn open_bus(
         _ => cli.slave_mac.clone(),
     };
     setup.power_on = match (cli.slave_power_on.0, replay_power_on) {
-        (PowerOn::WhenMasterOnline, Some(after)) => PowerOn::At(Instant::ZERO + after),
+        (PowerOn::WhenMasterOnline, Some(replay::SimStart::PowerOnAt(after))) => {
+            PowerOn::At(Instant::ZERO + after)
+        }
+        (PowerOn::WhenMasterOnline, Some(replay::SimStart::PowerOnAtStart)) => PowerOn::AtStart,
+        (PowerOn::WhenMasterOnline, Some(replay::SimStart::OnlineBeforeStart)) => {
+            setup.online_before_start = true;
+            PowerOn::WhenMasterOnline
+        }
         (policy, _) => policy,
     };
     // The console is watched by people: its simulation runs in real time.
@@ -854,10 +872,21 @@ fn execute(
             "the device's MAC {master_mac} is the master's own MAC (--master-mac)"
         )));
     }
-    let replay_power_on = match (device, &transcript) {
-        (Some(mac), Some(entries)) => Some(replay::device_power_on(entries, mac)),
+    let replay_power_on = match (device, &transcript, &cli.command) {
+        (Some(mac), Some(entries), Command::Replay { from_online, .. }) => {
+            Some(replay::sim_start(entries, mac, *from_online))
+        }
         _ => None,
     };
+    // A real device must be powered on in step with a transcript of its power-up: say when.
+    if let (Some(mac), Some(entries), Command::Replay { from_online: None, tolerance, .. }) =
+        (device, &transcript, &cli.command)
+    {
+        let note = replay::power_on_note(entries, mac, Duration::from_millis(*tolerance));
+        if let Some(note) = note.filter(|_| cli.bus != BusSpec::Sim && !cli.json) {
+            let _ = writeln!(err, "{note}");
+        }
+    }
     let slave = descriptions.slave.as_ref().map(|d| &d.converter);
     let mut bus = open_bus(cli, slave, device, replay_power_on)?;
     if let Some(path) = &cli.pcap {
@@ -936,19 +965,24 @@ fn execute(
             progress.clear();
             r
         }
-        Command::Replay { tolerance, settle, .. } => {
+        Command::Replay { tolerance, settle, from_online, ignore_data, .. } => {
             let opts = ReplayOptions {
                 device: target,
                 tolerance: Duration::from_millis(*tolerance),
                 settle: Duration::from_millis(*settle),
+                from_online: *from_online,
+                ignore_io_data: ignore_data.is_some(),
             };
             let entries = transcript.unwrap_or_default();
-            progress.show(&format!("replay: {} frames against MAC {target} ...", entries.len()));
-            let r = replay::replay(master.session, &entries, &opts).map(|s| Outcome {
-                text: format!(
-                    "replay held: {} frames, {} from the device compared byte for byte, {} stimulus frames sent",
-                    s.frames, s.expected, s.stimulus
+            let what = match from_online {
+                Some(replay::FromOnline::Wait) => format!(
+                    "replay: waiting for MAC {target}'s duplicate MAC ID check: power it on (Ctrl-C stops) ..."
                 ),
+                _ => format!("replay: {} frames against MAC {target} ...", entries.len()),
+            };
+            progress.show(&what);
+            let r = replay::replay(master.session, &entries, &opts).map(|s| Outcome {
+                text: s.text(),
                 json: json!({ "summary": s }),
                 code: 0,
             });

@@ -8,28 +8,60 @@
 //! transcript does not have at that point, including after its end (within `settle`), is a
 //! divergence too.
 //!
-//! On the simulated bus the device is attached to power on at the recorded time of its first
-//! duplicate MAC ID request in the transcript, or at the start when there is none
-//! ([`device_power_on`], used by the command line when it builds the simulated bus).
+//! Where the replay begins ([`ReplayOptions::from_online`], `--from-online`):
+//!
+//! - from the first frame (the default): a transcript that begins with the device's power-up
+//!   (its duplicate MAC ID check) needs the device powered on in step with it, its first request
+//!   within `tolerance` of the recorded time ([`power_on_window`] says when);
+//! - [`FromOnline::Now`]: the device is on-line already; the transcript's start-up, every frame
+//!   before the device's recorded on-line instant (one interval after its last duplicate MAC ID
+//!   request, notes §7.1), is skipped;
+//! - [`FromOnline::Wait`]: the replay first waits, as long as it takes, for the device's own
+//!   duplicate MAC ID check (it is powered on after the start). When the transcript has the
+//!   device's check, its first request is compared with the transcript's and the replay goes on
+//!   from there, timed from the moment it came; otherwise the replay waits until the device is
+//!   on-line and starts at the transcript's first frame.
+//!
+//! With [`ReplayOptions::ignore_io_data`] (`--ignore-data io`) the data of the device's I/O
+//! messages (Group 1 messages 12-15: poll, bit-strobe, change-of-state/cyclic and multicast poll
+//! responses), which legitimately differ from a recording (live measurements), is not compared:
+//! the identifier and the length still are, and the frame is reported as *not compared*, never as
+//! passed.
+//!
+//! On the simulated bus the device is attached as [`sim_start`] says: powered on at the recorded
+//! time of its first duplicate MAC ID request; on-line before the first frame when the transcript
+//! has no such request (a capture of a running network) or with `--from-online`; at the start
+//! with `--from-online=wait`.
 //!
 //! A replay that would compare nothing of the device (the transcript has no frame from MAC N: the
 //! wrong `--mac`) fails before it starts, naming the transcript's device: the master would
 //! otherwise transmit the device's recorded answers itself and call that a pass.
 //!
 //! On the first divergence the replay stops with a [`Divergence`]: expected and actual frames, both
-//! decoded, and the transcript frames before it.
+//! decoded, and the frames before it.
 
 use crate::error::{Divergence, HarnessError, ShownFrame};
 use can_io::bus::Origin;
 use can_io::log::{format_line, LogEntry};
 use devicenet::explicit::ServiceCode;
+use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocationChoice, DuplicateMacCheck};
+use devicenet::slave::DUP_MAC_INTERVAL;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use master_core::decode::Decoder;
 use master_core::session::{is_from_device, Session, Verdict};
 
 /// Frames of the transcript shown before a divergence.
 pub const CONTEXT_FRAMES: usize = 8;
+
+/// Where a replay begins when the transcript's start-up is not replayed in step (`--from-online`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FromOnline {
+    /// The device is on-line already: skip the transcript's start-up.
+    Now,
+    /// Wait for the device's own duplicate MAC ID check (it is powered on after the start).
+    Wait,
+}
 
 /// Options of `replay`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -40,12 +72,22 @@ pub struct ReplayOptions {
     pub tolerance: Duration,
     /// How long to watch for extra device frames after the transcript ends (`--settle`, 500 ms).
     pub settle: Duration,
+    /// Begin where the device is on-line (`--from-online`); `None`: at the first frame.
+    pub from_online: Option<FromOnline>,
+    /// Do not compare the data of the device's I/O messages (`--ignore-data io`).
+    pub ignore_io_data: bool,
 }
 
 impl ReplayOptions {
     /// Defaults for `device`.
     pub fn new(device: MacId) -> ReplayOptions {
-        ReplayOptions { device, tolerance: Duration::from_secs(1), settle: Duration::from_millis(500) }
+        ReplayOptions {
+            device,
+            tolerance: Duration::from_secs(1),
+            settle: Duration::from_millis(500),
+            from_online: None,
+            ignore_io_data: false,
+        }
     }
 }
 
@@ -54,10 +96,36 @@ impl ReplayOptions {
 pub struct ReplaySummary {
     /// Transcript frames.
     pub frames: usize,
-    /// Device frames compared.
+    /// Device frames compared byte for byte.
     pub expected: usize,
+    /// Device I/O frames whose data was not compared (`--ignore-data io`): identifier and length
+    /// only.
+    pub not_compared: usize,
     /// Stimulus frames transmitted.
     pub stimulus: usize,
+    /// Transcript frames of the start-up not replayed (`--from-online`).
+    pub skipped: usize,
+}
+
+impl ReplaySummary {
+    /// The one-line result: `replay held: ...`.
+    pub fn text(&self) -> String {
+        let mut text = format!(
+            "replay held: {} frames, {} from the device compared byte for byte",
+            self.frames, self.expected
+        );
+        if self.not_compared > 0 {
+            text += &format!(
+                ", {} I/O frames from the device not compared (data ignored: --ignore-data io; identifier and length matched)",
+                self.not_compared
+            );
+        }
+        text += &format!(", {} stimulus frames sent", self.stimulus);
+        if self.skipped > 0 {
+            text += &format!(", {} start-up frames skipped (--from-online)", self.skipped);
+        }
+        text
+    }
 }
 
 fn time_text(at: Instant) -> String {
@@ -65,15 +133,91 @@ fn time_text(at: Instant) -> String {
     format!("{}.{:06}s", us / 1_000_000, us % 1_000_000)
 }
 
-/// When, after the transcript's first frame, the device at `device` powered on: the recorded time
-/// of its first duplicate MAC ID request, or zero when the transcript has none. A simulated device
-/// replayed from the start of a fresh bus is attached with this instant.
-pub fn device_power_on(entries: &[LogEntry], device: MacId) -> Duration {
-    let Some(first) = entries.first() else { return Duration::ZERO };
-    entries
+fn seconds(d: Duration) -> String {
+    format!("{:.1} s", d.total_micros() as f64 / 1e6)
+}
+
+/// The index of the transcript's first duplicate MAC ID request from `device`.
+fn first_check(entries: &[LogEntry], device: MacId) -> Option<usize> {
+    entries.iter().position(|e| DuplicateMacCheck::request_in(&e.frame) == Some(device))
+}
+
+/// The index of the first transcript frame after the device's start-up: the first one recorded
+/// at or after its on-line instant, one interval after its last duplicate MAC ID request (notes
+/// §7.1); 0 when the transcript has no request from it (the device was on-line throughout).
+pub fn online_index(entries: &[LogEntry], device: MacId) -> usize {
+    let Some(last) = entries.iter().rposition(|e| DuplicateMacCheck::request_in(&e.frame) == Some(device))
+    else {
+        return 0;
+    };
+    let online = entries[last].at + DUP_MAC_INTERVAL;
+    entries.iter().skip(last + 1).position(|e| e.at >= online).map_or(entries.len(), |i| last + 1 + i)
+}
+
+/// How a simulated device meets a replay (what the command line gives the simulated bus).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SimStart {
+    /// Power on this long after the start: the recorded time of its first duplicate MAC ID
+    /// request.
+    PowerOnAt(Duration),
+    /// On-line before the first frame (no duplicate MAC ID check on the caller's bus).
+    OnlineBeforeStart,
+    /// Power on at the start (`--from-online=wait` waits for its check).
+    PowerOnAtStart,
+}
+
+/// How the simulated device at `device` is attached for a replay of `entries` beginning as
+/// `from_online` says (see the [module docs](self)).
+pub fn sim_start(entries: &[LogEntry], device: MacId, from_online: Option<FromOnline>) -> SimStart {
+    match (from_online, first_check(entries, device), entries.first()) {
+        (Some(FromOnline::Wait), _, _) => SimStart::PowerOnAtStart,
+        (None, Some(i), Some(first)) => SimStart::PowerOnAt(entries[i].at - first.at),
+        _ => SimStart::OnlineBeforeStart,
+    }
+}
+
+/// When a real device must be powered on for a replay from the first frame of a transcript that
+/// begins with its power-up: `(earliest, latest)` after the start. Its first duplicate MAC ID
+/// request must come after the stimulus recorded before it and no later than `tolerance` after
+/// its own recorded time. `None` when the transcript has no duplicate MAC ID request from it.
+pub fn power_on_window(
+    entries: &[LogEntry],
+    device: MacId,
+    tolerance: Duration,
+) -> Option<(Duration, Duration)> {
+    let first = entries.first()?;
+    let i = first_check(entries, device)?;
+    let earliest = entries[..i]
         .iter()
-        .find(|e| DuplicateMacCheck::request_in(&e.frame) == Some(device))
-        .map_or(Duration::ZERO, |e| e.at - first.at)
+        .rev()
+        .find(|e| !is_from_device(&e.frame, device))
+        .map_or(Duration::ZERO, |e| e.at - first.at);
+    Some((earliest, entries[i].at - first.at + tolerance))
+}
+
+/// The note `replay` prints before a replay from the first frame against a real device whose
+/// power-up the transcript holds: when to power it on, and the alternative.
+pub fn power_on_note(entries: &[LogEntry], device: MacId, tolerance: Duration) -> Option<String> {
+    let (earliest, latest) = power_on_window(entries, device, tolerance)?;
+    Some(format!(
+        "note: the transcript begins with MAC {device}'s power-up: power it on between {} and {} after the replay starts (its first duplicate MAC ID request is due then, --tolerance {}); a device already on-line: --from-online; powered on later: --from-online=wait",
+        seconds(earliest),
+        seconds(latest),
+        seconds(tolerance)
+    ))
+}
+
+/// `true` for the device's I/O messages whose data `--ignore-data io` leaves out: Group 1
+/// messages 12-15 with data (notes §1.3).
+fn is_io_data(frame: &CanFrame) -> bool {
+    let io = [
+        Group1MessageId::MULTICAST_POLL_RESPONSE,
+        Group1MessageId::COS_CYCLIC,
+        Group1MessageId::BIT_STROBE_RESPONSE,
+        Group1MessageId::POLL_RESPONSE,
+    ];
+    matches!(Identifier::decode(frame.id()), Identifier::Group1 { message, .. } if io.contains(&message))
+        && !frame.data().is_empty()
 }
 
 /// The devices of a transcript: the MACs that sent a device's frames (Group 1 messages, explicit
@@ -153,40 +297,135 @@ pub fn replay(
     opts: &ReplayOptions,
 ) -> Result<ReplaySummary, HarnessError> {
     let device = opts.device;
-    let Some(first) = entries.first() else {
+    if entries.is_empty() {
         return Err(HarnessError::Usage("the transcript holds no frame".into()));
-    };
+    }
     let from_device = entries.iter().filter(|e| is_from_device(&e.frame, device)).count();
     if from_device == 0 {
-        let devices = transcript_devices(entries);
-        let whose = match devices.as_slice() {
-            [] => "the transcript has no device frames at all".to_string(),
-            [one] => format!("the transcript's device is MAC {one} (--mac {one})"),
-            many => format!(
-                "the transcript's devices are MAC {}",
-                many.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
-            ),
-        };
+        return Err(nothing_from(entries, device));
+    }
+    let start = match opts.from_online {
+        Some(FromOnline::Now) => online_index(entries, device),
+        Some(FromOnline::Wait) | None => 0,
+    };
+    if !entries[start..].iter().any(|e| is_from_device(&e.frame, device)) {
         return Err(HarnessError::NothingCompared(format!(
-            "the transcript has no frame from MAC {device}, so replaying it would compare nothing of the device under test: {whose}"
+            "--from-online skips the transcript's start-up (its first {start} frames, up to MAC {device}'s on-line instant), and nothing from MAC {device} is left to compare"
         )));
     }
-    let t0 = first.at;
-    let start = session.now();
-    let rel = |at: Instant| start + (at - t0);
-
-    let mut expected_decoder = Decoder::new();
-    let shown_entry = |dec: &mut Decoder, e: &LogEntry| ShownFrame {
-        line: Some(e.line),
-        time: time_text(e.at),
-        frame: e.frame.to_string(),
-        meaning: dec.clone().decode(&e.frame).text(),
+    let mut run = Run::new(session, entries, opts);
+    let start = match opts.from_online {
+        Some(FromOnline::Wait) => run.wait_for_power_up()?,
+        _ => {
+            run.skip(start);
+            run.anchor = Some((run.session.now(), entries[start].at));
+            start
+        }
     };
-    let context = |k: usize| -> Vec<ShownFrame> {
+    for k in start..entries.len() {
+        if is_from_device(&entries[k].frame, device) {
+            run.expect(k)?;
+        } else {
+            run.stimulus(k)?;
+        }
+    }
+    run.settle()?;
+    let summary = run.summary;
+    if summary.expected + summary.not_compared == 0 {
+        return Err(HarnessError::NothingCompared(format!("no frame from MAC {device} was compared")));
+    }
+    Ok(summary)
+}
+
+/// The error of a transcript with no frame from `device`, naming the transcript's devices.
+fn nothing_from(entries: &[LogEntry], device: MacId) -> HarnessError {
+    let devices = transcript_devices(entries);
+    let whose = match devices.as_slice() {
+        [] => "the transcript has no device frames at all".to_string(),
+        [one] => format!("the transcript's device is MAC {one} (--mac {one})"),
+        many => format!(
+            "the transcript's devices are MAC {}",
+            many.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+        ),
+    };
+    HarnessError::NothingCompared(format!(
+        "the transcript has no frame from MAC {device}, so replaying it would compare nothing of the device under test: {whose}"
+    ))
+}
+
+/// A replay in progress.
+struct Run<'s, 'b, 'e> {
+    session: &'s mut Session<'b>,
+    entries: &'e [LogEntry],
+    opts: &'e ReplayOptions,
+    /// The transcript read up to the frame being replayed (for the meaning of the next).
+    expected_decoder: Decoder,
+    /// (bus instant, transcript instant) that coincide: where the transcript's clock is pinned.
+    anchor: Option<(Instant, Instant)>,
+    summary: ReplaySummary,
+}
+
+impl<'s, 'b, 'e> Run<'s, 'b, 'e> {
+    fn new(session: &'s mut Session<'b>, entries: &'e [LogEntry], opts: &'e ReplayOptions) -> Self {
+        Run {
+            session,
+            entries,
+            opts,
+            expected_decoder: Decoder::new(),
+            anchor: None,
+            summary: ReplaySummary {
+                frames: entries.len(),
+                expected: 0,
+                not_compared: 0,
+                stimulus: 0,
+                skipped: 0,
+            },
+        }
+    }
+
+    /// Skips the transcript's first `n` frames (read for the meaning of the later ones).
+    fn skip(&mut self, n: usize) {
+        for e in &self.entries[..n] {
+            self.expected_decoder.decode(&e.frame);
+        }
+        self.summary.skipped = n;
+    }
+
+    /// The bus instant of transcript instant `at`.
+    fn due(&mut self, at: Instant) -> Instant {
+        let (bus, transcript) = match self.anchor {
+            Some(a) => a,
+            None => (self.session.now(), at),
+        };
+        bus + (at - transcript)
+    }
+
+    fn shown_entry(&self, k: usize) -> ShownFrame {
+        let e = &self.entries[k];
+        ShownFrame {
+            line: Some(e.line),
+            time: time_text(e.at),
+            frame: e.frame.to_string(),
+            meaning: self.expected_decoder.clone().decode(&e.frame).text(),
+        }
+    }
+
+    fn actual(&self, i: usize) -> ShownFrame {
+        let r = self.session.record(i);
+        ShownFrame {
+            line: None,
+            time: time_text(r.at),
+            frame: r.frame.to_string(),
+            meaning: r.meaning.clone(),
+        }
+    }
+
+    /// The transcript frames before `k` (at most [`CONTEXT_FRAMES`]), decoded in order.
+    fn context(&self, k: usize) -> Vec<ShownFrame> {
         let mut dec = Decoder::new();
         let from = k.saturating_sub(CONTEXT_FRAMES);
         let mut shown = Vec::new();
-        for (j, e) in entries[..k].iter().enumerate() {
+        for (j, e) in self.entries[..k].iter().enumerate() {
             let meaning = dec.decode(&e.frame).text();
             if j >= from {
                 shown.push(ShownFrame {
@@ -198,108 +437,180 @@ pub fn replay(
             }
         }
         shown
-    };
-    let actual = |session: &Session<'_>, i: usize| {
-        let r = session.record(i);
-        ShownFrame {
-            line: None,
-            time: time_text(r.at),
-            frame: r.frame.to_string(),
-            meaning: r.meaning.clone(),
+    }
+
+    fn diverge(
+        &self,
+        k: usize,
+        reason: String,
+        expected: Option<ShownFrame>,
+        actual: Option<usize>,
+    ) -> HarnessError {
+        let mut reason = reason;
+        if let Some(i) = actual.filter(|_| self.opts.from_online != Some(FromOnline::Wait)) {
+            if DuplicateMacCheck::request_in(&self.session.record(i).frame) == Some(self.opts.device) {
+                reason.push_str(
+                    "; the device is running its duplicate MAC ID check: it was powered on at another moment than the transcript's (power it on at the recorded time, or replay with --from-online=wait; --from-online for a device already on-line)",
+                );
+            }
         }
-    };
-    let diverge = |k: usize, reason: String, expected: Option<ShownFrame>, actual: Option<ShownFrame>| {
         HarnessError::Divergence(Box::new(Divergence {
             index: k,
-            total: entries.len(),
+            total: self.entries.len(),
             reason,
             expected,
-            actual,
-            before: context(k),
+            actual: actual.map(|i| self.actual(i)),
+            before: self.context(k),
         }))
-    };
+    }
 
-    let mut summary = ReplaySummary { frames: entries.len(), expected: 0, stimulus: 0 };
-    for (k, e) in entries.iter().enumerate() {
-        let due = rel(e.at);
-        if is_from_device(&e.frame, device) {
-            let deadline = due.max(session.now()) + opts.tolerance;
-            loop {
-                let Some(i) = session.next(deadline)? else {
-                    let shown = shown_entry(&mut expected_decoder, e);
-                    return Err(diverge(
-                        k,
-                        format!("the device sent nothing within {} of the recorded time", opts.tolerance),
-                        Some(shown),
-                        None,
-                    ));
-                };
-                let rec = session.record(i).clone();
-                if rec.origin == Origin::Local {
-                    continue;
-                }
-                if !is_from_device(&rec.frame, device) {
-                    session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
-                    continue;
-                }
-                if rec.frame == e.frame {
-                    expected_decoder.decode(&e.frame);
-                    session.set_verdict(i, Verdict::Ok(format!("as transcript line {}", e.line)));
-                    summary.expected += 1;
-                    break;
-                }
-                let shown = shown_entry(&mut expected_decoder, e);
-                session.set_verdict(i, Verdict::fail(format!("transcript line {} has {}", e.line, e.frame)));
-                return Err(diverge(
-                    k,
-                    "the device sent a different frame".into(),
-                    Some(shown),
-                    Some(actual(session, i)),
-                ));
+    /// Transcript frame `k` is the device's: the next device frame must be it.
+    fn expect(&mut self, k: usize) -> Result<(), HarnessError> {
+        let device = self.opts.device;
+        let entries = self.entries;
+        let e = &entries[k];
+        let due = self.due(e.at);
+        let deadline = due.max(self.session.now()) + self.opts.tolerance;
+        loop {
+            let Some(i) = self.session.next(deadline)? else {
+                let reason =
+                    format!("the device sent nothing within {} of the recorded time", self.opts.tolerance);
+                return Err(self.diverge(k, reason, Some(self.shown_entry(k)), None));
+            };
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
             }
-        } else {
-            while let Some(i) = session.next(due)? {
-                let rec = session.record(i).clone();
-                if rec.origin == Origin::Local {
-                    continue;
-                }
-                if is_from_device(&rec.frame, device) {
-                    let shown = shown_entry(&mut expected_decoder, e);
-                    session.set_verdict(i, Verdict::fail("not in the transcript at this point"));
-                    return Err(diverge(
-                        k,
-                        "the device sent a frame the transcript does not have here (next in the transcript is stimulus)".into(),
-                        Some(shown),
-                        Some(actual(session, i)),
-                    ));
-                }
-                session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
+            if !is_from_device(&rec.frame, device) {
+                self.session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
+                continue;
             }
-            session.send(&e.frame)?;
-            expected_decoder.decode(&e.frame);
-            summary.stimulus += 1;
+            let masked = self.opts.ignore_io_data && is_io_data(&e.frame);
+            if masked && rec.frame.id() == e.frame.id() && rec.frame.data().len() == e.frame.data().len() {
+                let note = format!(
+                    "not compared: I/O data ignored (--ignore-data io); identifier and length as transcript line {}, which has {}",
+                    e.line, e.frame
+                );
+                self.session.set_verdict(i, Verdict::Info(note));
+                self.expected_decoder.decode(&e.frame);
+                self.summary.not_compared += 1;
+                return Ok(());
+            }
+            if rec.frame == e.frame {
+                self.expected_decoder.decode(&e.frame);
+                self.session.set_verdict(i, Verdict::Ok(format!("as transcript line {}", e.line)));
+                self.summary.expected += 1;
+                return Ok(());
+            }
+            self.session.set_verdict(i, Verdict::fail(format!("transcript line {} has {}", e.line, e.frame)));
+            let reason = if masked {
+                "the device sent a different identifier or length (its I/O data is not compared)".to_string()
+            } else {
+                "the device sent a different frame".to_string()
+            };
+            return Err(self.diverge(k, reason, Some(self.shown_entry(k)), Some(i)));
         }
     }
-    let end = session.now() + opts.settle;
-    while let Some(i) = session.next(end)? {
-        let rec = session.record(i).clone();
-        if rec.origin == Origin::Remote && is_from_device(&rec.frame, device) {
-            session.set_verdict(i, Verdict::fail("after the end of the transcript"));
-            return Err(diverge(
-                entries.len(),
-                format!("the device sent a frame after the transcript's last one (within {})", opts.settle),
-                None,
-                Some(actual(session, i)),
-            ));
+
+    /// Transcript frame `k` is stimulus: sent at its time, after checking nothing of the device
+    /// came before it.
+    fn stimulus(&mut self, k: usize) -> Result<(), HarnessError> {
+        let entries = self.entries;
+        let e = &entries[k];
+        let due = self.due(e.at);
+        while let Some(i) = self.session.next(due)? {
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if is_from_device(&rec.frame, self.opts.device) {
+                self.session.set_verdict(i, Verdict::fail("not in the transcript at this point"));
+                let reason = "the device sent a frame the transcript does not have here (next in the transcript is stimulus)";
+                return Err(self.diverge(k, reason.into(), Some(self.shown_entry(k)), Some(i)));
+            }
+            self.session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
         }
-        if rec.origin == Origin::Remote {
-            session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
+        self.session.send(&e.frame)?;
+        self.expected_decoder.decode(&e.frame);
+        self.summary.stimulus += 1;
+        Ok(())
+    }
+
+    /// Watches `settle` after the last frame: nothing more may come from the device.
+    fn settle(&mut self) -> Result<(), HarnessError> {
+        let end = self.session.now() + self.opts.settle;
+        while let Some(i) = self.session.next(end)? {
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Remote && is_from_device(&rec.frame, self.opts.device) {
+                self.session.set_verdict(i, Verdict::fail("after the end of the transcript"));
+                let reason = format!(
+                    "the device sent a frame after the transcript's last one (within {})",
+                    self.opts.settle
+                );
+                return Err(self.diverge(self.entries.len(), reason, None, Some(i)));
+            }
+            if rec.origin == Origin::Remote {
+                self.session.set_verdict(i, Verdict::Info("other traffic, not compared".into()));
+            }
         }
+        Ok(())
     }
-    if summary.expected == 0 {
-        return Err(HarnessError::NothingCompared(format!("no frame from MAC {device} was compared")));
+
+    /// `--from-online=wait`: waits for the device's first duplicate MAC ID request, however long
+    /// it takes (a stop request ends the wait). With the device's check in the transcript, that
+    /// request is compared with the transcript's first one and the replay goes on after it, timed
+    /// from it; otherwise the replay waits until the device is on-line (two intervals after its
+    /// first request, notes §7.1) and starts at the first frame. Returns the index to go on from.
+    fn wait_for_power_up(&mut self) -> Result<usize, HarnessError> {
+        let device = self.opts.device;
+        let recorded = first_check(self.entries, device);
+        let seen = loop {
+            let until = self.session.now() + Duration::from_secs(3600);
+            let Some(i) = self.session.next(until)? else { continue };
+            let rec = self.session.record(i).clone();
+            if rec.origin == Origin::Local {
+                continue;
+            }
+            if DuplicateMacCheck::request_in(&rec.frame) == Some(device) {
+                break (i, rec);
+            }
+            self.session.set_verdict(
+                i,
+                Verdict::Info("before the device's power-up (--from-online=wait), not compared".into()),
+            );
+        };
+        let (i, rec) = seen;
+        if let Some(r) = recorded {
+            self.skip(r);
+            let entries = self.entries;
+            let e = &entries[r];
+            if rec.frame != e.frame {
+                self.session
+                    .set_verdict(i, Verdict::fail(format!("transcript line {} has {}", e.line, e.frame)));
+                let reason = "the device's duplicate MAC ID check is not the transcript's (another vendor ID or serial number: another device)";
+                return Err(self.diverge(r, reason.into(), Some(self.shown_entry(r)), Some(i)));
+            }
+            self.session.set_verdict(
+                i,
+                Verdict::Ok(format!("as transcript line {} (the device's power-up)", e.line)),
+            );
+            self.expected_decoder.decode(&e.frame);
+            self.summary.expected += 1;
+            self.anchor = Some((rec.at, e.at));
+            return Ok(r + 1);
+        }
+        self.session.set_verdict(i, Verdict::Info("the device's power-up, not in the transcript".into()));
+        let online = rec.at + DUP_MAC_INTERVAL + DUP_MAC_INTERVAL;
+        while let Some(j) = self.session.next(online)? {
+            if self.session.record(j).origin == Origin::Remote {
+                self.session
+                    .set_verdict(j, Verdict::Info("during the device's power-up, not compared".into()));
+            }
+        }
+        let first = self.entries[0].at;
+        self.anchor = Some((self.session.now(), first));
+        Ok(0)
     }
-    Ok(summary)
 }
 
 /// The log line of a transcript entry (for reports).

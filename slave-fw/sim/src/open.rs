@@ -4,6 +4,7 @@
 use crate::device::SoftSlave;
 use can_io::bus::{Bitrate, Bus, BusError, BusSpec};
 use can_io::sim::{PowerOn, SimBus};
+use devicenet::slave::DUP_MAC_INTERVAL;
 use devicenet::{Duration, Instant, MacId};
 use slave_fw::converter::ConverterConfig;
 
@@ -18,6 +19,11 @@ pub struct SimSetup {
     pub power_on: PowerOn,
     /// Pace the simulation against the wall clock.
     pub realtime: bool,
+    /// The devices are on-line when the bus is handed over: they power on at the start (or as
+    /// `power_on` says) and [`open_bus`] runs the simulation until their duplicate MAC ID checks
+    /// are over, unseen by the caller. A replayed capture of a running network has no check, so
+    /// its device must be on-line before the first frame.
+    pub online_before_start: bool,
 }
 
 impl SimSetup {
@@ -28,6 +34,7 @@ impl SimSetup {
             macs: Vec::new(),
             power_on: PowerOn::WhenMasterOnline,
             realtime: false,
+            online_before_start: false,
         }
     }
 
@@ -102,10 +109,27 @@ pub fn open_bus(spec: &BusSpec, bitrate: Bitrate, sim: &SimSetup) -> Result<Box<
     match spec {
         BusSpec::Sim => {
             let mut bus = SimBus::new(bitrate);
+            let mut online_at = Instant::ZERO;
             for (device, power) in sim.devices().map_err(OpenError::Setup)? {
+                let power = match power {
+                    // Nothing on the bus tells a device when to power on before the caller's
+                    // first frame: at the start, or at the instant given.
+                    PowerOn::WhenMasterOnline if sim.online_before_start => PowerOn::AtStart,
+                    PowerOn::AfterMasterOnline(d) if sim.online_before_start => PowerOn::At(Instant::ZERO + d),
+                    other => other,
+                };
+                if let PowerOn::At(at) = power {
+                    online_at = online_at.max(at);
+                }
                 bus.attach(Box::new(device), power);
             }
             bus.set_realtime(sim.realtime);
+            if sim.online_before_start {
+                // Two requests one interval apart, on-line one interval after the second (notes
+                // §7.1); the frames of the checks are the past of the caller's bus.
+                let deadline = online_at + DUP_MAC_INTERVAL + DUP_MAC_INTERVAL + Duration::from_millis(1);
+                while bus.recv(deadline)?.is_some() {}
+            }
             Ok(Box::new(bus))
         }
         real => Ok(real.open(bitrate)?),
@@ -185,6 +209,24 @@ mod tests {
                 check(0x80, &first),
             ]
         );
+    }
+
+    /// A device brought on-line before the start answers at once and sends nothing of its own:
+    /// its duplicate MAC ID check is over when the bus is handed over.
+    #[test]
+    fn devices_online_before_start_answer_the_first_frame() {
+        let mut setup = SimSetup::reference();
+        setup.online_before_start = true;
+        let mut bus = open_bus(&BusSpec::Sim, Bitrate::K250, &setup).unwrap();
+        let start = bus.now();
+        // Allocate explicit through the Group 2 Only port (notes §2 frame 6).
+        let allocate = devicenet::CanFrame::from_raw(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]).unwrap();
+        bus.send(&allocate).unwrap();
+        let mut frames = Vec::new();
+        while let Some(event) = bus.recv(start + Duration::from_secs(3)).unwrap() {
+            frames.push((event.frame.id().as_raw(), event.frame.data().to_vec()));
+        }
+        assert_eq!(frames, [(0x42E, allocate.data().to_vec()), (0x42B, vec![0x00, 0xCB, 0x00])]);
     }
 
     #[test]
