@@ -85,6 +85,14 @@ pub trait Machine {
     fn set_irq(&mut self, irq: u16, level: bool);
     /// Time since power-up.
     fn now(&self) -> Nanos;
+    /// The flash memory array (RM0090 §3.3 "Embedded flash memory", 1 MiB from 0x0800_0000,
+    /// offset 0 = that address), for the FLASH interface model to erase and program. The
+    /// machine keeps it across resets and power cycles, shows the CPU every change once the
+    /// access that made it returns, and lets no CPU store reach it directly: those come to
+    /// [`Peripheral::flash_store`]. `None` where there is no array (a model's unit test).
+    fn flash_memory(&mut self) -> Option<&mut [u8]> {
+        None
+    }
 }
 
 /// A register-level model of one peripheral.
@@ -111,6 +119,15 @@ pub trait Peripheral {
     /// model has nothing scheduled; the machine still advances it at its regular period.
     fn next_event(&self) -> Option<Nanos> {
         None
+    }
+    /// For the FLASH interface model only: a CPU store of `width` bytes of `value` at `offset`
+    /// into the flash memory array (RM0090 §3.6.2 "Programming"). The model programs the array
+    /// through [`Machine::flash_memory`] if its registers allow it, or sets its error flags;
+    /// it returns `true` to say it is the model that takes these stores. The default, `false`,
+    /// is every other model's answer.
+    fn flash_store(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) -> bool {
+        let _ = (offset, width, value, machine);
+        false
     }
     /// For the RCC model only: the clocks its registers now select. The machine answers
     /// [`Machine::clocks`] from the registered model that returns `Some`.
