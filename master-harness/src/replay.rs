@@ -322,8 +322,8 @@ pub fn replay(
             start
         }
     };
-    for k in start..entries.len() {
-        if is_from_device(&entries[k].frame, device) {
+    for (k, e) in entries.iter().enumerate().skip(start) {
+        if is_from_device(&e.frame, device) {
             run.expect(k)?;
         } else {
             run.stimulus(k)?;
