@@ -23,6 +23,7 @@ use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::log::{LogEntry, LogWriter};
 use can_io::pcap::{PcapBus, PcapWriter};
 use can_io::sim::PowerOn;
+use can_io::trace::write::log_format;
 use can_io::trace::{read_trace, ReadOptions, Trace, TraceFormat};
 use clap::{Args, Parser, Subcommand};
 use converter_sim::{OpenError, SimSetup};
@@ -170,11 +171,13 @@ pub struct Cli {
     /// CAN bit rate: 125k, 250k or 500k (sim and slcan).
     #[arg(long, global = true, default_value = "250k")]
     pub bitrate: Bitrate,
-    /// Write every frame seen to FILE (candump -L, or the format given with --format).
+    /// Write every frame seen to FILE, in the format --format names, else the one FILE's
+    /// extension names (.asc, .trc, .csv), else candump -L.
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,
-    /// The --log file's format: candump (default), trc (PCAN-View 2.1), asc (Vector) or csv
-    /// (python-can's layout); each is read back by `decode`, `replay` and python-can.
+    /// The --log file's format: candump, trc (PCAN-View 2.1), asc (Vector) or csv (python-can's
+    /// layout) [default: from the file's extension, else candump]; each is read back by `decode`,
+    /// `replay` and python-can.
     #[arg(long, global = true, value_name = "FORMAT", value_parser = parse_trace_format)]
     pub format: Option<TraceFormat>,
     /// Write every frame seen to FILE as a pcap capture (link type SocketCAN, for Wireshark).
@@ -569,7 +572,7 @@ where
     I: IntoIterator<Item = T>,
     T: Into<OsString> + Clone,
 {
-    let cli = match Cli::try_parse_from(args) {
+    let mut cli = match Cli::try_parse_from(args) {
         Ok(cli) => cli,
         Err(e) => {
             let text = e.render().to_string();
@@ -578,7 +581,16 @@ where
             return code;
         }
     };
-    match execute(&cli, out, err, console) {
+    // The --log file's format, for every command that writes it: --format, else the file's
+    // extension, else candump (the rule of every program with --log).
+    let result = match cli.log.as_deref().map(|path| log_format(path, cli.format)).transpose() {
+        Ok(format) => {
+            cli.format = format.or(cli.format);
+            execute(&cli, out, err, console)
+        }
+        Err(e) => Err(HarnessError::Usage(e.to_string())),
+    };
+    match result {
         Ok(code) => code,
         Err(e) => {
             if cli.json {

@@ -1,5 +1,7 @@
 //! Trace files of every format test engineers record DeviceNet traffic in, read by `decode` and
-//! `replay`, and the text formats written by `dnet-master --log FILE --format F`.
+//! `replay`, and the text formats written by `--log FILE` (`dnet-master`, `dnet-soft-slave`): the
+//! format given with `--format`, else the one the file's extension names, else candump
+//! ([`write::log_format`]).
 //!
 //! | format | [`TraceFormat`] | read | write | detected by |
 //! |---|---|---|---|---|

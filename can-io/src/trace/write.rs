@@ -27,6 +27,7 @@ use base64::Engine as _;
 use devicenet::{CanFrame, Instant};
 use std::fmt::Write as _;
 use std::io::{self, BufWriter, Write};
+use std::path::Path;
 use std::time::{SystemTime, UNIX_EPOCH};
 
 /// Writes frames into a text trace of one format.
@@ -171,6 +172,44 @@ impl TraceWriter {
 impl Drop for TraceWriter {
     fn drop(&mut self) {
         let _ = self.finish();
+    }
+}
+
+/// Why a `--log FILE` cannot be written in the format asked for, or the one its name implies.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LogFormatError {
+    /// `--format` names a format that is read but not written.
+    #[error("--format {0}: --log writes candump, trc, asc or csv")]
+    Given(TraceFormat),
+    /// The file's extension names a format that is read but not written.
+    #[error(
+        "--log {path}: the extension names {format}, which --log does not write (it writes candump, trc, asc or csv); give --format FORMAT to write one of those under this name"
+    )]
+    Extension {
+        /// The file.
+        path: String,
+        /// The format its extension names.
+        format: TraceFormat,
+    },
+}
+
+/// The format `--log FILE` is written in, the same for every program with `--log`: `given`
+/// (`--format`), else the format FILE's extension names ([`TraceFormat::from_extension`]:
+/// `.asc`, `.trc`, `.csv`; `.log` and `.candump` are candump), else candump.
+///
+/// # Errors
+///
+/// `given`, or the extension when nothing is given, names a format that is not written
+/// ([`TraceFormat::writable`]): a `.pcap`, `.pcapng` or `.blf` name with no `--format`.
+pub fn log_format(path: &Path, given: Option<TraceFormat>) -> Result<TraceFormat, LogFormatError> {
+    match given {
+        Some(f) if f.writable() => Ok(f),
+        Some(f) => Err(LogFormatError::Given(f)),
+        None => match TraceFormat::from_extension(path) {
+            None => Ok(TraceFormat::Candump),
+            Some(f) if f.writable() => Ok(f),
+            Some(format) => Err(LogFormatError::Extension { path: path.display().to_string(), format }),
+        },
     }
 }
 
@@ -361,6 +400,35 @@ mod tests {
             "timestamp,arbitration_id,extended,remote,error,dlc,data\n5.001124,0x42b,0,0,0,3,AMsA\n"
         );
         assert_eq!(written(TraceFormat::Candump), "(5.001124) sim 42B#00CB00\n");
+    }
+
+    #[rstest::rstest]
+    #[case::asc("bench.asc", None, Ok(TraceFormat::Asc))]
+    #[case::asc_upper("BENCH.ASC", None, Ok(TraceFormat::Asc))]
+    #[case::trc("run.trc", None, Ok(TraceFormat::Trc))]
+    #[case::csv("run.csv", None, Ok(TraceFormat::Csv))]
+    #[case::log("bus.log", None, Ok(TraceFormat::Candump))]
+    #[case::no_extension("bus", None, Ok(TraceFormat::Candump))]
+    #[case::other_extension("bus.txt", None, Ok(TraceFormat::Candump))]
+    #[case::given_wins("bench.asc", Some(TraceFormat::Candump), Ok(TraceFormat::Candump))]
+    #[case::given_trc("bus.log", Some(TraceFormat::Trc), Ok(TraceFormat::Trc))]
+    #[case::given_binary("x.log", Some(TraceFormat::Pcapng), Err("--format pcapng: --log writes"))]
+    #[case::pcap_name(
+        "x.pcap",
+        None,
+        Err("--log x.pcap: the extension names pcap, which --log does not write")
+    )]
+    #[case::blf_name("x.blf", None, Err("the extension names blf"))]
+    fn the_log_format_follows_the_extension_unless_given(
+        #[case] path: &str,
+        #[case] given: Option<TraceFormat>,
+        #[case] want: Result<TraceFormat, &str>,
+    ) {
+        match (log_format(Path::new(path), given), want) {
+            (Ok(got), Ok(w)) => assert_eq!(got, w),
+            (Err(e), Err(w)) => assert!(e.to_string().contains(w), "{e}"),
+            (got, w) => panic!("{path} {given:?}: {got:?}, wanted {w:?}"),
+        }
     }
 
     #[test]
