@@ -115,7 +115,9 @@ pub fn open_bus(spec: &BusSpec, bitrate: Bitrate, sim: &SimSetup) -> Result<Box<
                     // Nothing on the bus tells a device when to power on before the caller's
                     // first frame: at the start, or at the instant given.
                     PowerOn::WhenMasterOnline if sim.online_before_start => PowerOn::AtStart,
-                    PowerOn::AfterMasterOnline(d) if sim.online_before_start => PowerOn::At(Instant::ZERO + d),
+                    PowerOn::AfterMasterOnline(d) if sim.online_before_start => {
+                        PowerOn::At(Instant::ZERO + d)
+                    }
                     other => other,
                 };
                 if let PowerOn::At(at) = power {
