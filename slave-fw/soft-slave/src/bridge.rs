@@ -28,6 +28,7 @@ use crate::serial::{SerialEvent, SerialLine};
 use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bus, Origin};
 use can_io::log::LogWriter;
+use can_io::trace::Direction;
 use converter_sim::mutants::{FaultHook, Mutant};
 use devicenet::slave::{ConnectionKind, FaultReason, SettingChanged};
 use devicenet::{CanFrame, Duration, Event, Instant, MacId};
@@ -137,7 +138,8 @@ impl Bridge {
         self.mutant = Some((mutant, mutant.hook()));
     }
 
-    /// Writes every frame seen (received and sent) to `path` in `candump -L` format.
+    /// Writes every frame seen to `log` (`path` names it in errors): received frames as `Rx`,
+    /// this program's own as `Tx`, where the log's format keeps directions (trc, asc).
     pub fn set_log(&mut self, log: LogWriter, path: &str) {
         self.log = Some((log, path.to_string()));
     }
@@ -174,7 +176,7 @@ impl Bridge {
                 break Err(e);
             }
         };
-        let flushed = self.flush_log();
+        let flushed = self.finish_log();
         let now = self.now();
         self.summary.elapsed = now - start;
         self.summary.stats = self.converter.profile().stats();
@@ -219,7 +221,7 @@ impl Bridge {
         if let Some(ev) = self.bus.recv(bus_deadline)? {
             let at = self.now().max(self.last_now);
             self.last_now = at;
-            self.log_frame(at, &ev.frame)?;
+            self.log_frame(at, &ev.frame, ev.origin)?;
             if ev.origin == Origin::Remote {
                 self.summary.can_received += 1;
                 let frame = match &mut self.mutant {
@@ -334,21 +336,26 @@ impl Bridge {
         let _ = writeln!(self.report, "[{:>12}] {text}", format_instant(at));
     }
 
-    fn log_frame(&mut self, at: Instant, frame: &CanFrame) -> Result<(), SoftSlaveError> {
+    fn log_frame(&mut self, at: Instant, frame: &CanFrame, origin: Origin) -> Result<(), SoftSlaveError> {
         let iface = self.bus.name().to_string();
+        let direction = match origin {
+            Origin::Local => Direction::Tx,
+            Origin::Remote => Direction::Rx,
+        };
         if let Some((log, path)) = &mut self.log {
             // Flushed frame by frame: whoever reads the log while the soft slave runs (a test, a
             // user's `tail -f`) sees every frame it has handled.
-            log.write(at, &iface, frame)
+            log.write_dir(at, &iface, direction, frame)
                 .and_then(|()| log.flush())
                 .map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
         }
         Ok(())
     }
 
-    fn flush_log(&mut self) -> Result<(), SoftSlaveError> {
+    /// Ends the log: the format's footer (asc's `End TriggerBlock`), then flushed.
+    fn finish_log(&mut self) -> Result<(), SoftSlaveError> {
         if let Some((log, path)) = &mut self.log {
-            log.flush().map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
+            log.finish().map_err(|source| SoftSlaveError::Log { path: path.clone(), source })?;
         }
         Ok(())
     }

@@ -26,7 +26,7 @@ use std::sync::atomic::AtomicBool;
     name = "dnet-soft-slave",
     version = crate::VERSION,
     about = "The serial-to-DeviceNet converter as a Linux process: a group-2-only DeviceNet slave on a real CAN bus whose data comes from a serial instrument (the breaker profile or a Modbus RTU scan list) on a real serial port.",
-    after_help = "Stops cleanly on SIGINT or SIGTERM (the log is flushed). Exit status: 0 after a clean stop, 1 when the bus or the serial port failed, 2 for a usage or configuration error."
+    after_help = "Stops cleanly on SIGINT or SIGTERM (the log is flushed). Exit status: 0 after a clean stop, 1 when the bus or the serial port failed, 2 for a usage or configuration error (a --log or --state file that cannot be written among them; both are checked before the device goes on the bus)."
 )]
 pub struct SoftSlaveArgs {
     /// The CAN bus: `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
@@ -82,7 +82,7 @@ pub struct SoftSlaveArgs {
     name = "dnet-sim-breaker",
     version = crate::VERSION,
     about = "The simulated intelligent circuit breaker of the source paper on a serial port or pseudo-terminal: a status frame every second (0x68, 0x12, 18 data bytes, sum, 0x16), open/close/set-parameter/refresh commands obeyed and acknowledged.",
-    after_help = "Logs one line per event (status frames sent, commands received, faults injected) to stdout or --log. Stops cleanly on SIGINT or SIGTERM."
+    after_help = "Logs one line per event (status frames sent, commands received, faults injected) to stdout or --log. Stops cleanly on SIGINT or SIGTERM. Exit status: 0 after a clean stop, 1 when the serial port failed, 2 for a usage error (a --log file that cannot be written among them)."
 )]
 pub struct SimBreakerArgs {
     /// The serial port or pty to serve (e.g. /dev/pts/3 from socat, /dev/ttyUSB1).
@@ -128,7 +128,8 @@ pub fn parse_real_bus(s: &str) -> Result<BusSpec, String> {
 
 /// `--format`: a trace format's name.
 pub fn parse_log_format(s: &str) -> Result<TraceFormat, String> {
-    TraceFormat::from_name(s).ok_or_else(|| format!("unknown trace format '{s}' (one of: candump, trc, asc, csv)"))
+    TraceFormat::from_name(s)
+        .ok_or_else(|| format!("unknown trace format '{s}' (one of: candump, trc, asc, csv)"))
 }
 
 /// A MAC ID, `0..=63`.

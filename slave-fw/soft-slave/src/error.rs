@@ -39,7 +39,7 @@ pub enum SoftSlaveError {
     /// The CAN bus could not be opened, read or written.
     #[error("CAN bus: {0}")]
     Bus(#[from] BusError),
-    /// A log file could not be created or written.
+    /// A log file could not be created or written (an output file: exit 2, as in `dnet-master`).
     #[error("log file '{path}': {source}")]
     Log {
         /// The file.
@@ -47,6 +47,9 @@ pub enum SoftSlaveError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// `--log FILE` in a format that is not written (`--format`, or the file's extension).
+    #[error(transparent)]
+    LogFormat(#[from] can_io::trace::write::LogFormatError),
     /// The `--state` file is unreadable, malformed or cannot be written (names the file).
     #[error("state file {0}")]
     State(String),
@@ -56,14 +59,17 @@ pub enum SoftSlaveError {
 }
 
 impl SoftSlaveError {
-    /// The process exit status: 2 for a usage or configuration error (as clap uses), 1 for a
-    /// failure while running.
+    /// The process exit status (README, "Exit status"): 2 for a usage or configuration error
+    /// (as clap uses), an output file (log, state) that cannot be written among them; 1 for the
+    /// bus or the serial port failing.
     pub fn exit_code(&self) -> u8 {
         match self {
             SoftSlaveError::Description(_)
             | SoftSlaveError::Config(_)
             | SoftSlaveError::Usage(_)
-            | SoftSlaveError::State(_) => 2,
+            | SoftSlaveError::State(_)
+            | SoftSlaveError::Log { .. }
+            | SoftSlaveError::LogFormat(_) => 2,
             _ => 1,
         }
     }
@@ -84,5 +90,10 @@ mod tests {
         };
         assert_eq!(io.exit_code(), 1);
         assert!(io.to_string().starts_with("serial port '/dev/ttyUSB0': reading: "), "{io}");
+        let log = SoftSlaveError::Log {
+            path: "/nonexistent/bus.log".into(),
+            source: std::io::Error::from(std::io::ErrorKind::NotFound),
+        };
+        assert_eq!(log.exit_code(), 2, "an output file that cannot be written");
     }
 }

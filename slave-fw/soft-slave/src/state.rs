@@ -201,15 +201,37 @@ impl StateFile {
         Ok(state)
     }
 
-    /// Replaces the file with `state`, atomically (see the [module docs](self)).
-    pub fn save(&self, state: &StoredState) -> Result<(), SoftSlaveError> {
-        let text = serde_json::to_string_pretty(state).map_err(|e| self.error(e))?;
+    /// The file's folder, and the temporary file [`StateFile::save`] writes before the rename.
+    fn folder_and_temp(&self) -> (PathBuf, PathBuf) {
         let dir = match self.path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
         let name = self.path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let temp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+        (dir, temp)
+    }
+
+    /// Checks at start, before the device goes on the bus, that [`StateFile::save`] can work: its
+    /// temporary file is created in the file's folder and removed again. A folder that does not
+    /// exist or cannot be written is refused here (exit 2), not when a master first changes a
+    /// setting (the master would only see the device fall silent).
+    pub fn check_writable(&self) -> Result<(), SoftSlaveError> {
+        let (_, temp) = self.folder_and_temp();
+        let probe = std::fs::OpenOptions::new().write(true).create_new(true).open(&temp);
+        match probe {
+            Ok(file) => {
+                drop(file);
+                std::fs::remove_file(&temp).map_err(|e| self.error(format!("cannot write: {e}")))
+            }
+            Err(e) => Err(self.error(format!("cannot write: {e}"))),
+        }
+    }
+
+    /// Replaces the file with `state`, atomically (see the [module docs](self)).
+    pub fn save(&self, state: &StoredState) -> Result<(), SoftSlaveError> {
+        let text = serde_json::to_string_pretty(state).map_err(|e| self.error(e))?;
+        let (dir, temp) = self.folder_and_temp();
         let write = || -> std::io::Result<()> {
             let mut f = std::fs::File::create(&temp)?;
             f.write_all(text.as_bytes())?;
@@ -357,5 +379,24 @@ mod tests {
         let file = StateFile::new("/nonexistent/dir/state.json");
         let e = file.save(&StoredState::default()).unwrap_err().to_string();
         assert!(e.starts_with("state file /nonexistent/dir/state.json: cannot write"), "{e}");
+        let e = file.check_writable().unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        assert!(e.to_string().starts_with("state file /nonexistent/dir/state.json: cannot write"), "{e}");
+    }
+
+    #[test]
+    fn a_writable_folder_passes_the_check_and_nothing_is_left_behind() {
+        let path = temp("checked.json");
+        let _ = std::fs::remove_file(&path);
+        let file = StateFile::new(&path);
+        file.check_writable().unwrap();
+        assert!(!path.exists(), "the check writes no state");
+        let dir = path.parent().unwrap();
+        let leftovers = std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| e.file_name().to_string_lossy().starts_with(".checked.json."))
+            .count();
+        assert_eq!(leftovers, 0);
     }
 }
