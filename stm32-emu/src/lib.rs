@@ -12,3 +12,4 @@
 
 pub mod periph;
 pub mod gpio;
+pub mod rcc;
