@@ -11,5 +11,6 @@
 #![forbid(unsafe_code)]
 
 pub mod periph;
+pub mod bxcan;
 pub mod gpio;
 pub mod rcc;
