@@ -238,8 +238,9 @@ add_field("off_port", ProtoField.uint8("dnetx.offline.port", "Physical port", ba
 
 local ef_malformed = ProtoExpert.new("dnetx.malformed", "Malformed DeviceNet message", expert.group.MALFORMED, expert.severity.WARN)
 local ef_dropped = ProtoExpert.new("dnetx.frag.dropped", "Fragment dropped from reassembly", expert.group.SEQUENCE, expert.severity.NOTE)
+local ef_protocol = ProtoExpert.new("dnetx.frag.protocol_error", "Fragmentation protocol error", expert.group.SEQUENCE, expert.severity.WARN)
 local ef_error = ProtoExpert.new("dnetx.error", "Error response", expert.group.RESPONSE_CODE, expert.severity.NOTE)
-dnetx.experts = { ef_malformed, ef_dropped, ef_error }
+dnetx.experts = { ef_malformed, ef_dropped, ef_protocol, ef_error }
 
 local f_can_id = Field.new("can.id")
 
@@ -570,6 +571,39 @@ end
 
 local function next_count(c) return (c + 1) % 64 end
 
+-- Breaches of the fragmentation protocol (notes §4; decode/fragments.rs FragmentViolation):
+-- " (protocol error: <what>; <what the receiver does>)", exactly as the Rust decoder writes it.
+local function skipped_text(expected, got)
+    local ahead = (got - expected) % 64
+    if ahead == 1 then return string.format("fragment #%d was missed", expected) end
+    if ahead >= 2 and ahead <= 31 then
+        return string.format("fragments #%d to #%d were missed", expected, (got - 1) % 64)
+    end
+    return "a fragment repeated or out of order"
+end
+
+local function protocol_error(what, consequence)
+    return string.format(" (protocol error: %s; %s)", what, consequence)
+end
+
+local function first_count_error(count)
+    return protocol_error(string.format("first fragment with count %d, where a series begins with count 0", count), "fragment dropped")
+end
+
+local function no_first_error(kind, count)
+    return protocol_error(string.format("%s fragment #%d without a first fragment", frag_type_names[kind], count), "fragment dropped")
+end
+
+local function sequence_error(expected, got)
+    return protocol_error(string.format("fragment #%d where #%d was due: %s", got, expected, skipped_text(expected, got)), "series dropped")
+end
+
+local function unfinished_error(expected)
+    return protocol_error(string.format("a new series began while fragment #%d of the one in progress was due: the rest of that series was missed", expected), "unfinished series dropped")
+end
+
+local ACK_IN_IO_ERROR = protocol_error("acknowledge-type fragment, which I/O fragmentation does not have", "series dropped")
+
 -- Explicit reassembly of one direction (notes §4.1; devicenet ExplicitReassembler).
 -- `data` is the frame's whole CAN data; returns status, reason.
 local MAX_EXPLICIT = 1024
@@ -581,7 +615,7 @@ local function explicit_receive(rx, data, number, ctx)
     if kind == 0 then
         reset(rx)
         if count ~= 0 and count ~= 0x3F then
-            return "dropped", string.format("first fragment with count %d", count)
+            return "error", first_count_error(count)
         end
         rx.buf = string.char(bit.band(data:byte(1), 0x7F)) .. body
         rx.frames, rx.ctxs = { number }, { ctx }
@@ -607,9 +641,9 @@ local function explicit_receive(rx, data, number, ctx)
     if rx.next ~= nil then
         local expected = rx.next
         reset(rx)
-        return "dropped", string.format("fragment out of sequence: expected count %d, got %d", expected, count)
+        return "error", sequence_error(expected, count)
     end
-    return "dropped", "no first fragment"
+    return "error", no_first_error(kind, count)
 end
 
 -- Explicit channel of a Group 2 message (decode.rs Channel).
@@ -692,18 +726,23 @@ local function io_first_pass(series, size, data, number)
     if size ~= nil then
         fragmented = size > 8
     else
+        -- decode/fragments.rs IoSeries::looks_fragmented
         local b = data:byte(1)
-        if b ~= nil and series.next ~= nil then
-            local kind = bit.rshift(b, 6)
-            fragmented = (kind == 1 or kind == 2) and bit.band(b, 0x3F) == series.next
-        else
+        if b == nil then
+            fragmented = false
+        elseif series.next == nil and not series.proven then
             fragmented = b == 0 and #data == 8
+        else
+            local kind = bit.rshift(b, 6)
+            if kind == 0 then fragmented = #data == 8 or bit.band(b, 0x3F) == 0x3F
+            elseif kind == 1 then fragmented = #data == 8
+            else fragmented = true end
         end
         ctx.inferred = fragmented
     end
     ctx.fragmented = fragmented
     if not fragmented then
-        series.next = nil
+        reset(series)
         return ctx
     end
     local b = data:byte(1) or 0
@@ -711,32 +750,37 @@ local function io_first_pass(series, size, data, number)
     local body = data:sub(2)
     if kind == 3 then
         reset(series)
-        ctx.why = "acknowledge type in I/O fragmentation"
+        ctx.error = ACK_IN_IO_ERROR
         return ctx
     end
     if kind == 0 then
+        -- A first fragment restarts the series (notes §4.2): one still in progress lost its end.
+        if series.next ~= nil then ctx.unfinished = unfinished_error(series.next) end
         reset(series)
         if count == 0x3F then
             ctx.reassembled, ctx.frames = body, { number }
             return ctx
         end
         if count ~= 0 then
-            ctx.why = string.format("first fragment with count %d", count)
+            ctx.error = first_count_error(count)
             return ctx
         end
         series.buf, series.frames, series.ctxs = body, { number }, { ctx }
         series.next = 1
         return ctx
     end
-    if series.next == nil or count ~= series.next then
-        ctx.why = series.next and string.format("fragment out of sequence: expected count %d, got %d", series.next, count)
-            or "no first fragment"
+    if series.next == nil then
+        ctx.error = no_first_error(kind, count)
+        return ctx
+    end
+    if count ~= series.next then
+        ctx.error = sequence_error(series.next, count)
         reset(series)
         return ctx
     end
     if #series.buf + #body > MAX_IO then
         reset(series)
-        ctx.why = "message too long"
+        ctx.why = string.format("fragment series exceeds %d bytes", MAX_IO)
         return ctx
     end
     series.buf = series.buf .. body
@@ -746,6 +790,8 @@ local function io_first_pass(series, size, data, number)
         ctx.reassembled, ctx.frames = series.buf, series.frames
         for _, c in ipairs(series.ctxs) do c.reassembled_in = number end
         reset(series)
+        -- A whole series of several fragments: the connection is fragmented from now on.
+        if size == nil then series.proven = true end
     else
         series.next = next_count(count)
     end
@@ -954,7 +1000,10 @@ local function explicit_frame(t, tvb, pinfo, mac, data, channel, ctx)
     if ctx.reassembled_in and not ctx.reassembled then
         t:add(F.reassembled_in, tvb(0, 0), ctx.reassembled_in):set_generated()
     end
-    if ctx.status == "dropped" then
+    if ctx.status == "error" then
+        t:add(F.frag_note, tvb(1, 1), ctx.why:sub(2)):add_proto_expert_info(ef_protocol, ctx.why:sub(2))
+        return summary .. ctx.why
+    elseif ctx.status == "dropped" then
         t:add(F.frag_note, tvb(1, 1), "dropped: " .. (ctx.why or "")):add_proto_expert_info(ef_dropped, "dropped: " .. (ctx.why or ""))
         return summary .. " (dropped: " .. (ctx.why or "") .. ")"
     elseif ctx.status == "repeated" then
@@ -1000,10 +1049,18 @@ local function io_frame(t, tvb, who, data, ctx)
     if ctx.reassembled_in and not ctx.reassembled then
         t:add(F.reassembled_in, tvb(0, 0), ctx.reassembled_in):set_generated()
     end
+    for _, e in ipairs({ ctx.unfinished or false, ctx.error or false }) do
+        if e then
+            local note = e:sub(2)
+            t:add(F.frag_note, tvb(0, 1), note):add_proto_expert_info(ef_protocol, note)
+            summary = summary .. e
+        end
+    end
     if ctx.why then
         t:add(F.frag_note, tvb(0, 1), "dropped: " .. ctx.why):add_proto_expert_info(ef_dropped, "dropped: " .. ctx.why)
         return summary .. " (dropped: " .. ctx.why .. ")"
     end
+    if ctx.error then return summary end
     if ctx.reassembled then
         local whole = ctx.reassembled
         local rtvb = ByteArray.new(hex(whole)):tvb("Reassembled DeviceNet I/O message")

@@ -356,3 +356,60 @@ fn offline_connection_set_and_other_messages_decode() {
     );
     assert_eq!(rows[16].get("dnetx.group"), "", "0x7F5 is no DeviceNet identifier");
 }
+
+/// Broken fragment series (issue 33, item 10): the dissector names each breach of the
+/// fragmentation protocol exactly as the Rust decoder does, as a protocol error, instead of
+/// dropping or joining the fragments quietly: a first fragment whose count is not 0, middle and
+/// last fragments without a first, a missed fragment, a series cut off by the next first
+/// fragment; I/O with and without the connection size, and explicit.
+#[test]
+#[ignore = "needs tshark: run by scripts/check"]
+fn broken_fragment_series_are_protocol_errors() {
+    let frames: Vec<(u16, Vec<u8>)> = vec![
+        // MAC 6: the poll response size unknown. A whole series (the connection is fragmented),
+        // then a first fragment with count 5 and a middle without a first.
+        (0x3C6, vec![0x00, 0, 1, 2, 3, 4, 5, 6]),
+        (0x3C6, vec![0x41, 7, 8, 9, 10, 11, 12, 13]),
+        (0x3C6, vec![0x82, 14, 15, 16, 17]),
+        (0x3C6, vec![0x05, 0, 1, 2, 3, 4, 5, 6]),
+        (0x3C6, vec![0x41, 7, 8, 9, 10, 11, 12, 13]),
+        // A missed middle fragment, then a series cut off by the next first fragment.
+        (0x3C6, vec![0x00, 0, 1, 2, 3, 4, 5, 6]),
+        (0x3C6, vec![0x82, 14, 15, 16, 17]),
+        (0x3C6, vec![0x00, 0, 1, 2, 3, 4, 5, 6]),
+        (0x3C6, vec![0x41, 7, 8, 9, 10, 11, 12, 13]),
+        (0x3C6, vec![0x00, 0, 1, 2, 3, 4, 5, 6]),
+        // MAC 5: the size read (18 bytes), then a last fragment without a first.
+        (0x42C, vec![0x00, 0x0E, 0x05, 0x02, 0x07]),
+        (0x42B, vec![0x00, 0x8E, 0x12, 0x00]),
+        (0x3C5, vec![0x82, 14, 15, 16, 17]),
+        // Explicit: a first fragment with count 3, a middle without a first, a missed fragment.
+        (0x42C, vec![0x00, 0x0E, 0x01, 0x01, 0x07]),
+        (0x42B, vec![0x80, 0x03, 0x8E, 1, 2, 3, 4, 5]),
+        (0x42B, vec![0x80, 0x41, 1, 2, 3, 4, 5, 6]),
+        (0x42B, vec![0x80, 0x00, 0x8E, 0x17, b'S', b'e', b'r', b'i']),
+        (0x42B, vec![0x80, 0x42, b'i', b'c', b'e', b'N', b'e', b't']),
+    ];
+    let frames: Vec<(Instant, CanFrame)> = frames
+        .iter()
+        .enumerate()
+        .map(|(i, (id, data))| (Instant::from_millis(i as u64), CanFrame::from_raw(*id, data).unwrap()))
+        .collect();
+    let path = scratch("fragments").join("fragments.pcap");
+    write_pcap(&path, &frames);
+    let rows = tshark(&path);
+    assert_eq!(rows.len(), frames.len());
+    let mut decoder = Decoder::new();
+    let mut errors = Vec::new();
+    for (row, (_, frame)) in rows.iter().zip(&frames) {
+        let decoded = decoder.decode(frame);
+        assert_eq!(row.get("_ws.col.Info"), decoded.text(), "frame {}", row.number);
+        if decoded.protocol_error.is_some() {
+            errors.push(row.number);
+            assert!(row.get("_ws.col.Info").contains("(protocol error: "), "frame {}: {row:?}", row.number);
+        }
+    }
+    assert_eq!(errors, [4, 5, 7, 10, 13, 15, 16, 18], "the frames named as protocol errors");
+    // The whole series still reassembles.
+    assert_eq!(rows[2].get("dnetx.reassembled.length"), "18");
+}
