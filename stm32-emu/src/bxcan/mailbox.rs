@@ -9,7 +9,7 @@ use super::frame::Frame;
 /// TXRQ in `CAN_TIxR`: transmission requested (RM0090 §32.9.3).
 pub(crate) const TXRQ: u32 = 1;
 /// Per-mailbox `CAN_TSR` bits, shifted by 8 × mailbox (RM0090 §32.9.2).
-pub(crate) mod tsr {
+pub mod tsr {
     /// Request completed.
     pub const RQCP: u32 = 1 << 0;
     /// Transmission OK.
@@ -209,7 +209,7 @@ struct RxMessage {
 }
 
 /// `CAN_RFxR` bits (RM0090 §32.9.2).
-pub(crate) mod rfr {
+pub mod rfr {
     /// FULL: three messages stored (rc_w1).
     pub const FULL: u32 = 1 << 3;
     /// FOVR: a message passed the filter while the FIFO was full (rc_w1).

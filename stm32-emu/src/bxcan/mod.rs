@@ -48,6 +48,7 @@ mod tests;
 
 pub use bus::{Response, Transmission, TxOutcome};
 pub use frame::{Frame, FrameId};
+pub use mailbox::{rfr, tsr};
 pub use timing::BitTiming;
 
 use crate::periph::{ClockGate, Clocks, Machine, Nanos, Peripheral, ResetKind, Width};
