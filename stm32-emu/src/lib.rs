@@ -14,3 +14,4 @@ pub mod periph;
 pub mod bxcan;
 pub mod gpio;
 pub mod rcc;
+pub mod flash;
