@@ -27,7 +27,7 @@ fn firmware() -> Driver {
 #[case::extended_with_matching_bits(Frame::new_data(FrameId::Extended(0x428 << 18), &[]).unwrap(), None)]
 fn firmware_filters(#[case] frame: Frame, #[case] fmi: Option<u32>) {
     let mut d = firmware();
-    assert_eq!(d.from_bus(&frame, 125_000), Response::Acknowledge, "acknowledged either way");
+    assert_eq!(d.hear(&frame, 125_000), Response::Acknowledge, "acknowledged either way");
     match fmi {
         Some(fmi) => {
             assert_eq!(d.read(offset::RF0R) & 0b11, 1);
@@ -46,11 +46,11 @@ fn set_mac_rewrites_bank_0_while_the_node_runs() {
     let own = Mask16::frames_with_std_id(0x400 | 9 << 3, 0x7F8);
     let strobe = Mask16::frames_with_std_id(0x400, 0x607);
     d.enable_bank_mask16(0, false, [own, strobe]);
-    assert_eq!(d.from_bus(&data(0x44C, &[]), 125_000), Response::Acknowledge);
+    assert_eq!(d.hear(&data(0x44C, &[]), 125_000), Response::Acknowledge);
     assert_eq!(d.read(offset::RF0R) & 0b11, 0, "nothing stored while FINIT is set");
     d.drop_filters();
-    d.from_bus(&data(0x44C, &[]), 125_000);
-    d.from_bus(&data(0x42C, &[]), 125_000);
+    d.hear(&data(0x44C, &[]), 125_000);
+    d.hear(&data(0x42C, &[]), 125_000);
     assert_eq!(d.read(offset::RF0R) & 0b11, 1, "MAC 9's frame only");
 }
 
@@ -102,7 +102,7 @@ fn other_scales_and_modes(
     #[case] fmi: Option<u32>,
 ) {
     let mut d = with_bank2(list, scale32, fr);
-    d.from_bus(&frame, 125_000);
+    d.hear(&frame, 125_000);
     match fmi {
         Some(fmi) => {
             assert_eq!(d.read(offset::RF1R) & 0b11, 1, "FIFO 1");
@@ -119,6 +119,6 @@ fn banks_from_can2sb_on_belong_to_can2() {
     d.modify_filters();
     d.modify(offset::FMR, |r| r & !0x3F00 | 2 << 8);
     d.drop_filters();
-    d.from_bus(&data(0x123, &[]), 125_000);
+    d.hear(&data(0x123, &[]), 125_000);
     assert_eq!(d.read(offset::RF1R) & 0b11, 0, "bank 2 is CAN2's");
 }

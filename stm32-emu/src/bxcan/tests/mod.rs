@@ -314,7 +314,7 @@ impl Driver {
     }
 
     /// A frame from another node at `rate`, delivered whole; the controller's response.
-    pub fn from_bus(&mut self, frame: &Frame, rate: u32) -> Response {
+    pub fn hear(&mut self, frame: &Frame, rate: u32) -> Response {
         self.can.on_wire(frame, rate, false, self.m.now, &mut self.m)
     }
 

@@ -128,7 +128,7 @@ fn wakeup_on_bus_activity(#[case] awum: bool, #[case] after: Mode) {
     }
     d.enable_interrupts(ier::WKUIE);
     d.leave_disabled();
-    assert_eq!(d.from_bus(&data(0x100, &[]), 125_000), Response::Quiet);
+    assert_eq!(d.hear(&data(0x100, &[]), 125_000), Response::Quiet);
     assert_ne!(d.read(offset::MSR) & msr::WKUI, 0);
     assert!(d.m.irqs[usize::from(irq::SCE)]);
     assert_eq!(d.can.mode(), after);

@@ -19,7 +19,7 @@ fn accepting_all() -> Driver {
 #[test]
 fn message_pending_and_release() {
     let mut d = accepting_all();
-    d.from_bus(&data(0x100, &[1, 2, 3, 4, 5]), 125_000);
+    d.hear(&data(0x100, &[1, 2, 3, 4, 5]), 125_000);
     assert_eq!(d.read(offset::RF0R), 1);
     assert!(d.m.irqs[usize::from(irq::RX0)]);
     assert_eq!(d.read(offset::RI0R), 0x100 << 21);
@@ -37,7 +37,7 @@ fn message_pending_and_release() {
 fn fifo_order() {
     let mut d = accepting_all();
     for id in [0x300, 0x100, 0x200] {
-        d.from_bus(&data(id, &[]), 125_000);
+        d.hear(&data(id, &[]), 125_000);
     }
     for id in [0x300, 0x100, 0x200] {
         assert_eq!(d.receive(), Nb::Ok(data(id, &[])));
@@ -55,10 +55,10 @@ fn overrun(#[case] locked: bool, #[case] third: u16) {
         d.modify(offset::MCR, |r| r | mcr::RFLM);
     }
     for id in [0x100, 0x200, 0x300] {
-        d.from_bus(&data(id, &[]), 125_000);
+        d.hear(&data(id, &[]), 125_000);
     }
     assert_eq!(d.read(offset::RF0R), 3 | rfr::FULL);
-    d.from_bus(&data(0x400, &[]), 125_000);
+    d.hear(&data(0x400, &[]), 125_000);
     assert_eq!(d.read(offset::RF0R), 3 | rfr::FULL | rfr::FOVR);
     // bxcan's receive reports the overrun once (clearing FOVR), then the three messages.
     assert_eq!(d.receive(), Nb::Other(Overrun));
@@ -73,7 +73,7 @@ fn overrun(#[case] locked: bool, #[case] third: u16) {
 fn full_cleared_by_writing_one() {
     let mut d = accepting_all();
     for id in [0x100, 0x200, 0x300] {
-        d.from_bus(&data(id, &[]), 125_000);
+        d.hear(&data(id, &[]), 125_000);
     }
     d.write(offset::RF0R, rfr::RFOM);
     assert_ne!(d.read(offset::RF0R) & rfr::FULL, 0, "FULL stays until software clears it");
@@ -85,10 +85,10 @@ fn full_cleared_by_writing_one() {
 fn rx_line_follows_each_enable_bit() {
     let mut d = accepting_all();
     d.write(offset::IER, ier::FFIE0);
-    d.from_bus(&data(0x100, &[]), 125_000);
+    d.hear(&data(0x100, &[]), 125_000);
     assert!(!d.m.irqs[usize::from(irq::RX0)], "FMP alone with only FFIE0");
-    d.from_bus(&data(0x100, &[]), 125_000);
-    d.from_bus(&data(0x100, &[]), 125_000);
+    d.hear(&data(0x100, &[]), 125_000);
+    d.hear(&data(0x100, &[]), 125_000);
     assert!(d.m.irqs[usize::from(irq::RX0)], "FULL with FFIE0");
     assert!(!d.m.irqs[usize::from(irq::RX1)]);
 }
@@ -97,6 +97,6 @@ fn rx_line_follows_each_enable_bit() {
 fn nothing_received_in_initialisation() {
     let mut d = accepting_all();
     d.builder();
-    assert_eq!(d.from_bus(&data(0x100, &[]), 125_000), Response::Quiet);
+    assert_eq!(d.hear(&data(0x100, &[]), 125_000), Response::Quiet);
     assert_eq!(d.read(offset::RF0R), 0);
 }
