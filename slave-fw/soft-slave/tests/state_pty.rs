@@ -85,3 +85,42 @@ fn a_mac_id_set_over_the_network_survives_reset_and_restart() {
     rig.start_slave_with(Some(&description), &[]);
     assert_eq!(product_code(&rig, mac(5)), Ok(Some(1)), "without --state, at MAC 5\n{}", rig.dump());
 }
+
+/// Issue 33: with `--state` in a folder it cannot write, the soft slave went on-line and quit
+/// (exit 2) only when a master allocated it: the master saw a timeout. Now it is refused at
+/// start: exit 2 naming the file, and not one byte on the SLCAN line (the device never went on
+/// the bus).
+#[test]
+#[ignore = "needs socat: run by scripts/check"]
+fn a_state_file_that_cannot_be_written_is_refused_before_going_on_the_bus() {
+    if !require_socat() {
+        return;
+    }
+    let serial = pty_rig::PtyPair::new();
+    let instrument = pty_rig::Proc::spawn(pty_rig::bin("dnet-sim-breaker"), &["--serial", &serial.a]);
+    let can = pty_rig::PtyPair::new();
+    // The master's end, open before the soft slave starts: whatever it would send is seen.
+    let mut far = serialport::new(&can.b, 115_200)
+        .timeout(std::time::Duration::from_millis(300))
+        .open()
+        .unwrap_or_else(|e| panic!("{}: {e}", can.b));
+    let bus = format!("slcan:{}", can.a);
+    let state = "/nonexistent/folder/s.json";
+    let mut slave = pty_rig::Proc::spawn(
+        pty_rig::bin("dnet-soft-slave"),
+        &["--bus", &bus, "--serial", &serial.b, "--state", state],
+    );
+    let status = slave.wait(std::time::Duration::from_secs(10));
+    let Some(status) = status else {
+        panic!("still running with an unwritable --state\n{}\n{}", slave.dump(), instrument.dump());
+    };
+    assert_eq!(status.code(), Some(2), "{}", slave.dump());
+    let err = slave.stderr.text();
+    assert!(err.contains(&format!("state file {state}: cannot write")), "{err}");
+    assert!(!err.contains("started on"), "{err}");
+    let mut buf = [0u8; 64];
+    match std::io::Read::read(&mut far, &mut buf) {
+        Ok(n) => assert_eq!(n, 0, "sent on the SLCAN line: {:?}", String::from_utf8_lossy(&buf[..n])),
+        Err(e) => assert_eq!(e.kind(), std::io::ErrorKind::TimedOut, "{e}"),
+    }
+}
