@@ -34,7 +34,8 @@ fn workspace() -> PathBuf {
 }
 
 /// A breaker of another make: its own product code and name, the status assembly (20 bytes
-/// produced), a 5 s stale timeout; 9600 8N1 like the simulated breaker on the pty.
+/// produced), a 5 s stale timeout, a serial number of its own (which no device takes: each keeps
+/// its own); 9600 8N1 like the simulated breaker on the pty.
 fn other_breaker(dir: &std::path::Path) -> PathBuf {
     let text = std::fs::read_to_string(workspace().join("slave-fw/descriptions/breaker.toml"))
         .unwrap()
@@ -42,8 +43,10 @@ fn other_breaker(dir: &std::path::Path) -> PathBuf {
         .replace("product_name = \"Serial-DeviceNet Bridge\"", "product_name = \"Breaker Gateway B\"")
         .replace("input_assembly = \"plain\"", "input_assembly = \"with_status\"")
         .replace("produced_size = 18", "produced_size = 20")
-        .replace("stale_timeout_ms = 3000", "stale_timeout_ms = 5000");
+        .replace("stale_timeout_ms = 3000", "stale_timeout_ms = 5000")
+        .replace("serial_number = 0x12345678", "serial_number = 0x00C0FFEE");
     for needle in [
+        "serial_number = 0x00C0FFEE",
         "product_code = 42",
         "Breaker Gateway B",
         "with_status",
@@ -74,7 +77,12 @@ fn configure_survives_a_restart_reads_back_and_parameters_are_checked() {
     let out = ok(&rig, &["configure", "--mac", "5", description.to_str().unwrap()]);
     assert!(out.contains("read back and verified"), "{out}");
     assert!(out.contains("the device runs the description"), "{out}");
-    assert!(out.contains("poll produced size") && out.contains(" 20"), "{out}");
+    assert!(line_of(&out, "poll produced size").ends_with(" 20 bytes"), "{out}");
+    // The soft slave's serial number (its start-up description's), not the downloaded one's;
+    // values as `decode` writes them, no byte lists.
+    assert!(line_of(&out, "Identity serial number").ends_with(" 0x12345678"), "{out}");
+    assert!(line_of(&out, "configuration CRC-32").contains(" 0x"), "{out}");
+    assert!(!out.contains('['), "{out}");
     assert!(std::fs::read_to_string(&state).unwrap().contains("\"configuration\""), "the image is kept");
 
     // The board's power cycle: the soft slave restarts with the same state file.
@@ -86,6 +94,8 @@ fn configure_survives_a_restart_reads_back_and_parameters_are_checked() {
     let got = DeviceDescription::load(&read_back).unwrap();
     let want = DeviceDescription::load(&description).unwrap();
     assert_eq!(got.converter, want.converter, "configure --read gives back the description");
+    let out = ok(&rig, &["get", "5", "1", "1", "6"]);
+    assert!(out.contains("0x12345678"), "the device's own serial number after the restart: {out}");
 
     // Parameters: read, set in range (stored, applies at reset), refused out of range, no change.
     let out = ok(&rig, &["params", "--mac", "5"]);
@@ -96,6 +106,42 @@ fn configure_survives_a_restart_reads_back_and_parameters_are_checked() {
     assert!(err.contains("invalid attribute value (0x09)"), "{err}");
     let out = ok(&rig, &["params", "--mac", "5"]);
     assert!(out.contains("5000"), "nothing changed: {out}");
+}
+
+/// The line of `out` that reports `what`.
+fn line_of<'a>(out: &'a str, what: &str) -> &'a str {
+    out.lines().find(|l| l.contains(what)).unwrap_or_else(|| panic!("no {what} line in\n{out}"))
+}
+
+#[test]
+#[ignore = "needs socat: run by scripts/check"]
+fn a_soft_slave_keeps_the_serial_number_of_its_state_file_and_hears_of_another_data_rate() {
+    if !require_socat() {
+        return;
+    }
+    let mut rig = PtyRig::breaker("configure-serial", &["--period", "0.3"], None);
+    rig.stop_slave();
+    let state = rig.dir.join("state.json");
+    std::fs::write(&state, "{ \"serial_number\": 3735928559 }\n").unwrap();
+    let state_arg = state.to_str().unwrap().to_string();
+    rig.start_slave_with(None, &["--state", &state_arg]);
+    // Another breaker at 500 kbit/s: the master says so before the reset (the soft slave keeps
+    // the rate it started with until its next start, so it comes back on this bus).
+    let text = std::fs::read_to_string(other_breaker(&rig.dir))
+        .unwrap()
+        .replace("baud_rate = \"250k\"", "baud_rate = \"500k\"");
+    assert!(text.contains("baud_rate = \"500k\""), "the reference description changed: baud_rate");
+    let description = rig.dir.join("breaker-500k.toml");
+    std::fs::write(&description, text).unwrap();
+    let out = ok(&rig, &["configure", "--mac", "5", description.to_str().unwrap()]);
+    let note = out
+        .find("note: the description's data rate is 500 kbit/s, MAC 5 runs at 250 kbit/s")
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(note < out.find("; reset;").unwrap(), "said before the reset: {out}");
+    assert!(line_of(&out, "Identity serial number").ends_with(" 0xDEADBEEF"), "{out}");
+    // Identity attribute 6 answers it too.
+    let out = ok(&rig, &["get", "5", "1", "1", "6"]);
+    assert!(out.contains("0xDEADBEEF"), "{out}");
 }
 
 #[test]
