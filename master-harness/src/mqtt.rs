@@ -40,13 +40,14 @@
 //! `PREFIX/node/<mac>/status`:
 //!
 //! ```json
-//! {"mac":5,"connection":"poll","ack_suppression":false,"status":"ok","code":0,"detail":null,
-//!  "product_name":"Serial-DeviceNet breaker",
+//! {"mac":5,"name":"feeder 1","connection":"poll","ack_suppression":false,"status":"ok","code":0,
+//!  "detail":null,"product_name":"Serial-DeviceNet breaker",
 //!  "vendor_id":1234,"device_type":12,"product_code":1,"revision":"1.1",
 //!  "serial_number":305419896,"input_size":18,"output_size":8}
 //! ```
 //!
-//! `connection` is the scan list's (`poll`, `strobe`, `cos`, `cyclic`); `status` and `code` are
+//! `name` and `connection` are the scan list's (`name` `null` when it gives none; `poll`, `strobe`,
+//! `cos`, `cyclic`); `status` and `code` are
 //! [`NodeStatus::name`] and [`NodeStatus::code`] (the scanner status codes); identity fields not
 //! read yet are `null`.
 //!
@@ -409,6 +410,7 @@ fn node_status_payload(node: &NodeState) -> Vec<u8> {
     let id = &node.identity;
     json!({
         "mac": node.mac,
+        "name": node.name,
         "connection": node.connection,
         "ack_suppression": node.ack_suppression,
         "status": status.name(),

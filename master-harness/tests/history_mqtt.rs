@@ -6,7 +6,7 @@
 //! not skip, when mosquitto is missing; `scripts/check` installs it and runs them:
 //! `cargo test -p master-harness --test history_mqtt -- --ignored`.
 
-use master_harness::history::{History, HistoryError, Retention};
+use master_harness::history::{History, HistoryError, Retention, ThinOut};
 use master_harness::mqtt::Publisher;
 use master_harness::scanner::model::{
     HistoryStore, Identity, NodeState, NodeStatus, Sample, ScannerState, ScannerStatus,
@@ -41,6 +41,7 @@ fn sample(mac: u8, unix_ms: i64, values: &[(&str, f64)]) -> Sample {
 fn node(mac: u8, status: NodeStatus, product: &str) -> NodeState {
     NodeState {
         mac,
+        name: Some(format!("node {mac}")),
         connection: "poll".into(),
         ack_suppression: false,
         status,
@@ -205,7 +206,7 @@ fn history_records_and_queries_time_ranges() {
 fn history_csv_export_has_header_rows_and_values() {
     let h = History::in_memory().unwrap();
     h.record(&[
-        sample(5, 1_714_564_800_123, &[("phase_a", 10.0), ("switch", 1.0)]),
+        sample(5, 1_714_564_800_123, &[("phase_a", 10.0), ("switch", 240.0)]),
         sample(6, 1_714_564_800_200, &[("temp,C", 21.5)]),
     ])
     .unwrap();
@@ -217,7 +218,7 @@ fn history_csv_export_has_header_rows_and_values() {
     assert_eq!(
         String::from_utf8(out).unwrap(),
         "unix_ms,time,mac,input_hex,phase_a,switch,\"temp,C\",phase_b\n\
-         1714564800123,2024-05-01T12:00:00.123Z,5,057BA5,10,1,,\n\
+         1714564800123,2024-05-01T12:00:00.123Z,5,057BA5,10,closed,,\n\
          1714564800200,2024-05-01T12:00:00.200Z,6,06C8A5,,,21.5,\n\
          1714564800300,2024-05-01T12:00:00.300Z,5,052CA5,12.5,,,\n"
     );
@@ -281,17 +282,111 @@ fn history_reads_while_the_scanner_records() {
 #[test]
 fn history_retention_keeps_the_newest() {
     let h = History::in_memory().unwrap();
-    h.set_retention(Retention { max_rows: Some(5), max_age_ms: None });
+    h.set_retention(Retention { max_rows: Some(5), ..Retention::default() });
     for t in 0..8 {
         h.record(&[sample(5, t, &[])]).unwrap();
     }
     let kept: Vec<i64> = h.samples(5, 0, i64::MAX, 100).unwrap().iter().map(|s| s.unix_ms).collect();
     assert_eq!(kept, [3, 4, 5, 6, 7]);
 
-    h.set_retention(Retention { max_rows: None, max_age_ms: Some(1000) });
+    h.set_retention(Retention { max_age_ms: Some(1000), ..Retention::default() });
     h.record(&[sample(5, 1005, &[])]).unwrap();
     let kept: Vec<i64> = h.samples(5, 0, i64::MAX, 100).unwrap().iter().map(|s| s.unix_ms).collect();
     assert_eq!(kept, [5, 6, 7, 1005]);
+}
+
+/// What the console stores for `nodes` unchanging breakers (18-byte input, decoded as the console
+/// decodes it), one sample a second each (the console's rate for an unchanged input), for `secs`
+/// seconds from `start_ms`, one transaction a second.
+fn record_breakers(h: &History, nodes: u8, start_ms: i64, secs: i64) {
+    let layout = master_harness::monitor::InputLayout::from_converter(
+        &slave_fw::description::DeviceDescription::reference().converter,
+    );
+    let input: Vec<u8> =
+        vec![0x2C, 0x01, 0x2C, 0x01, 0x2C, 0x01, 0, 0, 0, 0xF0, 100, 0, 200, 0, 44, 1, 144, 1];
+    let values = master_harness::scanner::sample_values(&layout, &input);
+    assert!(values.len() >= 5, "decoded as the console does: {values:?}");
+    for t in 0..secs {
+        let unix_ms = start_ms + t * 1000;
+        let batch: Vec<Sample> = (1..=nodes)
+            .map(|mac| Sample {
+                mac,
+                unix_ms,
+                bus_us: unix_ms as u64 * 1000,
+                input: input.clone(),
+                values: values.clone(),
+            })
+            .collect();
+        h.record(&batch).unwrap();
+    }
+}
+
+#[test]
+fn history_growth_per_node_and_hour_is_measured() {
+    // Not a timed test: the figure the README documents, printed (`-- --nocapture`).
+    let dir = scratch("growth");
+    let h = History::open(&dir.join("h.sqlite")).unwrap();
+    let before = h.used_bytes().unwrap();
+    record_breakers(&h, 4, 1_700_000_000_000, 3600);
+    let per_node_hour = (h.used_bytes().unwrap() - before) / 4;
+    println!(
+        "history growth: {per_node_hour} bytes per node per hour ({:.1} MB per day for 63 nodes)",
+        per_node_hour as f64 * 63.0 * 24.0 / 1e6
+    );
+    assert_eq!(h.len().unwrap(), 4 * 3600);
+    assert!(per_node_hour > 0);
+}
+
+#[test]
+fn history_size_is_bounded_the_oldest_going_first() {
+    let dir = scratch("size-bound");
+    let path = dir.join("h.sqlite");
+    let h = History::open(&path).unwrap();
+    let max_bytes = 256 * 1024;
+    h.set_retention(Retention { max_bytes: Some(max_bytes), ..Retention::default() });
+    let start = 1_700_000_000_000;
+    record_breakers(&h, 4, start, 2 * 3600);
+    let used = h.used_bytes().unwrap();
+    // Checked once a minute of samples: at most a minute's worth (240 rows) above the bound.
+    assert!(used <= max_bytes + 64 * 1024, "{used} bytes used, bound {max_bytes}");
+    let file = std::fs::metadata(&path).unwrap().len();
+    assert!(file <= max_bytes + 128 * 1024, "the file stops growing: {file} bytes");
+    let kept = h.samples(1, 0, i64::MAX, 100_000).unwrap();
+    assert!(kept.len() < 3600, "{} samples of node 1 kept", kept.len());
+    let newest = start + (2 * 3600 - 1) * 1000;
+    assert_eq!(kept.last().unwrap().unix_ms, newest, "the newest are kept");
+    assert!(kept[0].unix_ms > start, "the oldest went first");
+    assert!(kept.windows(2).all(|w| w[1].unix_ms - w[0].unix_ms == 1000), "no hole in what is kept");
+}
+
+#[test]
+fn history_old_samples_are_thinned_to_one_per_period() {
+    let h = History::in_memory().unwrap();
+    let thin = ThinOut { after_ms: 3_600_000, every_ms: 60_000 };
+    h.set_retention(Retention { thin: Some(thin), ..Retention::default() });
+    // Three hours.
+    let start: i64 = 1_700_000_040_000; // a whole minute
+    record_breakers(&h, 2, start, 3 * 3600);
+    let newest = start + (3 * 3600 - 1) * 1000;
+    for mac in 1..=2 {
+        let kept = h.samples(mac, 0, i64::MAX, 100_000).unwrap();
+        let (old, recent): (Vec<&Sample>, Vec<&Sample>) =
+            kept.iter().partition(|s| s.unix_ms < newest - thin.after_ms - thin.every_ms);
+        // Older than the hour: one a minute, each the minute's first.
+        assert!(old.len() >= 115, "MAC {mac}: {} old samples", old.len());
+        assert!(old.iter().all(|s| (s.unix_ms - start) % 60_000 == 0), "MAC {mac}");
+        assert!(old.windows(2).all(|w| w[1].unix_ms - w[0].unix_ms == 60_000), "MAC {mac}");
+        // The last hour whole: one a second.
+        assert!(recent
+            .iter()
+            .rev()
+            .take(3600)
+            .collect::<Vec<_>>()
+            .windows(2)
+            .all(|w| w[0].unix_ms - w[1].unix_ms == 1000));
+        assert!(recent.len() >= 3600, "MAC {mac}: {} recent samples", recent.len());
+    }
+    assert!(h.len().unwrap() < 2 * (3600 + 3 * 60 + 2 * 60 + 60), "{} samples kept", h.len().unwrap());
 }
 
 #[test]
@@ -399,7 +494,7 @@ fn mqtt_publishes_retained_status_and_values_to_mosquitto() {
     let n5 = &find(&got, "devicenet/node/5/status").payload;
     assert_eq!(
         *n5,
-        serde_json::json!({"mac":5,"connection":"poll","ack_suppression":false,"status":"ok","code":0,"detail":null,"product_name":"breaker",
+        serde_json::json!({"mac":5,"name":"node 5","connection":"poll","ack_suppression":false,"status":"ok","code":0,"detail":null,"product_name":"breaker",
             "vendor_id":1234,"device_type":12,"product_code":1,"revision":"1.1",
             "serial_number":0x1234_5678,"input_size":18,"output_size":8})
     );

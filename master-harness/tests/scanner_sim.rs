@@ -183,6 +183,68 @@ fn malformed_scan_lists_name_file_line_and_key() {
     assert!(err.contains("/nonexistent/list.toml: cannot read the scan list"), "{err}");
 }
 
+#[test]
+fn scan_list_names_are_shown_in_the_table_and_the_json() {
+    let path = temp("named.toml");
+    std::fs::write(
+        &path,
+        "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\nname = \"feeder 1\"\n\n[[node]]\nmac = 6\ninput_size = 18\noutput_size = 8\n",
+    )
+    .unwrap();
+    let p = path.to_str().unwrap();
+    let (code, out, err) = dnet(&["--slave-mac", "5,6", "scanner", "--cycles", "3", "--scanlist", p]);
+    assert_eq!(code, 0, "{out}\n{err}");
+    let header = out.lines().next().unwrap();
+    let column = header.find("name").unwrap_or_else(|| panic!("no name column: {header}"));
+    let row = |mac: &str| out.lines().find(|l| l.trim_start().starts_with(mac)).unwrap().to_string();
+    assert_eq!(row("5").get(column..column + 8), Some("feeder 1"), "{out}");
+    assert_eq!(row("6").get(column..column + 2), Some("- "), "MAC 6 has no name: {out}");
+    let (code, out, _) = dnet(&["--slave-mac", "5,6", "--json", "scanner", "--cycles", "3", "--scanlist", p]);
+    assert_eq!(code, 0);
+    let v = json(&out);
+    assert_eq!(v["nodes"][0]["name"], "feeder 1", "{v}");
+    assert_eq!(v["nodes"][1]["name"], serde_json::Value::Null, "{v}");
+}
+
+#[test]
+fn an_empty_scan_list_and_the_scanner_s_own_mac_are_configuration_errors() {
+    for (name, text, master, want) in [
+        ("empty.toml", "# no node yet\n", None, ": scan list: no [[node]]: nothing to scan"),
+        ("settings-only.toml", "interscan_delay_ms = 5\n", None, ": scan list: no [[node]]: nothing to scan"),
+        (
+            "own-mac.toml",
+            "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n\n[[node]]\nmac = 0\ninput_size = 18\noutput_size = 8\n",
+            None,
+            ":7:7: scan list (key `mac`): MAC 0 is the scanner's own (--master-mac 0)",
+        ),
+        (
+            "own-mac-9.toml",
+            "[[node]]\nmac = 9\ninput_size = 18\noutput_size = 8\n",
+            Some("9"),
+            ":2:7: scan list (key `mac`): MAC 9 is the scanner's own (--master-mac 9)",
+        ),
+    ] {
+        let path = temp(name);
+        std::fs::write(&path, text).unwrap();
+        let p = path.to_str().unwrap();
+        let mut args = vec!["--slave-mac", "5"];
+        if let Some(m) = master {
+            args.extend(["--master-mac", m]);
+        }
+        for command in ["scanner", "ui"] {
+            let mut all = args.clone();
+            all.extend([command, "--scanlist", p, "--cycles", "3"]);
+            if command == "ui" {
+                all.extend(["--listen", "127.0.0.1:0", "--no-history"]);
+            }
+            let (code, out, err) = dnet(&all);
+            assert_eq!(code, 2, "{command} {name}: {out}\n{err}");
+            assert!(err.contains(&format!("{p}{want}")), "{command} {name}: {err}");
+            assert!(!out.contains("scanner "), "{command} {name}: no table for a list refused: {out}");
+        }
+    }
+}
+
 /// A soft slave that can be switched off (silent, deaf) and powered on again.
 struct Removable {
     inner: SoftSlave,

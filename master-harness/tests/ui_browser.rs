@@ -1,5 +1,6 @@
 //! The console in a real browser: Debian's `chromium` driven by `playwright-core`
-//! (`tests/browser/console.test.mjs`): MAC 5 and MAC 6 with their product names, Close on MAC 5's
+//! (`tests/browser/console.test.mjs`): MAC 5 and MAC 6 with their product names (MAC 5 with its
+//! scan-list name), distinct y-axis labels on the plot, Close on MAC 5's
 //! breaker and the switch closed with the currents rising within two seconds, the CSV export with
 //! the samples, a recording; a screenshot of each view.
 //!
@@ -11,7 +12,8 @@
 //! CSV go to `$UI_ARTIFACTS_DIR/<test>/` (default: cargo's test tmpdir).
 //!
 //! - `console_in_chromium`: the real program, `dnet-master --bus sim --slave-mac 5,6 ui --listen
-//!   127.0.0.1:0 --history DIR/history.sqlite --record-dir DIR`, found at the URL it prints
+//!   127.0.0.1:0 --scanlist DIR/list.toml --history DIR/history.sqlite --record-dir DIR` (the list
+//!   names MAC 5 `feeder 1`), found at the URL it prints
 //!   (`console at http://127.0.0.1:PORT/`).
 //! - `console_in_chromium_on_a_stand_in_scanner`: the same page over the stand-in scanner of
 //!   `ui_support` in this process (the page's test while the scanner engine is being written).
@@ -92,8 +94,17 @@ fn console_in_chromium() {
     let out = artifacts("program");
     let dir = out.join("run");
     std::fs::create_dir_all(&dir).unwrap();
+    // The scan list names MAC 5 only (the page shows the name; MAC 6 its product name alone).
+    let list = dir.join("list.toml");
+    std::fs::write(
+        &list,
+        "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\nname = \"feeder 1\"\n\n[[node]]\nmac = 6\ninput_size = 18\noutput_size = 8\n",
+    )
+    .unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_dnet-master"))
-        .args(["--bus", "sim", "--slave-mac", "5,6", "ui", "--listen", "127.0.0.1:0", "--history"])
+        .args(["--bus", "sim", "--slave-mac", "5,6", "ui", "--listen", "127.0.0.1:0", "--scanlist"])
+        .arg(&list)
+        .arg("--history")
         .arg(dir.join("history.sqlite"))
         .arg("--record-dir")
         .arg(&dir)
@@ -135,7 +146,10 @@ fn console_in_chromium() {
 #[ignore = "needs chromium: run by scripts/check"]
 fn console_in_chromium_on_a_stand_in_scanner() {
     let out = artifacts("stand-in");
-    let scanner = ui_support::FakeScanner::start(&out.join("run"), true);
+    // The record directory exists, as `ui --record-dir` requires.
+    let run = out.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    let scanner = ui_support::FakeScanner::start(&run, true);
     let server = master_harness::ui::serve("127.0.0.1:0", scanner.shared.clone()).unwrap();
     run_script(&server.url(), &out);
     server.stop();

@@ -275,3 +275,31 @@ fn idle_connections_take_no_thread_each_and_beyond_the_bound_get_503() {
     // Once they are gone the console answers again.
     ui.until("the console answers again", |r| r.get("/api/state").0 == 200);
 }
+
+#[test]
+fn a_record_directory_that_does_not_exist_is_refused_not_created() {
+    let dir = scratch("record-dir");
+    let missing = dir.join("no-such-dir");
+    let _ = std::fs::remove_dir_all(&missing);
+    let history = dir.join("h.sqlite");
+    let o = dnet(&[
+        "--bus",
+        "sim",
+        "ui",
+        "--listen",
+        "127.0.0.1:0",
+        "--history",
+        history.to_str().unwrap(),
+        "--record-dir",
+        missing.to_str().unwrap(),
+        "--cycles",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!("--record-dir {}: no such directory", missing.display())),
+        "{}",
+        text(&o)
+    );
+    assert!(!missing.exists(), "{} was created", missing.display());
+}

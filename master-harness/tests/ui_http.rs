@@ -515,3 +515,13 @@ fn state_changes_without_the_page_s_token_origin_and_content_type_are_refused() 
     let (status, r) = json(a, "POST", "/api/node/5/breaker/close", "");
     assert_eq!(status, 200, "{r}");
 }
+
+#[test]
+fn the_scan_list_s_name_is_in_the_state_and_the_node() {
+    let rig = Rig::start("names", true);
+    let (_, s) = json(rig.addr(), "GET", "/api/state", "");
+    assert_eq!(s["nodes"][0]["name"], "feeder 1", "{s}");
+    assert_eq!(s["nodes"][1]["name"], Value::Null, "{s}");
+    let (_, n5) = json(rig.addr(), "GET", "/api/node/5", "");
+    assert_eq!(n5["node"]["name"], "feeder 1", "{n5}");
+}

@@ -118,6 +118,8 @@ fn the_console_drives_the_soft_slave_over_slcan() {
     assert_eq!(status, 200, "{csv}");
     assert!(csv.starts_with("unix_ms,time,mac,input_hex,phase_a"), "{csv}");
     assert!(csv.lines().count() >= 3, "{csv}");
+    // The switch as the page shows it, not its byte (0xF0 = 240).
+    assert!(csv.lines().last().unwrap_or("").ends_with(",closed"), "{csv}");
     let decoded = std::process::Command::new(env!("CARGO_BIN_EXE_dnet-master"))
         .args(["decode", &log])
         .output()

@@ -2,7 +2,8 @@
 //
 //   CONSOLE_URL=http://127.0.0.1:PORT/ ARTIFACTS_DIR=DIR [CHROMIUM=/usr/bin/chromium] node console.test.mjs
 //
-// Opens the page, sees MAC 5 and MAC 6 with their product names, opens MAC 5's device view,
+// Opens the page, sees MAC 5 and MAC 6 with their product names (MAC 5 with its scan-list name
+// "feeder 1"), opens MAC 5's device view, finds the plot's y-axis labels all different,
 // clicks Close and sees the switch state turn to closed and the phase currents rise within two
 // seconds, exports the CSV and finds the samples in it, records a trace; a screenshot of each
 // view goes into ARTIFACTS_DIR. Any request to another host fails the test (the page must work
@@ -58,6 +59,11 @@ try {
         mac, { timeout: 15000 });
     }
     await page.waitForFunction(() => document.querySelector("#cell-5")?.classList.contains("st-ok"), null, { timeout: 15000 });
+    // The scan list's name beside the product name (MAC 5 is named, MAC 6 is not).
+    const name5 = await page.locator("#cell-5 .name").textContent();
+    if (!name5.startsWith("feeder 1 · ")) throw new Error(`MAC 5 without its scan-list name: ${name5}`);
+    const name6 = await page.locator("#cell-6 .name").textContent();
+    if (name6.includes("·")) throw new Error(`MAC 6 has no scan-list name, yet shows: ${name6}`);
     await page.screenshot({ path: join(artifacts, "console-network.png"), fullPage: true });
   });
 
@@ -66,7 +72,7 @@ try {
 
   await step("device view of MAC 5: the breaker decoded", async () => {
     await page.click("#cell-5");
-    await page.waitForFunction(() => /^MAC 5 /.test(document.querySelector("#dev-title")?.textContent || ""));
+    await page.waitForFunction(() => /^MAC 5 · feeder 1 · /.test(document.querySelector("#dev-title")?.textContent || ""));
     await page.waitForSelector('[data-field="switch"] .val');
     await page.waitForSelector('[data-field="phase_a"] .val');
     if ((await sw()) === "closed") {
@@ -74,6 +80,18 @@ try {
       await page.waitForFunction(() => document.querySelector('[data-field="switch"] .val')?.textContent === "open",
         null, { timeout: 5000 });
     }
+  });
+
+  // Every y-axis label of the plot different (whole-number rounding once gave "2, 2, 1, 1, 0"),
+  // with the breaker open (currents 0 or small) and, below, closed.
+  const yLabels = async (when) => {
+    await page.waitForFunction(() => (document.querySelector("#plot")?.dataset.yLabels || "").length > 0, null, { timeout: 5000 });
+    const labels = (await page.locator("#plot").getAttribute("data-y-labels")).split(",");
+    if (labels.length < 3 || new Set(labels).size !== labels.length) throw new Error(`y-axis labels ${when}: ${labels}`);
+    return labels;
+  };
+  await step("plot: the y-axis labels are all different", async () => {
+    console.log(`     y axis with the breaker open: ${await yLabels("with the breaker open")}`);
   });
 
   let before = 0;
@@ -107,6 +125,7 @@ try {
     // Let the plot show the currents rising.
     await page.waitForTimeout(2500);
     await page.waitForFunction(() => document.querySelectorAll("#plot-legend span").length > 0, null, { timeout: 5000 });
+    console.log(`     y axis with the breaker closed: ${await yLabels("with the breaker closed")}`);
     await page.screenshot({ path: join(artifacts, "console-device.png"), fullPage: true });
   });
 
@@ -121,6 +140,12 @@ try {
     const rows = lines.slice(1).map((l) => l.split(","));
     if (!rows.length) throw new Error("no samples in the CSV");
     if (!rows.every((r) => r[mac] === "5")) throw new Error("rows of another MAC in MAC 5's export");
+    // The switch as the page shows it (open / closed), not its byte.
+    const swCol = header.indexOf("switch");
+    const states = new Set(rows.map((r) => r[swCol]));
+    if (swCol < 0 || ![...states].every((v) => v === "open" || v === "closed") || !states.has("closed")) {
+      throw new Error(`the CSV's switch column is not the page's state: ${[...states]}`);
+    }
     const high = rows.filter((r) => Number(r[a]) > before);
     if (!high.length) throw new Error(`no sample with phase A above ${before} A among ${rows.length}`);
     console.log(`     ${rows.length} samples, ${high.length} after Close`);

@@ -48,9 +48,9 @@ pub fn execute(
     console: &Console,
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
-    let given = args.scanlist.as_deref().map(read_scan_list).transpose()?;
-    let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
     let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
+    let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
     let mut bus = open_bus(cli, slave.as_ref().map(|d| &d.converter), None, None)?;
     if let Some(path) = &cli.pcap {
         let pcap = PcapWriter::create(path)
@@ -100,7 +100,11 @@ pub fn execute(
             written = Some(path.display().to_string());
         }
         if list.nodes.is_empty() {
-            return Err(HarnessError::NothingCompared("the scan list is empty: no node to scan".into()));
+            // A scan list file without a node is refused where it is read (exit 2); this is a
+            // network scan that found no device to keep in I/O.
+            return Err(HarnessError::NothingCompared(
+                "the network scan found no device with an I/O connection: no node to scan".into(),
+            ));
         }
         let layouts: HashMap<u8, InputLayout> = match &sim_layout {
             Some(l) => list.nodes.iter().map(|n| (n.mac, l.clone())).collect(),
@@ -151,6 +155,7 @@ pub fn execute(
                 .iter()
                 .map(|n| json!({
                     "mac": n.mac,
+                    "name": n.name,
                     "connection": n.connection,
                     "ack_suppression": n.ack_suppression,
                     "status": n.status.name(),
@@ -204,9 +209,12 @@ pub fn execute(
 
 /// The node table and the summary line.
 pub fn table(s: &super::model::ScannerState) -> String {
+    // The scan list's names, as wide as the longest.
+    let name_width =
+        s.nodes.iter().filter_map(|n| n.name.as_ref()).map(|n| n.chars().count()).max().unwrap_or(1).max(4);
     let mut t = format!(
-        "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:>9}  detail\n",
-        "MAC", "status", "code", "connection", "product", "in/out"
+        "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:<name_width$}  {:>9}  detail\n",
+        "MAC", "status", "code", "connection", "product", "name", "in/out"
     );
     for n in &s.nodes {
         let io = match (n.input_size, n.output_size) {
@@ -216,12 +224,13 @@ pub fn table(s: &super::model::ScannerState) -> String {
         let connection =
             if n.ack_suppression { format!("{} (-ack)", n.connection) } else { n.connection.clone() };
         t.push_str(&format!(
-            "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:>9}  {}\n",
+            "{:>3}  {:<21}  {:>4}  {:<13}  {:<26}  {:<name_width$}  {:>9}  {}\n",
             n.mac,
             n.status.name(),
             n.code,
             connection,
             n.identity.product_name.as_deref().unwrap_or("-"),
+            n.name.as_deref().unwrap_or("-"),
             io,
             n.detail.as_deref().unwrap_or("")
         ));

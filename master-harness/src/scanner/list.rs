@@ -79,7 +79,9 @@ fn located(
     msg: &str,
 ) -> HarnessError {
     let (line, col) = span.as_ref().map_or((0, 0), |s| line_col(text, s.start));
-    let key = key.or_else(|| span.as_ref().and_then(|s| key_at(text, s.start)));
+    // An unknown key names itself (also a table header, `[node.keying]`, where no `=` is).
+    let unknown = || msg.strip_prefix("unknown field `")?.split('`').next().map(str::to_string);
+    let key = key.or_else(unknown).or_else(|| span.as_ref().and_then(|s| key_at(text, s.start)));
     let key_text = key.map_or_else(String::new, |k| format!(" (key `{k}`)"));
     let at = if line == 0 { String::new() } else { format!("{line}:{col}:") };
     HarnessError::Usage(format!("{file}:{at} scan list{key_text}: {msg}"))
@@ -104,20 +106,31 @@ struct SpannedList {
     node: Vec<toml::Spanned<SpannedNode>>,
 }
 
-/// Reads the scan list file at `path` ([`parse_scan_list`]); a file that cannot be read is a usage
-/// error naming it.
-pub fn read_scan_list(path: &std::path::Path) -> Result<ScanList, HarnessError> {
+/// Reads the scan list file at `path` for a scanner at MAC `scanner_mac`
+/// ([`parse_scan_list_for`]); a file that cannot be read is a usage error naming it.
+pub fn read_scan_list(path: &std::path::Path, scanner_mac: u8) -> Result<ScanList, HarnessError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| HarnessError::Usage(format!("{}: cannot read the scan list: {e}", path.display())))?;
-    parse_scan_list(&text, &path.display().to_string())
+    parse_scan_list_for(&text, &path.display().to_string(), Some(scanner_mac))
 }
 
 /// Reads a scan list from `text` (`file` names it in errors). Every error is a usage error naming
 /// the file, line, column and key: TOML syntax, an unknown key, a value of the wrong type, a MAC
 /// above 63 or given twice, a size above 448 bytes, a connection type other than `poll`,
 /// `strobe`, `cos` or `cyclic`, a strobe input above 8 bytes or a strobe output that is not 0,
-/// `ack_suppression` other than for COS or cyclic, `inhibit_ms` other than for COS.
+/// `ack_suppression` other than for COS or cyclic, `inhibit_ms` other than for COS, a list without
+/// a node.
 pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError> {
+    parse_scan_list_for(text, file, None)
+}
+
+/// [`parse_scan_list`] for a scanner at MAC `scanner_mac`: a node at that MAC is refused too (the
+/// scanner cannot scan itself).
+pub fn parse_scan_list_for(
+    text: &str,
+    file: &str,
+    scanner_mac: Option<u8>,
+) -> Result<ScanList, HarnessError> {
     let list: ScanList =
         toml::from_str(text).map_err(|e| located(text, file, e.span(), None, e.message().trim()))?;
     // The same text again, keeping where each value is, for the checks below.
@@ -126,6 +139,9 @@ pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError>
         let n = spans.as_ref()?.node.get(i)?;
         pick(n.get_ref()).or_else(|| Some(n.span()))
     };
+    if list.nodes.is_empty() {
+        return Err(located(text, file, None, None, "no [[node]]: nothing to scan"));
+    }
     let mut seen: Vec<(u8, usize)> = Vec::new();
     for (i, node) in list.nodes.iter().enumerate() {
         let mac_span = span_of(i, |n| n.mac.as_ref().map(|v| v.span()));
@@ -147,6 +163,18 @@ pub fn parse_scan_list(text: &str, file: &str) -> Result<ScanList, HarnessError>
                 mac_span,
                 Some("mac".into()),
                 &format!("MAC {} is given twice (first at line {first_line})", node.mac),
+            ));
+        }
+        if scanner_mac == Some(node.mac) {
+            return Err(located(
+                text,
+                file,
+                mac_span,
+                Some("mac".into()),
+                &format!(
+                    "MAC {} is the scanner's own (--master-mac {}): give the node or the scanner another MAC",
+                    node.mac, node.mac
+                ),
             ));
         }
         seen.push((node.mac, i));
@@ -305,7 +333,32 @@ mod tests {
     )]
     #[case::unknown_key(
         "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\nprodcut_code = 3\n",
-        "unknown field `prodcut_code`"
+        "l.toml:5:1: scan list (key `prodcut_code`): unknown field `prodcut_code`"
+    )]
+    #[case::unknown_top_level_key(
+        "interscan_delay = 5\n[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:1:1: scan list (key `interscan_delay`): unknown field `interscan_delay`"
+    )]
+    #[case::unknown_table(
+        "[scanner]\nmac = 1\n[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n",
+        "l.toml:1:2: scan list (key `scanner`): unknown field `scanner`"
+    )]
+    #[case::unknown_key_in_a_node_table(
+        "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n[node.keying]\nvendor_id = 1\n",
+        "l.toml:5:7: scan list (key `keying`): unknown field `keying`"
+    )]
+    #[case::unknown_key_in_an_inline_table(
+        "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\nkey = { vendor = 1 }\n",
+        "l.toml:5:1: scan list (key `key`): unknown field `key`"
+    )]
+    #[case::unknown_key_in_a_later_node(
+        "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n\n[[node]]\nmac = 6\ninput_size = 1\noutput_size = 1\nnmae = \"x\"\n",
+        "l.toml:10:1: scan list (key `nmae`): unknown field `nmae`"
+    )]
+    #[case::empty("# nothing yet\n", "l.toml: scan list: no [[node]]: nothing to scan")]
+    #[case::empty_with_settings(
+        "interscan_delay_ms = 5\n",
+        "l.toml: scan list: no [[node]]: nothing to scan"
     )]
     #[case::wrong_type(
         "[[node]]\nmac = \"five\"\ninput_size = 1\noutput_size = 1\n",
@@ -336,5 +389,18 @@ mod tests {
     fn bad_lists(#[case] text: &str, #[case] want: &str) {
         let e = parse_scan_list(text, "l.toml").unwrap_err().to_string();
         assert!(e.contains(want), "{e}");
+    }
+
+    #[test]
+    fn the_scanner_s_own_mac_is_refused_where_it_is_written() {
+        let text = "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n\n[[node]]\nmac = 0\ninput_size = 1\noutput_size = 1\n";
+        let e = parse_scan_list_for(text, "l.toml", Some(0)).unwrap_err();
+        assert!(matches!(e, HarnessError::Usage(_)), "exit 2: {e:?}");
+        assert!(
+            e.to_string()
+                .contains("l.toml:7:7: scan list (key `mac`): MAC 0 is the scanner's own (--master-mac 0)"),
+            "{e}"
+        );
+        assert!(parse_scan_list_for(text, "l.toml", Some(9)).is_ok());
     }
 }

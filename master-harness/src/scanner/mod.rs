@@ -101,7 +101,7 @@ pub mod command;
 pub mod list;
 pub mod model;
 
-pub use list::{parse_scan_list, read_scan_list, write_scan_list};
+pub use list::{parse_scan_list, parse_scan_list_for, read_scan_list, write_scan_list};
 
 use crate::error::HarnessError;
 use crate::monitor::InputLayout;
@@ -333,6 +333,7 @@ impl Scanner {
                 output_ack: None,
                 state: NodeState {
                     mac: e.mac,
+                    name: e.name.clone(),
                     connection: e.io_kind().name().into(),
                     ack_suppression: e.ack_suppression,
                     status: NodeStatus::Initializing,

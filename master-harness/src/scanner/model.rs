@@ -205,6 +205,9 @@ impl Identity {
 pub struct NodeState {
     /// MAC ID.
     pub mac: u8,
+    /// The scan list's `name` for the node (`feeder 1`), if it gives one.
+    #[serde(default)]
+    pub name: Option<String>,
     /// The I/O connection of the scan list: `poll`, `strobe`, `cos` or `cyclic`.
     #[serde(default = "poll")]
     pub connection: String,

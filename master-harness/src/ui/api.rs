@@ -638,6 +638,7 @@ mod tests {
     fn node(vendor: u16, product_code: u16, name: &str, input_size: u16) -> NodeState {
         NodeState {
             mac: 5,
+            name: None,
             connection: "poll".into(),
             ack_suppression: false,
             status: crate::scanner::model::NodeStatus::Ok,

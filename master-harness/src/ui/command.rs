@@ -10,7 +10,8 @@
 //!
 //! What is kept in the history: every change of a node's input image, and one sample a second while
 //! it stays the same ([`SAMPLE_EVERY_MS`]): a poll every 10 ms of an instrument that reports once a
-//! second would otherwise store a hundred copies of each report.
+//! second would otherwise store a hundred copies of each report. For how long:
+//! [`Retention::STANDARD`] (30 days, at most 1 GiB, one sample a minute after 6 hours).
 //!
 //! It runs until SIGINT / SIGTERM (exit 130 / 143) or `--cycles N` (exit 0 only when every node
 //! ended ok, as `scanner`); then every node is released, the server stopped (a recording closed)
@@ -22,7 +23,7 @@ use super::serve;
 use crate::cli::{open_bus, Cli};
 use crate::console::{Console, Progress};
 use crate::error::HarnessError;
-use crate::history::History;
+use crate::history::{History, Retention};
 use crate::monitor::InputLayout;
 use crate::mqtt::Publisher;
 use crate::scanner::command::{finish, Ending};
@@ -92,9 +93,22 @@ pub fn execute(
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     // Everything that can be refused, before the bus is touched.
-    let given = args.scanlist.as_deref().map(read_scan_list).transpose()?;
+    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
+    // Recordings go to a directory that exists: a mistyped path is not created.
+    if !args.record_dir.is_dir() {
+        return Err(HarnessError::Usage(format!(
+            "--record-dir {}: no such directory (create it first)",
+            args.record_dir.display()
+        )));
+    }
     let history = match &args.history {
-        Some(path) => Some(Arc::new(History::open(path).map_err(|e| HarnessError::Usage(e.to_string()))?)),
+        Some(path) => {
+            let h = History::open(path).map_err(|e| HarnessError::Usage(e.to_string()))?;
+            // 30 days, 1 GiB, thinned after 6 hours: the file cannot grow without bound.
+            h.set_retention(Retention::STANDARD);
+            Some(Arc::new(h))
+        }
         None => None,
     };
     let publisher = match &args.mqtt {
@@ -105,7 +119,6 @@ pub fn execute(
         None => None,
     };
     let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
-    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
     let (commands, command_rx) = mpsc::channel();
     let placeholder = Scanner::new(Default::default(), master_mac.as_raw(), ScannerOptions::default());
     let shared = Arc::new(Shared {
@@ -147,7 +160,11 @@ pub fn execute(
             }
         };
         if list.nodes.is_empty() {
-            return Err(HarnessError::NothingCompared("the scan list is empty: no node to scan".into()));
+            // A scan list file without a node is refused where it is read (exit 2); this is a
+            // network scan that found no device to keep in I/O.
+            return Err(HarnessError::NothingCompared(
+                "the network scan found no device with an I/O connection: no node to scan".into(),
+            ));
         }
         let layouts: HashMap<u8, InputLayout> = match &sim_layout {
             Some(l) => list.nodes.iter().map(|n| (n.mac, l.clone())).collect(),

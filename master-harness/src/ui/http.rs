@@ -2,11 +2,13 @@
 //!
 //! Each connection carries one request and is closed after the answer (`Connection: close`): the
 //! page polls a handful of small JSON documents, so keeping connections open buys nothing and
-//! would tie a worker to an idle client. Accepted connections wait in a queue of [`QUEUE`] for a
-//! free worker; past that a connection is answered `503` at once and closed. A client that sends
-//! nothing holds a worker for at most [`IDLE_TIMEOUT`]. So however many clients connect, the
-//! console keeps `WORKERS + 1` threads and a bounded queue (5,000 idle connections: the same
-//! threads, and `503` for those beyond the queue).
+//! would tie a worker to an idle client. A new connection waits in the accepting thread, without a
+//! thread of its own, until it sends something (at most [`MAX_IDLE`] such, each for at most
+//! [`IDLE_TIMEOUT`]; browsers open spare connections they may never use); then it waits in a queue
+//! of [`QUEUE`] for a free worker. Beyond either bound a connection is answered `503` at once and
+//! closed. A client that stops sending mid-request holds a worker for at most [`IDLE_TIMEOUT`].
+//! So however many clients connect, the console keeps `WORKERS + 1` threads and bounded queues
+//! (5,000 idle connections: the same threads, and `503` for those beyond the bounds).
 //!
 //! `tiny_http`, used before, gives every connection a thread of its own and has no setting to
 //! bound them; this server replaces it with the part the console needs: a request line, headers
@@ -20,12 +22,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender, TrySendError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Worker threads answering requests.
 pub const WORKERS: usize = 16;
-/// Accepted connections waiting for a worker; beyond them `503`.
+/// Connections that sent a request, waiting for a worker; beyond them `503`.
 pub const QUEUE: usize = 64;
+/// Connections that sent nothing yet, held without a thread; beyond them `503`.
+pub const MAX_IDLE: usize = 256;
 /// How long a connection may stay silent (or a write blocked) before it is closed.
 pub const IDLE_TIMEOUT: Duration = Duration::from_secs(10);
 /// The largest request line and headers, bytes.
@@ -237,31 +241,68 @@ impl Drop for Server {
     }
 }
 
-/// Accepts until `stop`: each connection to the queue, or `503` when the queue is full.
+/// Whether a connection has sent something: `Some(true)` bytes wait, `Some(false)` it is closed
+/// or failed, `None` nothing yet (the stream is non-blocking).
+fn readable(s: &TcpStream) -> Option<bool> {
+    match s.peek(&mut [0u8; 1]) {
+        Ok(0) => Some(false),
+        Ok(_) => Some(true),
+        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => None,
+        Err(_) => Some(false),
+    }
+}
+
+/// Accepts until `stop`. A new connection waits here, without a thread, until it sends something
+/// (a browser opens spare connections it may never use) or [`IDLE_TIMEOUT`] ends it; at most
+/// [`MAX_IDLE`] wait so, more are answered `503`. One that sent something goes to the queue, or
+/// is answered `503` when the queue is full.
 fn accept(listener: &TcpListener, queue: &SyncSender<TcpStream>, refusal: Refusal, stop: &AtomicBool) {
+    let mut idle: Vec<(TcpStream, Instant)> = Vec::new();
     while !stop.load(Ordering::SeqCst) {
-        let stream = match listener.accept() {
-            Ok((s, _)) => s,
-            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
-                std::thread::sleep(Duration::from_millis(10));
-                continue;
+        let mut busy_now = false;
+        loop {
+            match listener.accept() {
+                Ok((s, _)) => {
+                    busy_now = true;
+                    if idle.len() >= MAX_IDLE || s.set_nonblocking(true).is_err() {
+                        busy(s, refusal);
+                    } else {
+                        idle.push((s, Instant::now()));
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => break,
+                // Out of file descriptors and the like: wait, the clients go away.
+                Err(_) => {
+                    std::thread::sleep(Duration::from_millis(50));
+                    break;
+                }
             }
-            // Out of file descriptors and the like: wait, the clients go away.
-            Err(_) => {
-                std::thread::sleep(Duration::from_millis(50));
-                continue;
-            }
-        };
-        let ready = stream.set_nonblocking(false).is_ok()
-            && stream.set_read_timeout(Some(IDLE_TIMEOUT)).is_ok()
-            && stream.set_write_timeout(Some(IDLE_TIMEOUT)).is_ok();
-        if !ready {
-            continue;
         }
-        match queue.try_send(stream) {
-            Ok(()) => {}
-            Err(TrySendError::Full(s)) => busy(s, refusal),
-            Err(TrySendError::Disconnected(_)) => return,
+        let mut i = 0;
+        while i < idle.len() {
+            match readable(&idle[i].0) {
+                None if idle[i].1.elapsed() < IDLE_TIMEOUT => i += 1,
+                // Silent too long, closed or failed: dropped.
+                None | Some(false) => drop(idle.swap_remove(i)),
+                Some(true) => {
+                    busy_now = true;
+                    let (s, _) = idle.swap_remove(i);
+                    let ready = s.set_nonblocking(false).is_ok()
+                        && s.set_read_timeout(Some(IDLE_TIMEOUT)).is_ok()
+                        && s.set_write_timeout(Some(IDLE_TIMEOUT)).is_ok();
+                    if !ready {
+                        continue;
+                    }
+                    match queue.try_send(s) {
+                        Ok(()) => {}
+                        Err(TrySendError::Full(s)) => busy(s, refusal),
+                        Err(TrySendError::Disconnected(_)) => return,
+                    }
+                }
+            }
+        }
+        if !busy_now {
+            std::thread::sleep(Duration::from_millis(2));
         }
     }
 }
@@ -274,7 +315,10 @@ fn busy(mut s: TcpStream, refusal: Refusal) {
     while matches!(s.read(&mut sink), Ok(n) if n > 0) {}
     let _ = s.set_nonblocking(false);
     let _ = s.set_write_timeout(Some(Duration::from_millis(200)));
-    let r = refusal(503, &format!("the console is busy ({WORKERS} requests and {QUEUE} waiting): try again"));
+    let r = refusal(
+        503,
+        &format!("the console is busy ({WORKERS} requests, {QUEUE} waiting, {MAX_IDLE} idle connections): try again"),
+    );
     let _ = r.write_to(&mut s, false);
     let _ = s.shutdown(std::net::Shutdown::Write);
 }

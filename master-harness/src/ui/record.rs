@@ -71,7 +71,10 @@ impl Recorder {
     /// Creates the two files and starts following the ring from its newest frame on.
     pub(crate) fn start(shared: Arc<Shared>) -> Result<Recorder, String> {
         let dir = shared.record_dir.clone();
-        std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        // Checked when the console started; never created here (a mistyped path stays an error).
+        if !dir.is_dir() {
+            return Err(format!("the record directory {} does not exist", dir.display()));
+        }
         let (log, pcap) = file_names(&dir);
         let open = |p: &Path| File::create(p).map_err(|e| format!("cannot write {}: {e}", p.display()));
         let mut log_out = BufWriter::new(open(&log)?);

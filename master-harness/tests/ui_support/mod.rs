@@ -48,7 +48,8 @@ impl HistoryStore for MemHistory {
         let e = |e: std::io::Error| e.to_string();
         writeln!(out, "unix_ms,time,mac,input_hex,{}", names.join(",")).map_err(e)?;
         for s in &rows {
-            let values: Vec<String> = s.values.iter().map(|(_, v)| v.to_string()).collect();
+            let values: Vec<String> =
+                s.values.iter().map(|(n, v)| master_harness::history::csv_value(n, *v)).collect();
             let input: String = s.input.iter().map(|b| format!("{b:02X}")).collect();
             writeln!(out, "{},{},{},{},{}", s.unix_ms, s.unix_ms / 1000, s.mac, input, values.join(","))
                 .map_err(e)?;
@@ -156,6 +157,8 @@ impl Breaker {
     fn state(&self, input: Vec<u8>) -> NodeState {
         NodeState {
             mac: self.mac,
+            // The scan list names MAC 5 only: MAC 6 shows its product name alone.
+            name: (self.mac == 5).then(|| "feeder 1".to_string()),
             connection: "poll".into(),
             ack_suppression: false,
             status: NodeStatus::Ok,

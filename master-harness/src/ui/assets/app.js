@@ -91,7 +91,8 @@ function renderState(s) {
     }
     c.className = "cell in-list st-" + n.status;
     code.textContent = String(n.code);
-    name.textContent = n.identity.product_name || "";
+    // The scan list's name first, then the product name read.
+    name.textContent = [n.name, n.identity.product_name].filter(Boolean).join(" · ");
     sizes.textContent = `${connectionName(n)} · in ${n.input_size ?? "?"} · out ${n.output_size ?? "?"}`;
     status.textContent = n.status.replace(/_/g, " ");
     c.title = n.detail || n.status;
@@ -116,10 +117,10 @@ async function refreshNode() {
   const r = await api("/api/node/" + currentMac);
   if (!r.ok) { $("dev-title").textContent = `MAC ${currentMac}: ${r.error}`; return; }
   const n = r.node, id = n.identity;
-  $("dev-title").textContent = `MAC ${n.mac} · ${id.product_name || "unknown product"} · ${n.status.replace(/_/g, " ")} (${n.code})`;
+  $("dev-title").textContent = `MAC ${n.mac}${n.name ? " · " + n.name : ""} · ${id.product_name || "unknown product"} · ${n.status.replace(/_/g, " ")} (${n.code})`;
   const hex4 = (v) => v == null ? null : "0x" + v.toString(16).toUpperCase().padStart(4, "0");
   kvRows($("dev-identity"), [
-    ["product name", id.product_name], ["vendor ID", hex4(id.vendor_id)], ["device type", hex4(id.device_type)],
+    ["name (scan list)", n.name], ["product name", id.product_name], ["vendor ID", hex4(id.vendor_id)], ["device type", hex4(id.device_type)],
     ["product code", id.product_code == null ? null : String(id.product_code)], ["revision", id.revision],
     ["serial number", id.serial_number == null ? null : "0x" + id.serial_number.toString(16).toUpperCase().padStart(8, "0")],
     ["I/O connection", (n.connection || "poll") + (n.ack_suppression ? ", acknowledge suppression" : "")],
@@ -181,6 +182,20 @@ async function breakerCommand(action, body) {
 const COLORS = ["#1f5fbf", "#c62828", "#2e9d48", "#e08a00", "#7b3fbf", "#00838f", "#6d4c41", "#ad1457"];
 const PLOT_WINDOW = 60e3;
 
+// The y axis up to `top`: a round step (1, 2 or 5 times a power of ten) giving 2 to 4 intervals,
+// labels with the decimals the step needs, so no two read the same (rounding to whole numbers
+// labelled 0.5 and 1.5 alike, "2, 2, 1, 1, 0").
+function yTicks(top) {
+  const t = top > 0 ? top : 1;
+  const raw = t / 4;
+  const p = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw * (1 - 1e-9));
+  const n = Math.max(1, Math.ceil(t / step - 1e-9));
+  const decimals = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+  const ticks = Array.from({ length: n + 1 }, (_, i) => i * step);
+  return { max: n * step, ticks, labels: ticks.map((v) => v.toFixed(decimals)) };
+}
+
 function drawPlot(samples, from, to) {
   const cv = $("plot");
   const dpr = window.devicePixelRatio || 1;
@@ -197,18 +212,20 @@ function drawPlot(samples, from, to) {
       series.get(name).push([s.unix_ms, v]);
     }
   }
-  let max = 1;
-  for (const pts of series.values()) for (const [, v] of pts) max = Math.max(max, v);
-  max = Math.ceil(max * 1.1);
+  let top = 0;
+  for (const pts of series.values()) for (const [, v] of pts) top = Math.max(top, v);
+  const axis = yTicks(top * 1.05);
+  const max = axis.max;
+  cv.dataset.yLabels = axis.labels.join(",");
   const L = 46, R = 10, T = 10, B = 24;
   const x = (t) => L + (w - L - R) * (t - from) / (to - from);
   const y = (v) => T + (h - T - B) * (1 - v / max);
   g.strokeStyle = "#e3e6ea"; g.fillStyle = "#69737f"; g.font = "11px system-ui, sans-serif"; g.lineWidth = 1;
-  for (let i = 0; i <= 4; i++) {
-    const v = max * i / 4, yy = y(v);
+  axis.ticks.forEach((v, i) => {
+    const yy = y(v);
     g.beginPath(); g.moveTo(L, yy); g.lineTo(w - R, yy); g.stroke();
-    g.fillText(String(Math.round(v)), 4, yy + 4);
-  }
+    g.fillText(axis.labels[i], 4, yy + 4);
+  });
   for (let s = 0; s <= 60; s += 10) {
     const xx = x(to - s * 1000);
     g.fillText(s ? `-${s} s` : "now", xx - 12, h - 6);
@@ -271,7 +288,9 @@ async function refreshTrace() {
   const body = $("trace-table").tBodies[0];
   if (filter !== traceFilter) { traceFilter = filter; traceAfter = 0; body.replaceChildren(); }
   const r = await api(`/api/frames?after=${traceAfter}&${filter}&limit=${TRACE_ROWS}`);
-  if (!r.ok) return;
+  // An answer to a request made before the filter changed (or overtaken by a later one) is
+  // dropped: its rows belong to the old filter.
+  if (!r.ok || filter !== traceFilter || r.next < traceAfter) return;
   traceAfter = r.next;
   const rows = r.frames.map((f) => el("tr", { class: f.own ? "own" : "" },
     el("td", { text: String(f.seq) }), el("td", { text: (f.time_us / 1e6).toFixed(6) }),
