@@ -3,18 +3,22 @@
 //!
 //! ## Driving it (a CAN world, one frame at a time)
 //!
-//! 1. Ask every node for its frame: [`Bxcan::poll_transmit`]. The frame with the lowest
-//!    [`Frame::arbitration_key`] wins; nodes at other bit rates than the bus's cannot take part.
+//! 1. Ask every node for its frame: [`Bxcan::poll_transmit`] (the frame and the controller's
+//!    bit rate). The frame with the lowest [`Frame::arbitration_key`] wins.
 //! 2. Ask every other node how it reacts to a frame at the winner's bit rate:
-//!    [`Bxcan::response`]. One [`Response::ErrorFlag`] destroys the frame for everybody.
-//! 3. Deliver it: [`Bxcan::on_wire`] to every other node, with `disturbed` set when the frame
-//!    was destroyed. Then tell the winner the outcome ([`TxOutcome`]: acknowledged when some
-//!    node answered [`Response::Acknowledge`] and none flagged an error) and every loser
-//!    [`TxOutcome::ArbitrationLost`]; it tries again with the next frame.
-//! 4. Between frames, call `advance` with the time (the bus-off recovery runs on it) and ask
-//!    [`Bxcan::next_deadline`] when to call next.
+//!    [`Bxcan::response`] (a node at another rate cannot decode it and, error active, flags
+//!    it). A world's own nodes (a master, a test node) answer for themselves the same way: an
+//!    error-active node at another rate than the winner's flags the frame.
+//! 3. [`TxOutcome::from_responses`] settles the frame: one [`Response::ErrorFlag`] destroys it
+//!    for everybody; otherwise it is acknowledged if some node answered
+//!    [`Response::Acknowledge`]. Deliver it with [`Bxcan::on_wire`] to every other node,
+//!    `disturbed` when destroyed; tell the winner the outcome ([`Bxcan::transmit_outcome`]) and
+//!    every other sender [`TxOutcome::ArbitrationLost`] (it offers its frame again next time).
+//! 4. Between frames, call `advance` with the time (the bus-off recovery runs on it);
+//!    [`Bxcan::next_deadline`] says when it is next needed.
 //!
-//! A frame takes [`Frame::wire_bits`] bit times; the world keeps the time, the model does not.
+//! A frame takes [`Frame::wire_bits`] bit times (plus stuff bits); the world keeps the time, the
+//! model takes each frame whole at the `now` it is given.
 //!
 //! ## Error counting (the model's rules)
 //!
@@ -82,6 +86,23 @@ pub enum TxOutcome {
     ErrorFlagged,
     /// Another node's frame won the arbitration.
     ArbitrationLost,
+}
+
+impl TxOutcome {
+    /// The outcome of a frame from the responses of every other node (step 3 of the module
+    /// docs), and whether the frame was destroyed (`disturbed` for [`Bxcan::on_wire`]).
+    pub fn from_responses(responses: impl IntoIterator<Item = Response>) -> (TxOutcome, bool) {
+        let mut acknowledged = false;
+        for response in responses {
+            match response {
+                Response::ErrorFlag => return (TxOutcome::ErrorFlagged, true),
+                Response::Acknowledge => acknowledged = true,
+                Response::Quiet => {}
+            }
+        }
+        let outcome = if acknowledged { TxOutcome::Acknowledged } else { TxOutcome::NoAcknowledge };
+        (outcome, false)
+    }
 }
 
 impl Bxcan {

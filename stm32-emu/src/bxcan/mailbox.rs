@@ -91,15 +91,22 @@ impl Transmitter {
     /// three pending the one of lowest priority), TME0..2 and LOW0..2 (set for the mailbox of
     /// lowest priority when more than one is pending).
     pub(crate) fn tsr(&self, by_request_order: bool) -> u32 {
-        let pending: Vec<usize> = (0..3).filter(|&m| self.is_pending(m)).collect();
-        let lowest = pending.iter().copied().max_by_key(|&m| self.priority_key(m, by_request_order));
+        let mut pending = 0;
+        let mut lowest: Option<usize> = None;
+        for m in (0..3).filter(|&m| self.is_pending(m)) {
+            pending += 1;
+            let key = self.priority_key(m, by_request_order);
+            if lowest.is_none_or(|l| key > self.priority_key(l, by_request_order)) {
+                lowest = Some(m);
+            }
+        }
         let empty = (0..3).find(|&m| !self.is_pending(m));
         let code = empty.or(lowest).unwrap_or(0) as u32;
         let mut value = self.status | (code << tsr::CODE_SHIFT);
         for m in (0..3).filter(|&m| !self.is_pending(m)) {
             value |= tsr::TME0 << m;
         }
-        if let (true, Some(m)) = (pending.len() > 1, lowest) {
+        if let (true, Some(m)) = (pending > 1, lowest) {
             value |= tsr::LOW0 << m;
         }
         value

@@ -389,28 +389,28 @@ impl Bxcan {
         if mode == self.mode {
             return;
         }
-        if self.mode == Mode::Init && self.bus_off {
-            // RM0090 §32.7.6: with ABOM clear, software starts the recovery by entering and
-            // leaving initialisation mode.
-            self.recovery_requested = true;
-        }
-        if self.mode == Mode::Sleep {
+        match self.mode {
+            // RM0090 §32.7.6: with ABOM clear, software starts the bus-off recovery by entering
+            // and leaving initialisation mode.
+            Mode::Init if self.bus_off => self.recovery_requested = true,
             // SLAKI is cleared by hardware when SLAK is (RM0090 §32.9.2).
-            self.msr_flags &= !msr::SLAKI;
+            Mode::Sleep => self.msr_flags &= !msr::SLAKI,
+            _ => {}
         }
         match mode {
-            Mode::Sleep if self.ier & ier::SLKIE != 0 => self.msr_flags |= msr::SLAKI,
-            // RM0090 §32.7.6: in initialisation mode the controller does not monitor CANRX and
-            // cannot complete the recovery sequence; it starts over on leaving.
-            Mode::Init | Mode::Sleep => self.recovery_from = None,
+            Mode::Init | Mode::Sleep => {
+                // RM0090 §32.7.6: out of normal mode the controller does not monitor CANRX and
+                // cannot complete the recovery sequence; it starts over on return.
+                self.recovery_from = None;
+                if mode == Mode::Sleep && self.ier & ier::SLKIE != 0 {
+                    self.msr_flags |= msr::SLAKI;
+                }
+            }
             Mode::Normal => {
                 if self.bus_off && (self.recovery_requested || self.mcr & mcr::ABOM != 0) {
                     self.recovery_from = Some(self.now);
                 }
             }
-        }
-        if mode == Mode::Sleep {
-            self.recovery_from = None;
         }
         self.mode = mode;
     }

@@ -10,6 +10,7 @@ mod filters;
 mod modes;
 mod receive;
 mod transmit;
+mod world;
 
 /// A machine with fixed clocks, the CAN1 clock gate open, and a record of the interrupt lines.
 pub(super) struct TestMachine {
