@@ -23,7 +23,7 @@
 //! ## The serial number
 //!
 //! The board's own, never the image's (a description configures many boards, and two devices on
-//! one network must not share vendor and serial): [`serial_number`], folded from the MCU's unique
+//! one network must not share vendor and serial): `serial_number`, folded from the MCU's unique
 //! ID ([`board::uid`]). QEMU's `netduinoplus2` models no unique ID (nothing is mapped at
 //! 0x1FFF_7A10, a read is a bus fault), so the emulated board does not read it and keeps the
 //! reference device's serial number, [`EMULATED_SERIAL`], which the reference sequence of
