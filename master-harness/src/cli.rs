@@ -1000,8 +1000,13 @@ fn execute(
             });
             progress.clear();
             // What the transcript allocated stays with the device: released below like any
-            // command's.
-            if !matches!(r, Err(HarnessError::NothingCompared(_))) {
+            // command's. A device that sent nothing (never powered on during a
+            // --from-online=wait) holds nothing.
+            let heard = master.session.records().iter().any(|r| {
+                r.origin == can_io::bus::Origin::Remote
+                    && master_core::session::is_from_device(&r.frame, target)
+            });
+            if heard && !matches!(r, Err(HarnessError::NothingCompared(_))) {
                 master.note_held(target, replay::held_after(&entries, target));
             }
             r
