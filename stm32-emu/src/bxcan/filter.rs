@@ -12,14 +12,14 @@
 /// (CAN2SB = 14, FINIT = 1) keeps 0x2A1C in its reserved upper half, which the model reads back.
 const FMR_RESERVED: u32 = 0x2A1C_0000;
 /// FINIT in `CAN_FMR`.
-pub(crate) const FINIT: u32 = 1 << 0;
+pub const FINIT: u32 = 1 << 0;
 /// The number of filter banks of a dual-CAN STM32F4 (RM0090 §32.3.4).
 pub const BANKS: usize = 28;
 /// The valid bits of `CAN_FM1R`, `CAN_FS1R`, `CAN_FFA1R`, `CAN_FA1R`: one per bank.
 const BANK_BITS: u32 = (1 << BANKS) - 1;
 
 /// Register offsets within the CAN1 block (RM0090 §32.9.5 "bxCAN register map").
-pub(crate) mod offset {
+pub mod offset {
     /// `CAN_FMR`.
     pub const FMR: u32 = 0x200;
     /// `CAN_FM1R`.
@@ -72,8 +72,9 @@ impl FilterModule {
     }
 
     /// Whether the filters are in initialisation mode (FINIT). While they are, the model stores
-    /// no received frame: RM0090 §32.9.4 describes FINIT as the filters' initialisation mode,
-    /// in which CAN reception is deactivated.
+    /// no received frame: RM0090 §32.9.4 names FINIT = 0 "active filters mode", so with FINIT
+    /// set no filter is active. No source says outright what the hardware does with a frame
+    /// that arrives meanwhile; dropping it is the model's choice.
     pub const fn in_init(&self) -> bool {
         self.finit
     }

@@ -24,7 +24,7 @@ pub mod tsr {
     pub const TME0: u32 = 1 << 26;
     /// LOW0; LOW1 and LOW2 follow.
     pub const LOW0: u32 = 1 << 29;
-    /// CODE[1:0] at bits 25:24.
+    /// `CODE[1:0]` at bits 25:24.
     pub const CODE_SHIFT: u32 = 24;
 }
 /// The writable bits of `CAN_TDTxR`: DLC[3:0] and TGT (bit 8). TIME[15:0] is the time stamp of
