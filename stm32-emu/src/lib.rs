@@ -15,3 +15,4 @@ pub mod bxcan;
 pub mod gpio;
 pub mod rcc;
 pub mod flash;
+pub mod usart;
