@@ -24,9 +24,10 @@
 //! ## Refusals
 //!
 //! `CAN_BTR` is written only in initialisation mode (§32.9.2; RM0090 §32.7.7: "only possible
-//! while the device is in Standby mode"); a transmit mailbox only while empty; the filter
-//! configuration only in FINIT mode ([`filter`]). Other writes to these are ignored, as the
-//! hardware ignores them. The registers are word registers (§32.9: "accessed by words"): the
+//! while the device is in Standby mode"); a transmit mailbox only while empty (§32.9.1); the
+//! filter scale, mode and FIFO assignment only in FINIT mode, a filter bank's registers only in
+//! FINIT mode or while the bank is inactive (§32.9.1, §32.9.4; [`filter`]). Other writes to
+//! these are ignored, as the hardware ignores them. The registers are word registers (§32.9: "accessed by words"): the
 //! model answers a narrower read with the bytes of the word and ignores a narrower write (no
 //! source says what the hardware does with one). With the CAN1 clock gate
 //! (`RCC_APB1ENR.CAN1EN`, bit 25) closed, reads return 0 and writes are ignored.
