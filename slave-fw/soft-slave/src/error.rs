@@ -52,7 +52,7 @@ pub enum SoftSlaveError {
     LogFormat(#[from] can_io::trace::write::LogFormatError),
     /// The `--state` file is unreadable, malformed or cannot be written (names the file).
     #[error("state file {0}")]
-    State(String),
+    State(#[from] crate::state::StateError),
     /// The SIGINT/SIGTERM handler could not be installed.
     #[error("cannot install the SIGINT/SIGTERM handler: {0}")]
     Signal(String),

@@ -150,21 +150,69 @@ impl StoredState {
         }
     }
 
-    fn check(&self) -> Result<(), String> {
+    /// The first value out of its range: its key and why.
+    fn check(&self) -> Result<(), (&'static str, String)> {
         if let Some(m) = self.mac_id.filter(|&m| m > 63) {
-            return Err(format!("mac_id: {m} is outside 0..=63"));
+            return Err(("mac_id", format!("{m} is outside 0..=63")));
         }
         if self.baud_rate.is_some() && self.baud().is_none() {
-            return Err(format!(
-                "baud_rate: \"{}\" is not one of \"125k\", \"250k\", \"500k\"",
-                self.baud_rate.as_deref().unwrap_or_default()
+            return Err((
+                "baud_rate",
+                format!(
+                    "\"{}\" is not one of \"125k\", \"250k\", \"500k\"",
+                    self.baud_rate.as_deref().unwrap_or_default()
+                ),
             ));
         }
         if self.configuration.is_some() && self.image().is_none() {
-            return Err("configuration: not a string of hex bytes".into());
+            return Err(("configuration", "not a string of hex bytes".into()));
         }
         Ok(())
     }
+}
+
+/// What is wrong with the `--state` file; each names the file (exit 2: the soft slave never runs
+/// on state it did not understand, nor with state it could not keep).
+#[derive(Debug, thiserror::Error)]
+pub enum StateError {
+    /// The file exists but cannot be read.
+    #[error("{}: cannot read: {source}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// Not JSON, or not the state's JSON (an unknown key, a value of the wrong type).
+    #[error("{}: line {line} column {column}: {source}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What serde_json found.
+        source: serde_json::Error,
+    },
+    /// A value out of its range.
+    #[error("{}: {key}: {message}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// The key.
+        key: &'static str,
+        /// Why.
+        message: String,
+    },
+    /// The file (or its temporary file, in its folder) cannot be written.
+    #[error("{}: cannot write: {source}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
 }
 
 /// The state file of `--state FILE`.
@@ -184,20 +232,25 @@ impl StateFile {
         &self.path
     }
 
-    fn error(&self, why: impl std::fmt::Display) -> SoftSlaveError {
-        SoftSlaveError::State(format!("{}: {why}", self.path.display()))
+    fn cannot_write(&self, source: std::io::Error) -> SoftSlaveError {
+        StateError::Write { path: self.path.clone(), source }.into()
     }
 
     /// Reads the state; an absent file is the empty state.
     pub fn load(&self) -> Result<StoredState, SoftSlaveError> {
+        let path = || self.path.clone();
         let text = match std::fs::read_to_string(&self.path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(StoredState::default()),
-            Err(e) => return Err(self.error(format!("cannot read: {e}"))),
+            Err(source) => return Err(StateError::Read { path: path(), source }.into()),
         };
-        let state: StoredState = serde_json::from_str(&text)
-            .map_err(|e| self.error(format!("line {} column {}: {e}", e.line(), e.column())))?;
-        state.check().map_err(|e| self.error(e))?;
+        let state: StoredState = serde_json::from_str(&text).map_err(|source| StateError::Parse {
+            path: path(),
+            line: source.line(),
+            column: source.column(),
+            source,
+        })?;
+        state.check().map_err(|(key, message)| StateError::Invalid { path: path(), key, message })?;
         Ok(state)
     }
 
@@ -222,15 +275,15 @@ impl StateFile {
         match probe {
             Ok(file) => {
                 drop(file);
-                std::fs::remove_file(&temp).map_err(|e| self.error(format!("cannot write: {e}")))
+                std::fs::remove_file(&temp).map_err(|e| self.cannot_write(e))
             }
-            Err(e) => Err(self.error(format!("cannot write: {e}"))),
+            Err(e) => Err(self.cannot_write(e)),
         }
     }
 
     /// Replaces the file with `state`, atomically (see the [module docs](self)).
     pub fn save(&self, state: &StoredState) -> Result<(), SoftSlaveError> {
-        let text = serde_json::to_string_pretty(state).map_err(|e| self.error(e))?;
+        let text = serde_json::to_string_pretty(state).map_err(|e| self.cannot_write(e.into()))?;
         let (dir, temp) = self.folder_and_temp();
         let write = || -> std::io::Result<()> {
             let mut f = std::fs::File::create(&temp)?;
@@ -243,7 +296,7 @@ impl StateFile {
         };
         write().map_err(|e| {
             let _ = std::fs::remove_file(&temp);
-            self.error(format!("cannot write: {e}"))
+            self.cannot_write(e)
         })
     }
 }
