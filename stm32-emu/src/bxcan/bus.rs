@@ -118,7 +118,9 @@ impl Bxcan {
 
     /// The frame the controller sends now, if any: the pending mailbox of highest priority, in
     /// normal mode, not bus-off, not silent. Until [`Bxcan::transmit_outcome`] the same frame
-    /// is offered again. In silent loop back mode nothing reaches the wire (RM0090 §32.5.3).
+    /// is offered again, and an abort request for its mailbox waits (ABRQ stays set, as while a
+    /// frame is on the wire): every frame offered must get its outcome. In silent loop back
+    /// mode nothing reaches the wire (RM0090 §32.5.3).
     pub fn poll_transmit(&mut self, now: Nanos, machine: &mut dyn Machine) -> Option<Transmission> {
         self.sync(now, machine);
         self.run_internal();

@@ -170,3 +170,16 @@ fn master_reset_keeps_the_filters() {
     assert_eq!(d.read(filter::offset::FA1R), 0);
     assert_eq!(d.read(offset::FMR), 0x2A1C_0E01);
 }
+
+#[rstest]
+#[case::power_on(ResetKind::PowerOn)]
+#[case::system(ResetKind::System)]
+fn machine_reset(#[case] kind: ResetKind) {
+    let mut d = Driver::new(PCLK1);
+    d.firmware_setup();
+    Peripheral::reset(&mut d.can, kind);
+    assert_eq!(d.can.mode(), Mode::Sleep);
+    assert_eq!(d.read(offset::IER), 0);
+    assert_eq!(d.read(filter::offset::FA1R), 0);
+    assert_eq!(d.read(offset::FMR), 0x2A1C_0E01);
+}
