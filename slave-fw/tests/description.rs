@@ -92,6 +92,11 @@ kind = "breaker"
 #[case::policy("stale_policy = \"hold_last_value\"", "stale_policy = \"freeze\"", "unknown variant `freeze`")]
 #[case::kind("kind = \"breaker\"", "kind = \"profibus\"", "unknown variant `profibus`")]
 #[case::syntax("[network]", "[network", "line")]
+#[case::inline_table_extra_key(
+    "on_idle = \"nothing\"",
+    "on_idle = { send = [4], sned = [5] }",
+    "profile.sequencer.on_idle: wanted exactly 1 element"
+)]
 fn precise_errors(#[case] find: &str, #[case] replace: &str, #[case] expected: &str) {
     let text = reference_text();
     assert!(text.contains(find), "test setup: {find}");
