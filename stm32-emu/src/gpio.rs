@@ -58,6 +58,18 @@ impl Port {
     }
 }
 
+/// The alternate function numbers of the peripherals the firmware uses (STM32F405 datasheet
+/// DS8626, table "Alternate function mapping"; RM0090 §8.3.2, figure "Selecting an alternate
+/// function").
+pub mod af {
+    /// USART1, USART2 and USART3 (PA9/PA10, PA2/PA3): AF7.
+    pub const USART1_2_3: u8 = 7;
+    /// UART4, UART5 and USART6: AF8.
+    pub const UART4_5_USART6: u8 = 8;
+    /// CAN1 and CAN2 (PB8 RX / PB9 TX): AF9.
+    pub const CAN1_2: u8 = 9;
+}
+
 /// The mode of one pin (MODER, RM0090 §8.4.1), with its alternate function number (AFRL/AFRH,
 /// RM0090 §8.4.9, §8.4.10) in alternate function mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

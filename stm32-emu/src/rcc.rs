@@ -279,6 +279,13 @@ impl Rcc {
         std::mem::take(&mut self.resets)
     }
 
+    /// Whether `gate` is open (its RCC_AHB1ENR / APB1ENR / APB2ENR bit, RM0090 §7.3.10,
+    /// §7.3.13, §7.3.14); [`Peripheral::clock_gate`] answers the same for the machine.
+    pub fn clock_enabled(&self, gate: ClockGate) -> bool {
+        let (i, bit) = bus_index(gate);
+        self.enr[i] >> bit & 1 != 0
+    }
+
     /// Whether `gate`'s peripheral is held in reset by its RSTR bit.
     pub fn in_reset(&self, gate: ClockGate) -> bool {
         let (i, bit) = bus_index(gate);
@@ -621,6 +628,7 @@ impl Peripheral for Rcc {
 
     fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32 {
         self.update(machine.now());
+        machine.set_irq(IRQ, self.irq_level());
         read_lanes(self.read_register(offset & !3), offset, width)
     }
 
@@ -675,8 +683,7 @@ impl Peripheral for Rcc {
     }
 
     fn clock_gate(&self, gate: ClockGate) -> Option<bool> {
-        let (i, bit) = bus_index(gate);
-        Some(self.enr[i] >> bit & 1 != 0)
+        Some(self.clock_enabled(gate))
     }
 }
 

@@ -12,7 +12,7 @@
 //! USARTs of later families have one), so the board drives the transceiver's DE from a GPIO
 //! (PA1, `board::pins::RS485_DE`), which the GPIO model shows ([`crate::gpio::Gpio`]).
 //!
-//! The line side ([`line`]): every character written leaves after the time its frame takes at
+//! The line side ([`mod@line`]): every character written leaves after the time its frame takes at
 //! the configured rate (start, word, parity, stop bits), as a [`line::Character`] carrying that
 //! rate and format ([`Usart::pop_transmitted`]); setting TE first sends an idle frame (§30.3.2).
 //! A character arriving from outside ([`Usart::receive`]) carries its sender's rate and format;
@@ -218,7 +218,7 @@ impl Usart {
 
     /// The rate BRR gives from the USART's clock (RM0090 §30.3.4): baud = f(CK) / (8 × (2 −
     /// OVER8) × USARTDIV), USARTDIV = mantissa + fraction / 16, or with OVER8 the fraction's
-    /// three low bits / 8 (DIV_Fraction[3] is not considered). 0 when BRR is 0.
+    /// three low bits / 8 (`DIV_Fraction[3]` is not considered). 0 when BRR is 0.
     pub fn baud(&self) -> f64 {
         let mantissa = f64::from(self.brr >> 4 & 0xFFF);
         let (per_bit, fraction) = if self.cr1 & cr1::OVER8 != 0 {
