@@ -105,7 +105,7 @@ pub mod cr {
 }
 
 /// The supply voltage range, which sets the wait states a clock needs (RM0090 §3.5.1 table 10)
-/// and the parallelism the supply allows (§3.6.2 table 16).
+/// and the parallelism the supply allows (§3.6.2, table "Program/erase parallelism").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VoltageRange {
     /// 2.7–3.6 V (the adapter board, 3.3 V): 30 MHz per wait state.
@@ -131,7 +131,7 @@ impl VoltageRange {
     }
 
     /// The widest parallelism the range allows without VPP: x32 at 2.7 V and above, x16 from
-    /// 2.1 V, x8 below (RM0090 §3.6.2 table 16). x64 needs VPP, which the board does not have.
+    /// 2.1 V, x8 below (RM0090 §3.6.2). x64 needs VPP, which the board does not have.
     const fn max_psize(self) -> u32 {
         match self {
             VoltageRange::V27To36 => 2,

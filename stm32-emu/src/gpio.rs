@@ -59,7 +59,7 @@ impl Port {
 }
 
 /// The alternate function numbers of the peripherals the firmware uses (STM32F405 datasheet
-/// DS8626, table "Alternate function mapping"; RM0090 §8.3.2, figure "Selecting an alternate
+/// DS8626, table "Alternate function mapping"; RM0090 §8.3, figure "Selecting an alternate
 /// function").
 pub mod af {
     /// USART1, USART2 and USART3 (PA9/PA10, PA2/PA3): AF7.
@@ -248,7 +248,7 @@ impl Gpio {
         }
     }
 
-    /// The level a floating input without pull resistor reads (RM0090 §8.3.1 leaves it
+    /// The level a floating input without pull resistor reads (RM0090 §8.3 leaves it
     /// undefined; the model reads `false` unless told otherwise).
     pub fn set_floating_level(&mut self, n: u8, level: bool) {
         self.set_bit_u16(Which::Floating, 1 << (n & 15), level);
@@ -268,7 +268,7 @@ impl Gpio {
     }
 
     /// The level the port itself drives on pin `n`, if it drives one: an output in push-pull
-    /// drives ODR; in open-drain it drives low for ODR = 0 and lets go for 1 (RM0090 §8.3.10);
+    /// drives ODR; in open-drain it drives low for ODR = 0 and lets go for 1 (RM0090 §8.3, "Output configuration");
     /// an alternate-function pin drives what its peripheral drives ([`Gpio::drive_alternate`]),
     /// open-drain letting go of the high level. LEDs and the RS-485 driver enable read this.
     pub fn output_level(&self, n: u8) -> Option<bool> {
@@ -304,9 +304,9 @@ impl Gpio {
         }
     }
 
-    /// IDR: the pins' levels, sampled every AHB1 clock (RM0090 §8.3.10 input configuration,
-    /// §8.3.11 output configuration: the input buffer stays on); an analog pin reads 0
-    /// (RM0090 §8.3.12: its Schmitt trigger is off).
+    /// IDR: the pins' levels, sampled every AHB1 clock (RM0090 §8.3, "Input configuration" and
+    /// "Output configuration": the input buffer stays on); an analog pin reads 0
+    /// (RM0090 §8.3, "Analog configuration": its Schmitt trigger is off).
     pub fn idr(&self) -> u16 {
         (0..16u8)
             .filter(|&n| self.pin_mode(n) != PinMode::Analog && self.pin_level(n))

@@ -272,7 +272,7 @@ impl Rcc {
         &self.notes
     }
 
-    /// The peripherals whose reset bit (RCC_AHB1RSTR, APB1RSTR, APB2RSTR, RM0090 §7.3.5–§7.3.8)
+    /// The peripherals whose reset bit (RCC_AHB1RSTR, APB1RSTR, APB2RSTR, RM0090 §7.3.5–§7.3.9)
     /// was set since the last call: the machine resets their models. A peripheral stays in reset
     /// while its bit is set ([`Rcc::in_reset`]).
     pub fn take_peripheral_resets(&mut self) -> Vec<ClockGate> {
