@@ -139,53 +139,7 @@ pub fn execute(
     let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
     let state = scanner.as_ref().map(|s| s.state().clone());
     if cli.json {
-        let mut v = json!({
-            "ok": code == 0,
-            "version": crate::version(),
-        });
-        if let Some(s) = &state {
-            v["scanner"] = json!(s.status);
-            v["cycles"] = json!(s.cycles);
-            v["cycle_ms"] = json!(s.cycle_ms);
-            v["bus_load"] = json!(s.bus_load);
-            v["interscan_delay_ms"] = json!(s.interscan_delay_ms);
-            v["expected_packet_rate_ms"] = json!(s.expected_packet_rate_ms);
-            v["nodes"] = json!(s
-                .nodes
-                .iter()
-                .map(|n| json!({
-                    "mac": n.mac,
-                    "name": n.name,
-                    "connection": n.connection,
-                    "ack_suppression": n.ack_suppression,
-                    "status": n.status.name(),
-                    "code": n.code,
-                    "detail": n.detail,
-                    "vendor_id": n.identity.vendor_id,
-                    "device_type": n.identity.device_type,
-                    "product_code": n.identity.product_code,
-                    "revision": n.identity.revision,
-                    "product_name": n.identity.product_name,
-                    "input_size": n.input_size,
-                    "output_size": n.output_size,
-                    "exchanges": n.exchanges,
-                }))
-                .collect::<Vec<_>>());
-        }
-        if let Some(w) = &written {
-            v["scanlist_written"] = json!(w);
-        }
-        if let Some(sig) = interrupted {
-            v["interrupted"] = json!(master_core::stop::signal_name(sig));
-        }
-        if let Err(e) = &result {
-            if interrupted.is_none() {
-                v["error"] = json!(e.to_string());
-            }
-        }
-        if !cleanup.is_empty() {
-            v["cleanup_errors"] = json!(cleanup.iter().map(ToString::to_string).collect::<Vec<_>>());
-        }
+        let v = summary_json(state.as_ref(), code, written.as_deref(), interrupted, &result, &cleanup);
         writeln!(out, "{v}").map_err(werr)?;
     } else {
         if let Some(s) = &state {
@@ -205,6 +159,65 @@ pub fn execute(
         }
     }
     Ok(code)
+}
+
+/// `scanner --json`'s one object: the scanner's figures and every node (module docs).
+fn summary_json(
+    state: Option<&super::model::ScannerState>,
+    code: u8,
+    written: Option<&str>,
+    interrupted: Option<i32>,
+    result: &Result<(), HarnessError>,
+    cleanup: &[HarnessError],
+) -> serde_json::Value {
+    let mut v = json!({
+        "ok": code == 0,
+        "version": crate::version(),
+    });
+    if let Some(s) = state {
+        v["scanner"] = json!(s.status);
+        v["cycles"] = json!(s.cycles);
+        v["cycle_ms"] = json!(s.cycle_ms);
+        v["bus_load"] = json!(s.bus_load);
+        v["interscan_delay_ms"] = json!(s.interscan_delay_ms);
+        v["expected_packet_rate_ms"] = json!(s.expected_packet_rate_ms);
+        v["nodes"] = json!(s
+            .nodes
+            .iter()
+            .map(|n| json!({
+                "mac": n.mac,
+                "name": n.name,
+                "connection": n.connection,
+                "ack_suppression": n.ack_suppression,
+                "status": n.status.name(),
+                "code": n.code,
+                "detail": n.detail,
+                "vendor_id": n.identity.vendor_id,
+                "device_type": n.identity.device_type,
+                "product_code": n.identity.product_code,
+                "revision": n.identity.revision,
+                "product_name": n.identity.product_name,
+                "input_size": n.input_size,
+                "output_size": n.output_size,
+                "exchanges": n.exchanges,
+            }))
+            .collect::<Vec<_>>());
+    }
+    if let Some(w) = written {
+        v["scanlist_written"] = json!(w);
+    }
+    if let Some(sig) = interrupted {
+        v["interrupted"] = json!(master_core::stop::signal_name(sig));
+    }
+    if let Err(e) = result {
+        if interrupted.is_none() {
+            v["error"] = json!(e.to_string());
+        }
+    }
+    if !cleanup.is_empty() {
+        v["cleanup_errors"] = json!(cleanup.iter().map(ToString::to_string).collect::<Vec<_>>());
+    }
+    v
 }
 
 /// The node table and the summary line.

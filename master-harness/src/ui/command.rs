@@ -83,19 +83,11 @@ impl Thinning {
     }
 }
 
-/// Runs `ui`; returns the exit status (errors before the bus is touched are returned).
-pub fn execute(
-    cli: &Cli,
-    args: &UiArgs,
-    out: &mut dyn Write,
-    err: &mut dyn Write,
-    console: &Console,
-) -> Result<u8, HarnessError> {
-    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
-    // Everything that can be refused, before the bus is touched.
-    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
-    let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
-    // Recordings go to a directory that exists: a mistyped path is not created.
+/// What `ui` writes to besides the console, checked and opened before the bus is touched: the record
+/// directory (it must exist: a mistyped path is not created), the history with
+/// [`Retention::STANDARD`] (30 days, 1 GiB, thinned after 6 hours: it cannot grow without bound),
+/// the MQTT publisher. Each refusal is a usage error naming what was given.
+fn open_outputs(args: &UiArgs) -> Result<(Option<Arc<History>>, Option<Publisher>), HarnessError> {
     if !args.record_dir.is_dir() {
         return Err(HarnessError::Usage(format!(
             "--record-dir {}: no such directory (create it first)",
@@ -105,7 +97,6 @@ pub fn execute(
     let history = match &args.history {
         Some(path) => {
             let h = History::open(path).map_err(|e| HarnessError::Usage(e.to_string()))?;
-            // 30 days, 1 GiB, thinned after 6 hours: the file cannot grow without bound.
             h.set_retention(Retention::STANDARD);
             Some(Arc::new(h))
         }
@@ -118,6 +109,22 @@ pub fn execute(
         ),
         None => None,
     };
+    Ok((history, publisher))
+}
+
+/// Runs `ui`; returns the exit status (errors before the bus is touched are returned).
+pub fn execute(
+    cli: &Cli,
+    args: &UiArgs,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+    console: &Console,
+) -> Result<u8, HarnessError> {
+    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    // Everything that can be refused, before the bus is touched.
+    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
+    let (history, publisher) = open_outputs(args)?;
     let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
     let (commands, command_rx) = mpsc::channel();
     let placeholder = Scanner::new(Default::default(), master_mac.as_raw(), ScannerOptions::default());
