@@ -1102,11 +1102,12 @@ fn execute(
             progress.show(&format!("configure: reading the configuration of MAC {mac} ..."));
             let r = configure::upload(&mut master, *mac);
             progress.clear();
-            r.and_then(|description| {
+            r.and_then(|configure::Uploaded { description, serial_number }| {
                 let text = description.to_toml().map_err(HarnessError::Usage)?;
                 let header = format!(
                     "# The configuration in force at MAC {mac}, read by dnet-master {} configure --read.\n\
-                     # identity.vendor_name and identity.catalog are EDS-only: the device does not keep them.\n\n",
+                     # identity.vendor_name and identity.catalog are EDS-only: the device does not keep them.\n\
+                     # identity.serial_number is the image's: the device keeps its own, {serial_number}.\n\n",
                     crate::version()
                 );
                 let whole = header + &text;

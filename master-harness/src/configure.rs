@@ -425,8 +425,19 @@ fn short_string_bytes(name: &str) -> Vec<u8> {
     bytes
 }
 
-/// Reads the configuration in force at `mac` and gives it back as a description.
-pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<DeviceDescription, HarnessError> {
+/// What `configure --read` gives back.
+#[derive(Clone, Debug)]
+pub struct Uploaded {
+    /// The configuration in force, as a description (its `identity.serial_number` is the image's).
+    pub description: DeviceDescription,
+    /// The device's own serial number (Identity attribute 6), as `decode` writes it: a device
+    /// keeps its own whatever the image says ([module docs](self)).
+    pub serial_number: String,
+}
+
+/// Reads the configuration in force at `mac` and gives it back as a description, with the
+/// device's own serial number.
+pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<Uploaded, HarnessError> {
     master.open_explicit(mac)?;
     let size = master.get_u16(mac, CONFIGURATION_CLASS, 1, 2)?.ok_or_else(|| MasterError::Protocol {
         what: "configuration size".into(),
@@ -436,5 +447,9 @@ pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<DeviceDescripti
     let converter = slave_fw::image::decode(&image).map_err(|e| {
         HarnessError::Refused(format!("MAC {mac} serves a configuration image that does not decode: {e}"))
     })?;
-    Ok(DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() })
+    let (serial, _) = master.get(mac, class::IDENTITY, 1, 6)?;
+    Ok(Uploaded {
+        description: DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() },
+        serial_number: value_text(class::IDENTITY, 1, 6, &serial),
+    })
 }

@@ -96,6 +96,11 @@ fn configure_survives_a_restart_reads_back_and_parameters_are_checked() {
     assert_eq!(got.converter, want.converter, "configure --read gives back the description");
     let out = ok(&rig, &["get", "5", "1", "1", "6"]);
     assert!(out.contains("0x12345678"), "the device's own serial number after the restart: {out}");
+    let text = std::fs::read_to_string(&read_back).unwrap();
+    assert!(
+        text.contains("# identity.serial_number is the image's: the device keeps its own, 0x12345678."),
+        "{text}"
+    );
 
     // Parameters: read, set in range (stored, applies at reset), refused out of range, no change.
     let out = ok(&rig, &["params", "--mac", "5"]);
