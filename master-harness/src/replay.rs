@@ -622,3 +622,69 @@ pub fn entry_line(e: &LogEntry) -> String {
 pub fn is_expected(frame: &CanFrame, mac: MacId) -> bool {
     is_from_device(frame, mac)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use can_io::log::parse_log;
+
+    /// The start of a `connect` transcript (notes §2 frames 0-7): the master's and the device's
+    /// duplicate MAC ID checks, 1 s apart, then the UCMM probe and the Allocate.
+    const BRING_UP: &str = "\
+(0.000) sim 407#00010004030201
+(1.000) sim 407#00010004030201
+(2.000) sim 42F#00341278563412
+(3.000) sim 42F#00341278563412
+(4.000) sim 780#054B0034
+(4.500) sim 780#054B0034
+(5.000) sim 42E#004B03010100
+(5.001) sim 42B#00CB00
+";
+
+    fn entries(text: &str) -> Vec<LogEntry> {
+        parse_log(text, "t.log").unwrap()
+    }
+
+    fn mac(n: u8) -> MacId {
+        MacId::new(n).unwrap()
+    }
+
+    #[test]
+    fn the_start_up_ends_one_interval_after_the_devices_last_request() {
+        let e = entries(BRING_UP);
+        assert_eq!(online_index(&e, mac(5)), 4, "the UCMM open at 4 s, 1 s after the second request");
+        // A transcript without the device's check has no start-up.
+        assert_eq!(online_index(&e[4..], mac(5)), 0);
+        // One that ends before the device is on-line is all start-up.
+        assert_eq!(online_index(&e[..4], mac(5)), 4);
+    }
+
+    #[test]
+    fn the_power_on_window_runs_from_the_stimulus_before_the_check_to_its_tolerance() {
+        let e = entries(BRING_UP);
+        let window = power_on_window(&e, mac(5), Duration::from_secs(1));
+        assert_eq!(window, Some((Duration::from_secs(1), Duration::from_secs(3))));
+        assert_eq!(power_on_window(&e[4..], mac(5), Duration::from_secs(1)), None);
+    }
+
+    #[test]
+    fn the_simulated_device_meets_the_transcript_as_it_begins() {
+        let e = entries(BRING_UP);
+        assert_eq!(sim_start(&e, mac(5), None), SimStart::PowerOnAt(Duration::from_secs(2)));
+        assert_eq!(sim_start(&e[4..], mac(5), None), SimStart::OnlineBeforeStart);
+        assert_eq!(sim_start(&e, mac(5), Some(FromOnline::Now)), SimStart::OnlineBeforeStart);
+        assert_eq!(sim_start(&e, mac(5), Some(FromOnline::Wait)), SimStart::PowerOnAtStart);
+    }
+
+    #[test]
+    fn io_data_is_group_1_messages_12_to_15_with_data() {
+        let f = |id, data: &[u8]| CanFrame::from_raw(id, data).unwrap();
+        assert!(is_io_data(&f(0x3C5, &[0x00, 1, 2])), "poll response");
+        assert!(is_io_data(&f(0x345, &[1])), "change of state");
+        assert!(is_io_data(&f(0x385, &[1])), "bit-strobe response");
+        assert!(is_io_data(&f(0x305, &[1])), "multicast poll response");
+        assert!(!is_io_data(&f(0x3C5, &[])), "an acknowledgement has no data to ignore");
+        assert!(!is_io_data(&f(0x42B, &[0x00, 0x8E, 0x34, 0x12])), "explicit response");
+        assert!(!is_io_data(&f(0x2C5, &[1])), "a dynamic connection's message 11");
+    }
+}
