@@ -229,3 +229,35 @@ fn ready_interrupt_flag() {
     assert_eq!(rcc.read(reg::CIR, Width::Word, &mut m) & 0xFF, 0);
     assert_eq!(m.irqs.get(&IRQ), Some(&false));
 }
+
+#[test]
+fn hsebyp_is_written_only_while_the_hse_is_off() {
+    let mut m = TestMachine::default();
+    let mut rcc = Rcc::new(Hse::Crystal(8_000_000));
+    rmw(&mut rcc, &mut m, reg::CR, |v| v | cr::HSEON);
+    rmw(&mut rcc, &mut m, reg::CR, |v| v | cr::HSEBYP);
+    assert_eq!(rcc.read(reg::CR, Width::Word, &mut m) & cr::HSEBYP, 0);
+    m.now += RccTiming::FAST.hse;
+    assert_ne!(rcc.read(reg::CR, Width::Word, &mut m) & cr::HSERDY, 0, "the crystal still runs");
+    rmw(&mut rcc, &mut m, reg::CR, |v| v & !cr::HSEON);
+    rmw(&mut rcc, &mut m, reg::CR, |v| v | cr::HSEBYP);
+    assert_ne!(rcc.read(reg::CR, Width::Word, &mut m) & cr::HSEBYP, 0);
+}
+
+#[test]
+fn lsi_ready_after_its_start_up() {
+    let mut m = TestMachine::default();
+    let mut rcc = Rcc::new(Hse::None);
+    rcc.write(reg::CSR, Width::Word, csr::LSION, &mut m);
+    assert_eq!(rcc.read(reg::CSR, Width::Word, &mut m) & csr::LSIRDY, 0);
+    m.now += RccTiming::FAST.hsi;
+    assert_ne!(rcc.read(reg::CSR, Width::Word, &mut m) & csr::LSIRDY, 0);
+}
+
+#[test]
+fn datasheet_timing_makes_the_hal_wait_longer() {
+    let mut m = TestMachine::default();
+    let mut rcc = Rcc::with_timing(Hse::Crystal(8_000_000), RccTiming::DATASHEET);
+    assert!(hal_freeze(&mut rcc, &mut m));
+    assert!(m.now >= RccTiming::DATASHEET.hse + RccTiming::DATASHEET.pll);
+}

@@ -312,3 +312,62 @@ fn unclocked_usart_ignores_writes() {
     m.closed.clear();
     assert_eq!(u.read(reg::BRR, Width::Word, &mut m), 0);
 }
+
+/// The machine as the USART sees it on the board: clocks and gates from the RCC model.
+struct OnRcc<'a> {
+    rcc: &'a crate::rcc::Rcc,
+    now: Nanos,
+}
+
+impl Machine for OnRcc<'_> {
+    fn clocks(&self) -> Clocks {
+        self.rcc.current_clocks()
+    }
+    fn clock_enabled(&self, gate: ClockGate) -> bool {
+        self.rcc.clock_enabled(gate)
+    }
+    fn set_irq(&mut self, _irq: u16, _level: bool) {}
+    fn now(&self) -> Nanos {
+        self.now
+    }
+}
+
+/// A USART2 divider computed for the board's 42 MHz PCLK1 works once RCC runs the PLL; on the
+/// reset clocks (16 MHz HSI) the same BRR makes 2.6 times too slow a line and the instrument
+/// gets garbage.
+#[rstest]
+#[case::clocks_set_up(true, true)]
+#[case::clocks_left_at_reset(false, false)]
+fn brr_for_the_wrong_clock_garbles(#[case] freeze: bool, #[case] delivered: bool) {
+    use crate::rcc::{Hse, Rcc};
+    let mut m = TestMachine::default();
+    let mut rcc = Rcc::new(Hse::Crystal(8_000_000));
+    let rmw = |rcc: &mut Rcc, m: &mut TestMachine, offset: u32, set: u32| {
+        let v = rcc.read(offset, Width::Word, m);
+        rcc.write(offset, Width::Word, v | set, m);
+    };
+    if freeze {
+        rcc.write(0x04, Width::Word, 0x2000_0000 | 7 << 24 | 1 << 22 | 168 << 6 | 4, &mut m);
+        rmw(&mut rcc, &mut m, 0x00, 1 << 16 | 1 << 24);
+        m.now += 1_000_000;
+        rmw(&mut rcc, &mut m, 0x08, 0b100 << 13 | 0b101 << 10 | 2);
+    }
+    rmw(&mut rcc, &mut m, 0x40, 1 << 17); // APB1ENR.USART2EN
+    m.now += 1_000_000;
+    let _ = rcc.read(0x08, Width::Word, &mut m);
+    let mut on = OnRcc { rcc: &rcc, now: m.now };
+    let mut u = Usart::new(UsartId::Usart2);
+    let (brr, cr1, cr2) = board_registers(42_000_000, 19200, (8, Parity::None), StopBits::One);
+    u.write(reg::BRR, Width::Word, brr, &mut on);
+    u.write(reg::CR2, Width::Word, cr2, &mut on);
+    u.write(reg::CR1, Width::Word, cr1, &mut on);
+    u.write(reg::DR, Width::Word, u32::from(b'U'), &mut on);
+    on.now += 10_000_000;
+    let sent = u.read(reg::SR, Width::Word, &mut on);
+    assert_ne!(sent & sr::TC, 0);
+    let character = u.pop_transmitted().unwrap().character;
+    let instrument = Receiver { settings: LineSettings::new_8n1(19200.0), over8: false, one_bit: false };
+    let got = instrument.sample(&character);
+    let clean = !got.framing_error && !got.parity_error;
+    assert_eq!(clean && got.word == u16::from(b'U'), delivered, "{got:?}");
+}
