@@ -241,6 +241,8 @@ pub struct Flash {
     /// A wrong key locked CR until the next reset (RM0090 §3.6.1).
     locked_up: bool,
     busy_until: Nanos,
+    /// The operation under way ends well: EOP rises at its end (with EOPIE).
+    eop_pending: bool,
     operations: u64,
     plan: Option<(u64, CutKind)>,
     cut: Option<PowerCut>,
@@ -293,6 +295,7 @@ impl Flash {
             optkey1_seen: false,
             locked_up: false,
             busy_until: 0,
+            eop_pending: false,
             operations: 0,
             plan: None,
             cut: None,
@@ -376,10 +379,22 @@ impl Flash {
             self.stall += self.busy_until - self.now;
             self.now = self.busy_until;
         }
+        self.settle();
     }
 
     fn update(&mut self, now: Nanos) {
         self.now = self.now.max(now);
+        self.settle();
+    }
+
+    /// At the end of a successful operation EOP rises, if EOPIE is set (RM0090 §3.9.4).
+    fn settle(&mut self) {
+        if self.eop_pending && !self.busy() {
+            self.eop_pending = false;
+            if self.cr & cr::EOPIE != 0 {
+                self.sr |= sr::EOP;
+            }
+        }
     }
 
     fn psize(&self) -> u32 {
@@ -402,9 +417,7 @@ impl Flash {
 
     fn finish_ok(&mut self, busy: Nanos) {
         self.busy_until = self.now + busy;
-        if self.cr & cr::EOPIE != 0 {
-            self.sr |= sr::EOP;
-        }
+        self.eop_pending = true;
     }
 
     /// Counts an operation and applies a planned power cut: `Some(kind)` if it hits this one.
@@ -678,6 +691,7 @@ impl Peripheral for Flash {
         self.optkey1_seen = false;
         self.locked_up = false;
         self.busy_until = self.now;
+        self.eop_pending = false;
     }
 
     fn next_event(&self) -> Option<Nanos> {

@@ -207,7 +207,11 @@ fn interrupts_end_of_operation_and_error() {
     let mut f = fast();
     assert!(hal_unlock(&mut f, &mut m));
     modify_cr(&mut f, &mut m, 0, cr::EOPIE | cr::ERRIE);
-    assert_eq!(hal_erase(&mut f, &mut m, 11), 0);
+    modify_cr(&mut f, &mut m, cr::SNB, cr::STRT | cr::SER | 11 << 3);
+    assert_eq!(f.read(reg::SR, Width::Word, &mut m), sr::BSY, "EOP at the end, not the start");
+    assert_eq!(m.irqs.get(&IRQ), Some(&false));
+    m.now = f.next_event().unwrap();
+    f.advance(m.now, &mut m);
     assert_eq!(f.read(reg::SR, Width::Word, &mut m), sr::EOP);
     assert_eq!(m.irqs.get(&IRQ), Some(&true));
     f.write(reg::SR, Width::Word, sr::EOP, &mut m);
