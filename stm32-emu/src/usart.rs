@@ -358,7 +358,8 @@ impl Usart {
         }
         let got = receiver.sample(character);
         self.rdr = got.word;
-        self.sr = self.sr & !(sr::FE | sr::PE | sr::NF) | sr::RXNE;
+        // The error flags stay until their clear sequence (RM0090 §30.6.1), whatever follows.
+        self.sr |= sr::RXNE;
         if got.framing_error {
             self.sr |= sr::FE;
         }

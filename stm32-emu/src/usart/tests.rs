@@ -371,3 +371,23 @@ fn brr_for_the_wrong_clock_garbles(#[case] freeze: bool, #[case] delivered: bool
     let clean = !got.framing_error && !got.parity_error;
     assert_eq!(clean && got.word == u16::from(b'U'), delivered, "{got:?}");
 }
+
+/// An error flag stays until its clear sequence: RXNE cleared by writing 0 leaves FE set for
+/// the next, clean character (RM0090 §30.6.1).
+#[test]
+fn error_flags_stay_until_the_sequence() {
+    let mut m = machine();
+    let mut u = Usart::new(UsartId::Usart2);
+    open(&mut u, &mut m, board_registers(42_000_000, 19200, (8, Parity::None), StopBits::One));
+    let good = LineSettings::new_8n1(u.baud());
+    let slow = LineSettings::new_8n1(u.baud() * 0.9);
+    u.receive(Character::encode(0x00, slow), 0);
+    m.now = slow.frame_ns();
+    assert_ne!(u.read(reg::SR, Width::Word, &mut m) & sr::FE, 0);
+    u.write(reg::SR, Width::Word, !sr::RXNE, &mut m);
+    u.receive(Character::encode(0x42, good), m.now);
+    m.now += good.frame_ns();
+    assert_eq!(u.read(reg::SR, Width::Word, &mut m) & (sr::FE | sr::RXNE), sr::FE | sr::RXNE);
+    assert_eq!(board_read(&mut u, &mut m), None, "the firmware drops it: FE still set");
+    assert_eq!(u.read(reg::SR, Width::Word, &mut m) & (sr::FE | sr::RXNE), 0);
+}
