@@ -303,3 +303,48 @@ fn a_record_directory_that_does_not_exist_is_refused_not_created() {
     );
     assert!(!missing.exists(), "{} was created", missing.display());
 }
+
+#[test]
+fn the_console_s_history_drops_old_samples_and_thins_the_older_than_six_hours() {
+    use master_harness::history::History;
+    use master_harness::scanner::model::{unix_ms_now, HistoryStore, Sample};
+    let dir = scratch("retention");
+    let path = dir.join("h.sqlite");
+    let _ = std::fs::remove_file(&path);
+    let now = unix_ms_now();
+    let at = |unix_ms: i64| Sample { mac: 5, unix_ms, bus_us: 0, input: vec![1, 2, 3], values: vec![] };
+    {
+        // A history that ran before: ten minutes at one sample a second seven hours ago, and a
+        // few samples 31 days ago.
+        let h = History::open(&path).unwrap();
+        let seven_hours_ago = now - 7 * 3_600_000;
+        h.record(&(0..600).map(|s| at(seven_hours_ago + s * 1000)).collect::<Vec<_>>()).unwrap();
+        h.record(&(0..5).map(|s| at(now - 31 * 24 * 3_600_000 + s * 1000)).collect::<Vec<_>>()).unwrap();
+    }
+    let o = dnet(&[
+        "--bus",
+        "sim",
+        "--slave-mac",
+        "5",
+        "ui",
+        "--listen",
+        "127.0.0.1:0",
+        "--history",
+        path.to_str().unwrap(),
+        "--record-dir",
+        dir.to_str().unwrap(),
+        "--cycles",
+        "20",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let h = History::open(&path).unwrap();
+    let old = h.samples(5, 0, now - 30 * 24 * 3_600_000, 100).unwrap();
+    assert!(old.is_empty(), "samples older than 30 days kept: {}", old.len());
+    let thinned = h.samples(5, now - 8 * 3_600_000, now - 6 * 3_600_000, 10_000).unwrap();
+    assert!(
+        (10..=11).contains(&thinned.len()),
+        "ten minutes seven hours ago: one sample a minute, {} kept",
+        thinned.len()
+    );
+    assert!(!h.samples(5, now - 60_000, i64::MAX, 10).unwrap().is_empty(), "this run's samples kept");
+}
