@@ -279,9 +279,11 @@ pub enum Command {
         #[arg(long, default_value_t = 500)]
         settle: u64,
         /// Begin where the device is on-line, for a device that is not powered on in step with
-        /// the transcript: `--from-online` skips the transcript's start-up (the device is on-line
-        /// already); `--from-online=wait` first waits for the device's own duplicate MAC ID
-        /// check (power it on after starting the replay).
+        /// the transcript (without it, a transcript that begins with the device's power-up needs
+        /// the device powered on then; on a real bus replay prints the window): `--from-online`
+        /// skips the transcript's start-up (the device is on-line already); `--from-online=wait`
+        /// first waits for the device's own duplicate MAC ID check (power it on after starting the
+        /// replay).
         #[arg(long, value_name = "WAIT", num_args = 0..=1, require_equals = true, default_missing_value = "now")]
         from_online: Option<replay::FromOnline>,
         /// Data not compared: `io`, the data of the device's I/O messages (poll, bit-strobe,
