@@ -224,6 +224,21 @@ pub enum FlashNote {
     Stalled,
 }
 
+impl std::fmt::Display for FlashNote {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FlashNote::LatencyTooLow { hclk, latency } => {
+                write!(
+                    f,
+                    "flash read with {latency} wait states at HCLK {hclk} Hz (RM0090 table 10 asks more)"
+                )
+            }
+            FlashNote::NoSuchSector(n) => write!(f, "erase of sector {n}, which a 1 MiB part does not have"),
+            FlashNote::Stalled => f.write_str("flash array written while BSY: the bus stalled"),
+        }
+    }
+}
+
 /// The flash memory and its interface.
 #[derive(Clone, Debug)]
 pub struct Flash {

@@ -184,6 +184,25 @@ pub enum RccNote {
     StopRefused,
 }
 
+impl std::fmt::Display for RccNote {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RccNote::PllConfigWhileOn => f.write_str("RCC_PLLCFGR written while the PLL runs: ignored"),
+            RccNote::PllOutOfRange { vco_in, vco_out } => write!(
+                f,
+                "PLL VCO input {vco_in} Hz / output {vco_out} Hz outside 0.95-2.1 MHz / 100-432 MHz: it never locks"
+            ),
+            RccNote::SwitchNotAllowed => f.write_str("RCC_CFGR.SW = 11 (not allowed): no switch"),
+            RccNote::AboveMaximum { clocks } => write!(
+                f,
+                "clocks above the STM32F405 maximum (HCLK {} Hz <= 168 MHz, PCLK1 {} Hz <= 42 MHz, PCLK2 {} Hz <= 84 MHz)",
+                clocks.hclk, clocks.pclk1, clocks.pclk2
+            ),
+            RccNote::StopRefused => f.write_str("the oscillator that drives SYSCLK cannot be stopped: ON bit kept"),
+        }
+    }
+}
+
 /// What reset the machine performed, for the RCC_CSR flags (RM0090 §7.1, §7.3.21).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ResetCause {
