@@ -730,13 +730,17 @@ local function io_first_pass(series, size, data, number)
         local b = data:byte(1)
         if b == nil then
             fragmented = false
-        elseif series.next == nil and not series.proven then
-            fragmented = b == 0 and #data == 8
-        else
+        elseif series.proven then
             local kind = bit.rshift(b, 6)
             if kind == 0 then fragmented = #data == 8 or bit.band(b, 0x3F) == 0x3F
             elseif kind == 1 then fragmented = #data == 8
             else fragmented = true end
+        elseif series.next == nil then
+            fragmented = b == 0 and #data == 8
+        else
+            local kind = bit.rshift(b, 6)
+            if kind == 0 then fragmented = false
+            else fragmented = (bit.band(b, 0x3F) == series.next and kind ~= 3) or #data < 8 end
         end
         ctx.inferred = fragmented
     end

@@ -21,9 +21,9 @@
 //! format announced by the Allocate response, and the poll connection sizes read from Connection
 //! instance 2 attributes 7 and 8 (notes §4.2: I/O fragmentation is not signalled per frame, both
 //! ends know it from the size). When the sizes were not seen, poll data is taken as fragmented
-//! when its fragment bytes say so: an 8-byte frame starting with `00` opens a series, middle and
-//! last fragment bytes continue it, and once a whole series was seen every frame of that
-//! connection is a fragment.
+//! when its fragment bytes say so: an 8-byte frame starting with `00` opens a series, the
+//! fragment due or a shorter frame continues it, and once a whole series was seen every frame of
+//! that connection shaped like a fragment is one.
 //!
 //! A broken fragment series is named, never quietly dropped or joined: a first fragment whose
 //! count is not 0, a middle or last fragment without a first, a count other than the one due (a

@@ -389,6 +389,10 @@ fn broken_fragment_series_are_protocol_errors() {
         (0x42B, vec![0x80, 0x41, 1, 2, 3, 4, 5, 6]),
         (0x42B, vec![0x80, 0x00, 0x8E, 0x17, b'S', b'e', b'r', b'i']),
         (0x42B, vec![0x80, 0x42, b'i', b'c', b'e', b'N', b'e', b't']),
+        // Plain 8-byte bit-strobe responses of MAC 7 (size unknown): no protocol error.
+        (0x387, vec![0x00, 0, 0, 0, 0, 0, 0, 0]),
+        (0x387, vec![0x00, 0, 0, 0, 0, 0, 0, 0]),
+        (0x387, vec![0x78, 118, 121, 3, 0, 0, 0, 0]),
     ];
     let frames: Vec<(Instant, CanFrame)> = frames
         .iter()

@@ -113,21 +113,29 @@ impl IoSeries {
         IoSeries { rx: IoReassembler::new(), next: None, proven: false }
     }
 
-    /// Whether `data` is a fragment when the connection size is not known: an 8-byte frame
-    /// starting with `00` opens a series. While one is in progress, or once a whole series was
-    /// seen on the connection (it has one size, so it is fragmented), every frame shaped like a
-    /// fragment is one: a first or middle fragment fills its frame (8 bytes; a first with the
-    /// one-frame count 0x3F may be shorter), a last (or an ack-type byte, an error) may be
-    /// shorter. A count other than the one due is then a missed fragment, not plain data.
+    /// Whether `data` is a fragment when the connection size is not known. An 8-byte frame
+    /// starting with `00` opens a series. While one is in progress, the fragment due (a middle or
+    /// last byte with the count due) continues it, and so does any middle, last or ack byte in a
+    /// frame shorter than 8 bytes: a connection has one size, so after 8 bytes a shorter frame
+    /// cannot be plain data, and a count other than the one due is then a missed fragment. An
+    /// 8-byte frame with another count is taken as plain data (the `00` frame was data too).
+    /// Once a whole series of several fragments was seen on the connection, it is fragmented:
+    /// every frame shaped like a fragment is one (a first or middle fragment fills its frame, a
+    /// first with the one-frame count 0x3F and a last may be shorter).
     fn looks_fragmented(&self, data: &[u8]) -> bool {
         let Some(&b) = data.first() else { return false };
-        if self.next.is_none() && !self.proven {
-            return b == 0x00 && data.len() == 8;
+        let kind = FragmentKind::from_bits(b >> 6);
+        if self.proven {
+            return match kind {
+                FragmentKind::First => data.len() == 8 || b & 0x3F == SINGLE_FRAGMENT_COUNT,
+                FragmentKind::Middle => data.len() == 8,
+                FragmentKind::Last | FragmentKind::Ack => true,
+            };
         }
-        match FragmentKind::from_bits(b >> 6) {
-            FragmentKind::First => data.len() == 8 || b & 0x3F == SINGLE_FRAGMENT_COUNT,
-            FragmentKind::Middle => data.len() == 8,
-            FragmentKind::Last | FragmentKind::Ack => true,
+        match self.next {
+            None => b == 0x00 && data.len() == 8,
+            Some(_) if kind == FragmentKind::First => false,
+            Some(next) => (b & 0x3F == next && kind != FragmentKind::Ack) || data.len() < 8,
         }
     }
 }
@@ -335,6 +343,19 @@ mod tests {
         assert_eq!(seen[4].0, Some(FragmentViolation::NoFirst { kind: FragmentKind::Middle, count: 1 }));
         assert!(seen[7].1.contains("=> poll response from MAC 5, 18 bytes"), "{}", seen[7].1);
         assert_eq!(seen.iter().filter(|s| s.0.is_some()).count(), 2);
+    }
+
+    /// Without the sizes, 8-byte frames of plain data (a bit-strobe response: the breaker's
+    /// currents, 0 while open, 120 A = 0x78 once closed) are never taken for a broken series.
+    #[test]
+    fn plain_8_byte_data_is_no_protocol_error_without_the_sizes() {
+        let mut d = Decoder::new();
+        let open = [0x00, 0, 0, 0, 0, 0, 0, 0];
+        let closed = [0x78, 118, 121, 3, 0, 0, 0, 0];
+        for data in [&open, &open, &closed, &open, &closed, &closed] {
+            let out = d.decode(&f(0x385, data));
+            assert_eq!(out.protocol_error, None, "{}", out.text());
+        }
     }
 
     /// The reference series of notes §2 (frames 25-27) and a one-frame series are no errors.
