@@ -901,6 +901,17 @@ fn execute(
             let _ = writeln!(err, "{note}");
         }
     }
+    // --from-online=wait may wait long: say for what, also where no progress line is shown.
+    if let (Some(mac), Command::Replay { from_online: Some(replay::FromOnline::Wait), .. }) =
+        (device, &cli.command)
+    {
+        if cli.bus != BusSpec::Sim && !cli.json && !console.stderr_terminal {
+            let _ = writeln!(
+                err,
+                "note: waiting for MAC {mac}'s duplicate MAC ID check: power it on (Ctrl-C stops)"
+            );
+        }
+    }
     let slave = descriptions.slave.as_ref().map(|d| &d.converter);
     let mut bus = open_bus(cli, slave, device, replay_power_on)?;
     if let Some(path) = &cli.pcap {

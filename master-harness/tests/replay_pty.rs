@@ -127,4 +127,5 @@ while True:\n    os.write(fd, b'\\r' * os.read(fd, 256).count(b'\\r'))\n";
     assert_eq!(code, 0, "{out}\n{}", rig.dump());
     assert!(out.contains("replay held: 32 frames, 17 from the device compared byte for byte"), "{out}");
     assert!(out.contains("2 start-up frames skipped"), "the master's own check: {out}");
+    assert!(out.contains("note: waiting for MAC 5's duplicate MAC ID check: power it on"), "{out}");
 }
