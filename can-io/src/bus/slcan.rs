@@ -21,7 +21,9 @@
 //!    and answers left from a previous program belong to no request of this one.
 //! 2. `C`, `Sn`, `O` are sent one at a time, and with [`SetUp::Adapter`] each must be answered
 //!    within [`ANSWER_TIMEOUT`]: `\r`, or BEL to `C` (a Lawicel adapter refuses to close a closed
-//!    channel). BEL to `Sn` or `O` is [`BusError::Refused`]; silence or bytes that are not SLCAN
+//!    channel). Frames that come meanwhile are kept (a pty pair delivers what waited on it once
+//!    this end writes: a device's start-up frames, or an answer to an earlier run, which the
+//!    master's session records as not judged). BEL to `Sn` or `O` is [`BusError::Refused`]; silence or bytes that are not SLCAN
 //!    are [`BusError::NotAnAdapter`], naming the port (a wrong port, the instrument's serial line,
 //!    a device that is not an adapter). CANable's slcan firmware, Lawicel's CANUSB and the
 //!    emulated firmware ([`crate::slcan::Adapter`]) answer so.
@@ -231,7 +233,6 @@ impl<L: SerialLink> SlcanBus<L> {
                 bus.await_answer(name)?;
             }
         }
-        bus.opened = std::time::Instant::now();
         Ok(bus)
     }
 
@@ -255,13 +256,14 @@ impl<L: SerialLink> SlcanBus<L> {
     }
 
     /// Waits for the answer to set-up command `command`: `\r`, or BEL to `C`. Frames that come
-    /// before the answer to `O` are from before this program opened the channel and are dropped;
-    /// after it, they are the bus's and kept.
+    /// meanwhile are kept: a device's frames that waited on the link (a pty pair delivers them once
+    /// this end writes) are the bus's; the session judges the ones that answer an earlier run.
     fn await_answer(&mut self, command: &'static str) -> Result<(), BusError> {
         let end = std::time::Instant::now() + ANSWER_TIMEOUT;
         let mut seen: Vec<u8> = Vec::new();
         let mut buf = [0u8; 256];
-        loop {
+        let mut answered = false;
+        while !answered {
             let left = end.saturating_duration_since(std::time::Instant::now());
             if left.is_zero() {
                 let reason = if seen.is_empty() {
@@ -280,36 +282,27 @@ impl<L: SerialLink> SlcanBus<L> {
                 Err(source) => return Err(self.io("reading the SLCAN adapter's answer", source)),
             };
             seen.extend_from_slice(&buf[..n]);
-            let mut answered = false;
             for line in self.receiver.feed(&buf[..n]) {
                 match line {
-                    _ if answered => self.after_answer(command, line)?,
-                    AdapterLine::Ok => answered = true,
-                    AdapterLine::Error if command == "C" => answered = true,
-                    AdapterLine::Error => return Err(BusError::Refused { port: self.port.clone(), command }),
+                    AdapterLine::Frame(frame) => {
+                        let at = self.clock();
+                        self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote });
+                    }
                     AdapterLine::HostCommand(_) => self.answer_peer()?,
-                    AdapterLine::Frame(_) | AdapterLine::Transmitted | AdapterLine::Other(_) => {}
+                    AdapterLine::Ok if !answered => answered = true,
+                    AdapterLine::Error if !answered && command == "C" => answered = true,
+                    AdapterLine::Error if !answered => {
+                        return Err(BusError::Refused { port: self.port.clone(), command })
+                    }
+                    AdapterLine::Ok
+                    | AdapterLine::Error
+                    | AdapterLine::Transmitted
+                    | AdapterLine::Other(_) => {}
                 }
-            }
-            if answered {
-                return Ok(());
             }
             if n == 0 {
                 std::thread::sleep(std::time::Duration::from_millis(1));
             }
-        }
-    }
-
-    /// A line that came after the answer to `command`, in the same read: a frame after `O` is
-    /// the bus's.
-    fn after_answer(&mut self, command: &str, line: AdapterLine) -> Result<(), BusError> {
-        match line {
-            AdapterLine::Frame(frame) if command == "O" => {
-                let at = self.clock();
-                self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote });
-            }
-            AdapterLine::HostCommand(_) => self.answer_peer()?,
-            _ => {}
         }
         Ok(())
     }
@@ -553,10 +546,14 @@ mod tests {
     }
 
     #[test]
-    fn frames_after_the_open_answer_are_kept() {
-        let link = FakeLink::new(b"", &["\r", "\r", "\rt42B200CC\r"]);
+    fn frames_during_the_set_up_are_kept() {
+        // A device's duplicate MAC ID check that waited on a pty pair, delivered once this end
+        // writes; then a frame right after the answer to `O`.
+        let link = FakeLink::new(b"", &["t42F700341278563412\r\r", "\r", "\rt42B200CC\r"]);
         let mut bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/9", SetUp::Adapter).unwrap();
         let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        let first = bus.recv(deadline).unwrap().map(|e| e.frame);
+        assert_eq!(first, Some(f(0x42F, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12])));
         assert_eq!(bus.recv(deadline).unwrap().map(|e| e.frame), Some(f(0x42B, &[0x00, 0xCC])));
     }
 
