@@ -1,0 +1,33 @@
+//! Reading the firmware ELF: its loadable segments at their load (physical) addresses, as a
+//! debug probe programs them, and its symbols.
+
+use crate::machine::Fault;
+use object::elf::{FileHeader32, PT_LOAD};
+use object::read::elf::{FileHeader, ProgramHeader};
+use object::{LittleEndian, Object, ObjectSymbol};
+
+/// The loadable segments of `elf` with file contents: (load address, bytes). The `.bss` part
+/// of a segment (memory size beyond file size) is not loaded: the start-up code clears it.
+pub fn load_segments(elf: &[u8]) -> Result<Vec<(u32, &[u8])>, Fault> {
+    let header = FileHeader32::<LittleEndian>::parse(elf).map_err(|e| Fault::Elf(e.to_string()))?;
+    let endian = header.endian().map_err(|e| Fault::Elf(e.to_string()))?;
+    if header.e_machine(endian) != object::elf::EM_ARM {
+        return Err(Fault::Elf("not an ARM executable".into()));
+    }
+    let segments = header.program_headers(endian, elf).map_err(|e| Fault::Elf(e.to_string()))?;
+    let mut loads = Vec::new();
+    for segment in segments.iter().filter(|s| s.p_type(endian) == PT_LOAD) {
+        let data = segment.data(endian, elf).map_err(|_| Fault::Elf("segment outside the file".into()))?;
+        if !data.is_empty() {
+            loads.push((segment.p_paddr(endian), data));
+        }
+    }
+    Ok(loads)
+}
+
+/// The address of the first symbol whose (mangled) name contains `part`, Thumb bit cleared.
+pub fn symbol_address(elf: &[u8], part: &str) -> Option<u32> {
+    let file = object::File::parse(elf).ok()?;
+    let symbol = file.symbols().find(|s| s.name().is_ok_and(|n| n.contains(part)))?;
+    Some(symbol.address() as u32 & !1)
+}

@@ -1,0 +1,431 @@
+//! The machine: an STM32F405 or F446 whose core runs a firmware ELF on the peripheral models.
+//!
+//! ```no_run
+//! # fn models() -> Vec<(u32, u32, Box<dyn stm32_emu::periph::Peripheral>)> { Vec::new() }
+//! use stm32_emu::machine::{Chip, Stm32};
+//! let mut mcu = Stm32::new(Chip::Stm32F405, [0x11; 12])?;
+//! for (base, size, model) in models() {
+//!     mcu.add_peripheral(base, size, model)?;
+//! }
+//! mcu.load_elf(&std::fs::read("target/thumbv7em-none-eabihf/firmware/slave-fw-firmware")?)?;
+//! mcu.run_for(10_000_000)?; // 10 ms
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! # Time
+//!
+//! One instruction takes one HCLK cycle. The Cortex-M4 retires most instructions in one
+//! cycle and loads, stores, branches and divisions in 2–12 (PM0214 §3.3.1 table 21), so
+//! emulated time runs somewhat ahead of the instruction stream; what the firmware measures
+//! with SysTick and what the models see agree with each other, which is what matters here.
+//! HCLK is the RCC model's ([`Peripheral::clocks`]), or the 16 MHz HSI with no RCC model.
+//! The machine runs the core in slices of at most [`Stm32::set_advance_period`] (10 µs by
+//! default), calls [`Peripheral::advance`] on every model between slices and also before each
+//! access to a model, and ends a slice early at SysTick's next interrupt, a model's
+//! [`Peripheral::next_event`] and every access after which an exception preempts.
+//!
+//! # Sleep
+//!
+//! WFI, WFE and an idle `loop {}` (`b .`, what RTIC 2 runs with no idle task) do not spin:
+//! time jumps to the next event (SysTick, a model's next event, at most 1 ms at a time) until
+//! an exception would preempt (PM0214 §2.5.2 "Wakeup from WFI"; PRIMASK does not keep the
+//! core asleep). SCR.SLEEPONEXIT sleeps on the return to thread mode.
+//!
+//! # Faults
+//!
+//! What would be a BusFault, UsageFault or HardFault on the chip (an access to an unmapped
+//! address or to a peripheral address no model answers, an undefined instruction, a bad
+//! EXC_RETURN) stops the run with a [`Fault`] naming the address and the instruction; the
+//! firmware's fault handlers are not run.
+
+use crate::cpu::bus::{Bus, FLASH_BASE, FLASH_SIZE};
+use crate::cpu::core::{Core, CoreFault, MemoryMap, Return, SliceEnd};
+use crate::cpu::scs::{exception, Scs};
+use crate::periph::{Clocks, Machine, Nanos, Peripheral, ResetKind};
+use std::fmt;
+use unicorn_engine::RegisterARM;
+
+/// The chips the machine models.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chip {
+    /// STM32F405RG: 1 MiB flash, 112 + 16 KiB SRAM, 64 KiB CCM, 82 interrupt lines (RM0090
+    /// §2.3.1, §12.2).
+    Stm32F405,
+    /// STM32F446RE: 512 KiB flash in the RE package (mapped as 1 MiB here), 128 KiB SRAM, no
+    /// CCM, 97 interrupt lines (RM0390 §2.3, §10.2).
+    Stm32F446,
+}
+
+impl Chip {
+    fn memory(self) -> MemoryMap {
+        match self {
+            Chip::Stm32F405 => MemoryMap { sram: 128 * 1024, ccm: 64 * 1024, flash_kib: 1024 },
+            Chip::Stm32F446 => MemoryMap { sram: 128 * 1024, ccm: 0, flash_kib: 512 },
+        }
+    }
+
+    fn irqs(self) -> usize {
+        match self {
+            Chip::Stm32F405 => 82,
+            Chip::Stm32F446 => 97,
+        }
+    }
+}
+
+/// Why the machine stopped or could not be built.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// The core met a fault (see [`CoreFault`]).
+    Core(CoreFault),
+    /// The CPU emulator refused to be set up.
+    Emulator(String),
+    /// A peripheral block outside the peripheral region or overlapping another.
+    Block {
+        /// The block's base.
+        base: u32,
+        /// The model's name.
+        name: &'static str,
+    },
+    /// The ELF file is not a 32-bit little-endian ARM executable, or has a loadable segment
+    /// outside flash.
+    Elf(String),
+}
+
+impl fmt::Display for Fault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Fault::Core(CoreFault::Bus { address, pc, write }) => {
+                let kind = if *write { "store to" } else { "load from" };
+                write!(f, "bus fault: {kind} {address:#010x}, where nothing answers, at pc {pc:#010x}")
+            }
+            Fault::Core(CoreFault::Undefined { pc }) => write!(f, "undefined instruction at pc {pc:#010x}"),
+            Fault::Core(CoreFault::Breakpoint { pc }) => write!(f, "BKPT at pc {pc:#010x}"),
+            Fault::Core(CoreFault::InvalidExceptionReturn { exc_return }) => {
+                write!(f, "invalid exception return to {exc_return:#010x}")
+            }
+            Fault::Core(CoreFault::InvalidVector { exception, vector }) => {
+                write!(f, "vector of exception {exception} is {vector:#010x}, not a Thumb address")
+            }
+            Fault::Core(CoreFault::Stacking { sp }) => {
+                write!(f, "exception stacking at sp {sp:#010x} met no memory")
+            }
+            Fault::Core(CoreFault::Emulator { error, pc }) => {
+                write!(f, "emulator error {error} at pc {pc:#010x}")
+            }
+            Fault::Emulator(e) => write!(f, "CPU emulator: {e}"),
+            Fault::Block { base, name } => {
+                write!(f, "{name} at {base:#010x}: outside the peripheral region or overlapping")
+            }
+            Fault::Elf(e) => write!(f, "ELF: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for Fault {}
+
+impl From<CoreFault> for Fault {
+    fn from(fault: CoreFault) -> Fault {
+        Fault::Core(fault)
+    }
+}
+
+/// The longest time the machine skips at once while the core sleeps.
+const MAX_SLEEP_STEP: Nanos = 1_000_000;
+
+/// An STM32F4: the core, its memory, the System Control Space and the peripheral models.
+pub struct Stm32 {
+    core: Core,
+    chip: Chip,
+    /// Time since power-up; the bus's slice start between slices.
+    now: Nanos,
+    /// Nanoseconds × HCLK not yet turned into whole nanoseconds.
+    remainder: u64,
+    advance_period: Nanos,
+    sleeping: bool,
+    entries: Vec<u64>,
+    resets: u32,
+}
+
+impl Stm32 {
+    /// A powered-off chip with an erased flash array and no peripheral model;
+    /// `unique_id` is what the 96-bit unique ID register reads (RM0090 §39.1).
+    pub fn new(chip: Chip, unique_id: [u8; 12]) -> Result<Stm32, Fault> {
+        let bus = Bus::new(chip.irqs());
+        let core = Core::new(chip.memory(), unique_id, bus).map_err(|e| Fault::Emulator(format!("{e:?}")))?;
+        Ok(Stm32 {
+            core,
+            chip,
+            now: 0,
+            remainder: 0,
+            advance_period: 10_000,
+            sleeping: false,
+            entries: vec![0; 16 + crate::cpu::scs::MAX_IRQS],
+            resets: 0,
+        })
+    }
+
+    /// The chip.
+    pub const fn chip(&self) -> Chip {
+        self.chip
+    }
+
+    /// Adds a peripheral model answering `size` bytes from `base` (its register block, RM0090
+    /// §2.3 table 1). Accesses to the peripheral region that no model answers are bus faults.
+    pub fn add_peripheral(&mut self, base: u32, size: u32, model: Box<dyn Peripheral>) -> Result<(), Fault> {
+        self.core.bus_mut().add(base, size, model).map_err(|model| Fault::Block { base, name: model.name() })
+    }
+
+    /// Sets the longest time between two [`Peripheral::advance`] calls (10 µs by default).
+    pub fn set_advance_period(&mut self, period: Nanos) {
+        self.advance_period = period.max(1);
+    }
+
+    /// Writes `bytes` into the flash array at `offset` from 0x0800_0000 (a programmer's
+    /// download: no FLASH model involved).
+    pub fn program_flash(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Fault> {
+        let start = offset as usize;
+        let end = start.checked_add(bytes.len()).filter(|&e| e <= FLASH_SIZE as usize);
+        let Some(end) = end else {
+            return Err(Fault::Elf(format!("{} bytes at flash offset {offset:#x} do not fit", bytes.len())));
+        };
+        let bus = self.core.bus_mut();
+        bus.flash[start..end].copy_from_slice(bytes);
+        bus.flash_dirty = true;
+        self.core.refresh_flash();
+        Ok(())
+    }
+
+    /// The flash array (what a programmer would read back).
+    pub fn flash(&self) -> &[u8] {
+        &self.core.bus().flash
+    }
+
+    /// Programs the loadable segments of an ELF executable into flash at their load addresses
+    /// (as a debug probe flashes it), then performs a power-on reset.
+    pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), Fault> {
+        for (address, data) in crate::cpu::elf::load_segments(elf)? {
+            let offset = address.checked_sub(FLASH_BASE).filter(|o| o + data.len() as u32 <= FLASH_SIZE);
+            let Some(offset) = offset else {
+                return Err(Fault::Elf(format!("segment at {address:#010x} is not in flash")));
+            };
+            self.program_flash(offset, data)?;
+        }
+        self.power_on_reset()
+    }
+
+    /// Power-on reset (RM0090 §7.1.3): SRAM cleared, every model reset as at power-on, the
+    /// core started from the vector table. Flash keeps its contents.
+    pub fn power_on_reset(&mut self) -> Result<(), Fault> {
+        self.core.clear_ram();
+        self.reset(ResetKind::PowerOn)
+    }
+
+    /// System reset (RM0090 §7.1.2), as AIRCR.SYSRESETREQ requests it: SRAM kept.
+    pub fn system_reset(&mut self) -> Result<(), Fault> {
+        self.reset(ResetKind::System)
+    }
+
+    fn reset(&mut self, kind: ResetKind) -> Result<(), Fault> {
+        let bus = self.core.bus_mut();
+        bus.scs.reset();
+        bus.reset_all(kind);
+        self.sleeping = false;
+        self.resets += 1;
+        self.core.refresh_flash();
+        self.core.reset()?;
+        Ok(())
+    }
+
+    /// Resets performed since the machine was built (the power-on reset of
+    /// [`Stm32::load_elf`] included).
+    pub const fn resets(&self) -> u32 {
+        self.resets
+    }
+
+    /// Time since power-up.
+    pub const fn now(&self) -> Nanos {
+        self.now
+    }
+
+    /// The program counter.
+    pub fn pc(&self) -> u32 {
+        self.core.reg(RegisterARM::PC)
+    }
+
+    /// A core register.
+    pub fn register(&self, register: RegisterARM) -> u32 {
+        self.core.reg(register)
+    }
+
+    /// Reads memory as the CPU sees it (flash, SRAM, CCM, system memory); `false` where
+    /// nothing is mapped.
+    pub fn read_memory(&self, address: u32, buf: &mut [u8]) -> bool {
+        self.core.read_memory(address, buf)
+    }
+
+    /// Writes SRAM or CCM (a test's stand-in for what a debugger would write).
+    pub fn write_memory(&mut self, address: u32, bytes: &[u8]) -> bool {
+        self.core.write_memory(address, bytes)
+    }
+
+    /// The System Control Space (SCB, NVIC, SysTick), for inspection.
+    pub fn scs(&self) -> &Scs {
+        &self.core.bus().scs
+    }
+
+    /// How many times exception `number` was entered (tail chains included).
+    pub fn exceptions_taken(&self, number: u16) -> u64 {
+        self.entries.get(usize::from(number)).copied().unwrap_or(0)
+    }
+
+    /// Whether the core sleeps (WFI, WFE, an idle loop).
+    pub const fn sleeping(&self) -> bool {
+        self.sleeping
+    }
+
+    /// The clocks in force (the RCC model's, or the reset clocks).
+    pub fn clocks(&self) -> Clocks {
+        self.core.bus().clocks()
+    }
+
+    /// Runs for `duration` nanoseconds of emulated time.
+    pub fn run_for(&mut self, duration: Nanos) -> Result<(), Fault> {
+        let end = self.now.saturating_add(duration);
+        while self.now < end {
+            self.step(end)?;
+        }
+        Ok(())
+    }
+
+    /// Runs until `done` holds (checked between slices) or `limit` nanoseconds have passed;
+    /// returns whether `done` held.
+    pub fn run_until(&mut self, limit: Nanos, mut done: impl FnMut(&Stm32) -> bool) -> Result<bool, Fault> {
+        let end = self.now.saturating_add(limit);
+        while self.now < end {
+            if done(self) {
+                return Ok(true);
+            }
+            self.step(end)?;
+        }
+        Ok(done(self))
+    }
+
+    /// One step: a pending system reset, an exception to take, then a slice of instructions
+    /// or of sleep.
+    fn step(&mut self, end: Nanos) -> Result<(), Fault> {
+        if self.core.bus_mut().scs.take_reset_request() {
+            return self.system_reset();
+        }
+        self.take_exception()?;
+        if self.sleeping {
+            return self.sleep(end);
+        }
+        let budget = self.slice_budget(end);
+        let outcome = self.core.run(budget);
+        let executed = self.core.bus().executed;
+        self.account(executed);
+        self.core.refresh_flash();
+        match outcome? {
+            SliceEnd::Stopped => {
+                if executed >= budget && self.core.at_idle_loop() {
+                    self.sleeping = true;
+                }
+            }
+            SliceEnd::Sleep => self.sleeping = true,
+            SliceEnd::SupervisorCall => self.core.bus_mut().scs.set_pending(exception::SV_CALL),
+            SliceEnd::ExceptionReturn(exc_return) => match self.core.return_from_exception(exc_return)? {
+                Return::Chained(next) => self.count_entry(next),
+                Return::Handler => {}
+                Return::Thread => self.sleeping = self.core.bus().scs.sleep_on_exit(),
+            },
+        }
+        Ok(())
+    }
+
+    fn count_entry(&mut self, number: u16) {
+        if let Some(count) = self.entries.get_mut(usize::from(number)) {
+            *count += 1;
+        }
+    }
+
+    /// Takes the exception that preempts, if any, between instructions outside an IT block.
+    fn take_exception(&mut self) -> Result<(), Fault> {
+        let masks = self.core.masks();
+        let scs = &self.core.bus().scs;
+        if self.sleeping {
+            if !scs.wakes(masks) {
+                return Ok(());
+            }
+            self.sleeping = false;
+        }
+        let Some(number) = scs.preempting(masks) else {
+            return Ok(());
+        };
+        // An exception in an IT block would need ITSTATE in the frame, which unicorn keeps
+        // consistent only between blocks: run the block out first (at most 4 instructions).
+        for _ in 0..4 {
+            if !self.core.in_it_block() {
+                break;
+            }
+            let outcome = self.core.run(1);
+            self.account(self.core.bus().executed);
+            outcome?;
+        }
+        self.core.enter_exception(number)?;
+        self.count_entry(number);
+        Ok(())
+    }
+
+    /// Instructions the next slice may run: up to the advance period, SysTick's next
+    /// interrupt, the models' next event and `end`, at one instruction per HCLK cycle.
+    fn slice_budget(&self, end: Nanos) -> u64 {
+        let hclk = u64::from(self.hclk());
+        let bus = self.core.bus();
+        let mut until = end.min(self.now + self.advance_period);
+        if let Some(event) = bus.next_event() {
+            until = until.min(event.max(self.now + 1));
+        }
+        let mut cycles = ((until - self.now) * hclk).div_ceil(1_000_000_000).max(1);
+        if let Some(tick) = bus.scs.systick.cycles_to_interrupt() {
+            cycles = cycles.min(tick);
+        }
+        cycles.max(1)
+    }
+
+    fn hclk(&self) -> u32 {
+        self.core.bus().clocks().hclk.max(1)
+    }
+
+    /// Turns `cycles` at HCLK into time; counts SysTick; advances every model.
+    fn account(&mut self, cycles: u64) {
+        let hclk = u64::from(self.hclk());
+        let total = self.remainder + cycles * 1_000_000_000;
+        self.now += total / hclk;
+        self.remainder = total % hclk;
+        let now = self.now;
+        let bus = self.core.bus_mut();
+        if bus.scs.systick.advance(cycles) {
+            bus.scs.set_pending(exception::SYS_TICK);
+        }
+        bus.slice_start = now;
+        bus.executed = 0;
+        bus.hclk = hclk as u32;
+        bus.advance_all(now);
+    }
+
+    /// Sleeps to the next event, SysTick's next interrupt, 1 ms or `end`, whichever is first.
+    fn sleep(&mut self, end: Nanos) -> Result<(), Fault> {
+        let hclk = u64::from(self.hclk());
+        let bus = self.core.bus();
+        let mut until = end.min(self.now + MAX_SLEEP_STEP);
+        if let Some(event) = bus.next_event() {
+            until = until.min(event.max(self.now + 1));
+        }
+        let mut cycles = ((until - self.now) * hclk).div_ceil(1_000_000_000).max(1);
+        if let Some(tick) = bus.scs.systick.cycles_to_interrupt() {
+            cycles = cycles.min(tick);
+        }
+        self.account(cycles);
+        Ok(())
+    }
+}
