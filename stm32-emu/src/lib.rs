@@ -16,3 +16,5 @@ pub mod gpio;
 pub mod rcc;
 pub mod flash;
 pub mod usart;
+pub mod cpu;
+pub mod machine;
