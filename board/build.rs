@@ -1,12 +1,17 @@
-//! Puts `memory.x` where cortex-m-rt's `link.x` finds it: the link search path of whatever binary
-//! depends on this crate.
+//! Puts the selected board's `memory.x` (board/memory/<chip>.x, chosen by the board feature) where
+//! cortex-m-rt's `link.x` finds it: the link search path of whatever binary depends on this crate.
 
 use std::{env, fs, path::PathBuf};
 
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x");
+    // The STM32F446RE board's file when its feature is on, else the STM32F405RG's (the reference
+    // board and the Olimex STM32-P405); src/boards refuses any other combination.
+    let chip =
+        if env::var_os("CARGO_FEATURE_NUCLEO_F446RE").is_some() { "stm32f446re" } else { "stm32f405rg" };
+    let source = format!("memory/{chip}.x");
+    fs::copy(&source, out.join("memory.x")).expect("copy memory.x");
     println!("cargo:rustc-link-search={}", out.display());
-    println!("cargo:rerun-if-changed=memory.x");
+    println!("cargo:rerun-if-changed=memory");
     println!("cargo:rerun-if-changed=build.rs");
 }

@@ -1,9 +1,10 @@
 //! CAN bit timing for the bxCAN controller (RM0090 §32.7.7, register `CAN_BTR`).
 //!
 //! A bit is `1 + BS1 + BS2` time quanta of `prescaler / f_APB1` each; the sample point sits at the
-//! end of BS1. DeviceNet (and CiA 301 for these rates) wants the sample point near 87.5 %. At the
-//! board's 42 MHz APB1 clock [`bit_timing`] finds, for every DeviceNet rate, the integer prescaler
-//! and segment split whose sample point is closest to 87.5 %, preferring more quanta on a tie:
+//! end of BS1. DeviceNet (and CiA 301 for these rates) wants the sample point near 87.5 %. For a
+//! board's APB1 clock (PCLK1) [`bit_timing`] finds, for every DeviceNet rate, the integer
+//! prescaler and segment split whose sample point is closest to 87.5 %, preferring more quanta on
+//! a tie. At 42 MHz (the STM32F405 boards):
 //!
 //! | rate | prescaler | quanta | BS1 | BS2 | SJW | sample point |
 //! |---|---|---|---|---|---|---|
@@ -11,8 +12,17 @@
 //! | 250 kbit/s | 21 | 8 | 6 | 1 | 1 | 87.5 % |
 //! | 500 kbit/s | 6 | 14 | 11 | 2 | 2 | 85.7 % |
 //!
+//! At 45 MHz (the NUCLEO-F446RE):
+//!
+//! | rate | prescaler | quanta | BS1 | BS2 | SJW | sample point |
+//! |---|---|---|---|---|---|---|
+//! | 125 kbit/s | 45 | 8 | 6 | 1 | 1 | 87.5 % |
+//! | 250 kbit/s | 12 | 15 | 12 | 2 | 2 | 86.7 % |
+//! | 500 kbit/s | 6 | 15 | 12 | 2 | 2 | 86.7 % |
+//!
 //! Everything here is `const fn`, so the firmware's register values are computed at compile time
-//! and unit-tested on the host.
+//! (a board clock without a timing for every rate fails the build) and unit-tested on the host for
+//! every board ([`crate::boards`]).
 
 use crate::clocks::PCLK1_HZ;
 use devicenet::slave::BaudRate;
@@ -117,7 +127,17 @@ pub const fn bit_timing(pclk_hz: u32, bit_rate: u32, sample_point_permille: u32)
     best
 }
 
-/// The board's timing for a DeviceNet rate at its 42 MHz APB1 clock.
+/// The timing for a DeviceNet rate at `pclk1_hz`, `None` when that clock cannot make the rate.
+pub const fn for_clock(pclk1_hz: u32, rate: BaudRate) -> Option<BitTiming> {
+    let bits = match rate {
+        BaudRate::Kbps125 => 125_000,
+        BaudRate::Kbps250 => 250_000,
+        BaudRate::Kbps500 => 500_000,
+    };
+    bit_timing(pclk1_hz, bits, TARGET_SAMPLE_POINT_PERMILLE)
+}
+
+/// The selected board's timing for a DeviceNet rate at its APB1 clock.
 pub const fn for_baud_rate(rate: BaudRate) -> BitTiming {
     match rate {
         BaudRate::Kbps125 => KBPS125,
@@ -134,37 +154,55 @@ const fn unwrap_timing(t: Option<BitTiming>) -> BitTiming {
     }
 }
 
-/// 125 kbit/s at 42 MHz.
-pub const KBPS125: BitTiming = unwrap_timing(bit_timing(PCLK1_HZ, 125_000, TARGET_SAMPLE_POINT_PERMILLE));
-/// 250 kbit/s at 42 MHz.
-pub const KBPS250: BitTiming = unwrap_timing(bit_timing(PCLK1_HZ, 250_000, TARGET_SAMPLE_POINT_PERMILLE));
-/// 500 kbit/s at 42 MHz.
-pub const KBPS500: BitTiming = unwrap_timing(bit_timing(PCLK1_HZ, 500_000, TARGET_SAMPLE_POINT_PERMILLE));
+/// 125 kbit/s at the selected board's PCLK1.
+pub const KBPS125: BitTiming = unwrap_timing(for_clock(PCLK1_HZ, BaudRate::Kbps125));
+/// 250 kbit/s at the selected board's PCLK1.
+pub const KBPS250: BitTiming = unwrap_timing(for_clock(PCLK1_HZ, BaudRate::Kbps250));
+/// 500 kbit/s at the selected board's PCLK1.
+pub const KBPS500: BitTiming = unwrap_timing(for_clock(PCLK1_HZ, BaudRate::Kbps500));
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use rstest::rstest;
 
+    const F405_PCLK1: u32 = 42_000_000;
+    const F446_PCLK1: u32 = 45_000_000;
+
     #[rstest]
-    #[case::k125(BaudRate::Kbps125, BitTiming { prescaler: 21, bs1: 13, bs2: 2, sjw: 2 }, 0x011C_0014)]
-    #[case::k250(BaudRate::Kbps250, BitTiming { prescaler: 21, bs1: 6, bs2: 1, sjw: 1 }, 0x0005_0014)]
-    #[case::k500(BaudRate::Kbps500, BitTiming { prescaler: 6, bs1: 11, bs2: 2, sjw: 2 }, 0x011A_0005)]
-    fn devicenet_rates_at_42_mhz(#[case] rate: BaudRate, #[case] timing: BitTiming, #[case] btr: u32) {
-        let t = for_baud_rate(rate);
+    #[case::f405_k125(F405_PCLK1, BaudRate::Kbps125, BitTiming { prescaler: 21, bs1: 13, bs2: 2, sjw: 2 }, 0x011C_0014)]
+    #[case::f405_k250(F405_PCLK1, BaudRate::Kbps250, BitTiming { prescaler: 21, bs1: 6, bs2: 1, sjw: 1 }, 0x0005_0014)]
+    #[case::f405_k500(F405_PCLK1, BaudRate::Kbps500, BitTiming { prescaler: 6, bs1: 11, bs2: 2, sjw: 2 }, 0x011A_0005)]
+    #[case::f446_k125(F446_PCLK1, BaudRate::Kbps125, BitTiming { prescaler: 45, bs1: 6, bs2: 1, sjw: 1 }, 0x0005_002C)]
+    #[case::f446_k250(F446_PCLK1, BaudRate::Kbps250, BitTiming { prescaler: 12, bs1: 12, bs2: 2, sjw: 2 }, 0x011B_000B)]
+    #[case::f446_k500(F446_PCLK1, BaudRate::Kbps500, BitTiming { prescaler: 6, bs1: 12, bs2: 2, sjw: 2 }, 0x011B_0005)]
+    fn devicenet_rates(
+        #[case] pclk1: u32,
+        #[case] rate: BaudRate,
+        #[case] timing: BitTiming,
+        #[case] btr: u32,
+    ) {
+        let t = for_clock(pclk1, rate).unwrap();
         assert_eq!(t, timing);
         assert_eq!(t.btr(), btr);
         // Exact rate, no rounding.
-        assert_eq!(t.bit_rate(PCLK1_HZ), rate.bits_per_second());
-        assert_eq!(PCLK1_HZ % (u32::from(t.prescaler) * t.quanta()), 0);
+        assert_eq!(t.bit_rate(pclk1), rate.bits_per_second());
+        assert_eq!(pclk1 % (u32::from(t.prescaler) * t.quanta()), 0);
+    }
+
+    #[test]
+    fn the_selected_boards_timing_is_its_clocks() {
+        for rate in [BaudRate::Kbps125, BaudRate::Kbps250, BaudRate::Kbps500] {
+            assert_eq!(Some(for_baud_rate(rate)), for_clock(PCLK1_HZ, rate));
+        }
     }
 
     #[rstest]
-    #[case::k125(BaudRate::Kbps125)]
-    #[case::k250(BaudRate::Kbps250)]
-    #[case::k500(BaudRate::Kbps500)]
-    fn sample_point_near_87_5_percent(#[case] rate: BaudRate) {
-        let t = for_baud_rate(rate);
+    fn sample_point_near_87_5_percent(
+        #[values(BaudRate::Kbps125, BaudRate::Kbps250, BaudRate::Kbps500)] rate: BaudRate,
+        #[values(F405_PCLK1, F446_PCLK1)] pclk1: u32,
+    ) {
+        let t = for_clock(pclk1, rate).unwrap();
         let sp = t.sample_point_permille();
         assert!((850..=880).contains(&sp), "{rate:?}: sample point {sp} ‰");
         assert!((1..=MAX_BS1).contains(&t.bs1));

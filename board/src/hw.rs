@@ -1,13 +1,16 @@
-//! Peripheral set-up of the adapter board (target builds only).
+//! Peripheral set-up of the selected board (target builds only).
 //!
 //! [`Board::take`] configures clocks, pins and peripherals and hands the application typed
-//! handles: the LEDs, the switch reading, the service port (USART1), the instrument port
-//! (USART2 + RS-485 driver enable, opened later with the serial profile's [`LineFormat`] by
-//! [`InstrumentUart::open`]), the bxCAN (real board only) and the settings flash.
+//! handles: the LEDs, the switch reading (boards with switches), the service port (USART1, the
+//! emulated board's SLCAN link), the instrument port (its USART and, on RS-485, the driver
+//! enable, opened later with the serial profile's [`LineFormat`] by [`InstrumentUart::open`]),
+//! the bxCAN (real boards only) and the settings flash. Which USART and which pins is the board's
+//! ([`crate::boards`]); the typed pins here are checked against its description at compile time.
 //!
 //! With the `emulated` feature RCC is left at reset (HSI, 16 MHz on every bus; QEMU models no
 //! PLL and would spin forever waiting for it) and CAN1 is not touched (QEMU has no bxCAN).
 
+use crate::boards::{Usart as UsartName, SELECTED};
 use crate::clocks;
 use crate::leds;
 use crate::memory;
@@ -18,7 +21,6 @@ use devicenet::led::Leds;
 use stm32f4xx_hal::flash::{FlashExt, LockedFlash};
 use stm32f4xx_hal::gpio::{Output, Pin, PushPull};
 use stm32f4xx_hal::pac;
-use stm32f4xx_hal::pac::USART2;
 use stm32f4xx_hal::prelude::*;
 use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
 
@@ -30,13 +32,13 @@ pub type Can1 = stm32f4xx_hal::can::Can<pac::CAN1>;
 pub struct Board {
     /// The MS and NS LEDs.
     pub leds: LedPins,
-    /// The DIP switches as read at reset.
-    pub switches: SwitchReading,
+    /// The DIP switches as read at reset; `None` on a board without switches.
+    pub switches: Option<SwitchReading>,
     /// USART1, the service port, 115200 8N1: the SLCAN link of the emulated build. The real
-    /// board's firmware does not use it and leaves it off (below).
+    /// reference board's firmware does not use it and leaves it off (below).
     #[cfg(feature = "emulated")]
     pub service: Usart<pac::USART1>,
-    /// USART2 to the instrument, not yet opened: its line format comes from the serial profile,
+    /// The instrument's USART, not yet opened: its line format comes from the serial profile,
     /// which the application chooses after reading the switches and the stored settings.
     pub instrument: InstrumentUart,
     /// CAN1, pins configured, not yet started (real board only).
@@ -66,8 +68,8 @@ impl Board {
         let mut rcc = clocks(dp.RCC);
         let gpioa = dp.GPIOA.split(&mut rcc);
         let gpiob = dp.GPIOB.split(&mut rcc);
-        let leds = LedPins::take(dp.GPIOC, &mut rcc);
-        let port = read_switches();
+        let leds = LedPins::take(&mut rcc);
+        let switches = read_switches();
         #[cfg(feature = "emulated")]
         let service = {
             // Computed at compile time: 115200 8N1 from HSI.
@@ -79,16 +81,28 @@ impl Board {
             let _ = (gpioa.pa9.into_alternate::<7>(), gpioa.pa10.into_alternate::<7>());
             Usart::open(dp.USART1, SERVICE, &mut rcc)
         };
-        // The real board's firmware does not use the service port: USART1 stays unclocked and
-        // both pins are inputs with their pull-ups, so that TX rests at the idle (mark) level a
-        // connected adapter expects, as an idle USART would hold it, and RX does not float.
-        #[cfg(not(feature = "emulated"))]
+        // The real reference board's firmware does not use the service port: USART1 stays
+        // unclocked and both pins are inputs with their pull-ups, so that TX rests at the idle
+        // (mark) level a connected adapter expects, as an idle USART would hold it, and RX does
+        // not float.
+        #[cfg(all(feature = "reference", not(feature = "emulated")))]
         let _ = (gpioa.pa9.into_pull_up_input(), gpioa.pa10.into_pull_up_input(), dp.USART1);
+        #[cfg(any(feature = "reference", feature = "olimex-p405"))]
         let instrument = InstrumentUart {
             usart: dp.USART2,
             tx: gpioa.pa2,
             rx: gpioa.pa3,
+            #[cfg(feature = "reference")]
             de: gpioa.pa1.into_push_pull_output(),
+            #[cfg(feature = "olimex-p405")]
+            de: NoDriverEnable,
+        };
+        #[cfg(feature = "nucleo-f446re")]
+        let instrument = InstrumentUart {
+            usart: dp.USART1,
+            tx: gpioa.pa9,
+            rx: gpioa.pa10,
+            de: gpioa.pa8.into_push_pull_output(),
         };
 
         #[cfg(not(feature = "emulated"))]
@@ -98,7 +112,7 @@ impl Board {
 
         Ok(Board {
             leds,
-            switches: SwitchReading::from_port(port),
+            switches,
             #[cfg(feature = "emulated")]
             service,
             instrument,
@@ -114,12 +128,10 @@ impl Board {
 #[cfg(not(feature = "emulated"))]
 fn clocks(rcc: pac::RCC) -> Rcc {
     use stm32f4xx_hal::rcc::Config;
-    rcc.freeze(
-        Config::hse(clocks::HSE_HZ.Hz())
-            .sysclk(clocks::SYSCLK_HZ.Hz())
-            .pclk1(clocks::PCLK1_HZ.Hz())
-            .pclk2(clocks::PCLK2_HZ.Hz()),
-    )
+    let hse = Config::hse(clocks::HSE_HZ.Hz());
+    // The Nucleo's HSE is the ST-LINK's MCO, an external clock (bypass), not a crystal.
+    let hse = if clocks::HSE_BYPASS { hse.bypass_hse_oscillator() } else { hse };
+    rcc.freeze(hse.sysclk(clocks::SYSCLK_HZ.Hz()).pclk1(clocks::PCLK1_HZ.Hz()).pclk2(clocks::PCLK2_HZ.Hz()))
 }
 
 #[cfg(feature = "emulated")]
@@ -128,36 +140,59 @@ fn clocks(rcc: pac::RCC) -> Rcc {
     rcc.constrain()
 }
 
-/// The Module Status and Network Status LEDs (PC0–PC3, see [`crate::leds`]): GPIOC as a whole,
-/// so that the four outputs are set up in one register write and shown in one
-/// ([`leds::bsrr`]) rather than pin by pin (firmware size).
+/// The GPIO port of the board's LEDs ([`leds::port`], checked below).
+#[cfg(any(feature = "reference", feature = "olimex-p405"))]
+type LedPort = pac::GPIOC;
+#[cfg(any(feature = "reference", feature = "olimex-p405"))]
+const _: () = assert!(matches!(leds::port(leds::WIRING), crate::pins::Port::C));
+/// The GPIO port of the board's LEDs ([`leds::port`], checked below).
+#[cfg(feature = "nucleo-f446re")]
+type LedPort = pac::GPIOA;
+#[cfg(feature = "nucleo-f446re")]
+const _: () = assert!(matches!(leds::port(leds::WIRING), crate::pins::Port::A));
+
+/// The board's status LEDs ([`crate::leds`]): the reference board's MS and NS pairs on PC0–PC3,
+/// or the one LED of the Olimex (PC12) or the Nucleo (PA5). Set up in one register write and
+/// shown in one ([`leds::bsrr`]) rather than pin by pin (firmware size).
 pub struct LedPins {
-    gpioc: pac::GPIOC,
+    _owned: (),
 }
 
 impl LedPins {
-    /// Enables GPIOC and makes PC0–PC3 push-pull outputs, low (all LEDs off; the output data
-    /// register's reset value).
-    fn take(gpioc: pac::GPIOC, rcc: &mut Rcc) -> LedPins {
-        rcc.ahb1enr().modify(|_, w| w.gpiocen().set_bit());
-        // OTYPER and OSPEEDR stay at reset: push-pull, low speed.
-        gpioc
-            .moder()
-            .modify(|_, w| w.moder0().output().moder1().output().moder2().output().moder3().output());
-        LedPins { gpioc }
+    /// Enables the LEDs' port and makes their pins push-pull outputs, low (all LEDs off; the
+    /// output data register's reset value).
+    fn take(rcc: &mut Rcc) -> LedPins {
+        let port = leds::port(leds::WIRING).index();
+        let (mask, outputs) = leds::moder_mask_and_outputs(leds::WIRING);
+        // SAFETY: sets the port's clock enable bit only. The LED pins' MODER bits alone are
+        // written, at set-up with interrupts disabled; no typed pin of the HAL is made for them,
+        // so nothing else configures them. OTYPER and OSPEEDR stay at reset: push-pull, low speed.
+        unsafe {
+            rcc.ahb1enr().modify(|r, w| w.bits(r.bits() | 1 << port));
+            let gpio = &*LedPort::ptr();
+            gpio.moder().modify(|r, w| w.bits(r.bits() & !mask | outputs));
+        }
+        LedPins { _owned: () }
     }
 
     /// Shows `leds`.
     pub fn show(&mut self, leds: Leds) {
-        // SAFETY: BSRR only sets or resets output levels; `leds::bsrr` names PC0–PC3 alone, the
-        // LED outputs this struct owns.
-        self.gpioc.bsrr().write(|w| unsafe { w.bits(leds::bsrr(leds)) });
+        // SAFETY: BSRR only sets or resets output levels, atomically; `leds::bsrr` names the LED
+        // pins alone, which this handle (made once, in `Board::take`) owns.
+        unsafe { (*LedPort::ptr()).bsrr().write(|w| w.bits(leds::bsrr(leds::WIRING, leds))) };
     }
 }
 
-/// Makes PB0–PB7 (the DIP switches, [`crate::switches`]) inputs with pull-ups, lets the pull-ups
-/// charge the switch lines and reads the eight in one read of the input data register.
-fn read_switches() -> u8 {
+/// Reads the DIP switches (the reference board's PB0–PB7, [`crate::switches`]): makes them inputs
+/// with pull-ups, lets the pull-ups charge the switch lines and reads the eight in one read of the
+/// input data register. `None` on a board without switches.
+#[cfg(feature = "reference")]
+fn read_switches() -> Option<SwitchReading> {
+    const {
+        assert!(
+            matches!(crate::switches::BANK, Some(b) if b.first.number == 0 && matches!(b.first.port, crate::pins::Port::B))
+        )
+    };
     // SAFETY: only PB0–PB7's bits of MODER and PUPDR are written, at set-up with interrupts
     // disabled; their typed pins are never used, so nothing else configures them. GPIOB's clock
     // is on (`split`). Reading IDR has no side effect.
@@ -166,15 +201,107 @@ fn read_switches() -> u8 {
     gpiob.pupdr().modify(|r, w| unsafe { w.bits(r.bits() & !0xFFFF | 0x5555) });
     // Let the pull-ups charge the switch lines (tens of µs at most).
     cortex_m::asm::delay(clocks::HSI_HZ / 10_000);
-    gpiob.idr().read().bits() as u8
+    Some(SwitchReading::from_port(gpiob.idr().read().bits() as u8))
 }
 
-/// USART2 and its pins, before the line format is known.
+/// A board without DIP switches reads none.
+#[cfg(not(feature = "reference"))]
+fn read_switches() -> Option<SwitchReading> {
+    const { assert!(crate::switches::BANK.is_none()) };
+    None
+}
+
+/// The RS-485 driver enable (DE, /RE tied to it): high while transmitting. An RS-232 line has
+/// none ([`NoDriverEnable`]).
+pub trait DriverEnable {
+    /// Enables the driver (transmit).
+    fn enable(&mut self);
+    /// Releases the driver (receive).
+    fn release(&mut self);
+}
+
+impl<const P: char, const N: u8> DriverEnable for Pin<P, N, Output<PushPull>> {
+    fn enable(&mut self) {
+        self.set_high();
+    }
+
+    fn release(&mut self) {
+        self.set_low();
+    }
+}
+
+/// The driver enable of an RS-232 line: none.
+pub struct NoDriverEnable;
+
+impl DriverEnable for NoDriverEnable {
+    fn enable(&mut self) {}
+
+    fn release(&mut self) {}
+}
+
+/// The instrument's USART, pins and driver enable on the reference board ([`crate::boards::reference`]).
+#[cfg(feature = "reference")]
+mod instrument_port {
+    use super::*;
+    pub type UsartPeriph = pac::USART2;
+    pub type Tx = Pin<'A', 2>;
+    pub type Rx = Pin<'A', 3>;
+    pub type De = Pin<'A', 1, Output<PushPull>>;
+    pub const TX_PIN: u8 = 2;
+    pub const RX_PIN: u8 = 3;
+    pub const DE_PIN: Option<u8> = Some(1);
+    pub const USART: UsartName = UsartName::Usart2;
+}
+/// The instrument's USART and pins on the Olimex STM32-P405's RS-232 port ([`crate::boards::olimex_p405`]).
+#[cfg(feature = "olimex-p405")]
+mod instrument_port {
+    use super::*;
+    pub type UsartPeriph = pac::USART2;
+    pub type Tx = Pin<'A', 2>;
+    pub type Rx = Pin<'A', 3>;
+    pub type De = NoDriverEnable;
+    pub const TX_PIN: u8 = 2;
+    pub const RX_PIN: u8 = 3;
+    pub const DE_PIN: Option<u8> = None;
+    pub const USART: UsartName = UsartName::Usart2;
+}
+/// The instrument's USART, pins and driver enable on the Nucleo's RS485 CAN Shield ([`crate::boards::nucleo_f446re`]).
+#[cfg(feature = "nucleo-f446re")]
+mod instrument_port {
+    use super::*;
+    pub type UsartPeriph = pac::USART1;
+    pub type Tx = Pin<'A', 9>;
+    pub type Rx = Pin<'A', 10>;
+    pub type De = Pin<'A', 8, Output<PushPull>>;
+    pub const TX_PIN: u8 = 9;
+    pub const RX_PIN: u8 = 10;
+    pub const DE_PIN: Option<u8> = Some(8);
+    pub const USART: UsartName = UsartName::Usart1;
+}
+use instrument_port::{De, Rx, Tx, UsartPeriph};
+
+// The typed pins above are the board description's (all on GPIOA).
+const _: () = {
+    let port = SELECTED.instrument;
+    assert!(matches!(
+        (port.usart, instrument_port::USART),
+        (UsartName::Usart1, UsartName::Usart1) | (UsartName::Usart2, UsartName::Usart2)
+    ));
+    assert!(port.tx.number == instrument_port::TX_PIN && port.rx.number == instrument_port::RX_PIN);
+    assert!(matches!(port.tx.port, crate::pins::Port::A) && matches!(port.rx.port, crate::pins::Port::A));
+    match (port.driver_enable, instrument_port::DE_PIN) {
+        (Some(de), Some(n)) => assert!(de.number == n && matches!(de.port, crate::pins::Port::A)),
+        (None, None) => {}
+        _ => panic!("driver enable differs from the board description"),
+    }
+};
+
+/// The instrument's USART and its pins, before the line format is known.
 pub struct InstrumentUart {
-    usart: USART2,
-    tx: Pin<'A', 2>,
-    rx: Pin<'A', 3>,
-    de: Pin<'A', 1, Output<PushPull>>,
+    usart: UsartPeriph,
+    tx: Tx,
+    rx: Rx,
+    de: De,
 }
 
 impl InstrumentUart {
@@ -189,7 +316,7 @@ impl InstrumentUart {
         let _ = (self.tx.into_alternate::<7>(), self.rx.into_alternate::<7>());
         let usart = Usart::open(self.usart, registers, rcc);
         let mut de = self.de;
-        de.set_low();
+        de.release();
         Ok(Rs485 { usart, de, data_mask: format.data_mask() })
     }
 }
@@ -284,11 +411,12 @@ where
     }
 }
 
-/// USART2 behind the RS-485 transceiver: the driver is enabled while bytes go out and released
-/// once the last stop bit has left (transmission complete), so the instrument can answer.
+/// The instrument's USART behind its transceiver. On RS-485 the driver is enabled while bytes go
+/// out and released once the last stop bit has left (transmission complete), so the instrument
+/// can answer; on RS-232 ([`NoDriverEnable`]) both are no-ops.
 pub struct Rs485 {
-    usart: Usart<pac::USART2>,
-    de: Pin<'A', 1, Output<PushPull>>,
+    usart: Usart<UsartPeriph>,
+    de: De,
     data_mask: u8,
 }
 
@@ -300,7 +428,7 @@ impl Rs485 {
 
     /// Writes a byte if the transmit register is empty; enables the driver first.
     pub fn try_write(&mut self, byte: u8) -> bool {
-        self.de.set_high();
+        self.de.enable();
         self.usart.try_write(byte)
     }
 
@@ -311,7 +439,7 @@ impl Rs485 {
 
     /// Releases the RS-485 driver (back to receive).
     pub fn release_driver(&mut self) {
-        self.de.set_low();
+        self.de.release();
     }
 
     /// Enables an interrupt.
@@ -374,7 +502,8 @@ pub fn unique_id() -> [u32; 3] {
     unsafe { [base.read_volatile(), base.add(1).read_volatile(), base.add(2).read_volatile()] }
 }
 
-/// The settings sectors 10 and 11 of the internal flash ([`memory`]), as a [`SettingsFlash`].
+/// The settings sectors of the internal flash (10 and 11, or 6 and 7 on the STM32F446RE:
+/// [`memory`]), as a [`SettingsFlash`].
 ///
 /// Erasing a 128 KiB sector stalls the CPU for 1–2 s (the code runs from the same bank); it happens
 /// once every 1024 saves.

@@ -1,18 +1,20 @@
 //! # board
 //!
-//! The hardware facts of the STM32F405RG serial-to-DeviceNet adapter board, in one place
-//! (style.md practice 8): the firmware never names a pin, a clock or a register value.
+//! The hardware facts of the boards the serial-to-DeviceNet converter runs on, in one place
+//! (style.md practice 8): the firmware never names a pin, a clock or a register value. The board
+//! is chosen at build time by a Cargo feature ([`boards`]).
 //!
 //! | module | what it holds | host-tested |
 //! |---|---|---|
-//! | [`clocks`] | 8 MHz HSE → 168 MHz SYSCLK, APB1 42 MHz; the emulated board's HSI | – |
-//! | [`pins`] | the pin assignment | yes |
-//! | [`bit_timing`] | `const fn` bxCAN bit timing (`CAN_BTR`) for 125k/250k/500k at 42 MHz | yes |
+//! | [`boards`] | each board's description ([`boards::BoardSpec`]: chip, clocks, pins, LEDs, switches, flash layout, with its sources) and the selected one | yes, every board |
+//! | [`clocks`] | the selected board's clock tree (e.g. 8 MHz HSE → 168 MHz SYSCLK, APB1 42 MHz); the emulated board's HSI | – |
+//! | [`pins`] | pins as values | yes |
+//! | [`bit_timing`] | `const fn` bxCAN bit timing (`CAN_BTR`) for 125k/250k/500k at the board's PCLK1 | yes, every board's PCLK1 |
 //! | [`filters`] | the acceptance list: this node's Group 2 identifiers only | yes |
-//! | [`switches`] | DIP switch decoding and the MAC/baud/"changed" decision at reset | yes |
-//! | [`leds`] | MS/NS bicolour LED pin levels | yes |
+//! | [`switches`] | DIP switch decoding and the MAC/baud/"changed" decision at reset (boards without switches: the stored values) | yes |
+//! | [`leds`] | MS/NS bicolour LED pin levels, or what a board's one LED shows | yes |
 //! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
-//! | [`memory`] | the memory map and `memory.x` (flash sectors 10–11 reserved for settings) | yes |
+//! | [`memory`] | the memory map and `memory.x` per chip (`board/memory/`: settings in the last two flash sectors, 10–11 or 6–7) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make, and the USART register values (`BRR`, `CR1`, `CR2`) that make them | yes |
 //! | [`uid`] | the DeviceNet serial number, folded from the MCU's 96-bit unique ID (CRC-32) | yes |
 //! | `hw` | peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status, the unique ID's read (real board) (`target_os = "none"` only) | – |
@@ -21,6 +23,7 @@
 //!
 //! | feature | effect |
 //! |---|---|
+//! | `reference` (default), `olimex-p405`, `nucleo-f446re` | the board (exactly one); it also chooses stm32f4xx-hal's chip feature (`stm32f405` or `stm32f446`) and `memory.x` |
 //! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
 //!
@@ -40,6 +43,7 @@
 extern crate std;
 
 pub mod bit_timing;
+pub mod boards;
 pub mod clocks;
 pub mod filters;
 pub mod leds;

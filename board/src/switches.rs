@@ -1,4 +1,6 @@
-//! The eight DIP switches on PB0–PB7, and what the node makes of them at reset.
+//! The eight DIP switches on PB0–PB7 (the reference board only, [`BANK`]), and what the node
+//! makes of them at reset. A board without switches runs with the stored MAC ID and data rate
+//! ([`resolve_stored`]).
 //!
 //! Each switch connects its pin to ground against the internal pull-up, so a switch that is **on**
 //! reads 0; [`SwitchReading::from_port`] inverts the port so that "on" counts as 1.
@@ -17,6 +19,7 @@
 //! ([`Settings::last_switches`]): they report that someone moved the switches since the last
 //! power-up. [`resolve`] tells the firmware when to store the new reading.
 
+use crate::boards::{SwitchBank, SELECTED};
 use crate::settings::Settings;
 use devicenet::slave::{BaudRate, Switches};
 use devicenet::MacId;
@@ -85,6 +88,26 @@ pub struct Resolved {
     pub store_reading: bool,
 }
 
+/// The selected board's switches; `None` on a board without them.
+pub const BANK: Option<SwitchBank> = SELECTED.switches;
+
+/// What a board without switches runs with: the stored MAC ID and data rate, which the master may
+/// change over the network (as in the program position); attributes 6–9 report no switches.
+pub fn resolve_stored(stored: &Settings) -> Resolved {
+    Resolved {
+        mac_id: stored.mac_id,
+        baud_rate: stored.baud_rate,
+        switches: Switches {
+            mac_id: None,
+            baud_rate: None,
+            mac_id_changed: false,
+            baud_rate_changed: false,
+            programmable: true,
+        },
+        store_reading: false,
+    }
+}
+
 /// Decides MAC ID, data rate and the switch attributes from a reading and the stored settings.
 pub fn resolve(reading: SwitchReading, stored: &Settings) -> Resolved {
     let previous = stored.last_switches.map(SwitchReading::from_bits);
@@ -138,6 +161,15 @@ mod tests {
         assert!(!r.switches.programmable);
         assert_eq!(r.switches.mac_id, Some(5));
         assert_eq!(r.switches.baud_rate, Some(1));
+    }
+
+    #[test]
+    fn no_switches_use_stored_values() {
+        let stored = Settings { mac_id: mac(20), baud_rate: BaudRate::Kbps500, ..Settings::default() };
+        let r = resolve_stored(&stored);
+        assert_eq!((r.mac_id, r.baud_rate), (mac(20), BaudRate::Kbps500));
+        assert!(r.switches.programmable && !r.store_reading);
+        assert_eq!((r.switches.mac_id, r.switches.baud_rate), (None, None));
     }
 
     #[test]

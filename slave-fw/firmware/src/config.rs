@@ -170,10 +170,14 @@ const fn parse_mac(text: Option<&str>) -> MacId {
 #[cfg(feature = "emulated")]
 pub const EMULATED_MAC: MacId = parse_mac(option_env!("DNET_MAC"));
 
-/// What the switches and settings decide, with the emulated build's MAC override.
-pub fn resolve(reading: SwitchReading, stored: &Settings) -> Resolved {
+/// What the switches (`None` on a board without them: the stored values) and settings decide,
+/// with the emulated build's MAC override.
+pub fn resolve(reading: Option<SwitchReading>, stored: &Settings) -> Resolved {
     #[allow(unused_mut)]
-    let mut resolved = switches::resolve(reading, stored);
+    let mut resolved = match reading {
+        Some(reading) => switches::resolve(reading, stored),
+        None => switches::resolve_stored(stored),
+    };
     #[cfg(feature = "emulated")]
     {
         resolved.mac_id = EMULATED_MAC;
@@ -256,7 +260,7 @@ mod tests {
     #[test]
     fn switches_decide_the_mac_id_except_in_the_emulated_build() {
         // Switches 1-6 = 12, switch 7 on: 250 kbit/s.
-        let resolved = resolve(SwitchReading::from_bits(12 | 1 << 6), &Settings::default());
+        let resolved = resolve(Some(SwitchReading::from_bits(12 | 1 << 6)), &Settings::default());
         #[cfg(not(feature = "emulated"))]
         assert_eq!(resolved.mac_id.as_raw(), 12);
         #[cfg(feature = "emulated")]

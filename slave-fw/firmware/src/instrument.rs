@@ -1,5 +1,6 @@
-//! The instrument port: USART2 (through the RS-485 transceiver) with its transmit queue, shared by
-//! the converter task and the USART2 interrupt.
+//! The instrument port: the board's instrument USART (through its RS-485 or RS-232 transceiver,
+//! `board::hw::Rs485`) with its transmit queue, shared by the converter task and the USART's
+//! interrupt.
 //!
 //! Received bytes go from the interrupt to the converter task's input queue; the frames the serial
 //! profile returns from `Converter::poll_serial_transmit` are queued here whole and leave from the
@@ -15,7 +16,7 @@ use slave_fw::serial::FRAME_CAPACITY;
 /// awaiting its response), so one frame's room is enough.
 pub const SERIAL_TX_LEN: usize = if FRAME_CAPACITY > ADU_CAPACITY { FRAME_CAPACITY } else { ADU_CAPACITY };
 
-/// USART2 and its transmit queue.
+/// The instrument's USART and its transmit queue.
 pub struct InstrumentPort {
     rs485: Rs485,
     tx: Deque<u8, SERIAL_TX_LEN>,
@@ -51,7 +52,7 @@ impl InstrumentPort {
         self.dropped
     }
 
-    /// The USART2 interrupt: received bytes go to `received`; the transmitter is refilled, and
+    /// The USART's interrupt: received bytes go to `received`; the transmitter is refilled, and
     /// the RS-485 driver released after the last byte.
     pub fn on_interrupt(&mut self, mut received: impl FnMut(u8)) {
         while let Some(b) = self.rs485.read() {

@@ -1,10 +1,13 @@
 //! # slave-fw-firmware
 //!
-//! The RTIC 2 application of the STM32F405 serial-to-DeviceNet adapter board.
+//! The RTIC 2 application of the serial-to-DeviceNet converter boards (`board::boards`: the
+//! reference adapter board, the Olimex STM32-P405, the NUCLEO-F446RE with the Waveshare RS485 CAN
+//! Shield), chosen at build time by a Cargo feature; it takes every hardware fact from `board`.
 //!
 //! - Interrupt tasks only move data: CAN RX0/RX1 (or, emulated, USART1 SLCAN lines) → frames into
 //!   the converter task's input queue; CAN TX refills the controller from the transmit queue; CAN
-//!   SCE reports bus-off and error-passive; USART2 moves instrument bytes in and out; SysTick
+//!   SCE reports bus-off and error-passive; the instrument's USART (USART2 or USART1, the
+//!   board's choice) moves instrument bytes in and out; SysTick
 //!   counts the milliseconds. Each pends the converter task when it queued an input, SysTick when
 //!   the task's deadline is due.
 //! - One task at the lowest priority, `app::converter_task` (bound to the otherwise unused EXTI2
@@ -17,7 +20,7 @@
 //!   independent and tested on the host; the peripherals are behind `task::Hardware`.
 //! - Switches and stored settings are read at reset (`config`): the MAC ID and the data rate, and
 //!   the configuration, the stored image a tool downloaded over the bus or else the factory
-//!   default (the breaker converter; an unusable image runs it with a configuration fault). USART2
+//!   default (the breaker converter; an unusable image runs it with a configuration fault). the instrument USART
 //!   is opened with its serial settings. A downloaded image the converter hands over is stored in
 //!   the settings journal and runs from the next reset.
 //!
@@ -106,9 +109,9 @@ mod app {
     struct Shared {
         /// CAN driver and its transmit queue: converter task sends, TX/RX interrupts pump and drain.
         can: CanPort<Driver>,
-        /// USART2 and its transmit queue: converter task queues, USART2 interrupt moves bytes.
+        /// the instrument USART and its transmit queue: converter task queues, its interrupt moves bytes.
         instrument_port: InstrumentPort,
-        /// The converter task's inputs: the CAN, SLCAN and USART2 interrupts queue, the task takes.
+        /// The converter task's inputs: the CAN, SLCAN and instrument USART interrupts queue, the task takes.
         /// A queue and a pended interrupt instead of an rtic-sync channel and an async task
         /// (firmware size).
         inputs: Deque<Input, INPUTS>,
@@ -152,8 +155,8 @@ mod app {
         };
         let mut settings = store.load_or_default();
         let resolved = config::resolve(board.switches, &settings);
-        if resolved.store_reading {
-            settings.last_switches = Some(board.switches.bits());
+        if let (true, Some(reading)) = (resolved.store_reading, board.switches) {
+            settings.last_switches = Some(reading.bits());
             if store.save(&settings).is_err() {
                 warn!("settings: could not store the switch reading");
             }
@@ -218,7 +221,7 @@ mod app {
     }
 
     /// Queues `input` for the converter task and pends it; a full queue drops the input.
-    // Out of line: one copy of the queue's push for the CAN, SLCAN and USART2 interrupts
+    // Out of line: one copy of the queue's push for the CAN, SLCAN and instrument USART interrupts
     // (firmware size).
     #[inline(never)]
     fn queue(inputs: &mut Deque<Input, INPUTS>, input: Input) {
@@ -259,27 +262,48 @@ mod app {
         }
     }
 
-    /// The emulated CAN bus: SLCAN lines from the host; frames to the converter task, and frames
-    /// held while the channel was closed go out once it opens.
-    #[cfg(feature = "emulated")]
-    #[task(binds = USART1, shared = [can, inputs], priority = 3)]
-    fn slcan_rx(cx: slcan_rx::Context) {
-        (cx.shared.can, cx.shared.inputs).lock(|can, inputs| {
-            forward_frames(can, inputs);
-            can.pump();
-        });
-    }
-
-    /// Instrument bytes in, queued bytes out.
-    #[task(binds = USART2, shared = [instrument_port, inputs], priority = 2)]
-    fn usart2(cx: usart2::Context) {
-        let usart2::SharedResources { mut instrument_port, mut inputs, .. } = cx.shared;
+    /// Instrument bytes in, queued bytes out: the interrupt of the board's instrument USART.
+    fn instrument_interrupt(
+        mut instrument_port: impl Mutex<T = InstrumentPort>,
+        mut inputs: impl Mutex<T = Deque<Input, INPUTS>>,
+    ) {
         instrument_port.lock(|port| {
             port.on_interrupt(|b| {
                 // A full queue drops the byte, as an overrun would; the profile resynchronises.
                 inputs.lock(|inputs| queue(inputs, Input::InstrumentByte(b)));
             })
         });
+    }
+
+    /// USART2: the instrument on the reference board and the Olimex STM32-P405. On a board whose
+    /// instrument is on USART1, USART2 stays unclocked with its interrupts disabled and this task
+    /// never runs; binding both keeps the application free of the board's choice.
+    #[task(binds = USART2, shared = [instrument_port, inputs], priority = 2)]
+    fn usart2(cx: usart2::Context) {
+        instrument_interrupt(cx.shared.instrument_port, cx.shared.inputs);
+    }
+
+    /// USART1: the emulated CAN bus, SLCAN lines from the host (frames to the converter task, and
+    /// frames held while the channel was closed go out once it opens); on a real board the
+    /// instrument of a board that wires it to USART1 (the NUCLEO-F446RE's shield), otherwise
+    /// unclocked, as above. One task for both: RTIC refuses a second binding of USART1 even
+    /// under another `cfg`. At the CAN tasks' priority, which the SLCAN link needs.
+    #[task(binds = USART1, shared = [can, instrument_port, inputs], priority = 3)]
+    fn usart1(cx: usart1::Context) {
+        let usart1::SharedResources { can, instrument_port, inputs, .. } = cx.shared;
+        #[cfg(feature = "emulated")]
+        {
+            let _ = instrument_port;
+            (can, inputs).lock(|can, inputs| {
+                forward_frames(can, inputs);
+                can.pump();
+            });
+        }
+        #[cfg(not(feature = "emulated"))]
+        {
+            let _ = can;
+            instrument_interrupt(instrument_port, inputs);
+        }
     }
 
     /// The board's side of the converter task: the shared CAN and instrument ports, the settings
