@@ -316,7 +316,10 @@ impl Stm32 {
         if self.core.bus_mut().scs.take_reset_request() {
             return self.system_reset();
         }
-        self.take_exception()?;
+        if self.take_exception()? {
+            // The handler's first instruction is the next slice's (a caller sees the entry).
+            return Ok(());
+        }
         if self.sleeping {
             return self.sleep(end);
         }
@@ -348,18 +351,19 @@ impl Stm32 {
         }
     }
 
-    /// Takes the exception that preempts, if any, between instructions outside an IT block.
-    fn take_exception(&mut self) -> Result<(), Fault> {
+    /// Takes the exception that preempts, if any, between instructions outside an IT block;
+    /// returns whether it did.
+    fn take_exception(&mut self) -> Result<bool, Fault> {
         let masks = self.core.masks();
         let scs = &self.core.bus().scs;
         if self.sleeping {
             if !scs.wakes(masks) {
-                return Ok(());
+                return Ok(false);
             }
             self.sleeping = false;
         }
         let Some(number) = scs.preempting(masks) else {
-            return Ok(());
+            return Ok(false);
         };
         // An exception in an IT block would need ITSTATE in the frame, which unicorn keeps
         // consistent only between blocks: run the block out first (at most 4 instructions).
@@ -373,7 +377,7 @@ impl Stm32 {
         }
         self.core.enter_exception(number)?;
         self.count_entry(number);
-        Ok(())
+        Ok(true)
     }
 
     /// Instructions the next slice may run: up to the advance period, SysTick's next

@@ -229,11 +229,12 @@ impl Core {
     }
 
     fn add_hooks(uc: &mut Unicorn<'static, Bus>) -> Result<(), uc_error> {
-        // Every instruction: its address (for fault reports) and the slice's budget. Stopping
-        // here stops before the instruction.
+        // Every instruction: its address (for fault reports), the slice's budget and the stop
+        // an access requested. Stopping here stops before the instruction. (Stopping inside a
+        // memory callback would make unicorn run the accessing instruction again.)
         uc.add_code_hook(1, 0, |uc, address, _| {
             let bus = uc.get_data_mut();
-            if bus.executed >= bus.budget {
+            if bus.executed >= bus.budget || bus.stop_requested {
                 let _ = uc.emu_stop();
                 return;
             }
@@ -254,7 +255,6 @@ impl Core {
                 move |uc, _, address, size, value| {
                     let offset = (address as u32).wrapping_sub(base);
                     uc.get_data_mut().flash_store(offset, width(size), value as u32);
-                    let _ = uc.emu_stop();
                     true
                 },
             )?;
@@ -525,7 +525,8 @@ fn width(size: usize) -> Width {
     }
 }
 
-/// After a peripheral or SCS access: stop before the next instruction if an exception now
+/// After a peripheral or SCS access: stop before the next instruction (the code hook does)
+/// if an exception now
 /// preempts, a reset was requested or the flash array changed.
 fn after_access(uc: &mut Unicorn<'_, Bus>) {
     let masks = Masks {
@@ -541,6 +542,5 @@ fn after_access(uc: &mut Unicorn<'_, Bus>) {
         || bus.flash_dirty;
     if stop {
         bus.stop_requested = true;
-        let _ = uc.emu_stop();
     }
 }

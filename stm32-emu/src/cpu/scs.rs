@@ -490,7 +490,9 @@ impl Scs {
         }
     }
 
-    fn icsr(&self) -> u32 {
+    /// ICSR as a read returns it (PM0214 §4.4.2): VECTACTIVE, RETTOBASE, VECTPENDING,
+    /// ISRPENDING, PENDSTSET, PENDSVSET, NMIPENDSET.
+    pub fn icsr(&self) -> u32 {
         let pending = self.highest_pending().map_or(0, u32::from);
         let others_active = self.active.iter().enumerate().any(|(n, &a)| a && n != usize::from(self.current));
         let mut value = u32::from(self.current) | (pending << 12);

@@ -1,0 +1,290 @@
+//! The machine's exception model on hand-assembled Thumb code (no thumb build needed):
+//! SysTick entry and return with the FP frame, BASEPRI masking as RTIC's locks use it,
+//! preemption by priority and tail chaining, system reset through AIRCR, WFI, bus faults.
+
+use rstest::rstest;
+use stm32_emu::cpu::core::CoreFault;
+use stm32_emu::machine::{Chip, Fault, Stm32};
+use unicorn_engine::RegisterARM;
+
+/// A tiny Thumb assembler: 16-bit encodings (ARMv7-M ARM A6/A7) and a literal pool.
+struct Asm {
+    base: u32,
+    code: Vec<u16>,
+    literals: Vec<(usize, u32)>,
+}
+
+impl Asm {
+    fn new(base: u32) -> Asm {
+        Asm { base, code: Vec::new(), literals: Vec::new() }
+    }
+    fn here(&self) -> u32 {
+        self.base + 2 * self.code.len() as u32
+    }
+    fn op(&mut self, halfword: u16) -> &mut Asm {
+        self.code.push(halfword);
+        self
+    }
+    /// LDR Rt, =value (literal pool, T1).
+    fn ldr_const(&mut self, rt: u16, value: u32) -> &mut Asm {
+        self.literals.push((self.code.len(), value));
+        self.op(0x4800 | rt << 8)
+    }
+    fn movs(&mut self, rd: u16, imm: u16) -> &mut Asm {
+        self.op(0x2000 | rd << 8 | imm)
+    }
+    fn adds(&mut self, rdn: u16, imm: u16) -> &mut Asm {
+        self.op(0x3000 | rdn << 8 | imm)
+    }
+    fn cmp(&mut self, rn: u16, imm: u16) -> &mut Asm {
+        self.op(0x2800 | rn << 8 | imm)
+    }
+    fn lsls(&mut self, rd: u16, rm: u16, imm: u16) -> &mut Asm {
+        self.op(imm << 6 | rm << 3 | rd)
+    }
+    /// STR Rt, [Rn, #4*words].
+    fn str(&mut self, rt: u16, rn: u16, words: u16) -> &mut Asm {
+        self.op(0x6000 | words << 6 | rn << 3 | rt)
+    }
+    fn ldr(&mut self, rt: u16, rn: u16, words: u16) -> &mut Asm {
+        self.op(0x6800 | words << 6 | rn << 3 | rt)
+    }
+    fn strb(&mut self, rt: u16, rn: u16, bytes: u16) -> &mut Asm {
+        self.op(0x7000 | bytes << 6 | rn << 3 | rt)
+    }
+    /// B to `target` (T2).
+    fn b(&mut self, target: u32) -> &mut Asm {
+        let offset = (target as i32 - (self.here() as i32 + 4)) / 2;
+        self.op(0xE000 | (offset as u16 & 0x7FF))
+    }
+    /// BNE to `target` (T1).
+    fn bne(&mut self, target: u32) -> &mut Asm {
+        let offset = (target as i32 - (self.here() as i32 + 4)) / 2;
+        self.op(0xD100 | (offset as u16 & 0xFF))
+    }
+    fn bx_lr(&mut self) -> &mut Asm {
+        self.op(0x4770)
+    }
+    /// MSR BASEPRI, Rn.
+    fn msr_basepri(&mut self, rn: u16) -> &mut Asm {
+        self.op(0xF380 | rn).op(0x8811)
+    }
+    /// VMOV S0, Rt.
+    fn vmov_s0_from(&mut self, rt: u16) -> &mut Asm {
+        self.op(0xEE00).op(0x0A10 | rt << 12)
+    }
+    /// VMOV Rt, S0.
+    fn vmov_from_s0(&mut self, rt: u16) -> &mut Asm {
+        self.op(0xEE10).op(0x0A10 | rt << 12)
+    }
+    fn wfi(&mut self) -> &mut Asm {
+        self.op(0xBF30)
+    }
+    /// The code, then the literal pool (word aligned), as bytes.
+    fn finish(&mut self) -> Vec<u8> {
+        if self.code.len() % 2 != 0 {
+            self.op(0xBF00);
+        }
+        let pool = self.here();
+        let literals = std::mem::take(&mut self.literals);
+        for (i, &(at, value)) in literals.iter().enumerate() {
+            let address = pool + 4 * i as u32;
+            let pc = (self.base + 2 * at as u32 + 4) & !3;
+            self.code[at] |= ((address - pc) / 4) as u16;
+            self.code.extend([value as u16, (value >> 16) as u16]);
+        }
+        self.code.iter().flat_map(|h| h.to_le_bytes()).collect()
+    }
+}
+
+const FLASH: u32 = 0x0800_0000;
+const STACK_TOP: u32 = 0x2000_1000;
+const RESET: u32 = FLASH + 0x200;
+const COUNTER: u32 = 0x2000_0000;
+const SYSTICK: u16 = 15;
+const EXTI2: u16 = 16 + 8;
+const EXTI3: u16 = 16 + 9;
+const CAN1_RX0: u16 = 16 + 20;
+
+/// A machine with `programs` (address, code) in flash and a vector table at 0x0800_0000
+/// naming `handlers` (exception number, address).
+fn machine(programs: &mut [(u32, Asm)], handlers: &[(u16, u32)]) -> Stm32 {
+    let mut mcu = Stm32::new(Chip::Stm32F405, [0; 12]).expect("machine");
+    let mut table = vec![0u32; 16 + 82];
+    table[0] = STACK_TOP;
+    table[1] = RESET | 1;
+    for &(number, address) in handlers {
+        table[usize::from(number)] = address | 1;
+    }
+    let bytes: Vec<u8> = table.iter().flat_map(|w| w.to_le_bytes()).collect();
+    mcu.program_flash(0, &bytes).expect("vector table");
+    for (address, asm) in programs.iter_mut() {
+        mcu.program_flash(*address - FLASH, &asm.finish()).expect("program");
+    }
+    mcu.power_on_reset().expect("reset");
+    mcu
+}
+
+fn word(mcu: &Stm32, address: u32) -> u32 {
+    let mut b = [0; 4];
+    assert!(mcu.read_memory(address, &mut b));
+    u32::from_le_bytes(b)
+}
+
+/// Main: SysTick every 1000 cycles, S0 = 0x1234, then a loop counting in R4 and copying S0
+/// to R5. The handler counts at COUNTER and clobbers R0, R1 and S0.
+fn systick_program() -> Vec<(u32, Asm)> {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, 0xE000_E010).ldr_const(1, 999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
+    main.ldr_const(2, 0x1234).vmov_s0_from(2);
+    let top = main.here();
+    main.adds(4, 1).vmov_from_s0(5).b(top);
+    let mut handler = Asm::new(FLASH + 0x400);
+    handler.ldr_const(0, COUNTER).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).vmov_s0_from(1).bx_lr();
+    vec![(RESET, main), (FLASH + 0x400, handler)]
+}
+
+#[test]
+fn systick_is_taken_and_returns_with_the_context_restored() {
+    let mut mcu = machine(&mut systick_program(), &[(SYSTICK, FLASH + 0x400)]);
+    // 16 MHz HSI: 1000 cycles is 62.5 µs; 1 ms is 16 periods.
+    mcu.run_for(1_000_000).expect("runs");
+    let count = word(&mcu, COUNTER);
+    assert!((15..=16).contains(&count), "{count} SysTick interrupts in 1 ms");
+    assert_eq!(mcu.exceptions_taken(SYSTICK), u64::from(count));
+    assert_eq!(mcu.scs().current(), 0, "back in thread mode");
+    assert_eq!(mcu.register(RegisterARM::SP), STACK_TOP, "frame popped");
+    assert_eq!(mcu.register(RegisterARM::R0), 0xE000_E010, "R0 restored");
+    assert_eq!(mcu.register(RegisterARM::R1), 7, "R1 restored");
+    assert_eq!(mcu.register(RegisterARM::R5), 0x1234, "S0 restored from the FP frame");
+    // Three instructions a loop, 16,000 cycles, less the handlers'.
+    assert!(mcu.register(RegisterARM::R4) > 4_000);
+}
+
+#[test]
+fn exception_entry_stacks_the_frame_and_sets_exc_return() {
+    let mut mcu = machine(&mut systick_program(), &[(SYSTICK, FLASH + 0x400)]);
+    let handler = FLASH + 0x400;
+    let entered = mcu.run_until(1_000_000, |m| m.pc() == handler).expect("runs");
+    assert!(entered);
+    assert_eq!(mcu.scs().current(), SYSTICK);
+    assert_eq!(mcu.scs().icsr() & 0x1FF, u32::from(SYSTICK), "ICSR.VECTACTIVE");
+    // The thread used the FPU: the 26-word frame, EXC_RETURN "thread, MSP, FP frame".
+    assert_eq!(mcu.register(RegisterARM::LR), 0xFFFF_FFE9);
+    let sp = mcu.register(RegisterARM::SP);
+    assert_eq!(sp, STACK_TOP - 26 * 4);
+    assert_eq!(word(&mcu, sp), 0xE000_E010, "stacked R0");
+    assert_eq!(word(&mcu, sp + 28) & (1 << 24), 1 << 24, "stacked xPSR has T");
+    assert_eq!(word(&mcu, sp + 32), 0x1234, "stacked S0");
+}
+
+/// Main: EXTI2 at priority 0xE0 enabled, BASEPRI = `basepri`, EXTI2 pended, then R4 counts
+/// to 100, BASEPRI = 0 and R5 counts forever. The handler stores R4 at COUNTER + 4 and
+/// counts at COUNTER.
+fn basepri_program(basepri: u16) -> Vec<(u32, Asm)> {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, 0xE000_E100).movs(1, 1).lsls(1, 1, 8).str(1, 0, 0);
+    main.ldr_const(2, 0xE000_E408).movs(3, 0xE0).strb(3, 2, 0);
+    main.movs(3, basepri).msr_basepri(3);
+    main.ldr_const(2, 0xE000_E200).str(1, 2, 0);
+    let count = main.here();
+    main.adds(4, 1).cmp(4, 100).bne(count);
+    main.movs(3, 0).msr_basepri(3);
+    let idle = main.here();
+    main.adds(5, 1).b(idle);
+    let mut handler = Asm::new(FLASH + 0x400);
+    handler.ldr_const(0, COUNTER).str(4, 0, 1).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).bx_lr();
+    vec![(RESET, main), (FLASH + 0x400, handler)]
+}
+
+#[rstest]
+#[case::basepri_of_equal_priority_masks_until_lowered(0xE0, 100)]
+#[case::basepri_of_lower_priority_lets_it_in_at_once(0xF0, 0)]
+#[case::no_basepri(0, 0)]
+fn basepri_masking(#[case] basepri: u16, #[case] r4_in_handler: u32) {
+    let mut mcu = machine(&mut basepri_program(basepri), &[(EXTI2, FLASH + 0x400)]);
+    mcu.run_for(200_000).expect("runs");
+    assert_eq!(word(&mcu, COUNTER), 1, "one EXTI2 interrupt");
+    assert_eq!(word(&mcu, COUNTER + 4), r4_in_handler);
+    assert_eq!(mcu.register(RegisterARM::R4), 100);
+}
+
+/// EXTI2 (0xE0) pends CAN1_RX0 (0xD0: preempts at once) and EXTI3 (0xE0: waits, then is
+/// tail-chained). Each handler appends its IRQ number to a log at COUNTER.
+#[test]
+fn preemption_by_priority_and_tail_chaining() {
+    let mut main = Asm::new(RESET);
+    // IPR: EXTI2, EXTI3 at 0xE0, CAN1_RX0 at 0xD0; enable all three; pend EXTI2.
+    main.ldr_const(2, 0xE000_E408).movs(3, 0xE0).strb(3, 2, 0).strb(3, 2, 1);
+    main.ldr_const(2, 0xE000_E414).movs(3, 0xD0).strb(3, 2, 0);
+    main.ldr_const(0, 0xE000_E100).ldr_const(1, (1 << 8) | (1 << 9) | (1 << 20)).str(1, 0, 0);
+    main.ldr_const(2, 0xE000_E200).movs(1, 1).lsls(1, 1, 8).str(1, 2, 0);
+    let idle = main.here();
+    main.wfi().b(idle);
+    // Log: R0 = COUNTER, R1 = its count, the entry at COUNTER + 4 + 4 * count.
+    let log = |asm: &mut Asm, irq: u16| {
+        asm.ldr_const(0, COUNTER).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).lsls(1, 1, 2).op(0x1809); // adds r1, r1, r0
+        asm.movs(2, irq).str(2, 1, 0);
+    };
+    let mut exti2 = Asm::new(FLASH + 0x400);
+    log(&mut exti2, 8);
+    // Pend EXTI3 then CAN1_RX0 (ISPR0), then log again.
+    exti2.ldr_const(2, 0xE000_E200).ldr_const(3, (1 << 9) | (1 << 20)).str(3, 2, 0);
+    log(&mut exti2, 108);
+    exti2.bx_lr();
+    let mut exti3 = Asm::new(FLASH + 0x500);
+    log(&mut exti3, 9);
+    exti3.bx_lr();
+    let mut can = Asm::new(FLASH + 0x600);
+    log(&mut can, 20);
+    can.bx_lr();
+    let handlers = [(EXTI2, FLASH + 0x400), (EXTI3, FLASH + 0x500), (CAN1_RX0, FLASH + 0x600)];
+    let mut programs = [(RESET, main), (FLASH + 0x400, exti2), (FLASH + 0x500, exti3), (FLASH + 0x600, can)];
+    let mut mcu = machine(&mut programs, &handlers);
+    mcu.run_for(100_000).expect("runs");
+    let entries: Vec<u32> = (0..word(&mcu, COUNTER)).map(|i| word(&mcu, COUNTER + 4 + 4 * i)).collect();
+    assert_eq!(entries, [8, 20, 108, 9], "EXTI2, CAN1_RX0 preempting, EXTI2 again, EXTI3 chained");
+    assert_eq!(mcu.exceptions_taken(EXTI3), 1);
+    assert!(mcu.sleeping(), "WFI in thread mode");
+    assert_eq!(mcu.register(RegisterARM::SP), STACK_TOP);
+}
+
+#[test]
+fn sysresetreq_resets_the_machine() {
+    let mut main = Asm::new(RESET);
+    // Count resets in SRAM (kept by a system reset), then request one while below 3.
+    main.ldr_const(0, COUNTER).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).cmp(1, 3);
+    let stay = main.here() + 2 + 2 * 3;
+    main.op(0xD000 | ((stay as i32 - (main.here() as i32 + 4)) / 2) as u16 & 0xFF); // beq stay
+    main.ldr_const(2, 0xE000_ED0C).ldr_const(3, 0x05FA_0004).str(3, 2, 0);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = machine(&mut [(RESET, main)], &[]);
+    mcu.run_for(100_000).expect("runs");
+    assert_eq!(word(&mcu, COUNTER), 3);
+    assert_eq!(mcu.resets(), 3, "power-on reset and two system resets");
+}
+
+#[rstest]
+#[case::unmapped_peripheral(0x4000_6400)]
+#[case::unmapped_memory(0x6000_0000)]
+fn a_load_where_nothing_answers_is_a_bus_fault(#[case] address: u32) {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, address).ldr(1, 0, 0);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = machine(&mut [(RESET, main)], &[]);
+    let fault = mcu.run_for(10_000).expect_err("faults");
+    assert_eq!(fault, Fault::Core(CoreFault::Bus { address, pc: RESET + 2, write: false }));
+    assert!(fault.to_string().contains(&format!("{address:#010x}")));
+}
+
+#[test]
+fn the_unique_id_reads_from_system_memory() {
+    let mut mcu = Stm32::new(Chip::Stm32F405, *b"0123456789ab").expect("machine");
+    let mut id = [0; 12];
+    assert!(mcu.read_memory(0x1FFF_7A10, &mut id));
+    assert_eq!(&id, b"0123456789ab");
+    assert!(!mcu.write_memory(0x1000_0000 + 64 * 1024, &[0]), "CCM is 64 KiB");
+    assert!(mcu.write_memory(0x1000_0000, &[0]));
+}
