@@ -28,7 +28,11 @@
 //!    a device that is not an adapter). CANable's slcan firmware, Lawicel's CANUSB and the
 //!    emulated firmware ([`crate::slcan::Adapter`]) answer so.
 //! 3. With [`SetUp::Peer`] the answers are not awaited: the far end may be a host program that
-//!    starts later, as on the pty rig's back-to-back link.
+//!    starts later, as on the pty rig's back-to-back link. Until the far end is heard from (an
+//!    adapter's answer, a peer's `O`, a frame) the frames sent are held (at most [`HELD_LIMIT`]),
+//!    as a CAN controller alone on a bus keeps retrying an unacknowledged frame, and go out then:
+//!    a device started before its master shows its start-up to the master, once the master has
+//!    opened its channel, and nothing of it waits in the port as a stale leftover.
 //!
 //! Two host endpoints joined back to back (a null-modem pty pair) see each other's set-up
 //! commands; each answers them `\r` as an adapter would ([`AdapterLine::HostCommand`]), so a
@@ -174,7 +178,13 @@ pub struct SlcanBus<L: SerialLink> {
     opened: std::time::Instant,
     receiver: Receiver,
     pending: VecDeque<BusEvent>,
+    /// Frames sent while nothing was heard of the far end yet ([`SetUp::Peer`]), waiting to go out
+    /// (`None` once it has been heard, and with [`SetUp::Adapter`]).
+    held: Option<VecDeque<CanFrame>>,
 }
+
+/// The most frames [`SlcanBus`] holds while its far end is not there; older ones are dropped.
+pub const HELD_LIMIT: usize = 64;
 
 /// Opens the serial port `path` at `baud` and sets the adapter up for `bitrate`; the adapter must
 /// answer ([`SetUp::Adapter`]).
@@ -217,6 +227,7 @@ impl<L: SerialLink> SlcanBus<L> {
             opened: std::time::Instant::now(),
             receiver: Receiver::new(),
             pending: VecDeque::new(),
+            held: (setup == SetUp::Peer).then(VecDeque::new),
         };
         bus.drain()?;
         let rate = bitrate_command(bitrate);
@@ -307,6 +318,25 @@ impl<L: SerialLink> SlcanBus<L> {
         Ok(())
     }
 
+    /// Writes one frame line to the link.
+    fn write_frame(&mut self, frame: &CanFrame) -> Result<(), BusError> {
+        self.link
+            .write_all(&slcan::frame_line(frame))
+            .and_then(|()| self.link.flush())
+            .map_err(|source| self.io(&format!("writing {frame} to the SLCAN adapter"), source))
+    }
+
+    /// The far end showed it is there (an adapter's answer, a peer's `O`, a frame): the frames held
+    /// meanwhile go out, in order, and later ones go out at once.
+    fn far_end_heard(&mut self) -> Result<(), BusError> {
+        if let Some(held) = self.held.take() {
+            for frame in &held {
+                self.write_frame(frame)?;
+            }
+        }
+        Ok(())
+    }
+
     /// Answers a peer's set-up command `\r`, as an adapter would.
     fn answer_peer(&mut self) -> Result<(), BusError> {
         self.link
@@ -339,9 +369,15 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
     }
 
     fn send(&mut self, frame: &CanFrame) -> Result<(), BusError> {
-        self.link.write_all(&slcan::frame_line(frame)).and_then(|()| self.link.flush()).map_err(
-            |source| BusError::Io { what: format!("writing {frame} to the SLCAN adapter"), source },
-        )?;
+        match &mut self.held {
+            Some(held) => {
+                if held.len() == HELD_LIMIT {
+                    held.pop_front();
+                }
+                held.push_back(*frame);
+            }
+            None => self.write_frame(frame)?,
+        }
         let at = self.clock();
         self.pending.push_back(BusEvent { at, frame: *frame, origin: Origin::Local });
         Ok(())
@@ -375,6 +411,18 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
             };
             let at = self.clock();
             for msg in self.receiver.feed(&buf[..n]) {
+                let heard = match &msg {
+                    AdapterLine::HostCommand(c) => matches!(c, Command::Open | Command::ListenOnly),
+                    AdapterLine::Other(_) => false,
+                    _ => true,
+                };
+                if let AdapterLine::HostCommand(_) = msg {
+                    // Answered first: the held frames follow the answer to the peer's `O`.
+                    self.answer_peer()?;
+                }
+                if heard {
+                    self.far_end_heard()?;
+                }
                 match msg {
                     AdapterLine::Frame(frame) => {
                         self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote })
@@ -382,8 +430,10 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                     AdapterLine::Error => {
                         return Err(BusError::Adapter("the SLCAN adapter refused a command (BEL)".into()))
                     }
-                    AdapterLine::HostCommand(_) => self.answer_peer()?,
-                    AdapterLine::Ok | AdapterLine::Transmitted | AdapterLine::Other(_) => {}
+                    AdapterLine::HostCommand(_)
+                    | AdapterLine::Ok
+                    | AdapterLine::Transmitted
+                    | AdapterLine::Other(_) => {}
                 }
             }
         }
@@ -590,6 +640,31 @@ mod tests {
         let link = FakeLink::new(b"", &[]);
         let bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/3", SetUp::Peer).unwrap();
         assert_eq!(String::from_utf8_lossy(&bus.link().written), "C\rS5\rO\r");
+    }
+
+    #[test]
+    fn a_peer_holds_its_frames_until_the_far_end_opens() {
+        let link = FakeLink::new(b"", &[]);
+        let mut bus = SlcanBus::set_up(link, Bitrate::K250, "/dev/pts/3", SetUp::Peer).unwrap();
+        let check = f(0x42F, &[0x00, 0x34, 0x12, 0x78, 0x56, 0x34, 0x12]);
+        bus.send(&check).unwrap();
+        let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        assert_eq!(bus.recv(deadline).unwrap().map(|e| e.origin), Some(Origin::Local));
+        assert_eq!(bus.recv(deadline).unwrap(), None);
+        assert_eq!(String::from_utf8_lossy(&bus.link().written), "C\rS5\rO\r", "held: nobody there yet");
+        // The master opens its end: its set-up answered, then the held frame goes out.
+        bus.link.input.extend(b"C\rS5\r".iter().copied());
+        let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        assert_eq!(bus.recv(deadline).unwrap(), None);
+        assert_eq!(String::from_utf8_lossy(&bus.link().written), "C\rS5\rO\r\r\r", "still held: not open");
+        bus.link.input.extend(b"O\r".iter().copied());
+        let deadline = bus.now() + devicenet::Duration::from_millis(20);
+        assert_eq!(bus.recv(deadline).unwrap(), None);
+        let written = String::from_utf8_lossy(&bus.link().written).into_owned();
+        assert_eq!(written, "C\rS5\rO\r\r\r\rt42F700341278563412\r");
+        // From now on at once.
+        bus.send(&f(0x42B, &[0x00, 0xCC])).unwrap();
+        assert!(String::from_utf8_lossy(&bus.link().written).ends_with("t42B200CC\r"));
     }
 
     #[test]
