@@ -11,16 +11,19 @@
 //! | PC3 | NS red |
 //!
 //! The Olimex STM32-P405 (PC12) and the NUCLEO-F446RE (LD2, PA5) have one LED each; it shows
-//! what [`single_lit`] says: the Network Status, unless the Module Status is not a steady green,
-//! which then shows instead (a fault or a missing configuration outweighs the network state):
+//! what [`single_lit`] says: the Network Status while the Module Status is green, and the Module
+//! Status's red when it is red (a fault outweighs the network state):
 //!
 //! | MS | NS | the one LED |
 //! |---|---|---|
 //! | green (operational) | off | off: not on-line (duplicate MAC check, no other node) |
 //! | green | flashing green or red | flashing: on-line not allocated, or connection timed out |
 //! | green | green or red | on: allocated to a master, or duplicate MAC / bus-off |
-//! | flashing (standby, minor fault) | any | flashing |
+//! | flashing red (minor fault) | any | flashing |
 //! | red (major fault) | any | on |
+//! | flashing green (standby) | any | as NS in the green half, off in the other |
+//!
+//! The power-up test lights it for the two MS steps (0.5 s), then the NS steps leave it off.
 //!
 //! The bus tells the rest (the Identity object's status, `dnet-master`).
 //!
