@@ -143,6 +143,7 @@ pub struct Stm32 {
     advance_period: Nanos,
     sleeping: bool,
     entries: Vec<u64>,
+    returns: Vec<u64>,
     resets: u32,
 }
 
@@ -160,6 +161,7 @@ impl Stm32 {
             advance_period: 10_000,
             sleeping: false,
             entries: vec![0; 16 + crate::cpu::scs::MAX_IRQS],
+            returns: vec![0; 16 + crate::cpu::scs::MAX_IRQS],
             resets: 0,
         })
     }
@@ -278,6 +280,11 @@ impl Stm32 {
         self.entries.get(usize::from(number)).copied().unwrap_or(0)
     }
 
+    /// How many times exception `number`'s handler returned (into a tail chain included).
+    pub fn exceptions_returned(&self, number: u16) -> u64 {
+        self.returns.get(usize::from(number)).copied().unwrap_or(0)
+    }
+
     /// Whether the core sleeps (WFI, WFE, an idle loop).
     pub const fn sleeping(&self) -> bool {
         self.sleeping
@@ -336,13 +343,24 @@ impl Stm32 {
             }
             SliceEnd::Sleep => self.sleeping = true,
             SliceEnd::SupervisorCall => self.core.bus_mut().scs.set_pending(exception::SV_CALL),
-            SliceEnd::ExceptionReturn(exc_return) => match self.core.return_from_exception(exc_return)? {
-                Return::Chained(next) => self.count_entry(next),
-                Return::Handler => {}
-                Return::Thread => self.sleeping = self.core.bus().scs.sleep_on_exit(),
-            },
+            SliceEnd::ExceptionReturn(exc_return) => {
+                let returning = self.core.bus().scs.current();
+                let to = self.core.return_from_exception(exc_return)?;
+                if let Some(count) = self.returns.get_mut(usize::from(returning)) {
+                    *count += 1;
+                }
+                self.after_return(to);
+            }
         }
         Ok(())
+    }
+
+    fn after_return(&mut self, to: Return) {
+        match to {
+            Return::Chained(next) => self.count_entry(next),
+            Return::Handler => {}
+            Return::Thread => self.sleeping = self.core.bus().scs.sleep_on_exit(),
+        }
     }
 
     fn count_entry(&mut self, number: u16) {

@@ -78,6 +78,16 @@ impl SysTick {
         }
     }
 
+    /// SYST_RVR, the reload value.
+    pub const fn reload(&self) -> u32 {
+        self.rvr
+    }
+
+    /// Whether the counter runs on the processor clock (CLKSOURCE = 1) rather than HCLK/8.
+    pub const fn on_processor_clock(&self) -> bool {
+        self.csr & CSR_CLKSOURCE != 0
+    }
+
     /// Whether the counter runs.
     pub const fn enabled(&self) -> bool {
         self.csr & CSR_ENABLE != 0
