@@ -1,0 +1,78 @@
+//! The machine's memory: CPU stores into flash go through the FLASH model (a stand-in here),
+//! flash survives resets and power cycles, SRAM survives a system reset only; WFI sleeps to
+//! the next SysTick interrupt.
+
+mod stand_ins;
+mod thumb;
+
+use rstest::rstest;
+use stand_ins::{Flash, Record};
+use std::cell::RefCell;
+use std::rc::Rc;
+use thumb::*;
+use unicorn_engine::RegisterARM;
+
+/// Sector 10's first word (the settings journal's, board/memory.x).
+const SETTINGS: u32 = 0x080C_0000;
+
+/// Main: unlocks FLASH if `unlock` (RM0090 §3.5.1 KEYR sequence), sets PG with PSIZE x32
+/// (RM0090 §3.9.7), stores 0x1234_5678 at SETTINGS and loads it back into R4.
+fn program_word(unlock: bool) -> Asm {
+    let mut main = Asm::new(RESET);
+    if unlock {
+        main.ldr_const(0, 0x4002_3C04).ldr_const(1, 0x4567_0123).str(1, 0, 0);
+        main.ldr_const(1, 0xCDEF_89AB).str(1, 0, 0);
+    }
+    main.ldr_const(0, 0x4002_3C10).ldr_const(1, 0x201).str(1, 0, 0);
+    main.ldr_const(2, SETTINGS).ldr_const(3, 0x1234_5678).str(3, 2, 0).ldr(4, 2, 0);
+    let here = main.here();
+    main.b(here);
+    main
+}
+
+#[rstest]
+#[case::unlocked(true, 0x1234_5678)]
+#[case::locked_store_is_ignored(false, 0xFFFF_FFFF)]
+fn a_cpu_store_into_flash_goes_through_the_flash_model(#[case] unlock: bool, #[case] stored: u32) {
+    let mut mcu = machine(&mut [(RESET, program_word(unlock))], &[]);
+    let record = Rc::new(RefCell::new(Record::default()));
+    mcu.add_peripheral(0x4002_3C00, 0x400, Box::new(Flash::new(&record))).expect("FLASH");
+    mcu.run_for(10_000).expect("runs");
+    let at = (SETTINGS - FLASH) as usize;
+    assert_eq!(u32::from_le_bytes(mcu.flash()[at..at + 4].try_into().expect("4 bytes")), stored);
+    assert_eq!(mcu.register(RegisterARM::R4), stored, "the CPU reads what the array holds");
+    assert_eq!(word(&mcu, SETTINGS), stored);
+}
+
+#[test]
+fn flash_survives_power_cycles_and_sram_only_system_resets() {
+    let mut main = Asm::new(RESET);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = machine(&mut [(RESET, main)], &[]);
+    mcu.program_flash(SETTINGS - FLASH, &[1, 2, 3, 4]).expect("flash");
+    assert!(mcu.write_memory(COUNTER, &[9, 9, 9, 9]));
+    mcu.system_reset().expect("system reset");
+    assert_eq!(word(&mcu, COUNTER), 0x0909_0909, "SRAM kept by a system reset");
+    mcu.power_on_reset().expect("power cycle");
+    assert_eq!(word(&mcu, COUNTER), 0, "SRAM not kept by a power cycle");
+    assert_eq!(word(&mcu, SETTINGS), 0x0403_0201, "flash kept");
+    assert_eq!(word(&mcu, SETTINGS - FLASH), 0x0403_0201, "and seen through the alias at 0");
+}
+
+#[test]
+fn wfi_sleeps_until_the_next_systick_interrupt() {
+    let mut main = Asm::new(RESET);
+    // SysTick every 16,000 cycles (1 ms at the 16 MHz HSI), then WFI in a loop counting R4.
+    main.ldr_const(0, 0xE000_E010).ldr_const(1, 15_999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
+    let top = main.here();
+    main.wfi().adds(4, 1).b(top);
+    let mut handler = Asm::new(FLASH + 0x400);
+    handler.ldr_const(0, COUNTER).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).bx_lr();
+    let mut mcu = machine(&mut [(RESET, main), (FLASH + 0x400, handler)], &[(SYSTICK, FLASH + 0x400)]);
+    // The set-up's few cycles put the tenth tick just after 10 ms.
+    mcu.run_for(10_100_000).expect("runs");
+    assert_eq!(word(&mcu, COUNTER), 10, "ten ticks in 10.1 ms");
+    assert_eq!(mcu.register(RegisterARM::R4), 10, "one wake-up a tick");
+    assert!(mcu.sleeping());
+}
