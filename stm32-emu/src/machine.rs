@@ -106,6 +106,9 @@ impl fmt::Display for Fault {
             Fault::Core(CoreFault::InvalidVector { exception, vector }) => {
                 write!(f, "vector of exception {exception} is {vector:#010x}, not a Thumb address")
             }
+            Fault::Core(CoreFault::NoCoprocessor { pc }) => {
+                write!(f, "floating-point instruction with the FPU off in CPACR, before pc {pc:#010x}")
+            }
             Fault::Core(CoreFault::Stacking { sp }) => {
                 write!(f, "exception stacking at sp {sp:#010x} met no memory")
             }
@@ -335,7 +338,11 @@ impl Stm32 {
         let executed = self.core.bus().executed;
         self.account(executed);
         self.core.refresh_flash();
-        match outcome? {
+        let outcome = outcome?;
+        if self.core.fp_used_while_disabled() {
+            return Err(Fault::Core(CoreFault::NoCoprocessor { pc: self.pc() }));
+        }
+        match outcome {
             SliceEnd::Stopped => {
                 if executed >= budget && self.core.at_idle_loop() {
                     self.sleeping = true;

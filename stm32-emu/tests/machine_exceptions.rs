@@ -15,6 +15,7 @@ use thumb::*;
 /// to R5. The handler counts at COUNTER and clobbers R0, R1 and S0.
 fn systick_program() -> Vec<(u32, Asm)> {
     let mut main = Asm::new(RESET);
+    enable_fpu(&mut main);
     main.ldr_const(0, 0xE000_E010).ldr_const(1, 999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
     main.ldr_const(2, 0x1234).vmov_s0_from(2);
     let top = main.here();
@@ -127,6 +128,31 @@ fn preemption_by_priority_and_tail_chaining() {
     assert_eq!(mcu.exceptions_taken(EXTI3), 1);
     assert!(mcu.sleeping(), "WFI in thread mode");
     assert_eq!(mcu.register(RegisterARM::SP), STACK_TOP);
+}
+
+/// As cortex-m-rt's reset handler does for thumbv7em-none-eabihf: CPACR CP10, CP11 full
+/// access.
+fn enable_fpu(asm: &mut Asm) {
+    asm.ldr_const(0, 0xE000_ED88).ldr_const(1, 0xF << 20).str(1, 0, 0);
+}
+
+#[rstest]
+#[case::fpu_enabled(true)]
+#[case::fpu_off_is_a_nocp_fault(false)]
+fn an_fp_instruction_needs_cpacr(#[case] enabled: bool) {
+    let mut main = Asm::new(RESET);
+    if enabled {
+        enable_fpu(&mut main);
+    }
+    main.movs(2, 1).vmov_s0_from(2);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = machine(&mut [(RESET, main)], &[]);
+    let result = mcu.run_for(10_000);
+    assert_eq!(result.is_ok(), enabled, "{result:?}");
+    if let Err(fault) = result {
+        assert!(matches!(fault, Fault::Core(CoreFault::NoCoprocessor { .. })));
+    }
 }
 
 #[test]

@@ -9,7 +9,7 @@
 //! emulated instruction stream; so does this core:
 //!
 //! - unicorn is kept in thread mode (its IPSR 0) the whole time; the exception being handled
-//!   is the model's ([`Scs::current`]). MRS of IPSR therefore reads 0, which the firmware
+//!   is the model's ([`super::scs::Scs::current`]). MRS of IPSR therefore reads 0, which the firmware
 //!   does not do; ICSR.VECTACTIVE is right.
 //! - entry (PM0214 §2.3.7 "Exception entry and return"): the 8-word frame (R0–R3, R12, LR,
 //!   return address, xPSR) or, when CONTROL.FPCA is set, the 26-word frame with S0–S15 and
@@ -130,6 +130,13 @@ pub enum CoreFault {
         exception: u16,
         /// The entry.
         vector: u32,
+    },
+    /// A floating-point instruction while CPACR leaves CP10/CP11 disabled (a NOCP UsageFault on
+    /// the chip, PM0214 §4.6.1). Detected after the slice that ran it (unicorn's FPU is always
+    /// on; CONTROL.FPCA shows an FP instruction ran), so `pc` is where that slice stopped.
+    NoCoprocessor {
+        /// Where the slice stopped.
+        pc: u32,
     },
     /// Stacking or unstacking met memory that is not there.
     Stacking {
@@ -371,6 +378,12 @@ impl Core {
             // unicorn returns on WFI (QEMU's EXCP_HLT) with PC after it.
             (None, Ok(())) => Ok(SliceEnd::Sleep),
         }
+    }
+
+    /// Whether an FP instruction ran with the FPU disabled in CPACR (see
+    /// [`CoreFault::NoCoprocessor`]).
+    pub fn fp_used_while_disabled(&self) -> bool {
+        self.reg(RegisterARM::CONTROL) & CONTROL_FPCA != 0 && !self.bus().scs.fpu_enabled()
     }
 
     /// Whether the instruction at PC is `b .` (0xE7FE), an idle `loop {}`: the core can only
