@@ -130,6 +130,31 @@ fn preemption_by_priority_and_tail_chaining() {
     assert_eq!(mcu.register(RegisterARM::SP), STACK_TOP);
 }
 
+/// A thread on PSP (CONTROL.SPSEL): the frame goes on PSP, the handler runs on MSP with
+/// EXC_RETURN 0xFFFF_FFFD, and the return switches back (PM0214 §2.3.7, table 17).
+#[test]
+fn a_thread_on_psp_is_stacked_on_psp_and_handled_on_msp() {
+    const PSP_TOP: u32 = 0x2000_0800;
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, PSP_TOP).op(0xF380).op(0x8809); // MSR PSP, R0
+    main.movs(0, 2).op(0xF380).op(0x8814).op(0xF3BF).op(0x8F6F); // MSR CONTROL, R0; ISB
+    main.ldr_const(0, 0xE000_E010).ldr_const(1, 999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
+    let top = main.here();
+    main.adds(4, 1).b(top);
+    let mut handler = Asm::new(FLASH + 0x400);
+    // COUNTER + 4: the handler's SP; COUNTER + 8: its LR.
+    handler.ldr_const(0, COUNTER).op(0x4669).str(1, 0, 1).op(0x4672).str(2, 0, 2);
+    handler.ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).bx_lr();
+    let mut mcu = machine(&mut [(RESET, main), (FLASH + 0x400, handler)], &[(SYSTICK, FLASH + 0x400)]);
+    mcu.run_for(200_000).expect("runs");
+    assert!(word(&mcu, COUNTER) >= 2);
+    assert_eq!(word(&mcu, COUNTER + 4), STACK_TOP, "the handler on MSP, nothing stacked there");
+    assert_eq!(word(&mcu, COUNTER + 8), 0xFFFF_FFFD, "EXC_RETURN: thread, PSP, no FP frame");
+    assert_eq!(mcu.register(RegisterARM::CONTROL) & 2, 2, "back on PSP");
+    assert_eq!(mcu.register(RegisterARM::PSP), PSP_TOP, "PSP frame popped");
+    assert_eq!(mcu.register(RegisterARM::MSP), STACK_TOP);
+}
+
 /// As cortex-m-rt's reset handler does for thumbv7em-none-eabihf: CPACR CP10, CP11 full
 /// access.
 fn enable_fpu(asm: &mut Asm) {
