@@ -97,12 +97,15 @@ impl Board {
             #[cfg(feature = "olimex-p405")]
             de: NoDriverEnable,
         };
-        #[cfg(feature = "nucleo-f446re")]
+        #[cfg(any(feature = "nucleo-f446re", feature = "olimex-p405-rs485"))]
         let instrument = InstrumentUart {
             usart: dp.USART1,
             tx: gpioa.pa9,
             rx: gpioa.pa10,
+            #[cfg(feature = "nucleo-f446re")]
             de: gpioa.pa8.into_push_pull_output(),
+            #[cfg(feature = "olimex-p405-rs485")]
+            de: gpioa.pa4.into_push_pull_output(),
         };
 
         #[cfg(not(feature = "emulated"))]
@@ -141,9 +144,9 @@ fn clocks(rcc: pac::RCC) -> Rcc {
 }
 
 /// The GPIO port of the board's LEDs ([`leds::port`], checked below).
-#[cfg(any(feature = "reference", feature = "olimex-p405"))]
+#[cfg(any(feature = "reference", feature = "olimex-p405", feature = "olimex-p405-rs485"))]
 type LedPort = pac::GPIOC;
-#[cfg(any(feature = "reference", feature = "olimex-p405"))]
+#[cfg(any(feature = "reference", feature = "olimex-p405", feature = "olimex-p405-rs485"))]
 const _: () = assert!(matches!(leds::port(leds::WIRING), crate::pins::Port::C));
 /// The GPIO port of the board's LEDs ([`leds::port`], checked below).
 #[cfg(feature = "nucleo-f446re")]
@@ -264,6 +267,20 @@ mod instrument_port {
     pub const RX_PIN: u8 = 3;
     pub const DE_PIN: Option<u8> = None;
     pub const USART: UsartName = UsartName::Usart2;
+}
+/// The instrument's USART, pins and driver enable on the Olimex STM32-P405's UEXT
+/// ([`crate::boards::olimex_p405::UEXT_RS485`]).
+#[cfg(feature = "olimex-p405-rs485")]
+mod instrument_port {
+    use super::*;
+    pub type UsartPeriph = pac::USART1;
+    pub type Tx = Pin<'A', 9>;
+    pub type Rx = Pin<'A', 10>;
+    pub type De = Pin<'A', 4, Output<PushPull>>;
+    pub const TX_PIN: u8 = 9;
+    pub const RX_PIN: u8 = 10;
+    pub const DE_PIN: Option<u8> = Some(4);
+    pub const USART: UsartName = UsartName::Usart1;
 }
 /// The instrument's USART, pins and driver enable on the Nucleo's RS485 CAN Shield ([`crate::boards::nucleo_f446re`]).
 #[cfg(feature = "nucleo-f446re")]

@@ -23,7 +23,7 @@
 //!
 //! | feature | effect |
 //! |---|---|
-//! | `reference` (default), `olimex-p405`, `nucleo-f446re` | the board (exactly one); it also chooses stm32f4xx-hal's chip feature (`stm32f405` or `stm32f446`) and `memory.x` |
+//! | `reference` (default), `olimex-p405`, `olimex-p405-rs485`, `nucleo-f446re` | the board (exactly one); it also chooses stm32f4xx-hal's chip feature (`stm32f405` or `stm32f446`) and `memory.x` |
 //! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
 //!

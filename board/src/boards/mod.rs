@@ -4,7 +4,8 @@
 //! | board | chip | Cargo feature | module |
 //! |---|---|---|---|
 //! | the reference adapter board | STM32F405RG | `reference` (default) | [`reference`] |
-//! | Olimex STM32-P405 | STM32F405RG | `olimex-p405` | [`olimex_p405`] |
+//! | Olimex STM32-P405 (instrument on its RS-232 port) | STM32F405RG | `olimex-p405` | [`olimex_p405`] |
+//! | Olimex STM32-P405, RS-485 instrument on UEXT | STM32F405RG | `olimex-p405-rs485` | [`olimex_p405`] |
 //! | NUCLEO-F446RE + Waveshare RS485 CAN Shield | STM32F446RE | `nucleo-f446re` | [`nucleo_f446re`] |
 //!
 //! Exactly one board feature is on in a build (a `compile_error!` otherwise); `emulated` is the
@@ -22,15 +23,23 @@ pub mod reference;
 
 use crate::pins::Pin;
 
-#[cfg(not(any(feature = "reference", feature = "olimex-p405", feature = "nucleo-f446re")))]
-compile_error!("choose a board: one of the features `reference`, `olimex-p405`, `nucleo-f446re`");
-
-#[cfg(any(
-    all(feature = "reference", feature = "olimex-p405"),
-    all(feature = "reference", feature = "nucleo-f446re"),
-    all(feature = "olimex-p405", feature = "nucleo-f446re"),
-))]
+#[cfg(not(any(
+    feature = "reference",
+    feature = "olimex-p405",
+    feature = "olimex-p405-rs485",
+    feature = "nucleo-f446re"
+)))]
 compile_error!(
+    "choose a board: one of the features `reference`, `olimex-p405`, `olimex-p405-rs485`, `nucleo-f446re`"
+);
+
+/// How many board features are on.
+const BOARD_FEATURES: usize = cfg!(feature = "reference") as usize
+    + cfg!(feature = "olimex-p405") as usize
+    + cfg!(feature = "olimex-p405-rs485") as usize
+    + cfg!(feature = "nucleo-f446re") as usize;
+const _: () = assert!(
+    BOARD_FEATURES <= 1,
     "choose one board only: `reference` is a default feature, so build another board with \
      `--no-default-features --features <board>`"
 );
@@ -181,14 +190,18 @@ pub struct BoardSpec {
 }
 
 /// Every board, for the host tests.
-pub const ALL: [&BoardSpec; 3] = [&reference::BOARD, &olimex_p405::BOARD, &nucleo_f446re::BOARD];
+pub const ALL: [&BoardSpec; 4] =
+    [&reference::BOARD, &olimex_p405::BOARD, &olimex_p405::BOARD_RS485, &nucleo_f446re::BOARD];
 
 /// The board this build is for (Cargo feature).
-#[cfg(not(any(feature = "olimex-p405", feature = "nucleo-f446re")))]
+#[cfg(not(any(feature = "olimex-p405", feature = "olimex-p405-rs485", feature = "nucleo-f446re")))]
 pub const SELECTED: &BoardSpec = &reference::BOARD;
 /// The board this build is for (Cargo feature).
-#[cfg(all(feature = "olimex-p405", not(feature = "nucleo-f446re")))]
+#[cfg(all(feature = "olimex-p405", not(any(feature = "olimex-p405-rs485", feature = "nucleo-f446re"))))]
 pub const SELECTED: &BoardSpec = &olimex_p405::BOARD;
+/// The board this build is for (Cargo feature).
+#[cfg(all(feature = "olimex-p405-rs485", not(feature = "nucleo-f446re")))]
+pub const SELECTED: &BoardSpec = &olimex_p405::BOARD_RS485;
 /// The board this build is for (Cargo feature).
 #[cfg(feature = "nucleo-f446re")]
 pub const SELECTED: &BoardSpec = &nucleo_f446re::BOARD;
@@ -266,13 +279,14 @@ mod tests {
     fn only_the_reference_board_has_switches() {
         assert!(reference::BOARD.switches.is_some());
         assert!(olimex_p405::BOARD.switches.is_none());
+        assert!(olimex_p405::BOARD_RS485.switches.is_none());
         assert!(nucleo_f446re::BOARD.switches.is_none());
     }
 
     #[test]
     fn features_name_the_boards() {
         let features: Vec<_> = ALL.iter().map(|b| b.feature).collect();
-        assert_eq!(features, ["reference", "olimex-p405", "nucleo-f446re"]);
+        assert_eq!(features, ["reference", "olimex-p405", "olimex-p405-rs485", "nucleo-f446re"]);
         let manifest = include_str!("../../Cargo.toml");
         for feature in features {
             assert!(manifest.lines().any(|l| l.starts_with(&std::format!("{feature} = "))), "{feature}");

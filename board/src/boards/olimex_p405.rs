@@ -23,8 +23,8 @@
 //! similar) on the UEXT connector, USART1 PA9 TX / PA10 RX, DE and /RE together on **PA4**, UEXT
 //! pin 10: the only pin the firmware needs beyond the USART sits on the same 10-pin connector
 //! (one ribbon cable carries 3.3 V, GND, TX, RX and DE), and it is SPI1's NSS, which the firmware
-//! does not use. This build runs the RS-232 port; [`UEXT_RS485`] is the port a UEXT build would
-//! select (not a build of its own yet).
+//! does not use. The `olimex-p405` build ([`BOARD`]) runs the RS-232 port, the
+//! `olimex-p405-rs485` build ([`BOARD_RS485`]) the UEXT one; otherwise they are the same.
 //!
 //! The board has no DIP switches: the MAC ID and data rate come from the stored settings. It has
 //! one LED, which shows what [`crate::leds::single_lit`] says.
@@ -69,6 +69,14 @@ pub const BOARD: BoardSpec = BoardSpec {
     switches: None,
     flash: STM32F405RG_LAYOUT,
     memory_x: include_str!("../../memory/stm32f405rg.x"),
+};
+
+/// The Olimex STM32-P405 with an RS-485 instrument through a 3.3 V transceiver on UEXT.
+pub const BOARD_RS485: BoardSpec = BoardSpec {
+    name: "Olimex STM32-P405, RS-485 on UEXT",
+    feature: "olimex-p405-rs485",
+    instrument: UEXT_RS485,
+    ..BOARD
 };
 
 /// An RS-485 instrument through a 3.3 V transceiver on the UEXT connector: USART1 on UEXT pins 3

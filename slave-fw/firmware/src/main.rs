@@ -285,7 +285,8 @@ mod app {
 
     /// USART1: the emulated CAN bus, SLCAN lines from the host (frames to the converter task, and
     /// frames held while the channel was closed go out once it opens); on a real board the
-    /// instrument of a board that wires it to USART1 (the NUCLEO-F446RE's shield), otherwise
+    /// instrument of a board that wires it to USART1 (the NUCLEO-F446RE's shield, the Olimex
+    /// STM32-P405's UEXT), otherwise
     /// unclocked, as above. One task for both: RTIC refuses a second binding of USART1 even
     /// under another `cfg`. At the CAN tasks' priority, which the SLCAN link needs.
     #[task(binds = USART1, shared = [can, instrument_port, inputs], priority = 3)]
