@@ -155,6 +155,40 @@ fn a_thread_on_psp_is_stacked_on_psp_and_handled_on_msp() {
     assert_eq!(mcu.register(RegisterARM::MSP), STACK_TOP);
 }
 
+/// CCR.STKALIGN (set at reset): a frame pushed from an SP that is 4 mod 8 is aligned down and
+/// xPSR bit 9 says so; the return restores the SP (PM0214 §2.3.7, §4.4.7).
+#[test]
+fn the_frame_is_8_byte_aligned_and_the_padding_undone() {
+    let mut main = Asm::new(RESET);
+    main.op(0xB081); // SUB SP, #4
+    main.ldr_const(0, 0xE000_E010).ldr_const(1, 999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
+    let top = main.here();
+    main.adds(4, 1).b(top);
+    let mut handler = Asm::new(FLASH + 0x400);
+    handler.ldr_const(0, COUNTER).op(0x4669).str(1, 0, 1).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).bx_lr();
+    let mut mcu = machine(&mut [(RESET, main), (FLASH + 0x400, handler)], &[(SYSTICK, FLASH + 0x400)]);
+    mcu.run_for(100_000).expect("runs");
+    let frame = word(&mcu, COUNTER + 4);
+    assert_eq!(frame, STACK_TOP - 4 - 32 - 4, "aligned down to 8");
+    assert_ne!(word(&mcu, frame + 28) & (1 << 9), 0, "stacked xPSR bit 9");
+    assert_eq!(mcu.register(RegisterARM::SP), STACK_TOP - 4, "padding undone on return");
+}
+
+#[rstest]
+#[case::reserved_value(0xFFFF_FFF5)]
+#[case::handler_mode_on_psp(0xFFFF_FFF3)]
+fn an_invalid_exc_return_stops_the_machine(#[case] exc_return: u32) {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, 0xE000_ED04).ldr_const(1, 1 << 26).str(1, 0, 0); // ICSR.PENDSTSET
+    let here = main.here();
+    main.b(here);
+    let mut handler = Asm::new(FLASH + 0x400);
+    handler.ldr_const(0, exc_return).op(0x4700); // BX R0
+    let mut mcu = machine(&mut [(RESET, main), (FLASH + 0x400, handler)], &[(SYSTICK, FLASH + 0x400)]);
+    let fault = mcu.run_for(10_000).expect_err("faults");
+    assert_eq!(fault, Fault::Core(CoreFault::InvalidExceptionReturn { exc_return }));
+}
+
 /// As cortex-m-rt's reset handler does for thumbv7em-none-eabihf: CPACR CP10, CP11 full
 /// access.
 fn enable_fpu(asm: &mut Asm) {

@@ -76,3 +76,19 @@ fn wfi_sleeps_until_the_next_systick_interrupt() {
     assert_eq!(mcu.register(RegisterARM::R4), 10, "one wake-up a tick");
     assert!(mcu.sleeping());
 }
+
+/// A store to the SRAM bit-band alias sets one bit; a load reads one (PM0214 §2.2.5: bit 3 of
+/// 0x2000_0001 is the word 0x2200_0000 + 1 × 32 + 3 × 4).
+#[test]
+fn sram_bit_band() {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, 0x2200_0000 + 32 + 12).movs(1, 1).str(1, 0, 0).ldr(4, 0, 0);
+    main.ldr_const(0, 0x2200_0000 + 32 + 16).ldr(5, 0, 0);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = machine(&mut [(RESET, main)], &[]);
+    mcu.run_for(10_000).expect("runs");
+    assert_eq!(word(&mcu, COUNTER), 1 << 11);
+    assert_eq!(mcu.register(RegisterARM::R4), 1);
+    assert_eq!(mcu.register(RegisterARM::R5), 0);
+}

@@ -268,10 +268,16 @@ impl Bus {
 /// The word address and bit a bit-band alias address names (PM0214 §2.2.5:
 /// bit_word_addr = bit_band_base + byte_offset × 32 + bit_number × 4).
 fn bit_band_target(address: u32) -> (u32, u32) {
-    let offset = address - PERIPHERAL_BIT_BAND;
+    bit_band(PERIPHERAL_BIT_BAND, PERIPHERAL_BASE, address)
+}
+
+/// The word address and bit the alias address `address` names in the bit-band region at
+/// `region` with its alias at `alias` (PM0214 §2.2.5).
+pub fn bit_band(alias: u32, region: u32, address: u32) -> (u32, u32) {
+    let offset = address - alias;
     let byte = offset / 32;
     let bit = (offset % 32) / 4 + (byte & 3) * 8;
-    (PERIPHERAL_BASE + (byte & !3), bit)
+    (region + (byte & !3), bit)
 }
 
 impl Machine for Bus {

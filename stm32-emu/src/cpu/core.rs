@@ -25,7 +25,9 @@
 //! - the active handler's stack is MSP; a thread on PSP (CONTROL.SPSEL) is switched by
 //!   writing CONTROL, which banks R13 inside unicorn.
 
-use super::bus::{Bus, FLASH_BASE, FLASH_SIZE, PERIPHERAL_BASE, PERIPHERAL_SIZE, PPB_BASE, PPB_SIZE};
+use super::bus::{
+    bit_band, Bus, FLASH_BASE, FLASH_SIZE, PERIPHERAL_BASE, PERIPHERAL_SIZE, PPB_BASE, PPB_SIZE,
+};
 use super::scs::Masks;
 use crate::periph::Width;
 use unicorn_engine::unicorn_const::{Arch, Mode};
@@ -61,6 +63,8 @@ pub struct MemoryMap {
 
 /// SRAM's base address.
 pub const SRAM_BASE: u32 = 0x2000_0000;
+/// The SRAM bit-band alias (PM0214 §2.2.5).
+pub const SRAM_BIT_BAND: u32 = 0x2200_0000;
 /// The core-coupled memory's base address (RM0090 §2.3.1).
 pub const CCM_BASE: u32 = 0x1000_0000;
 /// The system memory block (bootloader, OTP, unique ID), read-only (RM0090 §3.3 table 5).
@@ -201,6 +205,7 @@ impl Core {
         uc.mem_write(u64::from(UNIQUE_ID_ADDRESS), &unique_id)?;
         uc.mem_write(u64::from(FLASH_SIZE_ADDRESS), &map.flash_kib.to_le_bytes())?;
         Self::map_buses(&mut uc)?;
+        Self::map_sram_bit_band(&mut uc, map.sram)?;
         Self::add_hooks(&mut uc)?;
         Ok(Core { uc, map })
     }
@@ -231,6 +236,31 @@ impl Core {
             Some(|uc: &mut Unicorn<'_, Bus>, offset: u64, size: usize, value: u64| {
                 uc.get_data_mut().ppb_write(PPB_BASE + offset as u32, width(size), value as u32);
                 after_access(uc);
+            }),
+        )
+    }
+
+    /// The SRAM bit-band alias (PM0214 §2.2.5: 0x2200_0000 maps each bit of 0x2000_0000–
+    /// 0x200F_FFFF to a word), over the SRAM there is: a load reads the bit, a store
+    /// read-modify-writes its word.
+    fn map_sram_bit_band(uc: &mut Unicorn<'static, Bus>, sram: u32) -> Result<(), uc_error> {
+        let target = |offset: u64| bit_band(SRAM_BIT_BAND, SRAM_BASE, SRAM_BIT_BAND + offset as u32);
+        uc.mmio_map(
+            u64::from(SRAM_BIT_BAND),
+            u64::from(sram) * 32,
+            Some(move |uc: &mut Unicorn<'_, Bus>, offset: u64, _: usize| {
+                let (word, bit) = target(offset);
+                let mut b = [0; 4];
+                let _ = uc.mem_read(u64::from(word), &mut b);
+                u64::from((u32::from_le_bytes(b) >> bit) & 1)
+            }),
+            Some(move |uc: &mut Unicorn<'_, Bus>, offset: u64, _: usize, value: u64| {
+                let (word, bit) = target(offset);
+                let mut b = [0; 4];
+                let _ = uc.mem_read(u64::from(word), &mut b);
+                let old = u32::from_le_bytes(b);
+                let new = (old & !(1 << bit)) | ((value as u32 & 1) << bit);
+                let _ = uc.mem_write(u64::from(word), &new.to_le_bytes());
             }),
         )
     }
