@@ -3,7 +3,7 @@
 //!
 //! | board | chip | Cargo feature | module |
 //! |---|---|---|---|
-//! | the reference adapter board | STM32F405RG | `reference` (default) | [`reference`] |
+//! | the reference adapter board | STM32F405RG | `reference` (default) | [`reference`](mod@reference) |
 //! | Olimex STM32-P405 (instrument on its RS-232 port) | STM32F405RG | `olimex-p405` | [`olimex_p405`] |
 //! | Olimex STM32-P405, RS-485 instrument on UEXT | STM32F405RG | `olimex-p405-rs485` | [`olimex_p405`] |
 //! | NUCLEO-F446RE + Waveshare RS485 CAN Shield | STM32F446RE | `nucleo-f446re` | [`nucleo_f446re`] |

@@ -2,26 +2,26 @@
 //!
 //! | fact | value | source |
 //! |---|---|---|
-//! | chip | STM32F446RE (512 KiB flash, 128 KiB SRAM, 180 MHz) | [1], [5] |
-//! | clock | HSE **bypass**: the ST-LINK's 8 MHz MCO drives OSC_IN (no crystal fitted at X3) | [1] (`&clk_hse { hse-bypass; clock-frequency = <DT_FREQ_M(8)>; /* STLink 8MHz clock */ }`), [4] §6.7.1 |
-//! | clock tree | PLL → 180 MHz SYSCLK (the F446's maximum, with the regulator's over-drive, which stm32f4xx-hal turns on above 168 MHz); APB1 ÷4 = 45 MHz (its maximum), APB2 ÷2 = 90 MHz | [5] (clock limits), stm32f4xx-hal 0.23 `rcc/f4/mod.rs` (`SYSCLK_MAX`, over-drive) |
-//! | CAN1 | D15 = PB8 RX, D14 = PB9 TX (AF9), the shield's SN65HVD230 | [2] §2.2 ("D14 (PB_9) and D15 (PB_8) are CAN's sending and receiving ports respectively as default"), [3] (pin table) |
-//! | instrument | USART1, D8 = PA9 TX, D2 = PA10 RX (AF7), the shield's RS-485 transceiver with DE and /RE on D7 = PA8, high = transmit | [2] §2.2, §2.3.1, [3] (pin table: "D7 PA8 RS485 Sending & Receiving Enable Terminal") |
-//! | shield jumper | "485 RXD/TXD JMP" on the D8/D2 (UART1) side, not D0/D1: PA2/PA3 are the ST-LINK's virtual COM port | [2] §2.2, [1] (`usart2` is the console) |
-//! | LED | LD2, green, PA5, high = lit | [1] (`gpioa 5 GPIO_ACTIVE_HIGH`, "User LD2"), [4] |
+//! | chip | STM32F446RE (512 KiB flash, 128 KiB SRAM, 180 MHz) | \[1\], \[5\] |
+//! | clock | HSE **bypass**: the ST-LINK's 8 MHz MCO drives OSC_IN (no crystal fitted at X3) | \[1\] (`&clk_hse { hse-bypass; clock-frequency = <DT_FREQ_M(8)>; /* STLink 8MHz clock */ }`), \[4\] §6.7.1 |
+//! | clock tree | PLL → 180 MHz SYSCLK (the F446's maximum, with the regulator's over-drive, which stm32f4xx-hal turns on above 168 MHz); APB1 ÷4 = 45 MHz (its maximum), APB2 ÷2 = 90 MHz | \[5\] (clock limits), stm32f4xx-hal 0.23 `rcc/f4/mod.rs` (`SYSCLK_MAX`, over-drive) |
+//! | CAN1 | D15 = PB8 RX, D14 = PB9 TX (AF9), the shield's SN65HVD230 | \[2\] §2.2 ("D14 (PB_9) and D15 (PB_8) are CAN's sending and receiving ports respectively as default"), \[3\] (pin table) |
+//! | instrument | USART1, D8 = PA9 TX, D2 = PA10 RX (AF7), the shield's RS-485 transceiver with DE and /RE on D7 = PA8, high = transmit | \[2\] §2.2, §2.3.1, \[3\] (pin table: "D7 PA8 RS485 Sending & Receiving Enable Terminal") |
+//! | shield jumper | "485 RXD/TXD JMP" on the D8/D2 (UART1) side, not D0/D1: PA2/PA3 are the ST-LINK's virtual COM port | \[2\] §2.2, \[1\] (`usart2` is the console) |
+//! | LED | LD2, green, PA5, high = lit | \[1\] (`gpioa 5 GPIO_ACTIVE_HIGH`, "User LD2"), \[4\] |
 //! | settings | flash sectors 6 and 7 (2 × 128 KiB at 0x0804_0000): the F446RE has sectors 0–7 only | RM0390 §3.3 (flash organisation) |
 //!
 //! Contradictions: the issue names the shield's RS-485 transceiver SP3485; the shield's user
-//! manual Rev 1.4 [2] says MAX3485, and Zephyr's page [3] says "SP3485/MAX3485" in its overview
+//! manual Rev 1.4 \[2\] says MAX3485, and Zephyr's page \[3\] says "SP3485/MAX3485" in its overview
 //! and "MAX485" under Hardware. All are 3.3 V half-duplex parts with DE/RE: the firmware does not
 //! care, the page says which one to expect by revision. The issue's "selectable CAN pins via
-//! jumpers" is not in the manual's text [2], which calls D14/D15 the default; only the RS-485
+//! jumpers" is not in the manual's text \[2\], which calls D14/D15 the default; only the RS-485
 //! UART is jumper-selectable there.
 //!
 //! Not confirmed by a source read for this work: the solder bridges of the MCO clock path (UM1724
 //! §6.7.1: SB16 and SB50 on, SB55 off on boards that take MCO; the default on MB1136 C-02 and
 //! later) and the JP5 position for external power. Nothing else the firmware drives shares these
-//! pins: PA5 is also Arduino D13 (SPI1_SCK), which the shield leaves unconnected [3].
+//! pins: PA5 is also Arduino D13 (SPI1_SCK), which the shield leaves unconnected \[3\].
 //!
 //! The boards have no DIP switches: the MAC ID and data rate come from the stored settings. LD2 is
 //! the only LED the firmware drives ([`crate::leds::single_lit`]).

@@ -2,19 +2,19 @@
 //!
 //! | fact | value | source |
 //! |---|---|---|
-//! | chip | STM32F405RG | [1], [2] (`stm32f405Xg.dtsi`) |
-//! | clock | 8 MHz crystal (HSE, not bypassed) → PLL M=4, N=168, P=2 → 168 MHz; APB1 ÷4 = 42 MHz, APB2 ÷2 = 84 MHz | [2] (`&clk_hse` 8 MHz, `&pll`, `&rcc`) |
-//! | CAN1 | PB8 RX / PB9 TX (AF9), to the board's CAN transceiver | [2] (`can1_rx_pb8 can1_tx_pb9`, a `can-transceiver` node, 1 Mbit/s), [3] (`PB8_CAN1_RX`, `PB9_CAN1_TX`) |
-//! | instrument (default) | USART2, PA2 TX / PA3 RX (AF7), the board's RS-232 port; no DE | [2] (`usart2_tx_pa2 usart2_rx_pa3`, the console), [3] |
-//! | status LED | PC12, high = lit | [2] (`gpioc 12 GPIO_ACTIVE_HIGH`), [4] (`GPIO_LED_STATUS` … `GPIO_PIN12`), [5] (`LED0_PIN GPIO_PIN(PORT_C, 12)`) |
-//! | UEXT | 1 +3.3 V, 2 GND, 3 PA9 USART1_TX, 4 PA10 USART1_RX, 5 PB6, 6 PB7, 7 PA6, 8 PA7, 9 PA5, 10 PA4 (SPI1_NSS) | [1] ("UEXT" table) |
-//! | user button | PA0 | [1], [2] |
-//! | OTG FS VBUS sense | PC4 (so PA9 is free for USART1) | [4] (`GPIO_OTGFS_VBUS` … `GPIO_PIN4`) |
+//! | chip | STM32F405RG | \[1\], \[2\] (`stm32f405Xg.dtsi`) |
+//! | clock | 8 MHz crystal (HSE, not bypassed) → PLL M=4, N=168, P=2 → 168 MHz; APB1 ÷4 = 42 MHz, APB2 ÷2 = 84 MHz | \[2\] (`&clk_hse` 8 MHz, `&pll`, `&rcc`) |
+//! | CAN1 | PB8 RX / PB9 TX (AF9), to the board's CAN transceiver | \[2\] (`can1_rx_pb8 can1_tx_pb9`, a `can-transceiver` node, 1 Mbit/s), \[3\] (`PB8_CAN1_RX`, `PB9_CAN1_TX`) |
+//! | instrument (default) | USART2, PA2 TX / PA3 RX (AF7), the board's RS-232 port; no DE | \[2\] (`usart2_tx_pa2 usart2_rx_pa3`, the console), \[3\] |
+//! | status LED | PC12, high = lit | \[2\] (`gpioc 12 GPIO_ACTIVE_HIGH`), \[4\] (`GPIO_LED_STATUS` … `GPIO_PIN12`), \[5\] (`LED0_PIN GPIO_PIN(PORT_C, 12)`) |
+//! | UEXT | 1 +3.3 V, 2 GND, 3 PA9 USART1_TX, 4 PA10 USART1_RX, 5 PB6, 6 PB7, 7 PA6, 8 PA7, 9 PA5, 10 PA4 (SPI1_NSS) | \[1\] ("UEXT" table) |
+//! | user button | PA0 | \[1\], \[2\] |
+//! | OTG FS VBUS sense | PC4 (so PA9 is free for USART1) | \[4\] (`GPIO_OTGFS_VBUS` … `GPIO_PIN4`) |
 //! | settings | flash sectors 10 and 11, as on the reference board (same chip) | RM0090 §3.3 |
 //!
 //! Not confirmed by any source read for this work, to check against Olimex's user manual and
 //! schematic (`STM32-P103_P405_sch.pdf`) before relying on it: the CAN and RS-232 transceiver
-//! parts and the CAN connector's pin-out; the LED's colour ([1] says red, [2] names it
+//! parts and the CAN connector's pin-out; the LED's colour (\[1\] says red, \[2\] names it
 //! `green_led_1`); the power input range of the supply jack; the BOOT0 jumper's name and position
 //! and the USB connector used by the ROM DFU loader (AN2606 names USB OTG FS on PA11/PA12 for the
 //! STM32F405's DFU); whether PA4 is wired to anything else on the board.
