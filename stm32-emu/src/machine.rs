@@ -174,6 +174,18 @@ impl Stm32 {
         self.chip
     }
 
+    /// Adds the FLASH interface model ([`crate::flash::Flash`], which keeps the array itself)
+    /// at its register block (RM0090 §2.3 table 1: 0x4002_3C00). Its array becomes the
+    /// machine's flash contents (a model made [`crate::flash::Flash::from_image`] brings a
+    /// previous run's); CPU stores into flash go to [`crate::flash::Flash::array_write`].
+    pub fn add_flash(&mut self, flash: crate::flash::Flash) -> Result<(), Fault> {
+        let port = crate::cpu::flash_port::FlashPort::new(flash);
+        self.add_peripheral(crate::flash::BASE, 0x400, Box::new(port))?;
+        self.core.bus_mut().sync_flash_arrays();
+        self.core.refresh_flash();
+        Ok(())
+    }
+
     /// Adds a peripheral model answering `size` bytes from `base` (its register block, RM0090
     /// §2.3 table 1). Accesses to the peripheral region that no model answers are bus faults.
     pub fn add_peripheral(&mut self, base: u32, size: u32, model: Box<dyn Peripheral>) -> Result<(), Fault> {
@@ -193,9 +205,8 @@ impl Stm32 {
         let Some(end) = end else {
             return Err(Fault::Elf(format!("{} bytes at flash offset {offset:#x} do not fit", bytes.len())));
         };
-        let bus = self.core.bus_mut();
-        bus.flash[start..end].copy_from_slice(bytes);
-        bus.flash_dirty = true;
+        let _ = end;
+        self.core.bus_mut().load_flash(start, bytes);
         self.core.refresh_flash();
         Ok(())
     }

@@ -129,6 +129,19 @@ pub trait Peripheral {
         let _ = (offset, width, value, machine);
         false
     }
+    /// For a FLASH model that keeps the array itself instead of using
+    /// [`Machine::flash_memory`]: the array's contents (1 MiB, offset 0 = 0x0800_0000). The
+    /// machine shows the CPU these after every access to the model and every
+    /// [`Peripheral::flash_store`]. `None` (the default) for every other model.
+    fn flash_array(&self) -> Option<&[u8]> {
+        None
+    }
+    /// For a FLASH model that keeps the array itself: a programmer's download of `bytes` at
+    /// `offset` into the array (the ELF loaded before power-on), no register involved. The
+    /// default ignores it.
+    fn flash_load(&mut self, offset: u32, bytes: &[u8]) {
+        let _ = (offset, bytes);
+    }
     /// For the RCC model only: the clocks its registers now select. The machine answers
     /// [`Machine::clocks`] from the registered model that returns `Some`.
     fn clocks(&self) -> Option<Clocks> {

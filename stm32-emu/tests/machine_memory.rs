@@ -9,6 +9,7 @@ use rstest::rstest;
 use stand_ins::{Flash, Record};
 use std::cell::RefCell;
 use std::rc::Rc;
+use stm32_emu::machine::{Chip, Stm32};
 use thumb::*;
 use unicorn_engine::RegisterARM;
 
@@ -42,6 +43,20 @@ fn a_cpu_store_into_flash_goes_through_the_flash_model(#[case] unlock: bool, #[c
     assert_eq!(u32::from_le_bytes(mcu.flash()[at..at + 4].try_into().expect("4 bytes")), stored);
     assert_eq!(mcu.register(RegisterARM::R4), stored, "the CPU reads what the array holds");
     assert_eq!(word(&mcu, SETTINGS), stored);
+}
+
+/// The same with the FLASH model of [`stm32_emu::flash`] (which keeps the array itself).
+#[rstest]
+#[case::unlocked(true, 0x1234_5678)]
+#[case::locked_store_is_refused(false, 0xFFFF_FFFF)]
+fn a_cpu_store_into_flash_goes_through_the_real_flash_model(#[case] unlock: bool, #[case] stored: u32) {
+    let mut mcu = Stm32::new(Chip::Stm32F405, [0; 12]).expect("machine");
+    mcu.add_flash(stm32_emu::flash::Flash::new()).expect("FLASH");
+    flash(&mut mcu, &image(&mut [(RESET, program_word(unlock))], &[]));
+    mcu.run_for(100_000).expect("runs");
+    let at = (SETTINGS - FLASH) as usize;
+    assert_eq!(u32::from_le_bytes(mcu.flash()[at..at + 4].try_into().expect("4 bytes")), stored);
+    assert_eq!(mcu.register(RegisterARM::R4), stored, "the CPU reads what the array holds");
 }
 
 #[test]

@@ -151,6 +151,13 @@ impl Bus {
         if let Some(clocks) = model.clocks() {
             self.clocks = clocks;
         }
+        if let Some(array) = model.flash_array() {
+            if array.len() == self.flash.len() && array != &self.flash[..] {
+                self.flash.copy_from_slice(array);
+                self.flash_dirty = true;
+                self.stop_requested = true;
+            }
+        }
         self.slots[i].model = Some(model);
         Some(result)
     }
@@ -205,6 +212,29 @@ impl Bus {
         }
         self.flash_dirty = true;
         self.stop_requested = true;
+    }
+
+    /// Takes the flash contents from a model that keeps the array ([`Peripheral::flash_array`]).
+    pub fn sync_flash_arrays(&mut self) {
+        for slot in &self.slots {
+            let array = slot.model.as_ref().and_then(|m| m.flash_array());
+            if let Some(array) = array.filter(|a| a.len() == self.flash.len()) {
+                self.flash.copy_from_slice(array);
+                self.flash_dirty = true;
+            }
+        }
+    }
+
+    /// A programmer's download into the flash array: the machine's copy and the models that
+    /// keep one ([`Peripheral::flash_load`]).
+    pub fn load_flash(&mut self, offset: usize, bytes: &[u8]) {
+        self.flash[offset..offset + bytes.len()].copy_from_slice(bytes);
+        self.flash_dirty = true;
+        for slot in &mut self.slots {
+            if let Some(model) = slot.model.as_mut() {
+                model.flash_load(offset as u32, bytes);
+            }
+        }
     }
 
     /// A load from the private peripheral bus: the System Control Space answers; the rest of

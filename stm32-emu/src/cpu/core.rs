@@ -531,7 +531,9 @@ impl Core {
     pub fn reset(&mut self) -> Result<(), CoreFault> {
         let sp = self.read_word(0).ok_or(CoreFault::Stacking { sp: 0 })?;
         let pc = self.read_word(4).ok_or(CoreFault::Stacking { sp: 0 })?;
-        if pc & 1 == 0 {
+        // No Thumb bit, or an address in the execute-never system region (an erased flash's
+        // 0xFFFF_FFFF): the chip would lock up (ARMv7-M ARM B1.5.5).
+        if pc & 1 == 0 || pc >= 0xE000_0000 {
             return Err(CoreFault::InvalidVector { exception: 1, vector: pc });
         }
         self.set_reg(RegisterARM::CONTROL, 0);

@@ -9,5 +9,6 @@
 pub mod bus;
 pub mod core;
 pub mod elf;
+pub mod flash_port;
 pub mod scs;
 pub mod systick;

@@ -104,22 +104,32 @@ pub const EXTI2: u16 = 16 + 8;
 pub const EXTI3: u16 = 16 + 9;
 pub const CAN1_RX0: u16 = 16 + 20;
 
-/// A machine with `programs` (address, code) in flash and a vector table at 0x0800_0000
-/// naming `handlers` (exception number, address).
-pub fn machine(programs: &mut [(u32, Asm)], handlers: &[(u16, u32)]) -> Stm32 {
-    let mut mcu = Stm32::new(Chip::Stm32F405, [0; 12]).expect("machine");
+/// The flash contents for `programs` (address, code) and a vector table at 0x0800_0000
+/// naming `handlers` (exception number, address): (flash offset, bytes).
+pub fn image(programs: &mut [(u32, Asm)], handlers: &[(u16, u32)]) -> Vec<(u32, Vec<u8>)> {
     let mut table = vec![0u32; 16 + 82];
     table[0] = STACK_TOP;
     table[1] = RESET | 1;
     for &(number, address) in handlers {
         table[usize::from(number)] = address | 1;
     }
-    let bytes: Vec<u8> = table.iter().flat_map(|w| w.to_le_bytes()).collect();
-    mcu.program_flash(0, &bytes).expect("vector table");
-    for (address, asm) in programs.iter_mut() {
-        mcu.program_flash(*address - FLASH, &asm.finish()).expect("program");
+    let mut image = vec![(0, table.iter().flat_map(|w| w.to_le_bytes()).collect())];
+    image.extend(programs.iter_mut().map(|(address, asm)| (*address - FLASH, asm.finish())));
+    image
+}
+
+/// Programs `image` into `mcu`'s flash and resets it.
+pub fn flash(mcu: &mut Stm32, image: &[(u32, Vec<u8>)]) {
+    for (offset, bytes) in image {
+        mcu.program_flash(*offset, bytes).expect("program");
     }
     mcu.power_on_reset().expect("reset");
+}
+
+/// A machine running `programs` with `handlers` (see [`image`]).
+pub fn machine(programs: &mut [(u32, Asm)], handlers: &[(u16, u32)]) -> Stm32 {
+    let mut mcu = Stm32::new(Chip::Stm32F405, [0; 12]).expect("machine");
+    flash(&mut mcu, &image(programs, handlers));
     mcu
 }
 
