@@ -5,7 +5,7 @@
 //! QEMU's `netduinoplus2` emulates neither the HSE nor the PLL, so the emulated build (of the
 //! reference board) leaves RCC at its reset state (HSI, 16 MHz on every bus) and never touches it.
 
-use crate::boards::{Usart, SELECTED};
+use crate::boards::SELECTED;
 
 /// The HSE input of the board.
 pub const HSE_HZ: u32 = SELECTED.clocks.hse_hz;
@@ -23,14 +23,8 @@ pub const PCLK2_HZ: u32 = SELECTED.clocks.pclk2_hz;
 
 /// The clock the instrument's USART runs from in this build: its APB clock on a real board, HSI
 /// on the emulated one.
-pub const INSTRUMENT_UART_HZ: u32 = if cfg!(feature = "emulated") {
-    HSI_HZ
-} else {
-    match SELECTED.instrument.usart {
-        Usart::Usart1 => PCLK2_HZ,
-        Usart::Usart2 => PCLK1_HZ,
-    }
-};
+pub const INSTRUMENT_UART_HZ: u32 =
+    if cfg!(feature = "emulated") { HSI_HZ } else { SELECTED.instrument_clock_hz() };
 
 /// The clock SysTick counts in this build.
 ///

@@ -189,6 +189,16 @@ pub struct BoardSpec {
     pub memory_x: &'static str,
 }
 
+impl BoardSpec {
+    /// The clock of the instrument's USART: APB2 for USART1, APB1 for USART2.
+    pub const fn instrument_clock_hz(&self) -> u32 {
+        match self.instrument.usart {
+            Usart::Usart1 => self.clocks.pclk2_hz,
+            Usart::Usart2 => self.clocks.pclk1_hz,
+        }
+    }
+}
+
 /// Every board, for the host tests.
 pub const ALL: [&BoardSpec; 4] =
     [&reference::BOARD, &olimex_p405::BOARD, &olimex_p405::BOARD_RS485, &nucleo_f446re::BOARD];
@@ -271,6 +281,17 @@ mod tests {
                 assert_eq!(t.bit_rate(board.clocks.pclk1_hz), rate, "{}", board.name);
                 let sp = t.sample_point_permille();
                 assert!((850..=900).contains(&sp), "{}: {rate}: {sp} ‰", board.name);
+            }
+        }
+    }
+
+    #[test]
+    fn every_instrument_line_from_1200_to_115200_bits() {
+        use crate::uart::LineFormat;
+        for board in ALL {
+            for baud in [1200, 9600, 19_200, 115_200] {
+                let clock = board.instrument_clock_hz();
+                assert!(LineFormat::new_8n1(baud).registers(clock).is_ok(), "{}: {baud}", board.name);
             }
         }
     }

@@ -4,7 +4,7 @@
 //! |---|---|---|
 //! | chip | STM32F446RE (512 KiB flash, 128 KiB SRAM, 180 MHz) | \[1\], \[5\] |
 //! | clock | HSE **bypass**: the ST-LINK's 8 MHz MCO drives OSC_IN (no crystal fitted at X3) | \[1\] (`&clk_hse { hse-bypass; clock-frequency = <DT_FREQ_M(8)>; /* STLink 8MHz clock */ }`), \[4\] §6.7.1 |
-//! | clock tree | PLL → 180 MHz SYSCLK (the F446's maximum, with the regulator's over-drive, which stm32f4xx-hal turns on above 168 MHz); APB1 ÷4 = 45 MHz (its maximum), APB2 ÷2 = 90 MHz | \[5\] (clock limits), stm32f4xx-hal 0.23 `rcc/f4/mod.rs` (`SYSCLK_MAX`, over-drive) |
+//! | clock tree | PLL → 180 MHz SYSCLK (the F446's maximum, with the regulator's over-drive, which stm32f4xx-hal turns on above 168 MHz); APB1 ÷4 = 45 MHz (its maximum); APB2 ÷4 = 45 MHz too (below): USART1, the instrument, runs from it | \[5\] (clock limits), stm32f4xx-hal 0.23 `rcc/f4/mod.rs` (`SYSCLK_MAX`, over-drive) |
 //! | CAN1 | D15 = PB8 RX, D14 = PB9 TX (AF9), the shield's SN65HVD230 | \[2\] §2.2 ("D14 (PB_9) and D15 (PB_8) are CAN's sending and receiving ports respectively as default"), \[3\] (pin table) |
 //! | instrument | USART1, D8 = PA9 TX, D2 = PA10 RX (AF7), the shield's RS-485 transceiver with DE and /RE on D7 = PA8, high = transmit | \[2\] §2.2, §2.3.1, \[3\] (pin table: "D7 PA8 RS485 Sending & Receiving Enable Terminal") |
 //! | shield jumper | "485 RXD/TXD JMP" on the D8/D2 (UART1) side, not D0/D1: PA2/PA3 are the ST-LINK's virtual COM port | \[2\] §2.2, \[1\] (`usart2` is the console) |
@@ -22,6 +22,10 @@
 //! §6.7.1: SB16 and SB50 on, SB55 off on boards that take MCO; the default on MB1136 C-02 and
 //! later) and the JP5 position for external power. Nothing else the firmware drives shares these
 //! pins: PA5 is also Arduino D13 (SPI1_SCK), which the shield leaves unconnected \[3\].
+//!
+//! APB2 could run at 90 MHz, but USART1's 16-bit divider then stops at 1373 bit/s: at 45 MHz the
+//! instrument line goes down to 687 bit/s (1200 bit/s instruments work), as on the reference
+//! board's 42 MHz USART2. Nothing else the firmware uses runs from APB2.
 //!
 //! The boards have no DIP switches: the MAC ID and data rate come from the stored settings. LD2 is
 //! the only LED the firmware drives ([`crate::leds::single_lit`]).
@@ -53,7 +57,7 @@ pub const BOARD: BoardSpec = BoardSpec {
         hse_bypass: true,
         sysclk_hz: 180_000_000,
         pclk1_hz: 45_000_000,
-        pclk2_hz: 90_000_000,
+        pclk2_hz: 45_000_000,
     },
     can_rx: pin(Port::B, 8),
     can_tx: pin(Port::B, 9),

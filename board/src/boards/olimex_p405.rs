@@ -3,7 +3,8 @@
 //! | fact | value | source |
 //! |---|---|---|
 //! | chip | STM32F405RG | \[1\], \[2\] (`stm32f405Xg.dtsi`) |
-//! | clock | 8 MHz crystal (HSE, not bypassed) → PLL M=4, N=168, P=2 → 168 MHz; APB1 ÷4 = 42 MHz, APB2 ÷2 = 84 MHz | \[2\] (`&clk_hse` 8 MHz, `&pll`, `&rcc`) |
+//! | clock | 8 MHz crystal (HSE, not bypassed) → PLL M=4, N=168, P=2 → 168 MHz; APB1 ÷4 = 42 MHz | \[2\] (`&clk_hse` 8 MHz, `&pll`, `&rcc`) |
+//! | APB2 | ÷4 = 42 MHz (Zephyr's ÷2 = 84 MHz would stop USART1's 16-bit divider at 1282 bit/s; at 42 MHz the UEXT RS-485 line goes down to 641 bit/s, as USART2 does) | our choice |
 //! | CAN1 | PB8 RX / PB9 TX (AF9), to the board's CAN transceiver | \[2\] (`can1_rx_pb8 can1_tx_pb9`, a `can-transceiver` node, 1 Mbit/s), \[3\] (`PB8_CAN1_RX`, `PB9_CAN1_TX`) |
 //! | instrument (default) | USART2, PA2 TX / PA3 RX (AF7), the board's RS-232 port; no DE | \[2\] (`usart2_tx_pa2 usart2_rx_pa3`, the console), \[3\] |
 //! | status LED | PC12, high = lit | \[2\] (`gpioc 12 GPIO_ACTIVE_HIGH`), \[4\] (`GPIO_LED_STATUS` … `GPIO_PIN12`), \[5\] (`LED0_PIN GPIO_PIN(PORT_C, 12)`) |
@@ -55,7 +56,7 @@ pub const BOARD: BoardSpec = BoardSpec {
         hse_bypass: false,
         sysclk_hz: 168_000_000,
         pclk1_hz: 42_000_000,
-        pclk2_hz: 84_000_000,
+        pclk2_hz: 42_000_000,
     },
     can_rx: pin(Port::B, 8),
     can_tx: pin(Port::B, 9),

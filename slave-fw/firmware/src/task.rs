@@ -3,7 +3,7 @@
 //! `app::converter_task` (main.rs) runs when an input was queued or the next deadline is due, then
 //! hands what it got to a [`ConverterTask`]: [`ConverterTask::take_inputs`] for the queued inputs,
 //! [`ConverterTask::handle_timeout`] for the timers. The board's side of every output (the CAN
-//! transmit queue, USART2, the settings flash, the reset) is behind the [`Hardware`] trait.
+//! transmit queue, the instrument USART, the settings flash, the reset) is behind the [`Hardware`] trait.
 //!
 //! Every input is followed by a full drain, in the converter's order (frames, instrument bytes,
 //! events and a downloaded configuration image, stored in the settings journal; a due reset; `slave_fw::converter` module docs), before the next input is handed over:
