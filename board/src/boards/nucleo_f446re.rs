@@ -39,9 +39,13 @@
 //!    configuration", "STM32 Pin Connection").
 //! 4. ST, UM1724 "STM32 Nucleo-64 boards (MB1136)", Rev 14: §6.3 power supply (VIN 7–12 V, E5V,
 //!    USB), §6.7.1 OSC clock supply, <https://www.st.com/resource/en/user_manual/um1724-stm32-nucleo64-boards-mb1136-stmicroelectronics.pdf>.
-//! 5. ST, DS10693 STM32F446xC/E datasheet: 180 MHz, APB1 45 MHz; alternate functions (CAN1_RX PB8
-//!    AF9, CAN1_TX PB9 AF9, USART1 PA9/PA10 AF7) as in stm32f4xx-hal's `gpio-f446` tables, which
-//!    the build checks (the HAL only accepts those pins for CAN1 and USART1).
+//! 5. ST, DS10693 STM32F446xC/E datasheet (not retrieved for this work): 180 MHz, APB1 45 MHz,
+//!    alternate functions. The limits are also stm32f4xx-hal 0.23's (`SYSCLK_MAX`, `PCLK1_MAX`
+//!    for `gpio-f446`, asserted when the clocks are frozen). CAN1 on PB8/PB9 (AF9) is checked by
+//!    the build: the HAL's CAN1 pin types for `gpio-f446` accept only its CAN1 pins. USART1 on
+//!    PA9/PA10 (AF7) is the firmware's `into_alternate::<7>()`, which the HAL does not check
+//!    against a table: the source is \[2\] and \[3\] (PA9/PA10 are the shield's UART1) and AF7
+//!    being USART1–3 on every STM32F4 (as on the STM32F405, DS8626).
 
 use super::{BoardSpec, ClockTree, FlashLayout, InstrumentPort, LedWiring, Usart};
 use crate::boards::Chip;
