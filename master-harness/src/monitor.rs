@@ -44,7 +44,7 @@
 //! poll connection left over, Allocate poll, sizes and expected packet rate again, then polling
 //! goes on (`reconnected`). A device that restarted is simply asked until it is on-line again.
 //! A device that does not answer at the start (the master's own network access done) is waited
-//! for the same way ([`get_back`]: `waiting for it`, then `connected at T`); a `--duration` then
+//! for the same way (`waiting for it`, then `connected at T`); a `--duration` then
 //! counts from the start of the run.
 //!
 //! The CSV header is written before the bring-up, so a run that ends before its first sample
