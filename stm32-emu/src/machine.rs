@@ -284,6 +284,18 @@ impl Stm32 {
         self.core.write_memory(address, bytes)
     }
 
+    /// Reads a peripheral register word as a debugger would (the model's read side effects
+    /// included); `None` where no model answers.
+    pub fn read_peripheral(&mut self, address: u32) -> Option<u32> {
+        let bus = self.core.bus_mut();
+        let before = bus.error;
+        let value = bus.peripheral_read(address, crate::periph::Width::Word);
+        let missing = bus.error != before;
+        bus.error = before;
+        bus.stop_requested = false;
+        (!missing).then_some(value)
+    }
+
     /// The System Control Space (SCB, NVIC, SysTick), for inspection.
     pub fn scs(&self) -> &Scs {
         &self.core.bus().scs

@@ -145,12 +145,30 @@ impl Bus {
     }
 
     /// Calls `f` with model `i` and the bus as its machine, the model lent out meanwhile.
-    fn with_model<R>(&mut self, i: usize, f: impl FnOnce(&mut dyn Peripheral, &mut Bus) -> R) -> Option<R> {
+    /// A model that keeps the flash array is compared with the machine's copy afterwards when
+    /// `changes_flash` (a store) or when an operation of the model started or ended (its next
+    /// event came or went): not on every poll of a busy flag, a 1 MiB comparison each.
+    fn with_model<R>(
+        &mut self,
+        i: usize,
+        changes_flash: bool,
+        f: impl FnOnce(&mut dyn Peripheral, &mut Bus) -> R,
+    ) -> Option<R> {
         let mut model = self.slots[i].model.take()?;
+        let busy = model.next_event().is_some();
         let result = f(model.as_mut(), self);
         if let Some(clocks) = model.clocks() {
             self.clocks = clocks;
         }
+        if changes_flash || busy != model.next_event().is_some() {
+            self.take_flash_array(model.as_ref());
+        }
+        self.slots[i].model = Some(model);
+        Some(result)
+    }
+
+    /// Copies `model`'s flash array (if it keeps one) over the machine's copy when they differ.
+    fn take_flash_array(&mut self, model: &dyn Peripheral) {
         if let Some(array) = model.flash_array() {
             if array.len() == self.flash.len() && array != &self.flash[..] {
                 self.flash.copy_from_slice(array);
@@ -158,8 +176,6 @@ impl Bus {
                 self.stop_requested = true;
             }
         }
-        self.slots[i].model = Some(model);
-        Some(result)
     }
 
     /// A load from the peripheral region (`address` absolute, bit-band alias included).
@@ -174,7 +190,7 @@ impl Bus {
         };
         let offset = address - self.slots[i].base;
         let now = self.time();
-        self.with_model(i, |model, bus| {
+        self.with_model(i, false, |model, bus| {
             model.advance(now, bus);
             model.read(offset, width, bus)
         })
@@ -195,7 +211,7 @@ impl Bus {
         };
         let offset = address - self.slots[i].base;
         let now = self.time();
-        self.with_model(i, |model, bus| {
+        self.with_model(i, true, |model, bus| {
             model.advance(now, bus);
             model.write(offset, width, value, bus);
         });
@@ -206,7 +222,9 @@ impl Bus {
     /// ignored, as a locked flash ignores it. The CPU's copy is refreshed afterwards either way.
     pub fn flash_store(&mut self, offset: u32, width: Width, value: u32) {
         for i in 0..self.slots.len() {
-            if self.with_model(i, |model, bus| model.flash_store(offset, width, value, bus)) == Some(true) {
+            if self.with_model(i, true, |model, bus| model.flash_store(offset, width, value, bus))
+                == Some(true)
+            {
                 break;
             }
         }
@@ -270,8 +288,13 @@ impl Bus {
     /// Advances every model to `now`.
     pub fn advance_all(&mut self, now: Nanos) {
         for i in 0..self.slots.len() {
-            self.with_model(i, |model, bus| model.advance(now, bus));
+            self.with_model(i, false, |model, bus| model.advance(now, bus));
         }
+    }
+
+    /// debug
+    pub fn next_events(&self) -> Vec<(&'static str, Option<Nanos>)> {
+        self.slots.iter().filter_map(|s| s.model.as_ref()).map(|m| (m.name(), m.next_event())).collect()
     }
 
     /// The earliest [`Peripheral::next_event`] of the models.

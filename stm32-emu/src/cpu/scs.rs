@@ -240,10 +240,15 @@ impl Scs {
     /// Drives external interrupt line `irq`. A line held high pends its interrupt whenever the
     /// interrupt is not active (level-sensitive, PM0214 §4.2.9).
     pub fn set_line(&mut self, irq: u16, level: bool) {
-        if let Some(line) = self.lines.get_mut(usize::from(irq)) {
-            *line = level;
+        let i = usize::from(irq);
+        if i >= self.irqs {
+            return;
         }
-        self.sample_lines();
+        self.lines[i] = level;
+        let number = usize::from(exception::IRQ0) + i;
+        if level && !self.active[number] {
+            self.pending[number] = true;
+        }
     }
 
     fn sample_lines(&mut self) {
@@ -282,10 +287,9 @@ impl Scs {
     /// exceptions' group priorities and of the masks; 256 in thread mode with no mask.
     pub fn execution_priority(&self, masks: Masks) -> i16 {
         let mut priority = 256;
-        for number in 1..EXCEPTIONS as u16 {
-            if self.active[usize::from(number)] {
-                priority = priority.min(self.group_priority(self.priority(number)));
-            }
+        // Slice iteration: this runs after every bus access, in unoptimised test builds too.
+        for (number, _) in self.active.iter().enumerate().skip(1).filter(|(_, &a)| a) {
+            priority = priority.min(self.group_priority(self.priority(number as u16)));
         }
         if masks.basepri & 0xF0 != 0 {
             priority = priority.min(self.group_priority(i16::from(masks.basepri & 0xF0)));
@@ -303,11 +307,10 @@ impl Scs {
     /// priority, then lowest number, PM0214 §2.3.6), if any.
     pub fn highest_pending(&self) -> Option<u16> {
         let mut best: Option<(i16, i16, u16)> = None;
-        for number in 2..(usize::from(exception::IRQ0) + self.irqs) as u16 {
-            let n = usize::from(number);
-            if !(self.pending[n] && self.enabled[n]) {
-                continue;
-            }
+        let last = usize::from(exception::IRQ0) + self.irqs;
+        let candidates = self.pending[..last].iter().zip(&self.enabled[..last]).enumerate().skip(2);
+        for (n, _) in candidates.filter(|(_, (&p, &e))| p && e) {
+            let number = n as u16;
             let priority = self.priority(number);
             let key = (self.group_priority(priority), priority, number);
             if best.is_none_or(|b| key < b) {

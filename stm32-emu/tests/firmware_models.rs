@@ -1,0 +1,51 @@
+//! The exact board firmware ELF on the crate's own models (RCC, FLASH, GPIO, USART, bxCAN):
+//! it reaches the point where it enables the CAN controller and runs SysTick.
+//!
+//! Ignored by default: it needs the thumb build (see tests/firmware_boot.rs). Run it with
+//! `cargo test -p stm32-emu --test firmware_models -- --ignored`.
+
+use stm32_emu::bxcan::{Bxcan, CAN1_BASE};
+use stm32_emu::flash::Flash;
+use stm32_emu::gpio::{Gpio, Port};
+use stm32_emu::machine::{Chip, Stm32};
+use stm32_emu::rcc::{Hse, Rcc, BASE as RCC_BASE};
+use stm32_emu::usart::{Usart, UsartId};
+
+const ELF: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../target/thumbv7em-none-eabihf/firmware/slave-fw-firmware");
+const REFERENCE_ELF: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../target/thumbv7em-none-eabihf/firmware/slave-fw-firmware-reference"
+);
+const SYSTICK: u16 = 15;
+
+#[test]
+#[ignore = "needs the thumb build of slave-fw-firmware (see tests/firmware_boot.rs)"]
+fn the_board_firmware_boots_on_the_models() -> Result<(), Box<dyn std::error::Error>> {
+    let default = if std::path::Path::new(REFERENCE_ELF).exists() { REFERENCE_ELF } else { ELF };
+    let path = std::env::var("STM32_EMU_FIRMWARE").unwrap_or_else(|_| default.to_string());
+    let elf = std::fs::read(&path).map_err(|e| format!("{path}: {e} (build the firmware first)"))?;
+    let mut mcu = Stm32::new(Chip::Stm32F405, *b"stm32-emu-id")?;
+    // The reference board's 8 MHz crystal (board/src/boards/reference.rs).
+    mcu.add_peripheral(RCC_BASE, 0x400, Box::new(Rcc::new(Hse::Crystal(8_000_000))))?;
+    mcu.add_flash(Flash::new())?;
+    for port in [Port::A, Port::B, Port::C] {
+        mcu.add_peripheral(port.base(), 0x400, Box::new(Gpio::new(port)))?;
+    }
+    for usart in [UsartId::Usart1, UsartId::Usart2] {
+        mcu.add_peripheral(usart.base(), 0x400, Box::new(Usart::new(usart)))?;
+    }
+    mcu.add_peripheral(CAN1_BASE, 0x400, Box::new(Bxcan::new()))?;
+    mcu.load_elf(&elf)?;
+
+    mcu.run_until(100_000_000, |m| m.exceptions_taken(SYSTICK) >= 10)?;
+    let mcr = mcu.read_peripheral(CAN1_BASE).ok_or("no CAN1")?;
+    let btr = mcu.read_peripheral(CAN1_BASE + 0x1C).ok_or("no CAN1")?;
+    let clocks = mcu.clocks();
+    eprintln!("at {} ns: MCR {mcr:#010x}, BTR {btr:#010x}, {clocks:?}", mcu.now());
+    assert!(mcu.exceptions_taken(SYSTICK) >= 10, "SysTick runs");
+    assert_eq!(mcu.scs().systick.reload(), clocks.hclk / 1000 - 1, "1 kHz at HCLK");
+    assert_eq!(mcr & 1, 0, "CAN1 asked to leave initialisation mode (MCR.INRQ clear)");
+    assert_ne!(btr, 0x0123_0000, "BTR set from its reset value");
+    Ok(())
+}
