@@ -93,6 +93,10 @@ pub trait Machine {
     fn flash_memory(&mut self) -> Option<&mut [u8]> {
         None
     }
+    /// Ends the access being answered in a bus error (RM0090 §3.6.1: a wrong key sequence
+    /// to FLASH_KEYR "generates a bus error"). The machine stops and reports the access; the
+    /// default ignores it.
+    fn bus_error(&mut self) {}
 }
 
 /// A register-level model of one peripheral.

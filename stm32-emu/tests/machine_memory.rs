@@ -9,6 +9,7 @@ use rstest::rstest;
 use stand_ins::{Flash, Record};
 use std::cell::RefCell;
 use std::rc::Rc;
+use stm32_emu::cpu::core::CoreFault;
 use stm32_emu::machine::{Chip, Stm32};
 use thumb::*;
 use unicorn_engine::RegisterARM;
@@ -106,4 +107,19 @@ fn sram_bit_band() {
     assert_eq!(word(&mcu, COUNTER), 1 << 11);
     assert_eq!(mcu.register(RegisterARM::R4), 1);
     assert_eq!(mcu.register(RegisterARM::R5), 0);
+}
+
+/// A wrong unlock key is a bus error (RM0090 §3.6.1), reported with the access.
+#[test]
+fn a_wrong_flash_key_is_a_bus_fault() {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, 0x4002_3C04).ldr_const(1, 0x1111_1111).str(1, 0, 0);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = Stm32::new(Chip::Stm32F405, [0; 12]).expect("machine");
+    mcu.add_flash(stm32_emu::flash::Flash::new()).expect("FLASH");
+    flash(&mut mcu, &image(&mut [(RESET, main)], &[]));
+    let fault = mcu.run_for(10_000).expect_err("bus fault");
+    let expected = CoreFault::Bus { address: 0x4002_3C04, pc: RESET + 4, write: true };
+    assert_eq!(fault, stm32_emu::machine::Fault::Core(expected));
 }

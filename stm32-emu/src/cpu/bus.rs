@@ -73,6 +73,8 @@ pub struct Bus {
     pub error: Option<BusError>,
     /// The CPU exception number the emulator raised (its interrupt hook), if any.
     pub interrupt: Option<u32>,
+    /// The model answering the current access reported a bus error ([`Machine::bus_error`]).
+    model_bus_error: bool,
     /// An access asked the core to stop after the current instruction (an exception became
     /// pending, a reset was requested, the flash array changed).
     pub stop_requested: bool,
@@ -94,6 +96,7 @@ impl Bus {
             pc: 0,
             masks: Masks::default(),
             error: None,
+            model_bus_error: false,
             interrupt: None,
             stop_requested: false,
         }
@@ -190,11 +193,16 @@ impl Bus {
         };
         let offset = address - self.slots[i].base;
         let now = self.time();
-        self.with_model(i, false, |model, bus| {
-            model.advance(now, bus);
-            model.read(offset, width, bus)
-        })
-        .unwrap_or(0)
+        let value = self
+            .with_model(i, false, |model, bus| {
+                model.advance(now, bus);
+                model.read(offset, width, bus)
+            })
+            .unwrap_or(0);
+        if core::mem::take(&mut self.model_bus_error) {
+            self.fault(address, false);
+        }
+        value
     }
 
     /// A store to the peripheral region (`address` absolute, bit-band alias included: a
@@ -215,6 +223,9 @@ impl Bus {
             model.advance(now, bus);
             model.write(offset, width, value, bus);
         });
+        if core::mem::take(&mut self.model_bus_error) {
+            self.fault(address, true);
+        }
     }
 
     /// A CPU store into the flash array (`offset` from [`FLASH_BASE`]), offered to the models
@@ -358,6 +369,10 @@ impl Machine for Bus {
         self.flash_dirty = true;
         self.stop_requested = true;
         Some(&mut self.flash)
+    }
+
+    fn bus_error(&mut self) {
+        self.model_bus_error = true;
     }
 }
 

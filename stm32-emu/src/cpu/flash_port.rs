@@ -2,9 +2,10 @@
 //! register block is a [`Peripheral`]; it keeps the array itself, so CPU stores into flash go
 //! to its [`Flash::array_write`] and the CPU sees its [`Flash::image`].
 //!
-//! Not connected: the model's stalls ([`Flash::take_stall`], an access while BSY waits for the
-//! operation; the machine does not add them to its clock) and its bus errors
-//! ([`Flash::take_bus_error`], a wrong key); both are left for the model to report.
+//! Its bus errors ([`Flash::take_bus_error`], a wrong key) stop the machine with a bus fault
+//! ([`Machine::bus_error`]). Not connected: its stalls ([`Flash::take_stall`], an access
+//! while BSY waits for the operation); the machine does not add them to its clock, the
+//! firmware polls BSY instead.
 
 use crate::flash::Flash;
 use crate::periph::{Machine, Nanos, Peripheral, ResetKind, Width};
@@ -37,6 +38,9 @@ impl Peripheral for FlashPort {
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
         self.flash.write(offset, width, value, machine);
+        if self.flash.take_bus_error() {
+            machine.bus_error();
+        }
     }
 
     fn advance(&mut self, now: Nanos, machine: &mut dyn Machine) {
