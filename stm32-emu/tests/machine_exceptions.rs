@@ -253,3 +253,12 @@ fn the_unique_id_reads_from_system_memory() {
     assert!(!mcu.write_memory(0x1000_0000 + 64 * 1024, &[0]), "CCM is 64 KiB");
     assert!(mcu.write_memory(0x1000_0000, &[0]));
 }
+
+#[test]
+fn an_undefined_instruction_stops_the_machine() {
+    let mut main = Asm::new(RESET);
+    main.movs(0, 1).op(0xDE00); // UDF #0
+    let mut mcu = machine(&mut [(RESET, main)], &[]);
+    let fault = mcu.run_for(10_000).expect_err("faults");
+    assert_eq!(fault, Fault::Core(CoreFault::Undefined { pc: RESET + 2 }));
+}

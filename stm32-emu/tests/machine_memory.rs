@@ -76,13 +76,15 @@ fn flash_survives_power_cycles_and_sram_only_system_resets() {
     assert_eq!(word(&mcu, SETTINGS - FLASH), 0x0403_0201, "and seen through the alias at 0");
 }
 
-#[test]
-fn wfi_sleeps_until_the_next_systick_interrupt() {
+#[rstest]
+#[case::wfi(0xBF30)]
+#[case::wfe(0xBF20)]
+fn wfi_and_wfe_sleep_until_the_next_systick_interrupt(#[case] sleep: u16) {
     let mut main = Asm::new(RESET);
     // SysTick every 16,000 cycles (1 ms at the 16 MHz HSI), then WFI in a loop counting R4.
     main.ldr_const(0, 0xE000_E010).ldr_const(1, 15_999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
     let top = main.here();
-    main.wfi().adds(4, 1).b(top);
+    main.op(sleep).adds(4, 1).b(top);
     let mut handler = Asm::new(FLASH + 0x400);
     handler.ldr_const(0, COUNTER).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).bx_lr();
     let mut mcu = machine(&mut [(RESET, main), (FLASH + 0x400, handler)], &[(SYSTICK, FLASH + 0x400)]);

@@ -403,11 +403,27 @@ impl Core {
             (Some(excp::UDEF), _) => Err(CoreFault::Undefined { pc: bus.pc }),
             (Some(excp::BKPT), _) => Err(CoreFault::Breakpoint { pc: bus.pc }),
             (Some(other), _) => Err(CoreFault::Emulator { error: 0x100 + other, pc: bus.pc }),
+            (None, Err(uc_error::INSN_INVALID)) => self.hint(bus.pc),
             (None, Err(e)) => Err(CoreFault::Emulator { error: e as u32, pc: bus.pc }),
             (None, Ok(())) if bus.executed >= bus.budget || bus.stop_requested => Ok(SliceEnd::Stopped),
             // unicorn returns on WFI (QEMU's EXCP_HLT) with PC after it.
             (None, Ok(())) => Ok(SliceEnd::Sleep),
         }
+    }
+
+    /// The hint instructions unicorn refuses in M-profile mode (it stops with "invalid
+    /// instruction" at them): WFE sleeps like WFI (the event register is not modelled: the
+    /// core wakes on the next exception that would preempt, PM0214 §2.5.3), YIELD and SEV are
+    /// NOPs (single core). Anything else at `pc` is an undefined instruction.
+    fn hint(&mut self, pc: u32) -> Result<SliceEnd, CoreFault> {
+        let mut b = [0; 2];
+        let end = match self.read_memory(pc, &mut b).then(|| u16::from_le_bytes(b)) {
+            Some(0xBF20) => SliceEnd::Sleep,
+            Some(0xBF10 | 0xBF40) => SliceEnd::Stopped,
+            _ => return Err(CoreFault::Undefined { pc }),
+        };
+        self.set_reg(RegisterARM::PC, pc + 2);
+        Ok(end)
     }
 
     /// Whether an FP instruction ran with the FPU disabled in CPACR (see
