@@ -15,14 +15,25 @@
 //! # Time
 //!
 //! One instruction takes one HCLK cycle. The Cortex-M4 retires most instructions in one
-//! cycle and loads, stores, branches and divisions in 2–12 (PM0214 §3.3.1 table 21), so
+//! cycle and loads, stores, branches and divisions in 2–12 (the Cortex-M4 Technical
+//! Reference Manual, ARM DDI 0439, §3.3.1; flash wait states come on top), so
 //! emulated time runs somewhat ahead of the instruction stream; what the firmware measures
 //! with SysTick and what the models see agree with each other, which is what matters here.
 //! HCLK is the RCC model's ([`Peripheral::clocks`]), or the 16 MHz HSI with no RCC model.
 //! The machine runs the core in slices of at most [`Stm32::set_advance_period`] (10 µs by
 //! default), calls [`Peripheral::advance`] on every model between slices and also before each
 //! access to a model, and ends a slice early at SysTick's next interrupt, a model's
-//! [`Peripheral::next_event`] and every access after which an exception preempts.
+//! [`Peripheral::next_event`] and every access after which an exception preempts. An
+//! exception that an MSR BASEPRI, MSR PRIMASK or CPSIE unmasks (no bus access) is taken at the
+//! end of the current slice, at most one advance period late.
+//!
+//! # Flash
+//!
+//! The CPU fetches and loads from a copy of the flash array (at 0x0800_0000 and aliased at 0).
+//! CPU stores into it go to the FLASH model ([`Peripheral::flash_store`]), which changes the
+//! array through [`Machine::flash_memory`] or keeps its own ([`Peripheral::flash_array`],
+//! [`Stm32::add_flash`] for [`crate::flash::Flash`]); the copy is refreshed before the next
+//! instruction. The array survives resets and power cycles.
 //!
 //! # Sleep
 //!
