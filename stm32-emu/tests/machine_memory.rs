@@ -125,3 +125,23 @@ fn a_wrong_flash_key_is_a_bus_fault() {
     let expected = CoreFault::Bus { address: 0x4002_3C04, pc: RESET + 4, write: true };
     assert_eq!(fault, stm32_emu::machine::Fault::Core(expected));
 }
+
+/// SCR.SLEEPONEXIT: after the first SysTick handler the core sleeps instead of returning to
+/// the thread, and wakes only into the handler (PM0214 §4.4.6).
+#[test]
+fn sleep_on_exit() {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, 0xE000_ED10).movs(1, 2).str(1, 0, 0); // SCR.SLEEPONEXIT
+    main.ldr_const(0, 0xE000_E010).ldr_const(1, 15_999).str(1, 0, 1).movs(1, 7).str(1, 0, 0);
+    let top = main.here();
+    main.adds(4, 1).b(top);
+    let mut handler = Asm::new(FLASH + 0x400);
+    handler.ldr_const(0, COUNTER).ldr(1, 0, 0).adds(1, 1).str(1, 0, 0).bx_lr();
+    let mut mcu = machine(&mut [(RESET, main), (FLASH + 0x400, handler)], &[(SYSTICK, FLASH + 0x400)]);
+    mcu.run_for(1_500_000).expect("runs");
+    let thread_count = mcu.register(RegisterARM::R4);
+    mcu.run_for(3_000_000).expect("runs");
+    assert_eq!(word(&mcu, COUNTER), 4, "a tick a millisecond");
+    assert_eq!(mcu.register(RegisterARM::R4), thread_count, "the thread no longer runs");
+    assert!(mcu.sleeping());
+}
