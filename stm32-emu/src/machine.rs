@@ -459,15 +459,19 @@ impl Stm32 {
         self.core.bus().clocks().hclk.max(1)
     }
 
-    /// Turns `cycles` at HCLK into time; counts SysTick; advances every model.
+    /// Turns `cycles` at HCLK and the slice's stalls into time; counts SysTick; advances every
+    /// model.
     fn account(&mut self, cycles: u64) {
         let hclk = u64::from(self.hclk());
+        let stalled = core::mem::take(&mut self.core.bus_mut().stalled);
+        // A stall is time the core does not execute but SysTick counts.
+        let cycles_total = cycles + stalled * hclk / 1_000_000_000;
         let total = self.remainder + cycles * 1_000_000_000;
-        self.now += total / hclk;
+        self.now += total / hclk + stalled;
         self.remainder = total % hclk;
         let now = self.now;
         let bus = self.core.bus_mut();
-        if bus.scs.systick.advance(cycles) {
+        if bus.scs.systick.advance(cycles_total) {
             bus.scs.set_pending(exception::SYS_TICK);
         }
         bus.slice_start = now;

@@ -97,6 +97,11 @@ pub trait Machine {
     /// to FLASH_KEYR "generates a bus error"). The machine stops and reports the access; the
     /// default ignores it.
     fn bus_error(&mut self) {}
+    /// Stalls the core for `nanos` (the bus held the access, e.g. the flash interface while BSY
+    /// is set, RM0090 §3.6.1): the machine adds the time to its clock. The default ignores it.
+    fn stall(&mut self, nanos: Nanos) {
+        let _ = nanos;
+    }
 }
 
 /// A register-level model of one peripheral.

@@ -73,6 +73,8 @@ pub struct Bus {
     pub error: Option<BusError>,
     /// The CPU exception number the emulator raised (its interrupt hook), if any.
     pub interrupt: Option<u32>,
+    /// Time the models stalled the core in the current slice ([`Machine::stall`]).
+    pub stalled: Nanos,
     /// The model answering the current access reported a bus error ([`Machine::bus_error`]).
     model_bus_error: bool,
     /// An access asked the core to stop after the current instruction (an exception became
@@ -97,6 +99,7 @@ impl Bus {
             masks: Masks::default(),
             error: None,
             model_bus_error: false,
+            stalled: 0,
             interrupt: None,
             stop_requested: false,
         }
@@ -136,9 +139,9 @@ impl Bus {
     }
 
     /// Time now: the slice's start plus the instructions executed in it at HCLK (one
-    /// instruction per cycle, see [`crate::machine`]).
+    /// instruction per cycle, see [`crate::machine`]) plus the stalls in it.
     pub fn time(&self) -> Nanos {
-        self.slice_start + self.executed * 1_000_000_000 / u64::from(self.hclk.max(1))
+        self.slice_start + self.executed * 1_000_000_000 / u64::from(self.hclk.max(1)) + self.stalled
     }
 
     fn slot_index(&self, address: u32) -> Option<usize> {
@@ -374,6 +377,10 @@ impl Machine for Bus {
     fn bus_error(&mut self) {
         self.model_bus_error = true;
     }
+
+    fn stall(&mut self, nanos: Nanos) {
+        self.stalled += nanos;
+    }
 }
 
 #[cfg(test)]
@@ -450,6 +457,17 @@ mod tests {
         let (bus, _) = bus_with_log();
         assert_eq!(bus.clocks(), Clocks::RESET);
         assert!(bus.clock_enabled(ClockGate::Apb1(25)));
+    }
+
+    #[test]
+    fn time_counts_instructions_at_hclk_and_stalls() {
+        let mut bus = Bus::new(82);
+        bus.slice_start = 1_000;
+        bus.hclk = 16_000_000;
+        bus.executed = 16;
+        assert_eq!(bus.time(), 2_000, "16 cycles at 16 MHz: 1 µs");
+        bus.stall(500);
+        assert_eq!(bus.now(), 2_500);
     }
 
     #[test]

@@ -3,9 +3,9 @@
 //! to its [`Flash::array_write`] and the CPU sees its [`Flash::image`].
 //!
 //! Its bus errors ([`Flash::take_bus_error`], a wrong key) stop the machine with a bus fault
-//! ([`Machine::bus_error`]). Not connected: its stalls ([`Flash::take_stall`], an access
-//! while BSY waits for the operation); the machine does not add them to its clock, the
-//! firmware polls BSY instead.
+//! ([`Machine::bus_error`]); its stalls ([`Flash::take_stall`], an access while BSY waits for
+//! the operation) go to the machine's clock ([`Machine::stall`]). CPU loads from the array
+//! never reach the model (the CPU reads the machine's copy), so they do not stall.
 
 use crate::flash::Flash;
 use crate::periph::{Machine, Nanos, Peripheral, ResetKind, Width};
@@ -25,6 +25,17 @@ impl FlashPort {
     pub fn flash(&self) -> &Flash {
         &self.flash
     }
+
+    /// Passes the model's bus error and stall of the access on to the machine.
+    fn report(&mut self, machine: &mut dyn Machine) {
+        if self.flash.take_bus_error() {
+            machine.bus_error();
+        }
+        let stall = self.flash.take_stall();
+        if stall > 0 {
+            machine.stall(stall);
+        }
+    }
 }
 
 impl Peripheral for FlashPort {
@@ -33,14 +44,14 @@ impl Peripheral for FlashPort {
     }
 
     fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32 {
-        self.flash.read(offset, width, machine)
+        let value = self.flash.read(offset, width, machine);
+        self.report(machine);
+        value
     }
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
         self.flash.write(offset, width, value, machine);
-        if self.flash.take_bus_error() {
-            machine.bus_error();
-        }
+        self.report(machine);
     }
 
     fn advance(&mut self, now: Nanos, machine: &mut dyn Machine) {
@@ -57,6 +68,7 @@ impl Peripheral for FlashPort {
 
     fn flash_store(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) -> bool {
         self.flash.array_write(offset, width, value, machine);
+        self.report(machine);
         true
     }
 
