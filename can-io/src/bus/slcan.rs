@@ -244,6 +244,11 @@ impl<L: SerialLink> SlcanBus<L> {
                 bus.await_answer(name)?;
             }
         }
+        // The bus's clock starts once it is set up; what came during the set-up came at its start.
+        bus.opened = std::time::Instant::now();
+        for ev in &mut bus.pending {
+            ev.at = Instant::ZERO;
+        }
         Ok(bus)
     }
 
