@@ -9,8 +9,10 @@
 //! cargo test -p stm32-emu --test firmware_boot -- --ignored
 //! ```
 //!
-//! (`STM32_EMU_FIRMWARE=path` runs another ELF.)
+//! It runs the newest reference-board build found (`slave-fw-firmware` or scripts/firmware-size's
+//! `slave-fw-firmware-reference`, never the emulated QEMU build), or `STM32_EMU_FIRMWARE=path`.
 
+mod firmware_elf;
 mod stand_ins;
 
 use stand_ins::{Bxcan, Flash, Gpio, Rcc, Record, Shared, Usart};
@@ -18,14 +20,6 @@ use std::cell::RefCell;
 use std::rc::Rc;
 use stm32_emu::machine::{Chip, Stm32};
 
-const ELF: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../target/thumbv7em-none-eabihf/firmware/slave-fw-firmware");
-/// scripts/firmware-size's copy of the reference board's build, preferred when present: the
-/// plain name holds whichever build ran last, the emulated one (QEMU, semihosting) included.
-const REFERENCE_ELF: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../target/thumbv7em-none-eabihf/firmware/slave-fw-firmware-reference"
-);
 const SYSTICK: u16 = 15;
 /// The reference board's HSE (board/src/boards/reference.rs).
 const HSE_HZ: u32 = 8_000_000;
@@ -66,9 +60,7 @@ fn can_enabled(record: &Record) -> bool {
 #[test]
 #[ignore = "needs the thumb build of slave-fw-firmware (see the file's docs)"]
 fn the_board_firmware_enables_can_and_takes_systick_interrupts() -> Result<(), Box<dyn std::error::Error>> {
-    let default = if std::path::Path::new(REFERENCE_ELF).exists() { REFERENCE_ELF } else { ELF };
-    let path = std::env::var("STM32_EMU_FIRMWARE").unwrap_or_else(|_| default.to_string());
-    let elf = std::fs::read(&path).map_err(|e| format!("{path}: {e} (build the firmware first)"))?;
+    let (_, elf) = firmware_elf::board_elf()?;
     let record = Rc::new(RefCell::new(Record::default()));
     let mut mcu = board(&record)?;
     mcu.load_elf(&elf)?;

@@ -4,6 +4,8 @@
 //! Ignored by default: it needs the thumb build (see tests/firmware_boot.rs). Run it with
 //! `cargo test -p stm32-emu --test firmware_models -- --ignored`.
 
+mod firmware_elf;
+
 use stm32_emu::bxcan::{Bxcan, CAN1_BASE};
 use stm32_emu::flash::Flash;
 use stm32_emu::gpio::{Gpio, Port};
@@ -11,20 +13,12 @@ use stm32_emu::machine::{Chip, Stm32};
 use stm32_emu::rcc::{Hse, Rcc, BASE as RCC_BASE};
 use stm32_emu::usart::{Usart, UsartId};
 
-const ELF: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../target/thumbv7em-none-eabihf/firmware/slave-fw-firmware");
-const REFERENCE_ELF: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../target/thumbv7em-none-eabihf/firmware/slave-fw-firmware-reference"
-);
 const SYSTICK: u16 = 15;
 
 #[test]
 #[ignore = "needs the thumb build of slave-fw-firmware (see tests/firmware_boot.rs)"]
 fn the_board_firmware_boots_on_the_models() -> Result<(), Box<dyn std::error::Error>> {
-    let default = if std::path::Path::new(REFERENCE_ELF).exists() { REFERENCE_ELF } else { ELF };
-    let path = std::env::var("STM32_EMU_FIRMWARE").unwrap_or_else(|_| default.to_string());
-    let elf = std::fs::read(&path).map_err(|e| format!("{path}: {e} (build the firmware first)"))?;
+    let (_, elf) = firmware_elf::board_elf()?;
     let mut mcu = Stm32::new(Chip::Stm32F405, *b"stm32-emu-id")?;
     // The reference board's 8 MHz crystal (board/src/boards/reference.rs).
     mcu.add_peripheral(RCC_BASE, 0x400, Box::new(Rcc::new(Hse::Crystal(8_000_000))))?;
