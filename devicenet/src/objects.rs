@@ -40,6 +40,18 @@ pub fn class_name(class: u16) -> Option<&'static str> {
     })
 }
 
+/// The name of `service` on an object of `class`, if known. Codes 0x4B–0x63 are object-specific
+/// (notes §3.2): they carry the DeviceNet object's names (Allocate / Release_Master/Slave_Connection_Set)
+/// on the DeviceNet object only, and no name on any other class, whose own services reuse the
+/// numbers (a vendor object's Read_Chunk can be 0x4B).
+pub fn service_name(class: u16, service: crate::explicit::ServiceCode) -> Option<&'static str> {
+    let object_specific = (0x4B..=0x63).contains(&service.as_raw());
+    if object_specific && class != class::DEVICENET {
+        return None;
+    }
+    service.name()
+}
+
 /// The name of attribute `attribute` of `instance` of `class`, if known. Instance 0 addresses the
 /// class itself, whose attribute 1 is the revision.
 pub fn attribute_name(class: u16, instance: u16, attribute: u8) -> Option<&'static str> {
@@ -142,6 +154,16 @@ mod tests {
     #[case::unknown_class(0x99, 1, 1, None)]
     fn attribute_names(#[case] class: u16, #[case] inst: u16, #[case] attr: u8, #[case] name: Option<&str>) {
         assert_eq!(attribute_name(class, inst, attr), name);
+    }
+
+    #[rstest]
+    #[case::allocate_on_devicenet(class::DEVICENET, 0x4B, Some("Allocate_Master/Slave_Connection_Set"))]
+    #[case::release_on_devicenet(class::DEVICENET, 0x4C, Some("Release_Master/Slave_Connection_Set"))]
+    #[case::object_specific_elsewhere(0x66, 0x4B, None)]
+    #[case::last_object_specific_elsewhere(class::IDENTITY, 0x63, None)]
+    #[case::common_service_anywhere(0x66, 0x0E, Some("Get_Attribute_Single"))]
+    fn service_names(#[case] class: u16, #[case] code: u8, #[case] name: Option<&str>) {
+        assert_eq!(service_name(class, crate::explicit::ServiceCode::from(code)), name);
     }
 
     #[test]

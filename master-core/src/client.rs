@@ -124,6 +124,8 @@ pub struct Transaction {
     xid: bool,
     message: Vec<u8>,
     service: ServiceCode,
+    /// The class the request addresses, to name its service ([`crate::decode::service_text`]).
+    class: u16,
     timeout: Duration,
     state: State,
     tx: Box<ExplicitTransmitter<MAX_MESSAGE>>,
@@ -162,6 +164,7 @@ impl Transaction {
             xid,
             message,
             service: request.service,
+            class: request.class,
             timeout,
             state: State::Idle,
             tx: Box::new(ExplicitTransmitter::new()),
@@ -321,7 +324,7 @@ impl Transaction {
     }
 
     fn service_name(&self) -> String {
-        self.service.name().map_or_else(|| format!("service 0x{:02X}", self.service.as_raw()), String::from)
+        crate::decode::service_text(self.class, self.service)
     }
 
     /// Checks a whole response body and builds the reply.

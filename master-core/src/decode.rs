@@ -52,7 +52,7 @@ use fragments::{io_data, io_data_into, IoSeries, Who};
 use messages::{broadcast_text, group3, group4, group_select_text};
 pub use text::{
     attribute_text, body_format_text, class_text, error_text, hex, push_hex, request_text, response_text,
-    short_string, u16_of, value_text,
+    service_text, short_string, u16_of, value_text,
 };
 use text::{path_request, path_request_text, push_data_text, push_u8};
 
@@ -716,6 +716,18 @@ mod tests {
 
     fn f(id: u16, data: &[u8]) -> CanFrame {
         CanFrame::from_raw(id, data).unwrap()
+    }
+
+    /// An object-specific service code names the DeviceNet object's service only on that object:
+    /// a vendor object's 0x4B (the configuration object's Read_Chunk) is not an Allocate.
+    #[rstest]
+    #[case::request_on_a_vendor_class(&[0x00, 0x4B, 0x66, 0x01, 0x00, 0x00, 0x00, 0x38], "service 0x4B class 0x66 inst 1")]
+    #[case::request_on_the_devicenet_object(&[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00], "Allocate_Master/Slave_Connection_Set DeviceNet(3) inst 1")]
+    fn object_specific_services_are_named_by_their_class(#[case] data: &[u8], #[case] expected: &str) {
+        let mut d = Decoder::new();
+        let text = d.decode(&f(0x42C, data)).text();
+        assert!(text.contains(expected), "{text}");
+        assert!(data[2] == 0x03 || !text.contains("Allocate_Master"), "{text}");
     }
 
     #[test]

@@ -58,6 +58,14 @@ pub fn class_text(class: u16) -> String {
     }
 }
 
+/// The name of `service` on an object of `class` (`Get_Attribute_Single`), or `service 0x4B` for
+/// an object-specific code on a class whose services have no name here
+/// ([`devicenet::objects::service_name`]: 0x4B is Allocate only on the DeviceNet object).
+pub fn service_text(class: u16, service: ServiceCode) -> String {
+    objects::service_name(class, service)
+        .map_or_else(|| format!("service 0x{:02X}", service.as_raw()), String::from)
+}
+
 /// `attr 7 (product name)` or `attr 99`.
 pub fn attribute_text(class: u16, instance: u16, attribute: u8) -> String {
     match objects::attribute_name(class, instance, attribute) {
@@ -174,8 +182,7 @@ pub fn value_text(class_id: u16, instance: u16, attribute: u8, data: &[u8]) -> S
 /// A request body in words: `Get_Attribute_Single Identity(1) inst 1 attr 1 (vendor ID)`.
 pub fn request_text(req: &Request<'_>) -> String {
     let target = format!("{} inst {}", class_text(req.class), req.instance);
-    let service =
-        req.service.name().map_or_else(|| format!("service 0x{:02X}", req.service.as_raw()), String::from);
+    let service = service_text(req.class, req.service);
     match req.service {
         ServiceCode::GetAttributeSingle => match req.data {
             [attr] => format!("{service} {target} {}", attribute_text(req.class, req.instance, *attr)),
@@ -292,9 +299,13 @@ pub fn response_text(body: &[u8], pending: Option<&PendingRequest>) -> String {
             format!("Error_Response: {}", error_text(general, additional))
         }
         Ok(Response::Success { service, data }) => {
-            let name =
-                service.name().map_or_else(|| format!("service 0x{:02X}", service.as_raw()), String::from);
             let matching = pending.filter(|p| p.service == service);
+            let name = match matching {
+                Some(p) => service_text(p.class, service),
+                None => {
+                    service.name().map_or_else(|| format!("service 0x{:02X}", service.as_raw()), String::from)
+                }
+            };
             match (service, matching) {
                 (ServiceCode::GetAttributeSingle, Some(p)) => {
                     let attr = p.attribute.unwrap_or(0);
