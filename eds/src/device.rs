@@ -643,12 +643,14 @@ pub fn check_device(
 }
 
 /// Opens the bus, runs [`check_device`] on it at `bus.mac`, and closes it; every frame goes to
-/// `log` (`candump -L`) when given.
+/// `log` when given, in the format its extension names (`.asc`, `.trc`, `.csv`; else `candump -L`),
+/// as every program's `--log` ([`can_io::trace::write::log_format`]).
 ///
 /// # Errors
 ///
 /// Those of [`open_bus`] and [`check_device`], [`DeviceError::Usage`] when the device is at the
-/// master's own MAC, and [`DeviceError::Write`] when the log file cannot be created.
+/// master's own MAC or the log's extension names a format that is read, not written (`.pcap`), and
+/// [`DeviceError::Write`] when the log file cannot be created.
 pub fn check_on_bus(
     eds: &Eds,
     bus: &BusOptions,
@@ -658,10 +660,14 @@ pub fn check_on_bus(
     if bus.mac == options.master_mac {
         return Err(DeviceError::Usage(format!("the device's MAC {} is the master's own MAC", bus.mac)));
     }
+    let format = log
+        .map(|path| can_io::trace::write::log_format(path, None))
+        .transpose()
+        .map_err(|e| DeviceError::Usage(e.to_string()))?;
     let mut open = open_bus(bus)?;
     let mut session = Session::new(open.as_mut());
-    if let Some(path) = log {
-        let writer = LogWriter::create(path)
+    if let (Some(path), Some(format)) = (log, format) {
+        let writer = LogWriter::create_as(path, format)
             .map_err(|source| DeviceError::Write { path: path.display().to_string(), source })?;
         session.set_log(writer);
     }

@@ -120,7 +120,8 @@ enum Command {
         /// value other than the default is a note.
         #[arg(long)]
         params: bool,
-        /// Write every frame to FILE in candump -L format.
+        /// Write every frame to FILE, in the format its extension names (.asc, .trc, .csv; any
+        /// other name: candump -L).
         #[arg(long, value_name = "FILE")]
         log: Option<PathBuf>,
         /// Print the report as JSON.

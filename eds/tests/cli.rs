@@ -341,6 +341,28 @@ fn check_device_agrees_on_the_simulated_bus() {
     assert!(findings.iter().any(|f| f["what"] == "Param1 \"Serial baud rate\"" && f["device"] == "19200"));
 }
 
+/// `--log` follows the file's extension, as every program's does: an `.asc` name gets a Vector
+/// ASCII trace, not candump text; a `.pcap` name (read, not written) is a usage error.
+#[test]
+fn check_device_log_is_written_in_the_format_its_extension_names() {
+    let dir = temp_dir("check-device-log");
+    let asc = dir.join("run.asc");
+    let output =
+        run(&["check-device", "--eds", &golden("breaker"), "--mac", "5", "--log", asc.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    let text = std::fs::read_to_string(&asc).unwrap();
+    assert_eq!(can_io::trace::detect(text.as_bytes()), Some(can_io::trace::TraceFormat::Asc), "{text}");
+    assert!(text.trim_end().ends_with("End TriggerBlock"), "{text}");
+
+    let pcap = dir.join("run.pcap");
+    let output =
+        run(&["check-device", "--eds", &golden("breaker"), "--mac", "5", "--log", pcap.to_str().unwrap()]);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    assert!(stderr(&output).contains("pcap"), "{}", stderr(&output));
+    assert!(!pcap.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn check_device_disagreement_exits_1_naming_the_field() {
     let dir = temp_dir("check-device");
