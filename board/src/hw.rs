@@ -156,7 +156,8 @@ const _: () = assert!(matches!(leds::port(leds::WIRING), crate::pins::Port::A));
 
 /// The board's status LEDs ([`crate::leds`]): the reference board's MS and NS pairs on PC0–PC3,
 /// or the one LED of the Olimex (PC12) or the Nucleo (PA5). Set up in one register write and
-/// shown in one ([`leds::bsrr`]) rather than pin by pin (firmware size).
+/// shown in one ([`leds::bsrr`]): a board's LED pins change together, atomically, whatever its
+/// wiring ([`leds::WIRING`]).
 pub struct LedPins {
     _owned: (),
 }
@@ -645,8 +646,6 @@ impl HostFileFlash {
     }
 
     /// Seeks to `at` and makes `op` (SYS_READ or SYS_WRITE) on the `len` bytes at `buf`.
-    // Out of line, one function for reads and writes: 24 bytes of the emulated firmware's flash.
-    #[inline(never)]
     fn transfer(&self, op: u32, at: usize, buf: u32, len: usize) -> Result<(), FlashError> {
         use semihosting::*;
         let Some(h) = self.handle else {

@@ -9,10 +9,12 @@
 //! | [`boards`] | each board's description ([`boards::BoardSpec`]: chip, clocks, pins, LEDs, switches, flash layout, with its sources) and the selected one | yes, every board |
 //! | [`clocks`] | the selected board's clock tree (e.g. 8 MHz HSE → 168 MHz SYSCLK, APB1 42 MHz); the emulated board's HSI | – |
 //! | [`pins`] | pins as values | yes |
+//! | [`autobaud`] | the data rate found by listening in silent mode (boards without switches, no stored rate): the sans-IO state machine and its rule | yes |
 //! | [`bit_timing`] | `const fn` bxCAN bit timing (`CAN_BTR`) for 125k/250k/500k at the board's PCLK1 | yes, every board's PCLK1 |
 //! | [`filters`] | the acceptance list: this node's Group 2 identifiers only | yes |
 //! | [`switches`] | DIP switch decoding and the MAC/baud/"changed" decision at reset (boards without switches: the stored values) | yes |
 //! | [`leds`] | MS/NS bicolour LED pin levels, or what a board's one LED shows | yes |
+//! | [`self_test`] | the power-up self-test of the CAN path in silent loopback mode: its frame, bound and verdict | yes |
 //! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
 //! | [`memory`] | the memory map and `memory.x` per chip (`board/memory/`: settings in the last two flash sectors, 10–11 or 6–7) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make, and the USART register values (`BRR`, `CR1`, `CR2`) that make them | yes |
@@ -30,11 +32,11 @@
 //! It depends on the protocol core only (for the MAC ID and data rate types); the SLCAN codec the
 //! emulated board speaks is `can_io::slcan`, shared with the host.
 //!
-//! `unsafe` is allowed in this crate only, and used only in `hw` for register accesses the HAL
-//! does not offer or offers at a flash cost (CAN error status, reading the settings sectors, the
-//! USARTs' configuration and data registers, the unique ID) and for the semihosting calls
-//! of the emulated board's settings file, and in `mem` for the firmware's byte-at-a-time
-//! `memcpy`/`memset` family (1.5 KiB smaller than `compiler_builtins`' word-wise one).
+//! `unsafe` is allowed in this crate only, and used only in `hw`: for register accesses the HAL
+//! does not offer (CAN error status and test modes, the LED port in one write, the DIP switch
+//! port's pull-ups, the USARTs' configuration and data registers, the unique ID) and for the
+//! semihosting calls of the emulated board's settings file. The firmware's `memcpy` family is
+//! `compiler_builtins`'.
 #![no_std]
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
@@ -42,6 +44,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod autobaud;
 pub mod bit_timing;
 pub mod boards;
 pub mod clocks;
@@ -49,6 +52,7 @@ pub mod filters;
 pub mod leds;
 pub mod memory;
 pub mod pins;
+pub mod self_test;
 pub mod settings;
 pub mod switches;
 pub mod uart;
@@ -56,8 +60,6 @@ pub mod uid;
 
 #[cfg(target_os = "none")]
 pub mod hw;
-#[cfg(any(target_os = "none", test))]
-pub mod mem;
 
 pub use settings::{Settings, SettingsStore};
 pub use switches::{Resolved, SwitchReading};

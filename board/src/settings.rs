@@ -100,7 +100,8 @@ impl Settings {
     }
 
     /// Writes the record for these settings with `sequence` into `r` (zeroed).
-    // In place: the save does not copy a returned 640-byte record (firmware size).
+    // In place: the save builds its record where it is written from, not a second 640-byte copy
+    // on the stack.
     fn encode_into(&self, sequence: u32, r: &mut [u8; RECORD_LEN]) {
         r[0..4].copy_from_slice(&MAGIC);
         r[4..8].copy_from_slice(&sequence.to_le_bytes());
@@ -156,7 +157,7 @@ impl Settings {
 
     /// Sets these settings to those of a record that [`Settings::check`] accepted.
     // In place: the scan checks every record without building its settings, and fills the newest
-    // one's where they are kept instead of moving a 624-byte image into them (firmware size).
+    // one's where they are kept instead of moving a 624-byte image through the stack.
     fn fill_checked(&mut self, record: &[u8; RECORD_LEN]) {
         let flags = record[10];
         let len = usize::from(u16::from_le_bytes([record[12], record[13]]));
@@ -340,12 +341,7 @@ impl<F: SettingsFlash> SettingsStore<F> {
 
     /// Appends `settings` as the newest record; returns its sequence number.
     pub fn save(&mut self, settings: &Settings) -> Result<u32, FlashError> {
-        // A match rather than `?`: the scan is not moved through the `Try` machinery (firmware size).
-        #[allow(clippy::question_mark)]
-        let scan = match self.scan() {
-            Ok(scan) => scan,
-            Err(e) => return Err(e),
-        };
+        let scan = self.scan()?;
         let (mut sector, sequence) = match &scan.newest {
             Some(n) => (n.sector, n.sequence.wrapping_add(1)),
             None => (Sector::A, 1),

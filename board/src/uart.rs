@@ -172,9 +172,6 @@ impl LineFormat {
 
     /// The word length, when the USART running from `clock_hz` makes this format (character
     /// format and baud rate, [`LineFormat::baud_range`]).
-    // Inlined into its two firmware callers (the platform check, `registers` for the instrument
-    // port): out of line it costs 28 / 74 bytes of flash, inlined it saves 40 on the board.
-    #[inline(always)]
     pub const fn check(&self, clock_hz: u32) -> Result<WordLength, UnsupportedFormat> {
         let range = Self::baud_range(clock_hz);
         if self.baud < *range.start() || self.baud > *range.end() {

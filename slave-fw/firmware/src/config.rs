@@ -111,13 +111,8 @@ pub fn boot(resolved: &Resolved, stored: &Settings, serial: u32, now: Instant) -
 /// and its serial line, if the image decodes and both the converter and the USART take it. The
 /// image in force is `image` as it is.
 fn start(image: &[u8], origin: ConfigOrigin, board: &BoardFacts, now: Instant) -> Result<Boot, ImageError> {
-    // A match rather than `?`: the converter is not moved through the `Try` machinery (firmware
-    // size). A download this board cannot run is refused at once, not found out at the next reset.
-    #[allow(clippy::question_mark)]
-    let converter = match Converter::boot(image, origin, board, usart_makes_the_line, now) {
-        Ok(converter) => converter,
-        Err(e) => return Err(e),
-    };
+    // A download this board cannot run is refused at once, not found out at the next reset.
+    let converter = Converter::boot(image, origin, board, usart_makes_the_line, now)?;
     let line = line_format(converter.profile().serial_settings());
     Ok(Boot { converter, line, origin })
 }

@@ -94,8 +94,8 @@ mod app {
     type Flash = board::hw::HostFileFlash;
 
     /// Milliseconds since reset, counted by the SysTick task. A plain counter and a deadline
-    /// instead of rtic-monotonics' timer queue: the converter task is the only one that waits
-    /// (firmware size).
+    /// instead of rtic-monotonics' timer queue: the converter task is the only one that waits,
+    /// for one deadline at a time.
     static MILLIS: AtomicU64 = AtomicU64::new(0);
     /// The millisecond at which the SysTick task pends the converter task (`u64::MAX`: none).
     static WAKE_AT: AtomicU64 = AtomicU64::new(u64::MAX);
@@ -112,8 +112,7 @@ mod app {
         /// the instrument USART and its transmit queue: converter task queues, its interrupt moves bytes.
         instrument_port: InstrumentPort,
         /// The converter task's inputs: the CAN, SLCAN and instrument USART interrupts queue, the task takes.
-        /// A queue and a pended interrupt instead of an rtic-sync channel and an async task
-        /// (firmware size).
+        /// A queue and a pended interrupt: one consumer, an interrupt task, no async executor.
         inputs: Deque<Input, INPUTS>,
     }
 
@@ -197,8 +196,6 @@ mod app {
         Instant::from_millis(millis())
     }
 
-    // Out of line: the 64-bit load masks interrupts, and inlined at each call site it costs 60 bytes.
-    #[inline(never)]
     fn millis() -> u64 {
         MILLIS.load(Ordering::Relaxed)
     }
@@ -221,9 +218,6 @@ mod app {
     }
 
     /// Queues `input` for the converter task and pends it; a full queue drops the input.
-    // Out of line: one copy of the queue's push for the CAN, SLCAN and instrument USART interrupts
-    // (firmware size).
-    #[inline(never)]
     fn queue(inputs: &mut Deque<Input, INPUTS>, input: Input) {
         let _ = inputs.push_back(input);
         rtic::pend(CONVERTER_TASK);
@@ -375,7 +369,7 @@ mod app {
         if let Some(first) = next() {
             task.take_inputs(first, next, now(), io!());
             // Inputs beyond the INPUTS `take_inputs` takes may wait: run again (a run that finds
-            // none only runs the timers). Cheaper than looking into the queue (firmware size).
+            // none only runs the timers).
             rtic::pend(CONVERTER_TASK);
         }
         task.handle_timeout(now(), io!());

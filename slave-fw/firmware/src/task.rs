@@ -210,8 +210,7 @@ impl ConverterTask {
 /// cannot come (`MAX_IMAGE <= IMAGE_CAPACITY`, checked at compile time in `config`); it would be
 /// refused, not cut.
 fn store_image(settings: &mut Settings, image: &[u8], hw: &mut impl Hardware) {
-    // The network settings and the new image, without copying the old image first; the image
-    // is copied into the record in place, not moved into it from a vector of its own (flash).
+    // The network settings and the new image, without copying the old image first.
     let mut new = Settings {
         mac_id: settings.mac_id,
         baud_rate: settings.baud_rate,
