@@ -1,0 +1,157 @@
+//! The install steps of the test scripts (`scripts/lib/install.sh`), run by bash against stand-in
+//! `apt-get`, `apt-cache`, `dpkg-query`, `sudo` and `id` commands that record how they were called.
+//! The real ones would change this machine; the stand-ins answer as Debian's do for the cases
+//! that broke the README's test command on a fresh machine:
+//!
+//! - a tool that is present is never installed again (Node.js and npm from NodeSource: apt must
+//!   not be asked for Debian's `npm` beside them);
+//! - a package whose installation would remove one of the machine's packages is refused, naming
+//!   it (Debian 12's `qemu-system-arm` beside the image's newer `qemu-utils`);
+//! - as a user who is not root, apt-get runs through `sudo`; without `sudo` the step fails and
+//!   names the package to install.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const LIBRARY: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/lib/install.sh");
+
+/// A folder of stand-in commands and the log they append their calls to.
+struct StandIns {
+    dir: PathBuf,
+}
+
+impl StandIns {
+    /// `uid`: what `id -u` answers; `sudo`: whether a `sudo` exists; `removes`: the package a
+    /// simulated install reports it would remove (`Remv` line), if any.
+    fn new(name: &str, uid: u32, sudo: bool, removes: Option<&str>) -> StandIns {
+        let dir = std::env::temp_dir().join(format!("dnet-install-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("bin")).unwrap();
+        let log = dir.join("calls.log");
+        let stand_in = |command: &str, body: &str| {
+            let path = dir.join("bin").join(command);
+            let script = format!("#!/bin/bash\necho \"{command} $*\" >> '{}'\n{body}\n", log.display());
+            std::fs::write(&path, script).unwrap();
+            let mut permissions = std::fs::metadata(&path).unwrap().permissions();
+            std::os::unix::fs::PermissionsExt::set_mode(&mut permissions, 0o755);
+            std::fs::set_permissions(&path, permissions).unwrap();
+        };
+        stand_in("id", &format!("echo {uid}"));
+        let remv = removes.map_or(String::new(), |p| format!("echo 'Remv {p} [1:10.0.2]'"));
+        stand_in(
+            "apt-get",
+            &format!(
+                "case \" $* \" in *' -s '*) echo \"Inst ${{@: -1}} (1.0 Debian)\"; {remv};; esac; exit 0"
+            ),
+        );
+        stand_in("apt-cache", "exit 0");
+        stand_in("dpkg-query", "exit 1");
+        if sudo {
+            stand_in("sudo", "shift; exec \"$@\"");
+        }
+        StandIns { dir }
+    }
+
+    /// Runs `script` in bash after sourcing the library, with only the stand-ins and the basic
+    /// tools (`/usr/bin/env`, `grep`, `awk`, `tr`, …) on the PATH.
+    fn run(&self, script: &str) -> Output {
+        let basics = self.dir.join("basics");
+        std::fs::create_dir_all(&basics).unwrap();
+        for tool in ["env", "grep", "awk", "tr", "cat", "printf", "mktemp", "rm", "tail"] {
+            let target = ["/usr/bin", "/bin"].iter().map(|d| Path::new(d).join(tool)).find(|p| p.exists());
+            let link = basics.join(tool);
+            if let (Some(target), false) = (target, link.exists()) {
+                std::os::unix::fs::symlink(target, link).unwrap();
+            }
+        }
+        let path = format!("{}:{}", self.dir.join("bin").display(), basics.display());
+        Command::new("/bin/bash")
+            .arg("-c")
+            .arg(format!(". '{LIBRARY}'\n{script}"))
+            .env_clear()
+            .env("PATH", path)
+            .env("HOME", &self.dir)
+            .output()
+            .expect("bash runs")
+    }
+
+    /// The stand-ins' calls, one line each.
+    fn calls(&self) -> Vec<String> {
+        std::fs::read_to_string(self.dir.join("calls.log"))
+            .unwrap_or_default()
+            .lines()
+            .map(String::from)
+            .collect()
+    }
+}
+
+impl Drop for StandIns {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+fn installs(calls: &[String]) -> Vec<&String> {
+    calls
+        .iter()
+        .filter(|c| c.starts_with("apt-get") && c.contains(" install ") && !c.contains(" -s "))
+        .collect()
+}
+
+#[test]
+fn a_tool_that_is_present_is_not_installed_again() {
+    let machine = StandIns::new("present", 0, true, None);
+    // `env` is on the PATH: as Node.js from another source would be.
+    let output = machine.run("need_command env coreutils && echo done");
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "done\n", "{output:?}");
+    assert!(machine.calls().iter().all(|c| !c.starts_with("apt-get")), "{:?}", machine.calls());
+}
+
+#[test]
+fn a_missing_tool_is_installed_alone_as_root() {
+    let machine = StandIns::new("root", 0, false, None);
+    let output = machine.run("need_command socat socat && need_command npm npm && echo done");
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "done\n", "{output:?}");
+    let calls = machine.calls();
+    let installs = installs(&calls);
+    assert_eq!(installs.len(), 2, "{calls:?}");
+    assert!(installs[0].ends_with(" socat") && installs[1].ends_with(" npm"), "{calls:?}");
+    assert!(installs.iter().all(|c| c.contains("--no-remove")), "{calls:?}");
+    assert!(calls.iter().all(|c| !c.starts_with("sudo")), "{calls:?}");
+}
+
+#[test]
+fn a_package_that_would_remove_one_of_the_machine_s_is_refused_naming_it() {
+    let machine = StandIns::new("conflict", 0, false, Some("qemu-utils"));
+    let output = machine.run("need_command qemu-system-arm qemu-system-arm || echo refused");
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "refused\n", "{output:?}");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("not installing Debian's qemu-system-arm: it would remove qemu-utils"),
+        "{stderr}"
+    );
+    assert!(installs(&machine.calls()).is_empty(), "{:?}", machine.calls());
+}
+
+#[test]
+fn a_user_who_is_not_root_installs_through_sudo() {
+    let machine = StandIns::new("sudo", 1000, true, None);
+    let output = machine.run("need_command socat socat && echo done");
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "done\n", "{output:?}");
+    let calls = machine.calls();
+    assert!(
+        calls.iter().any(|c| c.starts_with("sudo -- env DEBIAN_FRONTEND=noninteractive apt-get install")),
+        "{calls:?}"
+    );
+}
+
+#[test]
+fn a_user_without_root_or_sudo_is_told_what_to_install() {
+    let machine = StandIns::new("nosudo", 1000, false, None);
+    let output = machine.run("need_command socat socat || echo failed");
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "failed\n", "{output:?}");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("cannot install socat: not root and no sudo"), "{stderr}");
+    assert!(stderr.contains("apt-get install socat"), "{stderr}");
+    assert!(installs(&machine.calls()).is_empty(), "{:?}", machine.calls());
+}
