@@ -1,6 +1,16 @@
 //! The eight DIP switches on PB0–PB7 (the reference board only, [`BANK`]), and what the node
 //! makes of them at reset. A board without switches runs with the stored MAC ID and data rate
-//! ([`resolve_stored`]).
+//! ([`resolve_stored`]), as in the program position; out of the box (nothing stored) that is
+//! MAC ID 63 and the data rate found by [`crate::autobaud`].
+//!
+//! ## MAC ID 63 out of the box
+//!
+//! 63 is the address DeviceNet devices are shipped with when their address is software-set, so
+//! that new nodes can be commissioned one at a time from it (Offline Connection Set, ADR):
+//! Rockwell Automation XM-440 user manual (GMSI10-UM009D-EN-P, DeviceNet object attribute 1,
+//! default 63) and 193-EDN (193-UM006A-EN-P, "Nonvolatile MAC ID", default 63); RA 855T, as
+//! summarised in devicenet-notes §II.6 ("several new nodes powered at default MAC 63"). Not
+//! confirmed: that the DeviceNet specification itself requires 63 (its text was not retrieved).
 //!
 //! Each switch connects its pin to ground against the internal pull-up, so a switch that is **on**
 //! reads 0; [`SwitchReading::from_port`] inverts the port so that "on" counts as 1.
@@ -86,6 +96,9 @@ pub struct Resolved {
     /// The reading differs from the stored one: store it ([`Settings::last_switches`]) so that
     /// the "changed" attributes clear at the next reset.
     pub store_reading: bool,
+    /// No data rate is known: find it by listening ([`crate::autobaud`]) before joining;
+    /// [`Resolved::baud_rate`] is only the first rate tried.
+    pub autobaud: bool,
 }
 
 /// The selected board's switches; `None` on a board without them.
@@ -93,7 +106,17 @@ pub const BANK: Option<SwitchBank> = SELECTED.switches;
 
 /// What a board without switches runs with: the stored MAC ID and data rate, which the master may
 /// change over the network (as in the program position); attributes 6–9 report no switches.
-pub fn resolve_stored(stored: &Settings) -> Resolved {
+///
+/// `stored` is the newest record of the settings journal, `None` when it holds none (a new board,
+/// erased settings): then the node starts at MAC ID 63 (module docs) and finds the data rate by
+/// autobaud. Autobaud stores nothing; the journal has no "rate not set" mark (its format is
+/// unchanged), so the first record written for any reason (the master setting the MAC ID, the
+/// rate, the bus-off interrupt, or downloading a configuration) carries the rate in use, and from
+/// then on the rate counts as stored.
+pub fn resolve_stored(stored: Option<&Settings>) -> Resolved {
+    let defaults = Settings::default();
+    let autobaud = stored.is_none();
+    let stored = stored.unwrap_or(&defaults);
     Resolved {
         mac_id: stored.mac_id,
         baud_rate: stored.baud_rate,
@@ -105,6 +128,7 @@ pub fn resolve_stored(stored: &Settings) -> Resolved {
             programmable: true,
         },
         store_reading: false,
+        autobaud,
     }
 }
 
@@ -128,6 +152,7 @@ pub fn resolve(reading: SwitchReading, stored: &Settings) -> Resolved {
             programmable,
         },
         store_reading: previous != Some(reading),
+        autobaud: false,
     }
 }
 
@@ -154,6 +179,13 @@ mod tests {
     }
 
     #[test]
+    fn switches_never_autobaud() {
+        for bits in [0u8, 0b01_000101, 0b11_000101] {
+            assert!(!resolve(SwitchReading::from_bits(bits), &Settings::default()).autobaud);
+        }
+    }
+
+    #[test]
     fn switches_rule_unless_program() {
         let stored = Settings { mac_id: mac(20), baud_rate: BaudRate::Kbps500, ..Settings::default() };
         let r = resolve(SwitchReading::from_bits(0b01_000101), &stored);
@@ -166,10 +198,35 @@ mod tests {
     #[test]
     fn no_switches_use_stored_values() {
         let stored = Settings { mac_id: mac(20), baud_rate: BaudRate::Kbps500, ..Settings::default() };
-        let r = resolve_stored(&stored);
+        let r = resolve_stored(Some(&stored));
         assert_eq!((r.mac_id, r.baud_rate), (mac(20), BaudRate::Kbps500));
-        assert!(r.switches.programmable && !r.store_reading);
+        assert!(r.switches.programmable && !r.store_reading && !r.autobaud);
         assert_eq!((r.switches.mac_id, r.switches.baud_rate), (None, None));
+    }
+
+    #[test]
+    fn no_switches_nothing_stored_starts_at_mac_63_and_autobauds() {
+        let r = resolve_stored(None);
+        assert_eq!(r.mac_id, MacId::MAX);
+        assert_eq!(r.mac_id.as_raw(), 63);
+        assert!(r.autobaud, "no stored data rate: listen for it");
+        assert_eq!(r.baud_rate, crate::autobaud::RATES[0], "the first rate listened to");
+        assert!(r.switches.programmable && !r.store_reading);
+    }
+
+    #[test]
+    fn no_switches_on_an_erased_journal_is_mac_63_with_autobaud() {
+        // The configuration at reset as the firmware makes it: the newest record, none here.
+        let mut store = crate::settings::SettingsStore::new(crate::settings::RamFlash::<{ 4 * crate::settings::RECORD_LEN }>::new());
+        let loaded = store.load().unwrap().map(|l| l.settings);
+        let r = resolve_stored(loaded.as_ref());
+        assert_eq!((r.mac_id.as_raw(), r.autobaud), (63, true));
+        // Once the master set something, the record's values rule, rate included.
+        let set = Settings { mac_id: mac(7), baud_rate: BaudRate::Kbps250, ..Settings::default() };
+        store.save(&set).unwrap();
+        let loaded = store.load().unwrap().map(|l| l.settings);
+        let r = resolve_stored(loaded.as_ref());
+        assert_eq!((r.mac_id.as_raw(), r.baud_rate, r.autobaud), (7, BaudRate::Kbps250, false));
     }
 
     #[test]

@@ -166,11 +166,13 @@ const fn parse_mac(text: Option<&str>) -> MacId {
 pub const EMULATED_MAC: MacId = parse_mac(option_env!("DNET_MAC"));
 
 /// What the switches (`None` on a board without them: the stored values) and settings decide,
-/// with the emulated build's MAC override.
-pub fn resolve(reading: Option<SwitchReading>, stored: &Settings) -> Resolved {
+/// with the emulated build's MAC override. `stored` is the settings journal's newest record,
+/// `None` when it holds none: a board without switches then starts at MAC ID 63 and autobauds
+/// ([`board::switches::resolve_stored`]); one with switches runs on the defaults.
+pub fn resolve(reading: Option<SwitchReading>, stored: Option<&Settings>) -> Resolved {
     #[allow(unused_mut)]
     let mut resolved = match reading {
-        Some(reading) => switches::resolve(reading, stored),
+        Some(reading) => switches::resolve(reading, stored.unwrap_or(&Settings::default())),
         None => switches::resolve_stored(stored),
     };
     #[cfg(feature = "emulated")]
@@ -225,6 +227,7 @@ mod tests {
                 ..Default::default()
             },
             store_reading: false,
+            autobaud: false,
         }
     }
 
@@ -255,12 +258,29 @@ mod tests {
     #[test]
     fn switches_decide_the_mac_id_except_in_the_emulated_build() {
         // Switches 1-6 = 12, switch 7 on: 250 kbit/s.
-        let resolved = resolve(Some(SwitchReading::from_bits(12 | 1 << 6)), &Settings::default());
+        let resolved = resolve(Some(SwitchReading::from_bits(12 | 1 << 6)), Some(&Settings::default()));
         #[cfg(not(feature = "emulated"))]
         assert_eq!(resolved.mac_id.as_raw(), 12);
         #[cfg(feature = "emulated")]
         assert_eq!(resolved.mac_id, EMULATED_MAC);
         assert_eq!(resolved.baud_rate, BaudRate::Kbps250);
+    }
+
+    #[test]
+    fn a_board_without_switches_starts_at_mac_63_and_autobauds_when_nothing_is_stored() {
+        let resolved = resolve(None, None);
+        #[cfg(not(feature = "emulated"))]
+        assert_eq!(resolved.mac_id.as_raw(), 63);
+        assert!(resolved.autobaud);
+        let boot = boot(&resolved, &Settings::default(), SERIAL, Instant::ZERO);
+        let node = boot.converter.node().config();
+        #[cfg(not(feature = "emulated"))]
+        assert_eq!(node.mac_id.as_raw(), 63, "the converter's DeviceNet object says 63");
+        assert!(node.switches.programmable, "settable over the network");
+        // With a record, the stored values and no autobaud.
+        let stored = Settings { mac_id: MacId::new(9).unwrap(), ..Settings::default() };
+        let resolved = resolve(None, Some(&stored));
+        assert!(!resolved.autobaud);
     }
 
     #[test]

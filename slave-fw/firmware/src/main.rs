@@ -152,8 +152,10 @@ mod app {
             let _ = board.flash;
             SettingsStore::new(board::hw::HostFileFlash::open())
         };
-        let mut settings = store.load_or_default();
-        let resolved = config::resolve(board.switches, &settings);
+        // The newest record, `None` when the journal holds none (or cannot be read).
+        let stored = store.load().ok().flatten().map(|loaded| loaded.settings);
+        let resolved = config::resolve(board.switches, stored.as_ref());
+        let mut settings = stored.unwrap_or_default();
         if let (true, Some(reading)) = (resolved.store_reading, board.switches) {
             settings.last_switches = Some(reading.bits());
             if store.save(&settings).is_err() {
