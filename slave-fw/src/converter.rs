@@ -275,6 +275,8 @@ pub struct Converter {
     config: ConfigObject,
     /// The stored image was refused ([`ConfigOrigin::Fault`]): ORed into the Identity status.
     configuration_fault: bool,
+    /// The board found its hardware faulty ([`Converter::set_major_unrecoverable_fault`]).
+    major_unrecoverable_fault: bool,
     /// The status byte and freshness last seen: a change is new instrument data or a new status,
     /// what a change-of-state connection produces (docs/io-connections.md).
     last_status: [u8; 2],
@@ -398,6 +400,7 @@ impl Converter {
             reset: None,
             config: config_object,
             configuration_fault: matches!(origin, ConfigOrigin::Fault(_)),
+            major_unrecoverable_fault: false,
             last_status: [0; 2],
         };
         converter.refresh_image(now);
@@ -407,6 +410,20 @@ impl Converter {
     /// Power-on: the node starts its duplicate MAC ID check.
     pub fn power_on(&mut self, now: Instant) {
         self.node.power_on(now);
+    }
+
+    /// The board's power-up self-test failed (e.g. its CAN controller, `board::self_test`): a
+    /// major unrecoverable fault, for good. The Identity status reports it (bit 11, state 5) and
+    /// Module Status shows solid red (devicenet-notes §6.2, §7.3). Keeping the node off the bus is
+    /// the board's part: its CAN driver sends nothing.
+    pub fn set_major_unrecoverable_fault(&mut self, now: Instant) {
+        self.major_unrecoverable_fault = true;
+        self.refresh_image(now);
+    }
+
+    /// Whether [`Converter::set_major_unrecoverable_fault`] was called.
+    pub fn major_unrecoverable_fault(&self) -> bool {
+        self.major_unrecoverable_fault
     }
 
     /// A CAN frame was received.
@@ -584,6 +601,7 @@ impl Converter {
         let stale = status.state == LinkState::Timeout;
         let mut app = ApplicationStatus { configured: true, ..ApplicationStatus::default() };
         app.minor_recoverable_fault = stale || self.configuration_fault;
+        app.major_unrecoverable_fault = self.major_unrecoverable_fault;
         self.node.set_application_status(app, now);
     }
 }
@@ -633,6 +651,23 @@ mod tests {
         assert!(device.bus_off_interrupt);
         assert_eq!(device.identity.serial_number, 0x3A5C_0F17, "the board's, not the image's");
         assert_eq!(converter.config_state(), ConfigState::Stored);
+    }
+
+    #[test]
+    fn a_major_unrecoverable_fault_shows_in_identity_status_and_module_status() {
+        let mut converter =
+            Converter::boot(&BREAKER_REFERENCE, ConfigOrigin::Stored, &board(), accept, Instant::ZERO)
+                .unwrap();
+        assert_eq!(converter.node().identity_status() & 1 << 11, 0);
+        converter.set_major_unrecoverable_fault(Instant::ZERO);
+        converter.power_on(Instant::ZERO);
+        converter.handle_timeout(Instant::from_millis(10));
+        assert!(converter.major_unrecoverable_fault());
+        assert_ne!(converter.node().identity_status() & 1 << 11, 0, "Identity status bit 11");
+        assert_eq!(converter.node().module_indication(), devicenet::led::Indication::Red);
+        // Instrument traffic refreshes the status; the fault stays.
+        converter.handle_serial(&[0x00], Instant::from_millis(20));
+        assert_ne!(converter.node().identity_status() & 1 << 11, 0);
     }
 
     #[test]
