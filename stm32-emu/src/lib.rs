@@ -18,3 +18,4 @@ pub mod flash;
 pub mod usart;
 pub mod cpu;
 pub mod machine;
+pub mod pwr;
