@@ -1,0 +1,347 @@
+//! [`EmulatedBoard`]: the exact firmware ELF of one board on the stm32-emu models, a
+//! [`SimDevice`] of the simulated CAN bus, with the simulated breaker on its instrument USART.
+//!
+//! ## Time
+//!
+//! The machine's clock (nanoseconds since its power-up) tracks the bus's virtual clock
+//! (microseconds): at power-on the two are tied, and from then on every bus instant is the
+//! machine time that many microseconds later. The bus calls the board at least every
+//! [`STEP`] while the CPU runs; the CPU runs up to each instant it is called at before a frame
+//! is delivered to it, so a frame arrives at the time it completes on the wire.
+//!
+//! ## The CAN side
+//!
+//! Frames reach the bxCAN model through its bus side (stm32-emu `bxcan::bus`) at the bus's bit
+//! rate: a controller at another rate counts a receive error (REC) instead. What the controller
+//! offers is taken after each run: at the bus's rate it goes on the bus (the master acknowledges
+//! it, [`TxOutcome::Acknowledged`]); at another rate it is destroyed by the master's error flag
+//! ([`TxOutcome::ErrorFlagged`], TEC + 8) and offered again one frame time later, so the node
+//! never joins. The simulated bus itself has no error flags: a frame the controller at the
+//! wrong rate flags is still delivered to the other nodes (no other node is at risk here).
+//!
+//! ## The instrument line
+//!
+//! Characters the instrument USART sends are sampled at the breaker's line (9600 bit/s 8N1, the
+//! reference configuration's instrument line, slave-fw/src/image.rs) and handed to the
+//! [`SimulatedBreaker`] at the time their stop bit ends; the breaker's bytes go to the USART's
+//! receiver as characters at 9600 8N1, one after the other, from the instant it sends them. The
+//! RS-485 driver enable is not looked at (the line is a point-to-point wire here).
+
+use crate::board::{BoardKind, NodeSetting};
+use crate::shared::Shared;
+use crate::uid::unique_id_for_serial;
+use can_io::bus::Bitrate;
+use can_io::sim::SimDevice;
+use converter_sim::SimulatedBreaker;
+use devicenet::{CanFrame, CanId, Instant, MacId};
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::rc::Rc;
+use stm32_emu::bxcan::{Bxcan, Frame, FrameId, TxOutcome, CAN1_BASE};
+use stm32_emu::flash::Flash;
+use stm32_emu::gpio::{Gpio, Port};
+use stm32_emu::machine::{Fault, Stm32};
+use stm32_emu::periph::Nanos;
+use stm32_emu::rcc::{Rcc, BASE as RCC_BASE};
+use stm32_emu::usart::line::{Character, LineSettings, Receiver};
+use stm32_emu::usart::{Usart, UsartId};
+
+/// The longest the bus lets the CPU run unattended: frames it queues are taken this late at most.
+pub const STEP: Nanos = 250_000;
+/// The serial number of the reference transcript (devicenet-notes §2); the emulated chip's
+/// unique ID folds to it ([`crate::uid`]).
+pub const REFERENCE_SERIAL: u32 = 0x1234_5678;
+/// The breaker's line: the reference configuration's 9600 bit/s, 8N1.
+pub const BREAKER_LINE: LineSettings = LineSettings::new_8n1(9600.0);
+
+/// What the CAN side has seen, for the scenarios' checks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CanCounts {
+    /// Frames the controller put on the bus.
+    pub sent: u64,
+    /// Frames the controller offered at a bit rate the bus does not run.
+    pub flagged: u64,
+    /// The highest transmit error counter seen.
+    pub peak_tec: u8,
+    /// The highest receive error counter seen.
+    pub peak_rec: u8,
+    /// Times the controller went bus-off.
+    pub bus_offs: u64,
+}
+
+/// The exact firmware of one board on the models. See the [module docs](self).
+pub struct EmulatedBoard {
+    kind: BoardKind,
+    mcu: Stm32,
+    can: Rc<RefCell<Bxcan>>,
+    instrument: Rc<RefCell<Usart>>,
+    setting: NodeSetting,
+    bus_rate: u32,
+    breaker: SimulatedBreaker,
+    outbox: VecDeque<CanFrame>,
+    /// The bus instant (µs) and machine time tied at power-on.
+    epoch: Option<(u64, Nanos)>,
+    /// A frame the bus cannot carry is offered again from then.
+    next_attempt: Nanos,
+    counts: CanCounts,
+    was_bus_off: bool,
+    fault: Option<String>,
+}
+
+impl EmulatedBoard {
+    /// The board `kind` with `elf` in its flash, set to `setting` (switches and settings journal),
+    /// on a bus at `bus_rate`; powered off until [`SimDevice::power_on`].
+    pub fn new(kind: BoardKind, elf: &[u8], setting: NodeSetting, bus_rate: Bitrate) -> Result<Self, Fault> {
+        let mut mcu = Stm32::new(kind.chip(), unique_id_for_serial(REFERENCE_SERIAL))?;
+        mcu.add_peripheral(RCC_BASE, 0x400, Box::new(Rcc::new(kind.hse())))?;
+        mcu.add_flash(Flash::new())?;
+        mcu.add_peripheral(stm32_emu::pwr::BASE, 0x400, Box::new(stm32_emu::pwr::Pwr::new(kind.chip())))?;
+        let mut switch_port = None;
+        for port in [Port::A, Port::B, Port::C, Port::D, Port::E, Port::H] {
+            let gpio = Shared::new(Gpio::new(port));
+            if kind.switches().is_some_and(|(p, _)| p == port) {
+                switch_port = Some(gpio.handle());
+            }
+            mcu.add_peripheral(port.base(), 0x400, Box::new(gpio))?;
+        }
+        let mut instrument = None;
+        for id in [UsartId::Usart1, UsartId::Usart2] {
+            let usart = Shared::new(Usart::new(id));
+            if id == kind.instrument_usart() {
+                instrument = Some(usart.handle());
+            }
+            mcu.add_peripheral(id.base(), 0x400, Box::new(usart))?;
+        }
+        let can = Shared::new(Bxcan::new());
+        let can_handle = can.handle();
+        mcu.add_peripheral(CAN1_BASE, 0x400, Box::new(can))?;
+        mcu.load_elf(elf)?;
+        mcu.program_flash(kind.settings_offset(), &setting.record(kind.switches().is_some()))?;
+        if let (Some(gpio), Some((_, first))) = (switch_port, kind.switches()) {
+            // Each switch closes its pin to ground against the pull-up: "on" reads low.
+            let bits = setting.switch_bits();
+            for i in 0..8 {
+                let on = bits >> i & 1 == 1;
+                gpio.borrow_mut().drive_pin(first + i, on.then_some(false));
+            }
+        }
+        let Some(instrument) = instrument else {
+            return Err(Fault::Emulator(format!("{}: no instrument USART", kind.name)));
+        };
+        let mut breaker = SimulatedBreaker::new(Instant::ZERO);
+        breaker.set_load(converter_sim::device::LOAD);
+        Ok(EmulatedBoard {
+            kind,
+            mcu,
+            can: can_handle,
+            instrument,
+            setting,
+            bus_rate: bus_rate.bits_per_second(),
+            breaker,
+            outbox: VecDeque::new(),
+            epoch: None,
+            next_attempt: 0,
+            counts: CanCounts::default(),
+            was_bus_off: false,
+            fault: None,
+        })
+    }
+
+    /// The board.
+    pub fn kind(&self) -> BoardKind {
+        self.kind
+    }
+
+    /// Why the machine stopped (a fault of the firmware or of the emulation), if it did.
+    pub fn fault(&self) -> Option<&str> {
+        self.fault.as_deref()
+    }
+
+    /// The simulated breaker on the instrument line.
+    pub fn breaker(&self) -> &SimulatedBreaker {
+        &self.breaker
+    }
+
+    /// The machine.
+    pub fn mcu(&mut self) -> &mut Stm32 {
+        &mut self.mcu
+    }
+
+    /// The bxCAN model's error counters (TEC, REC) and whether it is bus-off.
+    pub fn can_errors(&self) -> (u8, u8, bool) {
+        let can = self.can.borrow();
+        let (tec, rec) = can.error_counters();
+        (tec, rec, can.is_bus_off())
+    }
+
+    /// `CAN_ESR` as the firmware reads it.
+    pub fn esr(&mut self) -> Option<u32> {
+        self.mcu.read_peripheral(CAN1_BASE + stm32_emu::bxcan::offset::ESR)
+    }
+
+    /// What the CAN side has seen.
+    pub fn counts(&self) -> CanCounts {
+        self.counts
+    }
+
+    fn nanos(&self, at: Instant) -> Nanos {
+        match self.epoch {
+            Some((bus_us, base)) => base + at.total_micros().saturating_sub(bus_us) * 1000,
+            None => self.mcu.now(),
+        }
+    }
+
+    fn instant(&self, t: Nanos) -> Instant {
+        match self.epoch {
+            Some((bus_us, base)) => Instant::from_micros(bus_us + t.saturating_sub(base).div_ceil(1000)),
+            None => Instant::ZERO,
+        }
+    }
+
+    /// Runs the CPU to `target`, the instrument line serviced as it goes.
+    fn run_to(&mut self, target: Nanos) {
+        while self.fault.is_none() && self.mcu.now() < target {
+            let now = self.mcu.now();
+            let mut until = target.min(now + STEP);
+            if let Some(at) = self.breaker.poll_at() {
+                until = until.min(self.nanos(at).max(now + 1));
+            }
+            if let Err(fault) = self.mcu.run_for(until - now) {
+                self.fault = Some(format!("{fault} at {} ns", self.mcu.now()));
+            }
+            self.service_line();
+        }
+    }
+
+    /// Moves characters between the instrument USART and the breaker.
+    fn service_line(&mut self) {
+        let receiver = Receiver { settings: BREAKER_LINE, over8: false, one_bit: false };
+        let mut sent = Vec::new();
+        while let Some(t) = self.instrument.borrow_mut().pop_transmitted() {
+            let got = receiver.sample(&t.character);
+            if !got.framing_error && !got.parity_error {
+                sent.push((t.end, got.word as u8));
+            }
+        }
+        for (end, byte) in sent {
+            let at = self.instant(end);
+            self.breaker.on_bytes(&[byte], at);
+        }
+        let now = self.mcu.now();
+        let at = self.instant(now);
+        while let Some(bytes) = self.breaker.poll_transmit(at) {
+            let mut usart = self.instrument.borrow_mut();
+            for &b in &bytes {
+                usart.receive(Character::encode(u16::from(b), BREAKER_LINE), now);
+            }
+        }
+    }
+
+    /// Keeps the error counters' peaks and counts bus-off entries.
+    fn note_errors(&mut self) {
+        let (tec, rec, bus_off) = self.can_errors();
+        self.counts.peak_tec = self.counts.peak_tec.max(tec);
+        self.counts.peak_rec = self.counts.peak_rec.max(rec);
+        if bus_off && !self.was_bus_off {
+            self.counts.bus_offs += 1;
+        }
+        self.was_bus_off = bus_off;
+    }
+
+    /// Takes what the controller offers: onto the bus at the bus's rate, flagged otherwise.
+    fn service_can(&mut self) {
+        let now = self.mcu.now();
+        if now < self.next_attempt {
+            return;
+        }
+        let can = Rc::clone(&self.can);
+        loop {
+            let Some(tx) = self.mcu.with_machine(|m| can.borrow_mut().poll_transmit(now, m)) else { return };
+            let pclk1 = self.mcu.clocks().pclk1;
+            let timing = can.borrow().bit_timing();
+            if timing.follows(pclk1, self.bus_rate) {
+                match to_devicenet(&tx.frame) {
+                    Some(frame) => self.outbox.push_back(frame),
+                    None => {
+                        self.fault = Some(format!(
+                            "the controller sent a frame DeviceNet has no use for: {:?}",
+                            tx.frame
+                        ))
+                    }
+                }
+                self.counts.sent += 1;
+                self.mcu.with_machine(|m| can.borrow_mut().transmit_outcome(TxOutcome::Acknowledged, now, m));
+            } else {
+                // The master, error active at the bus's rate, flags the frame it cannot decode.
+                self.counts.flagged += 1;
+                self.mcu.with_machine(|m| can.borrow_mut().transmit_outcome(TxOutcome::ErrorFlagged, now, m));
+                self.note_errors();
+                let bits = u64::from(tx.frame.wire_bits()) + 20; // and the error frame
+                self.next_attempt = now + timing.bits_to_nanos(bits, pclk1);
+                return;
+            }
+        }
+    }
+}
+
+/// The DeviceNet frame of a standard data frame; `None` for extended or remote frames.
+fn to_devicenet(frame: &Frame) -> Option<CanFrame> {
+    match frame.id() {
+        FrameId::Standard(raw) if !frame.is_remote() => CanFrame::new(CanId::new(raw)?, frame.data()).ok(),
+        _ => None,
+    }
+}
+
+impl SimDevice for EmulatedBoard {
+    fn mac(&self) -> MacId {
+        self.setting.mac
+    }
+
+    fn power_on(&mut self, now: Instant) {
+        self.epoch = Some((now.total_micros(), self.mcu.now()));
+        self.outbox.clear();
+        self.next_attempt = 0;
+        if let Err(fault) = self.mcu.power_on_reset() {
+            self.fault = Some(format!("power-on: {fault}"));
+        }
+    }
+
+    fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
+        if self.epoch.is_none() {
+            return;
+        }
+        let t = self.nanos(now);
+        self.run_to(t);
+        let Some(frame) =
+            FrameId::standard(frame.id().as_raw()).and_then(|id| Frame::new_data(id, frame.data()))
+        else {
+            return;
+        };
+        let (can, rate) = (Rc::clone(&self.can), self.bus_rate);
+        let t = self.mcu.now();
+        self.mcu.with_machine(|m| can.borrow_mut().on_wire(&frame, rate, false, t, m));
+        self.note_errors();
+        self.service_can();
+    }
+
+    fn handle_timeout(&mut self, now: Instant) {
+        if self.epoch.is_none() {
+            return;
+        }
+        let t = self.nanos(now);
+        self.run_to(t);
+        self.note_errors();
+        self.service_can();
+    }
+
+    fn poll_transmit(&mut self) -> Option<CanFrame> {
+        self.outbox.pop_front()
+    }
+
+    fn poll_at(&self) -> Option<Instant> {
+        if self.epoch.is_none() || self.fault.is_some() {
+            return None;
+        }
+        Some(self.instant(self.mcu.now() + STEP))
+    }
+}

@@ -1,0 +1,42 @@
+//! # exact-firmware
+//!
+//! The exact firmware ELF of every board, run on the register-level models of stm32-emu, as a
+//! device of the simulated CAN bus: the bench master's library (master-core, what `dnet-master`
+//! runs) drives it unchanged, and the simulated breaker of converter-sim sits on its instrument
+//! USART (issue 26).
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`board`] | the boards, from the board crate's own descriptions; the MAC/rate set before power-on |
+//! | [`device`] | [`EmulatedBoard`]: the machine, its models, the bus and the breaker tied together |
+//! | [`scenario`] | the scenarios and their one-line verdicts |
+//! | [`uid`] | the unique ID whose CRC-32 fold is the reference serial number |
+//! | [`shared`] | a model the machine and the world outside both hold |
+//!
+//! ## What emulation proves, and what only a real board can
+//!
+//! Proven here, for the very bytes that are flashed: the firmware's start-up on the modelled
+//! clock tree (RCC, PLL, flash wait states), its bxCAN set-up (bit timing at the board's PCLK1,
+//! filters, modes) as far as the model follows RM0090, the whole DeviceNet behaviour of the
+//! firmware against the master's library (the 28-frame bring-up byte for byte, polling), its
+//! instrument USART at the configured rate against the simulated breaker, the MAC/rate choice
+//! from switches or the flash settings journal, the serial number folded from the unique ID, and
+//! the error counting of a node at the wrong bit rate.
+//!
+//! Not proven: anything the models do not model or model more kindly than silicon — analogue
+//! effects (oscillator start-up, transceiver, line termination, bit sampling jitter), exact
+//! instruction timing (one cycle per instruction, stm32-emu `machine` docs), DMA, peripherals
+//! the firmware does not use, the RS-485 driver enable's timing on a real line, flash wear and
+//! the real sector erase times beyond the FLASH model's, and the simulated bus's lack of error
+//! flags (a frame one node flags is still delivered to the others). Those need a real board.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod board;
+pub mod device;
+pub mod scenario;
+pub mod shared;
+pub mod uid;
+
+pub use board::{BoardKind, NodeSetting};
+pub use device::EmulatedBoard;

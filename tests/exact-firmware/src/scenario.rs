@@ -1,0 +1,224 @@
+//! The scenarios: each runs one board ELF on a fresh [`EmulatedBoard`] on a simulated bus and
+//! compares what happens with what must; [`Outcome::line`] is the runner's line for it.
+
+use crate::board::{BoardKind, NodeSetting};
+use crate::device::EmulatedBoard;
+use can_io::bus::{Bitrate, Origin};
+use can_io::sim::fault::SharedDevice;
+use can_io::sim::{PowerOn, SimBus};
+use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
+use devicenet::reference::{Direction, BRING_UP};
+use devicenet::slave::BaudRate;
+use devicenet::{Duration, MacId};
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
+use slave_fw::serial::breaker::SwitchState;
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// The device's MAC ID in every scenario (the reference transcript's).
+pub const MAC: MacId = MacId::from_low_bits(5);
+
+/// A scenario: its name and what it runs.
+#[derive(Clone, Copy)]
+pub struct Scenario {
+    /// The name printed.
+    pub name: &'static str,
+    /// Runs it on `elf` of `board`; `Err` says why it failed.
+    pub run: fn(BoardKind, &[u8], &Options) -> Result<(), String>,
+}
+
+/// How a scenario runs (the defaults are the real scenarios; the others exist so that a test
+/// can prove a scenario fails when the world is wrong).
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    /// The bus's bit rate.
+    pub bus_rate: Bitrate,
+    /// The node's MAC and rate before power-on.
+    pub setting: NodeSetting,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            bus_rate: Bitrate::K125,
+            setting: NodeSetting { mac: MAC, rate: BaudRate::Kbps125, bus_off_interrupt: false },
+        }
+    }
+}
+
+/// Every scenario, in the order the runner runs them.
+pub const ALL: [Scenario; 3] = [
+    Scenario { name: "bring-up", run: bring_up },
+    Scenario { name: "breaker", run: breaker },
+    Scenario { name: "wrong-bit-rate", run: wrong_bit_rate },
+];
+
+/// The result of one scenario on one board.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The board's build name.
+    pub board: String,
+    /// The scenario.
+    pub scenario: &'static str,
+    /// `Err(why)` when it failed.
+    pub result: Result<(), String>,
+}
+
+impl Outcome {
+    /// `ok   BOARD SCENARIO` or `FAIL BOARD SCENARIO: why`.
+    pub fn line(&self) -> String {
+        match &self.result {
+            Ok(()) => format!("ok   {} {}", self.board, self.scenario),
+            Err(why) => format!("FAIL {} {}: {}", self.board, self.scenario, why.replace('\n', " ")),
+        }
+    }
+}
+
+/// Runs `scenario` on `elf` of `board`.
+pub fn run(scenario: &Scenario, board: BoardKind, elf: &[u8], options: &Options) -> Outcome {
+    Outcome {
+        board: board.name.to_string(),
+        scenario: scenario.name,
+        result: (scenario.run)(board, elf, options),
+    }
+}
+
+/// The bus with the emulated board on it, and the test's handle on the board.
+fn world(
+    board: BoardKind,
+    elf: &[u8],
+    options: &Options,
+    power: PowerOn,
+) -> Result<(SimBus, Rc<RefCell<EmulatedBoard>>), String> {
+    let device = EmulatedBoard::new(board, elf, options.setting, options.bus_rate)
+        .map_err(|e| format!("the machine: {e}"))?;
+    let shared = SharedDevice::new(device);
+    let handle = shared.handle();
+    let mut bus = SimBus::new(options.bus_rate);
+    bus.attach(Box::new(shared), power);
+    Ok((bus, handle))
+}
+
+/// The machine's fault, if it stopped.
+fn machine_fault(handle: &Rc<RefCell<EmulatedBoard>>) -> Result<(), String> {
+    match handle.borrow().fault() {
+        Some(fault) => Err(format!("the machine stopped: {fault}")),
+        None => Ok(()),
+    }
+}
+
+fn direction(origin: Origin) -> Direction {
+    match origin {
+        Origin::Local => Direction::MasterToSlave,
+        Origin::Remote => Direction::SlaveToMaster,
+    }
+}
+
+/// The 28 frames of devicenet-notes §2, byte for byte and in order, every check holding. The
+/// serial number in the device's frames is the reference's own: the emulated chip's unique ID
+/// folds to it ([`crate::uid`]), nothing is substituted.
+fn bring_up(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+    let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
+    let mut session = Session::new(&mut bus);
+    let connected = Master::new(&mut session, MasterConfig::default()).connect(&ConnectOptions::default());
+    machine_fault(&handle)?;
+    connected.map_err(|e| format!("connect: {e}"))?;
+    let records = session.records();
+    for (i, want) in BRING_UP.iter().enumerate() {
+        let Some(got) = records.get(i) else {
+            return Err(format!("{} frames, not {}", records.len(), BRING_UP.len()));
+        };
+        let got_key = (direction(got.origin), got.frame.id().as_raw(), got.frame.data());
+        if got_key != (want.direction, want.id, want.data) {
+            return Err(format!(
+                "frame {i} ({}): id {:#05x} {:02x?}, want {:#05x} {:02x?}",
+                want.meaning, got_key.1, got_key.2, want.id, want.data
+            ));
+        }
+    }
+    if records.len() != BRING_UP.len() {
+        return Err(format!("{} frames, not {}", records.len(), BRING_UP.len()));
+    }
+    match session.failures() {
+        0 => Ok(()),
+        n => Err(format!("{n} checks of the master failed")),
+    }
+}
+
+/// Close, then open, through the poll output: the breaker on the instrument USART obeys and its
+/// switch state comes back in the input image.
+fn breaker(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+    let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    // 15 polls 100 ms apart: the close command goes out at once, the breaker's status frame
+    // (once a second) shows it closed.
+    let close = [COMMAND_CLOSE, 1, 0, 0, 0, 0, 0, 0];
+    let opts = ConnectOptions { polls: 15, output: Some(close.to_vec()), ..ConnectOptions::default() };
+    let summary = master.connect(&opts);
+    machine_fault(&handle)?;
+    let summary = summary.map_err(|e| format!("connect: {e}"))?;
+    let input = summary.last_input.unwrap_or_default();
+    if input.get(SWITCH_BYTE) != Some(&SWITCH_CLOSED) {
+        return Err(format!("after Close the input image is {input:02x?}"));
+    }
+    if handle.borrow().breaker().switch_state() != SwitchState::Closed {
+        return Err("the input image says closed but the breaker is not".into());
+    }
+    let open = [COMMAND_OPEN, 2, 0, 0, 0, 0, 0, 0];
+    let mut input = Vec::new();
+    for _ in 0..15 {
+        let deadline = master.session.now() + Duration::from_millis(100);
+        input =
+            master.poll(MAC, &open, 18, 8, Duration::from_millis(500)).map_err(|e| format!("poll: {e}"))?;
+        master.idle_until(deadline).map_err(|e| format!("idle: {e}"))?;
+    }
+    machine_fault(&handle)?;
+    if input.get(SWITCH_BYTE) != Some(&SWITCH_OPEN) {
+        return Err(format!("after Open the input image is {input:02x?}"));
+    }
+    if handle.borrow().breaker().switch_state() != SwitchState::Open {
+        return Err("the input image says open but the breaker is not".into());
+    }
+    match master.session.failures() {
+        0 => Ok(()),
+        n => Err(format!("{n} checks of the master failed")),
+    }
+}
+
+/// The node set to 125k on a 500k bus: the master's bring-up finds nobody, not one frame of
+/// the node reaches the bus, and its controller counts the errors (`CAN_ESR`: TEC from its own
+/// flagged frames, up to bus-off; REC from the master's frames it cannot decode; the peaks,
+/// as a bus-off recovery clears both).
+fn wrong_bit_rate(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+    let options = Options { bus_rate: Bitrate::K500, ..*options };
+    let (mut bus, handle) = world(board, elf, &options, PowerOn::AtStart)?;
+    let mut session = Session::new(&mut bus);
+    let connected = Master::new(&mut session, MasterConfig::default()).connect(&ConnectOptions::default());
+    machine_fault(&handle)?;
+    if connected.is_ok() {
+        return Err("the master brought the node up on a bus at another rate".into());
+    }
+    if let Some(r) = session.records().iter().find(|r| r.origin == Origin::Remote) {
+        return Err(format!(
+            "a frame of the node reached the bus: {:#05x} {:02x?}",
+            r.frame.id().as_raw(),
+            r.frame.data()
+        ));
+    }
+    let counts = handle.borrow().counts();
+    if counts.flagged == 0 {
+        return Err("the node never tried to send".into());
+    }
+    if counts.peak_tec == 0 && counts.bus_offs == 0 {
+        return Err(format!(
+            "{} frames flagged, but the controller counted no transmit error",
+            counts.flagged
+        ));
+    }
+    if counts.peak_rec == 0 {
+        return Err("the master's frames counted no receive error".into());
+    }
+    Ok(())
+}
