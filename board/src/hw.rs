@@ -510,6 +510,22 @@ pub fn can_bus_state() -> BusState {
     }
 }
 
+/// Whether the bxCAN recorded a bus error since the last call, and its receive error counter
+/// (`CAN_ESR`, RM0090 §32.9.2), for autobaud ([`crate::autobaud`]). The last error code (LEC) is
+/// set back to 7 ("set by software") so that the next error, or the next error-free frame (0),
+/// shows; codes 1–6 (stuff, form, acknowledgement, bit recessive, bit dominant, CRC) are errors.
+#[cfg(not(feature = "emulated"))]
+pub fn can_take_error() -> (bool, u8) {
+    // SAFETY: reading ESR has no side effect; of its bits only LEC is writable (REC, TEC and the
+    // flags are read-only), and LEC is the driver's to re-arm; bxcan never touches ESR.
+    let can = unsafe { &*pac::CAN1::ptr() };
+    let esr = can.esr().read();
+    let lec = esr.lec().bits();
+    // SAFETY: 7 is a valid LEC value ("set by software", RM0090 §32.9.2).
+    can.esr().modify(|_, w| unsafe { w.lec().bits(7) });
+    (matches!(lec, 1..=6), esr.rec().bits())
+}
+
 /// The MCU's 96-bit unique device ID ([`crate::uid`], RM0090 §39.1), word 0 first. Real board
 /// only: QEMU's `netduinoplus2` maps nothing there (a read would be a bus fault).
 #[cfg(not(feature = "emulated"))]

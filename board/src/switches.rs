@@ -217,7 +217,8 @@ mod tests {
     #[test]
     fn no_switches_on_an_erased_journal_is_mac_63_with_autobaud() {
         // The configuration at reset as the firmware makes it: the newest record, none here.
-        let mut store = crate::settings::SettingsStore::new(crate::settings::RamFlash::<{ 4 * crate::settings::RECORD_LEN }>::new());
+        use crate::settings::{RamFlash, SettingsStore, RECORD_LEN};
+        let mut store = SettingsStore::new(RamFlash::<{ 4 * RECORD_LEN }>::new());
         let loaded = store.load().unwrap().map(|l| l.settings);
         let r = resolve_stored(loaded.as_ref());
         assert_eq!((r.mac_id.as_raw(), r.autobaud), (63, true));

@@ -1,31 +1,89 @@
 //! The real board's CAN driver: bxCAN1 through the `bxcan` crate, timing and filters from the
 //! board crate.
 //!
+//! [`Bxcan::start`] brings the controller up in three steps, all before the converter task runs
+//! (in `init`, interrupts masked, time counted in [`POLL_STEP`]s of a busy wait):
+//!
+//! 1. the power-up self-test in silent loopback mode ([`board::self_test`]): on failure the
+//!    controller is left in initialisation mode and the driver sends and receives nothing, for
+//!    good (the node stays off the bus; the converter reports the major fault);
+//! 2. with no data rate known (a board without switches, nothing stored), autobaud in silent
+//!    mode ([`board::autobaud`]); it waits as long as the bus stays quiet;
+//! 3. normal mode at the rate, the node's acceptance filters, the interrupts.
+//!
+//! The emulated board has no bxCAN and does none of this (`can_slcan`).
+//!
 //! Only one frame is in the mailboxes at a time: the bxCAN sends pending mailboxes by identifier
 //! priority, and the fragments of one message share an identifier, so one-at-a-time is what keeps
 //! them in order.
 
 use crate::can::{Busy, CanDriver};
+use board::autobaud::{Autobaud, Step};
 use board::bit_timing;
+use board::clocks;
 use board::filters;
 use board::hw::{self, BusState, Can1};
-use bxcan::filter::Mask16;
+use board::self_test::{self, Failure, SelfTest, Verdict};
+use bxcan::filter::{Mask16, Mask32};
 use bxcan::{Fifo, Interrupts, StandardId};
 use devicenet::slave::BaudRate;
-use devicenet::{CanFrame, MacId};
+use devicenet::{CanFrame, Duration, Instant, MacId};
 use stm32f4xx_hal::nb;
 
-/// bxCAN1 set up for one node.
+/// One step of the start-up's polling loops: a busy wait of about 100 µs (the polling itself
+/// adds a little), shorter than a frame at 500 kbit/s.
+const POLL_STEP: Duration = Duration::from_micros(100);
+
+/// bxCAN1 set up for one node, or kept off the bus after a failed self-test.
 pub struct Bxcan {
     can: bxcan::Can<Can1>,
+    /// The self-test passed and the controller is on the bus; otherwise nothing goes out.
+    on_bus: bool,
+}
+
+/// The time of the start-up loops, in [`POLL_STEP`]s (interrupts are masked in `init`, so the
+/// SysTick count does not run).
+struct StepClock {
+    now: Instant,
+}
+
+impl StepClock {
+    /// Waits one step; the time after it.
+    fn step(&mut self) -> Instant {
+        cortex_m::asm::delay(clocks::SYSCLK_HZ / 10_000);
+        self.now += POLL_STEP;
+        self.now
+    }
 }
 
 impl Bxcan {
-    /// Configures timing for `baud`, the acceptance filters for `mac` into FIFO 0, the
-    /// interrupts, and joins the bus (without waiting for it to go idle).
-    pub fn new(can1: Can1, baud: BaudRate, mac: MacId) -> Bxcan {
+    /// Self-tests the controller, finds the rate by autobaud when `autobaud` (else uses `baud`),
+    /// and joins the bus with the acceptance filters for `mac` (module docs). The rate it joined
+    /// at, or why the self-test failed (the driver then stays off the bus).
+    pub fn start(
+        can1: Can1,
+        baud: BaudRate,
+        autobaud: bool,
+        mac: MacId,
+    ) -> (Bxcan, Result<BaudRate, Failure>) {
+        let mut clock = StepClock { now: Instant::ZERO };
         let mut can = bxcan::Can::builder(can1)
             .set_bit_timing(bit_timing::for_baud_rate(baud).btr())
+            .set_loopback(true)
+            .set_silent(true)
+            .leave_disabled();
+        // Every frame into FIFO 0 while testing and listening; `set_filters` replaces bank 0.
+        can.modify_filters().enable_bank(filters::FILTER_BANK, Fifo::Fifo0, Mask32::accept_all());
+        if let Err(failure) = run_self_test(&mut can, &mut clock) {
+            // Through initialisation into sleep mode, and left there: nothing reaches CAN_TX.
+            can.modify_config().leave_disabled();
+            return (Bxcan { can, on_bus: false }, Err(failure));
+        }
+        let rate = if autobaud { find_rate(&mut can, &mut clock) } else { baud };
+        can.modify_config()
+            .set_loopback(false)
+            .set_silent(false)
+            .set_bit_timing(bit_timing::for_baud_rate(rate).btr())
             .set_automatic_retransmit(true)
             .leave_disabled();
         set_filters(&mut can, mac);
@@ -38,8 +96,77 @@ impl Bxcan {
         hw::enable_can_error_interrupts();
         // Leaves initialisation mode once the bus has been idle for 11 bits; no need to wait.
         let _ = can.enable_non_blocking();
-        Bxcan { can }
+        (Bxcan { can, on_bus: true }, Ok(rate))
     }
+}
+
+/// The self-test in silent loopback mode ([`board::self_test`]): the test frame out, and back
+/// within its bound.
+fn run_self_test(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> Result<(), Failure> {
+    // In silent loopback the controller sees its own recessive output: it leaves initialisation
+    // mode after 11 bit times.
+    let started = clock.now;
+    while can.enable_non_blocking().is_err() {
+        if clock.step() > started + self_test::TIMEOUT {
+            return Err(Failure::NotSent);
+        }
+    }
+    let sent =
+        self_test::test_frame().to_embedded::<bxcan::Frame>().is_some_and(|f| can.transmit(&f).is_ok());
+    let mut test = SelfTest::start(sent, clock.now);
+    loop {
+        let verdict = match can.receive() {
+            Ok(frame) => match CanFrame::from_embedded(&frame) {
+                Ok(frame) => test.handle_frame(&frame, clock.now),
+                Err(_) => Verdict::Failed(Failure::Corrupted),
+            },
+            Err(_) => test.handle_timeout(clock.step()),
+        };
+        match verdict {
+            Verdict::Waiting => {}
+            Verdict::Passed => return Ok(()),
+            Verdict::Failed(failure) => return Err(failure),
+        }
+    }
+}
+
+/// Autobaud ([`board::autobaud`]): listens in silent mode, rate after rate, until one is found.
+fn find_rate(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> BaudRate {
+    let mut autobaud = Autobaud::new(clock.now);
+    let mut errors = listen_at(can, autobaud.rate());
+    loop {
+        let now = clock.step();
+        // Leaves initialisation mode after 11 recessive bits: at once on a quiet bus, between
+        // frames on a busy one.
+        let _ = can.enable_non_blocking();
+        let (error, rec) = hw::can_take_error();
+        let error_seen = error || rec != errors;
+        let step = match can.receive() {
+            // A frame (or several: an overrun); the FIFO holds nothing else in silent mode.
+            Ok(_) | Err(nb::Error::Other(_)) => autobaud.handle_frame(error_seen, now),
+            Err(nb::Error::WouldBlock) if error_seen => autobaud.handle_error(now),
+            Err(nb::Error::WouldBlock) => autobaud.handle_timeout(now),
+        };
+        match step {
+            Step::Listen => {}
+            Step::ListenAt(rate) => errors = listen_at(can, rate),
+            Step::Found(rate) => return rate,
+        }
+    }
+}
+
+/// Re-initialises the controller in silent mode at `rate`; the receive error counter then.
+fn listen_at(can: &mut bxcan::Can<Can1>, rate: BaudRate) -> u8 {
+    can.modify_config()
+        .set_loopback(false)
+        .set_silent(true)
+        .set_bit_timing(bit_timing::for_baud_rate(rate).btr())
+        .leave_disabled();
+    // Frames of the previous rate are not this one's.
+    while can.receive().is_ok() {}
+    let _ = can.enable_non_blocking();
+    let (_, rec) = hw::can_take_error();
+    rec
 }
 
 /// Filter bank 0: every Group 2 message of `mac`, and every master's bit-strobe; bank 1: the
@@ -63,6 +190,10 @@ fn std_id(raw: u16) -> StandardId {
 
 impl CanDriver for Bxcan {
     fn try_transmit(&mut self, frame: &CanFrame) -> Result<(), Busy> {
+        if !self.on_bus {
+            // Off the bus after a failed self-test: taken and dropped.
+            return Ok(());
+        }
         if !self.can.is_transmitter_idle() {
             return Err(Busy);
         }
@@ -74,6 +205,9 @@ impl CanDriver for Bxcan {
     }
 
     fn receive(&mut self) -> Option<CanFrame> {
+        if !self.on_bus {
+            return None;
+        }
         loop {
             match self.can.receive() {
                 // Only standard identifiers pass the filters; a conversion failure cannot
@@ -102,6 +236,9 @@ impl CanDriver for Bxcan {
     }
 
     fn restart(&mut self) {
+        if !self.on_bus {
+            return;
+        }
         // Re-entering and leaving initialisation mode clears the error counters (RM0090
         // §32.4.2); the controller rejoins after 128 × 11 recessive bits.
         self.can.modify_config().leave_disabled();

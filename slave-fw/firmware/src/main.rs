@@ -154,7 +154,8 @@ mod app {
         };
         // The newest record, `None` when the journal holds none (or cannot be read).
         let stored = store.load().ok().flatten().map(|loaded| loaded.settings);
-        let resolved = config::resolve(board.switches, stored.as_ref());
+        #[allow(unused_mut)]
+        let mut resolved = config::resolve(board.switches, stored.as_ref());
         let mut settings = stored.unwrap_or_default();
         if let (true, Some(reading)) = (resolved.store_reading, board.switches) {
             settings.last_switches = Some(reading.bits());
@@ -162,8 +163,32 @@ mod app {
                 warn!("settings: could not store the switch reading");
             }
         }
-        let config::Boot { converter, line, origin } =
+        // The CAN path's self-test and, with no rate known, autobaud, before the converter is
+        // built with the rate found (real boards; the emulated one has no bxCAN).
+        #[cfg(not(feature = "emulated"))]
+        let (driver, self_test) = {
+            let (driver, started) = crate::can_bxcan::Bxcan::start(
+                board.can,
+                resolved.baud_rate,
+                resolved.autobaud,
+                resolved.mac_id,
+            );
+            if let Ok(rate) = started {
+                resolved.baud_rate = rate;
+            }
+            (driver, started.map(|_| ()))
+        };
+        #[cfg(feature = "emulated")]
+        let driver = crate::can_slcan::Slcan::new(board.service, resolved.mac_id);
+
+        #[allow(unused_mut)]
+        let config::Boot { mut converter, line, origin } =
             config::boot(&resolved, &settings, config::serial_number(), now());
+        #[cfg(not(feature = "emulated"))]
+        if let Err(failure) = self_test {
+            warn!("CAN self-test failed: {}; staying off the bus", failure);
+            converter.set_major_unrecoverable_fault(now());
+        }
         info!(
             "MAC {=u8}, baud attribute {=u8}, {=str}",
             resolved.mac_id.as_raw(),
@@ -174,11 +199,6 @@ mod app {
         let Ok(rs485) = board.instrument.open(&line, &mut board.rcc) else {
             panic!("instrument port set-up failed");
         };
-
-        #[cfg(not(feature = "emulated"))]
-        let driver = crate::can_bxcan::Bxcan::new(board.can, resolved.baud_rate, resolved.mac_id);
-        #[cfg(feature = "emulated")]
-        let driver = crate::can_slcan::Slcan::new(board.service, resolved.mac_id);
 
         // The converter task's first run powers the converter on.
         rtic::pend(CONVERTER_TASK);
