@@ -133,14 +133,16 @@ fn run_self_test(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> Result<()
 /// Autobaud ([`board::autobaud`]): listens in silent mode, rate after rate, until one is found.
 fn find_rate(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> BaudRate {
     let mut autobaud = Autobaud::new(clock.now);
-    let mut errors = listen_at(can, autobaud.rate());
+    // The receive error counter when listening at this rate started: it rises with each receive
+    // error (and falls by one with each good frame, which is no error).
+    let mut rec_at_start = listen_at(can, autobaud.rate());
     loop {
         let now = clock.step();
         // Leaves initialisation mode after 11 recessive bits: at once on a quiet bus, between
         // frames on a busy one.
         let _ = can.enable_non_blocking();
         let (error, rec) = hw::can_take_error();
-        let error_seen = error || rec != errors;
+        let error_seen = error || rec > rec_at_start;
         let step = match can.receive() {
             // A frame (or several: an overrun); the FIFO holds nothing else in silent mode.
             Ok(_) | Err(nb::Error::Other(_)) => autobaud.handle_frame(error_seen, now),
@@ -149,7 +151,7 @@ fn find_rate(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> BaudRate {
         };
         match step {
             Step::Listen => {}
-            Step::ListenAt(rate) => errors = listen_at(can, rate),
+            Step::ListenAt(rate) => rec_at_start = listen_at(can, rate),
             Step::Found(rate) => return rate,
         }
     }
@@ -163,7 +165,7 @@ fn listen_at(can: &mut bxcan::Can<Can1>, rate: BaudRate) -> u8 {
         .set_bit_timing(bit_timing::for_baud_rate(rate).btr())
         .leave_disabled();
     // Frames of the previous rate are not this one's.
-    while can.receive().is_ok() {}
+    while !matches!(can.receive(), Err(nb::Error::WouldBlock)) {}
     let _ = can.enable_non_blocking();
     let (_, rec) = hw::can_take_error();
     rec
