@@ -12,8 +12,10 @@
 //! clock over 65535; a rate outside is refused, not approximated.
 //!
 //! [`LineFormat::registers`] gives the values the board writes into `USART_BRR`, `USART_CR1` and
-//! `USART_CR2` (RM0090 §30.6): computed here, where host tests check them bit by bit, and written
-//! by `hw` without the HAL's serial driver (firmware size).
+//! `USART_CR2` (RM0090 §30.6): computed here, where host tests check them bit by bit (and
+//! stm32-emu's USART tests drive its model with the same values), and written by `hw`. The
+//! rule that refuses a line the USART cannot make (the converter's platform check) and the values
+//! written are thereby one computation.
 
 use core::fmt;
 
