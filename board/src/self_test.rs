@@ -1,5 +1,5 @@
 //! The power-up self-test of the CAN path (real boards): before the node goes on the bus, the
-//! bxCAN sends [`TEST_FRAME`] in **silent loopback** mode (RM0090 §32.5.3: the transmitter's
+//! bxCAN sends [`test_frame`] in **silent loopback** mode (RM0090 §32.5.3: the transmitter's
 //! output is looped back to its receiver inside the chip and nothing reaches the CAN_TX pin, so
 //! the test never disturbs the network) and must receive it back, unchanged, within
 //! [`TIMEOUT`]. A failure is a major unrecoverable fault: the converter reports it in the
