@@ -167,6 +167,27 @@ impl EmulatedBoard {
         &mut self.mcu
     }
 
+    /// The newest valid record of the settings journal in flash (board/src/settings.rs: the
+    /// highest sequence number across both sectors), decoded by the board crate.
+    pub fn stored_settings(&self) -> Option<(board::settings::Settings, u32)> {
+        let flash = self.mcu.flash();
+        let layout = self.kind.spec.flash;
+        let mut newest: Option<(board::settings::Settings, u32)> = None;
+        for base in layout.settings_bases {
+            let start = (base - board::memory::FLASH_BASE) as usize;
+            let sector = flash.get(start..start + layout.settings_sector_size as usize)?;
+            for chunk in sector.chunks_exact(board::settings::RECORD_LEN) {
+                let Ok(record) = chunk.try_into() else { continue };
+                if let Ok((settings, sequence)) = board::settings::Settings::decode(record) {
+                    if newest.as_ref().is_none_or(|(_, n)| sequence > *n) {
+                        newest = Some((settings, sequence));
+                    }
+                }
+            }
+        }
+        newest
+    }
+
     /// The bxCAN model's error counters (TEC, REC) and whether it is bus-off.
     pub fn can_errors(&self) -> (u8, u8, bool) {
         let can = self.can.borrow();
@@ -343,5 +364,30 @@ impl SimDevice for EmulatedBoard {
             return None;
         }
         Some(self.instant(self.mcu.now() + STEP))
+    }
+}
+
+/// The board on a bus while the scenario keeps its handle: attaching the same board to a new bus
+/// powers it on again, a power cycle (SRAM and registers reset, the flash array kept).
+pub struct OnBus(pub Rc<RefCell<EmulatedBoard>>);
+
+impl SimDevice for OnBus {
+    fn mac(&self) -> MacId {
+        self.0.borrow().mac()
+    }
+    fn power_on(&mut self, now: Instant) {
+        self.0.borrow_mut().power_on(now);
+    }
+    fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
+        self.0.borrow_mut().handle_frame(frame, now);
+    }
+    fn handle_timeout(&mut self, now: Instant) {
+        self.0.borrow_mut().handle_timeout(now);
+    }
+    fn poll_transmit(&mut self) -> Option<CanFrame> {
+        self.0.borrow_mut().poll_transmit()
+    }
+    fn poll_at(&self) -> Option<Instant> {
+        self.0.borrow().poll_at()
     }
 }

@@ -53,6 +53,9 @@ fn main() -> ExitCode {
         .iter()
         .filter(|s| scenarios.is_empty() || scenarios.iter().any(|n| n == s.name))
         .collect();
+    if chosen.is_empty() {
+        return usage();
+    }
     let (mut passed, mut failed) = (0, 0);
     for (name, path) in &boards {
         let loaded =

@@ -2,9 +2,8 @@
 //! compares what happens with what must; [`Outcome::line`] is the runner's line for it.
 
 use crate::board::{BoardKind, NodeSetting};
-use crate::device::EmulatedBoard;
+use crate::device::{EmulatedBoard, OnBus};
 use can_io::bus::{Bitrate, Origin};
-use can_io::sim::fault::SharedDevice;
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::reference::{Direction, BRING_UP};
@@ -48,9 +47,10 @@ impl Default for Options {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 3] = [
+pub const ALL: [Scenario; 4] = [
     Scenario { name: "bring-up", run: bring_up },
     Scenario { name: "breaker", run: breaker },
+    Scenario { name: "power-cycle", run: power_cycle },
     Scenario { name: "wrong-bit-rate", run: wrong_bit_rate },
 ];
 
@@ -93,11 +93,15 @@ fn world(
 ) -> Result<(SimBus, Rc<RefCell<EmulatedBoard>>), String> {
     let device = EmulatedBoard::new(board, elf, options.setting, options.bus_rate)
         .map_err(|e| format!("the machine: {e}"))?;
-    let shared = SharedDevice::new(device);
-    let handle = shared.handle();
+    let handle = Rc::new(RefCell::new(device));
+    Ok((bus_with(&handle, options, power), handle))
+}
+
+/// A new bus with the board on it: powering it on there is a power cycle if it ran before.
+fn bus_with(handle: &Rc<RefCell<EmulatedBoard>>, options: &Options, power: PowerOn) -> SimBus {
     let mut bus = SimBus::new(options.bus_rate);
-    bus.attach(Box::new(shared), power);
-    Ok((bus, handle))
+    bus.attach(Box::new(OnBus(Rc::clone(handle))), power);
+    bus
 }
 
 /// The machine's fault, if it stopped.
@@ -221,4 +225,52 @@ fn wrong_bit_rate(board: BoardKind, elf: &[u8], options: &Options) -> Result<(),
         return Err("the master's frames counted no receive error".into());
     }
     Ok(())
+}
+
+/// The DeviceNet object (class 3), instance 1, attribute 3: the bus-off interrupt (BOI).
+const BOI: (u16, u16, u8) = (3, 1, 3);
+
+/// A setting made over the network survives a power cycle: the master sets BOI (a stored
+/// setting, DeviceNet object attribute 3) on the running node; the settings journal in flash
+/// then holds it (decoded by the board crate); after a power cycle (SRAM and every register
+/// reset, the flash array kept) a new bring-up reads it back from the node.
+fn power_cycle(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+    let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
+    let (class, instance, attribute) = BOI;
+    {
+        let mut session = Session::new(&mut bus);
+        let mut master = Master::new(&mut session, MasterConfig::default());
+        let connected = master.connect(&ConnectOptions::default());
+        machine_fault(&handle)?;
+        connected.map_err(|e| format!("connect: {e}"))?;
+        let (before, _) = master.get(MAC, class, instance, attribute).map_err(|e| format!("get BOI: {e}"))?;
+        if before != [0] {
+            return Err(format!("BOI reads {before:02x?} before it is set"));
+        }
+        master.set(MAC, class, instance, attribute, &[1]).map_err(|e| format!("set BOI: {e}"))?;
+        let deadline = master.session.now() + Duration::from_millis(500);
+        master.idle_until(deadline).map_err(|e| format!("idle: {e}"))?;
+    }
+    machine_fault(&handle)?;
+    match handle.borrow().stored_settings() {
+        Some((settings, _)) if settings.bus_off_interrupt => {}
+        Some((settings, n)) => {
+            return Err(format!("the journal's newest record ({n}) has BOI clear: {settings:?}"))
+        }
+        None => return Err("no valid record in the settings journal".into()),
+    }
+    let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let connected = master.connect(&ConnectOptions::default());
+    machine_fault(&handle)?;
+    connected.map_err(|e| format!("connect after the power cycle: {e}"))?;
+    let (after, _) = master.get(MAC, class, instance, attribute).map_err(|e| format!("get BOI: {e}"))?;
+    if after != [1] {
+        return Err(format!("after the power cycle BOI reads {after:02x?}, not 01"));
+    }
+    match master.session.failures() {
+        0 => Ok(()),
+        n => Err(format!("{n} checks of the master failed")),
+    }
 }
