@@ -47,11 +47,12 @@ impl Default for Options {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 4] = [
+pub const ALL: [Scenario; 5] = [
     Scenario { name: "bring-up", run: bring_up },
     Scenario { name: "breaker", run: breaker },
     Scenario { name: "power-cycle", run: power_cycle },
     Scenario { name: "wrong-bit-rate", run: wrong_bit_rate },
+    Scenario { name: "bus-off", run: bus_off },
 ];
 
 /// The result of one scenario on one board.
@@ -273,4 +274,49 @@ fn power_cycle(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), St
         0 => Ok(()),
         n => Err(format!("{n} checks of the master failed")),
     }
+}
+
+/// Bus-off recovery follows the stored bus-off interrupt setting (devicenet-notes §7.2): the
+/// node at 125k on a 500k bus, alone, drives its controller bus-off with its own flagged
+/// frames. With BOI 0 it stays bus-off (one bus-off, still off a second later); with BOI 1 it
+/// resets the controller and continues, so it goes bus-off again and again.
+fn bus_off(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+    for boi in [false, true] {
+        let setting = NodeSetting { bus_off_interrupt: boi, ..options.setting };
+        let options = Options { bus_rate: Bitrate::K500, setting };
+        let (mut bus, handle) = world(board, elf, &options, PowerOn::AtStart)?;
+        let end = devicenet::Instant::from_secs(1);
+        if let Some(event) = can_io::bus::Bus::recv(&mut bus, end).map_err(|e| format!("bus: {e}"))? {
+            let frame = event.frame;
+            return Err(format!(
+                "a frame reached the bus: {:#05x} {:02x?}",
+                frame.id().as_raw(),
+                frame.data()
+            ));
+        }
+        machine_fault(&handle)?;
+        let counts = handle.borrow().counts();
+        let (_, _, off) = handle.borrow().can_errors();
+        let mcr = handle.borrow_mut().mcu().read_peripheral(stm32_emu::bxcan::CAN1_BASE).unwrap_or(0);
+        let abom = if mcr & stm32_emu::bxcan::mcr::ABOM != 0 { ", MCR.ABOM set" } else { "" };
+        match (boi, counts.bus_offs) {
+            (_, 0) => {
+                return Err(format!(
+                    "BOI {}: never bus-off ({} frames flagged)",
+                    u8::from(boi),
+                    counts.flagged
+                ))
+            }
+            (false, 1) if off => {}
+            (false, n) => {
+                return Err(format!(
+                    "BOI 0: {n} bus-offs in 1 s, the controller {} bus-off at the end{abom}",
+                    if off { "still" } else { "no longer" }
+                ))
+            }
+            (true, 1) => return Err(format!("BOI 1: one bus-off, never recovered{abom}")),
+            (true, _) => {}
+        }
+    }
+    Ok(())
 }
