@@ -67,6 +67,10 @@ pub struct CanCounts {
     pub peak_rec: u8,
     /// Times the controller went bus-off.
     pub bus_offs: u64,
+    /// Frames received from the bus.
+    pub received: u64,
+    /// Deliveries after which a receive FIFO showed FOVR (a message lost, RM0090 §32.7.5).
+    pub overruns: u64,
 }
 
 /// The exact firmware of one board on the models. See the [module docs](self).
@@ -269,6 +273,16 @@ impl EmulatedBoard {
         self.was_bus_off = bus_off;
     }
 
+    /// Counts a delivery after which FOVR is set in either receive FIFO.
+    fn note_overrun(&mut self) {
+        use stm32_emu::bxcan::{offset, rfr};
+        let fifos =
+            [offset::RF0R, offset::RF1R].map(|o| self.mcu.read_peripheral(CAN1_BASE + o).unwrap_or(0));
+        if fifos.iter().any(|r| r & rfr::FOVR != 0) {
+            self.counts.overruns += 1;
+        }
+    }
+
     /// Takes what the controller offers: onto the bus at the bus's rate, flagged otherwise.
     fn service_can(&mut self) {
         let now = self.mcu.now();
@@ -341,7 +355,9 @@ impl SimDevice for EmulatedBoard {
         let (can, rate) = (Rc::clone(&self.can), self.bus_rate);
         let t = self.mcu.now();
         self.mcu.with_machine(|m| can.borrow_mut().on_wire(&frame, rate, false, t, m));
+        self.counts.received += 1;
         self.note_errors();
+        self.note_overrun();
         self.service_can();
     }
 
