@@ -13,6 +13,15 @@
 //! | [`uid`] | the unique ID whose CRC-32 fold is the reference serial number |
 //! | [`shared`] | a model the machine and the world outside both hold |
 //!
+//! ## Scenarios
+//!
+//! `bring-up`, `breaker`, `power-cycle`, `wrong-bit-rate`, `bus-load`, `bus-off` ([`scenario`]
+//! says what each compares); the binary `exact-firmware` runs them on every board ELF given and
+//! scripts/exact-firmware on every board's build. `bus-off` fails on every board today: the
+//! firmware's controller has `MCR.ABOM` set (bxcan 0.8's `enable_non_blocking` sets it), so it
+//! leaves bus-off by itself whatever the bus-off interrupt setting says (devicenet-notes §7.2:
+//! BOI 0 stays bus-off).
+//!
 //! ## What emulation proves, and what only a real board can
 //!
 //! Proven here, for the very bytes that are flashed: the firmware's start-up on the modelled
