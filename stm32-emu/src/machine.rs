@@ -310,8 +310,9 @@ impl Stm32 {
     /// Lends the machine, as its models see it ([`Machine`]: clocks, interrupt lines to the
     /// NVIC, the time, which is [`Stm32::now`] between runs), to `f`: for a world outside the
     /// chip that drives a model's outside through a handle of its own, e.g. a CAN bus calling
-    /// the bxCAN model's bus side ([`crate::bxcan::bus`]) between runs. An interrupt line `f`
-    /// raises is taken at the start of the next run.
+    /// the bxCAN model's bus side ([`crate::bxcan::Bxcan::poll_transmit`],
+    /// [`crate::bxcan::Bxcan::on_wire`]) between runs. An interrupt line `f` raises is taken
+    /// at the start of the next run.
     pub fn with_machine<R>(&mut self, f: impl FnOnce(&mut dyn Machine) -> R) -> R {
         f(self.core.bus_mut())
     }
