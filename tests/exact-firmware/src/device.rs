@@ -166,6 +166,11 @@ impl EmulatedBoard {
         &self.breaker
     }
 
+    /// The instrument USART's line as its registers set it.
+    pub fn instrument_line(&self) -> LineSettings {
+        self.instrument.borrow().settings()
+    }
+
     /// The machine.
     pub fn mcu(&mut self) -> &mut Stm32 {
         &mut self.mcu

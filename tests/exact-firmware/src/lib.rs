@@ -15,7 +15,7 @@
 //!
 //! ## Scenarios
 //!
-//! `bring-up`, `breaker`, `power-cycle`, `wrong-bit-rate`, `bus-load`, `bus-off` ([`scenario`]
+//! `bring-up`, `breaker`, `power-cycle`, `configure`, `wrong-bit-rate`, `bus-load`, `bus-off` ([`scenario`]
 //! says what each compares); the binary `exact-firmware` runs them on every board ELF given and
 //! scripts/exact-firmware on every board's build. `bus-off` fails on every board today: the
 //! firmware's controller has `MCR.ABOM` set (bxcan 0.8's `enable_non_blocking` sets it), so it
