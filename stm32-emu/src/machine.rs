@@ -100,6 +100,13 @@ pub enum Fault {
     /// The ELF file is not a 32-bit little-endian ARM executable, or has a loadable segment
     /// outside flash.
     Elf(String),
+    /// The power failed: a planned power cut of the FLASH model
+    /// ([`crate::flash::Flash::plan_power_cut`]) happened. The machine stopped after the
+    /// access; [`Stm32::power_on_reset`] powers it up again on the flash array as the cut left it.
+    PowerCut {
+        /// The time of the cut.
+        at: Nanos,
+    },
 }
 
 impl fmt::Display for Fault {
@@ -131,6 +138,7 @@ impl fmt::Display for Fault {
                 write!(f, "{name} at {base:#010x}: outside the peripheral region or overlapping")
             }
             Fault::Elf(e) => write!(f, "ELF: {e}"),
+            Fault::PowerCut { at } => write!(f, "power cut at {at} ns (planned in the FLASH model)"),
         }
     }
 }
@@ -382,6 +390,9 @@ impl Stm32 {
         let executed = self.core.bus().executed;
         self.account(executed);
         self.core.refresh_flash();
+        if let Some(at) = self.core.bus_mut().power_cut.take() {
+            return Err(Fault::PowerCut { at });
+        }
         let outcome = outcome?;
         if self.core.fp_used_while_disabled() {
             return Err(Fault::Core(CoreFault::NoCoprocessor { pc: self.pc() }));

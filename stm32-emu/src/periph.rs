@@ -97,6 +97,10 @@ pub trait Machine {
     /// to FLASH_KEYR "generates a bus error"). The machine stops and reports the access; the
     /// default ignores it.
     fn bus_error(&mut self) {}
+    /// The power fails during the access being answered (a planned power cut of the FLASH
+    /// model, [`crate::flash::Flash::plan_power_cut`]): the machine stops the core after it and
+    /// reports the cut. The default ignores it.
+    fn power_cut(&mut self) {}
     /// Stalls the core for `nanos` (the bus held the access, e.g. the flash interface while BSY
     /// is set, RM0090 §3.6.1): the machine adds the time to its clock. The default ignores it.
     fn stall(&mut self, nanos: Nanos) {

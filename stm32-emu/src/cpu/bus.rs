@@ -75,6 +75,8 @@ pub struct Bus {
     pub interrupt: Option<u32>,
     /// Time the models stalled the core in the current slice ([`Machine::stall`]).
     pub stalled: Nanos,
+    /// When a model reported a power cut ([`Machine::power_cut`]), not yet taken by the machine.
+    pub power_cut: Option<Nanos>,
     /// The model answering the current access reported a bus error ([`Machine::bus_error`]).
     model_bus_error: bool,
     /// An access asked the core to stop after the current instruction (an exception became
@@ -100,6 +102,7 @@ impl Bus {
             error: None,
             model_bus_error: false,
             stalled: 0,
+            power_cut: None,
             interrupt: None,
             stop_requested: false,
         }
@@ -366,6 +369,13 @@ impl Machine for Bus {
 
     fn now(&self) -> Nanos {
         self.time()
+    }
+
+    fn power_cut(&mut self) {
+        if self.power_cut.is_none() {
+            self.power_cut = Some(self.time());
+        }
+        self.stop_requested = true;
     }
 
     fn flash_memory(&mut self) -> Option<&mut [u8]> {

@@ -4,7 +4,8 @@
 //!
 //! Its bus errors ([`Flash::take_bus_error`], a wrong key) stop the machine with a bus fault
 //! ([`Machine::bus_error`]); its stalls ([`Flash::take_stall`], an access while BSY waits for
-//! the operation) go to the machine's clock ([`Machine::stall`]). CPU loads from the array
+//! the operation) go to the machine's clock ([`Machine::stall`]); its planned power cut
+//! ([`Flash::power_cut`]) stops the machine ([`Machine::power_cut`]), once. CPU loads from the array
 //! never reach the model (the CPU reads the machine's copy), so they do not stall.
 
 use crate::flash::Flash;
@@ -13,12 +14,15 @@ use crate::periph::{Machine, Nanos, Peripheral, ResetKind, Width};
 /// [`Flash`] with the array connected to the machine.
 pub struct FlashPort {
     flash: Flash,
+    /// The model's power cut was reported to the machine (it stays in the model, which ignores
+    /// writes after it, across the power-up that follows).
+    cut_reported: bool,
 }
 
 impl FlashPort {
     /// Connects `flash`.
     pub fn new(flash: Flash) -> FlashPort {
-        FlashPort { flash }
+        FlashPort { flash, cut_reported: false }
     }
 
     /// The model.
@@ -30,6 +34,10 @@ impl FlashPort {
     fn report(&mut self, machine: &mut dyn Machine) {
         if self.flash.take_bus_error() {
             machine.bus_error();
+        }
+        if self.flash.power_cut().is_some() && !self.cut_reported {
+            self.cut_reported = true;
+            machine.power_cut();
         }
         let stall = self.flash.take_stall();
         if stall > 0 {
@@ -78,5 +86,57 @@ impl Peripheral for FlashPort {
 
     fn flash_load(&mut self, offset: u32, bytes: &[u8]) {
         self.flash.load(offset as usize, bytes);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flash::{CutKind, FlashTiming, KEY1, KEY2};
+    use crate::gpio::tests::TestMachine;
+    use crate::periph::{ClockGate, Clocks};
+
+    /// A machine that counts the power cuts reported to it.
+    #[derive(Default)]
+    struct CutMachine {
+        inner: TestMachine,
+        cuts: u32,
+    }
+
+    impl Machine for CutMachine {
+        fn clocks(&self) -> Clocks {
+            self.inner.clocks()
+        }
+        fn clock_enabled(&self, gate: ClockGate) -> bool {
+            self.inner.clock_enabled(gate)
+        }
+        fn set_irq(&mut self, irq: u16, level: bool) {
+            self.inner.set_irq(irq, level);
+        }
+        fn now(&self) -> Nanos {
+            self.inner.now()
+        }
+        fn power_cut(&mut self) {
+            self.cuts += 1;
+        }
+    }
+
+    #[test]
+    fn a_planned_power_cut_is_reported_to_the_machine_once() {
+        let mut flash = Flash::new().with_timing(FlashTiming::FAST);
+        flash.plan_power_cut(0, CutKind::Before);
+        let mut port = FlashPort::new(flash);
+        let m = &mut CutMachine::default();
+        // KEYR (0x04): the unlock sequence; CR (0x10): PG, PSIZE x8 (RM0090 §3.9.2, §3.9.5).
+        port.write(0x04, Width::Word, KEY1, m);
+        port.write(0x04, Width::Word, KEY2, m);
+        port.write(0x10, Width::Word, 1, m);
+        assert!(port.flash_store(0xE_0000, Width::Byte, 0, m));
+        assert_eq!((m.cuts, port.flash().power_cut().map(|c| c.operation)), (1, Some(0)));
+        assert_eq!(port.flash().image()[0xE_0000], 0xFF, "the operation did not start");
+        port.flash_store(0xE_0001, Width::Byte, 0, m);
+        port.reset(ResetKind::PowerOn);
+        let _ = port.read(0x0C, Width::Word, m);
+        assert_eq!(m.cuts, 1, "reported once");
     }
 }
