@@ -230,6 +230,12 @@ impl Stm32 {
         Ok(())
     }
 
+    /// The program and erase operations the FLASH model started so far (the index a planned
+    /// power cut counts, [`crate::flash::Flash::plan_power_cut`]); `None` without one.
+    pub fn flash_operations(&self) -> Option<u64> {
+        self.core.bus().flash_operations()
+    }
+
     /// The flash array (what a programmer would read back).
     pub fn flash(&self) -> &[u8] {
         &self.core.bus().flash

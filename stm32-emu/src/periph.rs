@@ -155,6 +155,12 @@ pub trait Peripheral {
     fn flash_load(&mut self, offset: u32, bytes: &[u8]) {
         let _ = (offset, bytes);
     }
+    /// For the FLASH model only: the program and erase operations it started so far (what
+    /// [`crate::flash::Flash::plan_power_cut`] counts). `None` (the default) for every other
+    /// model.
+    fn flash_operations(&self) -> Option<u64> {
+        None
+    }
     /// For the RCC model only: the clocks its registers now select. The machine answers
     /// [`Machine::clocks`] from the registered model that returns `Some`.
     fn clocks(&self) -> Option<Clocks> {

@@ -136,6 +136,11 @@ impl Bus {
         Ok(())
     }
 
+    /// The program and erase operations of the FLASH model, if there is one.
+    pub fn flash_operations(&self) -> Option<u64> {
+        self.slots.iter().find_map(|s| s.model.as_ref()?.flash_operations())
+    }
+
     /// Every model's name and block, in address order.
     pub fn blocks(&self) -> impl Iterator<Item = (u32, u32, &'static str)> + '_ {
         self.slots.iter().map(|s| (s.base, s.size, s.model.as_ref().map_or("?", |m| m.name())))

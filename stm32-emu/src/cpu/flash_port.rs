@@ -87,6 +87,10 @@ impl Peripheral for FlashPort {
     fn flash_load(&mut self, offset: u32, bytes: &[u8]) {
         self.flash.load(offset as usize, bytes);
     }
+
+    fn flash_operations(&self) -> Option<u64> {
+        Some(self.flash.operations())
+    }
 }
 
 #[cfg(test)]
