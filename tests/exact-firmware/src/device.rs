@@ -38,7 +38,7 @@ use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
 use stm32_emu::bxcan::{Bxcan, Frame, FrameId, TxOutcome, CAN1_BASE};
-use stm32_emu::flash::Flash;
+use stm32_emu::flash::{CutKind, Flash};
 use stm32_emu::gpio::{Gpio, Port};
 use stm32_emu::machine::{Fault, Stm32};
 use stm32_emu::periph::Nanos;
@@ -89,6 +89,8 @@ pub struct EmulatedBoard {
     next_attempt: Nanos,
     counts: CanCounts,
     was_bus_off: bool,
+    /// The machine time of a planned power cut that happened.
+    power_cut: Option<Nanos>,
     fault: Option<String>,
 }
 
@@ -96,9 +98,26 @@ impl EmulatedBoard {
     /// The board `kind` with `elf` in its flash, set to `setting` (switches and settings journal),
     /// on a bus at `bus_rate`; powered off until [`SimDevice::power_on`].
     pub fn new(kind: BoardKind, elf: &[u8], setting: NodeSetting, bus_rate: Bitrate) -> Result<Self, Fault> {
+        EmulatedBoard::with_power_cut(kind, elf, setting, bus_rate, None)
+    }
+
+    /// [`EmulatedBoard::new`] with a power cut planned at flash operation `cut.0` (counted from
+    /// the power-up, [`Stm32::flash_operations`]): the machine stops there
+    /// ([`EmulatedBoard::power_cut`]) until the next power-on, on the flash array as it left it.
+    pub fn with_power_cut(
+        kind: BoardKind,
+        elf: &[u8],
+        setting: NodeSetting,
+        bus_rate: Bitrate,
+        cut: Option<(u64, CutKind)>,
+    ) -> Result<Self, Fault> {
         let mut mcu = Stm32::new(kind.chip(), unique_id_for_serial(REFERENCE_SERIAL))?;
         mcu.add_peripheral(RCC_BASE, 0x400, Box::new(Rcc::new(kind.hse())))?;
-        mcu.add_flash(Flash::new())?;
+        let mut flash = Flash::new();
+        if let Some((operation, how)) = cut {
+            flash.plan_power_cut(operation, how);
+        }
+        mcu.add_flash(flash)?;
         mcu.add_peripheral(stm32_emu::pwr::BASE, 0x400, Box::new(stm32_emu::pwr::Pwr::new(kind.chip())))?;
         let mut switch_port = None;
         for port in [Port::A, Port::B, Port::C, Port::D, Port::E, Port::H] {
@@ -147,6 +166,7 @@ impl EmulatedBoard {
             next_attempt: 0,
             counts: CanCounts::default(),
             was_bus_off: false,
+            power_cut: None,
             fault: None,
         })
     }
@@ -159,6 +179,17 @@ impl EmulatedBoard {
     /// Why the machine stopped (a fault of the firmware or of the emulation), if it did.
     pub fn fault(&self) -> Option<&str> {
         self.fault.as_deref()
+    }
+
+    /// When the planned power cut happened (machine time), if it did: the board is dead until
+    /// it is powered on again.
+    pub fn power_cut(&self) -> Option<Nanos> {
+        self.power_cut
+    }
+
+    /// The flash operations so far ([`Stm32::flash_operations`]).
+    pub fn flash_operations(&self) -> u64 {
+        self.mcu.flash_operations().unwrap_or(0)
     }
 
     /// The simulated breaker on the instrument line.
@@ -230,14 +261,19 @@ impl EmulatedBoard {
 
     /// Runs the CPU to `target`, the instrument line serviced as it goes.
     fn run_to(&mut self, target: Nanos) {
-        while self.fault.is_none() && self.mcu.now() < target {
+        while self.fault.is_none() && self.power_cut.is_none() && self.mcu.now() < target {
             let now = self.mcu.now();
             let mut until = target.min(now + STEP);
             if let Some(at) = self.breaker.poll_at() {
                 until = until.min(self.nanos(at).max(now + 1));
             }
-            if let Err(fault) = self.mcu.run_for(until - now) {
-                self.fault = Some(format!("{fault} at {} ns", self.mcu.now()));
+            match self.mcu.run_for(until - now) {
+                Ok(()) => {}
+                Err(Fault::PowerCut { at }) => {
+                    self.power_cut = Some(at);
+                    return;
+                }
+                Err(fault) => self.fault = Some(format!("{fault} at {} ns", self.mcu.now())),
             }
             self.service_line();
         }
@@ -341,17 +377,22 @@ impl SimDevice for EmulatedBoard {
         self.epoch = Some((now.total_micros(), self.mcu.now()));
         self.outbox.clear();
         self.next_attempt = 0;
+        self.power_cut = None;
         if let Err(fault) = self.mcu.power_on_reset() {
             self.fault = Some(format!("power-on: {fault}"));
         }
     }
 
     fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
-        if self.epoch.is_none() {
+        if self.epoch.is_none() || self.power_cut.is_some() {
             return;
         }
         let t = self.nanos(now);
         self.run_to(t);
+        if self.power_cut.is_some() {
+            self.outbox.clear();
+            return;
+        }
         let Some(frame) =
             FrameId::standard(frame.id().as_raw()).and_then(|id| Frame::new_data(id, frame.data()))
         else {
@@ -367,11 +408,15 @@ impl SimDevice for EmulatedBoard {
     }
 
     fn handle_timeout(&mut self, now: Instant) {
-        if self.epoch.is_none() {
+        if self.epoch.is_none() || self.power_cut.is_some() {
             return;
         }
         let t = self.nanos(now);
         self.run_to(t);
+        if self.power_cut.is_some() {
+            self.outbox.clear();
+            return;
+        }
         self.note_errors();
         self.service_can();
     }
@@ -381,7 +426,7 @@ impl SimDevice for EmulatedBoard {
     }
 
     fn poll_at(&self) -> Option<Instant> {
-        if self.epoch.is_none() || self.fault.is_some() {
+        if self.epoch.is_none() || self.fault.is_some() || self.power_cut.is_some() {
             return None;
         }
         Some(self.instant(self.mcu.now() + STEP))

@@ -15,9 +15,9 @@
 //!
 //! ## Scenarios
 //!
-//! `bring-up`, `breaker`, `power-cycle`, `configure`, `wrong-bit-rate`, `bus-load`, `bus-off` ([`scenario`]
-//! says what each compares); the binary `exact-firmware` runs them on every board ELF given and
-//! scripts/exact-firmware on every board's build. `bus-off` fails on every board today: the
+//! `bring-up`, `breaker`, `power-cycle`, `configure`, `download-cut`, `wrong-bit-rate`, `bus-load`,
+//! `bus-off` ([`scenario`] says what each compares); the binary `exact-firmware` runs them on
+//! every board ELF given and scripts/exact-firmware on every board's build. `bus-off` fails on every board today: the
 //! firmware's controller has `MCR.ABOM` set (bxcan 0.8's `enable_non_blocking` sets it), so it
 //! leaves bus-off by itself whatever the bus-off interrupt setting says (devicenet-notes §7.2:
 //! BOI 0 stays bus-off).

@@ -47,11 +47,12 @@ impl Default for Options {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 7] = [
+pub const ALL: [Scenario; 8] = [
     Scenario { name: "bring-up", run: bring_up },
     Scenario { name: "breaker", run: breaker },
     Scenario { name: "power-cycle", run: power_cycle },
     Scenario { name: "configure", run: configure },
+    Scenario { name: "download-cut", run: download_cut },
     Scenario { name: "wrong-bit-rate", run: wrong_bit_rate },
     Scenario { name: "bus-load", run: bus_load },
     Scenario { name: "bus-off", run: bus_off },
@@ -429,6 +430,91 @@ fn configure(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), Stri
     let parity = line.parity == stm32_emu::usart::line::Parity::Even;
     if (line.baud - 19_200.0).abs() > 19_200.0 * 0.01 || !parity || line.data_bits() != 8 {
         return Err(format!("after the power cycle the instrument line is {line:?}, not 19200 8E1"));
+    }
+    Ok(())
+}
+
+/// Where [`download_cut`] cuts the power: operations from the download's first flash operation.
+/// The board's HAL programs the 640-byte settings record a byte at a time (board/src/settings.rs
+/// "Record layout"), so these are the record's first byte (magic), its sequence number, the MAC
+/// ID, the first and a middle byte of the image, the last image byte, the first and the last
+/// byte of the CRC; clipped to the download's last operation.
+const CUT_AT: [u64; 8] = [0, 4, 8, 16, 320, 635, 636, 639];
+
+/// The configuration object's state and the Identity product name of the node at [`MAC`],
+/// powered on again on `handle`'s flash.
+fn state_after_power_up(
+    handle: &Rc<RefCell<EmulatedBoard>>,
+    options: &Options,
+) -> Result<(Vec<u8>, Vec<u8>), String> {
+    let mut bus = bus_with(handle, options, PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let online = master.network_access().and_then(|()| master.await_online(&[MAC]));
+    machine_fault(handle)?;
+    online.map_err(|e| format!("back on-line: {e}"))?;
+    master.open_explicit(MAC).map_err(|e| format!("explicit connection: {e}"))?;
+    let class = master_harness::configure::CONFIGURATION_CLASS;
+    let (state, _) = master.get(MAC, class, 1, 3).map_err(|e| format!("configuration state: {e}"))?;
+    let (name, _) = master.get(MAC, 1, 1, 7).map_err(|e| format!("product name: {e}"))?;
+    Ok((state, name))
+}
+
+/// A power cut in the middle of a download's flash writes leaves the old configuration or the
+/// new one in force, never neither: the download of [`configure`] runs once to count its flash
+/// operations, then again on a fresh board for each operation of [`CUT_AT`], the power cut
+/// there with the operation torn half-way
+/// (stm32-emu `flash::CutKind::Torn`); powered up again, the node must come on-line with either
+/// the factory configuration (state 0, its product name) or the meter's (state 1, its name).
+/// Not every operation: a download is 640 of them (one byte each), and at about 3 s a run, one
+/// run per operation would take half an hour per board.
+fn download_cut(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+    use master_harness::configure::download;
+    let meter =
+        slave_fw::description::DeviceDescription::parse(METER).map_err(|e| format!("the meter: {e}"))?;
+    let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
+    let (first, last, factory_name) = {
+        let mut session = Session::new(&mut bus);
+        let mut master = Master::new(&mut session, MasterConfig::default());
+        let connected = master.connect(&ConnectOptions::default());
+        machine_fault(&handle)?;
+        connected.map_err(|e| format!("connect: {e}"))?;
+        let (name, _) = master.get(MAC, 1, 1, 7).map_err(|e| format!("product name: {e}"))?;
+        let first = handle.borrow().flash_operations();
+        download(&mut master, MAC, &meter, &mut |_| {}).map_err(|e| format!("download: {e}"))?;
+        (first, handle.borrow().flash_operations(), name)
+    };
+    if last <= first {
+        return Err("the download took no flash operation".into());
+    }
+    let mut meter_name = vec![meter.converter.device.identity.product_name.len() as u8];
+    meter_name.extend_from_slice(meter.converter.device.identity.product_name.as_bytes());
+    for offset in CUT_AT {
+        let k = first + offset.min(last - 1 - first);
+        let cut = Some((k, stm32_emu::flash::CutKind::Torn));
+        let device = EmulatedBoard::with_power_cut(board, elf, options.setting, options.bus_rate, cut)
+            .map_err(|e| format!("the machine: {e}"))?;
+        let handle = Rc::new(RefCell::new(device));
+        {
+            let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
+            let mut session = Session::new(&mut bus);
+            let mut master = Master::new(&mut session, MasterConfig::default());
+            if master.connect(&ConnectOptions::default()).is_ok() {
+                let _ = download(&mut master, MAC, &meter, &mut |_| {});
+            }
+        }
+        machine_fault(&handle)?;
+        if handle.borrow().power_cut().is_none() {
+            return Err(format!("the cut at flash operation {k} of {first}..{last} never came"));
+        }
+        let (state, name) =
+            state_after_power_up(&handle, options).map_err(|e| format!("cut at operation {k}: {e}"))?;
+        let in_force = (state.as_slice(), name.as_slice());
+        if in_force != (&[0][..], factory_name.as_slice()) && in_force != (&[1][..], meter_name.as_slice()) {
+            return Err(format!(
+                "cut at operation {k}: configuration state {state:02x?}, product name {name:02x?}"
+            ));
+        }
     }
     Ok(())
 }
