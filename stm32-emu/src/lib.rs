@@ -10,12 +10,12 @@
 //! its own.
 #![forbid(unsafe_code)]
 
-pub mod periph;
 pub mod bxcan;
-pub mod gpio;
-pub mod rcc;
-pub mod flash;
-pub mod usart;
 pub mod cpu;
+pub mod flash;
+pub mod gpio;
 pub mod machine;
+pub mod periph;
 pub mod pwr;
+pub mod rcc;
+pub mod usart;
