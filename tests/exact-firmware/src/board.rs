@@ -115,3 +115,40 @@ impl NodeSetting {
         settings.encode(1)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn setting(mac: u8, rate: BaudRate) -> NodeSetting {
+        NodeSetting { mac: MacId::new(mac).expect("MAC"), rate, bus_off_interrupt: true }
+    }
+
+    #[test]
+    fn switch_bits_put_the_mac_on_1_to_6_and_the_rate_on_7_and_8() {
+        assert_eq!(setting(5, BaudRate::Kbps125).switch_bits(), 0b0000_0101);
+        assert_eq!(setting(5, BaudRate::Kbps500).switch_bits(), 0b1000_0101);
+        assert_eq!(setting(63, BaudRate::Kbps250).switch_bits(), 0b0111_1111);
+    }
+
+    #[test]
+    fn the_record_is_the_board_crates_and_decodes_back() {
+        let s = setting(5, BaudRate::Kbps250);
+        let (decoded, sequence) = Settings::decode(&s.record(true)).expect("a valid record");
+        assert_eq!(sequence, 1);
+        assert_eq!((decoded.mac_id, decoded.baud_rate, decoded.bus_off_interrupt), (s.mac, s.rate, true));
+        assert_eq!(decoded.last_switches, Some(s.switch_bits()));
+        assert_eq!(Settings::decode(&s.record(false)).expect("valid").0.last_switches, None);
+    }
+
+    #[test]
+    fn every_board_of_the_board_crate_is_known_by_its_feature() {
+        let names: Vec<_> = BoardKind::all().iter().map(|b| b.name).collect();
+        assert_eq!(names, ["reference", "olimex-p405", "olimex-p405-rs485", "nucleo-f446re"]);
+        let nucleo = BoardKind::by_name("nucleo-f446re").expect("nucleo");
+        assert_eq!(nucleo.chip(), stm32_emu::machine::Chip::Stm32F446);
+        assert_eq!(nucleo.settings_offset(), 0x4_0000, "sector 6");
+        assert!(nucleo.switches().is_none());
+        assert_eq!(BoardKind::by_name("reference").and_then(|b| b.switches()), Some((Port::B, 0)));
+    }
+}
