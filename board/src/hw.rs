@@ -494,6 +494,19 @@ pub fn enable_can_error_interrupts() {
     can.ier().modify(|_, w| w.errie().set_bit().bofie().set_bit().epvie().set_bit());
 }
 
+/// Turns the controller's automatic bus-off management (CAN_MCR.ABOM, RM0090 §32.9.2) off:
+/// bus-off then lasts until software re-enters and leaves initialisation mode (§32.7.6), which the
+/// converter asks for only with the bus-off interrupt setting 1 (devicenet-notes §7.2). bxcan 0.8's
+/// `enable_non_blocking` sets ABOM on every start; with it a node set to stay off the bus (BOI 0)
+/// would rejoin by itself after 128 × 11 recessive bits.
+#[cfg(not(feature = "emulated"))]
+pub fn disable_automatic_bus_off_management() {
+    // SAFETY: a read-modify-write of CAN1_MCR's ABOM bit only, from init with interrupts masked or
+    // from the converter task that owns the driver; INRQ/SLEEP are written back as read.
+    let can = unsafe { &*pac::CAN1::ptr() };
+    can.mcr().modify(|_, w| w.abom().clear_bit());
+}
+
 /// Reads the bus state and acknowledges the error interrupt (MSR.ERRI).
 #[cfg(not(feature = "emulated"))]
 pub fn can_bus_state() -> BusState {

@@ -96,6 +96,8 @@ impl Bxcan {
         hw::enable_can_error_interrupts();
         // Leaves initialisation mode once the bus has been idle for 11 bits; no need to wait.
         let _ = can.enable_non_blocking();
+        // Bus-off is the converter's to end (bus-off interrupt setting), not the controller's.
+        hw::disable_automatic_bus_off_management();
         (Bxcan { can, on_bus: true }, Ok(rate))
     }
 }
@@ -245,5 +247,6 @@ impl CanDriver for Bxcan {
         // §32.4.2); the controller rejoins after 128 × 11 recessive bits.
         self.can.modify_config().leave_disabled();
         let _ = self.can.enable_non_blocking();
+        hw::disable_automatic_bus_off_management();
     }
 }

@@ -17,10 +17,11 @@
 //!
 //! `bring-up`, `breaker`, `power-cycle`, `configure`, `download-cut`, `wrong-bit-rate`, `bus-load`,
 //! `bus-off` ([`scenario`] says what each compares); the binary `exact-firmware` runs them on
-//! every board ELF given and scripts/exact-firmware on every board's build. `bus-off` fails on every board today: the
-//! firmware's controller has `MCR.ABOM` set (bxcan 0.8's `enable_non_blocking` sets it), so it
-//! leaves bus-off by itself whatever the bus-off interrupt setting says (devicenet-notes §7.2:
-//! BOI 0 stays bus-off).
+//! every board ELF given and scripts/exact-firmware on every board's build. `bus-off` found the
+//! first firmware bug the models caught: bxcan 0.8's `enable_non_blocking` sets `MCR.ABOM`, so the
+//! controller left bus-off by itself whatever the bus-off interrupt setting said
+//! (devicenet-notes §7.2: BOI 0 stays bus-off); the firmware now clears it
+//! (`board::hw::disable_automatic_bus_off_management`).
 //!
 //! ## What emulation proves, and what only a real board can
 //!
