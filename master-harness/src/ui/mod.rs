@@ -10,7 +10,7 @@
 //! wait, beyond that `503` at once; so a slow, silent or vanished client never holds up the
 //! others for long, and no number of connections makes threads.
 //!
-//! Every request is checked first ([`guard`]): `Host` must name the console; a state-changing
+//! Every request is checked first (`guard`): `Host` must name the console; a state-changing
 //! request (anything but `GET` / `HEAD`) must also carry the page's token in `X-CSRF-Token`,
 //! come from the console's own `Origin` and be `Content-Type: application/json`. Anything else is
 //! `403` with the reason: another web page open in the same browser cannot drive the console.
