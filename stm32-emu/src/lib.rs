@@ -8,6 +8,25 @@
 //! access in, register contents and interrupt lines out, time advanced explicitly. They know
 //! nothing of the CPU emulator, so each is unit-tested against the manual's register facts on
 //! its own.
+//!
+//! | module | what it models | source |
+//! |---|---|---|
+//! | [`cpu`] | the Cortex-M4 on unicorn: memory map, ELF loading, NVIC, SCB, SysTick, exception entry and return (unicorn has no NVIC) | PM0214 §2.3, §4.2–§4.5 |
+//! | [`machine`] | the chip: models by address, time (one instruction, one HCLK cycle), sleep, resets | RM0090 §2.3 |
+//! | [`rcc`] | HSI, HSE, PLL with ready flags, clock gates, resets | RM0090 §7.3 |
+//! | [`flash`] | the FLASH interface and its array: unlock, PSIZE, sector erase, error flags, power cuts | RM0090 §3 |
+//! | [`gpio`] | modes, alternate functions, pulls, BSRR, LCKR, levels from outside | RM0090 §8.4 |
+//! | [`usart`] | BRR and oversampling, parity, stop bits, flags, the line's timing and garbling | RM0090 §30 |
+//! | [`bxcan`] | CAN1: modes, BTR, filters, mailboxes, FIFOs, error counting, bus-off | RM0090 §32 |
+//! | [`pwr`] | the regulator's over-drive handshake the F446 firmware waits for | RM0390 §5 |
+//!
+//! ## Licence of what links it
+//!
+//! The models are this project's (MIT OR Apache-2.0). The CPU comes from the `unicorn-engine`
+//! crate, whose C library is GPL-2.0: a binary that links this crate (the `exact-firmware` runner,
+//! the tests) is test equipment under the GPL's terms and is never part of the firmware or of the
+//! host programs a user installs (`dnet-master`, `dnet-eds`, `dnet-soft-slave`), none of which
+//! depend on it (`cargo tree -p master-harness -e normal` shows no `unicorn-engine`).
 #![forbid(unsafe_code)]
 
 pub mod bxcan;
