@@ -154,12 +154,16 @@ const fn unwrap_timing(t: Option<BitTiming>) -> BitTiming {
     }
 }
 
+/// The clock the timings below are computed for: PCLK1, or half of it with the self-test's
+/// `fault-btr` (every rate then runs twice as fast on the wire).
+const TIMING_CLOCK_HZ: u32 = if cfg!(feature = "fault-btr") { PCLK1_HZ / 2 } else { PCLK1_HZ };
+
 /// 125 kbit/s at the selected board's PCLK1.
-pub const KBPS125: BitTiming = unwrap_timing(for_clock(PCLK1_HZ, BaudRate::Kbps125));
+pub const KBPS125: BitTiming = unwrap_timing(for_clock(TIMING_CLOCK_HZ, BaudRate::Kbps125));
 /// 250 kbit/s at the selected board's PCLK1.
-pub const KBPS250: BitTiming = unwrap_timing(for_clock(PCLK1_HZ, BaudRate::Kbps250));
+pub const KBPS250: BitTiming = unwrap_timing(for_clock(TIMING_CLOCK_HZ, BaudRate::Kbps250));
 /// 500 kbit/s at the selected board's PCLK1.
-pub const KBPS500: BitTiming = unwrap_timing(for_clock(PCLK1_HZ, BaudRate::Kbps500));
+pub const KBPS500: BitTiming = unwrap_timing(for_clock(TIMING_CLOCK_HZ, BaudRate::Kbps500));
 
 #[cfg(test)]
 mod tests {

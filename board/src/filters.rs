@@ -25,11 +25,15 @@ pub const FILTER_BANK: u8 = 0;
 pub const OFFLINE_FILTER_BANK: u8 = 1;
 
 /// The mask of a Group 2 identifier's group and MAC bits: every message of one MAC.
-pub const OWN_MASK: u16 = 0x7F8;
+pub const OWN_MASK: u16 = if cfg!(feature = "fault-filter") { NOTHING } else { 0x7F8 };
 /// The mask of a Group 2 identifier's group and message bits: one message of every MAC.
-pub const STROBE_MASK: u16 = 0x607;
+pub const STROBE_MASK: u16 = if cfg!(feature = "fault-filter") { NOTHING } else { 0x607 };
 /// The bit-strobe command of any master (Group 2 message 0).
-pub const STROBE_ID: u16 = 0x400;
+pub const STROBE_ID: u16 = if cfg!(feature = "fault-filter") { NOTHING } else { 0x400 };
+/// The self-test's `fault-filter` identifier and mask of the Group 2 bank: 0x7FF exactly, which
+/// CAN 2.0A forbids (the seven most significant bits recessive), so the bank matches nothing (the
+/// Offline Connection Set's bank is left as it is).
+const NOTHING: u16 = 0x7FF;
 /// The Offline Connection Set's request identifiers: Communication Faulted request and offline
 /// ownership request (notes §1.4).
 pub const OFFLINE_REQUESTS: [u16; 2] = [0x7ED, 0x7EF];
@@ -39,6 +43,9 @@ pub const OFFLINE_MASK: u16 = 0x7FF & !(OFFLINE_REQUESTS[0] ^ OFFLINE_REQUESTS[1
 
 /// The identifier of Group 2 message 0 for `mac`; with [`OWN_MASK`], all its Group 2 messages.
 pub const fn own_group2(mac: MacId) -> u16 {
+    if cfg!(feature = "fault-filter") {
+        return NOTHING;
+    }
     0x400 | ((mac.as_raw() as u16) << 3)
 }
 

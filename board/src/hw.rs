@@ -110,6 +110,9 @@ impl Board {
 
         #[cfg(not(feature = "emulated"))]
         let can = dp.CAN1.can((gpiob.pb9, gpiob.pb8), &mut rcc);
+        // The self-test's fault: the HAL's `can()` enables CAN1's clock (RCC_APB1ENR.CAN1EN); undone.
+        #[cfg(all(feature = "fault-can-clock", not(feature = "emulated")))]
+        <pac::CAN1 as Enable>::disable(&mut rcc);
         #[cfg(feature = "emulated")]
         let _ = (gpiob.pb8, gpiob.pb9, dp.CAN1);
 
@@ -326,7 +329,13 @@ impl InstrumentUart {
     /// Opens the instrument port with `format` (the serial profile's line settings); the RS-485
     /// driver starts released (receiving).
     pub fn open(self, format: &LineFormat, rcc: &mut Rcc) -> Result<Rs485, InitError> {
-        let registers = match format.registers(clocks::INSTRUMENT_UART_HZ) {
+        // The self-test's `fault-usart-brr`: the registers computed for half the USART's clock.
+        let clock_hz = if cfg!(feature = "fault-usart-brr") {
+            clocks::INSTRUMENT_UART_HZ / 2
+        } else {
+            clocks::INSTRUMENT_UART_HZ
+        };
+        let registers = match format.registers(clock_hz) {
             Ok(registers) => registers,
             Err(_) if format.word_length().is_err() => return Err(InitError::SerialFormat),
             Err(_) => return Err(InitError::SerialConfig),
@@ -592,7 +601,40 @@ impl SettingsFlash for InternalFlash {
 
     fn program(&mut self, sector: Sector, offset: usize, data: &[u8]) -> Result<(), FlashError> {
         let at = Self::offset(sector, offset, data.len())?;
+        #[cfg(feature = "fault-flash-unlock")]
+        return program_without_unlock(at, data);
+        #[cfg(not(feature = "fault-flash-unlock"))]
         self.flash.unlocked().program(at, data.iter()).map_err(|_| FlashError::Controller)
+    }
+}
+
+/// The self-test's `fault-flash-unlock`: the HAL's byte programming (PSIZE x8, PG, the bytes,
+/// BSY, the error flags) without the FLASH_KEYR sequence, so FLASH_CR stays locked.
+#[cfg(feature = "fault-flash-unlock")]
+fn program_without_unlock(at: usize, data: &[u8]) -> Result<(), FlashError> {
+    // SAFETY: the FLASH registers and the settings sectors' bytes (bounds checked by the caller);
+    // only the self-test's broken builds have this code.
+    let flash = unsafe { &*pac::FLASH::ptr() };
+    flash.cr().modify(|_, w| {
+        w.psize().psize8();
+        w.ser().clear_bit();
+        w.pg().set_bit()
+    });
+    let base = memory::FLASH_BASE as *mut u8;
+    for (i, byte) in data.iter().enumerate() {
+        // SAFETY: as above.
+        unsafe { core::ptr::write_volatile(base.add(at + i), *byte) };
+    }
+    while flash.sr().read().bsy().bit() {}
+    // WRPERR, PGAERR, PGPERR, PGSERR (RM0090 §3.9.4).
+    let errors = flash.sr().read().bits() & 0xF0;
+    // SAFETY: the error flags are cleared by writing 1.
+    flash.sr().write(|w| unsafe { w.bits(errors) });
+    flash.cr().modify(|_, w| w.pg().clear_bit());
+    if errors != 0 {
+        Err(FlashError::Controller)
+    } else {
+        Ok(())
     }
 }
 

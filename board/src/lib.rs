@@ -28,6 +28,7 @@
 //! | `reference` (default), `olimex-p405`, `olimex-p405-rs485`, `nucleo-f446re` | the board (exactly one); it also chooses stm32f4xx-hal's chip feature (`stm32f405` or `stm32f446`) and `memory.x` |
 //! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
+//! | `fault-btr`, `fault-filter`, `fault-can-clock`, `fault-flash-unlock`, `fault-usart-brr` | **self-test only, never in a release build**: each makes one hardware fact wrong (bit timing for half PCLK1; a Group 2 filter bank that matches nothing; CAN1's clock enable undone; flash programmed without the unlock sequence; the instrument USART's BRR for half its clock) so that `scripts/exact-firmware --self-test` can prove a scenario catches it. Such a build has the symbol `BOARD_FAULT_SELF_TEST_ONLY`, and `scripts/firmware-size` refuses an ELF that has it |
 //!
 //! It depends on the protocol core only (for the MAC ID and data rate types); the SLCAN codec the
 //! emulated board speaks is `can_io::slcan`, shared with the host.
@@ -62,4 +63,17 @@ pub mod uid;
 pub mod hw;
 
 pub use settings::{Settings, SettingsStore};
+
+/// Present only in a build with one of the self-test's `fault-*` features (crate docs, Features):
+/// `scripts/firmware-size` looks for this symbol in every ELF it measures and refuses one that has it.
+#[cfg(any(
+    feature = "fault-btr",
+    feature = "fault-filter",
+    feature = "fault-can-clock",
+    feature = "fault-flash-unlock",
+    feature = "fault-usart-brr"
+))]
+#[used]
+#[no_mangle]
+pub static BOARD_FAULT_SELF_TEST_ONLY: u8 = 0;
 pub use switches::{Resolved, SwitchReading};
