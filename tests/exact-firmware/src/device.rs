@@ -37,6 +37,20 @@ use devicenet::{CanFrame, CanId, Instant, MacId};
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
+
+thread_local! {
+    /// The wall-clock instant after which every machine of this thread stops
+    /// ([`set_wall_deadline`]).
+    static WALL_DEADLINE: std::cell::Cell<Option<std::time::Instant>> = const { std::cell::Cell::new(None) };
+}
+
+/// Bounds the wall time of the machines this thread runs from now on: past `deadline` a machine
+/// stops with a fault (`no verdict within the wall-time limit`), so that firmware that keeps the
+/// emulator busy (a register it spins on never changing) ends its scenario with a FAIL instead of
+/// hanging the runner. `None` lifts the bound.
+pub fn set_wall_deadline(deadline: Option<std::time::Instant>) {
+    WALL_DEADLINE.with(|d| d.set(deadline));
+}
 use stm32_emu::bxcan::{Bxcan, Frame, FrameId, TxOutcome, CAN1_BASE};
 use stm32_emu::flash::{CutKind, Flash};
 use stm32_emu::gpio::{Gpio, Port};
@@ -266,6 +280,13 @@ impl EmulatedBoard {
             let mut until = target.min(now + STEP);
             if let Some(at) = self.breaker.poll_at() {
                 until = until.min(self.nanos(at).max(now + 1));
+            }
+            if WALL_DEADLINE.with(|d| d.get()).is_some_and(|d| std::time::Instant::now() >= d) {
+                self.fault = Some(format!(
+                    "no verdict within the wall-time limit, the machine at {} ns (busy, e.g. spinning on a register)",
+                    now
+                ));
+                return;
             }
             match self.mcu.run_for(until - now) {
                 Ok(()) => {}

@@ -4,18 +4,26 @@
 //! ```text
 //! exact-firmware --board reference --elf target/…/slave-fw-firmware-reference [--board … --elf …]
 //! exact-firmware --dir target/thumbv7em-none-eabihf/firmware [--only BOARD] [--scenario NAME]
+//! exact-firmware … [--limit SECONDS]
 //! ```
+//!
+//! `--limit` bounds each scenario's wall time (default 120 s): past it the machine stops and the
+//! scenario fails (`the machine stopped: no verdict within the wall-time limit`), so that a
+//! firmware which keeps the emulator busy fails instead of hanging the runner.
 //!
 //! With `--dir`, the ELFs are the copies scripts/firmware-size makes: `slave-fw-firmware-<board>`
 //! for each board of the board crate.
 
 use exact_firmware::board::BoardKind;
+use exact_firmware::device::set_wall_deadline;
 use exact_firmware::scenario::{self, Options};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 fn usage() -> ExitCode {
-    eprintln!("usage: exact-firmware (--board NAME --elf PATH)... | --dir DIR [--only BOARD]... [--scenario NAME]...");
+    eprintln!(
+        "usage: exact-firmware (--board NAME --elf PATH)... | --dir DIR [--only BOARD]... [--scenario NAME]... [--limit SECONDS]"
+    );
     ExitCode::from(2)
 }
 
@@ -26,6 +34,7 @@ fn main() -> ExitCode {
     let mut dir: Option<PathBuf> = None;
     let mut only: Vec<String> = Vec::new();
     let mut scenarios: Vec<String> = Vec::new();
+    let mut limit = std::time::Duration::from_secs(120);
     while let Some(arg) = args.next() {
         let Some(value) = args.next() else { return usage() };
         match arg.as_str() {
@@ -37,6 +46,10 @@ fn main() -> ExitCode {
             "--dir" => dir = Some(PathBuf::from(value)),
             "--only" => only.push(value),
             "--scenario" => scenarios.push(value),
+            "--limit" => match value.parse() {
+                Ok(seconds) => limit = std::time::Duration::from_secs(seconds),
+                Err(_) => return usage(),
+            },
             _ => return usage(),
         }
     }
@@ -64,7 +77,10 @@ fn main() -> ExitCode {
             });
         for s in &chosen {
             let outcome = match &loaded {
-                Ok((kind, elf)) => scenario::run(s, *kind, elf, &Options::default()),
+                Ok((kind, elf)) => {
+                    set_wall_deadline(Some(std::time::Instant::now() + limit));
+                    scenario::run(s, *kind, elf, &Options::default())
+                }
                 Err(why) => {
                     scenario::Outcome { board: name.clone(), scenario: s.name, result: Err(why.clone()) }
                 }
