@@ -389,6 +389,23 @@ fn to_devicenet(frame: &Frame) -> Option<CanFrame> {
     }
 }
 
+impl EmulatedBoard {
+    /// Runs the machine up to `now`, the bus's time; false when the board is off (not powered
+    /// yet, or its power was cut, now or earlier: what it had queued is then lost).
+    fn catch_up(&mut self, now: Instant) -> bool {
+        if self.epoch.is_none() || self.power_cut.is_some() {
+            return false;
+        }
+        let t = self.nanos(now);
+        self.run_to(t);
+        if self.power_cut.is_some() {
+            self.outbox.clear();
+            return false;
+        }
+        true
+    }
+}
+
 impl SimDevice for EmulatedBoard {
     fn mac(&self) -> MacId {
         self.setting.mac
@@ -405,13 +422,7 @@ impl SimDevice for EmulatedBoard {
     }
 
     fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
-        if self.epoch.is_none() || self.power_cut.is_some() {
-            return;
-        }
-        let t = self.nanos(now);
-        self.run_to(t);
-        if self.power_cut.is_some() {
-            self.outbox.clear();
+        if !self.catch_up(now) {
             return;
         }
         let Some(frame) =
@@ -429,13 +440,7 @@ impl SimDevice for EmulatedBoard {
     }
 
     fn handle_timeout(&mut self, now: Instant) {
-        if self.epoch.is_none() || self.power_cut.is_some() {
-            return;
-        }
-        let t = self.nanos(now);
-        self.run_to(t);
-        if self.power_cut.is_some() {
-            self.outbox.clear();
+        if !self.catch_up(now) {
             return;
         }
         self.note_errors();
