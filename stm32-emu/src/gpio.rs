@@ -417,6 +417,7 @@ impl Peripheral for Gpio {
 
     fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32 {
         if !machine.clock_enabled(self.port.clock_gate()) {
+            machine.unclocked_access(self.port.clock_gate());
             return 0;
         }
         let word = self.read_register(offset & !3);
@@ -425,6 +426,7 @@ impl Peripheral for Gpio {
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
         if !machine.clock_enabled(self.port.clock_gate()) {
+            machine.unclocked_access(self.port.clock_gate());
             return;
         }
         let (offset, mask, value) = lanes(offset, width, value);

@@ -47,9 +47,13 @@
 //! What would be a BusFault, UsageFault or HardFault on the chip (an access to an unmapped
 //! address or to a peripheral address no model answers, an undefined instruction, a bad
 //! EXC_RETURN) stops the run with a [`Fault`] naming the address and the instruction; the
-//! firmware's fault handlers are not run.
+//! firmware's fault handlers are not run. An access to a peripheral whose RCC clock enable bit
+//! is clear is no fault on the chip (it reads 0, a write is lost, and the model answers so), but
+//! the machine stops after it too, with [`Fault::Unclocked`] naming the peripheral, the register
+//! and the enable bit: firmware that touches a peripheral it has not clocked is broken, and would
+//! otherwise spin on a flag that never rises.
 
-use crate::cpu::bus::{Bus, FLASH_BASE, FLASH_SIZE};
+use crate::cpu::bus::{Bus, UnclockedAccess, FLASH_BASE, FLASH_SIZE};
 use crate::cpu::core::{Core, CoreFault, MemoryMap, Return, SliceEnd};
 use crate::cpu::scs::{exception, Scs};
 use crate::periph::{Clocks, Machine, Nanos, Peripheral, ResetKind};
@@ -107,6 +111,11 @@ pub enum Fault {
         /// The time of the cut.
         at: Nanos,
     },
+    /// The firmware accessed a peripheral whose RCC clock enable bit was clear: the model
+    /// answered as the chip does (read 0, write lost, [`crate::periph`]'s module docs) and the
+    /// machine stopped after the access, since firmware never means it (a clock it forgot to
+    /// enable).
+    Unclocked(UnclockedAccess),
 }
 
 impl fmt::Display for Fault {
@@ -139,6 +148,13 @@ impl fmt::Display for Fault {
             }
             Fault::Elf(e) => write!(f, "ELF: {e}"),
             Fault::PowerCut { at } => write!(f, "power cut at {at} ns (planned in the FLASH model)"),
+            Fault::Unclocked(UnclockedAccess { peripheral, address, gate, pc, write }) => {
+                let (kind, result) = if *write { ("store to", "lost") } else { ("load from", "read 0") };
+                write!(
+                    f,
+                    "{kind} {peripheral} register {address:#010x} with its clock off ({gate} clear; {result}) at pc {pc:#010x}"
+                )
+            }
         }
     }
 }
@@ -314,9 +330,12 @@ impl Stm32 {
     pub fn read_peripheral(&mut self, address: u32) -> Option<u32> {
         let bus = self.core.bus_mut();
         let before = bus.error;
+        let unclocked = bus.unclocked;
         let value = bus.peripheral_read(address, crate::periph::Width::Word);
         let missing = bus.error != before;
         bus.error = before;
+        // A debugger's read of an unclocked peripheral reads 0 too, but is not the firmware's.
+        bus.unclocked = unclocked;
         bus.stop_requested = false;
         (!missing).then_some(value)
     }
@@ -381,6 +400,10 @@ impl Stm32 {
     /// One step: a pending system reset, an exception to take, then a slice of instructions
     /// or of sleep.
     fn step(&mut self, end: Nanos) -> Result<(), Fault> {
+        // The machine stays stopped on an unclocked access (as on a bus error).
+        if let Some(access) = self.core.bus().unclocked {
+            return Err(Fault::Unclocked(access));
+        }
         if self.core.bus_mut().scs.take_reset_request() {
             return self.system_reset();
         }
@@ -400,6 +423,9 @@ impl Stm32 {
             return Err(Fault::PowerCut { at });
         }
         let outcome = outcome?;
+        if let Some(access) = self.core.bus().unclocked {
+            return Err(Fault::Unclocked(access));
+        }
         if self.core.fp_used_while_disabled() {
             return Err(Fault::Core(CoreFault::NoCoprocessor { pc: self.pc() }));
         }

@@ -5,6 +5,23 @@
 //! [`Peripheral::read`] or [`Peripheral::write`] with the access size. Time moves only through
 //! [`Peripheral::advance`]. What a model needs from the rest of the chip (the bus clocks set by
 //! RCC, its interrupt lines to the NVIC) it gets through [`Machine`].
+//!
+//! # A peripheral whose clock is off
+//!
+//! Every model with an RCC enable bit answers an access while that bit is clear as the chip
+//! does: a read returns 0 and a write is lost. ST's reference manuals say so in the note on
+//! their RCC peripheral clock enable registers ("When the peripheral clock is not active, the
+//! peripheral register values may not be readable by software and the returned value is always
+//! 0x0", e.g. RM0091 §6.4.6 `RCC_AHBENR`); RM0090 §7.3.10, §7.3.13 and §7.3.14 give the enable
+//! bits of the STM32F405 (RM0390 §6.3 those of the F446) without that note, and the STM32F40x
+//! errata (ES0182, DocID022183 rev 8 §2.1.13 "Delay after an RCC peripheral clock enabling")
+//! describe writes that reach a peripheral before its clock runs as not taken into account. Such an access is never what
+//! firmware means, so the model also tells the machine ([`Machine::unclocked_access`]), which
+//! stops and names the peripheral, the register address and the enable bit
+//! (`crate::machine::Fault::Unclocked`) instead of letting the firmware spin on a register
+//! that reads 0 forever.
+
+use std::fmt;
 
 /// The width of one bus access.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,6 +80,57 @@ pub enum ClockGate {
     Apb2(u8),
 }
 
+impl ClockGate {
+    /// The RCC register that holds the gate's enable bit.
+    pub const fn register(self) -> &'static str {
+        match self {
+            ClockGate::Ahb1(_) => "RCC_AHB1ENR",
+            ClockGate::Apb1(_) => "RCC_APB1ENR",
+            ClockGate::Apb2(_) => "RCC_APB2ENR",
+        }
+    }
+
+    /// The bit's number in [`ClockGate::register`].
+    pub const fn bit(self) -> u8 {
+        match self {
+            ClockGate::Ahb1(bit) | ClockGate::Apb1(bit) | ClockGate::Apb2(bit) => bit,
+        }
+    }
+
+    /// The enable bit's name in RM0090 §7.3.10, §7.3.13 and §7.3.14 (`"CAN1EN"`), for the bits
+    /// of the peripherals the models cover and their neighbours; `None` for the others.
+    pub const fn bit_name(self) -> Option<&'static str> {
+        const AHB1: [&str; 9] = [
+            "GPIOAEN", "GPIOBEN", "GPIOCEN", "GPIODEN", "GPIOEEN", "GPIOFEN", "GPIOGEN", "GPIOHEN", "GPIOIEN",
+        ];
+        match self {
+            ClockGate::Ahb1(bit) if (bit as usize) < AHB1.len() => Some(AHB1[bit as usize]),
+            ClockGate::Apb1(11) => Some("WWDGEN"),
+            ClockGate::Apb1(17) => Some("USART2EN"),
+            ClockGate::Apb1(18) => Some("USART3EN"),
+            ClockGate::Apb1(19) => Some("UART4EN"),
+            ClockGate::Apb1(20) => Some("UART5EN"),
+            ClockGate::Apb1(25) => Some("CAN1EN"),
+            ClockGate::Apb1(26) => Some("CAN2EN"),
+            ClockGate::Apb1(28) => Some("PWREN"),
+            ClockGate::Apb2(4) => Some("USART1EN"),
+            ClockGate::Apb2(5) => Some("USART6EN"),
+            ClockGate::Apb2(14) => Some("SYSCFGEN"),
+            _ => None,
+        }
+    }
+}
+
+/// `RCC_APB1ENR.CAN1EN (bit 25)`, or `RCC_APB1ENR bit 27` for a bit without a name here.
+impl fmt::Display for ClockGate {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.bit_name() {
+            Some(name) => write!(f, "{}.{name} (bit {})", self.register(), self.bit()),
+            None => write!(f, "{} bit {}", self.register(), self.bit()),
+        }
+    }
+}
+
 /// Which reset the machine performs (RM0090 §7.1 "Reset").
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ResetKind {
@@ -97,6 +165,12 @@ pub trait Machine {
     /// to FLASH_KEYR "generates a bus error"). The machine stops and reports the access; the
     /// default ignores it.
     fn bus_error(&mut self) {}
+    /// The model refused the access being answered because `gate`, its RCC clock enable bit,
+    /// is clear (a read returned 0, a write was lost: see the [module docs](self)). The machine
+    /// stops after the access and reports it with the address; the default ignores it.
+    fn unclocked_access(&mut self, gate: ClockGate) {
+        let _ = gate;
+    }
     /// The power fails during the access being answered (a planned power cut of the FLASH
     /// model, [`crate::flash::Flash::plan_power_cut`]): the machine stops the core after it and
     /// reports the cut. The default ignores it.

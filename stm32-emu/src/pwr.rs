@@ -91,6 +91,7 @@ impl Peripheral for Pwr {
 
     fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32 {
         if !machine.clock_enabled(CLOCK) {
+            machine.unclocked_access(CLOCK);
             return 0;
         }
         let word = match offset & !3 {
@@ -103,6 +104,7 @@ impl Peripheral for Pwr {
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
         if !machine.clock_enabled(CLOCK) {
+            machine.unclocked_access(CLOCK);
             return;
         }
         let (offset, mask, value) = lanes(offset, width, value);

@@ -455,6 +455,7 @@ impl Peripheral for Usart {
 
     fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32 {
         if !machine.clock_enabled(self.id.clock_gate()) {
+            machine.unclocked_access(self.id.clock_gate());
             return 0;
         }
         self.fck = self.bus_clock(machine);
@@ -466,6 +467,7 @@ impl Peripheral for Usart {
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
         if !machine.clock_enabled(self.id.clock_gate()) {
+            machine.unclocked_access(self.id.clock_gate());
             return;
         }
         self.fck = self.bus_clock(machine);

@@ -445,6 +445,7 @@ impl Peripheral for Bxcan {
 
     fn read(&mut self, offset: u32, width: Width, machine: &mut dyn Machine) -> u32 {
         if !machine.clock_enabled(CAN1_CLOCK) {
+            machine.unclocked_access(CAN1_CLOCK);
             return 0;
         }
         let word = self.read_word(offset & !3);
@@ -457,7 +458,11 @@ impl Peripheral for Bxcan {
     }
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
-        if !machine.clock_enabled(CAN1_CLOCK) || width != Width::Word || offset & 3 != 0 {
+        if !machine.clock_enabled(CAN1_CLOCK) {
+            machine.unclocked_access(CAN1_CLOCK);
+            return;
+        }
+        if width != Width::Word || offset & 3 != 0 {
             return;
         }
         self.sync(machine.now(), machine);

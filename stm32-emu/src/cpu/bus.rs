@@ -38,6 +38,22 @@ pub struct BusError {
     pub write: bool,
 }
 
+/// An access a model refused because its peripheral's RCC clock enable bit was clear
+/// ([`Machine::unclocked_access`]; what the chip does, [`crate::periph`]'s module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnclockedAccess {
+    /// The model's name (`"bxCAN1"`).
+    pub peripheral: &'static str,
+    /// The register's address.
+    pub address: u32,
+    /// The enable bit that was clear.
+    pub gate: ClockGate,
+    /// The address of the instruction that made the access.
+    pub pc: u32,
+    /// Whether it was a store (lost) rather than a load (which read 0).
+    pub write: bool,
+}
+
 /// One peripheral model and the register block it answers.
 struct Slot {
     base: u32,
@@ -79,6 +95,11 @@ pub struct Bus {
     pub power_cut: Option<Nanos>,
     /// The model answering the current access reported a bus error ([`Machine::bus_error`]).
     model_bus_error: bool,
+    /// The model answering the current access refused it, its clock gate closed
+    /// ([`Machine::unclocked_access`]).
+    model_unclocked: Option<ClockGate>,
+    /// The first access a model refused for want of its clock; the machine stops on it.
+    pub unclocked: Option<UnclockedAccess>,
     /// An access asked the core to stop after the current instruction (an exception became
     /// pending, a reset was requested, the flash array changed).
     pub stop_requested: bool,
@@ -101,6 +122,8 @@ impl Bus {
             masks: Masks::default(),
             error: None,
             model_bus_error: false,
+            model_unclocked: None,
+            unclocked: None,
             stalled: 0,
             power_cut: None,
             interrupt: None,
@@ -213,6 +236,7 @@ impl Bus {
         if core::mem::take(&mut self.model_bus_error) {
             self.fault(address, false);
         }
+        self.note_unclocked(i, address, false);
         value
     }
 
@@ -237,6 +261,18 @@ impl Bus {
         if core::mem::take(&mut self.model_bus_error) {
             self.fault(address, true);
         }
+        self.note_unclocked(i, address, true);
+    }
+
+    /// Records the access to model `i` at `address` as refused for want of its clock, if the
+    /// model said so, and asks the core to stop.
+    fn note_unclocked(&mut self, i: usize, address: u32, write: bool) {
+        let Some(gate) = self.model_unclocked.take() else { return };
+        if self.unclocked.is_none() {
+            let peripheral = self.slots[i].model.as_ref().map_or("?", |m| m.name());
+            self.unclocked = Some(UnclockedAccess { peripheral, address, gate, pc: self.pc, write });
+        }
+        self.stop_requested = true;
     }
 
     /// A CPU store into the flash array (`offset` from [`FLASH_BASE`]), offered to the models
@@ -391,6 +427,10 @@ impl Machine for Bus {
 
     fn bus_error(&mut self) {
         self.model_bus_error = true;
+    }
+
+    fn unclocked_access(&mut self, gate: ClockGate) {
+        self.model_unclocked = Some(gate);
     }
 
     fn stall(&mut self, nanos: Nanos) {
