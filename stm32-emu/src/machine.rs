@@ -183,6 +183,9 @@ pub struct Stm32 {
     entries: Vec<u64>,
     returns: Vec<u64>,
     resets: u32,
+    /// Instructions executed since the machine was built, and those of them in handler mode.
+    instructions: u64,
+    handler_instructions: u64,
 }
 
 impl Stm32 {
@@ -201,6 +204,8 @@ impl Stm32 {
             entries: vec![0; 16 + crate::cpu::scs::MAX_IRQS],
             returns: vec![0; 16 + crate::cpu::scs::MAX_IRQS],
             resets: 0,
+            instructions: 0,
+            handler_instructions: 0,
         })
     }
 
@@ -365,6 +370,31 @@ impl Stm32 {
         self.returns.get(usize::from(number)).copied().unwrap_or(0)
     }
 
+    /// Instructions the core executed since the machine was built (the machine's own count,
+    /// one per instruction the emulator ran; time advances one HCLK cycle for each, see the
+    /// [module docs](self)). Sleep adds none.
+    pub const fn instructions(&self) -> u64 {
+        self.instructions
+    }
+
+    /// The part of [`Stm32::instructions`] executed in handler mode (an exception or interrupt
+    /// handler active: with RTIC, every task of an application without an idle task). A slice
+    /// of instructions never spans an exception entry or return, so each is counted whole in
+    /// one mode or the other. Exception entry and return themselves (stacking, vector fetch,
+    /// 12 cycles or more on a Cortex-M4) are not instructions and are not counted; see
+    /// [`Stm32::exceptions_taken`].
+    pub const fn handler_instructions(&self) -> u64 {
+        self.handler_instructions
+    }
+
+    /// Counts `executed` instructions of the slice that just ran in the mode it ran in.
+    fn count_instructions(&mut self, executed: u64) {
+        self.instructions += executed;
+        if self.core.bus().scs.current() != 0 {
+            self.handler_instructions += executed;
+        }
+    }
+
     /// Whether the core sleeps (WFI, WFE, an idle loop).
     pub const fn sleeping(&self) -> bool {
         self.sleeping
@@ -417,6 +447,7 @@ impl Stm32 {
         let budget = self.slice_budget(end);
         let outcome = self.core.run(budget);
         let executed = self.core.bus().executed;
+        self.count_instructions(executed);
         self.account(executed);
         self.core.refresh_flash();
         if let Some(at) = self.core.bus_mut().power_cut.take() {
@@ -484,7 +515,9 @@ impl Stm32 {
                 break;
             }
             let outcome = self.core.run(1);
-            self.account(self.core.bus().executed);
+            let executed = self.core.bus().executed;
+            self.count_instructions(executed);
+            self.account(executed);
             outcome?;
         }
         self.core.enter_exception(number)?;

@@ -43,6 +43,17 @@ fn systick_is_taken_and_returns_with_the_context_restored() {
 }
 
 #[test]
+fn instructions_are_counted_and_the_handlers_apart() {
+    let mut mcu = machine(&mut systick_program(), &[(SYSTICK, FLASH + 0x400)]);
+    mcu.run_for(1_000_000).expect("runs");
+    let count = u64::from(word(&mcu, COUNTER));
+    // The handler is six instructions: LDR (literal), LDR, ADDS, STR, VMOV, BX LR.
+    assert_eq!(mcu.handler_instructions(), 6 * count);
+    // At 16 MHz, one instruction a cycle: 1 ms is 16,000 instructions, handlers included.
+    assert!((15_990..=16_010).contains(&mcu.instructions()), "{}", mcu.instructions());
+}
+
+#[test]
 fn exception_entry_stacks_the_frame_and_sets_exc_return() {
     let mut mcu = machine(&mut systick_program(), &[(SYSTICK, FLASH + 0x400)]);
     let handler = FLASH + 0x400;
