@@ -20,8 +20,6 @@
 //! accepted, Release), Release poll and explicit. A device that another master owns refuses the
 //! first allocation; that is an error, not a disagreement.
 
-use crate::model::{ConnectionInfo, Eds, IoEntry, Param};
-use crate::value::{AttributePath, ConnectionMask, DataType, LinkPath, Value};
 use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::log::LogWriter;
 use converter_sim::{OpenError, SimSetup};
@@ -29,6 +27,8 @@ use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, MacId};
+use eds::model::{ConnectionInfo, Eds, IoEntry, Param};
+use eds::value::{AttributePath, ConnectionMask, DataType, LinkPath, Value};
 use master_core::client::{Port, ReplyBody};
 use master_core::decode;
 use master_core::error::MasterError;
@@ -793,7 +793,7 @@ mod tests {
 
     #[test]
     fn expected_reads_keys_and_announcements() {
-        let eds = crate::parse_str(
+        let eds = eds::parse_str(
             "[Device]\nVendCode = 283; ProdType = 12; ProdCode = 34; MajRev = 5; MinRev = 4;\n\
              [IO_Info]\nDefault = 0x0001;\nPollInfo = 0x0005, 1, 2;\nCOSInfo = 0x0005, 1, 0;\n\
              Input1 = 10, 80, 0x0005, \"in\", 6, \"20 04 24 65 30 03\", \"\";\n\

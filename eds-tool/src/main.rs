@@ -9,10 +9,10 @@
 use can_io::bus::{Bitrate, BusSpec};
 use clap::{Parser, Subcommand};
 use devicenet::{Duration, MacId};
-use eds::device::{check_on_bus, BusOptions, CheckOptions, DeviceError};
 use eds::generate::{generate_text, GenerateOptions, DEFAULT_DATE, DEFAULT_REVISION};
 use eds::value::{Date, Revision};
 use eds::{check_file, format_file, read_file, EdsError, Summary};
+use eds_tool::device::{check_on_bus, BusOptions, CheckOptions, DeviceError};
 use master_core::error::MasterError;
 use slave_fw::description::DeviceDescription;
 use std::io::Write as _;

@@ -8,7 +8,7 @@ const EXTENDED: &str =
 const NETX90: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/eds-corpus/hilscher_netx90_dns.eds");
 
 fn corpus(name: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(name).display().to_string()
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../eds/tests/corpus").join(name).display().to_string()
 }
 
 fn description(name: &str) -> String {
@@ -21,7 +21,7 @@ fn description(name: &str) -> String {
 
 fn golden(name: &str) -> String {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/golden")
+        .join("../eds/tests/golden")
         .join(format!("{name}.eds"))
         .display()
         .to_string()

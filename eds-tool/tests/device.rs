@@ -6,10 +6,10 @@ use can_io::bus::{Bitrate, BusSpec};
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
 use devicenet::MacId;
-use eds::device::DeviceError;
-use eds::device::{check_device, check_on_bus, BusOptions, CheckOptions, Verdict};
 use eds::generate::{generate_text, GenerateOptions};
 use eds::Eds;
+use eds_tool::device::DeviceError;
+use eds_tool::device::{check_device, check_on_bus, BusOptions, CheckOptions, Verdict};
 use master_core::error::MasterError;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
@@ -40,7 +40,7 @@ fn sim(name: &str) -> BusOptions {
     }
 }
 
-fn check(eds: &Eds, name: &str, params: bool) -> eds::DeviceReport {
+fn check(eds: &Eds, name: &str, params: bool) -> eds_tool::DeviceReport {
     let options = CheckOptions { params, ..CheckOptions::default() };
     check_on_bus(eds, &sim(name), &options, None).unwrap()
 }

@@ -28,6 +28,7 @@
 //! how-many-th entry of that keyword.
 
 use crate::diag::Span;
+use crate::error::ParseError;
 use crate::lexer::Comment;
 use crate::model::entry_key;
 use crate::raw::{normalize_name, RawEds};
@@ -88,6 +89,23 @@ struct Anchor {
 enum Key {
     Section((String, usize)),
     Entry((String, String, usize)),
+}
+
+impl RawEds {
+    /// Parses decoded text and attaches its `$` comments to sections and entries (this module's
+    /// docs say how).
+    ///
+    /// # Errors
+    ///
+    /// The first syntax error in the text.
+    pub fn parse_with_comments(text: &str) -> Result<(RawEds, Comments), ParseError> {
+        let parsed = RawEds::parse_all(text);
+        if let Some(error) = parsed.errors.into_iter().next() {
+            return Err(error);
+        }
+        let comments = attach(&parsed.raw, &parsed.entry_ends, parsed.comments);
+        Ok((parsed.raw, comments))
+    }
 }
 
 /// Attaches `comments` (in file order) to the sections and entries of `raw`; `ends` holds where

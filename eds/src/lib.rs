@@ -1,9 +1,10 @@
 //! # eds
 //!
 //! DeviceNet Electronic Data Sheets (EDS): read real vendor files, check them, write them
-//! deterministically, generate the EDS of our converter from its device description, and check a
-//! device on the bus against an EDS. The `dnet-eds` command-line tool (`src/main.rs`) is a thin
-//! shell over this library.
+//! deterministically, and generate the EDS of our converter from its device description. The
+//! `dnet-eds` command-line tool (crate `eds-tool`) is a thin shell over this library; its
+//! `check-device`, a device on the bus against an EDS, lives there too, so this file-format crate
+//! depends on no bus crate.
 //!
 //! ## Layers
 //!
@@ -17,12 +18,10 @@
 //! | checks | [`mod@check`] | [`Eds`] + [`RawEds`] → [`Report`] of [`Diagnostic`]s, errors vs warnings |
 //! | writer | [`mod@write`] | [`Eds`] (+ [`Comments`]) → EDS text, deterministic; [`format()`] for files |
 //! | generator | [`mod@generate`] | device description ([`slave_fw::description`]) → [`Eds`] → text |
-//! | device check | [`device`] | [`Eds`] + a device on a bus (through `master_core`, the master's protocol layer; never the harness) → [`DeviceReport`] of disagreements |
 //!
 //! Each layer only depends on the ones above it; each can be used alone (a tool that only needs
-//! sections can stop at [`RawEds`]). Only the last two depend on the rest of the workspace: the
-//! generator on `slave-fw` (the description and the converter's objects), the device check on
-//! `master-harness` (the buses and the master).
+//! sections can stop at [`RawEds`]). Only the generator depends on the rest of the workspace: on
+//! `slave-fw` (the description and the converter's objects).
 //!
 //! ## Dialect coverage
 //!
@@ -76,15 +75,12 @@
 //! Every entry point accepts any bytes and returns a value or an error; no input makes the
 //! library panic, recurse without bound or allocate without bound ([`limits`]). A property test
 //! feeds arbitrary bytes through every layer. The generator takes a description validated by
-//! `slave_fw` and does only checked or saturating arithmetic on it; the device check treats every
-//! answer from the bus as untrusted (wrong lengths, error responses and malformed strings become
-//! findings, a silent device an error).
+//! `slave_fw` and does only checked or saturating arithmetic on it.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod check;
 pub mod comments;
-pub mod device;
 pub mod diag;
 pub mod error;
 pub mod generate;
@@ -99,7 +95,6 @@ pub mod write;
 
 pub use check::{check, check_file, check_str, Report};
 pub use comments::Comments;
-pub use device::{check_device, DeviceReport, Finding};
 pub use diag::{Diagnostic, Rule, Severity, Span};
 pub use error::{EdsError, ParseError, SyntaxError};
 pub use generate::{generate, generate_text, GenerateOptions};

@@ -18,15 +18,15 @@
 //! nothing else is reported until the next entry or section starts; anything else unexpected skips to the next `;` or
 //! section.
 //!
-//! `$` comments are not part of [`RawEds`]; [`RawEds::parse_with_comments`] also returns them,
-//! attached to sections and entries as [`crate::comments`] describes.
+//! `$` comments are not part of [`RawEds`]; the parser keeps them with the entries' ends
+//! (`Parsed`), and [`RawEds::parse_with_comments`] (in the comments module, which builds on this
+//! one) attaches them to sections and entries.
 //! Input size, section, entry, field and nesting counts are capped ([`crate::limits`]); hitting a
 //! cap stops the parse with a [`SyntaxError::TooMany`] or [`SyntaxError::TooDeep`] error.
 
-use crate::comments::{self, Comments};
 use crate::diag::Span;
 use crate::error::{ParseError, SyntaxError};
-use crate::lexer::{Lexer, Tok, Token};
+use crate::lexer::{Comment, Lexer, Tok, Token};
 use crate::limits::{MAX_ENTRIES, MAX_FIELDS, MAX_NESTING, MAX_SECTIONS};
 use serde::Serialize;
 
@@ -97,36 +97,36 @@ impl FieldValue {
     }
 }
 
+/// One pass of the parser over a text, before the comments are attached.
+pub(crate) struct Parsed {
+    /// The sections found.
+    pub(crate) raw: RawEds,
+    /// Where each entry ends, in file order.
+    pub(crate) entry_ends: Vec<Span>,
+    /// The `$` comments, in file order.
+    pub(crate) comments: Vec<Comment>,
+    /// Every syntax error, by position.
+    pub(crate) errors: Vec<ParseError>,
+}
+
 impl RawEds {
     /// Parses decoded text, recovering from errors: the sections found, and every syntax error
     /// (empty when the text is well-formed).
     pub fn parse_lenient(text: &str) -> (RawEds, Vec<ParseError>) {
-        let (raw, _, errors) = RawEds::parse_all(text);
-        (raw, errors)
+        let parsed = RawEds::parse_all(text);
+        (parsed.raw, parsed.errors)
     }
 
-    /// Parses decoded text and attaches its `$` comments to sections and entries
-    /// ([`crate::comments`]).
-    ///
-    /// # Errors
-    ///
-    /// The first syntax error in the text.
-    pub fn parse_with_comments(text: &str) -> Result<(RawEds, Comments), ParseError> {
-        let (raw, comments, errors) = RawEds::parse_all(text);
-        match errors.into_iter().next() {
-            Some(error) => Err(error),
-            None => Ok((raw, comments)),
-        }
-    }
-
-    fn parse_all(text: &str) -> (RawEds, Comments, Vec<ParseError>) {
+    /// Parses decoded text, keeping what the comments layer needs: the sections, where each entry
+    /// ends, the `$` comments and every syntax error.
+    pub(crate) fn parse_all(text: &str) -> Parsed {
         let mut parser = Parser::new(text);
         let raw = parser.file();
         let mut errors = parser.errors;
         errors.extend(parser.lexer.take_errors());
         errors.sort_by_key(|e| e.span);
-        let comments = comments::attach(&raw, &parser.entry_ends, parser.lexer.take_comments());
-        (raw, comments, errors)
+        let comments = parser.lexer.take_comments();
+        Parsed { raw, entry_ends: parser.entry_ends, comments, errors }
     }
 
     /// Parses decoded text.
