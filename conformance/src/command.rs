@@ -29,11 +29,11 @@
 //! written, 128 + the signal when interrupted.
 
 use super::{html, report, Category, CheckResult, Observer, Stopped, SuiteOptions, CHECKS};
-use crate::console::Progress;
-use crate::error::HarnessError;
 use can_io::bus::Bus;
 use can_io::log::LogWriter;
 use devicenet::{Duration, MacId};
+use harness_common::console::Progress;
+use harness_common::error::HarnessError;
 use master_core::master::MasterConfig;
 use master_core::session::{Record, Session};
 use master_core::stop::Stop;

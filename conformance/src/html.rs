@@ -387,7 +387,7 @@ fn header(s: &mut String, report: &SuiteReport) {
         &format!("{} (second master used by the tests: {})", report.master, report.second_master),
     );
     row("date and time (UTC)", &report.started);
-    row("tool", &format!("dnet-master {}", crate::version()));
+    row("tool", &format!("dnet-master {}", harness_common::version()));
     row("transport", &report.transport);
     row("timestamps", report.timestamps.description());
     row("bus time", &super::report::seconds(report.duration));

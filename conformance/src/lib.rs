@@ -1,3 +1,5 @@
+//! # dnet-conformance
+//!
 //! The conformance suite (`dnet-master conformance --mac N`): the checks a scanner and a
 //! conformance lab apply to a group-2-only DeviceNet slave, run against any such device on any bus,
 //! category by category, each citing the section of `../shared/devicenet-notes.md` it checks.
@@ -57,7 +59,7 @@
 //! ```
 //! use can_io::bus::Bitrate;
 //! use can_io::sim::{PowerOn, SimBus};
-//! use master_harness::conformance::{self, SuiteOptions};
+//! use dnet_conformance::{self as conformance, SuiteOptions};
 //! use master_core::master::MasterConfig;
 //! use master_core::session::Session;
 //! use converter_sim::device::SoftSlave;
@@ -70,6 +72,9 @@
 //! assert_eq!(report.failed(), 0);
 //! ```
 
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
 mod checks;
 pub mod command;
 pub mod html;
@@ -78,8 +83,8 @@ pub mod report;
 mod runner;
 pub mod self_test;
 
-use crate::error::HarnessError;
 use devicenet::{Duration, MacId};
+use harness_common::error::HarnessError;
 use master_core::error::MasterError;
 use master_core::master::MasterConfig;
 use master_core::session::{Record, Session};

@@ -7,8 +7,8 @@
 //! whole report of a finished run the same way.
 
 use super::{Category, CheckResult, Grade, Stopped, SuiteReport, Timestamps};
-use crate::table::{print_table, record_json, RecordJson};
 use devicenet::{Duration, MacId};
+use harness_common::table::{print_table, record_json, RecordJson};
 use master_core::session::Record;
 use serde_json::json;
 use std::io::{self, Write};
@@ -34,7 +34,7 @@ pub fn report_json(report: &SuiteReport) -> serde_json::Value {
     };
     json!({
         "ok": report.passed(),
-        "version": crate::version(),
+        "version": harness_common::version(),
         "started": report.started,
         "device": report.target.as_raw(),
         "master": report.master.as_raw(),
@@ -99,7 +99,7 @@ pub fn write_header(
     writeln!(
         out,
         "dnet-master {} conformance: device MAC {target}, master MAC {master}, transport {transport}",
-        crate::version()
+        harness_common::version()
     )?;
     writeln!(out, "timestamps: {}", timestamps.description())
 }

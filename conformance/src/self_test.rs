@@ -14,7 +14,7 @@
 //!
 //! ```
 //! use master_core::master::MasterConfig;
-//! use master_harness::conformance::self_test;
+//! use dnet_conformance::self_test;
 //! use can_io::bus::Bitrate;
 //!
 //! let report = self_test::run(MasterConfig::default(), Bitrate::K250, &mut ()).unwrap();
@@ -23,11 +23,11 @@
 
 use super::mutants::{Mutant, MUTANTS};
 use super::{run as run_suite, Grade, SuiteOptions, SuiteReport};
-use crate::error::HarnessError;
 use can_io::bus::Bitrate;
 use can_io::sim::{PowerOn, SimBus, SimDevice};
 use converter_sim::device::SoftSlave;
 use devicenet::MacId;
+use harness_common::error::HarnessError;
 use master_core::master::MasterConfig;
 use master_core::session::Session;
 use serde_json::{json, Value};
@@ -404,7 +404,7 @@ pub fn render_html(report: &SelfTestReport) -> String {
     let _ = write!(
         s,
         "<p class=\"section\">dnet-master {} on the simulated bus; the device at MAC {DEVICE_MAC}. Each mutant is the reference device with one deliberate fault. A green cell: the mutant's target check fails against it; a light cell: another check fails against it; a red cell: its target check passed (the mutant is not caught).</p>",
-        escape(crate::version())
+        escape(harness_common::version())
     );
     s.push_str("<h2>Matrix</h2><table class=\"matrix\"><tr><th>check</th>");
     for (k, m) in report.mutants.iter().enumerate() {

@@ -56,6 +56,26 @@ pub enum HarnessError {
     Divergence(Box<Divergence>),
 }
 
+impl HarnessError {
+    /// The exit status of `dnet-master` for this error: 2 for usage and configuration errors (bad
+    /// option or file, a description refused, an output file that cannot be written), 128 + the
+    /// signal for an interruption, 1 for everything the device or the bus did.
+    #[must_use]
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            HarnessError::Usage(_)
+            | HarnessError::Log(_)
+            | HarnessError::Description(_)
+            | HarnessError::Write { .. }
+            | HarnessError::Master(MasterError::Invalid(_)) => 2,
+            HarnessError::Master(MasterError::Interrupted { signal }) => {
+                master_core::stop::exit_status(*signal)
+            }
+            _ => 1,
+        }
+    }
+}
+
 impl From<BusError> for HarnessError {
     fn from(e: BusError) -> HarnessError {
         HarnessError::Master(MasterError::Bus(e))
@@ -75,7 +95,7 @@ pub struct ShownFrame {
     pub meaning: String,
 }
 
-/// Where and how a replay (`crate::replay`) left its transcript.
+/// Where and how a replay (`master_harness::replay`) left its transcript.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct Divergence {
     /// 0-based index of the transcript frame at which it happened.

@@ -9,7 +9,7 @@ use std::io::Write;
 
 /// One record as JSON (the `--json` output of every command and the conformance report).
 #[derive(Serialize)]
-pub(crate) struct RecordJson<'a> {
+pub struct RecordJson<'a> {
     index: usize,
     time_us: u64,
     direction: &'a str,
@@ -24,7 +24,7 @@ pub(crate) struct RecordJson<'a> {
 }
 
 /// `r` in its JSON form; `device` decides its direction.
-pub(crate) fn record_json<'a>(r: &'a Record, device: Option<MacId>) -> RecordJson<'a> {
+pub fn record_json<'a>(r: &'a Record, device: Option<MacId>) -> RecordJson<'a> {
     let (verdict, note, failures) = match &r.verdict {
         Verdict::Sent => ("sent", None, Vec::new()),
         Verdict::Ok(n) => ("ok", Some(n.as_str()), Vec::new()),

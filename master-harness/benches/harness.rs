@@ -9,10 +9,10 @@ use can_io::log::parse_log;
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
 use devicenet::MacId;
+use dnet_scanner::scan::scan;
 use master_core::decode::Decoder;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use master_harness::scan::scan;
 use std::hint::black_box;
 
 mod common;
@@ -61,7 +61,7 @@ fn scan_bench() {
         &mut Master::new(&mut session, MasterConfig::default()),
         0,
         63,
-        &mut master_harness::console::Progress::off(),
+        &mut harness_common::console::Progress::off(),
     )
     .expect("scan");
     let wall = wall.elapsed();

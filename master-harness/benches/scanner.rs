@@ -12,10 +12,10 @@ use converter_sim::SoftSlave;
 use devicenet::fragment::io_fragments;
 use devicenet::id::Group1MessageId;
 use devicenet::{CanFrame, Group2Message, Identifier, MacId};
+use dnet_scanner::model::{ScanEntry, ScanList};
+use dnet_scanner::{Scanner, ScannerOptions};
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use master_harness::scanner::model::{ScanEntry, ScanList};
-use master_harness::scanner::{Scanner, ScannerOptions};
 
 const CYCLES: u64 = 200;
 

@@ -3,7 +3,7 @@
 //! Exit status: 0 when every check holds, 1 when a check failed, the device diverged, timed out
 //! or answered with an error, or a replay compared nothing; 2 for a usage or configuration error
 //! (bad option, unknown bus, bad or unwritable file); 130 / 143 when SIGINT / SIGTERM stopped the
-//! command ([`crate::console`]).
+//! command ([`harness_common::console`]).
 //!
 //! Every command ends the same way, however it ended: the connections it allocated are released
 //! through the Group 2 Only port (not with `--keep`; not when the bus itself failed), then the CSV
@@ -11,14 +11,7 @@
 //! stopped it). Output files are created before the bus is touched.
 
 use crate::configure;
-use crate::conformance::command::ConformanceCommand;
-use crate::console::{Console, Progress};
-use crate::error::HarnessError;
-use crate::monitor::{self, InputLayout, MonitorOptions};
-use crate::params;
 use crate::replay::{self, ReplayOptions};
-use crate::scan::{self, ScanReport};
-use crate::table::{print_table, record_json, RecordJson};
 use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::log::{LogEntry, LogWriter};
 use can_io::pcap::{PcapBus, PcapWriter};
@@ -29,6 +22,13 @@ use clap::{Args, Parser, Subcommand};
 use converter_sim::{OpenError, SimSetup};
 use devicenet::explicit::ServiceCode;
 use devicenet::{Duration, Instant, MacId};
+use dnet_conformance::command::ConformanceCommand;
+use dnet_scanner::monitor::{self, InputLayout, MonitorOptions};
+use dnet_scanner::params;
+use dnet_scanner::scan::{self, ScanReport};
+use harness_common::console::{Console, Progress};
+use harness_common::error::HarnessError;
+use harness_common::table::{print_table, record_json, RecordJson};
 use master_core::client::ReplyBody;
 use master_core::decode::{self, Decoder};
 use master_core::error::MasterError;
@@ -153,14 +153,14 @@ impl IoArgs {
 }
 
 /// `false` on SLCAN, whose frames arrive in bursts from a serial line: intervals are noted, not
-/// judged (as the conformance suite does, [`crate::conformance::BUFFERED_TIMING`]).
+/// judged (as the conformance suite does, [`dnet_conformance::BUFFERED_TIMING`]).
 fn judges_timing(bus: &BusSpec) -> bool {
     !matches!(bus, BusSpec::Slcan { .. })
 }
 
 /// `dnet-master`: a bench DeviceNet master.
 #[derive(Debug, Parser)]
-#[command(name = "dnet-master", version = crate::version(), about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes traces of every common format.", long_about = None)]
+#[command(name = "dnet-master", version = harness_common::version(), about = "A bench DeviceNet master: brings a device up like a scanner and verifies every frame, replays transcripts, scans, reads and writes attributes, monitors polled data, decodes traces of every common format.", long_about = None)]
 pub struct Cli {
     /// The bus: `sim`, `socketcan:IFACE` or `slcan:PATH[@SERIALBAUD]`.
     #[arg(long, global = true, default_value = "sim")]
@@ -532,21 +532,6 @@ struct Outcome {
     code: u8,
 }
 
-/// The exit status for an error: 2 for usage and configuration errors (bad option or file, a
-/// description refused, an output file that cannot be written), 128 + the signal for an
-/// interruption, 1 for everything the device or the bus did.
-pub(crate) fn exit_code(e: &HarnessError) -> u8 {
-    match e {
-        HarnessError::Usage(_)
-        | HarnessError::Log(_)
-        | HarnessError::Description(_)
-        | HarnessError::Write { .. }
-        | HarnessError::Master(MasterError::Invalid(_)) => 2,
-        HarnessError::Master(MasterError::Interrupted { signal }) => master_core::stop::exit_status(*signal),
-        _ => 1,
-    }
-}
-
 /// The signal that interrupted a command, if one did.
 fn interruption(e: &HarnessError) -> Option<i32> {
     match e {
@@ -599,7 +584,7 @@ where
                 let _ = writeln!(out, "{}", json!({ "ok": false, "error": e.to_string() }));
             }
             let _ = writeln!(err, "error: {e}");
-            exit_code(&e)
+            e.exit_code()
         }
     }
 }
@@ -755,7 +740,7 @@ fn self_test_command(
     err: &mut dyn Write,
     stderr_terminal: bool,
 ) -> Result<u8, HarnessError> {
-    use crate::conformance::self_test;
+    use dnet_conformance::self_test;
     if cli.bus != BusSpec::Sim {
         return Err(HarnessError::Usage(format!(
             "--self-test runs the suite against simulated mutant devices: it needs --bus sim, not {}",
@@ -788,7 +773,7 @@ fn self_test_command(
     };
     struct Shown<'e>(&'e mut dyn Write, bool);
     impl self_test::SelfTestObserver for Shown<'_> {
-        fn start(&mut self, n: usize, total: usize, mutant: Option<&crate::conformance::mutants::Mutant>) {
+        fn start(&mut self, n: usize, total: usize, mutant: Option<&dnet_conformance::mutants::Mutant>) {
             if self.1 {
                 let what = mutant.map_or("the reference device".to_string(), |m| format!("mutant {}", m.id));
                 let _ = write!(self.0, "\r\x1b[K[{n}/{total}] {what}");
@@ -852,7 +837,7 @@ fn execute(
         });
     }
     if let Command::Ui { listen, scanlist, history, no_history, mqtt, record_dir, cycles } = &cli.command {
-        let args = crate::ui::command::UiArgs {
+        let args = crate::commands::ui::UiArgs {
             listen: listen.clone(),
             scanlist: scanlist.clone(),
             history: (!no_history).then(|| history.clone()),
@@ -860,15 +845,15 @@ fn execute(
             record_dir: record_dir.clone(),
             cycles: *cycles,
         };
-        return crate::ui::command::execute(cli, &args, out, err, console);
+        return crate::commands::ui::execute(cli, &args, out, err, console);
     }
     if let Command::Scanner { scanlist, write_scanlist, cycles } = &cli.command {
-        let args = crate::scanner::command::ScannerArgs {
+        let args = crate::commands::scanner::ScannerArgs {
             scanlist: scanlist.clone(),
             write_scanlist: write_scanlist.clone(),
             cycles: *cycles,
         };
-        return crate::scanner::command::execute(cli, &args, out, err, console);
+        return crate::commands::scanner::execute(cli, &args, out, err, console);
     }
     if let Command::Conformance { self_test: true, markdown, html, .. } = &cli.command {
         return self_test_command(cli, *markdown, html.as_deref(), out, err, console.stderr_terminal);
@@ -935,7 +920,7 @@ fn execute(
             stop: console.stop.clone(),
         };
         let mac = device.unwrap_or(MacId::from_low_bits(5));
-        return crate::conformance::command::execute(&run, bus.as_mut(), mac, out, progress);
+        return dnet_conformance::command::execute(&run, bus.as_mut(), mac, out, progress);
     }
     let mut session = Session::new(bus.as_mut());
     session.set_stop(console.stop.clone());
@@ -1121,7 +1106,7 @@ fn execute(
                     "# The configuration in force at MAC {mac}, read by dnet-master {} configure --read.\n\
                      # identity.vendor_name and identity.catalog are EDS-only: the device does not keep them.\n\
                      # identity.serial_number is the image's: the device keeps its own, {serial_number}.\n\n",
-                    crate::version()
+                    harness_common::version()
                 );
                 let whole = header + &text;
                 if path.as_os_str() == "-" {
@@ -1188,14 +1173,14 @@ fn execute(
     let records = session.records();
     let (mut code, error_text, payload) = match result {
         Ok(o) => (o.code, None, Some(o)),
-        Err(e) => (exit_code(&e), Some(e), partial.take()),
+        Err(e) => (e.exit_code(), Some(e), partial.take()),
     };
     if failures > 0 && code == 0 {
         code = 1;
     }
     if code == 0 {
         if let Some(e) = finish_errors.first() {
-            code = exit_code(e);
+            code = e.exit_code();
         }
     }
     for n in &notices {
@@ -1207,7 +1192,7 @@ fn execute(
             "ok": code == 0,
             "failures": failures,
             "frames": frames,
-            "version": crate::version(),
+            "version": harness_common::version(),
             "notices": notices,
         });
         if let Some(p) = &payload {

@@ -35,12 +35,12 @@
 //! (`slave_fw::converter`); notes §3.2 for the service code ranges (0x4B–0x63: object class
 //! specific).
 
-use crate::error::HarnessError;
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::slave::BaudRate;
 use devicenet::{Duration, MacId};
+use harness_common::error::HarnessError;
 use master_core::client::Port;
 use master_core::decode::value_text;
 use master_core::error::MasterError;

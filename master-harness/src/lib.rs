@@ -15,19 +15,18 @@
 //! frames) is [`master_core`]'s, which the EDS tool's device check uses too. This crate is the bench
 //! built on it: nothing of the product depends on it.
 //!
+//! The plant scanner with its web console, history and MQTT (and the scan, monitor and params
+//! commands it is built from) is `dnet_scanner`'s; the conformance suite is `dnet_conformance`'s;
+//! the error type, the console and the frame table are `harness_common`'s. This crate is the
+//! `dnet-master` command line over them, and the bench's own commands:
+//!
 //! | module | what it holds |
 //! |---|---|
-//! | [`conformance`] | the conformance suite (`conformance`): checks by category, each citing the notes, graded pass / fail / advisory; terminal, JSON and HTML (sequence diagrams) reports; the self-test against mutant devices (`conformance --self-test`) |
+//! | [`cli`] | the command line: options, dispatch, reports and JSON |
+//! | [`commands`] | one module per command that is more than a call into a library |
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
-//! | [`replay`], [`scan`], [`monitor`] | the `replay`, `scan` and `monitor` commands |
-//! | [`configure`], [`params`] | `configure` (a description downloaded over DeviceNet, read back, applied, checked; `--read` uploads it) and `params` (the Parameter object or an EDS's parameters, read and written) |
-//! | [`cli`] | the command line, reports and JSON |
-//! | [`console`] | progress lines on a terminal, the stop asked for by SIGINT / SIGTERM |
-//! | [`table`] | the frame-by-frame table and the JSON form of a record |
-//! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
-//! | [`mqtt`] | `--mqtt URL`: node status and decoded values published to an MQTT broker |
-//! | [`ui`] | the web console (`ui`): the page and its JSON API over the scanner's shared state |
-//! | [`error`] | [`HarnessError`](error::HarnessError): every failure of a command named |
+//! | [`replay`] | the `replay` command: a transcript replayed against a device, frame by frame |
+//! | [`configure`] | `configure` (a description downloaded over DeviceNet, read back, applied, checked; `--read` uploads it) |
 //!
 //! ## Example: the bring-up on the simulated bus
 //!
@@ -54,32 +53,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-/// The git commit this program was built from (`-modified` when the tree had changes), or
-/// `unknown commit` outside a git checkout.
-pub const GIT_COMMIT: &str = git_version::git_version!(
-    args = ["--always", "--dirty=-modified", "--abbrev=12"],
-    fallback = "unknown commit"
-);
-
-/// The version of `dnet-master` and of its reports: the package version and the git commit,
-/// `0.1.0 (1a2b3c4d5e6f)`.
-pub fn version() -> &'static str {
-    static VERSION: std::sync::OnceLock<String> = std::sync::OnceLock::new();
-    VERSION.get_or_init(|| format!("{} ({GIT_COMMIT})", env!("CARGO_PKG_VERSION")))
-}
-
 pub mod cli;
+pub mod commands;
 pub mod configure;
-pub mod conformance;
-pub mod console;
-pub mod error;
-pub mod history;
-pub mod monitor;
-pub mod mqtt;
-pub mod params;
 pub mod replay;
-pub mod scan;
-pub mod scanner;
 pub mod soak;
-pub mod table;
-pub mod ui;

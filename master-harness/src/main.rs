@@ -1,11 +1,11 @@
 //! `dnet-master`: see [`master_harness::cli`].
 //!
-//! SIGINT and SIGTERM ask the running command to stop ([`master_harness::console`]): it keeps what
+//! SIGINT and SIGTERM ask the running command to stop ([`harness_common::console`]): it keeps what
 //! it recorded, releases the device and exits 130 / 143. A second signal while it winds down stops
 //! the program at once, by the signal's default action.
 
+use harness_common::console::Console;
 use master_core::stop::{SIGINT, SIGTERM};
-use master_harness::console::Console;
 use std::io::IsTerminal;
 use std::process::ExitCode;
 

@@ -40,7 +40,6 @@
 //! On the first divergence the replay stops with a [`Divergence`]: expected and actual frames, both
 //! decoded, and the frames before it.
 
-use crate::error::{Divergence, HarnessError, ShownFrame};
 use can_io::bus::Origin;
 use can_io::log::{format_line, LogEntry};
 use devicenet::explicit::ServiceCode;
@@ -48,6 +47,7 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocationChoice, DuplicateMacCheck};
 use devicenet::slave::DUP_MAC_INTERVAL;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use harness_common::error::{Divergence, HarnessError, ShownFrame};
 use master_core::decode::Decoder;
 use master_core::session::{is_from_device, Session, Verdict};
 

@@ -29,7 +29,6 @@
 //! | memory stays bounded | the frames queued anywhere in the bus never exceed a small bound; the scanner keeps no per-frame history; the converter and node are fixed-size by construction; the process's resident memory is reported at the start and the end |
 //! | no panic | the run completes |
 
-use crate::error::HarnessError;
 use can_io::bus::{Bitrate, Bus, Origin};
 use can_io::sim::fault::{FaultRates, FaultStats, RandomFaults, Rng, SharedDevice};
 use can_io::sim::{PowerOn, SimBus};
@@ -40,6 +39,7 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use harness_common::error::HarnessError;
 use master_core::client::{self, Link, Port, Received, ReplyBody, Transaction};
 use master_core::decode;
 use master_core::error::MasterError;

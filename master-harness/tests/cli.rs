@@ -225,7 +225,7 @@ fn version_names_the_package_version_and_the_commit() {
     assert_eq!(o.status.code(), Some(0));
     let text = stdout(&o);
     assert!(text.starts_with(concat!("dnet-master ", env!("CARGO_PKG_VERSION"), " (")), "{text}");
-    assert_eq!(text.trim_end(), format!("dnet-master {}", master_harness::version()));
+    assert_eq!(text.trim_end(), format!("dnet-master {}", harness_common::version()));
 }
 
 fn workspace_file(path: &str) -> String {
@@ -298,7 +298,7 @@ fn an_unwritable_csv_is_refused_before_the_bus_is_touched() {
 
 #[test]
 fn a_stop_request_ends_the_command_with_everything_kept() {
-    use master_harness::console::Console;
+    use harness_common::console::Console;
     let console = Console::plain();
     let stop = console.stop.clone();
     let log = temp("stopped.log");

@@ -6,11 +6,11 @@
 //! not skip, when mosquitto is missing; `scripts/check` installs it and runs them:
 //! `cargo test -p master-harness --test history_mqtt -- --ignored`.
 
-use master_harness::history::{History, HistoryError, Retention, ThinOut};
-use master_harness::mqtt::Publisher;
-use master_harness::scanner::model::{
+use dnet_scanner::history::{History, HistoryError, Retention, ThinOut};
+use dnet_scanner::model::{
     HistoryStore, Identity, NodeState, NodeStatus, Sample, ScannerState, ScannerStatus,
 };
+use dnet_scanner::mqtt::Publisher;
 use serde_json::Value;
 use std::net::{TcpListener, TcpStream};
 use std::path::PathBuf;
@@ -299,12 +299,12 @@ fn history_retention_keeps_the_newest() {
 /// decodes it), one sample a second each (the console's rate for an unchanged input), for `secs`
 /// seconds from `start_ms`, one transaction a second.
 fn record_breakers(h: &History, nodes: u8, start_ms: i64, secs: i64) {
-    let layout = master_harness::monitor::InputLayout::from_converter(
+    let layout = dnet_scanner::monitor::InputLayout::from_converter(
         &slave_fw::description::DeviceDescription::reference().converter,
     );
     let input: Vec<u8> =
         vec![0x2C, 0x01, 0x2C, 0x01, 0x2C, 0x01, 0, 0, 0, 0xF0, 100, 0, 200, 0, 44, 1, 144, 1];
-    let values = master_harness::scanner::sample_values(&layout, &input);
+    let values = dnet_scanner::sample_values(&layout, &input);
     assert!(values.len() >= 5, "decoded as the console does: {values:?}");
     for t in 0..secs {
         let unix_ms = start_ms + t * 1000;

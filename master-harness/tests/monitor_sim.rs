@@ -6,11 +6,11 @@ use can_io::bus::Bitrate;
 use can_io::sim::{PowerOn, SimBus, SimDevice};
 use converter_sim::SoftSlave;
 use devicenet::{CanFrame, Duration, Instant, MacId};
+use dnet_scanner::monitor::{self, csv_header, csv_line, InputLayout, MonitorOptions};
+use harness_common::console::{Console, Progress};
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
 use master_core::stop::Stop;
-use master_harness::console::{Console, Progress};
-use master_harness::monitor::{self, csv_header, csv_line, InputLayout, MonitorOptions};
 use slave_fw::description::DeviceDescription;
 use std::path::PathBuf;
 

@@ -10,11 +10,11 @@ use can_io::sim::fault::SharedDevice;
 use can_io::sim::{PowerOn, SimBus, SimDevice};
 use converter_sim::SoftSlave;
 use devicenet::{CanFrame, Instant, MacId};
+use dnet_scanner::engine::{io_frame_bits, timing, Scanner, ScannerOptions};
+use dnet_scanner::model::{ConsoleCommand, NodeStatus, Reply, ScanEntry, ScanList};
+use dnet_scanner::monitor::InputLayout;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use master_harness::monitor::InputLayout;
-use master_harness::scanner::model::{ConsoleCommand, NodeStatus, Reply, ScanEntry, ScanList};
-use master_harness::scanner::{io_frame_bits, timing, Scanner, ScannerOptions};
 use slave_fw::converter::ConverterConfig;
 use slave_fw::description::DeviceDescription;
 use std::cell::RefCell;
@@ -125,7 +125,7 @@ fn wrong_product_code_wrong_size_and_absent_node() {
     wrong_size.input_size = 10;
     list.nodes = vec![wrong_code, wrong_size, breaker_entry(7), breaker_entry(9)];
     let path = temp("faults.toml");
-    std::fs::write(&path, master_harness::scanner::write_scan_list(&list)).unwrap();
+    std::fs::write(&path, dnet_scanner::write_scan_list(&list)).unwrap();
     let (code, out, err) = dnet(&[
         "--slave-mac",
         "5,6,7",
@@ -362,7 +362,7 @@ fn a_node_that_disappears_is_timed_out_then_not_present_and_reconnected_when_it_
     let (tx, rx) = std::sync::mpsc::channel();
     scanner.command(
         &mut master,
-        master_harness::scanner::model::ConsoleCommand::SetOutput {
+        dnet_scanner::model::ConsoleCommand::SetOutput {
             mac: 6,
             data: vec![2, 1, 0, 0, 0, 0, 0, 0],
             reply: tx,
@@ -372,26 +372,20 @@ fn a_node_that_disappears_is_timed_out_then_not_present_and_reconnected_when_it_
     let (tx, rx) = std::sync::mpsc::channel();
     scanner.command(
         &mut master,
-        master_harness::scanner::model::ConsoleCommand::SetOutput { mac: 6, data: vec![1], reply: tx },
+        dnet_scanner::model::ConsoleCommand::SetOutput { mac: 6, data: vec![1], reply: tx },
     );
     assert!(rx.recv().unwrap().unwrap_err().contains("consumes 8 bytes"));
     let (tx, rx) = std::sync::mpsc::channel();
     scanner.command(
         &mut master,
-        master_harness::scanner::model::ConsoleCommand::Get {
-            mac: 6,
-            class: 1,
-            instance: 1,
-            attribute: 7,
-            reply: tx,
-        },
+        dnet_scanner::model::ConsoleCommand::Get { mac: 6, class: 1, instance: 1, attribute: 7, reply: tx },
     );
     assert!(String::from_utf8_lossy(&rx.recv().unwrap().unwrap()).contains("Serial-DeviceNet Bridge"));
     // Frames drain, and the session's records stay bounded.
     let frames = scanner.take_frames(&mut master);
     assert!(frames.iter().any(|f| f.kind == "io" && f.mac == Some(6)));
     assert!(scanner.take_frames(&mut master).len() < frames.len());
-    assert!(master.session.records().len() <= master_harness::scanner::RECORDS_KEPT);
+    assert!(master.session.records().len() <= dnet_scanner::engine::RECORDS_KEPT);
     scanner.stop(&mut master).unwrap();
     assert!(master.held(MacId::new(6).unwrap()).is_empty());
 }

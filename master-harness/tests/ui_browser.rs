@@ -150,7 +150,7 @@ fn console_in_chromium_on_a_stand_in_scanner() {
     let run = out.join("run");
     std::fs::create_dir_all(&run).unwrap();
     let scanner = ui_support::FakeScanner::start(&run, true);
-    let server = master_harness::ui::serve("127.0.0.1:0", scanner.shared.clone()).unwrap();
+    let server = dnet_scanner::ui::serve("127.0.0.1:0", scanner.shared.clone()).unwrap();
     run_script(&server.url(), &out);
     server.stop();
 }

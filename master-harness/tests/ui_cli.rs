@@ -306,8 +306,8 @@ fn a_record_directory_that_does_not_exist_is_refused_not_created() {
 
 #[test]
 fn the_console_s_history_drops_old_samples_and_thins_the_older_than_six_hours() {
-    use master_harness::history::History;
-    use master_harness::scanner::model::{unix_ms_now, HistoryStore, Sample};
+    use dnet_scanner::history::History;
+    use dnet_scanner::model::{unix_ms_now, HistoryStore, Sample};
     let dir = scratch("retention");
     let path = dir.join("h.sqlite");
     let _ = std::fs::remove_file(&path);

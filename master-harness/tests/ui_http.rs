@@ -1,10 +1,10 @@
-//! The console's HTTP server and JSON API (`master_harness::ui`) against a stand-in scanner
+//! The console's HTTP server and JSON API (`dnet_scanner::ui`) against a stand-in scanner
 //! (`ui_support`): every route, commands and their answers, recording, and bad input: a port in
 //! use, malformed requests, clients that vanish mid-request or mid-response.
 
 mod ui_support;
 
-use master_harness::ui::{self, UiServer};
+use dnet_scanner::ui::{self, UiServer};
 use serde_json::Value;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -313,7 +313,7 @@ fn a_port_in_use_is_an_error_naming_the_address() {
     let text = e.to_string();
     assert!(text.contains(&listen), "{text}");
     assert!(text.contains("cannot listen"), "{text}");
-    assert!(matches!(e, master_harness::error::HarnessError::Usage(_)), "exit 2: {e:?}");
+    assert!(matches!(e, harness_common::error::HarnessError::Usage(_)), "exit 2: {e:?}");
     let e = ui::serve("not an address", rig.scanner.shared.clone()).err().unwrap();
     assert!(e.to_string().contains("not an address"));
 }

@@ -1,6 +1,7 @@
-//! `dnet-master scanner`: keeps every node of a scan list in I/O, as a DeviceNet scanner does.
+//! The scanner engine: keeps every node of a scan list in I/O, as a DeviceNet scanner does.
 //!
-//! The engine ([`Scanner`]) is used by the `scanner` command ([`command`]) and by the web console.
+//! The engine ([`Scanner`]) is used by `dnet-master scanner` (its summary: [`crate::report`]) and
+//! by the web console ([`crate::ui`]).
 //! It is driven by its caller: [`Scanner::start`] once (network access, every node brought into
 //! I/O), then [`Scanner::cycle`] over and over, [`Scanner::command`] between cycles for what the
 //! console asks, [`Scanner::take_samples`] / [`Scanner::take_frames`] to drain what was seen, and
@@ -71,7 +72,7 @@
 //!
 //! ## Status codes
 //!
-//! [`model::NodeStatus::code`]: Rockwell's DeviceNet node status codes (README, "scanner").
+//! [`crate::model::NodeStatus::code`]: Rockwell's DeviceNet node status codes (README, "scanner").
 //! Communication Faulted is seen on the bus: a duplicate MAC ID *response* at a node's MAC (an
 //! on-line device keeping a newcomer with the same MAC off the bus), or two devices announcing
 //! different serial numbers at one MAC. The Offline Connection Set (notes §II.6) is not used.
@@ -97,13 +98,10 @@
 //! not taken are capped at [`SAMPLES_KEPT`]; cycle statistics cover the last [`CYCLE_WINDOW`]
 //! cycles.
 
-pub mod command;
-pub mod list;
-pub mod model;
-
-pub use list::{parse_scan_list, parse_scan_list_for, read_scan_list, write_scan_list};
-
-use crate::error::HarnessError;
+use crate::model::{
+    ConsoleCommand, FrameRow, Identity, NodeState, NodeStatus, Sample, ScanEntry, ScanList, ScannerState,
+    ScannerStatus,
+};
 use crate::monitor::InputLayout;
 use can_io::bus::{Bitrate, Origin};
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
@@ -112,16 +110,13 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocateRequest, AllocationChoice, DuplicateMacCheck, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
+use harness_common::error::HarnessError;
 use master_core::client::{ClientError, Handled, Port, Reply, ReplyBody, Transaction};
 use master_core::decode;
 use master_core::error::MasterError;
 use master_core::master::io::IoKind;
 use master_core::master::{Master, MIN_POLL_TIMEOUT};
 use master_core::session::Verdict;
-use model::{
-    ConsoleCommand, FrameRow, Identity, NodeState, NodeStatus, Sample, ScanEntry, ScanList, ScannerState,
-    ScannerStatus,
-};
 use std::collections::{HashMap, VecDeque};
 
 /// How often a node that is not in I/O is tried again.
@@ -908,7 +903,7 @@ impl Scanner {
         }
         samples.push_back(Sample {
             mac: n.entry.mac,
-            unix_ms: model::unix_ms_now(),
+            unix_ms: crate::model::unix_ms_now(),
             bus_us: at.total_micros(),
             input: whole.clone(),
             values,
@@ -1266,7 +1261,7 @@ pub fn sample_values(layout: &InputLayout, input: &[u8]) -> Vec<(String, f64)> {
 /// named by its product name. Devices without a poll connection are left out; every node is
 /// polled (edit `connection` for strobe, COS or cyclic).
 pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<ScanList, HarnessError> {
-    let report = crate::scan::scan(master, from, to, &mut crate::console::Progress::off())?;
+    let report = crate::scan::scan(master, from, to, &mut harness_common::console::Progress::off())?;
     let nodes = report
         .devices
         .iter()

@@ -65,7 +65,7 @@
 //! created, a file that is not an SQLite database, an SQLite database that is not a history.
 //! Nothing here panics.
 
-use crate::scanner::model::{HistoryStore, Sample};
+use crate::model::{HistoryStore, Sample};
 use rusqlite::{params, Connection, ErrorCode, OpenFlags};
 use std::fmt::Write as _;
 use std::io::Write;

@@ -43,8 +43,8 @@
 //! (the EDS's `StrobeInfo` names no output), so `output_size` is 0, and the node's output image in
 //! the scanner is 1 byte whose bit 0 is that bit.
 
-use super::model::{ScanEntry, ScanList};
-use crate::error::HarnessError;
+use crate::model::{ScanEntry, ScanList};
+use harness_common::error::HarnessError;
 use master_core::master::io::IoKind;
 use serde::Deserialize;
 use std::ops::Range;

@@ -1,4 +1,4 @@
-//! What the scanner knows and shows, shared by `dnet-master scanner` (the engine, `super`), the
+//! What the scanner knows and shows, shared by `dnet-master scanner` (the engine, `crate::engine`), the
 //! web console (`crate::ui`), the history database and the MQTT publisher: the scan list, each
 //! node's status with the numeric code scanners display, the scanner's own state, and the commands
 //! the console sends to the engine.

@@ -50,13 +50,13 @@
 //! The CSV header is written before the bring-up, so a run that ends before its first sample
 //! leaves a CSV file with its header.
 
-use crate::console::Progress;
-use crate::error::HarnessError;
 use converter_sim::device::{SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::explicit::GeneralStatus;
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, Instant, MacId};
+use harness_common::console::Progress;
+use harness_common::error::HarnessError;
 use master_core::client::Port;
 use master_core::error::MasterError;
 use master_core::io::{IoKind, IoOptions};

@@ -74,7 +74,7 @@
 //! for it), so the retained state is the last one published, not the last will.
 
 use crate::history::hex;
-use crate::scanner::model::{NodeState, NodeStatus, Sample, ScannerState, ScannerStatus};
+use crate::model::{NodeState, NodeStatus, Sample, ScannerState, ScannerStatus};
 use rumqttc::{Client, ConnectionError, Event, LastWill, MqttOptions, Outgoing, Packet, QoS};
 use serde_json::{json, Map, Value};
 use std::collections::BTreeMap;
@@ -442,7 +442,7 @@ fn scanner_payload(state: &ScannerState) -> Vec<u8> {
         "expected_packet_rate_ms": state.expected_packet_rate_ms,
         "nodes": state.nodes.len(),
         "nodes_ok": ok,
-        "unix_ms": crate::scanner::model::unix_ms_now(),
+        "unix_ms": crate::model::unix_ms_now(),
     })
     .to_string()
     .into_bytes()

@@ -13,10 +13,10 @@
 //! parameters are read again. A refusal (0x09 out of range, 0x0E read-only, 0x0C while an I/O
 //! connection is established) is an error naming the parameter and the device's answer.
 
-use crate::error::HarnessError;
 use devicenet::MacId;
 use eds::model::Param;
 use eds::value::LinkPath;
+use harness_common::error::HarnessError;
 use master_core::decode::short_string;
 use master_core::error::MasterError;
 use master_core::master::Master;

@@ -13,14 +13,14 @@
 //! master (0x0B: an earlier run kept it) is released through the Group 2 Only port and allocated
 //! again, and its row says so.
 
-use crate::console::Progress;
-use crate::error::HarnessError;
-use crate::scanner::model::Identity;
+use crate::model::Identity;
 use can_io::bus::Origin;
 use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Identifier, Instant, MacId};
+use harness_common::console::Progress;
+use harness_common::error::HarnessError;
 use master_core::client::{ClientError, Handled, Port, ReplyBody, Transaction};
 use master_core::decode;
 use master_core::master::Master;

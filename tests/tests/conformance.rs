@@ -7,10 +7,10 @@ use devicenet::MacId;
 use master_core::master::MasterConfig;
 use master_core::session::Session;
 use master_harness::cli::{run, run_with};
-use master_harness::conformance::mutants::{self, Mutant, MUTANTS};
-use master_harness::conformance::self_test::{self, SelfTestReport};
-use master_harness::conformance::{self, Category, Grade, Observer, Stopped, SuiteOptions, SuiteReport};
-use master_harness::console::Console;
+use dnet_conformance::mutants::{self, Mutant, MUTANTS};
+use dnet_conformance::self_test::{self, SelfTestReport};
+use dnet_conformance::{self as conformance, Category, Grade, Observer, Stopped, SuiteOptions, SuiteReport};
+use harness_common::console::Console;
 use system_tests::{mac, sim_bus};
 
 fn suite(bus: &mut can_io::sim::SimBus, target: MacId) -> SuiteReport {
@@ -249,7 +249,7 @@ fn the_html_report_stands_alone_and_names_the_failed_check() {
         "product name</th><td>Serial-DeviceNet Bridge",
         "serial number</th><td>0x12345678",
         "date and time (UTC)</th><td>20",
-        master_harness::version(),
+        harness_common::version(),
         "transport</th><td>sim",
         "simulated bus clock, exact",
         "master MAC ID</th><td>0",

@@ -49,7 +49,7 @@ use master_core::error::MasterError;
 use master_core::master::{ConnectOptions, DeviceSummary, Master, MasterConfig};
 use master_core::session::Session;
 use master_harness::configure::{BEGIN_DOWNLOAD, CHUNK, CONFIGURATION_CLASS, WRITE_CHUNK};
-use master_harness::table::print_table;
+use harness_common::table::print_table;
 use pty_rig::{require_pymodbus, scratch, workspace_dir, Proc};
 use slave_fw::description::DeviceDescription;
 use std::path::{Path, PathBuf};

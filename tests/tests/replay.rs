@@ -7,8 +7,8 @@ use can_io::log::{format_line, parse_log, LogEntry};
 use devicenet::reference::BRING_UP;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
-use master_harness::error::Divergence;
-use master_harness::error::HarnessError;
+use harness_common::error::Divergence;
+use harness_common::error::HarnessError;
 use master_harness::replay::{replay, ReplayOptions};
 use system_tests::{log_text, mac, sim_bus};
 

@@ -5,8 +5,8 @@ use can_io::bus::Bitrate;
 use devicenet::Duration;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use master_harness::console::Progress;
-use master_harness::scan::scan;
+use harness_common::console::Progress;
+use dnet_scanner::scan::scan;
 use system_tests::sim_bus;
 
 #[test]

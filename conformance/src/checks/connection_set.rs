@@ -4,10 +4,10 @@
 
 use super::super::runner::{Check, Runner};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use devicenet::explicit::{additional, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
+use harness_common::error::HarnessError;
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::decode;
 

@@ -5,12 +5,12 @@
 
 use super::super::runner::{g2, Check, Runner};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use devicenet::explicit::{additional, GeneralStatus, Request, ServiceCode};
 use devicenet::fragment::FragmentByte;
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Instant};
+use harness_common::error::HarnessError;
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::decode::hex;
 use master_core::session::Verdict;

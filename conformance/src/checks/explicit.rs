@@ -6,12 +6,12 @@
 
 use super::super::runner::{parse_ack, Check, Runner, Value};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
 use devicenet::fragment::{FragmentByte, FragmentKind};
 use devicenet::id::Group1MessageId;
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant};
+use harness_common::error::HarnessError;
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::decode::{self, hex};
 use master_core::session::Verdict;

@@ -6,13 +6,13 @@
 
 use super::super::runner::{Check, Runner};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use devicenet::explicit::{GeneralStatus, ServiceCode};
 use devicenet::fragment::IoReassembler;
 use devicenet::id::Group1MessageId;
 use devicenet::messages::{DeviceHeartbeat, DEVICE_HEARTBEAT};
 use devicenet::objects::class;
 use devicenet::{Duration, Identifier, Instant};
+use harness_common::error::HarnessError;
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::decode::{self, hex};
 use master_core::io::{IoConnection, IoKind, IoOptions, ACKNOWLEDGE_HANDLER, DEFAULT_ACK_TIMER_MS};

@@ -11,7 +11,7 @@ mod offline;
 mod timing;
 
 use super::runner::Runner;
-use crate::error::HarnessError;
+use harness_common::error::HarnessError;
 
 /// Runs every check. Ends early with [`HarnessError::NoDevice`] when nothing answers at the MAC
 /// after the bring-up, and with the interruption when a stop is asked for; releasing the device

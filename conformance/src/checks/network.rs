@@ -4,13 +4,13 @@
 
 use super::super::runner::{g2, Check, Runner};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use can_io::bus::Origin;
 use devicenet::explicit::BodyFormat;
 use devicenet::id::Group3MessageId;
 use devicenet::messages::{DuplicateMacCheck, GroupSelect, UcmmCloseRequest, UcmmOpenRequest};
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Identifier, Instant};
+use harness_common::error::HarnessError;
 use master_core::master::ConnectOptions;
 use master_core::session::Verdict;
 

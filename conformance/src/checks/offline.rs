@@ -9,11 +9,11 @@
 
 use super::super::runner::{g2, Check, Runner};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use can_io::bus::Origin;
 use devicenet::id::Group4MessageId;
 use devicenet::messages::{AllocationChoice, DeviceKey, DuplicateMacCheck, FaultedSelector, OfflineMessage};
 use devicenet::{Duration, Group2Message, Identifier, Instant};
+use harness_common::error::HarnessError;
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::session::Verdict;
 

@@ -3,9 +3,9 @@
 
 use super::super::runner::{g2, percentile, Check, Runner};
 use super::super::{Basis, Category};
-use crate::error::HarnessError;
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message};
+use harness_common::error::HarnessError;
 use master_core::error::MasterError;
 
 const TM: Category = Category::Timing;

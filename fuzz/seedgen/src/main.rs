@@ -20,7 +20,7 @@ use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
 use devicenet::MacId;
 use can_io::sim::{PowerOn, SimBus};
 use can_io::bus::{Bitrate, Origin};
-use master_harness::conformance::{self, SuiteOptions};
+use dnet_conformance::{self as conformance, SuiteOptions};
 use can_io::log::format_line;
 use master_core::master::MasterConfig;
 use master_core::session::{Record, Session};

@@ -5,11 +5,11 @@
 #![allow(dead_code)]
 
 use devicenet::{CanFrame, CanId};
-use master_core::decode::Decoder;
-use master_harness::scanner::model::{
+use dnet_scanner::model::{
     unix_ms_now, ConsoleCommand, FrameRow, HistoryStore, Identity, NodeState, NodeStatus, Sample,
     ScannerState, ScannerStatus, Shared,
 };
+use master_core::decode::Decoder;
 use std::collections::VecDeque;
 use std::io::Write;
 use std::path::Path;
@@ -49,7 +49,7 @@ impl HistoryStore for MemHistory {
         writeln!(out, "unix_ms,time,mac,input_hex,{}", names.join(",")).map_err(e)?;
         for s in &rows {
             let values: Vec<String> =
-                s.values.iter().map(|(n, v)| master_harness::history::csv_value(n, *v)).collect();
+                s.values.iter().map(|(n, v)| dnet_scanner::history::csv_value(n, *v)).collect();
             let input: String = s.input.iter().map(|b| format!("{b:02X}")).collect();
             writeln!(out, "{},{},{},{},{}", s.unix_ms, s.unix_ms / 1000, s.mac, input, values.join(","))
                 .map_err(e)?;

@@ -5,9 +5,9 @@
 use super::http::{Request, Response};
 use super::record::Recorder;
 use super::{Context, COMMAND_TIMEOUT, MAX_EXPORT};
+use crate::model::{ConsoleCommand, NodeState, Reply, Shared};
 use crate::monitor::{Field, ImageProfile, InputLayout, LinkView};
 use crate::params::{decode_value, ParamRow, PARAMETER_CLASS};
-use crate::scanner::model::{ConsoleCommand, NodeState, Reply, Shared};
 use master_core::decode::short_string;
 use serde_json::{json, Value};
 use slave_fw::description::DeviceDescription;
@@ -24,7 +24,7 @@ const MODBUS_METER: &str = include_str!("../../../slave-fw/descriptions/modbus-m
 
 /// Frames returned by one `/api/frames` by default, and at most.
 const FRAMES_DEFAULT: usize = 500;
-const FRAMES_MAX: usize = crate::scanner::model::FRAME_RING;
+const FRAMES_MAX: usize = crate::model::FRAME_RING;
 /// Samples returned by one `/api/history` by default, and at most.
 const HISTORY_DEFAULT: usize = 2000;
 const HISTORY_MAX: usize = 20_000;
@@ -259,7 +259,7 @@ fn frames(shared: &Shared, pairs: &[(String, String)]) -> Result<Resp, ApiError>
     let limit = number::<usize>(pairs, "limit")?.unwrap_or(FRAMES_DEFAULT).clamp(1, FRAMES_MAX);
     let ring = shared.frames.lock().map_err(|_| err(500, "the frame ring is unavailable"))?;
     let next = ring.back().map_or(after, |f| f.seq.max(after));
-    let mut rows: Vec<&crate::scanner::model::FrameRow> = ring
+    let mut rows: Vec<&crate::model::FrameRow> = ring
         .iter()
         .rev()
         .filter(|f| f.seq > after)
@@ -509,7 +509,7 @@ fn params(shared: &Shared, mac: u8) -> Result<Resp, ApiError> {
 
 /// `from` and `to` in ms (default: the last 60 s up to now).
 fn time_range(pairs: &[(String, String)]) -> Result<(i64, i64), ApiError> {
-    let now = crate::scanner::model::unix_ms_now();
+    let now = crate::model::unix_ms_now();
     let to = number::<i64>(pairs, "to")?.unwrap_or(now);
     let from = number::<i64>(pairs, "from")?.unwrap_or(to.saturating_sub(60_000));
     if from > to {
@@ -518,7 +518,7 @@ fn time_range(pairs: &[(String, String)]) -> Result<(i64, i64), ApiError> {
     Ok((from, to))
 }
 
-fn history_store(shared: &Shared) -> Result<&dyn crate::scanner::model::HistoryStore, ApiError> {
+fn history_store(shared: &Shared) -> Result<&dyn crate::model::HistoryStore, ApiError> {
     shared
         .history
         .as_deref()
@@ -641,10 +641,10 @@ mod tests {
             name: None,
             connection: "poll".into(),
             ack_suppression: false,
-            status: crate::scanner::model::NodeStatus::Ok,
+            status: crate::model::NodeStatus::Ok,
             code: 0,
             detail: None,
-            identity: crate::scanner::model::Identity {
+            identity: crate::model::Identity {
                 vendor_id: Some(vendor),
                 product_code: Some(product_code),
                 product_name: Some(name.into()),

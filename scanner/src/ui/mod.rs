@@ -35,7 +35,7 @@
 //!
 //! | request | answer |
 //! |---|---|
-//! | `GET /api/state` | the [`ScannerState`](crate::scanner::model::ScannerState) (scanner status, cycles, `cycle_ms`, `bus_load`, `nodes`), plus `mqtt` (the publisher's state or `null`), `recording` and `history` (whether samples are kept) |
+//! | `GET /api/state` | the [`ScannerState`](crate::model::ScannerState) (scanner status, cycles, `cycle_ms`, `bus_load`, `nodes`), plus `mqtt` (the publisher's state or `null`), `recording` and `history` (whether samples are kept) |
 //! | `GET /api/frames?after=SEQ&mac=N&kind=K&limit=L` | `{"next": SEQ, "frames": [FrameRow...]}`: the frames after `SEQ` (default 0) concerning MAC `N`, of kind `K` (`explicit`, `io`, `duplicate_mac`, `ucmm`, `offline`), the newest `L` (default 500, at most 5000); `next` is the sequence number to ask after next time |
 //! | `GET /api/node/MAC` | `{"node": NodeState, "profile", "fields", "link", "note", "input_hex", "output_hex"}`: the node decoded by its profile ([`layout_for`]); `fields` each `{name, values, text}`; `link` the status byte and freshness counter decoded, or `null` |
 //! | `GET /api/node/MAC/params` | `{"params": [ParamRow...], "note"}`: the Parameter object (class 0x0F) read with Get_Attribute_Single; empty with a note when the device has none |
@@ -60,23 +60,23 @@
 //! receives and answers each one; `history` and `mqtt` are filled when kept. The recording reads
 //! only the frame ring.
 //!
-//! [`Shared`]: crate::scanner::model::Shared
-//! [`Shared::state`]: crate::scanner::model::Shared::state
-//! [`Shared::push_frames`]: crate::scanner::model::Shared::push_frames
-//! [`ConsoleCommand`]: crate::scanner::model::ConsoleCommand
+//! [`Shared`]: crate::model::Shared
+//! [`Shared::state`]: crate::model::Shared::state
+//! [`Shared::push_frames`]: crate::model::Shared::push_frames
+//! [`ConsoleCommand`]: crate::model::ConsoleCommand
 
 mod api;
-pub mod command;
 mod guard;
 pub mod http;
 mod record;
+pub mod thinning;
 
 pub use api::{known_descriptions, layout_for};
 pub use guard::{GuardError, TOKEN_HEADER};
 
-use crate::error::HarnessError;
-use crate::scanner::model::Shared;
+use crate::model::Shared;
 use guard::Guard;
+use harness_common::error::HarnessError;
 use record::Recorder;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};

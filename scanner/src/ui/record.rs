@@ -2,7 +2,7 @@
 //! log and a pcap capture. A thread follows the ring by sequence number; frames the ring dropped
 //! before the thread saw them are counted as missed.
 
-use crate::scanner::model::Shared;
+use crate::model::Shared;
 use devicenet::{CanFrame, CanId, Instant};
 use std::fs::File;
 use std::io::{BufWriter, Write};

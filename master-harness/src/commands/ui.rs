@@ -1,6 +1,6 @@
-//! `dnet-master ui`: the scanner ([`crate::scanner`]) and its web console ([`super::serve`]) in one
-//! program, with the sample history ([`crate::history`]) and, with `--mqtt`, the publisher
-//! ([`crate::mqtt`]).
+//! `dnet-master ui`: the scanner ([`dnet_scanner::Scanner`]) and its web console
+//! ([`dnet_scanner::ui::serve`]) in one program, with the sample history
+//! ([`dnet_scanner::history`]) and, with `--mqtt`, the publisher ([`dnet_scanner::mqtt`]).
 //!
 //! The console is served before the bus is touched, and its address printed on a line of its own
 //! (`console at http://127.0.0.1:8080/`), so a page opened at once follows the bring-up. Then the
@@ -9,7 +9,7 @@
 //! them. On the simulated bus the simulation runs in real time (a console is watched by people).
 //!
 //! What is kept in the history: every change of a node's input image, and one sample a second while
-//! it stays the same ([`SAMPLE_EVERY_MS`]): a poll every 10 ms of an instrument that reports once a
+//! it stays the same ([`SAMPLE_EVERY_MS`](dnet_scanner::ui::thinning::SAMPLE_EVERY_MS)): a poll every 10 ms of an instrument that reports once a
 //! second would otherwise store a hundred copies of each report. For how long:
 //! [`Retention::STANDARD`] (30 days, at most 1 GiB, one sample a minute after 6 hours).
 //!
@@ -19,28 +19,27 @@
 //! listening address that cannot be used is an error (exit 2) before the bus is touched; a broker
 //! that is down is not: the console and MQTT status say so and the scanner scans on.
 
-use super::serve;
 use crate::cli::{open_bus, Cli};
-use crate::console::{Console, Progress};
-use crate::error::HarnessError;
-use crate::history::{History, Retention};
-use crate::monitor::InputLayout;
-use crate::mqtt::Publisher;
-use crate::scanner::command::{finish, Ending};
-use crate::scanner::model::{HistoryStore, Sample, Shared};
-use crate::scanner::{build_scan_list, read_scan_list, Scanner, ScannerOptions};
 use can_io::bus::BusSpec;
 use devicenet::{Duration, MacId};
+use dnet_scanner::history::{History, Retention};
+use dnet_scanner::model::{HistoryStore, Shared};
+use dnet_scanner::monitor::InputLayout;
+use dnet_scanner::mqtt::Publisher;
+use dnet_scanner::report::{finish, table, Ending};
+use dnet_scanner::ui::thinning::Thinning;
+use dnet_scanner::ui::{known_descriptions, layout_for, serve};
+use dnet_scanner::{build_scan_list, read_scan_list, sample_values, Scanner, ScannerOptions};
+use harness_common::console::{Console, Progress};
+use harness_common::error::HarnessError;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
 use slave_fw::description::DeviceDescription;
-use std::collections::{HashMap, VecDeque};
+use std::collections::HashMap;
+use std::collections::VecDeque;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::{mpsc, Arc, Mutex};
-
-/// A sample is stored when the input changed, or this long after the node's last stored one.
-pub const SAMPLE_EVERY_MS: i64 = 1000;
 
 /// What `ui` was asked.
 #[derive(Clone, Debug)]
@@ -57,30 +56,6 @@ pub struct UiArgs {
     pub record_dir: PathBuf,
     /// `--cycles N`.
     pub cycles: Option<u64>,
-}
-
-/// Keeps the samples worth storing: a changed input, or [`SAMPLE_EVERY_MS`] since the last one.
-#[derive(Default)]
-struct Thinning {
-    last: HashMap<u8, (i64, Vec<u8>)>,
-}
-
-impl Thinning {
-    fn keep(&mut self, samples: Vec<Sample>) -> Vec<Sample> {
-        samples
-            .into_iter()
-            .filter(|s| {
-                let keep = match self.last.get(&s.mac) {
-                    Some((at, input)) => *input != s.input || s.unix_ms - at >= SAMPLE_EVERY_MS,
-                    None => true,
-                };
-                if keep {
-                    self.last.insert(s.mac, (s.unix_ms, s.input.clone()));
-                }
-                keep
-            })
-            .collect()
-    }
 }
 
 /// What `ui` writes to besides the console, checked and opened before the bus is touched: the record
@@ -199,8 +174,8 @@ pub fn execute(
             // known device are decoded for the history and MQTT as for the device view.
             for sample in samples.iter_mut().filter(|x| x.values.is_empty()) {
                 if let Some(node) = s.state().nodes.iter().find(|n| n.mac == sample.mac) {
-                    let layout = super::layout_for(node, super::known_descriptions());
-                    sample.values = crate::scanner::sample_values(&layout, &sample.input);
+                    let layout = layout_for(node, known_descriptions());
+                    sample.values = sample_values(&layout, &sample.input);
                 }
             }
             if let (Some(h), false) = (&history, samples.is_empty()) {
@@ -230,7 +205,7 @@ pub fn execute(
     let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
     drop(publisher);
     if let Some(s) = &scanner {
-        write!(out, "{}", crate::scanner::command::table(s.state())).map_err(werr)?;
+        write!(out, "{}", table(s.state())).map_err(werr)?;
     }
     if let Some(sig) = interrupted {
         writeln!(err, "interrupted by {}: every node released", master_core::stop::signal_name(sig))

@@ -1,0 +1,161 @@
+//! `dnet-master scanner [--scanlist FILE.toml] [--write-scanlist FILE] [--cycles N]`: the engine
+//! on the command line.
+//!
+//! Without `--scanlist` the scan list is built from a network scan (MAC 0..=63) and, with
+//! `--write-scanlist`, written out. The run goes on until `--cycles` or SIGINT / SIGTERM (exit
+//! 130 / 143 with what it has); every node is released at the end. Text: a progress line while it
+//! runs (on a terminal), then a table of the nodes (with each node's connection type, `(-ack)`
+//! under acknowledge suppression); `--json`: one object with `cycle_ms` (the median full cycle),
+//! `bus_load` and `nodes` (each with `connection` and `ack_suppression`). Exit 0 when every node ended ok, 1 otherwise, 2 for a usage
+//! or scan list error.
+
+use crate::cli::{open_bus, Cli};
+use can_io::bus::BusSpec;
+use can_io::log::LogWriter;
+use can_io::pcap::{PcapBus, PcapWriter};
+use can_io::trace::TraceFormat;
+use devicenet::{Duration, MacId};
+use dnet_scanner::monitor::InputLayout;
+use dnet_scanner::report::{finish, summary_json, table, Ending};
+use dnet_scanner::{build_scan_list, read_scan_list, write_scan_list, Scanner, ScannerOptions};
+use harness_common::console::{Console, Progress};
+use harness_common::error::HarnessError;
+use master_core::master::{Master, MasterConfig};
+use master_core::session::Session;
+use slave_fw::description::DeviceDescription;
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// What `scanner` was asked.
+#[derive(Clone, Debug, Default)]
+pub struct ScannerArgs {
+    /// `--scanlist FILE.toml`.
+    pub scanlist: Option<PathBuf>,
+    /// `--write-scanlist FILE`.
+    pub write_scanlist: Option<PathBuf>,
+    /// `--cycles N`.
+    pub cycles: Option<u64>,
+}
+
+/// Runs `scanner`; returns the exit status (errors before the bus is touched are returned).
+pub fn execute(
+    cli: &Cli,
+    args: &ScannerArgs,
+    out: &mut dyn Write,
+    err: &mut dyn Write,
+    console: &Console,
+) -> Result<u8, HarnessError> {
+    let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
+    let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
+    let mut bus = open_bus(cli, slave.as_ref().map(|d| &d.converter), None, None)?;
+    if let Some(path) = &cli.pcap {
+        let pcap = PcapWriter::create(path)
+            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+        bus = Box::new(PcapBus::new(bus, pcap));
+    }
+    let mut session = Session::new(bus.as_mut());
+    session.set_stop(console.stop.clone());
+    if let Some(path) = &cli.log {
+        let log = LogWriter::create_as(path, cli.format.unwrap_or(TraceFormat::Candump))
+            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+        session.set_log(log);
+    }
+    let config = MasterConfig {
+        mac: master_mac,
+        response_timeout: Duration::from_millis(cli.timeout.max(1)),
+        ..MasterConfig::default()
+    };
+    let mut master = Master::new(&mut session, config);
+    let mut progress =
+        if console.stderr_terminal && !cli.json { Progress::on(&mut *err) } else { Progress::off() };
+    // On the simulated bus the devices are known: their images are decoded.
+    let sim_layout = match (&cli.bus, &slave) {
+        (BusSpec::Sim, Some(d)) => Some(InputLayout::from_converter(&d.converter)),
+        (BusSpec::Sim, None) => Some(InputLayout::from_converter(&DeviceDescription::reference().converter)),
+        _ => None,
+    };
+    let mut scanner: Option<Scanner> = None;
+    let mut written: Option<String> = None;
+    let result = (|| -> Result<(), HarnessError> {
+        let list = match given.clone() {
+            Some(l) => l,
+            None => {
+                progress.show("scanner: building the scan list from a network scan ...");
+                let l = build_scan_list(&mut master, 0, 63)?;
+                if let Some(path) = &args.write_scanlist {
+                    std::fs::write(path, write_scan_list(&l))
+                        .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+                    written = Some(path.display().to_string());
+                }
+                l
+            }
+        };
+        if let (Some(path), Some(_)) = (&args.write_scanlist, &given) {
+            std::fs::write(path, write_scan_list(&list))
+                .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
+            written = Some(path.display().to_string());
+        }
+        if list.nodes.is_empty() {
+            // A scan list file without a node is refused where it is read (exit 2); this is a
+            // network scan that found no device to keep in I/O.
+            return Err(HarnessError::NothingCompared(
+                "the network scan found no device with an I/O connection: no node to scan".into(),
+            ));
+        }
+        let layouts: HashMap<u8, InputLayout> = match &sim_layout {
+            Some(l) => list.nodes.iter().map(|n| (n.mac, l.clone())).collect(),
+            None => HashMap::new(),
+        };
+        let options = ScannerOptions { cycles: args.cycles, bitrate: cli.bitrate, layouts };
+        let s = scanner.insert(Scanner::new(list, master_mac.as_raw(), options));
+        progress.show(&format!("scanner: bringing {} node(s) into I/O ...", s.state().nodes.len()));
+        s.start(&mut master)?;
+        loop {
+            if args.cycles.is_some_and(|c| s.state().cycles >= c) {
+                return Ok(());
+            }
+            s.cycle(&mut master)?;
+            // Nobody reads frames or samples here: drop them as they come.
+            let _ = s.take_samples();
+            let st = s.state();
+            if st.cycles % 10 == 1 || progress.enabled() && st.cycles < 10 {
+                let ok = st.nodes.iter().filter(|n| n.code == 0).count();
+                progress.show(&format!(
+                    "scanner: cycle {}, {:.1} ms, bus load {:.0} %, {ok}/{} node(s) ok",
+                    st.cycles,
+                    st.cycle_ms,
+                    st.bus_load * 100.0,
+                    st.nodes.len()
+                ));
+            }
+        }
+    })();
+    progress.clear();
+    drop(progress);
+    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
+    let state = scanner.as_ref().map(|s| s.state().clone());
+    if cli.json {
+        let v = summary_json(state.as_ref(), code, written.as_deref(), interrupted, &result, &cleanup);
+        writeln!(out, "{v}").map_err(werr)?;
+    } else {
+        if let Some(s) = &state {
+            write!(out, "{}", table(s)).map_err(werr)?;
+        }
+        if let Some(w) = &written {
+            writeln!(err, "scan list written to {w}").map_err(werr)?;
+        }
+        if let Some(sig) = interrupted {
+            writeln!(err, "interrupted by {}: every node released", master_core::stop::signal_name(sig))
+                .map_err(werr)?;
+        } else if let Err(e) = &result {
+            writeln!(err, "error: {e}").map_err(werr)?;
+        }
+        for e in &cleanup {
+            writeln!(err, "error: {e}").map_err(werr)?;
+        }
+    }
+    Ok(code)
+}
