@@ -44,8 +44,8 @@
 //! log and trigger events, environment and system variables, J1939), lines that follow no known
 //! form, and a half-written last line. Header lines, comments and blank lines are not counted.
 
+use super::entry::{LogEntry, LogError};
 use super::{for_each_line, parse_scaled, standard_id, tokens, Direction, Sink};
-use crate::log::{LogEntry, LogError};
 use devicenet::{CanFrame, Instant};
 
 /// The state the header and earlier events leave.

@@ -51,8 +51,8 @@
 //! an object continued across containers is held only up to [`MAX_OBJECT_LEN`] bytes (a larger
 //! one is passed over as its bytes arrive), and no length read from the file sizes an allocation.
 
+use super::entry::{LogEntry, LogError};
 use super::{Direction, Sink};
-use crate::log::{LogEntry, LogError};
 use devicenet::{CanFrame, Instant};
 use flate2::{Decompress, FlushDecompress, Status};
 

@@ -1,4 +1,4 @@
-//! The `candump -L` reader of [`super::read_trace`]: the line grammar is [`crate::log`]'s.
+//! The `candump -L` reader of [`super::read_trace`]: the line grammar is [`super::entry`]'s.
 //!
 //! Skipped (counted, named): error frames (identifier with `CAN_ERR_FLAG`, 8 hex digits `2xxxxxxx`),
 //! extended, remote and FD frames, lines that are not log lines, and a half-written last line (a last
@@ -7,11 +7,11 @@
 //!
 //! Speed: `decode` reads millions of lines, so the canonical form candump writes
 //! (`(digits.digits) iface HHH#HEX`) is read by `fast_line` straight from the bytes, and entries
-//! of one interface share its name; every other line goes through [`crate::log`]'s parser, which
+//! of one interface share its name; every other line goes through [`super::entry`]'s parser, which
 //! gives the precise reason when a line is not a frame.
 
+use super::entry::{parse_line, LogEntry, LogError};
 use super::Sink;
-use crate::log::{parse_line, LogEntry, LogError};
 use devicenet::{CanFrame, Instant};
 use std::sync::Arc;
 

@@ -68,8 +68,8 @@
 //! Extended, remote, error and FD rows, identifiers above 0x7FF, bad data (not hex or base64, more
 //! than 8 bytes, a DLC that disagrees with the bytes), bad times, and a half-written last line.
 
+use super::entry::{LogEntry, LogError};
 use super::{parse_scaled, standard_id, Direction, Sink};
-use crate::log::{LogEntry, LogError};
 use base64::Engine as _;
 use devicenet::{CanFrame, Instant};
 

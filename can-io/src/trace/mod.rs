@@ -19,7 +19,7 @@
 //! [`ReadOptions::strict`] the first skip is an error instead. A reader never panics on any input,
 //! and keeps at most [`NAMED_SKIPS`] skipped lines' details (all are counted).
 
-use crate::log::{LogEntry, LogError};
+use entry::{LogEntry, LogError};
 use std::fmt;
 use std::path::Path;
 
@@ -27,6 +27,7 @@ pub mod asc;
 pub mod blf;
 pub mod candump;
 pub mod csv;
+pub mod entry;
 pub mod pcapfile;
 pub mod trc;
 pub mod write;
@@ -310,7 +311,7 @@ pub fn parse_trace(bytes: &[u8], file: &str, options: ReadOptions) -> Result<Tra
 /// Reads a trace file; `-` reads standard input to its end (its name in messages is
 /// `standard input`). An unreadable file is reported as line 0.
 pub fn read_trace(path: &Path, options: ReadOptions) -> Result<Trace, LogError> {
-    let (bytes, file) = crate::log::read_source(path)?;
+    let (bytes, file) = entry::read_source(path)?;
     let stdin = path.as_os_str() == "-";
     let options = ReadOptions {
         format: options.format.or_else(|| detect(&bytes)).or_else(|| {

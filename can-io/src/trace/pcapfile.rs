@@ -37,8 +37,8 @@
 //! No input panics the reader: every length is checked against the bytes present, and nothing
 //! is allocated from a length read in the file (the packets are borrowed from the input).
 
+use super::entry::{LogEntry, LogError};
 use super::{Direction, Sink};
-use crate::log::{LogEntry, LogError};
 use crate::pcap::LINKTYPE_CAN_SOCKETCAN;
 use devicenet::{CanFrame, Instant};
 use pcap_parser::nom;

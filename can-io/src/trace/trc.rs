@@ -43,8 +43,8 @@
 //! follow the layout, and a half-written last line. Comment lines (`;`) and blank lines are neither
 //! frames nor skipped.
 
+use super::entry::{LogEntry, LogError};
 use super::{for_each_line, parse_scaled, standard_id, tokens, Direction, Sink, TextLine};
-use crate::log::{LogEntry, LogError};
 use devicenet::{CanFrame, Instant};
 
 /// The column layout of a file version.

@@ -21,8 +21,8 @@
 //! (`sim`, `can0`) is written as channel 1. A frame written without a direction is written as `Rx`
 //! in trc and asc (both require one); candump and CSV do not record directions.
 
+use super::entry::format_line;
 use super::{Direction, TraceFormat};
-use crate::log::format_line;
 use base64::Engine as _;
 use devicenet::{CanFrame, Instant};
 use std::fmt::Write as _;
