@@ -6,7 +6,7 @@
 //! change-of-state/cyclic rules of §II.2.5 (docs/io-connections.md). This node offers every
 //! connection but multicast poll ([`SUPPORTED`]).
 
-use super::explicit_messaging::Port;
+use super::explicit_messaging::{invalid_group2_only_request, Port};
 use super::{ConnectionKind, Event, ObjectHandler, Reply, ServiceError, SlaveNode};
 use crate::explicit::{additional, BodyFormat, GeneralStatus, Request, ServiceCode};
 use crate::id::MacId;
@@ -173,21 +173,4 @@ impl SlaveNode {
 /// An allocation choice that is malformed or inconsistent: 0x09 / 0x02 (notes §3.4).
 fn invalid_choice() -> ServiceError {
     ServiceError::with_additional(GeneralStatus::InvalidAttributeValue, additional::INVALID_CHOICE)
-}
-
-/// The error for a request on the Group 2 Only port too short to parse: 0x13 for Allocate and
-/// Release, else that of any other service (notes §3.4).
-pub(super) fn group2_only_truncated(service: ServiceCode) -> ServiceError {
-    match service {
-        ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => ServiceError::NOT_ENOUGH_DATA,
-        _ => invalid_group2_only_request(),
-    }
-}
-
-/// Any service but Allocate/Release on the Group 2 Only port: 0x02 / 0x03 (JB, notes §3.4 and
-/// §9.6).
-// Out of line: the constant built at each of its uses costs some 15 bytes of flash.
-#[inline(never)]
-fn invalid_group2_only_request() -> ServiceError {
-    ServiceError::with_additional(GeneralStatus::ResourceUnavailable, additional::INVALID_GROUP2_ONLY_REQUEST)
 }

@@ -6,9 +6,10 @@
 //! Requests on the Group 2 Only port are served and answered by the same code, restricted to
 //! Allocate and Release ([`Port`]).
 
-use super::allocation::group2_only_truncated;
 use super::{ConnectionState, ObjectHandler, Reply, ServiceError, SlaveNode, MAX_EXPLICIT_SIZE};
-use crate::explicit::{split_message, BodyFormat, ExplicitError, Header, Request, ServiceCode};
+use crate::explicit::{
+    additional, split_message, BodyFormat, ExplicitError, GeneralStatus, Header, Request, ServiceCode,
+};
 use crate::fragment::{ExplicitReceive, FragmentByte, FragmentKind};
 use crate::time::Instant;
 
@@ -135,4 +136,21 @@ impl SlaveNode {
             self.queue_data(id, &payload);
         }
     }
+}
+
+/// The error for a request on the Group 2 Only port too short to parse: 0x13 for Allocate and
+/// Release, else that of any other service (notes §3.4).
+fn group2_only_truncated(service: ServiceCode) -> ServiceError {
+    match service {
+        ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => ServiceError::NOT_ENOUGH_DATA,
+        _ => invalid_group2_only_request(),
+    }
+}
+
+/// Any service but Allocate/Release on the Group 2 Only port: 0x02 / 0x03 (JB, notes §3.4 and
+/// §9.6).
+// Out of line: the constant built at each of its uses costs some 15 bytes of flash.
+#[inline(never)]
+pub(super) fn invalid_group2_only_request() -> ServiceError {
+    ServiceError::with_additional(GeneralStatus::ResourceUnavailable, additional::INVALID_GROUP2_ONLY_REQUEST)
 }

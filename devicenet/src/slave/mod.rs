@@ -519,6 +519,18 @@ impl SlaveNode {
         Identifier::group1(Group1MessageId::POLL_RESPONSE, self.config.mac_id)
     }
 
+    /// Communication Faulted: silent, every connection gone, until reset (notes §7.4). Here, not in
+    /// `network.rs`, because it resets the Offline Connection Set too (`offline.rs`, which reads
+    /// the network state).
+    // Always inlined: the reason is a constant at each call site (some 15 bytes of flash).
+    #[inline(always)]
+    fn fault(&mut self, reason: FaultReason) {
+        self.network = NetworkState::CommunicationFaulted(reason);
+        self.reset_connections();
+        self.offline = offline::Offline::new();
+        self.push_event(Event::CommunicationFaulted(reason));
+    }
+
     /// Back to no connection and no owner (power-on, bus-off, Communication Faulted).
     fn reset_connections(&mut self) {
         // Deleting every connection also ends the master's ownership (`delete_connection`).

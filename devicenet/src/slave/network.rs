@@ -98,14 +98,4 @@ impl SlaveNode {
             NetworkState::PoweredOff | NetworkState::CommunicationFaulted(_) => {}
         }
     }
-
-    /// Communication Faulted: silent, every connection gone, until reset (notes §7.4).
-    // Always inlined: the reason is a constant at each call site (some 15 bytes of flash).
-    #[inline(always)]
-    pub(super) fn fault(&mut self, reason: FaultReason) {
-        self.network = NetworkState::CommunicationFaulted(reason);
-        self.reset_connections();
-        self.offline = super::offline::Offline::new();
-        self.push_event(Event::CommunicationFaulted(reason));
-    }
 }
