@@ -49,7 +49,6 @@
 //! behind the first and third are small (the node's 16 frames, 8 events): a caller that hands
 //! several inputs over before draining loses frames and events.
 
-use crate::image::ImageError;
 use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig};
 use devicenet::led::Leds;
 use devicenet::slave::{
@@ -58,19 +57,22 @@ use devicenet::slave::{
 };
 use devicenet::{CanFrame, Duration, Instant, MacId, SlaveNode};
 use heapless::Deque;
+use image::ImageError;
 
 pub mod check;
 pub mod config_object;
+pub mod image;
 pub mod objects;
 pub mod parameters;
+mod vendor;
 
 pub use check::{InvalidConfig, KeyCode};
 use config_object::ConfigObject;
 pub use config_object::{ConfigOrigin, ConfigState, PlatformCheck, CONFIG_CLASS};
 
-use objects::VendorObjects;
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
 pub use parameters::PARAMETER_CLASS;
+use vendor::VendorObjects;
 
 /// Input assembly instance with the instrument's image only.
 pub const PLAIN_INPUT_ASSEMBLY: u8 = 100;
@@ -291,7 +293,7 @@ impl Converter {
     }
 
     /// A powered-off converter running `config`, which came from `origin`: the factory default,
-    /// the stored image ([`crate::image::decode`] accepted it), or the factory default because the
+    /// the stored image ([`image::decode`] accepted it), or the factory default because the
     /// stored image was refused ([`ConfigOrigin::Fault`], reported by the configuration object,
     /// [`CONFIG_CLASS`] attributes 3 and 5). The image in force is `image::encode(&config)`.
     pub fn with_origin(
@@ -299,14 +301,14 @@ impl Converter {
         origin: ConfigOrigin,
         now: Instant,
     ) -> Result<Converter, ConverterConfigError> {
-        let mut image = [0u8; crate::image::MAX_IMAGE];
-        let len = crate::image::encode(&config, &mut image).unwrap_or(0);
+        let mut image = [0u8; image::MAX_IMAGE];
+        let len = image::encode(&config, &mut image).unwrap_or(0);
         Converter::with_image(config, origin, image.get(..len).unwrap_or_default(), now)
     }
 
     /// [`Converter::with_origin`] for a configuration read from `image`, which is the image in
     /// force as a tool reads it back (Read_Chunk, attributes 2 and 4): the firmware runs its
-    /// stored image, or [`image::BREAKER_REFERENCE`](crate::image::BREAKER_REFERENCE), with the
+    /// stored image, or [`image::BREAKER_REFERENCE`], with the
     /// MAC ID and data rate of its switches, and carries no encoder.
     // Out of line: the converter is built in the caller's return slot, not moved through it
     // (firmware size budget).
@@ -338,7 +340,7 @@ impl Converter {
     /// and builds the converter, powered off. Every refusal is an [`ImageError`], as a download's
     /// would be.
     ///
-    /// [`image::decode`]: crate::image::decode
+    /// [`image::decode`]: image::decode
     // One step from image to converter, out of line: the decoded configuration is not checked a
     // second time nor moved into another builder, and no [`ConverterConfigError`] is mapped to
     // an [`ImageError`] by the caller (firmware size).
@@ -354,7 +356,7 @@ impl Converter {
         // object), rather than `decode`. The board's values are put in and the platform's check
         // made where the configuration was decoded, and only then is it taken out of the `Result`
         // (no `Try` moves of the large value, no copy before the changes; firmware size).
-        let mut decoded = crate::image::decode_with_layout(image);
+        let mut decoded = image::decode_with_layout(image);
         if let Ok((config, _)) = &mut decoded {
             board.apply(&mut config.device);
             if let Err(e) = check(config) {
@@ -617,8 +619,8 @@ fn earliest(a: Option<Instant>, b: Option<Instant>) -> Option<Instant> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::image::BREAKER_REFERENCE;
     use crate::serial::Conflict;
+    use image::BREAKER_REFERENCE;
 
     fn board() -> BoardFacts {
         BoardFacts {

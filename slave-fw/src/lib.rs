@@ -62,7 +62,9 @@
 extern crate std;
 
 pub mod converter;
-pub mod image;
+/// The configuration image (`converter::image`), at the crate root where the firmware, the soft
+/// slave and the tools have always named it.
+pub use converter::image;
 pub mod serial;
 
 #[cfg(feature = "description")]

@@ -1,5 +1,5 @@
 //! The value rules of a [`ConverterConfig`], in one place: the TOML device description loader
-//! (`slave_fw::description`) and the configuration image decoder ([`crate::image::decode`]) both
+//! (`slave_fw::description`) and the configuration image decoder ([`super::image::decode`]) both
 //! call [`ConverterConfig::check`], so a value refused by either is refused with the same key and
 //! the same words (`profile.modbus.scan[1].offset: 30 is outside the allowed range 0..=4`).
 //!
@@ -219,7 +219,7 @@ impl ConverterConfig {
     }
 
     /// [`ConverterConfig::check`] for a configuration whose device half is derived already, equal
-    /// to its [`ConverterConfig::device_config`] ([`crate::image::decode`] builds it so): the node's
+    /// to its [`ConverterConfig::device_config`] ([`super::image::decode`] builds it so): the node's
     /// check reads the device half in place, not a copy of it (firmware size).
     pub(crate) fn check_derived(&self) -> Result<(), InvalidConfig> {
         self.check_with(&self.device)

@@ -1,5 +1,5 @@
 //! The configuration object, vendor class [`CONFIG_CLASS`] 0x66, instance 1: how a tool reads the
-//! configuration image in force and downloads a new one over the bus ([`crate::image`]).
+//! configuration image in force and downloads a new one over the bus ([`super::image`]).
 //!
 //! | attribute | type | value |
 //! |---|---|---|
@@ -32,8 +32,8 @@
 //! Allocate, devicenet-notes §3.4) holds that connection; any other master's allocation is refused
 //! by the node, so no other master can reach this object.
 
+use super::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
 use super::{ConverterConfig, InvalidConfig, KeyCode};
-use crate::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};
 use crate::serial::Problem;
 use core::fmt;
 use devicenet::explicit::{GeneralStatus, Request, ServiceCode};
@@ -82,7 +82,7 @@ impl ConfigOrigin {
     /// from its MCU, [`BoardFacts`](super::BoardFacts)), and a stored image's, written by a tool
     /// from a description shared by many devices, would give them all one.
     pub fn resolve(factory: &ConverterConfig, stored: Option<&[u8]>) -> (ConverterConfig, ConfigOrigin) {
-        match stored.filter(|s| !s.is_empty()).map(crate::image::decode) {
+        match stored.filter(|s| !s.is_empty()).map(super::image::decode) {
             None => (factory.clone(), ConfigOrigin::FactoryDefault),
             Some(Ok(mut config)) => {
                 config.device.identity.serial_number = factory.device.identity.serial_number;
@@ -309,7 +309,7 @@ enum Staging {
 }
 
 /// What the platform itself cannot run, checked at Commit_Download after the converter's own
-/// checks ([`crate::image::decode`]): the firmware's USART makes fewer serial lines than the
+/// checks ([`super::image::decode`]): the firmware's USART makes fewer serial lines than the
 /// converter accepts. A configuration it refuses is refused like an invalid one (additional code
 /// 4, the key and reason in attribute 5), so it is never stored. Set with
 /// [`Converter::set_platform_check`](super::Converter::set_platform_check).

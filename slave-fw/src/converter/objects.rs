@@ -27,8 +27,6 @@ use crate::serial::{
     Counter, FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile,
     ProfileConfig, StalePolicy, StopBits,
 };
-use devicenet::explicit::{Request, ServiceCode};
-use devicenet::slave::{ObjectHandler, Reply, ServiceError};
 
 /// Vendor-specific class of the serial link object: statistics and status, instance 1.
 pub const SERIAL_LINK_CLASS: u16 = 0x64;
@@ -457,82 +455,6 @@ enum ConfigRef<'a> {
 
 fn sends(action: &IdleAction) -> bool {
     matches!(action, IdleAction::Send(_))
-}
-
-/// The vendor objects' request handler, borrowing the serial side while the node serves a
-/// request.
-pub(super) struct VendorObjects<'a> {
-    /// The running profile.
-    pub(super) profile: &'a Profile,
-    /// The produced assembly.
-    pub(super) input: InputAssembly,
-    /// The configuration object.
-    pub(super) config: &'a mut super::ConfigObject,
-    /// Whether an I/O (poll) connection is established.
-    pub(super) io_established: bool,
-}
-
-impl VendorObjects<'_> {
-    /// Get_Attribute_Single of instance attribute `id` of `class` (one of ours).
-    fn get(&self, class: u16, id: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
-        // `let ... else` rather than `ok_or(..)?`: 12 bytes less in the firmware.
-        let (data_type, value) = if class == SERIAL_LINK_CLASS {
-            let Some(a) = LinkAttribute::from_id(id) else {
-                return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED);
-            };
-            (a.data_type(), a.read(self.profile.counts(), &self.profile.status()))
-        } else {
-            let Some(a) = SettingsAttribute::from_id(id) else {
-                return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED);
-            };
-            (a.data_type(), a.read(&SettingsValues::of_profile(self.profile, self.input)))
-        };
-        match data_type {
-            AttributeType::Udint => reply.u32(value),
-            // One-byte types: the value fits by construction of `read` (tested).
-            AttributeType::Usint | AttributeType::Byte => reply.u8(value as u8),
-        }
-    }
-}
-
-impl ObjectHandler for VendorObjects<'_> {
-    fn handle(&mut self, req: &Request<'_>, reply: &mut Reply<'_>) -> Option<Result<(), ServiceError>> {
-        let link = match req.class {
-            SERIAL_LINK_CLASS => true,
-            SETTINGS_CLASS => false,
-            super::CONFIG_CLASS => return Some(self.config.handle(req, reply, self.io_established)),
-            super::PARAMETER_CLASS => {
-                return Some(super::parameters::handle(self.config, req, reply, self.io_established))
-            }
-            _ => return None,
-        };
-        let known = |id| {
-            if link {
-                LinkAttribute::from_id(id).is_some()
-            } else {
-                SettingsAttribute::from_id(id).is_some()
-            }
-        };
-        // Class instance 0 is the node's (`class_revision`).
-        Some(match (req.instance, req.service, req.data) {
-            (1, ServiceCode::GetAttributeSingle, &[attr]) => self.get(req.class, attr, reply),
-            (1, ServiceCode::GetAttributeSingle, data) => Err(ServiceError::wrong_length(data, 1)),
-            (1, ServiceCode::SetAttributeSingle, &[attr, ..]) => Err(if known(attr) {
-                ServiceError::ATTRIBUTE_NOT_SETTABLE
-            } else {
-                ServiceError::ATTRIBUTE_NOT_SUPPORTED
-            }),
-            (1, ServiceCode::SetAttributeSingle, []) => Err(ServiceError::NOT_ENOUGH_DATA),
-            (1, _, _) => Err(ServiceError::SERVICE_NOT_SUPPORTED),
-            _ => Err(ServiceError::OBJECT_DOES_NOT_EXIST),
-        })
-    }
-
-    /// The serial link, settings and configuration objects serve their revision, 1, and nothing
-    /// else at class instance 0: the node answers there.
-    fn class_revision(&self, class: u16) -> Option<u16> {
-        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | super::CONFIG_CLASS).then_some(1)
-    }
 }
 
 #[cfg(test)]

@@ -58,9 +58,9 @@
 //! | 0x16 object does not exist | instance 0 for a Set, or an instance above 9 |
 
 use super::config_object::ConfigObject;
+use super::image::{self, Layout, MAX_IMAGE};
 use super::objects::{AttributeType, SettingsAttribute, SettingsValues};
 use super::{ConverterConfig, InputAssembly};
-use crate::image::{self, Layout, MAX_IMAGE};
 use crate::serial::{HealthConfig, Parity, ProfileConfig, SequencerConfig, SerialSettings, StopBits};
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::config::MAX_EXPLICIT_SIZE;

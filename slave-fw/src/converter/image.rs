@@ -61,7 +61,7 @@
 //! is not a valid image with an [`ImageError`] that says what is wrong. An accepted image always
 //! passes [`ConverterConfig::check`], the same value rules as the TOML device description.
 
-use crate::converter::{ConverterConfig, InputAssembly, InvalidConfig};
+use super::{ConverterConfig, InputAssembly, InvalidConfig};
 use crate::serial::modbus::{ByteOrder, Function, ModbusConfig, ScanEntry};
 use crate::serial::{
     AckFormat, Checksum, CommandFormat, DataBits, FramedConfig, FramedProfileConfig, HealthConfig,
@@ -626,7 +626,7 @@ impl Reader<'_> {
             epr_resolution_ms,
         };
         // Derived in place, not through `device_config`'s copy of the device (firmware size).
-        crate::converter::derive_io(&mut device, &profile, input);
+        super::derive_io(&mut device, &profile, input);
         ConverterConfig { device, profile, input }
     }
 
