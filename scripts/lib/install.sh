@@ -70,6 +70,17 @@ need_package() {
   done
 }
 
+# need_cargo_tool COMMAND CRATE VERSION [ARG...]: CRATE at VERSION from crates.io (cargo install
+# --locked, with ARGs such as --no-default-features) when COMMAND is not found; a COMMAND the
+# machine already has is kept as it is.
+need_cargo_tool() {
+  local command=$1 crate=$2 version=$3
+  shift 3
+  command -v "$command" >/dev/null && return 0
+  install_log "cargo install $crate $version"
+  cargo install --locked --quiet "$crate" --version "$version" "$@"
+}
+
 # need_qemu BINARY PACKAGE: QEMU's BINARY (qemu-system-arm, qemu-system-x86_64) on PATH. From
 # Debian's PACKAGE when apt can install it; when that would remove a package of the machine (a
 # newer qemu-utils, from backports, breaks Debian 12's qemu-system-common), the two packages are

@@ -472,16 +472,17 @@ fn self_test_usage_errors_exit_2(#[case] args: &[&str], #[case] message: &str) {
 }
 
 #[test]
-fn the_readme_shows_the_current_matrix() {
-    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../README.md")).unwrap();
+fn the_guide_shows_the_current_matrix() {
+    let page = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/src/test-engineer/conformance-self-test.md");
+    let readme = std::fs::read_to_string(page).unwrap();
     let begin = "<!-- self-test matrix: begin (dnet-master conformance --self-test --markdown) -->\n";
     let end = "<!-- self-test matrix: end -->";
-    let start = readme.find(begin).expect("the README has the self-test matrix") + begin.len();
+    let start = readme.find(begin).expect("the guide's self-test page has the matrix") + begin.len();
     let stop = readme[start..].find(end).expect("its end marker") + start;
     let shown = &readme[start..stop];
     let current = self_test::markdown(&self_test());
     assert!(
         shown == current,
-        "the README's self-test matrix is out of date: replace it with the output of\n  dnet-master conformance --self-test --markdown\n\n{current}"
+        "the self-test matrix of docs/src/test-engineer/conformance-self-test.md is out of date: replace it with the output of\n  dnet-master conformance --self-test --markdown\n\n{current}"
     );
 }
