@@ -23,12 +23,12 @@
 use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::log::LogWriter;
 use converter_sim::{OpenError, SimSetup};
-use devicenet::explicit::{Request, ServiceCode};
 use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, MacId};
 use eds::model::{ConnectionInfo, Eds, IoEntry, Param};
 use eds::value::{AttributePath, ConnectionMask, DataType, LinkPath, Value};
+use master_core::bring_up::{BringUp, Refusal, Step};
 use master_core::client::{Port, ReplyBody};
 use master_core::decode;
 use master_core::error::MasterError;
@@ -402,11 +402,11 @@ type IoDirection<'a> = (&'static str, &'static str, u8, u8, Option<&'a (String, 
 /// The outcome of one request: the value, or the device's error response by name.
 type Read = Result<Vec<u8>, String>;
 
-/// Sends `request` on the explicit connection; an error response is a value (`Err(text)`), a
-/// timeout or bus failure an error.
-fn ask(master: &mut Master<'_, '_>, target: MacId, request: &Request<'_>) -> Result<Read, MasterError> {
-    let answer = master.request(target, Port::Explicit, request)?;
-    Ok(match answer.reply.body {
+/// Runs `step` on the device through the bring-up engine; an error response is a value
+/// (`Err(text)`), a timeout or bus failure an error.
+fn ask(master: &mut Master<'_, '_>, node: &mut BringUp, step: Step) -> Result<Read, MasterError> {
+    let (body, _) = master.run_step(node, step, Refusal::Report)?;
+    Ok(match body {
         ReplyBody::Success(data) => Ok(data),
         // The general status by name; the additional code only when there is one (0xFF: none).
         ReplyBody::Error { general, additional: 0xFF } => Err(general.to_string()),
@@ -418,47 +418,31 @@ fn ask(master: &mut Master<'_, '_>, target: MacId, request: &Request<'_>) -> Res
 
 fn get(
     master: &mut Master<'_, '_>,
-    target: MacId,
+    node: &mut BringUp,
     class_id: u16,
     instance: u16,
     attribute: u8,
 ) -> Result<Read, MasterError> {
-    let data = [attribute];
-    ask(
-        master,
-        target,
-        &Request { service: ServiceCode::GetAttributeSingle, class: class_id, instance, data: &data },
-    )
+    ask(master, node, Step::Get { class: class_id, instance, attribute })
 }
 
+/// Allocates `choice` through the explicit connection; a refusal is a finding.
 fn allocate(
     master: &mut Master<'_, '_>,
-    target: MacId,
+    node: &mut BringUp,
     choice: AllocationChoice,
 ) -> Result<Read, MasterError> {
-    let data = devicenet::messages::AllocateRequest { choice, allocator: master.config.mac }.emit();
-    let request = Request {
-        service: ServiceCode::AllocateMasterSlave,
-        class: class::DEVICENET,
-        instance: 1,
-        data: &data,
-    };
-    ask(master, target, &request)
+    ask(master, node, Step::Allocate { port: Port::Explicit, choice })
 }
 
-/// Releases what this check allocated; a refusal breaks the protocol (the master owns it).
-fn release(master: &mut Master<'_, '_>, target: MacId, choice: AllocationChoice) -> Result<(), MasterError> {
-    let data = devicenet::messages::ReleaseRequest { choice }.emit();
-    let request = Request {
-        service: ServiceCode::ReleaseMasterSlave,
-        class: class::DEVICENET,
-        instance: 1,
-        data: &data,
-    };
-    ask(master, target, &request)?.map(|_| ()).map_err(|reason| MasterError::Protocol {
-        what: format!("Release_Master/Slave_Connection_Set 0x{:02X} at MAC {target}", choice.bits()),
-        reason: format!("the device refused to release what it had allocated: {reason}"),
-    })
+/// Releases what this check allocated; a refusal is an error (the master owns it).
+fn release(
+    master: &mut Master<'_, '_>,
+    node: &mut BringUp,
+    choice: AllocationChoice,
+) -> Result<(), MasterError> {
+    master.run_step(node, Step::Release { port: Port::Explicit, choice }, Refusal::Stop)?;
+    Ok(())
 }
 
 fn uint(read: &Read) -> Result<u16, String> {
@@ -518,17 +502,24 @@ pub fn check_device(
     options: &CheckOptions,
 ) -> Result<DeviceReport, MasterError> {
     let expected = Expected::of(eds);
-    master.open_explicit(target)?;
+    master.prepare(target)?;
+    let mut node = master.bring_up(target);
+    let node = &mut node;
+    master.run_step(
+        node,
+        Step::Allocate { port: Port::Group2Only, choice: AllocationChoice::EXPLICIT },
+        Refusal::Stop,
+    )?;
     let mut findings = Vec::new();
 
     // Identity (class 0x01 instance 1): the electronic key.
-    let vendor = get(master, target, class::IDENTITY, 1, 1)?;
+    let vendor = get(master, node, class::IDENTITY, 1, 1)?;
     findings.push(keyed("vendor ID (VendCode)", expected.vendor_id, uint(&vendor), hex16));
-    let device_type = get(master, target, class::IDENTITY, 1, 2)?;
+    let device_type = get(master, node, class::IDENTITY, 1, 2)?;
     findings.push(keyed("device type (ProdType)", expected.device_type, uint(&device_type), show));
-    let product_code = get(master, target, class::IDENTITY, 1, 3)?;
+    let product_code = get(master, node, class::IDENTITY, 1, 3)?;
     findings.push(keyed("product code (ProdCode)", expected.product_code, uint(&product_code), show));
-    let revision = get(master, target, class::IDENTITY, 1, 4)?;
+    let revision = get(master, node, class::IDENTITY, 1, 4)?;
     let revision = match &revision {
         Ok(bytes) => match bytes.as_slice() {
             [major, minor] => Ok((*major, *minor)),
@@ -549,7 +540,7 @@ pub fn check_device(
         minor.clone().map_or_else(|e| format!("error: {e}"), |m| m.to_string()),
         minor.ok() == expected.minor_revision,
     ));
-    let name = match get(master, target, class::IDENTITY, 1, 7)? {
+    let name = match get(master, node, class::IDENTITY, 1, 7)? {
         Ok(bytes) => match bytes.split_first() {
             Some((&len, text)) if usize::from(len) == text.len() => {
                 Ok(String::from_utf8_lossy(text).into_owned())
@@ -567,7 +558,7 @@ pub fn check_device(
 
     // The poll connection: sizes and paths as a scanner sees them.
     let poll_sources = expected.announces(ConnectionType::Poll).to_vec();
-    let poll = allocate(master, target, AllocationChoice::POLL)?;
+    let poll = allocate(master, node, AllocationChoice::POLL)?;
     findings.push(connection_finding(ConnectionType::Poll, &poll_sources, &poll));
     // Per direction: names, Connection 2 size and path attributes, the EDS entry.
     let directions: [IoDirection<'_>; 2] = [
@@ -579,21 +570,21 @@ pub fn check_device(
         let eds_size = entry.and_then(|(_, e)| e.size);
         let eds_path = entry.and_then(|(_, e)| e.path.clone());
         if poll.is_ok() {
-            let size = get(master, target, class::CONNECTION, 2, size_attr)?;
+            let size = get(master, node, class::CONNECTION, 2, size_attr)?;
             findings.push(keyed(
                 &format!("{size_what} ({keyword})"),
                 eds_size,
                 uint(&size).map(u32::from),
                 show,
             ));
-            let path = get(master, target, class::CONNECTION, 2, path_attr)?;
+            let path = get(master, node, class::CONNECTION, 2, path_attr)?;
             findings.push(path_finding(&format!("{path_what} ({keyword})"), eds_path.as_ref(), &path));
         } else {
             // Poll refused: the assembly the EDS names still tells its size.
             let instance =
                 eds_path.as_ref().and_then(LinkPath::attribute).filter(|a| a.class == class::ASSEMBLY);
             let device = match instance {
-                Some(a) => uint(&get(master, target, class::ASSEMBLY, a.instance, 4)?)
+                Some(a) => uint(&get(master, node, class::ASSEMBLY, a.instance, 4)?)
                     .map(u32::from)
                     .map_err(|e| format!("{e} (assembly {} attribute 4; poll refused)", a.instance)),
                 None => Err("not read: poll refused and the EDS names no assembly".to_string()),
@@ -609,13 +600,13 @@ pub fn check_device(
         [(ConnectionType::BitStrobe, 3), (ConnectionType::ChangeOfState, 4), (ConnectionType::Cyclic, 4)]
     {
         let sources = expected.announces(kind).to_vec();
-        let outcome = allocate(master, target, kind.choice())?;
+        let outcome = allocate(master, node, kind.choice())?;
         let size = match (&outcome, expected.produced(kind)) {
-            (Ok(_), Some(eds)) => Some((eds, get(master, target, class::CONNECTION, instance, 7)?)),
+            (Ok(_), Some(eds)) => Some((eds, get(master, node, class::CONNECTION, instance, 7)?)),
             _ => None,
         };
         if outcome.is_ok() {
-            release(master, target, kind.choice())?;
+            release(master, node, kind.choice())?;
         }
         findings.push(connection_finding(kind, &sources, &outcome));
         if let Some(((keyword, eds_size), device)) = size {
@@ -630,15 +621,15 @@ pub fn check_device(
 
     if options.params {
         for (n, param) in eds.params() {
-            findings.push(param_finding(master, target, n, param)?);
+            findings.push(param_finding(master, node, n, param)?);
         }
     }
 
     // Give the connections back so a scanner can have the device.
     if poll.is_ok() {
-        release(master, target, AllocationChoice::POLL)?;
+        release(master, node, AllocationChoice::POLL)?;
     }
-    release(master, target, AllocationChoice::EXPLICIT)?;
+    release(master, node, AllocationChoice::EXPLICIT)?;
     Ok(DeviceReport { mac: target.as_raw(), findings })
 }
 
@@ -680,7 +671,7 @@ pub fn check_on_bus(
 /// Reads parameter `n`'s attribute and compares it with the parameter's size and default.
 fn param_finding(
     master: &mut Master<'_, '_>,
-    target: MacId,
+    node: &mut BringUp,
     n: u32,
     param: &Param,
 ) -> Result<Finding, MasterError> {
@@ -704,7 +695,7 @@ fn param_finding(
         ));
     };
     let at = format!("class 0x{class_id:02X} instance {instance} attribute {attribute}");
-    let bytes = match get(master, target, class_id, instance, attribute)? {
+    let bytes = match get(master, node, class_id, instance, attribute)? {
         Ok(bytes) => bytes,
         Err(e) => {
             return Ok(Finding { what, eds: at, device: format!("error: {e}"), verdict: Verdict::Disagree });

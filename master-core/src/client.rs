@@ -95,6 +95,20 @@ pub enum ClientError {
     RequestAborted(String),
 }
 
+/// Why a request cannot be sent as it is.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RequestError {
+    /// The request cannot be written in the body format (reserved format, path too long).
+    #[error("cannot build the request: {0}")]
+    Build(devicenet::explicit::ExplicitError),
+    /// The request is longer than the master sends.
+    #[error("the request is {len} bytes; the master sends at most {MAX_MESSAGE}")]
+    TooLong {
+        /// Its length, header included.
+        len: usize,
+    },
+}
+
 /// What became of a frame handed to [`Transaction::handle_frame`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Handled {
@@ -136,6 +150,10 @@ pub struct Transaction {
 
 impl Transaction {
     /// A transaction sending `request` (in body format `format`) from `master` to `target`.
+    ///
+    /// # Errors
+    ///
+    /// [`MasterError::Request`] as [`Transaction::build`].
     pub fn new(
         target: MacId,
         master: MacId,
@@ -145,17 +163,30 @@ impl Transaction {
         format: BodyFormat,
         timeout: Duration,
     ) -> Result<Transaction, MasterError> {
+        Ok(Transaction::build(target, master, port, xid, request, format, timeout)?)
+    }
+
+    /// [`Transaction::new`], with the reason a request cannot be sent as it is.
+    ///
+    /// # Errors
+    ///
+    /// [`RequestError::Build`] when `request` cannot be written in `format`,
+    /// [`RequestError::TooLong`] when it is longer than [`MAX_MESSAGE`].
+    pub fn build(
+        target: MacId,
+        master: MacId,
+        port: Port,
+        xid: bool,
+        request: &Request<'_>,
+        format: BodyFormat,
+        timeout: Duration,
+    ) -> Result<Transaction, RequestError> {
         let len = request.buffer_len(format).unwrap_or(0);
         let mut message = vec![0u8; 1 + len];
         message[0] = Header::new(xid, master).to_byte();
-        request
-            .emit(format, &mut message[1..])
-            .map_err(|e| MasterError::Invalid(format!("cannot build the request: {e}")))?;
+        request.emit(format, &mut message[1..]).map_err(RequestError::Build)?;
         if message.len() > MAX_MESSAGE {
-            return Err(MasterError::Invalid(format!(
-                "the request is {} bytes; the master sends at most {MAX_MESSAGE}",
-                message.len()
-            )));
+            return Err(RequestError::TooLong { len: message.len() });
         }
         Ok(Transaction {
             target,

@@ -1,9 +1,12 @@
 //! The master's error: every way an operation on the bus can stop, with what the user needs to act
 //! on it (MAC, request, timeout name), never a panic.
 
+use crate::bring_up::NodeError;
+use crate::client::RequestError;
 use can_io::bus::BusError;
 use devicenet::explicit::GeneralStatus;
-use devicenet::Duration;
+use devicenet::messages::MessageError;
+use devicenet::{Duration, FrameError, MacId};
 
 /// Why an operation of the [`Master`](crate::master::Master), the [`Session`](crate::session::Session)
 /// or a [`Transaction`](crate::client::Transaction) stopped.
@@ -54,8 +57,23 @@ pub enum MasterError {
         /// Who answered.
         detail: String,
     },
-    /// The master was asked for something it does not do: a request that cannot be built or is
-    /// too long, a device at the master's own MAC, options that contradict each other.
+    /// The master was asked for something it does not do: a device at the master's own MAC,
+    /// options that contradict each other (a usage error: exit status 2).
+    #[error(transparent)]
+    Usage(#[from] UsageError),
+    /// A request that cannot be built or is too long.
+    #[error(transparent)]
+    Request(#[from] RequestError),
+    /// A frame the master builds does not fit a CAN frame.
+    #[error("cannot build the frame: {0}")]
+    Frame(#[from] FrameError),
+    /// A message the master builds cannot be written.
+    #[error("cannot build the message: {0}")]
+    Message(#[from] MessageError),
+    /// A bring-up driven by the [`BringUp`](crate::bring_up::BringUp) engine stopped.
+    #[error(transparent)]
+    Node(#[from] NodeError),
+    /// Being replaced by the typed variants above; what is left of it is outside this crate.
     #[error("{0}")]
     Invalid(String),
     /// The device's connection set is allocated to another master (0x0C / 0x01, notes §3.4).
@@ -77,5 +95,79 @@ pub enum MasterError {
     LogWrite {
         /// The OS error.
         source: std::io::Error,
+    },
+}
+
+impl MasterError {
+    /// `true` for a usage error (what the user asked for cannot be done: exit status 2), as
+    /// opposed to what the device or the bus did.
+    #[must_use]
+    pub fn is_usage(&self) -> bool {
+        matches!(self, MasterError::Usage(_) | MasterError::Invalid(_))
+    }
+}
+
+/// What the master was asked for and does not do.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum UsageError {
+    /// The device is at the master's own MAC ID.
+    #[error("the device's MAC {0} is the master's own MAC")]
+    OwnMac(MacId),
+    /// The new MAC ID of a recovery is the master's own.
+    #[error("--to {0} is the master's own MAC ID")]
+    RecoverToOwnMac(MacId),
+    /// More output bytes than the device consumes.
+    #[error("--output has {given} bytes; the device consumes {consumed}{}", if *attribute { " (Connection 2 attribute 8)" } else { "" })]
+    OutputTooLong {
+        /// Bytes given.
+        given: usize,
+        /// Bytes the device consumes.
+        consumed: u16,
+        /// Name the attribute the size came from.
+        attribute: bool,
+    },
+    /// Output data for a bit-strobe connection.
+    #[error("--output: a bit-strobe command carries one bit per device and no output data (§II.1.2)")]
+    StrobeOutput,
+    /// An I/O operation with no strobe, COS or cyclic connection established.
+    #[error("no strobe, COS or cyclic connection is established")]
+    NoIoConnection,
+    /// `establish_io` asked for poll.
+    #[error("establish_io brings up strobe, COS or cyclic; poll is connect's")]
+    PollIsConnects,
+    /// A COS/cyclic option given with another connection type.
+    #[error("{flag} applies to --io cos and --io cyclic (Connection 4), not to --io {kind}")]
+    CosOptionMisplaced {
+        /// The option.
+        flag: &'static str,
+        /// The connection type asked for.
+        kind: String,
+    },
+    /// Acknowledge settings together with acknowledge suppression.
+    #[error("--ack-timer and --retry-limit configure acknowledgements, which --ack-suppression turns off")]
+    AckSettingsSuppressed,
+    /// An acknowledge timer of 0.
+    #[error("--ack-timer 0: the acknowledge timer is 1..=65535 ms")]
+    AckTimerZero,
+    /// A Who time-delay byte offset beyond the answer.
+    #[error("time-delay byte offset {0}: Who's answer has 7 bytes, 0..=6")]
+    TimeDelayOffset(u8),
+    /// No faulted node with the serial number asked for answered.
+    #[error("--serial 0x{serial:08X}: no faulted node with it answered; found {found}")]
+    NoSuchSerial {
+        /// The serial number asked for.
+        serial: u32,
+        /// The nodes that answered.
+        found: String,
+    },
+    /// Several faulted nodes answered and none was chosen.
+    #[error("{count} faulted nodes answered at MAC {mac}: {found}; choose one with --serial")]
+    SeveralFaulted {
+        /// How many.
+        count: usize,
+        /// Their MAC.
+        mac: MacId,
+        /// The nodes that answered.
+        found: String,
     },
 }

@@ -16,7 +16,7 @@
 
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
 use crate::decode::{self, hex, PendingRequest};
-use crate::error::MasterError;
+use crate::error::{MasterError, UsageError};
 use crate::session::{is_from_device, Record, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
@@ -31,7 +31,10 @@ use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use std::collections::HashMap;
 
 pub mod io;
+mod node;
 pub mod recovery;
+
+pub use node::NodeEvent;
 #[cfg(test)]
 mod scripted;
 
@@ -325,7 +328,7 @@ impl<'s, 'b> Master<'s, 'b> {
     pub fn network_access(&mut self) -> Result<(), MasterError> {
         let check = DuplicateMacCheck::request(0, self.config.vendor_id, self.config.serial_number);
         let id = Identifier::group2(self.config.mac, Group2Message::DuplicateMacCheck);
-        let frame = CanFrame::new(id, &check.emit()).map_err(|e| MasterError::Invalid(e.to_string()))?;
+        let frame = CanFrame::new(id, &check.emit())?;
         for _ in 0..2 {
             let sent = self.session.now();
             self.session.send(&frame)?;
@@ -373,7 +376,7 @@ impl<'s, 'b> Master<'s, 'b> {
                 .encode();
         let response_id =
             Identifier::Group3 { message: Group3MessageId::UNCONNECTED_RESPONSE, source: target }.encode();
-        let frame = CanFrame::new(id, &open.emit()).map_err(|e| MasterError::Invalid(e.to_string()))?;
+        let frame = CanFrame::new(id, &open.emit())?;
         for _ in 0..2 {
             let sent = self.session.now();
             self.session.send(&frame)?;
@@ -855,7 +858,7 @@ impl<'s, 'b> Master<'s, 'b> {
         io.validate()?;
         let target = opts.target;
         if target == self.config.mac {
-            return Err(MasterError::Invalid(format!("the device's MAC {target} is the master's own MAC")));
+            return Err(UsageError::OwnMac(target).into());
         }
         self.set_device(target);
         let mut summary = DeviceSummary { mac: target.as_raw(), ..DeviceSummary::default() };
@@ -930,10 +933,7 @@ impl<'s, 'b> Master<'s, 'b> {
         summary.expected_packet_rate_ms = Some(applied);
         let output = match &opts.output {
             Some(o) if o.len() > usize::from(consumed) => {
-                return Err(MasterError::Invalid(format!(
-                    "--output has {} bytes; the device consumes {consumed}",
-                    o.len()
-                )))
+                return Err(UsageError::OutputTooLong { given: o.len(), consumed, attribute: false }.into())
             }
             Some(o) => o.clone(),
             None => vec![0; usize::from(consumed)],
@@ -965,27 +965,23 @@ impl<'s, 'b> Master<'s, 'b> {
     ) -> Result<(), MasterError> {
         let target = opts.target;
         self.establish_io(target, opts.epr_ms, io)?;
-        let conn =
-            self.io_connection().cloned().ok_or_else(|| MasterError::Invalid("no I/O connection".into()))?;
+        let conn = self.io_connection().cloned().ok_or(UsageError::NoIoConnection)?;
         summary.produced_size = Some(conn.produced);
         summary.consumed_size = Some(conn.consumed);
         summary.expected_packet_rate_ms = Some(conn.epr_ms);
-        let output =
-            match &opts.output {
-                Some(_) if io.kind == io::IoKind::Strobe => return Err(MasterError::Invalid(
-                    "--output: a bit-strobe command carries one bit per device and no output data (§II.1.2)"
-                        .into(),
-                )),
-                Some(o) if o.len() > usize::from(conn.consumed) => {
-                    return Err(MasterError::Invalid(format!(
-                        "--output has {} bytes; the device consumes {} (Connection 2 attribute 8)",
-                        o.len(),
-                        conn.consumed
-                    )))
+        let output = match &opts.output {
+            Some(_) if io.kind == io::IoKind::Strobe => return Err(UsageError::StrobeOutput.into()),
+            Some(o) if o.len() > usize::from(conn.consumed) => {
+                return Err(UsageError::OutputTooLong {
+                    given: o.len(),
+                    consumed: conn.consumed,
+                    attribute: true,
                 }
-                Some(o) => o.clone(),
-                None => vec![0; usize::from(conn.consumed)],
-            };
+                .into())
+            }
+            Some(o) => o.clone(),
+            None => vec![0; usize::from(conn.consumed)],
+        };
         let epr = Duration::from_millis(u64::from(conn.epr_ms.max(1)));
         let mut next = self.session.now();
         for _ in 0..opts.polls {
@@ -1058,14 +1054,25 @@ impl<'s, 'b> Master<'s, 'b> {
     /// the device, Allocate explicit through the Group 2 Only port (an explicit connection still
     /// allocated to this master is released and allocated again, [`Master::allocate`]).
     pub fn open_explicit(&mut self, target: MacId) -> Result<(), MasterError> {
+        self.prepare(target)?;
+        self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+        Ok(())
+    }
+
+    /// Everything before the first request to `target`: it becomes the device under test, the
+    /// master goes on-line ([`Master::network_access`]) and waits for the device
+    /// ([`Master::await_online`]).
+    ///
+    /// # Errors
+    ///
+    /// [`UsageError::OwnMac`] when `target` is the master's own MAC; those of the network access.
+    pub fn prepare(&mut self, target: MacId) -> Result<(), MasterError> {
         if target == self.config.mac {
-            return Err(MasterError::Invalid(format!("MAC {target} is the master's own MAC")));
+            return Err(UsageError::OwnMac(target).into());
         }
         self.set_device(target);
         self.network_access()?;
-        self.await_online(&[target])?;
-        self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT)?;
-        Ok(())
+        self.await_online(&[target])
     }
 
     /// The header the master puts on its requests.

@@ -26,7 +26,7 @@
 
 use super::{Master, MIN_POLL_TIMEOUT};
 use crate::decode::{self, hex};
-use crate::error::MasterError;
+use crate::error::{MasterError, UsageError};
 use crate::session::Verdict;
 use can_io::bus::Origin;
 use devicenet::fragment::{io_fragments, IoFragment, IoReassembler};
@@ -175,19 +175,13 @@ impl IoOptions {
             (self.inhibit_ms.is_some() && !cos, "--inhibit"),
         ];
         if let Some((_, flag)) = misplaced.iter().find(|(m, _)| *m) {
-            return Err(MasterError::Invalid(format!(
-                "{flag} applies to --io cos and --io cyclic (Connection 4), not to --io {}",
-                self.kind
-            )));
+            return Err(UsageError::CosOptionMisplaced { flag, kind: self.kind.to_string() }.into());
         }
         if self.ack_suppression && (self.ack_timer_ms.is_some() || self.retry_limit.is_some()) {
-            return Err(MasterError::Invalid(
-                "--ack-timer and --retry-limit configure acknowledgements, which --ack-suppression turns off"
-                    .into(),
-            ));
+            return Err(UsageError::AckSettingsSuppressed.into());
         }
         if self.ack_timer_ms == Some(0) {
-            return Err(MasterError::Invalid("--ack-timer 0: the acknowledge timer is 1..=65535 ms".into()));
+            return Err(UsageError::AckTimerZero.into());
         }
         Ok(())
     }
@@ -435,9 +429,7 @@ impl Master<'_, '_> {
         io.validate()?;
         let kind = io.kind;
         if kind == IoKind::Poll {
-            return Err(MasterError::Invalid(
-                "establish_io brings up strobe, COS or cyclic; poll is connect's".into(),
-            ));
+            return Err(UsageError::PollIsConnects.into());
         }
         let inst = kind.instance();
         self.allocate(target, super::Port::Explicit, io.choice())?;
@@ -617,7 +609,7 @@ impl Master<'_, '_> {
         f: impl FnOnce(&mut Self, &mut IoConnection) -> Result<T, MasterError>,
     ) -> Result<T, MasterError> {
         let Some(mut conn) = self.io.take() else {
-            return Err(MasterError::Invalid("no strobe, COS or cyclic connection is established".into()));
+            return Err(UsageError::NoIoConnection.into());
         };
         let r = f(self, &mut conn);
         self.io = Some(conn);
@@ -681,8 +673,7 @@ impl Master<'_, '_> {
 
     fn strobe_on(&mut self, conn: &mut IoConnection) -> Result<Vec<u8>, MasterError> {
         let target = conn.target;
-        let frame = CanFrame::new(self.strobe_id(), &strobe_data(target))
-            .map_err(|e| MasterError::Invalid(e.to_string()))?;
+        let frame = CanFrame::new(self.strobe_id(), &strobe_data(target))?;
         self.session.send(&frame)?;
         let timeout = conn.response_timeout();
         let deadline = self.session.now() + timeout;
@@ -844,8 +835,7 @@ impl Master<'_, '_> {
                 let (v, resent) = self.judge_production(conn, start, &data, v);
                 self.session.set_verdict(i, v);
                 if conn.acked() {
-                    let ack = CanFrame::new(Identifier::group2(target, Group2Message::CosCyclicAck), &[])
-                        .map_err(|e| MasterError::Invalid(e.to_string()))?;
+                    let ack = CanFrame::new(Identifier::group2(target, Group2Message::CosCyclicAck), &[])?;
                     self.session.send(&ack)?;
                     conn.summary.acks_sent += 1;
                 }

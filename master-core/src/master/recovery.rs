@@ -25,7 +25,7 @@
 use super::{Master, DUP_MAC_INTERVAL};
 use crate::client::Port;
 use crate::decode::hex;
-use crate::error::MasterError;
+use crate::error::{MasterError, UsageError};
 use crate::session::Verdict;
 use devicenet::id::Group4MessageId;
 use devicenet::messages::{AllocationChoice, DeviceKey, DuplicateMacCheck, FaultedSelector, OfflineMessage};
@@ -139,9 +139,9 @@ pub struct RecoveryReport {
 
 fn offline_frame(msg: &OfflineMessage) -> Result<CanFrame, MasterError> {
     let mut buf = [0u8; OfflineMessage::MAX_LEN];
-    let n = msg.emit(&mut buf).map_err(|e| MasterError::Invalid(e.to_string()))?;
+    let n = msg.emit(&mut buf)?;
     let id = Identifier::Group4 { message: msg.message_id() }.encode();
-    CanFrame::new(id, &buf[..n]).map_err(|e| MasterError::Invalid(e.to_string()))
+    Ok(CanFrame::new(id, &buf[..n])?)
 }
 
 fn group4_of(frame: &CanFrame) -> Option<Group4MessageId> {
@@ -156,13 +156,10 @@ impl Master<'_, '_> {
     /// the [module docs](self).
     pub fn recover(&mut self, opts: &RecoverOptions) -> Result<RecoveryReport, MasterError> {
         if opts.time_delay_offset > 6 {
-            return Err(MasterError::Invalid(format!(
-                "time-delay byte offset {}: Who's answer has 7 bytes, 0..=6",
-                opts.time_delay_offset
-            )));
+            return Err(UsageError::TimeDelayOffset(opts.time_delay_offset).into());
         }
         if let Some(to) = opts.to.filter(|t| *t == self.config.mac) {
-            return Err(MasterError::Invalid(format!("--to {to} is the master's own MAC ID")));
+            return Err(UsageError::RecoverToOwnMac(to).into());
         }
         let mut report = RecoveryReport { mac: opts.mac.as_raw(), ..RecoveryReport::default() };
         self.network_access()?;
@@ -203,20 +200,18 @@ impl Master<'_, '_> {
         }
         let Some(to) = opts.to else { return Ok(report) };
         let node = match (opts.serial, report.found.as_slice()) {
-            (Some(serial), found) => *found.iter().find(|n| n.serial_number == serial).ok_or_else(|| {
-                MasterError::Invalid(format!(
-                    "--serial 0x{serial:08X}: no faulted node with it answered; found {}",
-                    list(found)
-                ))
-            })?,
+            (Some(serial), found) => *found
+                .iter()
+                .find(|n| n.serial_number == serial)
+                .ok_or_else(|| MasterError::from(UsageError::NoSuchSerial { serial, found: list(found) }))?,
             (None, [one]) => *one,
             (None, found) => {
-                return Err(MasterError::Invalid(format!(
-                    "{} faulted nodes answered at MAC {}: {}; choose one with --serial",
-                    found.len(),
-                    opts.mac,
-                    list(found)
-                )))
+                return Err(UsageError::SeveralFaulted {
+                    count: found.len(),
+                    mac: opts.mac,
+                    found: list(found),
+                }
+                .into())
             }
         };
         report.chosen = Some(node);
@@ -562,7 +557,7 @@ mod tests {
             Scripted::new(5).on(0x7ED, &WHO_5, &[(30, 0x7EC, &[0x00, 0x34, 0x12, 0x1E, 0x56, 0x34, 0x12])]);
         let (r, _) = run(vec![faulted(), other], &to_9());
         let e = r.unwrap_err();
-        assert!(matches!(e, MasterError::Invalid(_)), "{e}");
+        assert!(matches!(e, MasterError::Usage(_)), "{e}");
         assert!(e.to_string().contains("2 faulted nodes") && e.to_string().contains("--serial"), "{e}");
         let other =
             Scripted::new(5).on(0x7ED, &WHO_5, &[(30, 0x7EC, &[0x00, 0x34, 0x12, 0x1E, 0x56, 0x34, 0x12])]);
@@ -588,6 +583,6 @@ mod tests {
         let e = r.unwrap_err().to_string();
         assert!(e.contains("did not start its duplicate MAC ID check at MAC 9"), "{e}");
         let opts = RecoverOptions { to: Some(MacId::from_low_bits(0)), ..to_9() };
-        assert!(matches!(run(vec![faulted()], &opts).0, Err(MasterError::Invalid(_))));
+        assert!(matches!(run(vec![faulted()], &opts).0, Err(MasterError::Usage(_))));
     }
 }
