@@ -12,6 +12,9 @@
 //!   into a scratch folder, no warning or error from mdBook, then every `href` and `src` of every
 //!   chapter page checked: the file exists, and a `#fragment` is an `id` of the page it points at.
 //!
+//! - `the_framed_example_is_the_reference_breaker`: the description file's page writes the breaker
+//!   out as a framed instrument, key by key; that block loads and describes the reference device.
+//!
 //! Both ignored tests run in the `./scripts/check` stage "the user guide".
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -411,4 +414,28 @@ fn the_link_checker_finds_broken_links() {
         ]
     );
     assert_eq!(checked, 7, "{broken:?}");
+}
+
+// ---- the description file's framed example -----------------------------------------------------
+
+/// The framed example of the description file's page is the breaker written out key by key: it
+/// loads, and it describes exactly the built-in reference device (so every key and value shown is
+/// one the loader takes, with the meaning the page gives it).
+#[test]
+fn the_framed_example_is_the_reference_breaker() {
+    use slave_fw::description::DeviceDescription;
+    let page =
+        std::fs::read_to_string(root().join("docs/src/reference/description-file.md")).expect("the page");
+    let blocks: Vec<&str> = page.split("```toml\n").skip(1).filter_map(|b| b.split("```").next()).collect();
+    let framed: Vec<&&str> = blocks.iter().filter(|b| b.contains("kind = \"framed\"")).collect();
+    assert_eq!(
+        framed.len(),
+        1,
+        "the page has one framed example, found {} among {} TOML blocks",
+        framed.len(),
+        blocks.len()
+    );
+    let loaded = DeviceDescription::parse(framed[0])
+        .unwrap_or_else(|e| panic!("the framed example does not load: {e}"));
+    assert_eq!(loaded, DeviceDescription::reference(), "the framed example is not the reference breaker");
 }
