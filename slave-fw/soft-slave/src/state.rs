@@ -20,7 +20,6 @@
 //! never a mixture. A file that cannot be read or parsed at start is an error naming the file and
 //! the line (exit 2): the soft slave never runs on state it did not understand.
 
-use crate::error::SoftSlaveError;
 use devicenet::slave::{BaudRate, SettingChanged};
 use devicenet::Instant;
 use devicenet::MacId;
@@ -232,17 +231,17 @@ impl StateFile {
         &self.path
     }
 
-    fn cannot_write(&self, source: std::io::Error) -> SoftSlaveError {
-        StateError::Write { path: self.path.clone(), source }.into()
+    fn cannot_write(&self, source: std::io::Error) -> StateError {
+        StateError::Write { path: self.path.clone(), source }
     }
 
     /// Reads the state; an absent file is the empty state.
-    pub fn load(&self) -> Result<StoredState, SoftSlaveError> {
+    pub fn load(&self) -> Result<StoredState, StateError> {
         let path = || self.path.clone();
         let text = match std::fs::read_to_string(&self.path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(StoredState::default()),
-            Err(source) => return Err(StateError::Read { path: path(), source }.into()),
+            Err(source) => return Err(StateError::Read { path: path(), source }),
         };
         let state: StoredState = serde_json::from_str(&text).map_err(|source| StateError::Parse {
             path: path(),
@@ -269,7 +268,7 @@ impl StateFile {
     /// temporary file is created in the file's folder and removed again. A folder that does not
     /// exist or cannot be written is refused here (exit 2), not when a master first changes a
     /// setting (the master would only see the device fall silent).
-    pub fn check_writable(&self) -> Result<(), SoftSlaveError> {
+    pub fn check_writable(&self) -> Result<(), StateError> {
         let (_, temp) = self.folder_and_temp();
         let probe = std::fs::OpenOptions::new().write(true).create_new(true).open(&temp);
         match probe {
@@ -282,7 +281,7 @@ impl StateFile {
     }
 
     /// Replaces the file with `state`, atomically (see the [module docs](self)).
-    pub fn save(&self, state: &StoredState) -> Result<(), SoftSlaveError> {
+    pub fn save(&self, state: &StoredState) -> Result<(), StateError> {
         let text = serde_json::to_string_pretty(state).map_err(|e| self.cannot_write(e.into()))?;
         let (dir, temp) = self.folder_and_temp();
         let write = || -> std::io::Result<()> {
@@ -304,6 +303,7 @@ impl StateFile {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::SoftSlaveError;
 
     fn temp(name: &str) -> PathBuf {
         let dir = std::env::temp_dir().join(format!("soft-slave-state-{}", std::process::id()));
@@ -346,10 +346,13 @@ mod tests {
             ("{\n  \"mac_id\": 5,\n", "line 3"),
         ] {
             std::fs::write(&path, text).unwrap();
-            let e = StateFile::new(&path).load().unwrap_err().to_string();
+            let e = StateFile::new(&path).load().map_err(SoftSlaveError::from).unwrap_err().to_string();
             assert!(e.starts_with(&format!("state file {}: ", path.display())), "{e}");
             assert!(e.contains(needle), "{text}: {e}");
-            assert_eq!(StateFile::new(&path).load().unwrap_err().exit_code(), 2);
+            assert_eq!(
+                StateFile::new(&path).load().map_err(SoftSlaveError::from).unwrap_err().exit_code(),
+                2
+            );
         }
     }
 
@@ -430,9 +433,9 @@ mod tests {
     #[test]
     fn an_unwritable_folder_is_named() {
         let file = StateFile::new("/nonexistent/dir/state.json");
-        let e = file.save(&StoredState::default()).unwrap_err().to_string();
+        let e = file.save(&StoredState::default()).map_err(SoftSlaveError::from).unwrap_err().to_string();
         assert!(e.starts_with("state file /nonexistent/dir/state.json: cannot write"), "{e}");
-        let e = file.check_writable().unwrap_err();
+        let e = file.check_writable().map_err(SoftSlaveError::from).unwrap_err();
         assert_eq!(e.exit_code(), 2);
         assert!(e.to_string().starts_with("state file /nonexistent/dir/state.json: cannot write"), "{e}");
     }
