@@ -72,8 +72,6 @@
 //! assert_eq!(report.failed(), 0);
 //! ```
 
-#![forbid(unsafe_code)]
-#![warn(missing_docs)]
 
 mod checks;
 pub mod command;

@@ -75,8 +75,6 @@
 //! denied by lint outside tests (`clippy::indexing_slicing`): access is checked (`get`,
 //! `split_first`, slice patterns) or the bound is in the type (fixed-size arrays).
 #![no_std]
-#![forbid(unsafe_code)]
-#![warn(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::indexing_slicing))]
 
 #[cfg(test)]

@@ -11,8 +11,6 @@
 //! | [`table`] | the frame-by-frame table and the JSON form of a record |
 //!
 //! It holds no protocol: that is `master_core`'s. Nothing of the product depends on it.
-#![forbid(unsafe_code)]
-#![warn(missing_docs)]
 
 pub mod console;
 pub mod error;

@@ -51,8 +51,6 @@
 //! input can make it panic, allocate or grow without bound. Indexing that could panic is denied by
 //! lint outside tests, and property tests feed the parsers arbitrary bytes.
 #![cfg_attr(not(feature = "std"), no_std)]
-#![forbid(unsafe_code)]
-#![warn(missing_docs)]
 #![cfg_attr(
     not(test),
     deny(clippy::indexing_slicing, clippy::unwrap_used, clippy::expect_used, clippy::panic)

@@ -71,8 +71,6 @@
 //!
 //! Command-line values, description files, bus frames and serial bytes are untrusted: each is
 //! answered with a value or an error that names it ([`error::SoftSlaveError`]), never a panic.
-#![forbid(unsafe_code)]
-#![warn(missing_docs)]
 #![cfg_attr(not(test), deny(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 /// The package version and the git commit `dnet-soft-slave` and `dnet-sim-breaker` were built from.

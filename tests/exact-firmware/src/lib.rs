@@ -39,8 +39,6 @@
 //! the firmware does not use, the RS-485 driver enable's timing on a real line, flash wear and
 //! the real sector erase times beyond the FLASH model's, and the simulated bus's lack of error
 //! flags (a frame one node flags is still delivered to the others). Those need a real board.
-#![forbid(unsafe_code)]
-#![warn(missing_docs)]
 
 pub mod board;
 pub mod device;

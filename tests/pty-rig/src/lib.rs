@@ -94,10 +94,12 @@ impl Output {
         (out, rx)
     }
 
+    /// Every line read so far, joined with newlines.
     pub fn text(&self) -> String {
         self.0.lock().unwrap().join("\n")
     }
 
+    /// Every line read so far.
     pub fn lines(&self) -> Vec<String> {
         self.0.lock().unwrap().clone()
     }
@@ -107,12 +109,16 @@ impl Output {
 pub struct Proc {
     name: String,
     child: Option<Child>,
+    /// What the process wrote to its standard output.
     pub stdout: Output,
+    /// What the process wrote to its standard error.
     pub stderr: Output,
     stdout_lines: Receiver<String>,
 }
 
 impl Proc {
+    /// Starts `program` with `args`, its standard input empty and its outputs collected; panics
+    /// (test code) when it cannot be started.
     pub fn spawn(program: impl AsRef<Path>, args: &[&str]) -> Proc {
         let program = program.as_ref();
         let mut child = Command::new(program)
