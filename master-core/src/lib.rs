@@ -2,7 +2,7 @@
 //!
 //! The protocol layer of the bench DeviceNet master: what a program needs to talk to a device the
 //! way a scanner does, and to check every frame it answers. The `dnet-master` tool
-//! (`master-harness`) and the EDS tool's live device check (`eds`, `check-device`) are both built
+//! (`master-harness`) and the EDS tool's live device check (`eds-tool`, `dnet-eds check-device`) are both built
 //! on it. Protocol facts are those of `../shared/devicenet-notes.md`; every wire format comes from
 //! the [`devicenet`] core, every bus from `can_io`.
 //!
@@ -11,6 +11,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the log file |
+//! | [`bring_up`] | the per-node bring-up engine ([`BringUp`](bring_up::BringUp)), sans-IO: Allocate with the requested connections, the reads, the expected packet rate that starts I/O, Release; what `connect`, `scan`, the scanner, the soak and `check-device` drive |
 //! | [`client`] | one explicit transaction as a sans-IO state machine ([`Transaction`](client::Transaction)): fragmentation both ways, every response frame checked; [`drive`](client::drive) and [`run`](client::run), the one way to drive it |
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of notes §2 |
 //! | [`io`] | the I/O connections next to poll: bit-strobe, change of state and cyclic with their acknowledgements, every frame and interval checked |
@@ -22,7 +23,7 @@
 //! ## What it must not depend on
 //!
 //! Not `master-harness` (the conformance suite, soak, replay, scan, monitor and command line are
-//! built on this crate, not the other way round), not `eds`, and not the simulated device
+//! built on this crate, not the other way round), not `eds` or `eds-tool`, and not the simulated device
 //! (`converter-sim`, only in its tests): a product crate that checks a device over the bus pulls in
 //! this crate and nothing of the bench.
 //!
@@ -48,6 +49,7 @@
 //!
 //! Bus frames are untrusted: every frame is decoded and judged, never a panic.
 
+pub mod bring_up;
 pub mod client;
 pub mod decode;
 pub mod error;

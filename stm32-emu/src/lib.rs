@@ -20,6 +20,16 @@
 //! | [`bxcan`] | CAN1: modes, BTR, filters, mailboxes, FIFOs, error counting, bus-off | RM0090 §32 |
 //! | [`pwr`] | the regulator's over-drive handshake the F446 firmware waits for | RM0390 §5 |
 //!
+//! Every model with an RCC clock enable bit (GPIO, USART, bxCAN, PWR) reads 0 and loses writes
+//! while the bit is clear, as the chip does, and the machine stops on such an access with
+//! [`machine::Fault::Unclocked`], naming the peripheral, the register and the bit ([`periph`]'s
+//! module docs give the sources).
+//!
+//! Not modelled, because the firmware does not use them: the independent and window watchdogs
+//! (no IWDG or WWDG access in `board/` or `slave-fw/firmware/`), DMA, timers, CAN2, USART3 and
+//! UART4/5. An access to a block no model answers is a bus fault that stops the machine, so a
+//! firmware that starts using one of them fails loudly here until its model is written.
+//!
 //! ## Licence of what links it
 //!
 //! The models are this project's (MIT OR Apache-2.0). The CPU comes from the `unicorn-engine`
