@@ -12,6 +12,8 @@
 //!   into a scratch folder, no warning or error from mdBook, then every `href` and `src` of every
 //!   chapter page checked: the file exists, and a `#fragment` is an `id` of the page it points at.
 //!
+//! - `the_paths_the_guide_names_exist`: every repository path the README and the guide name in a
+//!   code span exists.
 //! - `the_framed_example_is_the_reference_breaker`: the description file's page writes the breaker
 //!   out as a framed instrument, key by key; that block loads and describes the reference device.
 //!
@@ -88,6 +90,73 @@ fn has_scheme(link: &str) -> bool {
             link[..colon].chars().all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c)) && colon > 0
         }
         None => false,
+    }
+}
+
+// ---- paths the guide names --------------------------------------------------------------------
+
+/// Every repository path the README and the guide name in code spans (`scanner/src/history.rs`,
+/// `slave-fw/descriptions/`) exists: files move, and a guide that sends its reader to a file that
+/// is gone is not true.
+#[test]
+fn the_paths_the_guide_names_exist() {
+    let top: BTreeSet<String> = std::fs::read_dir(root())
+        .expect("the repository")
+        .flatten()
+        .filter(|e| e.path().is_dir())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|name| !name.starts_with('.') && name != "target")
+        .collect();
+    let mut pages = vec![root().join("README.md")];
+    collect_markdown(&root().join("docs/src"), &mut pages);
+    let (mut checked, mut missing) = (0, Vec::new());
+    for page in &pages {
+        let text = std::fs::read_to_string(page).expect("a page");
+        for span in prose(&text).split('`').skip(1).step_by(2) {
+            let path = span.trim_end_matches('/');
+            let first = path.split('/').next().unwrap_or_default();
+            let plain = path.chars().all(|c| c.is_ascii_alphanumeric() || "_-./".contains(c));
+            // `fuzz/artifacts/TARGET/`: a placeholder, not a path.
+            let placeholder =
+                path.split('/').any(|c| !c.is_empty() && c.chars().all(|c| c.is_ascii_uppercase()));
+            if !plain || placeholder || !path.contains('/') || !top.contains(first) {
+                continue;
+            }
+            checked += 1;
+            if !root().join(path).exists() {
+                missing.push(format!("{}: {span}", page.strip_prefix(root()).unwrap_or(page).display()));
+            }
+        }
+    }
+    assert!(checked > 50, "only {checked} repository paths found in the guide: is it there?");
+    assert!(missing.is_empty(), "the guide names paths that do not exist:\n{}", missing.join("\n"));
+}
+
+/// `text` without its fenced code blocks.
+fn prose(text: &str) -> String {
+    let mut fenced = false;
+    let mut out = String::new();
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+        } else if !fenced {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// The Markdown files under `dir`, but the protocol reference's (written from its own sources) and
+/// the generated CLI reference.
+fn collect_markdown(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).expect("a folder of the guide").flatten() {
+        let path = entry.path();
+        if path.is_dir() && !path.ends_with("protocol") {
+            collect_markdown(&path, out);
+        } else if path.extension().is_some_and(|e| e == "md") && !path.ends_with("reference/cli.md") {
+            out.push(path);
+        }
     }
 }
 
