@@ -72,13 +72,14 @@ need_package() {
 
 # need_cargo_tool COMMAND CRATE VERSION [ARG...]: CRATE at VERSION from crates.io (cargo install
 # --locked, with ARGs such as --no-default-features) when COMMAND is not found; a COMMAND the
-# machine already has is kept as it is.
+# machine already has is kept as it is. Built outside the workspace, so with the machine's default
+# toolchain rather than the one the workspace pins for its own code (a tool may need a newer one).
 need_cargo_tool() {
   local command=$1 crate=$2 version=$3
   shift 3
   command -v "$command" >/dev/null && return 0
   install_log "cargo install $crate $version"
-  cargo install --locked --quiet "$crate" --version "$version" "$@"
+  (cd "${TMPDIR:-/tmp}" && cargo install --locked --quiet "$crate" --version "$version" "$@")
 }
 
 # need_qemu BINARY PACKAGE: QEMU's BINARY (qemu-system-arm, qemu-system-x86_64) on PATH. From
