@@ -14,6 +14,8 @@
 //!
 //! - `the_paths_the_guide_names_exist`: every repository path the README and the guide name in a
 //!   code span exists.
+//! - `mdbook_is_installed_only_when_missing_and_outside_the_workspace`: the book's install step
+//!   (`need_cargo_tool` of `scripts/lib/install.sh`) against a stand-in `cargo`.
 //! - `the_framed_example_is_the_reference_breaker`: the description file's page writes the breaker
 //!   out as a framed instrument, key by key; that block loads and describes the reference device.
 //!
@@ -287,6 +289,58 @@ fn subcommands_are_read_from_the_commands_list() {
                 wrapped text\n  help     Print this message\n\nOptions:\n  -h, --help  Print help\n";
     assert_eq!(subcommands(text), ["connect", "set-it"]);
     assert!(subcommands("Usage: x [OPTIONS]\n\nOptions:\n  -h, --help  Print help\n").is_empty());
+}
+
+// ---- the book's install step ------------------------------------------------------------------
+
+/// `need_cargo_tool` (scripts/lib/install.sh), run with a stand-in `cargo` that records its
+/// arguments and folder: what `cargo install` was asked, or nothing.
+fn need_cargo_tool(tool_present: bool) -> Vec<String> {
+    let dir = std::env::var_os("CARGO_TARGET_TMPDIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(std::env::temp_dir)
+        .join(format!("guide-install-{tool_present}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    let bin = dir.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    let log = dir.join("calls");
+    let stand_in = |name: &str, body: &str| {
+        let path = bin.join(name);
+        std::fs::write(&path, format!("#!/bin/sh\n{body}\n")).unwrap();
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+    };
+    stand_in("cargo", &format!("echo \"$(pwd) $*\" >> {}", log.display()));
+    if tool_present {
+        stand_in("mdbook", "exit 0");
+    }
+    let script = format!(
+        ". {}/scripts/lib/install.sh && need_cargo_tool mdbook mdbook 0.5.4 --no-default-features --features search",
+        root().display()
+    );
+    // Only the stand-ins on PATH: an mdbook the machine has elsewhere must not count.
+    let out = Command::new("/bin/bash")
+        .arg("-c")
+        .arg(script)
+        .env("PATH", &bin)
+        .env("TMPDIR", &dir)
+        .output()
+        .expect("bash");
+    assert!(out.status.success(), "need_cargo_tool failed: {}", String::from_utf8_lossy(&out.stderr));
+    std::fs::read_to_string(&log)
+        .unwrap_or_default()
+        .lines()
+        .map(|l| l.replace(&dir.display().to_string(), "TMP"))
+        .collect()
+}
+
+#[test]
+fn mdbook_is_installed_only_when_missing_and_outside_the_workspace() {
+    assert_eq!(need_cargo_tool(true), Vec::<String>::new(), "mdbook is there: nothing to install");
+    assert_eq!(
+        need_cargo_tool(false),
+        ["TMP install --locked --quiet mdbook --version 0.5.4 --no-default-features --features search"]
+    );
 }
 
 // ---- the book's links ------------------------------------------------------------------------
