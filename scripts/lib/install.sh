@@ -134,3 +134,31 @@ PY
   install_log "Python packages $* in $dir"
   "$dir/bin/pip" install --quiet --disable-pip-version-check "$@"
 }
+
+# need_rust_toolchain: the toolchain rust-toolchain.toml pins (its channel), with the components
+# and targets that file lists. rustup installs it where it can download; on a machine that cannot
+# (no network but the package registries) and whose stable toolchain is that same release, stable
+# is linked under the pinned name instead (rustup reads the file at every cargo call and would
+# otherwise try to download the pinned toolchain, and fail).
+need_rust_toolchain() {
+  local channel host home
+  channel=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+  host=$(RUSTUP_TOOLCHAIN=stable rustc -vV 2>/dev/null | sed -n 's/^host: //p')
+  rustup toolchain list | grep -q "^$channel-$host" && return 0
+  if RUSTUP_TOOLCHAIN=stable rustc -V 2>/dev/null | grep -q "^rustc $channel "; then
+    home=$(rustup show home)
+    install_log "rust toolchain $channel: linked to stable (the same release)"
+    ln -s "$home/toolchains/stable-$host" "$home/toolchains/$channel-$host"
+    return 0
+  fi
+  install_log "rustup toolchain install $channel"
+  rustup toolchain install "$channel" --profile minimal
+}
+
+# need_windows_cross: what scripts/windows-build and scripts/windows-wine need, from Debian: the
+# MinGW-w64 C compiler and linker, Debian's Rust compiler with the standard library's source (the
+# pinned toolchain's x86_64-pc-windows-gnu standard library cannot be downloaded here), and wine.
+need_windows_cross() {
+  need_command x86_64-w64-mingw32-gcc gcc-mingw-w64-x86-64 || return 1
+  need_package rustc-web rust-web-src wine64 wine
+}
