@@ -652,6 +652,7 @@ impl<const N: usize> ExplicitTransmitter<N> {
     /// [`start`](Self::start), each following one once its predecessor is acked, and one re-send
     /// of an unacked fragment when [`ACK_TIMEOUT`] has passed. Each frame is
     /// `[header | 0x80, fragment byte, ≤ 6 body bytes]`.
+    #[must_use = "the payload is handed out once: a dropped one is never sent"]
     pub fn poll_transmit(&mut self, now: Instant) -> Option<Payload> {
         self.expire(now);
         let retried = match self.state {
@@ -702,6 +703,7 @@ impl<const N: usize> ExplicitTransmitter<N> {
     /// The end of the transfer, once: [`TransmitEvent::Completed`] when the last fragment was
     /// acked, [`TransmitEvent::Aborted`] when an ack had a non-zero status or the re-sent
     /// fragment's ack also timed out.
+    #[must_use = "an event is handed out once: a dropped one is lost"]
     pub fn poll_event(&mut self, now: Instant) -> Option<TransmitEvent> {
         self.expire(now);
         match self.state {

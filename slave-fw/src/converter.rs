@@ -460,11 +460,13 @@ impl Converter {
     }
 
     /// The next CAN frame to transmit.
+    #[must_use = "the frame is handed out once: a dropped one is never sent"]
     pub fn poll_can_transmit(&mut self) -> Option<CanFrame> {
         self.node.poll_transmit()
     }
 
     /// The next bytes to write to the instrument's UART.
+    #[must_use = "the bytes are handed out once: dropped ones are never sent"]
     pub fn poll_serial_transmit(&mut self, now: Instant) -> Option<&[u8]> {
         self.profile.poll_transmit(now)
     }
@@ -477,6 +479,7 @@ impl Converter {
     ///
     /// At most 8 events wait; beyond that the oldest is dropped. Drained after every input, as
     /// the [module docs](self) say, the queue never fills.
+    #[must_use = "an event is handed out once: a dropped one is lost"]
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
     }
@@ -487,6 +490,7 @@ impl Converter {
     /// ([`Converter::with_origin`] with [`ConfigOrigin::Stored`]). Nothing applies before then.
     /// Drain it with the events (step 3 of the [module docs](self)); a later download replaces an
     /// image not yet taken.
+    #[must_use = "the new image is handed out once: a dropped one is never stored"]
     pub fn poll_new_image(&mut self) -> Option<&[u8]> {
         self.config.take_new_image()
     }
@@ -511,6 +515,7 @@ impl Converter {
     /// resets the chip; a host replaces the converter with a new one and powers it on). The
     /// converter schedules it [`RESET_DELAY`] after the request, and [`Converter::poll_at`]
     /// includes that deadline. A second request while one is pending does not postpone it.
+    #[must_use = "a reset request is handed out once: a dropped one is never carried out"]
     pub fn poll_reset(&mut self, now: Instant) -> Option<ResetKind> {
         match self.reset {
             Some((at, kind)) if at <= now => {

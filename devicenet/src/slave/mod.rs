@@ -468,11 +468,13 @@ impl SlaveNode {
     }
 
     /// The next frame to transmit, if any.
+    #[must_use = "the frame is handed out once: a dropped one is never sent"]
     pub fn poll_transmit(&mut self) -> Option<CanFrame> {
         self.tx.pop_front()
     }
 
     /// The next event for the application, if any.
+    #[must_use = "an event is handed out once: a dropped one is lost"]
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
     }

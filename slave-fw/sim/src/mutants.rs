@@ -400,11 +400,13 @@ impl FaultHook {
     }
 
     /// A frame to feed the node now, as if it came from the bus (nobody sent it).
+    #[must_use = "the frame is handed out once: a dropped one never reaches the device"]
     pub fn poll_feed(&mut self) -> Option<CanFrame> {
         self.feed.pop_front()
     }
 
     /// The next frame due on the bus at `now`. Delayed frames wait; the others go in order.
+    #[must_use = "the frame is handed out once: a dropped one is never sent"]
     pub fn poll_transmit(&mut self, now: Instant) -> Option<CanFrame> {
         let due = self.out.iter().position(|&(at, _)| at <= now)?;
         self.out.remove(due).map(|(_, f)| f)

@@ -378,6 +378,7 @@ impl ConfigObject {
     }
 
     /// The accepted image not yet stored, if any (the converter's `poll_new_image`).
+    #[must_use = "the downloaded image is handed out once: a dropped one is never stored"]
     pub fn take_new_image(&mut self) -> Option<&[u8]> {
         if self.handed_over && self.staging == Staging::Pending {
             self.handed_over = false;

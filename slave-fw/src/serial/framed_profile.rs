@@ -241,6 +241,7 @@ impl FramedProfile {
 
     /// Advances to `now` and returns the next frame to write to the UART, if any. Call until
     /// `None`.
+    #[must_use = "the bytes are handed out once: dropped ones are never sent"]
     pub fn poll_transmit(&mut self, now: Instant) -> Option<&[u8]> {
         self.poll(now);
         while let Some(t) = self.sequencer.next_transmission(now) {

@@ -125,6 +125,7 @@ impl Profile {
     }
 
     /// Advances to `now` and returns the next frame to write to the UART, if any.
+    #[must_use = "the bytes are handed out once: dropped ones are never sent"]
     pub fn poll_transmit(&mut self, now: Instant) -> Option<&[u8]> {
         match self {
             Profile::Framed(p) => p.poll_transmit(now),

@@ -651,6 +651,7 @@ impl ModbusMaster {
 
     /// Advances to `now` and returns the next request to write to the UART, if the line is free
     /// and quiet. Call until `None`.
+    #[must_use = "the bytes are handed out once: dropped ones are never sent"]
     pub fn poll_transmit(&mut self, now: Instant) -> Option<&[u8]> {
         self.poll(now);
         loop {
