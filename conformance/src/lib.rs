@@ -72,7 +72,6 @@
 //! assert_eq!(report.failed(), 0);
 //! ```
 
-
 mod checks;
 pub mod command;
 pub mod html;
@@ -522,7 +521,7 @@ pub fn run_observed(
     observer: &mut dyn Observer,
 ) -> Result<SuiteReport, HarnessError> {
     if opts.target == config.mac {
-        return Err(HarnessError::Usage(format!("the device's MAC {} is the master's own MAC", opts.target)));
+        return Err(HarnessError::DeviceIsMaster { mac: opts.target });
     }
     let master_mac = config.mac;
     let started = utc_now();

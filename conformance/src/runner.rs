@@ -303,7 +303,7 @@ impl<'s, 'b> Runner<'s, 'b> {
 
     /// Sends a frame as built.
     pub fn send(&mut self, id: CanId, data: &[u8]) -> Result<(), HarnessError> {
-        let f = CanFrame::new(id, data).map_err(|e| HarnessError::Usage(e.to_string()))?;
+        let f = CanFrame::new(id, data).map_err(HarnessError::Frame)?;
         Ok(self.m.session.send(&f)?)
     }
 

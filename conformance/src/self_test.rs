@@ -186,9 +186,7 @@ pub fn run_mutants(
     observer: &mut dyn SelfTestObserver,
 ) -> Result<SelfTestReport, HarnessError> {
     if config.mac == device_mac() {
-        return Err(HarnessError::Usage(format!(
-            "the self-test's device is at MAC {DEVICE_MAC}: give the master another MAC (--master-mac)"
-        )));
+        return Err(HarnessError::SelfTestMasterMac { mac: device_mac() });
     }
     let total = mutants.len() + 1;
     observer.start(1, total, None);

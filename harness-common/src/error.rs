@@ -4,6 +4,8 @@
 
 use can_io::bus::BusError;
 use can_io::log::LogError;
+use can_io::trace::write::LogFormatError;
+use can_io::trace::TraceFormat;
 use devicenet::MacId;
 use master_core::error::MasterError;
 use std::fmt;
@@ -17,9 +19,221 @@ pub enum HarnessError {
     /// A log or transcript file is malformed or unreadable.
     #[error("{0}")]
     Log(#[from] LogError),
-    /// A bad command-line value or option combination.
+    /// `--format` without `--log`.
+    #[error("--format names the format of the --log file: give --log FILE too")]
+    FormatWithoutLog,
+    /// `--format` names a format `--log` cannot write.
+    #[error("--format {format}: --log writes candump, trc, asc or csv (a pcap capture: --pcap FILE)")]
+    FormatNotWritable {
+        /// The format given.
+        format: TraceFormat,
+    },
+    /// The `--log` file's format cannot be told or written.
+    #[error(transparent)]
+    LogFormat(#[from] LogFormatError),
+    /// The bus options were refused where the bus is opened (an unknown bus, a bad simulated
+    /// device setup); the opener's reason, which names the option.
+    #[error("{detail}")]
+    BusSetup {
+        /// The opener's reason.
+        detail: String,
+    },
+    /// The device addressed is at the master's own MAC.
+    #[error("the device's MAC {mac} is the master's own MAC (--master-mac)")]
+    DeviceIsMaster {
+        /// The MAC.
+        mac: MacId,
+    },
+    /// A transcript without any frame of a device, and no `--mac`.
+    #[error("{path}: the transcript has no device frames; give the device with --mac")]
+    TranscriptWithoutDevice {
+        /// The transcript.
+        path: String,
+    },
+    /// A transcript of several devices, and no `--mac`.
+    #[error("{path}: the transcript has several devices (MAC {}); choose one with --mac", mac_list(macs))]
+    TranscriptDevices {
+        /// The transcript.
+        path: String,
+        /// Its devices.
+        macs: Vec<MacId>,
+    },
+    /// A transcript with no frame at all.
+    #[error("the transcript holds no frame")]
+    EmptyTranscript,
+    /// `--master-mac` differs from the transcript's master, whose frames a replay sends as
+    /// recorded.
+    #[error("--master-mac {given}: the transcript's master is MAC {recorded}, and a replay sends its frames as recorded; leave --master-mac out or give {recorded}")]
+    MasterMacNotTranscript {
+        /// `--master-mac`.
+        given: MacId,
+        /// The transcript's master.
+        recorded: MacId,
+    },
+    /// `conformance --self-test` on another bus than the simulated one.
+    #[error("--self-test runs the suite against simulated mutant devices: it needs --bus sim, not {bus}")]
+    SelfTestNeedsSim {
+        /// The bus given.
+        bus: String,
+    },
+    /// An option that `conformance --self-test` has no use for.
+    #[error("{option} has no meaning with --self-test, which builds its own devices and buses")]
+    NotWithSelfTest {
+        /// The option.
+        option: &'static str,
+    },
+    /// The self-test's master at its device's MAC.
+    #[error("the self-test's device is at MAC {mac}: give the master another MAC (--master-mac)")]
+    SelfTestMasterMac {
+        /// The self-test device's MAC.
+        mac: MacId,
+    },
+    /// Two options of which only one can be given.
+    #[error("{first} and {second}: choose one")]
+    ChooseOne {
+        /// One.
+        first: &'static str,
+        /// The other.
+        second: &'static str,
+    },
+    /// An option's value out of its range.
+    #[error("{option} {value}: expected {expected}")]
+    InvalidValue {
+        /// The option.
+        option: &'static str,
+        /// The value given.
+        value: String,
+        /// What it must be.
+        expected: &'static str,
+    },
+    /// A command given neither of the inputs it needs.
+    #[error("configure needs {option}")]
+    MissingOption {
+        /// What is missing.
+        option: &'static str,
+    },
+    /// A directory given on the command line does not exist.
+    #[error("{option} {path}: no such directory (create it first)")]
+    NoSuchDirectory {
+        /// The option.
+        option: &'static str,
+        /// The path given.
+        path: String,
+    },
+    /// A file given on the command line cannot be read.
+    #[error("{path}: cannot read the {what}: {error}")]
+    Read {
+        /// The file.
+        path: String,
+        /// What it should hold (`scan list`).
+        what: &'static str,
+        /// The OS error.
+        error: std::io::Error,
+    },
+    /// A scan list file refused: where, the key, and why.
+    #[error("{file}:{} scan list{}: {message}", at(*line, *column), key.as_ref().map_or_else(String::new, |k| format!(" (key `{k}`)")))]
+    ScanList {
+        /// The file.
+        file: String,
+        /// 1-based line (0: the file as a whole).
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The key at fault, when known.
+        key: Option<String>,
+        /// Why.
+        message: String,
+    },
+    /// An EDS file refused: the file and the EDS reader's reason.
+    #[error("{path}: {error}")]
+    Eds {
+        /// The file.
+        path: String,
+        /// The reader's error (`eds::EdsError`).
+        error: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// The sample history database cannot be used (`dnet_scanner::history::HistoryError`, which
+    /// names the file).
+    #[error(transparent)]
+    History(Box<dyn std::error::Error + Send + Sync>),
+    /// `--mqtt URL` refused: the URL and why.
+    #[error("--mqtt {url}: {detail}")]
+    Mqtt {
+        /// The URL given.
+        url: String,
+        /// Why.
+        detail: String,
+    },
+    /// The console cannot listen on the address given.
+    #[error("cannot listen on {address}: {error}")]
+    Listen {
+        /// `--listen`.
+        address: String,
+        /// The OS error.
+        error: std::io::Error,
+    },
+    /// The console cannot start (no random token, no worker thread).
+    #[error("cannot start the console{}: {error}", if address.is_empty() { String::new() } else { format!(" on {address}") })]
+    ConsoleStart {
+        /// `--listen` (empty: before the address is used).
+        address: String,
+        /// What failed, as the OS said (`no random token: …`).
+        error: String,
+    },
+    /// A network scan's MAC range out of 0..=63 or reversed.
+    #[error("invalid MAC range {from}..={to}: MAC IDs are 0..=63")]
+    MacRange {
+        /// First MAC.
+        from: u8,
+        /// Last MAC.
+        to: u8,
+    },
+    /// An EDS parameter whose link path names no attribute.
+    #[error("Param{number} \"{name}\": its link path names no attribute")]
+    ParamWithoutAttribute {
+        /// The parameter's number.
+        number: u32,
+        /// Its name.
+        name: String,
+    },
+    /// `--set NAME=…` names no parameter of the device.
+    #[error("no parameter named \"{name}\"; the device has: {}", known.iter().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", "))]
+    UnknownParameter {
+        /// The name given.
+        name: String,
+        /// The device's parameters.
+        known: Vec<String>,
+    },
+    /// A parameter's value refused (`--set`): malformed, or not representable in its data type.
+    #[error("{detail}")]
+    ParamValue {
+        /// What is wrong, naming the assignment or the parameter.
+        detail: String,
+    },
+    /// A device description that cannot be encoded into a configuration image.
+    #[error("the description cannot be encoded: {0}")]
+    Image(slave_fw::converter::image::ImageError),
+    /// A configuration image too long for the download's size field.
+    #[error("image too long: {bytes} bytes")]
+    ImageTooLong {
+        /// Its length.
+        bytes: usize,
+    },
+    /// A description read from the device that cannot be written as TOML.
+    #[error("{detail}")]
+    DescriptionNotWritable {
+        /// The writer's reason.
+        detail: String,
+    },
+    /// A converter configuration refused by the simulated device.
     #[error("{0}")]
-    Usage(String),
+    Converter(slave_fw::converter::ConverterConfigError),
+    /// A frame that cannot be built (more than 8 data bytes).
+    #[error("{0}")]
+    Frame(devicenet::FrameError),
+    /// A message that cannot be encoded.
+    #[error("{0}")]
+    Message(devicenet::messages::MessageError),
     /// The device description file given with `--slave-config` was refused.
     #[error("{0}")]
     Description(#[from] slave_fw::description::DescriptionError),
@@ -63,16 +277,60 @@ impl HarnessError {
     #[must_use]
     pub fn exit_code(&self) -> u8 {
         match self {
-            HarnessError::Usage(_)
-            | HarnessError::Log(_)
+            HarnessError::Log(_)
             | HarnessError::Description(_)
             | HarnessError::Write { .. }
             | HarnessError::Master(MasterError::Invalid(_)) => 2,
+            HarnessError::Master(m) if m.is_usage() => 2,
+            e if e.is_usage() => 2,
             HarnessError::Master(MasterError::Interrupted { signal }) => {
                 master_core::stop::exit_status(*signal)
             }
             _ => 1,
         }
+    }
+}
+
+impl HarnessError {
+    /// A bad command-line value, option combination or input file: exit status 2.
+    #[must_use]
+    pub fn is_usage(&self) -> bool {
+        !matches!(
+            self,
+            HarnessError::Master(_)
+                | HarnessError::Log(_)
+                | HarnessError::Description(_)
+                | HarnessError::Write { .. }
+                | HarnessError::ChecksFailed(_)
+                | HarnessError::NothingCompared(_)
+                | HarnessError::NoDevice { .. }
+                | HarnessError::Release(_)
+                | HarnessError::Refused(_)
+                | HarnessError::Divergence(_)
+        )
+    }
+
+    /// The signal that interrupted the command, if one did.
+    #[must_use]
+    pub fn interrupted_by(&self) -> Option<i32> {
+        match self {
+            HarnessError::Master(MasterError::Interrupted { signal }) => Some(*signal),
+            _ => None,
+        }
+    }
+}
+
+/// `5, 6`.
+fn mac_list(macs: &[MacId]) -> String {
+    macs.iter().map(ToString::to_string).collect::<Vec<_>>().join(", ")
+}
+
+/// `7:7:` (nothing for line 0, the file as a whole).
+fn at(line: usize, column: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!("{line}:{column}:")
     }
 }
 

@@ -268,13 +268,12 @@ pub fn download(
     description: &DeviceDescription,
     note: &mut dyn FnMut(&str),
 ) -> Result<DownloadReport, HarnessError> {
-    let image = slave_fw::image::encode_to_vec(&description.converter)
-        .map_err(|e| HarnessError::Usage(format!("the description cannot be encoded: {e}")))?;
+    let image = slave_fw::image::encode_to_vec(&description.converter).map_err(HarnessError::Image)?;
     let mut report = DownloadReport { mac: mac.as_raw(), bytes: image.len(), ..DownloadReport::default() };
 
     master.open_explicit(mac)?;
     let (bus_rate, serial_before) = before_download(master, mac)?;
-    let size = u16::try_from(image.len()).map_err(|_| HarnessError::Usage("image too long".into()))?;
+    let size = u16::try_from(image.len()).map_err(|_| HarnessError::ImageTooLong { bytes: image.len() })?;
     let refused = |master: &mut Master<'_, '_>, step: &str, e: MasterError| -> HarnessError {
         match e {
             MasterError::ErrorResponse { ref text, .. } => {

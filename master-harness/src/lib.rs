@@ -22,8 +22,10 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`cli`] | the command line: options, dispatch, reports and JSON |
-//! | [`commands`] | one module per command that is more than a call into a library |
+//! | [`cli`] | the command line: the subcommands and the dispatch between them |
+//! | [`options`] | the options every command shares, the value parsers, the bus opened |
+//! | [`commands`] | one module per command: its arguments and its run |
+//! | [`run`] | how a command that talks to one device runs: session, release, reports and JSON |
 //! | [`soak`] | hours of virtual time of a scanner and the soft slave under injected faults, with invariants checked |
 //! | [`replay`] | the `replay` command: a transcript replayed against a device, frame by frame |
 //! | [`configure`] | `configure` (a description downloaded over DeviceNet, read back, applied, checked; `--read` uploads it) |
@@ -54,5 +56,7 @@
 pub mod cli;
 pub mod commands;
 pub mod configure;
+pub mod options;
 pub mod replay;
+pub mod run;
 pub mod soak;

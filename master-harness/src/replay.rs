@@ -298,7 +298,7 @@ pub fn replay(
 ) -> Result<ReplaySummary, HarnessError> {
     let device = opts.device;
     if entries.is_empty() {
-        return Err(HarnessError::Usage("the transcript holds no frame".into()));
+        return Err(HarnessError::EmptyTranscript);
     }
     let from_device = entries.iter().filter(|e| is_from_device(&e.frame, device)).count();
     if from_device == 0 {

@@ -259,7 +259,7 @@ pub fn run(cfg: &SoakConfig) -> Result<SoakReport, HarnessError> {
     let mut config = ConverterConfig::breaker_reference();
     config.input = InputAssembly::WithStatus;
     config.device.bus_off_interrupt = true;
-    let slave = SoftSlave::new(config).map_err(|e| HarnessError::Usage(e.to_string()))?;
+    let slave = SoftSlave::new(config).map_err(HarnessError::Converter)?;
     let shared = SharedDevice::new(slave);
     let handle = shared.handle();
     let mut bus = SimBus::new(Bitrate::K250);
@@ -528,7 +528,7 @@ impl Soak {
         }
         let output = self.active.as_ref().map_or([0; 8], |a| a.output);
         let id = Identifier::group2(self.target, Group2Message::PollCommand);
-        let frame = CanFrame::new(id, &output).map_err(|e| HarnessError::Usage(e.to_string()))?;
+        let frame = CanFrame::new(id, &output).map_err(HarnessError::Frame)?;
         self.bus.send(&frame)?;
         self.report.polls += 1;
         let response_id = Identifier::group1(Group1MessageId::POLL_RESPONSE, self.target);

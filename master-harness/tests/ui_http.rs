@@ -313,7 +313,8 @@ fn a_port_in_use_is_an_error_naming_the_address() {
     let text = e.to_string();
     assert!(text.contains(&listen), "{text}");
     assert!(text.contains("cannot listen"), "{text}");
-    assert!(matches!(e, harness_common::error::HarnessError::Usage(_)), "exit 2: {e:?}");
+    assert!(matches!(e, harness_common::error::HarnessError::Listen { .. }), "exit 2: {e:?}");
+    assert_eq!(e.exit_code(), 2);
     let e = ui::serve("not an address", rig.scanner.shared.clone()).err().unwrap();
     assert!(e.to_string().contains("not an address"));
 }

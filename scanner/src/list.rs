@@ -82,9 +82,7 @@ fn located(
     // An unknown key names itself (also a table header, `[node.keying]`, where no `=` is).
     let unknown = || msg.strip_prefix("unknown field `")?.split('`').next().map(str::to_string);
     let key = key.or_else(unknown).or_else(|| span.as_ref().and_then(|s| key_at(text, s.start)));
-    let key_text = key.map_or_else(String::new, |k| format!(" (key `{k}`)"));
-    let at = if line == 0 { String::new() } else { format!("{line}:{col}:") };
-    HarnessError::Usage(format!("{file}:{at} scan list{key_text}: {msg}"))
+    HarnessError::ScanList { file: file.to_string(), line, column: col, key, message: msg.to_string() }
 }
 
 #[derive(Deserialize)]
@@ -109,8 +107,11 @@ struct SpannedList {
 /// Reads the scan list file at `path` for a scanner at MAC `scanner_mac`
 /// ([`parse_scan_list_for`]); a file that cannot be read is a usage error naming it.
 pub fn read_scan_list(path: &std::path::Path, scanner_mac: u8) -> Result<ScanList, HarnessError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| HarnessError::Usage(format!("{}: cannot read the scan list: {e}", path.display())))?;
+    let text = std::fs::read_to_string(path).map_err(|error| HarnessError::Read {
+        path: path.display().to_string(),
+        what: "scan list",
+        error,
+    })?;
     parse_scan_list_for(&text, &path.display().to_string(), Some(scanner_mac))
 }
 
@@ -395,7 +396,8 @@ mod tests {
     fn the_scanner_s_own_mac_is_refused_where_it_is_written() {
         let text = "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n\n[[node]]\nmac = 0\ninput_size = 1\noutput_size = 1\n";
         let e = parse_scan_list_for(text, "l.toml", Some(0)).unwrap_err();
-        assert!(matches!(e, HarnessError::Usage(_)), "exit 2: {e:?}");
+        assert!(matches!(e, HarnessError::ScanList { line: 7, column: 7, .. }), "exit 2: {e:?}");
+        assert_eq!(e.exit_code(), 2);
         assert!(
             e.to_string()
                 .contains("l.toml:7:7: scan list (key `mac`): MAC 0 is the scanner's own (--master-mac 0)"),

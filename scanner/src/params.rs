@@ -143,10 +143,7 @@ pub fn read_eds(
     let mut rows = Vec::new();
     for (n, p) in params {
         let Some(address) = p.link_path.as_ref().and_then(LinkPath::attribute) else {
-            return Err(HarnessError::Usage(format!(
-                "Param{n} \"{}\": its link path names no attribute",
-                p.name
-            )));
+            return Err(HarnessError::ParamWithoutAttribute { number: *n, name: p.name.clone() });
         };
         // A path to a Parameter instance without an attribute means its value, attribute 1.
         let attribute = address.attribute.and_then(|a| u8::try_from(a).ok()).unwrap_or(1);
@@ -194,13 +191,13 @@ pub fn set(
     value: i64,
 ) -> Result<(), HarnessError> {
     let row = rows.iter().find(|r| r.name.eq_ignore_ascii_case(name)).ok_or_else(|| {
-        HarnessError::Usage(format!(
-            "no parameter named \"{name}\"; the device has: {}",
-            rows.iter().map(|r| format!("\"{}\"", r.name)).collect::<Vec<_>>().join(", ")
-        ))
+        HarnessError::UnknownParameter {
+            name: name.to_string(),
+            known: rows.iter().map(|r| r.name.clone()).collect(),
+        }
     })?;
     let bytes = encode_value(value, row.size, row.data_type)
-        .map_err(|e| HarnessError::Usage(format!("{name}: {e}")))?;
+        .map_err(|e| HarnessError::ParamValue { detail: format!("{name}: {e}") })?;
     let (class_id, instance, attribute) = row.path;
     master.set(mac, class_id, instance, attribute, &bytes).map_err(|e| match e {
         MasterError::ErrorResponse { text, .. } => {

@@ -226,7 +226,7 @@ pub fn scan(
     progress: &mut Progress<'_>,
 ) -> Result<ScanReport, HarnessError> {
     if from > to || to > 63 {
-        return Err(HarnessError::Usage(format!("invalid MAC range {from}..={to}: MAC IDs are 0..=63")));
+        return Err(HarnessError::MacRange { from, to });
     }
     let begin = master.session.now();
     let macs: Vec<MacId> = (from..=to).filter_map(MacId::new).filter(|&m| m != master.config.mac).collect();

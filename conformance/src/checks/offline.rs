@@ -42,7 +42,7 @@ fn collect_all(r: &mut Runner<'_, '_>, until: Instant) -> Result<Vec<usize>, Har
 
 fn send(r: &mut Runner<'_, '_>, msg: &OfflineMessage) -> Result<(), HarnessError> {
     let mut buf = [0u8; OfflineMessage::MAX_LEN];
-    let n = msg.emit(&mut buf).map_err(|e| HarnessError::Usage(e.to_string()))?;
+    let n = msg.emit(&mut buf).map_err(HarnessError::Message)?;
     r.send(Identifier::Group4 { message: msg.message_id() }.encode(), &buf[..n])
 }
 

@@ -1,4 +1,18 @@
-//! The commands of `dnet-master`, one module each ([`crate::cli`] parses and dispatches).
+//! The commands of `dnet-master`, one module each: its arguments (`…Args`, parsed by clap) and
+//! the function that runs it. [`crate::cli`] only dispatches; the work is in the libraries
+//! (`master_core`, `dnet_scanner`, `dnet_conformance`, [`crate::replay`], [`crate::configure`]).
 
+pub mod completions;
+pub mod configure;
+pub mod conformance;
+pub mod connect;
+pub mod decode;
+pub mod explicit;
+pub mod man;
+pub mod monitor;
+pub mod params;
+pub mod recover;
+pub mod replay;
+pub mod scan;
 pub mod scanner;
 pub mod ui;

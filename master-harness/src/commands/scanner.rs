@@ -9,18 +9,17 @@
 //! `bus_load` and `nodes` (each with `connection` and `ack_suppression`). Exit 0 when every node ended ok, 1 otherwise, 2 for a usage
 //! or scan list error.
 
-use crate::cli::{open_bus, Cli};
+use crate::options::{open_bus_with_pcap, GlobalOptions};
 use can_io::bus::BusSpec;
 use can_io::log::LogWriter;
-use can_io::pcap::{PcapBus, PcapWriter};
 use can_io::trace::TraceFormat;
-use devicenet::{Duration, MacId};
+use clap::Args;
 use dnet_scanner::monitor::InputLayout;
 use dnet_scanner::report::{finish, summary_json, table, Ending};
 use dnet_scanner::{build_scan_list, read_scan_list, write_scan_list, Scanner, ScannerOptions};
 use harness_common::console::{Console, Progress};
 use harness_common::error::HarnessError;
-use master_core::master::{Master, MasterConfig};
+use master_core::master::Master;
 use master_core::session::Session;
 use slave_fw::description::DeviceDescription;
 use std::collections::HashMap;
@@ -28,51 +27,44 @@ use std::io::Write;
 use std::path::PathBuf;
 
 /// What `scanner` was asked.
-#[derive(Clone, Debug, Default)]
+#[derive(Args, Clone, Debug)]
 pub struct ScannerArgs {
-    /// `--scanlist FILE.toml`.
+    /// The scan list (TOML).
+    #[arg(long, value_name = "FILE.toml")]
     pub scanlist: Option<PathBuf>,
-    /// `--write-scanlist FILE`.
+    /// Write the scan list in force (built by the network scan) to FILE.
+    #[arg(long, value_name = "FILE")]
     pub write_scanlist: Option<PathBuf>,
-    /// `--cycles N`.
+    /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
+    #[arg(long, value_name = "N")]
     pub cycles: Option<u64>,
 }
 
 /// Runs `scanner`; returns the exit status (errors before the bus is touched are returned).
 pub fn execute(
-    cli: &Cli,
+    opts: &GlobalOptions,
     args: &ScannerArgs,
     out: &mut dyn Write,
     err: &mut dyn Write,
     console: &Console,
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
-    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let master_mac = opts.master_mac_or_default();
     let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
-    let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
-    let mut bus = open_bus(cli, slave.as_ref().map(|d| &d.converter), None, None)?;
-    if let Some(path) = &cli.pcap {
-        let pcap = PcapWriter::create(path)
-            .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
-        bus = Box::new(PcapBus::new(bus, pcap));
-    }
+    let slave = opts.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
+    let mut bus = open_bus_with_pcap(opts, slave.as_ref().map(|d| &d.converter), None, None)?;
     let mut session = Session::new(bus.as_mut());
     session.set_stop(console.stop.clone());
-    if let Some(path) = &cli.log {
-        let log = LogWriter::create_as(path, cli.format.unwrap_or(TraceFormat::Candump))
+    if let Some(path) = &opts.log {
+        let log = LogWriter::create_as(path, opts.format.unwrap_or(TraceFormat::Candump))
             .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
         session.set_log(log);
     }
-    let config = MasterConfig {
-        mac: master_mac,
-        response_timeout: Duration::from_millis(cli.timeout.max(1)),
-        ..MasterConfig::default()
-    };
-    let mut master = Master::new(&mut session, config);
+    let mut master = Master::new(&mut session, opts.master_config(master_mac));
     let mut progress =
-        if console.stderr_terminal && !cli.json { Progress::on(&mut *err) } else { Progress::off() };
+        if console.stderr_terminal && !opts.json { Progress::on(&mut *err) } else { Progress::off() };
     // On the simulated bus the devices are known: their images are decoded.
-    let sim_layout = match (&cli.bus, &slave) {
+    let sim_layout = match (&opts.bus, &slave) {
         (BusSpec::Sim, Some(d)) => Some(InputLayout::from_converter(&d.converter)),
         (BusSpec::Sim, None) => Some(InputLayout::from_converter(&DeviceDescription::reference().converter)),
         _ => None,
@@ -109,7 +101,7 @@ pub fn execute(
             Some(l) => list.nodes.iter().map(|n| (n.mac, l.clone())).collect(),
             None => HashMap::new(),
         };
-        let options = ScannerOptions { cycles: args.cycles, bitrate: cli.bitrate, layouts };
+        let options = ScannerOptions { cycles: args.cycles, bitrate: opts.bitrate, layouts };
         let s = scanner.insert(Scanner::new(list, master_mac.as_raw(), options));
         progress.show(&format!("scanner: bringing {} node(s) into I/O ...", s.state().nodes.len()));
         s.start(&mut master)?;
@@ -135,9 +127,9 @@ pub fn execute(
     })();
     progress.clear();
     drop(progress);
-    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
+    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, opts.keep);
     let state = scanner.as_ref().map(|s| s.state().clone());
-    if cli.json {
+    if opts.json {
         let v = summary_json(state.as_ref(), code, written.as_deref(), interrupted, &result, &cleanup);
         writeln!(out, "{v}").map_err(werr)?;
     } else {

@@ -19,9 +19,9 @@
 //! listening address that cannot be used is an error (exit 2) before the bus is touched; a broker
 //! that is down is not: the console and MQTT status say so and the scanner scans on.
 
-use crate::cli::{open_bus, Cli};
+use crate::options::{open_bus, GlobalOptions};
 use can_io::bus::BusSpec;
-use devicenet::{Duration, MacId};
+use clap::Args;
 use dnet_scanner::history::{History, Retention};
 use dnet_scanner::model::{HistoryStore, Shared};
 use dnet_scanner::monitor::InputLayout;
@@ -32,7 +32,7 @@ use dnet_scanner::ui::{known_descriptions, layout_for, serve};
 use dnet_scanner::{build_scan_list, read_scan_list, sample_values, Scanner, ScannerOptions};
 use harness_common::console::{Console, Progress};
 use harness_common::error::HarnessError;
-use master_core::master::{Master, MasterConfig};
+use master_core::master::Master;
 use master_core::session::Session;
 use slave_fw::description::DeviceDescription;
 use std::collections::HashMap;
@@ -42,19 +42,28 @@ use std::path::PathBuf;
 use std::sync::{mpsc, Arc, Mutex};
 
 /// What `ui` was asked.
-#[derive(Clone, Debug)]
+#[derive(Args, Clone, Debug)]
 pub struct UiArgs {
-    /// `--listen ADDR`.
+    /// The address to serve the console on (port 0: any free port; the URL is printed).
+    #[arg(long, default_value = "127.0.0.1:8080", value_name = "ADDR")]
     pub listen: String,
-    /// `--scanlist FILE.toml`.
+    /// The scan list (TOML) [default: built from a network scan].
+    #[arg(long, value_name = "FILE.toml")]
     pub scanlist: Option<PathBuf>,
-    /// `--history FILE` (`None`: `--no-history`).
-    pub history: Option<PathBuf>,
-    /// `--mqtt URL`.
+    /// The sample history (SQLite; created when missing).
+    #[arg(long, value_name = "FILE", default_value = "dnet-history.sqlite")]
+    pub history: PathBuf,
+    /// Keep no history (the device view's plot and the CSV export then have nothing).
+    #[arg(long)]
+    pub no_history: bool,
+    /// Publish node status and decoded values to an MQTT broker: `mqtt://HOST[:PORT][/PREFIX]`.
+    #[arg(long, value_name = "URL")]
     pub mqtt: Option<String>,
-    /// `--record-dir DIR`.
+    /// Where the console's recordings go.
+    #[arg(long, value_name = "DIR", default_value = ".")]
     pub record_dir: PathBuf,
-    /// `--cycles N`.
+    /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
+    #[arg(long, value_name = "N")]
     pub cycles: Option<u64>,
 }
 
@@ -64,14 +73,14 @@ pub struct UiArgs {
 /// the MQTT publisher. Each refusal is a usage error naming what was given.
 fn open_outputs(args: &UiArgs) -> Result<(Option<Arc<History>>, Option<Publisher>), HarnessError> {
     if !args.record_dir.is_dir() {
-        return Err(HarnessError::Usage(format!(
-            "--record-dir {}: no such directory (create it first)",
-            args.record_dir.display()
-        )));
+        return Err(HarnessError::NoSuchDirectory {
+            option: "--record-dir",
+            path: args.record_dir.display().to_string(),
+        });
     }
-    let history = match &args.history {
+    let history = match (!args.no_history).then_some(&args.history) {
         Some(path) => {
-            let h = History::open(path).map_err(|e| HarnessError::Usage(e.to_string()))?;
+            let h = History::open(path).map_err(|e| HarnessError::History(Box::new(e)))?;
             h.set_retention(Retention::STANDARD);
             Some(Arc::new(h))
         }
@@ -80,7 +89,7 @@ fn open_outputs(args: &UiArgs) -> Result<(Option<Arc<History>>, Option<Publisher
     let publisher = match &args.mqtt {
         Some(url) => Some(
             Publisher::start(url, "dnet-master")
-                .map_err(|e| HarnessError::Usage(format!("--mqtt {url}: {e}")))?,
+                .map_err(|detail| HarnessError::Mqtt { url: url.clone(), detail })?,
         ),
         None => None,
     };
@@ -89,7 +98,7 @@ fn open_outputs(args: &UiArgs) -> Result<(Option<Arc<History>>, Option<Publisher
 
 /// Runs `ui`; returns the exit status (errors before the bus is touched are returned).
 pub fn execute(
-    cli: &Cli,
+    opts: &GlobalOptions,
     args: &UiArgs,
     out: &mut dyn Write,
     err: &mut dyn Write,
@@ -97,10 +106,10 @@ pub fn execute(
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     // Everything that can be refused, before the bus is touched.
-    let master_mac = cli.master_mac.unwrap_or(MacId::from_low_bits(0));
+    let master_mac = opts.master_mac_or_default();
     let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
     let (history, publisher) = open_outputs(args)?;
-    let slave = cli.slave_config.as_deref().map(DeviceDescription::load).transpose()?;
+    let slave = opts.slave_description()?;
     let (commands, command_rx) = mpsc::channel();
     let placeholder = Scanner::new(Default::default(), master_mac.as_raw(), ScannerOptions::default());
     let shared = Arc::new(Shared {
@@ -115,17 +124,14 @@ pub fn execute(
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
     out.flush().map_err(werr)?;
 
-    let mut bus = open_bus(cli, slave.as_ref().map(|d| &d.converter), None, None)?;
+    // The console is watched by people: its simulation runs in real time.
+    let realtime = GlobalOptions { realtime: true, ..opts.clone() };
+    let mut bus = open_bus(&realtime, slave.as_ref().map(|d| &d.converter), None, None)?;
     let mut session = Session::new(bus.as_mut());
     session.set_stop(console.stop.clone());
-    let config = MasterConfig {
-        mac: master_mac,
-        response_timeout: Duration::from_millis(cli.timeout.max(1)),
-        ..MasterConfig::default()
-    };
-    let mut master = Master::new(&mut session, config);
+    let mut master = Master::new(&mut session, opts.master_config(master_mac));
     let mut progress = if console.stderr_terminal { Progress::on(&mut *err) } else { Progress::off() };
-    let sim_layout = match (&cli.bus, &slave) {
+    let sim_layout = match (&opts.bus, &slave) {
         (BusSpec::Sim, Some(d)) => Some(InputLayout::from_converter(&d.converter)),
         (BusSpec::Sim, None) => Some(InputLayout::from_converter(&DeviceDescription::reference().converter)),
         _ => None,
@@ -152,7 +158,7 @@ pub fn execute(
             Some(l) => list.nodes.iter().map(|n| (n.mac, l.clone())).collect(),
             None => HashMap::new(),
         };
-        let options = ScannerOptions { cycles: args.cycles, bitrate: cli.bitrate, layouts };
+        let options = ScannerOptions { cycles: args.cycles, bitrate: opts.bitrate, layouts };
         let s = scanner.insert(Scanner::new(list, master_mac.as_raw(), options));
         progress.show(&format!("ui: bringing {} node(s) into I/O ...", s.state().nodes.len()));
         s.start(&mut master)?;
@@ -202,7 +208,7 @@ pub fn execute(
     drop(progress);
     server.stop();
     // As `scanner`: 0 only when every node ended ok (in I/O with data exchanged).
-    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, cli.keep);
+    let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, opts.keep);
     drop(publisher);
     if let Some(s) = &scanner {
         write!(out, "{}", table(s.state())).map_err(werr)?;

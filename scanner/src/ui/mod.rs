@@ -145,18 +145,20 @@ impl Drop for UiServer {
 
 /// Starts the console on `listen` (`127.0.0.1:8080`; port 0: any free port, see
 /// [`UiServer::addr`]). The address is bound before this returns: an address in use or not
-/// available is a [`HarnessError::Usage`] naming it.
+/// available is a [`HarnessError::Listen`] naming it.
 pub fn serve(listen: &str, shared: Arc<Shared>) -> Result<UiServer, HarnessError> {
     let (listener, addr) =
-        http::bind(listen).map_err(|e| HarnessError::Usage(format!("cannot listen on {listen}: {e}")))?;
-    let token = guard::new_token()
-        .map_err(|e| HarnessError::Usage(format!("cannot start the console: no random token: {e}")))?;
+        http::bind(listen).map_err(|error| HarnessError::Listen { address: listen.to_string(), error })?;
+    let token = guard::new_token().map_err(|e| HarnessError::ConsoleStart {
+        address: String::new(),
+        error: format!("no random token: {e}"),
+    })?;
     let context = Arc::new(Context { shared, recorder: Mutex::new(None), guard: Guard::new(addr, token) });
     let handler = {
         let context = Arc::clone(&context);
         Arc::new(move |r: &http::Request| api::handle(&context, r)) as Arc<http::Handler>
     };
     let server = http::Server::start(listener, handler, api::error_response, MAX_BODY)
-        .map_err(|e| HarnessError::Usage(format!("cannot start the console on {listen}: {e}")))?;
+        .map_err(|e| HarnessError::ConsoleStart { address: listen.to_string(), error: e.to_string() })?;
     Ok(UiServer { addr, server, context })
 }
