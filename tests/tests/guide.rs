@@ -12,6 +12,7 @@
 //!   into a scratch folder, no warning or error from mdBook, then every `href` and `src` of every
 //!   chapter page checked: the file exists, and a `#fragment` is an `id` of the page it points at.
 //!
+//! - `every_page_is_in_the_summary`: mdBook renders only what SUMMARY.md lists.
 //! - `the_paths_the_guide_names_exist`: every repository path the README and the guide name in a
 //!   code span exists.
 //! - `mdbook_is_installed_only_when_missing_and_outside_the_workspace`: the book's install step
@@ -157,6 +158,35 @@ fn collect_markdown(dir: &Path, out: &mut Vec<PathBuf>) {
         if path.is_dir() && !path.ends_with("protocol") {
             collect_markdown(&path, out);
         } else if path.extension().is_some_and(|e| e == "md") && !path.ends_with("reference/cli.md") {
+            out.push(path);
+        }
+    }
+}
+
+/// Every page under `docs/src/` is a chapter of SUMMARY.md: mdBook renders only the pages listed
+/// there, so a page left out would be missing from the book without a word.
+#[test]
+fn every_page_is_in_the_summary() {
+    let src = root().join("docs/src");
+    let summary = std::fs::read_to_string(src.join("SUMMARY.md")).expect("docs/src/SUMMARY.md");
+    let listed: BTreeSet<String> = markdown_links(&summary).into_iter().collect();
+    let mut pages = Vec::new();
+    collect_all_markdown(&src, &mut pages);
+    let unlisted: Vec<String> = pages
+        .iter()
+        .map(|p| p.strip_prefix(&src).unwrap_or(p).to_string_lossy().into_owned())
+        .filter(|p| p != "SUMMARY.md" && !listed.contains(p))
+        .collect();
+    assert!(pages.len() > 40, "only {} pages under docs/src", pages.len());
+    assert!(unlisted.is_empty(), "pages missing from docs/src/SUMMARY.md: {unlisted:?}");
+}
+
+fn collect_all_markdown(dir: &Path, out: &mut Vec<PathBuf>) {
+    for entry in std::fs::read_dir(dir).expect("a folder of the guide").flatten() {
+        let path = entry.path();
+        if path.is_dir() {
+            collect_all_markdown(&path, out);
+        } else if path.extension().is_some_and(|e| e == "md") {
             out.push(path);
         }
     }
