@@ -350,7 +350,8 @@ impl Bus {
         }
     }
 
-    /// debug
+    /// Every model's name and [`Peripheral::next_event`], in address order (for diagnostics:
+    /// what keeps a sleeping core from skipping ahead).
     pub fn next_events(&self) -> Vec<(&'static str, Option<Nanos>)> {
         self.slots.iter().filter_map(|s| s.model.as_ref()).map(|m| (m.name(), m.next_event())).collect()
     }
