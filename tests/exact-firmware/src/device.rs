@@ -26,6 +26,14 @@
 //! [`SimulatedBreaker`] at the time their stop bit ends; the breaker's bytes go to the USART's
 //! receiver as characters at 9600 8N1, one after the other, from the instant it sends them. The
 //! RS-485 driver enable is not looked at (the line is a point-to-point wire here).
+//!
+//! ## On real interfaces
+//!
+//! exact-firmware-serve ([`crate::serve`]) takes the line from the breaker
+//! ([`EmulatedBoard::detach_breaker`]) and serves the USART's characters on a pty itself; it sets
+//! the bus's rate from its SLCAN host's `Sn` ([`EmulatedBoard::set_bus_rate`]) and whether any
+//! node acknowledges ([`EmulatedBoard::set_acknowledging`]: not while the host's channel is
+//! closed, when the board is alone on its bus).
 
 use crate::board::{BoardKind, NodeSetting};
 use crate::shared::Shared;
@@ -96,6 +104,10 @@ pub struct EmulatedBoard {
     setting: NodeSetting,
     bus_rate: u32,
     breaker: SimulatedBreaker,
+    /// The breaker is on the instrument line (not after [`EmulatedBoard::detach_breaker`]).
+    breaker_attached: bool,
+    /// Another node acknowledges the controller's frames (not when the board is alone).
+    acknowledging: bool,
     outbox: VecDeque<CanFrame>,
     /// The bus instant (µs) and machine time tied at power-on.
     epoch: Option<(u64, Nanos)>,
@@ -175,6 +187,8 @@ impl EmulatedBoard {
             setting,
             bus_rate: bus_rate.bits_per_second(),
             breaker,
+            breaker_attached: true,
+            acknowledging: true,
             outbox: VecDeque::new(),
             epoch: None,
             next_attempt: 0,
@@ -209,6 +223,29 @@ impl EmulatedBoard {
     /// The simulated breaker on the instrument line.
     pub fn breaker(&self) -> &SimulatedBreaker {
         &self.breaker
+    }
+
+    /// Takes the instrument line away from the simulated breaker: the USART's characters then
+    /// stay in its model ([`EmulatedBoard::instrument_usart`]) for whoever serves the line.
+    pub fn detach_breaker(&mut self) {
+        self.breaker_attached = false;
+    }
+
+    /// The instrument USART model (what the line outside the chip reaches).
+    pub fn instrument_usart(&self) -> Rc<RefCell<Usart>> {
+        Rc::clone(&self.instrument)
+    }
+
+    /// The bus's bit rate from now on (an SLCAN host's `Sn`).
+    pub fn set_bus_rate(&mut self, bits_per_second: u32) {
+        self.bus_rate = bits_per_second;
+    }
+
+    /// Whether another node acknowledges the controller's frames: without one, each is
+    /// [`TxOutcome::NoAcknowledge`] and offered again one frame time later (TEC + 8 up to error
+    /// passive, ISO 11898-1 rule 3a), as on a bus with no other node.
+    pub fn set_acknowledging(&mut self, acknowledging: bool) {
+        self.acknowledging = acknowledging;
     }
 
     /// The instrument USART's line as its registers set it.
@@ -278,7 +315,7 @@ impl EmulatedBoard {
         while self.fault.is_none() && self.power_cut.is_none() && self.mcu.now() < target {
             let now = self.mcu.now();
             let mut until = target.min(now + STEP);
-            if let Some(at) = self.breaker.poll_at() {
+            if let Some(at) = self.breaker.poll_at().filter(|_| self.breaker_attached) {
                 until = until.min(self.nanos(at).max(now + 1));
             }
             if WALL_DEADLINE.with(|d| d.get()).is_some_and(|d| std::time::Instant::now() >= d) {
@@ -302,6 +339,9 @@ impl EmulatedBoard {
 
     /// Moves characters between the instrument USART and the breaker.
     fn service_line(&mut self) {
+        if !self.breaker_attached {
+            return;
+        }
         let receiver = Receiver { settings: BREAKER_LINE, over8: false, one_bit: false };
         let mut sent = Vec::new();
         while let Some(t) = self.instrument.borrow_mut().pop_transmitted() {
@@ -356,6 +396,13 @@ impl EmulatedBoard {
             let Some(tx) = self.mcu.with_machine(|m| can.borrow_mut().poll_transmit(now, m)) else { return };
             let pclk1 = self.mcu.clocks().pclk1;
             let timing = can.borrow().bit_timing();
+            if !self.acknowledging {
+                self.mcu
+                    .with_machine(|m| can.borrow_mut().transmit_outcome(TxOutcome::NoAcknowledge, now, m));
+                self.note_errors();
+                self.next_attempt = now + timing.bits_to_nanos(u64::from(tx.frame.wire_bits()), pclk1);
+                return;
+            }
             if timing.follows(pclk1, self.bus_rate) {
                 match to_devicenet(&tx.frame) {
                     Some(frame) => self.outbox.push_back(frame),

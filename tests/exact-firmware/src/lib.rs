@@ -12,6 +12,7 @@
 //! | [`scenario`] | the scenarios and their one-line verdicts |
 //! | [`uid`] | the unique ID whose CRC-32 fold is the reference serial number |
 //! | [`shared`] | a model the machine and the world outside both hold |
+//! | [`serve`] | `exact-firmware-serve`: the board on real interfaces, an SLCAN adapter and the instrument line on ptys, the settings flash in a file, in wall time |
 //!
 //! ## Scenarios
 //!
@@ -43,6 +44,7 @@
 pub mod board;
 pub mod device;
 pub mod scenario;
+pub mod serve;
 pub mod shared;
 pub mod uid;
 
