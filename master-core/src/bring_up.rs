@@ -10,7 +10,7 @@
 //!
 //! - a device that answers an Allocate with 0x0B (the set is still allocated to this very master,
 //!   by an earlier run that kept it) has what it holds released through the Group 2 Only port, one
-//!   connection at a time, the I/O connection first, and is allocated again, once
+//!   connection at a time, the I/O connection first, and is allocated again, once per Allocate
 //!   ([`Event::Reallocated`]);
 //! - 0x0C / 0x01 to an Allocate is [`NodeError::AllocationConflict`];
 //! - what the device holds for this master is tracked ([`BringUp::held`]) and
@@ -138,6 +138,11 @@ impl Step {
 impl fmt::Display for Step {
     /// The request as the transcript names it (`Get_Attribute_Single Identity 1 attr 7 ...`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Step::Allocate { choice, .. } = self {
+            // Without the allocator: the step does not know the master's MAC.
+            let service = decode::service_text(class::DEVICENET, ServiceCode::AllocateMasterSlave);
+            return write!(f, "{service} {} inst 1: choice {choice}", decode::class_text(class::DEVICENET));
+        }
         let (_, service, class, instance, data) = self.request(MacId::from_low_bits(0));
         let text = decode::request_text(&Request { service, class, instance, data: &data });
         f.write_str(&text)
@@ -255,6 +260,8 @@ struct Queued {
     /// A release of a set kept by an earlier run: any answer is fine (the connection may be gone
     /// already, its watchdog fired), and none is reported.
     kept: bool,
+    /// An Allocate asked again after 0x0B: a second 0x0B is not retried.
+    retried: bool,
 }
 
 /// The per-node bring-up engine. See the [module docs](self).
@@ -268,7 +275,8 @@ pub struct BringUp {
     out: VecDeque<CanFrame>,
     held: AllocationChoice,
     events: VecDeque<Event>,
-    reallocated: bool,
+    /// The message body format of the explicit connection, as its Allocate answered (notes §3.1).
+    format: BodyFormat,
     answered: bool,
 }
 
@@ -285,7 +293,7 @@ impl BringUp {
             out: VecDeque::new(),
             held: AllocationChoice::empty(),
             events: VecDeque::new(),
-            reallocated: false,
+            format: BodyFormat::Class8Instance8,
             answered: false,
         }
     }
@@ -306,6 +314,17 @@ impl BringUp {
         self.answered
     }
 
+    /// Sets the response timeout of the steps started from now on.
+    pub fn set_response_timeout(&mut self, timeout: Duration) {
+        self.timeout = timeout;
+    }
+
+    /// The message body format requests on the explicit connection use: 8/8 until an Allocate
+    /// answers another one the master can use.
+    pub fn body_format(&self) -> BodyFormat {
+        self.format
+    }
+
     /// The step running, if any.
     pub fn current(&self) -> Option<&Step> {
         self.current.as_ref().map(|(q, _)| &q.step)
@@ -318,7 +337,7 @@ impl BringUp {
 
     /// Queues `step` (started at `now` when nothing runs).
     pub fn push(&mut self, now: Instant, step: Step, refusal: Refusal) {
-        self.queue.push_back(Queued { step, refusal, kept: false });
+        self.queue.push_back(Queued { step, refusal, kept: false, retried: false });
         self.advance(now);
     }
 
@@ -365,6 +384,7 @@ impl BringUp {
             step: Step::Release { port: Port::Group2Only, choice: AllocationChoice::empty() },
             refusal: Refusal::Stop,
             kept: false,
+            retried: false,
         });
         self.advance(now);
     }
@@ -418,7 +438,8 @@ impl BringUp {
             }
             let (port, service, class, instance, data) = queued.step.request(self.master);
             let request = Request { service, class, instance, data: &data };
-            let format = BodyFormat::Class8Instance8;
+            // The Group 2 Only port always uses 8/8 (notes §3.1).
+            let format = if port == Port::Explicit { self.format } else { BodyFormat::Class8Instance8 };
             match Transaction::build(self.mac, self.master, port, false, &request, format, self.timeout) {
                 Ok(mut tx) => {
                     tx.start(now);
@@ -469,8 +490,17 @@ impl BringUp {
             return;
         }
         match (&queued.step, &reply.body) {
-            (Step::Allocate { choice, .. }, ReplyBody::Success(_)) => {
+            (Step::Allocate { choice, .. }, ReplyBody::Success(data)) => {
                 self.held = self.held.union(choice.difference(AllocationChoice::ACK_SUPPRESSION));
+                if let [code] = data.as_slice() {
+                    if let f @ (BodyFormat::Class8Instance8
+                    | BodyFormat::Class8Instance16
+                    | BodyFormat::Class16Instance16
+                    | BodyFormat::Class16Instance8) = BodyFormat::from_code(*code)
+                    {
+                        self.format = f;
+                    }
+                }
             }
             (Step::Release { choice, .. }, ReplyBody::Success(_)) => {
                 self.held = self.held.difference(*choice);
@@ -478,12 +508,11 @@ impl BringUp {
             (
                 Step::Allocate { choice, .. },
                 ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. },
-            ) if !self.reallocated => {
+            ) if !queued.retried => {
                 // Still allocated to this master: release what it holds of the choice, the I/O
                 // connection before the explicit one (either may be gone already), allocate again.
-                self.reallocated = true;
                 let choice = *choice;
-                self.queue.push_front(queued);
+                self.queue.push_front(Queued { retried: true, ..queued });
                 let held = choice.difference(AllocationChoice::ACK_SUPPRESSION);
                 let io = held.difference(AllocationChoice::EXPLICIT);
                 for part in [AllocationChoice::EXPLICIT, io] {
@@ -492,6 +521,7 @@ impl BringUp {
                             step: Step::Release { port: Port::Group2Only, choice: part },
                             refusal: Refusal::Report,
                             kept: true,
+                            retried: false,
                         });
                     }
                 }

@@ -14,17 +14,17 @@
 //! A device's duplicate MAC ID check is watched on the bus: after its first request it is on-line
 //! 2 s later, after its second 1 s later (notes §7.1).
 
+use crate::bring_up::Step;
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
 use crate::decode::{self, hex, PendingRequest};
 use crate::error::{MasterError, UsageError};
 use crate::session::{is_from_device, Record, Session, Verdict};
 use can_io::bus::Origin;
-use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Header, Request, ServiceCode};
+use devicenet::explicit::{BodyFormat, GeneralStatus, Header, Request, ServiceCode};
 use devicenet::fragment::io_fragments;
 use devicenet::id::{Group1MessageId, Group3MessageId};
 use devicenet::messages::{
-    AllocateRequest, AllocationChoice, DuplicateMacCheck, GroupSelect, ReleaseRequest, UcmmCloseRequest,
-    UcmmOpenRequest, UcmmOpenResponse,
+    AllocationChoice, DuplicateMacCheck, GroupSelect, UcmmCloseRequest, UcmmOpenRequest, UcmmOpenResponse,
 };
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
@@ -182,6 +182,8 @@ pub struct Master<'s, 'b> {
     notices: Vec<String>,
     /// The strobe, COS or cyclic connection established ([`Master::establish_io`]).
     io: Option<io::IoConnection>,
+    /// The bring-up engine of each device the master talked to ([`Master::step`]).
+    nodes: HashMap<u8, crate::bring_up::BringUp>,
 }
 
 /// The outcome of an explicit request, kept with its record.
@@ -211,6 +213,7 @@ impl<'s, 'b> Master<'s, 'b> {
             held: HashMap::new(),
             notices: Vec::new(),
             io: None,
+            nodes: HashMap::new(),
         }
     }
 
@@ -521,7 +524,8 @@ impl<'s, 'b> Master<'s, 'b> {
     /// Allocate_Master/Slave_Connection_Set for `choice`, through `port` (notes §3.4). Returns the
     /// record of the response; the announced message body format is used by later requests.
     ///
-    /// A device that answers 0x0B (already in requested state: the set is allocated to this very
+    /// The request runs on the device's [bring-up engine](crate::bring_up) ([`Master::step`]): a
+    /// device that answers 0x0B (already in requested state: the set is allocated to this very
     /// master, by an earlier run that kept it) is released and allocated again, as a scanner
     /// coming back to its device does; the answer's record says so and a [notice](Self::notices)
     /// is left. 0x0C / 0x01 (allocated to another master) is
@@ -532,27 +536,8 @@ impl<'s, 'b> Master<'s, 'b> {
         port: Port,
         choice: AllocationChoice,
     ) -> Result<Option<usize>, MasterError> {
-        match self.allocate_once(target, port, choice) {
-            Err(MasterError::ErrorResponse { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
-                self.mark_last_answer(
-                    target,
-                    &format!("{choice} already allocated to this master: released and allocated again"),
-                );
-                self.notices.push(format!(
-                    "MAC {target}: {choice} was still allocated to this master (an earlier run kept it): released and allocated again"
-                ));
-                self.release_through(target, port, choice)?;
-                self.allocate_once(target, port, choice)
-            }
-            Err(MasterError::ErrorResponse {
-                general: GeneralStatus::ObjectStateConflict,
-                additional: additional::ALLOCATION_CONFLICT,
-                ..
-            }) => {
-                Err(MasterError::AllocationConflict { mac: target.as_raw(), owner: self.owner_seen(target) })
-            }
-            other => other,
-        }
+        // 0x0B and 0x0C / 0x01 are the engine's (Master::run_step).
+        self.allocate_once(target, port, choice)
     }
 
     fn allocate_once(
@@ -561,14 +546,7 @@ impl<'s, 'b> Master<'s, 'b> {
         port: Port,
         choice: AllocationChoice,
     ) -> Result<Option<usize>, MasterError> {
-        let data = AllocateRequest { choice, allocator: self.config.mac }.emit();
-        let req = Request {
-            service: ServiceCode::AllocateMasterSlave,
-            class: class::DEVICENET,
-            instance: 1,
-            data: &data,
-        };
-        let (data, i) = self.request_ok(target, port, &req)?;
+        let (data, i) = self.step_ok(target, Step::Allocate { port, choice })?;
         // Acknowledge suppression is a property of the allocation, not a connection to release
         // (a Release with 0x40 is refused, docs/io-connections.md).
         let held = self.held.entry(target.as_raw()).or_insert(AllocationChoice::empty());
@@ -643,14 +621,7 @@ impl<'s, 'b> Master<'s, 'b> {
         port: Port,
         choice: AllocationChoice,
     ) -> Result<(), MasterError> {
-        let data = ReleaseRequest { choice }.emit();
-        let req = Request {
-            service: ServiceCode::ReleaseMasterSlave,
-            class: class::DEVICENET,
-            instance: 1,
-            data: &data,
-        };
-        let (data, i) = self.request_ok(target, port, &req)?;
+        let (data, i) = self.step_ok(target, Step::Release { port, choice })?;
         if let Some(held) = self.held.get_mut(&target.as_raw()) {
             *held = held.difference(choice);
         }
@@ -738,10 +709,7 @@ impl<'s, 'b> Master<'s, 'b> {
         instance: u16,
         attribute: u8,
     ) -> Result<(Vec<u8>, Option<usize>), MasterError> {
-        let data = [attribute];
-        let req =
-            Request { service: ServiceCode::GetAttributeSingle, class: class_id, instance, data: &data };
-        self.request_ok(target, Port::Explicit, &req)
+        self.step_ok(target, Step::Get { class: class_id, instance, attribute })
     }
 
     /// Get_Attribute_Single of a UINT, checked to be 2 bytes.
@@ -786,11 +754,7 @@ impl<'s, 'b> Master<'s, 'b> {
         attribute: u8,
         value: &[u8],
     ) -> Result<(Vec<u8>, Option<usize>), MasterError> {
-        let mut data = vec![attribute];
-        data.extend_from_slice(value);
-        let req =
-            Request { service: ServiceCode::SetAttributeSingle, class: class_id, instance, data: &data };
-        self.request_ok(target, Port::Explicit, &req)
+        self.step_ok(target, Step::Set { class: class_id, instance, attribute, value: value.to_vec() })
     }
 
     /// The poll command frames for `output` on a connection consuming `consumed` bytes.

@@ -355,3 +355,36 @@ fn a_request_too_long_to_send_fails_naming_it() {
     ));
     assert!(n.is_idle());
 }
+
+#[test]
+fn the_body_format_an_allocate_answers_is_used_on_the_explicit_connection() {
+    let mut n = node();
+    n.allocate(at(0), Port::Group2Only, AllocationChoice::EXPLICIT);
+    n.get(at(0), class::IDENTITY, 1, 1, Refusal::Stop);
+    let _ = sent(&mut n);
+    // 16/16 (code 2): class and instance two bytes each.
+    n.handle_frame(&answer(&[0x00, 0xCB, 0x02]), at(1));
+    assert_eq!(n.body_format(), BodyFormat::Class16Instance16);
+    assert_eq!(sent(&mut n), vec![(0x42C, vec![0x00, 0x0E, 0x01, 0x00, 0x01, 0x00, 0x01])]);
+}
+
+#[test]
+fn each_allocate_is_released_and_allocated_again_once() {
+    let mut n = node();
+    n.allocate(at(0), Port::Group2Only, AllocationChoice::EXPLICIT);
+    n.allocate(at(0), Port::Explicit, AllocationChoice::POLL);
+    let _ = sent(&mut n);
+    let kept = [0x00, 0x94, 0x0B, 0x02];
+    for (ms, release) in [(1, 0x01), (4, 0x02)] {
+        n.handle_frame(&answer(&kept), at(ms));
+        assert_eq!(sent(&mut n), vec![(0x42E, vec![0x00, 0x4C, 0x03, 0x01, release])]);
+        n.handle_frame(&answer(&[0x00, 0xCC]), at(ms + 1));
+        let _ = sent(&mut n);
+        n.handle_frame(&answer(&[0x00, 0xCB, 0x00]), at(ms + 2));
+        let _ = sent(&mut n);
+    }
+    assert!(n.is_idle());
+    assert_eq!(n.held(), EXPLICIT_POLL);
+    let reallocated = events(&mut n).iter().filter(|e| matches!(e, Event::Reallocated { .. })).count();
+    assert_eq!(reallocated, 2);
+}
