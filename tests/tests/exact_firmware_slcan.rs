@@ -10,9 +10,12 @@
 //! - `dnet-master configure` downloads the Modbus meter description; the pymodbus meter
 //!   (slave-fw/soft-slave/tests/modbus/server.py) on the instrument pty answers the gateway at
 //!   19200 8E1 and its registers come back in the poll data, and its write of the poll output is
-//!   seen by the meter; then a power cycle (the serve process stopped by SIGTERM, started again
-//!   on the same flash file): `configure --read` gives the meter description back and the meter's
-//!   data still flows.
+//!   seen by the meter; then a power cycle (the serve process stopped by SIGINT, as Ctrl-C, started
+//!   again on the same flash file): `configure --read` gives the meter description back and the meter's
+//!   data still flows;
+//! - the same download with the instrument side at another baud rate carries no meter data (the
+//!   characters are counted garbled);
+//! - bad arguments are refused with the reason.
 //!
 //! ```sh
 //! scripts/firmware-size            # the ELFs: target/thumbv7em-none-eabihf/firmware/slave-fw-firmware-BOARD
@@ -151,11 +154,25 @@ impl Served {
 
     /// SIGTERM: it must save the flash file, print its summary and exit 0; the summary.
     fn stop(&mut self) -> String {
+        self.stop_with("TERM")
+    }
+
+    /// [`Served::stop`] by `signal` (`TERM`, or `INT` as Ctrl-C sends): the flash file is saved,
+    /// newer than before the stop.
+    fn stop_with(&mut self, signal: &str) -> String {
         let mut serve = self.serve.take().expect("a running exact-firmware-serve");
-        let status = serve.terminate();
+        let before = std::fs::metadata(&self.flash).and_then(|m| m.modified()).ok();
+        serve.signal(signal);
+        let status = serve.wait(Duration::from_secs(10));
         let stderr = serve.stderr.text();
-        assert_eq!(status.and_then(|s| s.code()), Some(0), "a clean stop on SIGTERM:\n{}", serve.dump());
+        assert_eq!(status.and_then(|s| s.code()), Some(0), "a clean stop on SIG{signal}:\n{}", serve.dump());
         assert!(stderr.contains("stopped after") && stderr.contains("flash saved to"), "{stderr}");
+        let after = std::fs::metadata(&self.flash).and_then(|m| m.modified()).ok();
+        assert!(
+            after.is_some() && after != before,
+            "{}: SIG{signal} did not save the flash file",
+            self.board
+        );
         eprintln!("{}: {}", self.board, stderr.lines().last().unwrap_or_default());
         stderr
     }
@@ -351,7 +368,8 @@ fn configure_to_the_modbus_meter_survives_a_power_cycle() {
             served.master(&["--timeout", CONFIGURE_TIMEOUT, "configure", "--mac", MAC, path(&meter_file)]);
         eprintln!("{board}: configure: {}", out.lines().last().unwrap_or_default());
         let before = meter_polled(&served, &meter_proc, "before");
-        served.stop();
+        // Ctrl-C, as at a terminal.
+        served.stop_with("INT");
 
         served.start("19200,8E1", "now");
         let read_back = served.dir.join("read-back.toml");
@@ -409,4 +427,73 @@ fn an_instrument_line_at_another_baud_rate_carries_no_meter_data() {
         .and_then(|n| n.parse::<u64>().ok())
         .unwrap_or(0);
     assert!(garbled > 0, "{board}: no garbled character counted: {summary}");
+}
+
+/// `exact-firmware-serve` with its flags as given; its exit code and stderr.
+fn serve_refused(args: &[&str]) -> (Option<i32>, String) {
+    let mut serve = Proc::spawn(bin("exact-firmware-serve"), args);
+    let status = serve.wait(Duration::from_secs(20));
+    (status.and_then(|s| s.code()), serve.stderr.text())
+}
+
+/// Bad arguments are refused before anything runs, each with the reason.
+#[test]
+#[ignore = "needs the board ELFs and the programs: run by scripts/check"]
+fn bad_arguments_are_refused_with_the_reason() {
+    let dir = scratch("serve-args");
+    let nucleo = elf("nucleo-f446re");
+    let flash = dir.join("short.flash");
+    std::fs::write(&flash, [0u8; 100]).unwrap();
+    let common = |elf: &Path, flash: &Path| {
+        vec![
+            "--elf".to_string(),
+            path(elf).to_string(),
+            "--slcan".into(),
+            "/dev/null".into(),
+            "--instrument".into(),
+            "/dev/null".into(),
+            "--flash".into(),
+            path(flash).to_string(),
+        ]
+    };
+    let new_flash = dir.join("new.flash");
+    let cases: [(Vec<String>, i32, &str); 5] = [
+        (vec!["--board".into(), "nope".into()], 2, "no board called 'nope'"),
+        (
+            vec!["--board".into(), "reference".into(), "--instrument-line".into(), "9600,8X1".into()],
+            2,
+            "parity is not N, E or O",
+        ),
+        (
+            vec!["--board".into(), "reference".into(), "--elf".into(), "/nonexistent".into()],
+            1,
+            "scripts/firmware-size builds",
+        ),
+        (
+            vec!["--board".into(), "nucleo-f446re".into(), "--mac".into(), "4".into()],
+            1,
+            "give --mac and --rate together",
+        ),
+        (
+            vec!["--board".into(), "nucleo-f446re".into(), "--flash".into(), path(&flash).to_string()],
+            1,
+            "100 bytes, but the nucleo-f446re board's two settings sectors are 262144 bytes",
+        ),
+    ];
+    for (extra, code, why) in cases {
+        let mut args = common(&nucleo, &new_flash);
+        // The case's own flags replace the common ones (clap refuses a repeated flag).
+        for pair in extra.chunks(2) {
+            if let Some(i) = args.iter().position(|a| *a == pair[0]) {
+                args[i + 1] = pair[1].clone();
+            } else {
+                args.extend_from_slice(pair);
+            }
+        }
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let (got, stderr) = serve_refused(&args);
+        assert_eq!(got, Some(code), "{args:?}: {stderr}");
+        assert!(stderr.contains(why), "{args:?}: {stderr}");
+    }
+    assert!(!new_flash.exists(), "a refused start wrote the flash file");
 }
