@@ -15,16 +15,16 @@
 
 use crate::model::Identity;
 use can_io::bus::Origin;
-use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
-use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
+use devicenet::explicit::GeneralStatus;
+use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Duration, Group2Message, Identifier, Instant, MacId};
 use harness_common::console::Progress;
 use harness_common::error::HarnessError;
-use master_core::client::{ClientError, Handled, Port, ReplyBody, Transaction};
+use master_core::bring_up::{BringUp, Event, NodeError, Refusal, Step};
+use master_core::client::{Handled, Port, ReplyBody};
 use master_core::decode;
 use master_core::master::Master;
-use std::collections::VecDeque;
 
 /// One device found.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -58,138 +58,68 @@ pub struct ScanReport {
     pub total_micros: u64,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Step {
-    Allocate(AllocationChoice),
-    Get(u16, u16, u8),
-    Release,
-    /// Release through the Group 2 Only port: a set an earlier run of this master kept.
-    ReleaseKept(AllocationChoice),
-}
-
+/// One MAC being asked: its bring-up engine and what it found.
 struct Node {
-    mac: MacId,
-    steps: VecDeque<Step>,
-    tx: Option<Transaction>,
-    allocated: AllocationChoice,
-    found: bool,
-    /// The set was still allocated to this master and has been released and allocated again.
-    reallocated: bool,
+    engine: BringUp,
     device: ScannedDevice,
 }
 
-fn request_for(
-    step: Step,
-    master: MacId,
-    allocated: AllocationChoice,
-    buf: &mut Vec<u8>,
-) -> (Port, ServiceCode, u16, u16) {
-    buf.clear();
-    match step {
-        Step::Allocate(choice) => {
-            buf.extend_from_slice(&AllocateRequest { choice, allocator: master }.emit());
-            (Port::Group2Only, ServiceCode::AllocateMasterSlave, class::DEVICENET, 1)
-        }
-        Step::Get(c, i, a) => {
-            buf.push(a);
-            (Port::Explicit, ServiceCode::GetAttributeSingle, c, i)
-        }
-        Step::Release => {
-            buf.extend_from_slice(&ReleaseRequest { choice: allocated }.emit());
-            (Port::Explicit, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
-        }
-        Step::ReleaseKept(choice) => {
-            buf.extend_from_slice(&ReleaseRequest { choice }.emit());
-            (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
-        }
-    }
-}
-
 impl Node {
-    fn start_next(&mut self, master: &Master<'_, '_>, now: Instant) -> Result<(), HarnessError> {
-        let Some(&step) = self.steps.front() else {
-            self.tx = None;
-            return Ok(());
-        };
-        let mut data = Vec::new();
-        let (port, service, c, i) = request_for(step, master.config.mac, self.allocated, &mut data);
-        let req = Request { service, class: c, instance: i, data: &data };
-        let mut tx = Transaction::new(
-            self.mac,
-            master.config.mac,
-            port,
-            false,
-            &req,
-            BodyFormat::Class8Instance8,
-            master.config.response_timeout,
-        )?;
-        tx.start(now);
-        self.tx = Some(tx);
-        Ok(())
-    }
-
-    /// Takes the outcome of the current step; returns whether the node goes on.
-    fn finish_step(&mut self, outcome: Result<master_core::client::Reply, ClientError>) {
-        let Some(step) = self.steps.pop_front() else { return };
-        let reply = match outcome {
-            Ok(r) => r,
-            Err(ClientError::Timeout { name, .. }) => {
-                if self.found {
-                    self.device.status = format!("stopped answering ({name})");
-                }
-                self.steps.clear();
-                return;
-            }
-            Err(ClientError::RequestAborted(r)) => {
-                self.device.status = r;
-                self.steps.clear();
-                return;
-            }
-        };
-        self.found = true;
-        match (step, reply.body) {
-            (Step::Allocate(choice), ReplyBody::Success(_)) => {
-                self.allocated = choice;
-                let mut steps: Vec<Step> =
-                    [1u8, 2, 3, 4, 6, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
-                if choice.contains(AllocationChoice::POLL) {
-                    steps.push(Step::Get(class::CONNECTION, 2, 7));
-                    steps.push(Step::Get(class::CONNECTION, 2, 8));
-                }
-                steps.push(Step::Release);
-                self.steps = steps.into();
-            }
-            (
-                Step::Allocate(choice),
-                ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. },
-            ) if !self.reallocated => {
-                // Still allocated to this master (an earlier run kept it): release what it
-                // holds of the choice (explicit alone when poll is gone), allocate again.
-                self.reallocated = true;
+    /// Takes an event of the engine at `now`: what was read, and the steps that follow.
+    fn take(&mut self, event: Event, now: Instant) {
+        let reply = match event {
+            Event::Answered { step, body } => (step, body),
+            Event::Reallocated { .. } => {
                 self.device.note =
                     Some("was still allocated to this master: released and allocated again".into());
-                self.steps.push_front(Step::Allocate(choice));
-                self.steps.push_front(Step::ReleaseKept(AllocationChoice::EXPLICIT));
-                if choice.contains(AllocationChoice::POLL) {
-                    self.steps.push_front(Step::ReleaseKept(AllocationChoice::POLL));
+                return;
+            }
+            Event::Failed(NodeError::Timeout { timeout, .. }) => {
+                if self.engine.answered() {
+                    self.device.status = format!("stopped answering ({timeout})");
                 }
+                return;
+            }
+            Event::Failed(NodeError::Aborted { reason, .. }) => {
+                self.device.status = reason;
+                return;
+            }
+            Event::Failed(other) => {
+                self.device.status = other.to_string();
+                return;
+            }
+        };
+        let e = &mut self.engine;
+        match reply {
+            (Step::Allocate { choice, .. }, ReplyBody::Success(_)) => {
+                for a in [1u8, 2, 3, 4, 6, 7] {
+                    e.get(now, class::IDENTITY, 1, a, Refusal::Report);
+                }
+                if choice.contains(AllocationChoice::POLL) {
+                    e.get(now, class::CONNECTION, 2, 7, Refusal::Report);
+                    e.get(now, class::CONNECTION, 2, 8, Refusal::Report);
+                }
+                e.push(now, Step::Release { port: Port::Explicit, choice }, Refusal::Report);
             }
             (
-                Step::Allocate(choice),
+                Step::Allocate { choice, .. },
                 ReplyBody::Error { general: GeneralStatus::ResourceUnavailable, .. },
             ) if choice.contains(AllocationChoice::POLL) => {
                 // No poll connection: identity only.
-                self.steps.push_front(Step::Allocate(AllocationChoice::EXPLICIT));
+                e.push(
+                    now,
+                    Step::Allocate { port: Port::Group2Only, choice: AllocationChoice::EXPLICIT },
+                    Refusal::Report,
+                );
             }
-            (Step::Allocate(_), ReplyBody::Error { general, additional }) => {
+            (Step::Allocate { .. }, ReplyBody::Error { general, additional }) => {
                 self.device.status = if general == GeneralStatus::ObjectStateConflict && additional == 0x01 {
                     "allocated by another master".into()
                 } else {
                     format!("allocation refused: {}", decode::error_text(general, additional))
                 };
-                self.steps.clear();
             }
-            (Step::Get(c, i, a), ReplyBody::Success(data)) => {
+            (Step::Get { class: c, instance: i, attribute: a }, ReplyBody::Success(data)) => {
                 let d = &mut self.device;
                 match (c, i, a) {
                     (class::IDENTITY, 1, a) => {
@@ -200,7 +130,7 @@ impl Node {
                     _ => {}
                 }
             }
-            (Step::Get(c, i, a), ReplyBody::Error { general, additional }) => {
+            (Step::Get { class: c, instance: i, attribute: a }, ReplyBody::Error { general, additional }) => {
                 if self.device.status == "ok" {
                     self.device.status = format!(
                         "{} {}: {}",
@@ -210,10 +140,8 @@ impl Node {
                     );
                 }
             }
-            (Step::Release, ReplyBody::Success(_)) => self.allocated = AllocationChoice::empty(),
-            (Step::Release, ReplyBody::Error { .. }) => {}
-            // A kept poll connection may be gone already (its watchdog fired): 0x0B is fine.
-            (Step::ReleaseKept(_), _) => {}
+            // A release refused leaves the set with the master, which gives back what it holds.
+            (Step::Release { .. } | Step::Set { .. }, _) => {}
         }
     }
 }
@@ -238,45 +166,37 @@ pub fn scan(
     let scan_start = master.session.now();
     let mut nodes: Vec<Node> = macs
         .iter()
-        .map(|&mac| Node {
-            mac,
-            steps: VecDeque::from([Step::Allocate(AllocationChoice::EXPLICIT | AllocationChoice::POLL)]),
-            tx: None,
-            allocated: AllocationChoice::empty(),
-            found: false,
-            reallocated: false,
-            device: ScannedDevice { mac: mac.as_raw(), status: "ok".into(), ..ScannedDevice::default() },
+        .map(|&mac| {
+            let mut engine = master.bring_up(mac);
+            engine.push(
+                scan_start,
+                Step::Allocate {
+                    port: Port::Group2Only,
+                    choice: AllocationChoice::EXPLICIT | AllocationChoice::POLL,
+                },
+                Refusal::Report,
+            );
+            Node {
+                engine,
+                device: ScannedDevice { mac: mac.as_raw(), status: "ok".into(), ..ScannedDevice::default() },
+            }
         })
         .collect();
-    for n in &mut nodes {
-        n.start_next(master, scan_start)?;
-    }
-    let mut last_answer = scan_start;
     loop {
+        let now = master.session.now();
         for n in &mut nodes {
-            if let Some(tx) = &mut n.tx {
-                while let Some(f) = tx.poll_transmit() {
+            // Events start the next steps; their frames go out at once.
+            loop {
+                while let Some(f) = n.engine.poll_transmit() {
                     master.session.send(&f)?;
                 }
+                let Some(event) = n.engine.poll_event() else { break };
+                n.take(event, now);
             }
+            // The master knows what each device holds, so an interrupted scan gives it back.
+            master.set_held(n.engine.mac(), n.engine.held());
         }
-        let now = master.session.now();
-        // Steps whose transaction ended: take the outcome, start the next.
-        for n in &mut nodes {
-            if let Some(outcome) = n.tx.as_mut().filter(|t| t.is_done()).and_then(|t| t.take_outcome()) {
-                n.finish_step(outcome);
-                // The master knows what each device holds, so an interrupted scan gives it back.
-                master.set_held(n.mac, n.allocated);
-                n.start_next(master, now)?;
-                if let Some(tx) = &mut n.tx {
-                    while let Some(f) = tx.poll_transmit() {
-                        master.session.send(&f)?;
-                    }
-                }
-            }
-        }
-        let Some(deadline) = nodes.iter().filter_map(|n| n.tx.as_ref().and_then(|t| t.poll_at())).min()
-        else {
+        let Some(deadline) = nodes.iter().filter_map(|n| n.engine.poll_at()).min() else {
             break;
         };
         match master.session.next(deadline)? {
@@ -287,31 +207,26 @@ pub fn scan(
                 }
                 let owner = match Identifier::decode(rec.frame.id()) {
                     Identifier::Group2 { mac, message: Group2Message::ExplicitResponse } => {
-                        nodes.iter_mut().find(|n| n.mac == mac && n.tx.is_some())
+                        nodes.iter_mut().find(|n| n.engine.mac() == mac && n.engine.current().is_some())
                     }
                     _ => None,
                 };
-                match owner.and_then(|n| n.tx.as_mut()).map(|tx| tx.handle_frame(&rec.frame, rec.at)) {
-                    Some(Handled::Frame(v)) => {
-                        master.session.set_verdict(i, v);
-                        last_answer = rec.at;
-                    }
+                match owner.map(|n| n.engine.handle_frame(&rec.frame, rec.at)) {
+                    Some(Handled::Frame(v)) => master.session.set_verdict(i, v),
                     _ => master.other(i)?,
                 }
             }
             None => {
                 let now = master.session.now();
                 for n in &mut nodes {
-                    if let Some(tx) = &mut n.tx {
-                        tx.handle_timeout(now);
-                    }
+                    n.engine.handle_timeout(now);
                 }
             }
         }
     }
     let end = master.session.now();
-    let _ = last_answer;
-    let devices: Vec<ScannedDevice> = nodes.into_iter().filter(|n| n.found).map(|n| n.device).collect();
+    let devices: Vec<ScannedDevice> =
+        nodes.into_iter().filter(|n| n.engine.answered()).map(|n| n.device).collect();
     Ok(ScanReport {
         devices,
         asked: macs.len(),
