@@ -19,22 +19,26 @@
 //! - **poll → TXRQ**: from the instant a poll command is stored in the receive FIFO to the
 //!   instruction that sets TXRQ in a transmit mailbox for the first response fragment; the
 //!   machine runs one instruction at a time and `CAN_TSR`'s TME bits are read after each.
-//! - **per frame**: the instructions the firmware executes in handler mode (with RTIC every task
-//!   runs there; thread mode is the idle loop) from that same instant until the core is back in
-//!   thread mode with no exception pending: the work of one received poll command, the building
-//!   and queueing of its response included, the transmit-complete interrupts of the fragments
-//!   not (they come when the bus has taken each fragment).
+//! - **poll → idle**, the cost of a received frame: the instructions the firmware executes in
+//!   handler mode (with RTIC every task runs there; thread mode is the idle loop) from that same
+//!   instant until the core is back in thread mode with no exception pending: the work of one
+//!   received poll command, the building and queueing of its response included, the
+//!   transmit-complete interrupts of the fragments not (they come when the bus has taken each
+//!   fragment); "exc" counts the exception entries meanwhile.
+//! - **expl**: the same two figures for an explicit request over the explicit connection the
+//!   bring-up allocated (Get_Attribute_Single of the Identity's vendor ID, the notes §2's frame
+//!   11), answered by one frame.
 //! - **cycle**: the handler-mode instructions of a whole poll cycle, the three fragments sent and
 //!   acknowledged included, less those of an equally long window without a poll (SysTick and
 //!   the firmware's timers), 10 ms each.
-//! - **max load**: poll commands delivered back to back at rising rates, each rate for
+//! - **max load** ("all answ", "no FOVR", "answered"): poll commands delivered back to back at rising rates, each rate for
 //!   [`SWEEP_FRAMES`] frames, expressed as the share of a 500 kbit/s bus that those frames'
 //!   wire time would take (what the board sends is taken every 10 µs between deliveries and
 //!   acknowledged at once, taking no wire time, so above 100 % the figure is processing
-//!   headroom, not a bus that exists); the highest rate after which neither
-//!   receive FIFO showed an overrun (FOVR), from [`SWEEP`]. `>=` when no rate swept overran.
+//!   headroom, not a bus that exists); "no FOVR" is the highest rate after which neither receive
+//!   FIFO showed an overrun (FOVR), from [`SWEEP`], `>=` when no rate swept overran.
 //!   "answered" is how many of that rate's polls got the first fragment of a response, and
-//!   "all answered" the highest rate at which every poll got one: a poll left unanswered is no
+//!   "all answ" the highest rate at which every poll got one: a poll left unanswered is no
 //!   overrun, and the columns show it rather than hide it.
 //!
 //! Counting: the machine counts the instructions the CPU emulator (unicorn) executes
@@ -118,14 +122,29 @@ type Board = Rc<RefCell<EmulatedBoard>>;
 /// One board's figures.
 struct Figures {
     hclk: u32,
-    /// Instructions from a poll in the FIFO to the first fragment's TXRQ: median, max.
-    to_txrq: (u64, u64),
-    /// Handler instructions per received poll until idle: median, max; exception entries.
-    per_frame: (u64, u64, u64),
+    /// The reference poll command.
+    poll: Request,
+    /// An explicit request, Get_Attribute_Single of the Identity's vendor ID.
+    explicit: Request,
     /// Handler instructions of a whole poll cycle less an idle window's.
     cycle: i64,
     /// The sweep.
     max_load: Sweep,
+}
+
+/// The figures of one kind of request, over [`POLLS`] of them: medians (the maxima are
+/// printed only where they differ).
+struct Request {
+    /// Instructions from the request in the FIFO to the TXRQ of its (first) response frame.
+    to_txrq: u64,
+    /// The largest of those.
+    to_txrq_max: u64,
+    /// Handler-mode instructions from the request in the FIFO until idle.
+    handled: u64,
+    /// The largest of those.
+    handled_max: u64,
+    /// Exception entries meanwhile.
+    entries: u64,
 }
 
 fn main() -> ExitCode {
@@ -155,15 +174,16 @@ fn main() -> ExitCode {
         }
     }
     println!(
-        "{:<18} {:>5} {:>17} {:>12} {:>23} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7}",
+        "{:<18} {:>4} {:>15} {:>19} {:>15} {:>19} {:>6} {:>9} {:>9} {:>9} {:>6} {:>5}",
         "board",
         "MHz",
-        "poll->TXRQ cyc/us",
-        "max",
-        "per frame cyc/us exc",
+        "poll->TXRQ",
+        "poll->idle (exc)",
+        "expl->TXRQ",
+        "expl->idle (exc)",
         "cycle",
-        "all answ.",
-        "max load",
+        "all answ",
+        "no FOVR",
         "answered",
         "flash",
         "ram"
@@ -191,21 +211,26 @@ fn usage() -> ExitCode {
     ExitCode::from(2)
 }
 
-/// The table row of one board.
+/// The table row of one board: instructions, then µs at HCLK in brackets; a maximum after a
+/// slash where it differs from the median.
 fn row(name: &str, f: &Figures, size: Option<&(String, u64, u64)>) -> String {
-    let us = |instructions: u64| instructions as f64 * 1e6 / f64::from(f.hclk);
+    let cell = |median: u64, max: u64| {
+        let us = median as f64 * 1e6 / f64::from(f.hclk);
+        match max > median {
+            true => format!("{median}/{max} ({us:.1})"),
+            false => format!("{median} ({us:.1})"),
+        }
+    };
     let load = format!("{}{} %", if f.max_load.overran_above { "" } else { ">=" }, f.max_load.load);
     let (flash, ram) = size.map_or(("-".into(), "-".into()), |s| (s.1.to_string(), s.2.to_string()));
     format!(
-        "{:<18} {:>5} {:>9} {:>7.1} {:>12} {:>12} {:>6.1} {:>3} {:>9} {:>9} {:>9} {:>9} {:>7} {:>7}",
+        "{:<18} {:>4} {:>15} {:>19} {:>15} {:>19} {:>6} {:>9} {:>9} {:>9} {:>6} {:>5}",
         name,
         f.hclk / 1_000_000,
-        f.to_txrq.0,
-        us(f.to_txrq.0),
-        f.to_txrq.1,
-        f.per_frame.0,
-        us(f.per_frame.0),
-        f.per_frame.2,
+        cell(f.poll.to_txrq, f.poll.to_txrq_max),
+        format!("{} {}", cell(f.poll.handled, f.poll.handled_max), f.poll.entries),
+        cell(f.explicit.to_txrq, f.explicit.to_txrq_max),
+        format!("{} {}", cell(f.explicit.handled, f.explicit.handled_max), f.explicit.entries),
         f.cycle,
         format!("{} %", f.max_load.all_answered),
         load,
@@ -236,29 +261,30 @@ fn measure(kind: BoardKind, path: &PathBuf) -> Result<Figures, FigureError> {
     let elf = std::fs::read(path).map_err(|error| FigureError::Elf { path: path.clone(), error })?;
     let (board, mut now) = connected(kind, &elf)?;
     let hclk = board.borrow_mut().mcu().clocks().hclk;
-    let mut to_txrq = Vec::new();
-    let mut per_frame = Vec::new();
-    let mut entries = Vec::new();
-    for _ in 0..POLLS {
-        now = settle(&board, now + POLL_GAP_US)?;
-        let (txrq, handled, exc) = one_poll(&board, now)?;
-        to_txrq.push(txrq);
-        per_frame.push(handled);
-        entries.push(exc);
-        now = finish_transmissions(&board, now)?;
-    }
+    let poll = requests(&board, &mut now, &poll_command()?)?;
+    let explicit = requests(&board, &mut now, &explicit_request()?)?;
     let cycle = poll_cycle(&board, &mut now)?;
     let max_load = sweep(&board, &mut now)?;
-    Ok(Figures {
-        hclk,
-        to_txrq: (median(&mut to_txrq), to_txrq.iter().copied().max().unwrap_or(0)),
-        per_frame: (
-            median(&mut per_frame),
-            per_frame.iter().copied().max().unwrap_or(0),
-            median(&mut entries),
-        ),
-        cycle,
-        max_load,
+    Ok(Figures { hclk, poll, explicit, cycle, max_load })
+}
+
+/// [`POLLS`] of `frame`, [`POLL_GAP_US`] apart, each measured by [`one_request`].
+fn requests(board: &Board, now: &mut u64, frame: &CanFrame) -> Result<Request, FigureError> {
+    let (mut to_txrq, mut handled, mut entries) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..POLLS {
+        *now = settle(board, *now + POLL_GAP_US)?;
+        let (txrq, instructions, taken) = one_request(board, *now, frame)?;
+        to_txrq.push(txrq);
+        handled.push(instructions);
+        entries.push(taken);
+        *now = finish_transmissions(board, *now)?;
+    }
+    Ok(Request {
+        to_txrq: median(&mut to_txrq),
+        to_txrq_max: to_txrq.iter().copied().max().unwrap_or(0),
+        handled: median(&mut handled),
+        handled_max: handled.iter().copied().max().unwrap_or(0),
+        entries: median(&mut entries),
     })
 }
 
@@ -310,15 +336,23 @@ fn poll_command() -> Result<CanFrame, FigureError> {
     CanFrame::new(id, &POLL_COMMAND).map_err(|e| FigureError::Machine(format!("poll command: {e:?}")))
 }
 
-/// One poll command delivered at `now`: instructions to the first TXRQ, handler instructions
-/// until idle, exception entries meanwhile.
-fn one_poll(board: &Board, now: u64) -> Result<(u64, u64, u64), FigureError> {
+/// Get_Attribute_Single of the Identity's vendor ID over the explicit connection the bring-up
+/// allocated (the notes §2's frame 11).
+fn explicit_request() -> Result<CanFrame, FigureError> {
+    let id = Identifier::group2(MAC, Group2Message::ExplicitRequest);
+    CanFrame::new(id, &[0x00, 0x0E, 0x01, 0x01, 0x01])
+        .map_err(|e| FigureError::Machine(format!("explicit request: {e:?}")))
+}
+
+/// `frame` delivered at `now`: instructions to the first TXRQ, handler instructions until idle,
+/// exception entries meanwhile.
+fn one_request(board: &Board, now: u64, frame: &CanFrame) -> Result<(u64, u64, u64), FigureError> {
     let mut b = board.borrow_mut();
     let tsr = b.mcu().read_peripheral(CAN1_BASE + offset::TSR).unwrap_or(0);
     if tsr & TSR_TME != TSR_TME {
         return Err(FigureError::NoAnswer("empty transmit mailboxes before the poll"));
     }
-    b.handle_frame(&poll_command()?, Instant::from_micros(now));
+    b.handle_frame(frame, Instant::from_micros(now));
     let mcu = b.mcu();
     let (start, handler_start, entries_start) =
         (mcu.instructions(), mcu.handler_instructions(), entries(mcu));
@@ -333,11 +367,7 @@ fn one_poll(board: &Board, now: u64) -> Result<(u64, u64, u64), FigureError> {
             break;
         }
         if mcu.instructions() - start > SETTLE_LIMIT {
-            return Err(FigureError::NoAnswer(if to_txrq.is_some() {
-                "return to idle"
-            } else {
-                "poll response"
-            }));
+            return Err(FigureError::NoAnswer(if to_txrq.is_some() { "return to idle" } else { "response" }));
         }
         mcu.run_for(1).map_err(|e| FigureError::Machine(e.to_string()))?;
     }
