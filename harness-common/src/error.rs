@@ -277,10 +277,7 @@ impl HarnessError {
     #[must_use]
     pub fn exit_code(&self) -> u8 {
         match self {
-            HarnessError::Log(_)
-            | HarnessError::Description(_)
-            | HarnessError::Write { .. }
-            | HarnessError::Master(MasterError::Invalid(_)) => 2,
+            HarnessError::Log(_) | HarnessError::Description(_) | HarnessError::Write { .. } => 2,
             HarnessError::Master(m) if m.is_usage() => 2,
             e if e.is_usage() => 2,
             HarnessError::Master(MasterError::Interrupted { signal }) => {

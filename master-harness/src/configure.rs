@@ -43,7 +43,7 @@ use devicenet::{Duration, MacId};
 use harness_common::error::HarnessError;
 use master_core::client::Port;
 use master_core::decode::value_text;
-use master_core::error::MasterError;
+use master_core::error::{MasterError, UsageError};
 use master_core::master::Master;
 use slave_fw::converter::config_object::RefusalRecord;
 use slave_fw::converter::ConverterConfig;
@@ -196,7 +196,7 @@ pub fn read_image(
 ) -> Result<Vec<u8>, MasterError> {
     let mut image = Vec::with_capacity(size);
     while image.len() < size {
-        let offset = u16::try_from(image.len()).map_err(|_| MasterError::Invalid("image too long".into()))?;
+        let offset = u16::try_from(image.len()).map_err(|_| UsageError::ImageTooLong { size })?;
         let count = u8::try_from((size - image.len()).min(CHUNK)).unwrap_or(CHUNK as u8);
         let [lo, hi] = offset.to_le_bytes();
         let part = config_request(master, mac, READ_CHUNK, &[which, lo, hi, count])?;

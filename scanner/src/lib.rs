@@ -11,6 +11,7 @@
 //! | [`monitor`] | one device polled at its expected packet rate, its data decoded by its profile ([`monitor::InputLayout`]) |
 //! | [`params`] | the Parameter object (or an EDS's parameters) of one device, read and written |
 //! | [`engine`] | the scanner: every node of a scan list kept in I/O ([`Scanner`]) |
+//! | [`timing`] | the timing of a scan list: minimum cycle, inter-scan delay, EPR, response window |
 //! | [`list`], [`model`] | the scan list file; what the scanner knows and shows (node status codes) |
 //! | [`report`] | how a scanner run ends: nodes released, the node table, the `--json` summary |
 //! | [`ui`] | the web console: the page and its JSON API over the scanner's shared state, with its own bounded HTTP server |
@@ -32,6 +33,7 @@ pub mod mqtt;
 pub mod params;
 pub mod report;
 pub mod scan;
+pub mod timing;
 pub mod ui;
 
 pub use engine::{build_scan_list, sample_values, Scanner, ScannerOptions};

@@ -58,7 +58,7 @@ use devicenet::{Duration, Instant, MacId};
 use harness_common::console::Progress;
 use harness_common::error::HarnessError;
 use master_core::client::Port;
-use master_core::error::MasterError;
+use master_core::error::{MasterError, UsageError};
 use master_core::io::{IoKind, IoOptions};
 use master_core::master::{ConnectOptions, Master, MIN_POLL_TIMEOUT};
 use master_core::session::Verdict;
@@ -427,7 +427,7 @@ fn reestablish_io(
         Err(e) => return Err(e),
     }
     master.establish_io(target, epr_ms, io)?;
-    let c = master.io_connection().ok_or_else(|| MasterError::Invalid("no I/O connection".into()))?;
+    let c = master.io_connection().ok_or(UsageError::NoIoConnection)?;
     Ok(PollSetup {
         produced: c.produced,
         consumed: c.consumed,

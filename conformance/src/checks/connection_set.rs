@@ -13,7 +13,15 @@ use master_core::decode;
 
 const CS: Category = Category::ConnectionSet;
 
+/// Runs the category's checks.
 pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
+    allocation_rows(r)?;
+    ownership_and_release(r)?;
+    ports_and_combinations(r)
+}
+
+/// The allocation rows of the validation table of §3.4: what a device refuses and how.
+fn allocation_rows(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
     r.run(
         "alloc-explicit-not-requested",
         "allocating poll while explicit is neither requested nor allocated: 0x09/0x02",
@@ -111,6 +119,11 @@ pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
             Ok(())
         },
     )?;
+    Ok(())
+}
+
+/// Allocating twice, another master's allocation, releasing what is not held (§3.4).
+fn ownership_and_release(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
     r.run(
         "alloc-double",
         "allocating a connection already allocated: 0x0B/0x02",
@@ -202,6 +215,11 @@ pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
             Ok(())
         },
     )?;
+    Ok(())
+}
+
+/// The Group 2 Only port's services, the explicit path, re-allocation and the I/O combinations of §II.2.5.
+fn ports_and_combinations(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
     r.run(
         "group2-only-invalid-service",
         "any other service on the Group 2 Only port: 0x02/0x03",

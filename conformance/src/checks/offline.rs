@@ -12,7 +12,7 @@ use super::super::{Basis, Category};
 use can_io::bus::Origin;
 use devicenet::id::Group4MessageId;
 use devicenet::messages::{AllocationChoice, DeviceKey, DuplicateMacCheck, FaultedSelector, OfflineMessage};
-use devicenet::{Duration, Group2Message, Identifier, Instant};
+use devicenet::{Duration, Group2Message, Identifier, Instant, MacId};
 use harness_common::error::HarnessError;
 use master_core::client::{Port, Reply, ReplyBody};
 use master_core::session::Verdict;
@@ -66,6 +66,18 @@ fn answers(
     out
 }
 
+/// The device as the offline checks address it: its MAC, the master's, its vendor, serial number
+/// and port as it announced them.
+#[derive(Clone, Copy)]
+struct Faulted {
+    dut: MacId,
+    me: MacId,
+    key: DeviceKey,
+    vendor: u16,
+    serial: u32,
+    port: u8,
+}
+
 fn offline_recovery(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
     r.release_all()?;
     let dut = r.dut();
@@ -78,6 +90,7 @@ fn offline_recovery(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harness
         return Ok(());
     };
     let key = DeviceKey { vendor_id: vendor, serial_number: serial };
+    let device = Faulted { dut, me, key, vendor, serial, port };
     // §7.1 rule 3: a duplicate MAC ID response for its MAC while on-line faults it.
     let response = DuplicateMacCheck::response(0, 0x0FFF, 0xA5A5_0002);
     r.send(g2(dut, Group2Message::DuplicateMacCheck), &response.emit())?;
@@ -107,6 +120,14 @@ fn offline_recovery(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harness
         );
         return r.release_all();
     }
+    who(r, c, &device)?;
+    identify_and_ownership(r, c, &device)?;
+    change_mac_id(r, c, &device)
+}
+
+/// Who for exactly its MAC: one answer, its own, after the delay its time-delay byte says.
+fn who(r: &mut Runner<'_, '_>, c: &mut Check, device: &Faulted) -> Result<(), HarnessError> {
+    let Faulted { dut, key, vendor, serial, port, .. } = *device;
     // Who, for exactly its MAC.
     let offset = 3u8;
     let who = OfflineMessage::WhoRequest {
@@ -159,6 +180,16 @@ fn offline_recovery(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harness
             Some(*i),
         );
     }
+    Ok(())
+}
+
+/// The long Identify answered 3F CC; offline ownership answered with the request echoed.
+fn identify_and_ownership(
+    r: &mut Runner<'_, '_>,
+    c: &mut Check,
+    device: &Faulted,
+) -> Result<(), HarnessError> {
+    let Faulted { me, key, .. } = *device;
     // Identify, long form.
     let all = FaultedSelector { match_flag: false, value: 0x3F };
     send(r, &OfflineMessage::IdentifyRequest { selector: all, device: Some(key) })?;
@@ -195,6 +226,12 @@ fn offline_recovery(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harness
         format!("offline ownership answered with the request echoed ({} answer(s))", got.len()),
         None,
     );
+    Ok(())
+}
+
+/// Change MAC ID to its own MAC: two duplicate MAC ID requests 1 s apart, then on-line again.
+fn change_mac_id(r: &mut Runner<'_, '_>, c: &mut Check, device: &Faulted) -> Result<(), HarnessError> {
+    let Faulted { dut, me, key, vendor, serial, .. } = *device;
     // Change MAC ID to its own MAC: it runs its duplicate MAC ID check again and comes on-line.
     r.waiting("Change MAC ID: watching its duplicate MAC ID check (2 s)");
     send(r, &OfflineMessage::ChangeMacIdRequest { new_mac: dut, device: key })?;

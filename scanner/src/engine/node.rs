@@ -1,0 +1,397 @@
+//! One node's bring-up, as the scanner runs it: the sequence of explicit transactions ([`Step`])
+//! from the allocation to the EPR that establishes the connection, each answer checked against
+//! the scan list (the scanner's docs, "A node's life").
+
+use super::Scanner;
+use crate::model::{NodeState, NodeStatus, ScanEntry};
+use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
+use devicenet::fragment::IoReassembler;
+use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
+use devicenet::objects::class;
+use devicenet::{Instant, MacId};
+use harness_common::error::HarnessError;
+use master_core::client::{ClientError, Port, Reply, ReplyBody, Transaction};
+use master_core::decode;
+use master_core::master::io::IoKind;
+use master_core::master::Master;
+use std::collections::VecDeque;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Step {
+    Allocate,
+    ReleaseKept(AllocationChoice),
+    Get(u16, u16, u8),
+    Check,
+    /// Connection 4 attribute 17, ms.
+    SetInhibit(u16),
+    SetEpr,
+    Release,
+}
+
+pub(super) struct Node {
+    pub(super) entry: ScanEntry,
+    /// The connection type of the entry.
+    pub(super) kind: IoKind,
+    /// Strobe: Connection 3 attribute 8 as read (8, the strobe command).
+    pub(super) strobe_consumed: Option<u16>,
+    /// COS/cyclic: the scanner's data last sent (`None`: not yet since established).
+    pub(super) output_sent: Option<Vec<u8>>,
+    /// Cyclic: when the scanner's data goes next.
+    pub(super) next_output: Instant,
+    /// COS/cyclic: when the scanner's data went out, while its acknowledgement is awaited.
+    pub(super) output_ack: Option<Instant>,
+    pub(super) state: NodeState,
+    pub(super) steps: VecDeque<Step>,
+    pub(super) tx: Option<Transaction>,
+    pub(super) reallocated: bool,
+    pub(super) allocated: AllocationChoice,
+    pub(super) in_io: bool,
+    pub(super) in_io_since: Instant,
+    pub(super) last_exchange: Option<Instant>,
+    pub(super) awaiting: bool,
+    pub(super) rx: Box<IoReassembler<{ decode::MAX_IO_MESSAGE }>>,
+    /// The device answered the current bring-up at least once.
+    pub(super) answered: bool,
+    /// A second device was seen at this MAC (Communication Faulted), and what showed it.
+    pub(super) duplicate: Option<String>,
+    /// The last duplicate MAC ID request seen at this MAC: serial, time.
+    pub(super) announced: Option<(u32, Instant)>,
+}
+
+impl Node {
+    pub(super) fn set(&mut self, status: NodeStatus, detail: Option<String>) {
+        self.state.status = status;
+        self.state.code = status.code();
+        self.state.detail = detail;
+    }
+
+    /// The node cannot be brought into I/O: `status` with `detail`, then its connections released.
+    pub(super) fn give_up(&mut self, status: NodeStatus, detail: String) {
+        self.set(status, Some(detail));
+        self.steps = VecDeque::from([Step::Release]);
+    }
+
+    pub(super) fn produced(&self) -> u16 {
+        self.state.input_size.unwrap_or(self.entry.input_size)
+    }
+
+    pub(super) fn consumed(&self) -> u16 {
+        self.state.output_size.unwrap_or(self.entry.output_size)
+    }
+
+    /// The size of the node's output image: its consumed size, 1 byte for a strobed node (bit 0:
+    /// its strobe bit).
+    pub(super) fn output_len(&self) -> usize {
+        match self.kind {
+            IoKind::Strobe => 1,
+            _ => usize::from(self.consumed()),
+        }
+    }
+
+    /// The output image as sent now: the node's while it is ok, zeros otherwise.
+    pub(super) fn output_now(&self) -> Vec<u8> {
+        if self.state.status == NodeStatus::Ok && self.state.output.len() == self.output_len() {
+            self.state.output.clone()
+        } else {
+            vec![0; self.output_len()]
+        }
+    }
+
+    /// What the scanner waits for from the node, in words.
+    pub(super) fn input_name(&self) -> &'static str {
+        match self.kind {
+            IoKind::Poll => "poll response",
+            IoKind::Strobe => "strobe response",
+            IoKind::ChangeOfState => "change-of-state production",
+            IoKind::Cyclic => "cyclic production",
+        }
+    }
+
+    /// The allocation choice of the node's set (explicit + its connection), without acknowledge
+    /// suppression (which is requested, never held or released, notes §II.2.5).
+    pub(super) fn choice(&self) -> AllocationChoice {
+        AllocationChoice::EXPLICIT | self.kind.choice()
+    }
+}
+
+impl Scanner {
+    pub(super) fn begin_bringup(
+        &mut self,
+        i: usize,
+        master: &Master<'_, '_>,
+        now: Instant,
+    ) -> Result<(), HarnessError> {
+        let Some(n) = self.nodes.get_mut(i) else { return Ok(()) };
+        n.steps = VecDeque::from([Step::Allocate]);
+        n.reallocated = false;
+        n.answered = false;
+        *n.rx = IoReassembler::new();
+        Self::start_step(n, master, now, self.timing.epr_ms)
+    }
+
+    pub(super) fn start_step(
+        n: &mut Node,
+        master: &Master<'_, '_>,
+        now: Instant,
+        epr_ms: u16,
+    ) -> Result<(), HarnessError> {
+        loop {
+            let Some(&step) = n.steps.front() else {
+                n.tx = None;
+                return Ok(());
+            };
+            let mut data = Vec::new();
+            let (port, service, c, inst) = match step {
+                Step::Check => {
+                    n.steps.pop_front();
+                    Self::check(n);
+                    continue;
+                }
+                Step::Allocate => {
+                    let mut choice = n.choice();
+                    if n.entry.ack_suppression && n.kind.is_cos_cyclic() {
+                        choice |= AllocationChoice::ACK_SUPPRESSION;
+                    }
+                    data.extend_from_slice(&AllocateRequest { choice, allocator: master.config.mac }.emit());
+                    (Port::Group2Only, ServiceCode::AllocateMasterSlave, class::DEVICENET, 1)
+                }
+                Step::ReleaseKept(choice) => {
+                    data.extend_from_slice(&ReleaseRequest { choice }.emit());
+                    (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
+                }
+                Step::Release => {
+                    data.extend_from_slice(&ReleaseRequest { choice: n.allocated }.emit());
+                    (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
+                }
+                Step::Get(c, inst, a) => {
+                    data.push(a);
+                    (Port::Explicit, ServiceCode::GetAttributeSingle, c, inst)
+                }
+                Step::SetInhibit(ms) => {
+                    data.push(17);
+                    data.extend_from_slice(&ms.to_le_bytes());
+                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, 4)
+                }
+                Step::SetEpr => {
+                    data.push(9);
+                    data.extend_from_slice(&epr_ms.to_le_bytes());
+                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, n.kind.instance())
+                }
+            };
+            let Some(mac) = MacId::new(n.entry.mac) else { return Ok(()) };
+            let req = Request { service, class: c, instance: inst, data: &data };
+            let mut tx = Transaction::new(
+                mac,
+                master.config.mac,
+                port,
+                false,
+                &req,
+                BodyFormat::Class8Instance8,
+                master.config.response_timeout,
+            )?;
+            tx.start(now);
+            n.tx = Some(tx);
+            return Ok(());
+        }
+    }
+
+    /// Electronic key and sizes against the scan list (after the identity and sizes were read).
+    pub(super) fn check(n: &mut Node) {
+        let e = &n.entry;
+        let id = &n.state.identity;
+        let major =
+            id.revision.as_deref().and_then(|r| r.split('.').next()).and_then(|m| m.parse::<u8>().ok());
+        let mut keying = Vec::new();
+        let mut key = |what: &str, want: Option<u16>, got: Option<u16>, hexa: bool| {
+            if let Some(w) = want {
+                if got != Some(w) {
+                    let show = |v: Option<u16>| match (v, hexa) {
+                        (Some(v), true) => format!("0x{v:04X}"),
+                        (Some(v), false) => v.to_string(),
+                        (None, _) => "nothing".into(),
+                    };
+                    keying.push(format!("expected {what} {}, read {}", show(Some(w)), show(got)));
+                }
+            }
+        };
+        key("vendor ID", e.vendor_id, id.vendor_id, true);
+        key("device type", e.device_type, id.device_type, true);
+        key("product code", e.product_code, id.product_code, false);
+        key("major revision", e.major_revision.map(u16::from), major.map(u16::from), false);
+        if !keying.is_empty() {
+            n.give_up(NodeStatus::KeyingMismatch, keying.join("; "));
+            return;
+        }
+        let mut sizes = Vec::new();
+        if n.state.input_size != Some(e.input_size) {
+            sizes.push(format!(
+                "input (produced) size {} bytes, scan list {}",
+                n.state.input_size.map_or("?".into(), |v| v.to_string()),
+                e.input_size
+            ));
+        }
+        if n.kind == IoKind::Strobe && n.strobe_consumed != Some(8) {
+            sizes.push(format!(
+                "strobe consumed size (Connection 3 attribute 8) {} bytes, a strobe command has 8",
+                n.strobe_consumed.map_or("?".into(), |v| v.to_string())
+            ));
+        } else if n.state.output_size != Some(e.output_size) {
+            sizes.push(format!(
+                "output (consumed) size {} bytes, scan list {}",
+                n.state.output_size.map_or("?".into(), |v| v.to_string()),
+                e.output_size
+            ));
+        }
+        if !sizes.is_empty() {
+            n.give_up(NodeStatus::SizeMismatch, sizes.join("; "));
+        }
+    }
+
+    /// Takes the outcome of node `n`'s current step.
+    pub(super) fn finish_step(n: &mut Node, outcome: Result<Reply, ClientError>, now: Instant) {
+        let Some(step) = n.steps.pop_front() else { return };
+        let reply = match outcome {
+            Ok(r) => r,
+            Err(ClientError::Timeout { name, .. }) => {
+                n.steps.clear();
+                if step == Step::Release {
+                    return;
+                }
+                if n.answered {
+                    n.set(
+                        NodeStatus::TimedOut,
+                        Some(format!("stopped answering during its bring-up ({name})")),
+                    );
+                } else if n.state.status == NodeStatus::TimedOut || n.state.status == NodeStatus::NotPresent {
+                    let detail = n.duplicate.clone();
+                    let status = if detail.is_some() {
+                        NodeStatus::CommunicationFaulted
+                    } else {
+                        NodeStatus::NotPresent
+                    };
+                    n.set(status, detail.or_else(|| Some("nothing answers at this MAC".into())));
+                } else {
+                    let status = if n.duplicate.is_some() {
+                        NodeStatus::CommunicationFaulted
+                    } else {
+                        NodeStatus::NotPresent
+                    };
+                    n.set(status, n.duplicate.clone().or_else(|| Some("nothing answers at this MAC".into())));
+                }
+                return;
+            }
+            Err(ClientError::RequestAborted(r)) => {
+                n.steps.clear();
+                n.set(NodeStatus::ErrorResponse, Some(r));
+                return;
+            }
+        };
+        n.answered = true;
+        match (step, reply.body) {
+            (Step::Allocate, ReplyBody::Success(_)) => {
+                n.allocated = n.choice();
+                let mut steps: Vec<Step> =
+                    [1u8, 2, 3, 4, 6, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
+                // The input is the connection's produced size; the output what Connection 2
+                // consumes (poll commands, or the scanner's COS/cyclic data, §II.2.5), for a strobe
+                // the strobe command (Connection 3 attribute 8).
+                let output_instance = if n.kind == IoKind::Strobe { 3 } else { 2 };
+                steps.extend([
+                    Step::Get(class::CONNECTION, n.kind.instance(), 7),
+                    Step::Get(class::CONNECTION, output_instance, 8),
+                    Step::Check,
+                ]);
+                if let (IoKind::ChangeOfState, Some(ms)) = (n.kind, n.entry.inhibit_ms) {
+                    steps.push(Step::SetInhibit(ms));
+                }
+                steps.push(Step::SetEpr);
+                n.steps = steps.into();
+            }
+            (Step::Allocate, ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. })
+                if !n.reallocated =>
+            {
+                // Still allocated to this master (an earlier run, or a connection the device
+                // still holds): release, allocate again.
+                n.reallocated = true;
+                n.steps = VecDeque::from([
+                    Step::ReleaseKept(n.kind.choice()),
+                    Step::ReleaseKept(AllocationChoice::EXPLICIT),
+                    Step::Allocate,
+                ]);
+            }
+            (Step::Allocate, ReplyBody::Error { general, additional }) => {
+                let why = if general == GeneralStatus::ObjectStateConflict && additional == 0x01 {
+                    "allocated by another master".to_string()
+                } else {
+                    format!("allocation refused: {}", decode::error_text(general, additional))
+                };
+                n.set(NodeStatus::ErrorResponse, Some(why));
+                n.steps.clear();
+            }
+            (Step::ReleaseKept(choice), _) => n.allocated = n.allocated.difference(choice),
+            (Step::Release, _) => n.allocated = AllocationChoice::empty(),
+            (Step::Get(c, i, a), ReplyBody::Success(data)) => match (c, i, a) {
+                (class::IDENTITY, 1, a) => {
+                    n.state.identity.take_attribute(a, &data);
+                }
+                (class::CONNECTION, i, 7) if i == n.kind.instance() => {
+                    n.state.input_size = decode::u16_of(&data)
+                }
+                (class::CONNECTION, 2, 8) => n.state.output_size = decode::u16_of(&data),
+                (class::CONNECTION, 3, 8) => {
+                    // The node's output is its bit of the strobe command: no output data.
+                    n.strobe_consumed = decode::u16_of(&data);
+                    n.state.output_size = Some(0);
+                }
+                _ => {}
+            },
+            (Step::Get(c, i, a), ReplyBody::Error { general, additional }) => {
+                // Identity attributes are optional to read (the key then compares "nothing");
+                // the connection sizes are not.
+                if c == class::CONNECTION {
+                    n.give_up(
+                        NodeStatus::ErrorResponse,
+                        format!(
+                            "{} {}: {}",
+                            decode::class_text(c),
+                            decode::attribute_text(c, i, a),
+                            decode::error_text(general, additional)
+                        ),
+                    );
+                }
+            }
+            (Step::SetInhibit(_), ReplyBody::Success(_)) => {}
+            (Step::SetInhibit(ms), ReplyBody::Error { general, additional }) => {
+                n.give_up(
+                    NodeStatus::ErrorResponse,
+                    format!(
+                        "production inhibit time {ms} ms refused: {}",
+                        decode::error_text(general, additional)
+                    ),
+                );
+            }
+            (Step::SetEpr, ReplyBody::Success(_)) => {
+                n.in_io = true;
+                n.in_io_since = now;
+                n.last_exchange = None;
+                n.awaiting = false;
+                n.output_sent = None;
+                n.output_ack = None;
+                n.next_output = now;
+                *n.rx = IoReassembler::new();
+                let what = n.input_name();
+                n.set(NodeStatus::Initializing, Some(format!("in I/O, waiting for the first {what}")));
+                if n.state.output.len() != n.output_len() {
+                    n.state.output = vec![0; n.output_len()];
+                }
+            }
+            (Step::SetEpr, ReplyBody::Error { general, additional }) => {
+                n.give_up(
+                    NodeStatus::ErrorResponse,
+                    format!("expected packet rate refused: {}", decode::error_text(general, additional)),
+                );
+            }
+            (Step::Check, _) => {}
+        }
+    }
+}
