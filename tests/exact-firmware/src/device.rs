@@ -118,7 +118,15 @@ pub struct EmulatedBoard {
     /// The machine time of a planned power cut that happened.
     power_cut: Option<Nanos>,
     fault: Option<String>,
+    /// Every GPIO port's model: the switches' inputs, the LEDs' outputs.
+    gpios: Vec<(Port, Rc<RefCell<Gpio>>)>,
+    /// [`EmulatedBoard::watch`]: the longest slice the CPU runs, and what looks at the machine
+    /// after each.
+    watch: Option<(Nanos, SliceWatch)>,
 }
+
+/// What [`EmulatedBoard::watch`] calls after each slice of CPU time.
+pub type SliceWatch = Box<dyn FnMut(&mut Stm32)>;
 
 impl EmulatedBoard {
     /// The board `kind` with `elf` in its flash, set to `setting` (switches and settings journal),
@@ -146,11 +154,13 @@ impl EmulatedBoard {
         mcu.add_flash(flash)?;
         mcu.add_peripheral(stm32_emu::pwr::BASE, 0x400, Box::new(stm32_emu::pwr::Pwr::new(kind.chip())))?;
         let mut switch_port = None;
+        let mut gpios = Vec::new();
         for port in [Port::A, Port::B, Port::C, Port::D, Port::E, Port::H] {
             let gpio = Shared::new(Gpio::new(port));
             if kind.switches().is_some_and(|(p, _)| p == port) {
                 switch_port = Some(gpio.handle());
             }
+            gpios.push((port, gpio.handle()));
             mcu.add_peripheral(port.base(), 0x400, Box::new(gpio))?;
         }
         let mut instrument = None;
@@ -196,7 +206,20 @@ impl EmulatedBoard {
             was_bus_off: false,
             power_cut: None,
             fault: None,
+            gpios,
+            watch: None,
         })
+    }
+
+    /// The model of GPIO port `port` (the world's handle: drive its inputs, read its outputs).
+    pub fn gpio(&self, port: Port) -> Option<Rc<RefCell<Gpio>>> {
+        self.gpios.iter().find(|(p, _)| *p == port).map(|(_, g)| Rc::clone(g))
+    }
+
+    /// From now on the CPU runs at most `slice` at a time and `watch` looks at the machine after
+    /// each slice (`None` ends it): e.g. to see each flash operation on its own.
+    pub fn watch(&mut self, watch: Option<(Nanos, SliceWatch)>) {
+        self.watch = watch;
     }
 
     /// The board.
@@ -315,6 +338,9 @@ impl EmulatedBoard {
         while self.fault.is_none() && self.power_cut.is_none() && self.mcu.now() < target {
             let now = self.mcu.now();
             let mut until = target.min(now + STEP);
+            if let Some((slice, _)) = &self.watch {
+                until = until.min(now + slice);
+            }
             if let Some(at) = self.breaker.poll_at().filter(|_| self.breaker_attached) {
                 until = until.min(self.nanos(at).max(now + 1));
             }
@@ -332,6 +358,9 @@ impl EmulatedBoard {
                     return;
                 }
                 Err(fault) => self.fault = Some(format!("{fault} at {} ns", self.mcu.now())),
+            }
+            if let Some((_, watch)) = &mut self.watch {
+                watch(&mut self.mcu);
             }
             self.service_line();
         }

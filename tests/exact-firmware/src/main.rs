@@ -1,56 +1,73 @@
-//! `exact-firmware`: runs every scenario on every board ELF given and prints one line each, then
-//! `exact firmware: B boards, S scenarios passed, F failed`; exits 0 only when F is 0.
+//! `exact-firmware`: runs every scenario that applies to each board ELF given and prints one line
+//! each, then `exact firmware: B boards, S scenarios passed, F failed`; exits 0 only when F is 0.
 //!
 //! ```text
 //! exact-firmware --board reference --elf target/…/slave-fw-firmware-reference [--board … --elf …]
 //! exact-firmware --dir target/thumbv7em-none-eabihf/firmware [--only BOARD] [--scenario NAME]
-//! exact-firmware … [--limit SECONDS]
+//! exact-firmware … [--limit SECONDS] [--jobs N]
 //! ```
 //!
-//! `--limit` bounds each scenario's wall time (default 120 s): past it the machine stops and the
+//! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
+//! `configure`, `download-cut` (a power cut at every flash operation of a download),
+//! `wrong-bit-rate`, `bus-load`, `bus-off` and `leds` on every board; `switches` on a board with
+//! DIP switches (the reference board); `mac63-autobaud-125k`, `-250k`, `-500k` and
+//! `autobaud-silent-bus` on a board without them. A scenario that does not apply to a board is
+//! not run on it and not listed.
+//!
+//! `--limit` bounds each scenario's wall time (default 300 s, the longest scenario,
+//! `download-cut`, taking a minute or more on a busy machine): past it the machine stops and the
 //! scenario fails (`the machine stopped: no verdict within the wall-time limit`), so that a
 //! firmware which keeps the emulator busy fails instead of hanging the runner.
+//!
+//! `--jobs` runs that many boards at a time, each on its own thread (default 1); each board's
+//! lines are printed together when it is done, in the order of the boards.
 //!
 //! With `--dir`, the ELFs are the copies scripts/firmware-size makes: `slave-fw-firmware-<board>`
 //! for each board of the board crate.
 
 use exact_firmware::board::BoardKind;
 use exact_firmware::device::set_wall_deadline;
-use exact_firmware::scenario::{self, Options};
+use exact_firmware::scenario::{self, Options, Outcome, Scenario};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::mpsc;
+use std::time::Duration;
 
 fn usage() -> ExitCode {
     eprintln!(
-        "usage: exact-firmware (--board NAME --elf PATH)... | --dir DIR [--only BOARD]... [--scenario NAME]... [--limit SECONDS]"
+        "usage: exact-firmware (--board NAME --elf PATH)... | --dir DIR [--only BOARD]... [--scenario NAME]... [--limit SECONDS] [--jobs N]"
     );
     ExitCode::from(2)
 }
 
-fn main() -> ExitCode {
+/// What the command line asks for.
+struct Run {
+    boards: Vec<(String, PathBuf)>,
+    scenarios: Vec<&'static Scenario>,
+    limit: Duration,
+    jobs: usize,
+}
+
+fn parse() -> Option<Run> {
     let mut args = std::env::args().skip(1);
     let mut boards: Vec<(String, PathBuf)> = Vec::new();
     let mut pending: Option<String> = None;
     let mut dir: Option<PathBuf> = None;
     let mut only: Vec<String> = Vec::new();
-    let mut scenarios: Vec<String> = Vec::new();
-    let mut limit = std::time::Duration::from_secs(120);
+    let mut names: Vec<String> = Vec::new();
+    let mut limit = Duration::from_secs(300);
+    let mut jobs = 1;
     while let Some(arg) = args.next() {
-        let Some(value) = args.next() else { return usage() };
+        let value = args.next()?;
         match arg.as_str() {
             "--board" => pending = Some(value),
-            "--elf" => match pending.take() {
-                Some(name) => boards.push((name, PathBuf::from(value))),
-                None => return usage(),
-            },
+            "--elf" => boards.push((pending.take()?, PathBuf::from(value))),
             "--dir" => dir = Some(PathBuf::from(value)),
             "--only" => only.push(value),
-            "--scenario" => scenarios.push(value),
-            "--limit" => match value.parse() {
-                Ok(seconds) => limit = std::time::Duration::from_secs(seconds),
-                Err(_) => return usage(),
-            },
-            _ => return usage(),
+            "--scenario" => names.push(value),
+            "--limit" => limit = Duration::from_secs(value.parse().ok()?),
+            "--jobs" => jobs = value.parse().ok().filter(|&n| n > 0)?,
+            _ => return None,
         }
     }
     if let Some(dir) = dir {
@@ -59,41 +76,83 @@ fn main() -> ExitCode {
         }
     }
     boards.retain(|(name, _)| only.is_empty() || only.contains(name));
-    if boards.is_empty() || pending.is_some() {
-        return usage();
+    if let Some(unknown) = names.iter().find(|n| !scenario::ALL.iter().any(|s| s.name == n.as_str())) {
+        eprintln!("exact-firmware: no scenario called {unknown}");
+        return None;
     }
-    let chosen: Vec<_> = scenario::ALL
-        .iter()
-        .filter(|s| scenarios.is_empty() || scenarios.iter().any(|n| n == s.name))
-        .collect();
-    if chosen.is_empty() {
-        return usage();
+    let scenarios: Vec<_> =
+        scenario::ALL.iter().filter(|s| names.is_empty() || names.iter().any(|n| n == s.name)).collect();
+    if boards.is_empty() || pending.is_some() || scenarios.is_empty() {
+        return None;
     }
-    let (mut passed, mut failed) = (0, 0);
-    for (name, path) in &boards {
-        let loaded =
-            BoardKind::by_name(name).ok_or_else(|| format!("no board called {name}")).and_then(|kind| {
-                std::fs::read(path).map(|elf| (kind, elf)).map_err(|e| format!("{}: {e}", path.display()))
+    Some(Run { boards, scenarios, limit, jobs })
+}
+
+/// Every chosen scenario that applies to one board; a board that cannot be loaded fails each.
+fn run_board(name: &str, path: &PathBuf, scenarios: &[&Scenario], limit: Duration) -> Vec<Outcome> {
+    let loaded = BoardKind::by_name(name).ok_or_else(|| format!("no board called {name}")).and_then(|kind| {
+        std::fs::read(path).map(|elf| (kind, elf)).map_err(|e| format!("{}: {e}", path.display()))
+    });
+    let mut outcomes = Vec::new();
+    for s in scenarios {
+        let outcome = match &loaded {
+            Ok((kind, _)) if !(s.applies)(*kind) => continue,
+            Ok((kind, elf)) => {
+                set_wall_deadline(Some(std::time::Instant::now() + limit));
+                scenario::run(s, *kind, elf, &Options::default())
+            }
+            Err(why) => Outcome { board: name.to_string(), scenario: s.name, result: Err(why.clone()) },
+        };
+        outcomes.push(outcome);
+    }
+    outcomes
+}
+
+fn main() -> ExitCode {
+    let Some(run) = parse() else { return usage() };
+    let (sender, receiver) = mpsc::channel();
+    let mut results: Vec<Option<Vec<Outcome>>> = vec![None; run.boards.len()];
+    let (mut passed, mut failed, mut printed) = (0, 0, 0);
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|scope| {
+        for _ in 0..run.jobs.min(run.boards.len()) {
+            let sender = sender.clone();
+            let (run, next) = (&run, &next);
+            scope.spawn(move || loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some((name, path)) = run.boards.get(i) else { break };
+                let outcomes = run_board(name, path, &run.scenarios, run.limit);
+                if sender.send((i, outcomes)).is_err() {
+                    break;
+                }
             });
-        for s in &chosen {
-            let outcome = match &loaded {
-                Ok((kind, elf)) => {
-                    set_wall_deadline(Some(std::time::Instant::now() + limit));
-                    scenario::run(s, *kind, elf, &Options::default())
+        }
+        drop(sender);
+        for (i, outcomes) in receiver {
+            results[i] = Some(outcomes);
+            // The boards' lines in order, each as soon as it and those before it are done.
+            while let Some(Some(outcomes)) = results.get(printed) {
+                for outcome in outcomes {
+                    println!("{}", outcome.line());
+                    if outcome.result.is_ok() {
+                        passed += 1;
+                    } else {
+                        failed += 1;
+                    }
                 }
-                Err(why) => {
-                    scenario::Outcome { board: name.clone(), scenario: s.name, result: Err(why.clone()) }
-                }
-            };
-            println!("{}", outcome.line());
-            if outcome.result.is_ok() {
-                passed += 1;
-            } else {
-                failed += 1;
+                printed += 1;
             }
         }
+    });
+    if printed != run.boards.len() {
+        println!(
+            "FAIL exact-firmware: {} of {} boards never finished (a thread panicked)",
+            run.boards.len() - printed,
+            run.boards.len()
+        );
+        failed += 1;
     }
-    println!("exact firmware: {} boards, {passed} scenarios passed, {failed} failed", boards.len());
+    println!("exact firmware: {} boards, {passed} scenarios passed, {failed} failed", run.boards.len());
     if failed == 0 {
         ExitCode::SUCCESS
     } else {

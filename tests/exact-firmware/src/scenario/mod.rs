@@ -1,0 +1,99 @@
+//! The scenarios: each runs one board ELF on a fresh [`EmulatedBoard`](crate::EmulatedBoard) on
+//! a simulated bus and compares what happens with what must; [`Outcome::line`] is the runner's
+//! line for it. A scenario that does not apply to a board ([`Scenario::applies`]) is not run on
+//! it, and not listed.
+//!
+//! | scenario | boards | file |
+//! |---|---|---|
+//! | `bring-up`, `breaker`, `power-cycle` | every board | [`bring_up`] |
+//! | `configure` | every board | [`configure`] |
+//! | `download-cut` | every board | [`download_cut`] |
+//! | `wrong-bit-rate`, `bus-load`, `bus-off` | every board | [`can`] |
+//! | `switches` | boards with DIP switches (the reference board) | [`switches`] |
+//! | `mac63-autobaud-125k`, `-250k`, `-500k`, `autobaud-silent-bus` | boards without switches | [`autobaud`] |
+//! | `leds` | every board | [`leds`] |
+
+pub mod autobaud;
+pub mod bring_up;
+pub mod can;
+pub mod configure;
+pub mod download_cut;
+pub mod leds;
+pub mod switches;
+pub mod world;
+
+use crate::board::BoardKind;
+pub use world::{Options, MAC};
+
+/// A scenario: its name, the boards it applies to, and what it runs.
+#[derive(Clone, Copy)]
+pub struct Scenario {
+    /// The name printed.
+    pub name: &'static str,
+    /// Whether it applies to a board (switches, autobaud).
+    pub applies: fn(BoardKind) -> bool,
+    /// Runs it on `elf` of `board`; `Err` says why it failed.
+    pub run: fn(BoardKind, &[u8], &Options) -> Result<(), String>,
+}
+
+fn every_board(_: BoardKind) -> bool {
+    true
+}
+
+fn with_switches(board: BoardKind) -> bool {
+    board.switches().is_some()
+}
+
+fn without_switches(board: BoardKind) -> bool {
+    board.switches().is_none()
+}
+
+/// Every scenario, in the order the runner runs them.
+pub const ALL: [Scenario; 14] = [
+    Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
+    Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
+    Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
+    Scenario { name: "configure", applies: every_board, run: configure::configure },
+    Scenario { name: "download-cut", applies: every_board, run: download_cut::download_cut },
+    Scenario { name: "wrong-bit-rate", applies: every_board, run: can::wrong_bit_rate },
+    Scenario { name: "bus-load", applies: every_board, run: can::bus_load },
+    Scenario { name: "bus-off", applies: every_board, run: can::bus_off },
+    Scenario { name: "switches", applies: with_switches, run: switches::switches },
+    Scenario { name: "mac63-autobaud-125k", applies: without_switches, run: autobaud::at_125k },
+    Scenario { name: "mac63-autobaud-250k", applies: without_switches, run: autobaud::at_250k },
+    Scenario { name: "mac63-autobaud-500k", applies: without_switches, run: autobaud::at_500k },
+    Scenario { name: "autobaud-silent-bus", applies: without_switches, run: autobaud::silent_bus },
+    Scenario { name: "leds", applies: every_board, run: leds::leds },
+];
+
+/// The result of one scenario on one board.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The board's build name.
+    pub board: String,
+    /// The scenario.
+    pub scenario: &'static str,
+    /// `Err(why)` when it failed.
+    pub result: Result<(), String>,
+}
+
+impl Outcome {
+    /// `ok   BOARD SCENARIO` or `FAIL BOARD SCENARIO: why`.
+    pub fn line(&self) -> String {
+        match &self.result {
+            Ok(()) => format!("ok   {} {}", self.board, self.scenario),
+            Err(why) => format!("FAIL {} {}: {}", self.board, self.scenario, why.replace('\n', " ")),
+        }
+    }
+}
+
+/// Runs `scenario` on `elf` of `board`. A scenario that does not apply to the board fails
+/// (the runner does not call it for such a board).
+pub fn run(scenario: &Scenario, board: BoardKind, elf: &[u8], options: &Options) -> Outcome {
+    let result = if (scenario.applies)(board) {
+        (scenario.run)(board, elf, options)
+    } else {
+        Err(format!("does not apply to the {} board", board.name))
+    };
+    Outcome { board: board.name.to_string(), scenario: scenario.name, result }
+}
