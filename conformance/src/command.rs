@@ -164,7 +164,8 @@ pub fn execute(
     printer.progress.clear();
     let printed = printer.error.take();
     drop(printer);
-    session.take_stop();
+    // The stop is taken off the session: what follows (the flush, the reports) is not cut short.
+    let _ = session.take_stop();
     let flushed = session.flush();
     let suite = match suite {
         Ok(s) => s,

@@ -205,7 +205,8 @@ impl<'s, 'b> Runner<'s, 'b> {
     /// device back. Nothing is released when the device was never heard. Returns what was done,
     /// in words.
     pub fn finish(&mut self, keep: bool, early: bool) -> Result<String, HarnessError> {
-        self.m.session.take_stop();
+        // The stop is taken off the session, so the release below runs to its end.
+        let _ = self.m.session.take_stop();
         let dut = self.dut();
         if keep {
             return Ok(format!("connections of MAC {dut} kept allocated (--keep)"));

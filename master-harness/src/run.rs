@@ -146,7 +146,8 @@ impl DeviceRun<'_> {
         interrupted: Option<i32>,
         cleanup: &mut Vec<HarnessError>,
     ) -> String {
-        master.session.take_stop();
+        // The stop is taken off the session, so the release below runs to its end.
+        let _ = master.session.take_stop();
         let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
         if self.opts.keep {
             return match self.device.filter(|d| !master.held(*d).is_empty()) {

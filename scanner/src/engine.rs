@@ -372,7 +372,7 @@ impl Scanner {
                         if complete && !n.entry.ack_suppression {
                             let ack =
                                 CanFrame::new(Identifier::group2(source, Group2Message::CosCyclicAck), &[])
-                                    .map_err(|e| HarnessError::Master(MasterError::Invalid(e.to_string())))?;
+                                    .map_err(|e| HarnessError::Master(MasterError::Frame(e)))?;
                             master.session.send(&ack).map_err(|e| self.fail(e))?;
                         }
                         v

@@ -133,7 +133,8 @@ pub fn finish(
         Err(HarnessError::Master(MasterError::Interrupted { signal })) => Some(*signal),
         _ => None,
     };
-    master.session.take_stop();
+    // The stop is taken off the session, so the release below runs to its end.
+    let _ = master.session.take_stop();
     let bus_failed = matches!(result, Err(HarnessError::Master(MasterError::Bus(_))));
     let mut cleanup: Vec<HarnessError> = Vec::new();
     if !bus_failed && !keep {
