@@ -366,3 +366,47 @@ pub fn cut_at_every_operation(board: BoardKind, elf: &[u8], options: &Options) -
     }
     Ok(count)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_torn_byte_program_clears_the_lower_half_of_its_bits() {
+        let mut array = vec![0xFF; flash::ARRAY_SIZE];
+        let at = 0xE_0000;
+        let op = Operation { changes: vec![(at + 3, 0x00)], cr: 0 };
+        let torn_array = torn(&array, &op).expect("replayed");
+        assert_eq!(torn_array[at + 3], 0xF0, "4 of the 8 bits, the lower ones");
+        // Over a programmed byte the replay's data is the result (0xFC): the model clears the
+        // lower of its two clear bits, already clear, so the torn byte is the one before.
+        array[at + 3] = 0xFE;
+        let over = Operation { changes: vec![(at + 3, 0xFC)], cr: 0 };
+        assert_eq!(torn(&array, &over).expect("replayed")[at + 3], 0xFE);
+    }
+
+    #[test]
+    fn a_torn_erase_erases_the_first_half_of_the_sector() {
+        let mut array = vec![0x00; flash::ARRAY_SIZE];
+        let (start, len) = flash::sector(11).expect("sector 11");
+        array[start] = 0x12;
+        let op = Operation { changes: (start..start + len).map(|i| (i, 0xFF)).collect(), cr: 2 << 8 };
+        let torn_array = torn(&array, &op).expect("replayed");
+        assert!(torn_array[start..start + len / 2].iter().all(|&b| b == 0xFF));
+        assert!(torn_array[start + len / 2..start + len].iter().all(|&b| b == 0x00));
+    }
+
+    #[test]
+    fn only_the_two_configurations_lines_are_recognised() {
+        assert_eq!(configuration_of(&LineSettings::new_8n1(9600.0)), Some(InForce::Old));
+        let even = LineSettings {
+            baud: 19_200.0,
+            word_bits: 9,
+            parity: Parity::Even,
+            stop_bits: stm32_emu::usart::line::StopBits::One,
+        };
+        assert_eq!(configuration_of(&even), Some(InForce::New));
+        assert_eq!(configuration_of(&LineSettings::new_8n1(19_200.0)), None, "19200 but no parity");
+        assert_eq!(configuration_of(&LineSettings::new_8n1(38_400.0)), None);
+    }
+}

@@ -157,7 +157,7 @@ fn check_flashing(
     off: Levels,
 ) -> Result<(), String> {
     let inside: Vec<_> = runs.iter().filter(|r| r.end > from && r.start < to).collect();
-    let whole: Vec<_> = inside.iter().filter(|r| r.start >= from && r.end < to).collect();
+    let whole: Vec<_> = inside.iter().filter(|r| r.start > from && r.end < to).collect();
     if let Some(r) = inside.iter().find(|r| r.levels != on && r.levels != off) {
         return Err(format!(
             "{what}: {:04b} from {} to {} ms, neither {on:04b} nor {off:04b}",
@@ -249,4 +249,55 @@ pub fn leds(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), Strin
         e(Green, Red),
         e(Green, Off),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn runs_of(steps: &[(Levels, u64)]) -> Vec<Run> {
+        let mut at = 0;
+        steps
+            .iter()
+            .map(|&(levels, ms)| {
+                at += ms;
+                Run { start: at - ms, end: at, levels }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn flashing_at_the_half_period_passes_and_another_period_fails() {
+        let good = runs_of(&[(1, 300), (5, 500), (1, 500), (5, 500), (1, 500), (5, 200)]);
+        assert_eq!(check_flashing("x", &good, 0, 2500, 5, 1), Ok(()));
+        let fast = runs_of(&[(1, 250), (5, 250), (1, 250), (5, 250), (1, 250), (5, 250)]);
+        assert!(check_flashing("x", &fast, 0, 1500, 5, 1).is_err());
+        let solid = runs_of(&[(5, 3000)]);
+        assert!(check_flashing("x", &solid, 0, 2500, 5, 1).is_err(), "no whole flash");
+        let wrong_colour = runs_of(&[(1, 500), (9, 500), (1, 500), (9, 500)]);
+        assert!(check_flashing("x", &wrong_colour, 0, 1900, 5, 1).is_err());
+    }
+
+    #[test]
+    fn the_power_up_test_needs_every_step_in_order() {
+        let steps = [(1, 250), (2, 250), (0, 250), (4, 250), (8, 250), (0, 250), (1, 400)];
+        let good = runs_of(&[(1, 250), (2, 250), (0, 250), (4, 250), (8, 250), (0, 250), (1, 900)]);
+        assert_eq!(check_sequence("x", &good, &steps), Ok(()));
+        let swapped = runs_of(&[(2, 250), (1, 250), (0, 250), (4, 250), (8, 250), (0, 250), (1, 900)]);
+        assert!(check_sequence("x", &swapped, &steps).is_err());
+        let short = runs_of(&[(1, 100), (2, 250), (0, 250), (4, 250), (8, 250), (0, 250), (1, 900)]);
+        assert!(check_sequence("x", &short, &steps).is_err());
+    }
+
+    #[test]
+    fn one_led_is_lit_for_a_red_module_or_a_lit_network() {
+        let single = LedWiring::Single(board::pins::Pin { port: board::pins::Port::A, number: 5 });
+        assert_eq!(expected(single, Lit::Green, Lit::Off), 0);
+        assert_eq!(expected(single, Lit::Green, Lit::Red), 1);
+        assert_eq!(expected(single, Lit::Red, Lit::Off), 1);
+        assert_eq!(expected(single, Lit::Off, Lit::Green), 0);
+        let pair =
+            LedWiring::Bicolour { ms_green: board::pins::Pin { port: board::pins::Port::C, number: 0 } };
+        assert_eq!(expected(pair, Lit::Green, Lit::Red), 0b1001);
+    }
 }
