@@ -80,6 +80,7 @@ impl DeviceReport {
     }
 
     /// `true` when nothing disagrees.
+    #[must_use = "a device check whose verdict is ignored tests nothing"]
     pub fn agrees(&self) -> bool {
         self.disagreements().next().is_none()
     }

@@ -236,7 +236,7 @@ fn run(command: Command) -> Result<ExitCode, String> {
                 Err(
                     e @ (DeviceError::Usage(_)
                     | DeviceError::Description(_)
-                    | DeviceError::Master(MasterError::Usage(_) | MasterError::Invalid(_))),
+                    | DeviceError::Master(MasterError::Usage(_))),
                 ) => return Err(e.to_string()),
                 Err(e) => {
                     if json {

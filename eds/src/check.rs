@@ -73,6 +73,7 @@ impl Report {
     }
 
     /// `true` when at least one error was found.
+    #[must_use = "a check whose verdict is ignored tests nothing"]
     pub fn has_errors(&self) -> bool {
         self.errors().next().is_some()
     }
@@ -105,6 +106,7 @@ fn plural(n: usize) -> &'static str {
 }
 
 /// Checks an EDS given as bytes (UTF-8, else Latin-1).
+#[must_use = "a check whose report is ignored tests nothing"]
 pub fn check(bytes: &[u8]) -> Report {
     match decode(bytes) {
         Ok((text, encoding)) => {
@@ -121,6 +123,7 @@ pub fn check(bytes: &[u8]) -> Report {
 }
 
 /// Checks decoded EDS text.
+#[must_use = "a check whose report is ignored tests nothing"]
 pub fn check_str(text: &str) -> Report {
     let (raw, syntax) = RawEds::parse_lenient(text);
     let mut diagnostics: Vec<Diagnostic> = syntax

@@ -73,6 +73,7 @@ impl Writer {
     }
 
     /// The EDS text of `eds`.
+    #[must_use = "the written text is the only output"]
     pub fn write(&self, eds: &Eds) -> String {
         self.write_with_comments(eds, &Comments::default())
     }
@@ -80,6 +81,7 @@ impl Writer {
     /// The EDS text of `eds` with the `comments` of the file it was read from, each back beside
     /// its section or entry ([`crate::comments`]); the header comments given to the writer come
     /// first.
+    #[must_use = "the written text is the only output"]
     pub fn write_with_comments(&self, eds: &Eds, comments: &Comments) -> String {
         let mut out = Out {
             text: String::new(),

@@ -390,11 +390,13 @@ impl BringUp {
     }
 
     /// The next frame to send.
+    #[must_use = "a frame taken and not sent is lost: the device never sees the request"]
     pub fn poll_transmit(&mut self) -> Option<CanFrame> {
         self.out.pop_front().or_else(|| self.current.as_mut().and_then(|(_, tx)| tx.poll_transmit()))
     }
 
     /// The next event.
+    #[must_use = "an event taken is gone: an answer or a failure would be lost"]
     pub fn poll_event(&mut self) -> Option<Event> {
         self.events.pop_front()
     }

@@ -275,6 +275,7 @@ impl Transaction {
     }
 
     /// The next frame to send.
+    #[must_use = "a frame taken and not sent is lost: the device never sees the request or acknowledge"]
     pub fn poll_transmit(&mut self) -> Option<CanFrame> {
         self.out.pop_front()
     }
@@ -310,6 +311,7 @@ impl Transaction {
     }
 
     /// The outcome, once.
+    #[must_use = "the outcome is handed out once"]
     pub fn take_outcome(&mut self) -> Option<Result<Reply, ClientError>> {
         self.outcome.take()
     }

@@ -73,9 +73,6 @@ pub enum MasterError {
     /// A bring-up driven by the [`BringUp`](crate::bring_up::BringUp) engine stopped.
     #[error(transparent)]
     Node(#[from] NodeError),
-    /// Being replaced by the typed variants above; what is left of it is outside this crate.
-    #[error("{0}")]
-    Invalid(String),
     /// The device's connection set is allocated to another master (0x0C / 0x01, notes §3.4).
     #[error("MAC {mac} is allocated to another master{}: a device serves one master at a time; release it there, or reset the device", owner.map_or_else(|| " (its MAC was not seen on the bus)".to_string(), |m| format!(" (MAC {m})")))]
     AllocationConflict {
@@ -103,7 +100,7 @@ impl MasterError {
     /// opposed to what the device or the bus did.
     #[must_use]
     pub fn is_usage(&self) -> bool {
-        matches!(self, MasterError::Usage(_) | MasterError::Invalid(_))
+        matches!(self, MasterError::Usage(_))
     }
 }
 
@@ -159,6 +156,12 @@ pub enum UsageError {
         serial: u32,
         /// The nodes that answered.
         found: String,
+    },
+    /// A configuration image read past the 16-bit chunk offset.
+    #[error("image too long: {size} bytes asked for, a chunk offset is 16 bits (at most 65535)")]
+    ImageTooLong {
+        /// The size asked for.
+        size: usize,
     },
     /// Several faulted nodes answered and none was chosen.
     #[error("{count} faulted nodes answered at MAC {mac}: {found}; choose one with --serial")]

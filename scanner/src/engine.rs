@@ -159,6 +159,7 @@ pub struct Scanner {
 
 impl Scanner {
     /// A scanner for `list`, at MAC `master_mac`.
+    #[must_use]
     pub fn new(list: ScanList, master_mac: u8, options: ScannerOptions) -> Scanner {
         let timing = timing(&list, options.bitrate);
         let nodes: Vec<Node> = list
@@ -228,11 +229,13 @@ impl Scanner {
     }
 
     /// The timing in force.
+    #[must_use]
     pub fn timing(&self) -> Timing {
         self.timing
     }
 
     /// The options given.
+    #[must_use]
     pub fn options(&self) -> &ScannerOptions {
         &self.options
     }
@@ -662,12 +665,14 @@ impl Scanner {
     }
 
     /// The scanner's state after the last cycle.
+    #[must_use]
     pub fn state(&self) -> &ScannerState {
         &self.state
     }
 
     /// The lengths of the last full cycles in µs, oldest first (their median is
     /// [`ScannerState::cycle_ms`]).
+    #[must_use]
     pub fn cycle_lengths_us(&self) -> Vec<u64> {
         self.history.iter().map(|h| h.0).collect()
     }
@@ -793,6 +798,7 @@ impl Scanner {
 }
 
 /// The console's message kind of a frame, and the MAC it concerns.
+#[must_use]
 pub fn frame_kind(frame: &CanFrame) -> (&'static str, Option<u8>) {
     match Identifier::decode(frame.id()) {
         Identifier::Group1 { source, .. } => ("io", Some(source.as_raw())),
@@ -811,6 +817,7 @@ pub fn frame_kind(frame: &CanFrame) -> (&'static str, Option<u8>) {
 
 /// The values of an input image decoded by `layout`: one per field value, a field with several
 /// values named `name[i]`.
+#[must_use]
 pub fn sample_values(layout: &InputLayout, input: &[u8]) -> Vec<(String, f64)> {
     let decoded = layout.decode(input);
     let mut values = Vec::new();
