@@ -93,7 +93,7 @@ pub fn bus_off(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), St
 }
 
 /// Poll commands the master sends back to back in [`bus_load`].
-const FLOOD: usize = 2000;
+pub const FLOOD: usize = 2000;
 
 /// At 100 % bus load at 500k no receive FIFO overruns: after the bring-up at 500k the master
 /// queues [`FLOOD`] poll commands at once, so the bus carries them back to back (with the

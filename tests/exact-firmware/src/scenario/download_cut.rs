@@ -18,10 +18,14 @@
 //! 3. **Power up.** The exact ELF is powered up on each distinct image, alone on a bus: its
 //!    first frame must be its duplicate MAC ID check at MAC 5 within 100 ms (the stored MAC and
 //!    rate in force), and its instrument USART must run the factory configuration's line (9600
-//!    8N1) or the meter's (19200 8E1). On four images the master checks more (the configuration
-//!    state and the Identity product name, as [`state_after_power_up`] reads them): the cut at
-//!    the first operation, the last image with the old configuration, the first with the new,
-//!    and the image after the last operation.
+//!    8N1) or the meter's (19200 8E1).
+//! 4. **Closer.** The line does not show a configuration fault (an unusable stored image runs
+//!    the factory configuration, faulted: configuration state 3), so on some images the master
+//!    checks the configuration state and the Identity product name ([`state_after_power_up`],
+//!    about 3 s of emulated time each, too long for every image): every 64th operation torn,
+//!    the last image with the old configuration's line, the first with the new one's, and the
+//!    image after the last operation. Each must be the configuration its line says: state 0
+//!    and the factory name, or state 1 and the meter's.
 
 use super::configure::METER;
 use super::world::{bus_with, duplicate_mac_id, machine_fault, world, Handle, Options, MAC};
@@ -45,6 +49,10 @@ use stm32_emu::usart::line::{LineSettings, Parity};
 /// stm32-emu `FlashTiming`), so that a slice holds one operation, or the few a row's stalled
 /// stores start back to back (`Recorder::after_slice`).
 pub const SLICE: Nanos = 4_000;
+
+/// The master checks the configuration state and product name on the image of every
+/// `CLOSE_EVERY`-th operation torn (and on the boundary images, module docs).
+const CLOSE_EVERY: usize = 64;
 
 /// `FLASH_CR`'s offset (RM0090 §3.9.8).
 const FLASH_CR: u32 = 0x10;
@@ -226,10 +234,14 @@ pub fn state_after_power_up(handle: &Handle, options: &Options) -> Result<(Vec<u
     let mut bus = bus_with(handle, options, PowerOn::WhenMasterOnline);
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
+    master.set_device(MAC);
     let online = master.network_access().and_then(|()| master.await_online(&[MAC]));
     machine_fault(handle)?;
     online.map_err(|e| format!("back on-line: {e}"))?;
-    master.open_explicit(MAC).map_err(|e| format!("explicit connection: {e}"))?;
+    let choice = devicenet::messages::AllocationChoice::EXPLICIT;
+    master
+        .allocate(MAC, master_core::client::Port::Group2Only, choice)
+        .map_err(|e| format!("explicit connection: {e}"))?;
     let class = master_harness::configure::CONFIGURATION_CLASS;
     let (state, _) = master.get(MAC, class, 1, 3).map_err(|e| format!("configuration state: {e}"))?;
     let (name, _) = master.get(MAC, 1, 1, 7).map_err(|e| format!("product name: {e}"))?;
@@ -311,7 +323,7 @@ pub fn cut_at_every_operation(board: BoardKind, elf: &[u8], options: &Options) -
     meter_name.extend_from_slice(meter.converter.device.identity.product_name.as_bytes());
     let mut checked = HashSet::new();
     // The images the master checks more closely: (what, image, the configuration it runs).
-    let mut first_torn = None;
+    let mut sampled = Vec::new();
     let mut last_old = None;
     let mut first_new = None;
     let count = operations.len();
@@ -331,8 +343,8 @@ pub fn cut_at_every_operation(board: BoardKind, elf: &[u8], options: &Options) -
             }
             let in_force =
                 quick_power_up(board, elf, options, start, &image).map_err(|e| format!("{what}: {e}"))?;
-            if k == 0 && what.ends_with("torn") {
-                first_torn = Some((what.clone(), image.clone(), in_force));
+            if k % CLOSE_EVERY == 0 && what.ends_with("torn") {
+                sampled.push((what.clone(), image.clone(), in_force));
             }
             match in_force {
                 InForce::Old => last_old = Some((what, image, in_force)),
@@ -351,7 +363,9 @@ pub fn cut_at_every_operation(board: BoardKind, elf: &[u8], options: &Options) -
         return Err("after the whole download the old configuration is in force".into());
     }
     let last = Some(("after the last operation".to_string(), after, in_force));
-    for (what, image, in_force) in [first_torn, last_old, first_new, last].into_iter().flatten() {
+    for (what, image, in_force) in
+        sampled.into_iter().chain([last_old, first_new, last].into_iter().flatten())
+    {
         let handle = board_with(board, elf, options, start, &image)?;
         let (state, name) = state_after_power_up(&handle, options).map_err(|e| format!("{what}: {e}"))?;
         let want = match in_force {

@@ -1,6 +1,6 @@
 //! `leds`: the Module Status and Network Status patterns (devicenet-notes §7.3, devicenet's
 //! `led` module, board/src/leds.rs) on the LED pins' output levels, sampled after every slice of
-//! CPU time (at most [`STEP`](crate::device::STEP)) over virtual time.
+//! CPU time (at most [`STEP`]) over virtual time.
 //!
 //! On a board with one LED (board/src/leds.rs, `single_lit`) it is lit when the Module Status is
 //! red, or green with the Network Status lit; the scenario writes that rule out itself
