@@ -41,6 +41,7 @@ const PX_PER_MS: f64 = 0.6;
 const CUT_MS: f64 = 100.0;
 
 /// Escapes text for HTML and SVG.
+#[must_use]
 pub fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for ch in s.chars() {
@@ -102,6 +103,7 @@ fn truncate(s: &str, n: usize) -> String {
 }
 
 /// The sequence diagram of `records` as an SVG element.
+#[must_use]
 pub fn diagram(records: &[Record], device: MacId) -> String {
     let drawn = &records[..records.len().min(MAX_DRAWN)];
     let start = drawn.first().map_or(Instant::ZERO, |r| r.at);
@@ -258,6 +260,7 @@ fn clause_name(number: &str) -> Option<&'static str> {
 
 /// `text` with every citation of a notes section (`§3.4`, `notes §9.6`) replaced by the name of
 /// its clause.
+#[must_use]
 pub fn clause_names(text: &str) -> String {
     let text = text.replace("notes §", "§");
     let mut out = String::with_capacity(text.len());
@@ -414,6 +417,7 @@ fn header(s: &mut String, report: &SuiteReport) {
 }
 
 /// The whole page.
+#[must_use]
 pub fn render(report: &SuiteReport) -> String {
     let mut s = String::new();
     let title = format!("DeviceNet conformance test report: MAC {} on {}", report.target, report.transport);

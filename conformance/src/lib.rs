@@ -124,6 +124,7 @@ impl Category {
     ];
 
     /// The heading shown in reports.
+    #[must_use]
     pub fn title(self) -> &'static str {
         match self {
             Category::NetworkAccess => "Network access",
@@ -163,6 +164,7 @@ pub enum Grade {
 
 impl Grade {
     /// `PASS`, `ADVISORY`, `FAIL`.
+    #[must_use]
     pub fn label(self) -> &'static str {
         match self {
             Grade::Pass => "PASS",
@@ -250,6 +252,7 @@ pub struct SuiteOptions {
 impl SuiteOptions {
     /// The defaults for `target`: EPR 100 ms, 200 polls and 50 explicit requests timed, the
     /// session's bus, everything released at the end.
+    #[must_use]
     pub fn new(target: MacId) -> SuiteOptions {
         SuiteOptions {
             target,
@@ -283,6 +286,7 @@ pub const BUFFERED_TIMING: &str =
 impl Timestamps {
     /// The source of the timestamps of `transport` (in `--bus` form): `slcan:…` buffers,
     /// `socketcan:…` has kernel timestamps, anything else is the simulated bus.
+    #[must_use]
     pub fn of_transport(transport: &str) -> Timestamps {
         if transport.starts_with("slcan") {
             Timestamps::HostBuffered
@@ -294,6 +298,7 @@ impl Timestamps {
     }
 
     /// What the source is, in words.
+    #[must_use]
     pub fn description(self) -> &'static str {
         match self {
             Timestamps::SimulatedClock => "simulated bus clock, exact",
@@ -305,6 +310,7 @@ impl Timestamps {
     }
 
     /// Why timing cannot be judged from these timestamps, if it cannot.
+    #[must_use]
     pub fn timing_advisory(self) -> Option<&'static str> {
         match self {
             Timestamps::HostBuffered => Some(BUFFERED_TIMING),
@@ -350,6 +356,7 @@ impl DeviceIdentity {
     }
 
     /// `(label, value)` rows for the reports, "not read" where the run did not read it.
+    #[must_use]
     pub fn rows(&self) -> Vec<(&'static str, String)> {
         let nr = || "not read".to_string();
         vec![
@@ -379,6 +386,7 @@ pub enum Stopped {
 
 impl Stopped {
     /// The reason in words (`interrupted by SIGINT`, `no device answers at MAC 7: …`).
+    #[must_use]
     pub fn text(&self) -> String {
         match self {
             Stopped::NoDevice { mac, detail } => format!("no device answers at MAC {mac}: {detail}"),
@@ -458,32 +466,38 @@ pub struct SuiteReport {
 
 impl SuiteReport {
     /// Checks with this grade.
+    #[must_use]
     pub fn count(&self, grade: Grade) -> usize {
         self.checks.iter().filter(|c| c.grade == grade).count()
     }
 
     /// Checks that failed.
+    #[must_use]
     pub fn failed(&self) -> usize {
         self.count(Grade::Fail)
     }
 
     /// The suite passed: it ran to its end and no check failed.
+    #[must_use]
     pub fn passed(&self) -> bool {
         self.stopped.is_none() && self.failed() == 0
     }
 
     /// The check named `id`.
+    #[must_use]
     pub fn check(&self, id: &str) -> Option<&CheckResult> {
         self.checks.iter().find(|c| c.id == id)
     }
 
     /// The frames of `check`.
+    #[must_use]
     pub fn frames_of(&self, check: &CheckResult) -> &[Record] {
         self.records.get(check.frames.clone()).unwrap_or(&[])
     }
 }
 
 /// The current time, UTC, as `2025-01-31 14:05:09 UTC`.
+#[must_use]
 pub fn utc_now() -> String {
     let t = time::OffsetDateTime::now_utc();
     format!(

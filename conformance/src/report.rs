@@ -70,6 +70,7 @@ pub(crate) fn seconds(d: Duration) -> String {
 }
 
 /// The one-line summary.
+#[must_use]
 pub fn summary_line(report: &SuiteReport) -> String {
     format!(
         "conformance of MAC {} on {}, master MAC {} (second master {}): {} of {} checks run, {} pass, {} advisory, {} fail; {} frames, {} of bus time",

@@ -90,11 +90,13 @@ pub struct MutantOutcome {
 
 impl MutantOutcome {
     /// Its target check failed.
+    #[must_use]
     pub fn caught(&self) -> bool {
         self.run.failed.contains(&self.mutant.target)
     }
 
     /// Why its target check failed: the texts of the failed expectations.
+    #[must_use]
     pub fn evidence(&self) -> &[String] {
         self.run.findings.iter().find(|(c, _)| *c == self.mutant.target).map_or(&[], |(_, t)| t.as_slice())
     }
@@ -111,32 +113,38 @@ pub struct SelfTestReport {
 
 impl SelfTestReport {
     /// The checks of the suite, in order (as run against the reference device).
+    #[must_use]
     pub fn checks(&self) -> &[&'static str] {
         &self.reference.checks
     }
 
     /// The mutants against which `check` failed.
+    #[must_use]
     pub fn caught_by(&self, check: &str) -> Vec<&'static str> {
         self.mutants.iter().filter(|m| m.run.failed.contains(&check)).map(|m| m.mutant.id).collect()
     }
 
     /// The checks no mutant made fail.
+    #[must_use]
     pub fn uncaught_checks(&self) -> Vec<&'static str> {
         self.checks().iter().copied().filter(|c| self.caught_by(c).is_empty()).collect()
     }
 
     /// The mutants whose target check did not fail.
+    #[must_use]
     pub fn surviving_mutants(&self) -> Vec<&'static str> {
         self.mutants.iter().filter(|m| !m.caught()).map(|m| m.mutant.id).collect()
     }
 
     /// The reference device passed the whole suite.
+    #[must_use]
     pub fn reference_passed(&self) -> bool {
         self.reference.stopped.is_none() && self.reference.failed.is_empty()
     }
 
     /// The self-test passed: the reference passes, every mutant is caught by its target, every
     /// check is caught by at least one mutant.
+    #[must_use]
     pub fn passed(&self) -> bool {
         self.reference_passed() && self.surviving_mutants().is_empty() && self.uncaught_checks().is_empty()
     }
@@ -308,6 +316,7 @@ fn write_matrix(out: &mut dyn Write, report: &SelfTestReport) -> io::Result<()> 
 }
 
 /// The JSON document: the reference run, every mutant, and per check the mutants that catch it.
+#[must_use]
 pub fn report_json(report: &SelfTestReport) -> Value {
     let run = |r: &RunSummary| {
         json!({
@@ -345,6 +354,7 @@ pub fn report_json(report: &SelfTestReport) -> Value {
 
 /// The matrix as the README shows it (Markdown): per check, the mutants that make it fail; per
 /// mutant, its fault and every check that fails against it.
+#[must_use]
 pub fn markdown(report: &SelfTestReport) -> String {
     let mut s = String::new();
     s.push_str("| check | caught by (mutants against which it fails) |\n|---|---|\n");

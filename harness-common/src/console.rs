@@ -23,6 +23,7 @@ pub struct Console {
 
 impl Console {
     /// No terminal, and a stop only a caller of [`Stop::request`] sets (tests, embedding).
+    #[must_use]
     pub fn plain() -> Console {
         Console::default()
     }
@@ -41,11 +42,13 @@ impl<'w> Progress<'w> {
     }
 
     /// No progress (not a terminal, or `--json`).
+    #[must_use]
     pub fn off() -> Progress<'w> {
         Progress { out: None, shown: false }
     }
 
     /// Whether anything is shown.
+    #[must_use]
     pub fn enabled(&self) -> bool {
         self.out.is_some()
     }

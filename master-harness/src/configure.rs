@@ -85,6 +85,7 @@ pub struct Check {
 
 impl Check {
     /// Whether they agree.
+    #[must_use]
     pub fn holds(&self) -> bool {
         self.expected == self.actual
     }
@@ -113,6 +114,7 @@ pub struct DownloadReport {
 
 impl DownloadReport {
     /// Checks that failed.
+    #[must_use]
     pub fn failures(&self) -> Vec<&Check> {
         self.checks.iter().filter(|c| !c.holds()).collect()
     }
@@ -126,6 +128,7 @@ fn service(code: u8) -> ServiceCode {
 /// stored image at offset 56, 42 bytes, configuration object (class 0x66, instance 1)`. Its
 /// services are class-specific (notes §3.2): the decoder's names for their codes are other
 /// classes' services (0x4B is the DeviceNet object's Allocate).
+#[must_use]
 pub fn request_name(code: u8, data: &[u8]) -> String {
     let what = match (code, data) {
         (READ_CHUNK, &[which, lo, hi, count]) => format!(

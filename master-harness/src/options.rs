@@ -117,6 +117,7 @@ pub struct IoArgs {
 
 impl IoArgs {
     /// The options, timing judged unless the bus buffers frames (SLCAN).
+    #[must_use]
     pub fn options(&self, bus: &BusSpec) -> IoOptions {
         IoOptions {
             kind: self.io,
@@ -131,6 +132,7 @@ impl IoArgs {
 
 /// `false` on SLCAN, whose frames arrive in bursts from a serial line: intervals are noted, not
 /// judged (as the conformance suite does, [`dnet_conformance::BUFFERED_TIMING`]).
+#[must_use]
 pub fn judges_timing(bus: &BusSpec) -> bool {
     !matches!(bus, BusSpec::Slcan { .. })
 }
@@ -189,6 +191,7 @@ pub struct GlobalOptions {
 
 impl GlobalOptions {
     /// The master's configuration at `mac`, with `--timeout`.
+    #[must_use]
     pub fn master_config(&self, mac: MacId) -> MasterConfig {
         MasterConfig {
             mac,
@@ -198,6 +201,7 @@ impl GlobalOptions {
     }
 
     /// `--master-mac`, else 0.
+    #[must_use]
     pub fn master_mac_or_default(&self) -> MacId {
         self.master_mac.unwrap_or(MacId::from_low_bits(0))
     }
@@ -288,6 +292,7 @@ pub struct TraceInput {
 
 impl TraceInput {
     /// The reader's options.
+    #[must_use]
     pub fn options(&self) -> ReadOptions {
         ReadOptions { strict: self.strict, format: self.input_format }
     }

@@ -80,6 +80,7 @@ pub struct ReplayOptions {
 
 impl ReplayOptions {
     /// Defaults for `device`.
+    #[must_use]
     pub fn new(device: MacId) -> ReplayOptions {
         ReplayOptions {
             device,
@@ -109,6 +110,7 @@ pub struct ReplaySummary {
 
 impl ReplaySummary {
     /// The one-line result: `replay held: ...`.
+    #[must_use]
     pub fn text(&self) -> String {
         let mut text = format!(
             "replay held: {} frames, {} from the device compared byte for byte",
@@ -145,6 +147,7 @@ fn first_check(entries: &[LogEntry], device: MacId) -> Option<usize> {
 /// The index of the first transcript frame after the device's start-up: the first one recorded
 /// at or after its on-line instant, one interval after its last duplicate MAC ID request (notes
 /// §7.1); 0 when the transcript has no request from it (the device was on-line throughout).
+#[must_use]
 pub fn online_index(entries: &[LogEntry], device: MacId) -> usize {
     let Some(last) = entries.iter().rposition(|e| DuplicateMacCheck::request_in(&e.frame) == Some(device))
     else {
@@ -168,6 +171,7 @@ pub enum SimStart {
 
 /// How the simulated device at `device` is attached for a replay of `entries` beginning as
 /// `from_online` says (see the [module docs](self)).
+#[must_use]
 pub fn sim_start(entries: &[LogEntry], device: MacId, from_online: Option<FromOnline>) -> SimStart {
     match (from_online, first_check(entries, device), entries.first()) {
         (Some(FromOnline::Wait), _, _) => SimStart::PowerOnAtStart,
@@ -180,6 +184,7 @@ pub fn sim_start(entries: &[LogEntry], device: MacId, from_online: Option<FromOn
 /// begins with its power-up: `(earliest, latest)` after the start. Its first duplicate MAC ID
 /// request must come after the stimulus recorded before it and no later than `tolerance` after
 /// its own recorded time. `None` when the transcript has no duplicate MAC ID request from it.
+#[must_use]
 pub fn power_on_window(
     entries: &[LogEntry],
     device: MacId,
@@ -197,6 +202,7 @@ pub fn power_on_window(
 
 /// The note `replay` prints before a replay from the first frame against a real device whose
 /// power-up the transcript holds: when to power it on, and the alternative.
+#[must_use]
 pub fn power_on_note(entries: &[LogEntry], device: MacId, tolerance: Duration) -> Option<String> {
     let (earliest, latest) = power_on_window(entries, device, tolerance)?;
     Some(format!(
@@ -223,6 +229,7 @@ fn is_io_data(frame: &CanFrame) -> bool {
 /// The devices of a transcript: the MACs that sent a device's frames (Group 1 messages, explicit
 /// responses, Group 2 message 3), in order of first appearance. Duplicate MAC ID checks are left
 /// out: masters send them too.
+#[must_use]
 pub fn transcript_devices(entries: &[LogEntry]) -> Vec<MacId> {
     let mut macs: Vec<MacId> = Vec::new();
     for e in entries {
@@ -241,6 +248,7 @@ pub fn transcript_devices(entries: &[LogEntry]) -> Vec<MacId> {
 /// The master of a transcript: the source MAC in the header of its first request through the
 /// Group 2 Only port or an explicit connection (notes §3.1: a request's header carries the
 /// requester's MAC).
+#[must_use]
 pub fn transcript_master(entries: &[LogEntry]) -> Option<MacId> {
     entries.iter().find_map(|e| match Identifier::decode(e.frame.id()) {
         Identifier::Group2 {
@@ -254,6 +262,7 @@ pub fn transcript_master(entries: &[LogEntry]) -> Option<MacId> {
 /// What the transcript leaves allocated at `device`: the choices of its Allocate requests the
 /// device answered with success, less those of its successful Releases (notes §3.4). A replay
 /// releases this when it ends, as every command does.
+#[must_use]
 pub fn held_after(entries: &[LogEntry], device: MacId) -> AllocationChoice {
     let mut held = AllocationChoice::empty();
     let mut pending: Option<(ServiceCode, AllocationChoice)> = None;
@@ -614,11 +623,13 @@ impl<'s, 'b, 'e> Run<'s, 'b, 'e> {
 }
 
 /// The log line of a transcript entry (for reports).
+#[must_use]
 pub fn entry_line(e: &LogEntry) -> String {
     format_line(e.at, &e.iface, &e.frame)
 }
 
 /// `true` when `frame` is one the device at `mac` produces (expected in a replay).
+#[must_use]
 pub fn is_expected(frame: &CanFrame, mac: MacId) -> bool {
     is_from_device(frame, mac)
 }

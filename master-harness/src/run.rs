@@ -52,6 +52,7 @@ impl From<Result<Outcome, HarnessError>> for Ran {
 /// The device a command addresses when `--mac` is left out: the MAC of the description the
 /// command was given (`monitor --description`), else of `--slave-config`'s, else 5 (the reference
 /// converter's).
+#[must_use]
 pub fn default_device(own: Option<&DeviceDescription>, slave: Option<&DeviceDescription>) -> MacId {
     own.or(slave).map_or(MacId::from_low_bits(5), |d| d.converter.device.mac_id)
 }

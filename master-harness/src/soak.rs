@@ -80,6 +80,7 @@ impl SoakConfig {
     /// about every 30 000 of its frames; the breaker silent about every 2 minutes and sending
     /// garbage about every 10 s of a fault window; 10 min fault windows, 2 min quiet windows;
     /// recovery within 10 s.
+    #[must_use]
     pub fn hours(hours: f64, seed: u64) -> SoakConfig {
         SoakConfig {
             duration: Duration::from_micros((hours * 3.6e9) as u64),

@@ -572,6 +572,7 @@ fn decode_values(text: &str) -> Vec<(String, f64)> {
 }
 
 /// Upper-case hex without separators (`0A1B`), as in the CSV and the MQTT payloads.
+#[must_use]
 pub fn hex(bytes: &[u8]) -> String {
     let mut s = String::with_capacity(bytes.len() * 2);
     for b in bytes {
@@ -581,6 +582,7 @@ pub fn hex(bytes: &[u8]) -> String {
 }
 
 /// `2024-05-01T12:00:00.123Z`; empty for an instant `time` cannot represent.
+#[must_use]
 pub fn iso8601_ms(unix_ms: i64) -> String {
     let nanos = i128::from(unix_ms) * 1_000_000;
     match time::OffsetDateTime::from_unix_timestamp_nanos(nanos) {
@@ -600,6 +602,7 @@ pub fn iso8601_ms(unix_ms: i64) -> String {
 
 /// A value's CSV cell: a number, empty when not finite; the breaker's `switch` as the console
 /// shows it (`open`, `closed`, `unknown (0xXX)`), not its byte.
+#[must_use]
 pub fn csv_value(name: &str, v: f64) -> String {
     if !v.is_finite() {
         return String::new();

@@ -248,6 +248,7 @@ pub fn parse_scan_list_for(
 }
 
 /// The scan list as TOML, in the form [`parse_scan_list`] reads (`parse(write(l)) == l`).
+#[must_use]
 pub fn write_scan_list(list: &ScanList) -> String {
     let mut out = String::from("# DeviceNet scan list (dnet-master scanner --scanlist FILE)\n");
     if let Some(d) = list.interscan_delay_ms {

@@ -74,6 +74,7 @@ fn poll() -> String {
 impl ScanEntry {
     /// The connection type: the [`IoKind`] named by `connection` (poll for a name that is none,
     /// which [`super::parse_scan_list`] refuses).
+    #[must_use]
     pub fn io_kind(&self) -> IoKind {
         IoKind::ALL.into_iter().find(|k| k.name() == self.connection).unwrap_or(IoKind::Poll)
     }
@@ -126,6 +127,7 @@ impl NodeStatus {
     /// communicating, 73 keying mismatch, 77 size mismatch, 78 not present, 83 error response,
     /// 84 initializing, 86 idle data. Communication Faulted has no code of its own there; it is
     /// shown as 78 (the node does not take part) with its own status name.
+    #[must_use]
     pub fn code(self) -> u8 {
         match self {
             NodeStatus::Ok => 0,
@@ -140,6 +142,7 @@ impl NodeStatus {
     }
 
     /// The name used in text, JSON and the console (`ok`, `not_present`, ...).
+    #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             NodeStatus::Ok => "ok",
@@ -316,6 +319,7 @@ pub struct Sample {
 }
 
 /// Milliseconds since the Unix epoch, now.
+#[must_use]
 pub fn unix_ms_now() -> i64 {
     SystemTime::now().duration_since(SystemTime::UNIX_EPOCH).map_or(0, |d| d.as_millis() as i64)
 }

@@ -78,12 +78,14 @@ pub struct BreakerStatus {
 
 impl BreakerStatus {
     /// Decodes the input image; `None` when it is shorter than the profile's 10 bytes.
+    #[must_use]
     pub fn decode(input: &[u8]) -> Option<BreakerStatus> {
         let switch = *input.get(SWITCH_BYTE)?;
         Some(BreakerStatus { currents: [input[0], input[1], input[2], input[3]], switch })
     }
 
     /// `open`, `closed` or `unknown (0xXX)`.
+    #[must_use]
     pub fn switch_text(&self) -> String {
         match self.switch {
             SWITCH_OPEN => "open".into(),
@@ -132,11 +134,13 @@ fn is_breaker(c: &FramedProfileConfig) -> bool {
 
 impl InputLayout {
     /// Nothing known of the device: raw bytes, no status byte assumed.
+    #[must_use]
     pub fn raw() -> InputLayout {
         InputLayout { profile: ImageProfile::Raw, image_len: 0, with_status: false }
     }
 
     /// The layout of the converter `config` describes (a description's `converter`).
+    #[must_use]
     pub fn from_converter(config: &ConverterConfig) -> InputLayout {
         let profile = match &config.profile {
             ProfileConfig::Framed(c) if is_breaker(c) => ImageProfile::Breaker,
@@ -154,6 +158,7 @@ impl InputLayout {
     }
 
     /// The produced size the layout expects; `None` for raw bytes.
+    #[must_use]
     pub fn produced_size(&self) -> Option<usize> {
         match self.profile {
             ImageProfile::Raw => None,
@@ -176,6 +181,7 @@ impl InputLayout {
     }
 
     /// Decodes one poll response.
+    #[must_use]
     pub fn decode(&self, input: &[u8]) -> Decoded {
         let Some(size) = self.produced_size() else {
             return Decoded::default();
@@ -293,6 +299,7 @@ pub struct LinkView {
 
 impl LinkView {
     /// Decodes the two bytes.
+    #[must_use]
     pub fn new(status: u8, freshness: u8) -> LinkView {
         let s = StatusByte::from_raw(status);
         let link = if s.contains(StatusByte::LINK_TIMEOUT) {
@@ -325,11 +332,13 @@ impl LinkView {
 
     /// Status bit 1: the instrument has been silent for the stale timeout; the data is held or
     /// cleared, not live.
+    #[must_use]
     pub fn stale(&self) -> bool {
         self.link == "timeout"
     }
 
     /// `link ok, command none, freshness 12` / `STALE: LINK TIMEOUT, errors seen, ...`.
+    #[must_use]
     pub fn text(&self) -> String {
         let mut parts = vec![match self.link {
             "timeout" => "STALE: LINK TIMEOUT".to_string(),
@@ -527,6 +536,7 @@ pub struct Sample {
 
 impl Sample {
     /// The sample taken at `time_us` of `raw`, decoded by `layout`.
+    #[must_use]
     pub fn new(time_us: u64, raw: Vec<u8>, layout: &InputLayout) -> Sample {
         let d = layout.decode(&raw);
         Sample {
@@ -540,6 +550,7 @@ impl Sample {
     }
 
     /// The field called `name`.
+    #[must_use]
     pub fn field(&self, name: &str) -> Option<&Field> {
         self.fields.iter().find(|f| f.name == name)
     }
@@ -554,6 +565,7 @@ pub fn csv_header(layout: &InputLayout) -> String {
 }
 
 /// One CSV line for a sample, with the columns of [`csv_header`].
+#[must_use]
 pub fn csv_line(s: &Sample, layout: &InputLayout) -> String {
     let raw = master_core::decode::hex(&s.raw).replace(' ', "");
     let mut cells = vec![format!("{}.{:06}", s.time_us / 1_000_000, s.time_us % 1_000_000)];
@@ -589,6 +601,7 @@ fn seconds_text(us: u64) -> String {
 }
 
 /// The line shown for a sample.
+#[must_use]
 pub fn display_line(s: &Sample, layout: &InputLayout) -> String {
     let t = seconds_text(s.time_us);
     let hex = master_core::decode::hex(&s.raw);

@@ -111,6 +111,7 @@ pub struct Endpoint {
 
 impl Endpoint {
     /// `mqtt://HOST:PORT/PREFIX`, without the password.
+    #[must_use]
     pub fn display(&self) -> String {
         format!("mqtt://{}:{}/{}", self.host, self.port, self.prefix)
     }
@@ -261,17 +262,20 @@ impl Publisher {
     }
 
     /// The broker, `mqtt://HOST:PORT/PREFIX`.
+    #[must_use]
     pub fn url(&self) -> String {
         self.endpoint.display()
     }
 
     /// The topic prefix.
+    #[must_use]
     pub fn prefix(&self) -> &str {
         &self.endpoint.prefix
     }
 
     /// The link in words: `connected to mqtt://...`, `broker unreachable: <reason>, retrying`,
     /// or `connecting to mqtt://...` before the first attempt ends.
+    #[must_use]
     pub fn status(&self) -> String {
         match &self.shared.lock().link {
             Link::Connecting => format!("connecting to {}", self.url()),
@@ -281,12 +285,14 @@ impl Publisher {
     }
 
     /// Whether the broker has accepted the connection (and it has not been lost since).
+    #[must_use]
     pub fn is_connected(&self) -> bool {
         self.shared.lock().link == Link::Connected
     }
 
     /// Messages dropped so far: values published while the broker was unreachable, and messages
     /// that found the queue full.
+    #[must_use]
     pub fn dropped(&self) -> u64 {
         self.shared.dropped.load(Ordering::Relaxed)
     }

@@ -59,6 +59,7 @@ fn signed(data_type: u8) -> bool {
 }
 
 /// The value of little-endian `bytes` of `data_type`.
+#[must_use]
 pub fn decode_value(data_type: u8, bytes: &[u8]) -> Option<i64> {
     if bytes.is_empty() || bytes.len() > 8 {
         return None;
@@ -209,6 +210,7 @@ pub fn set(
 }
 
 /// The rows as a table.
+#[must_use]
 pub fn table(rows: &[ParamRow]) -> String {
     let opt = |v: Option<i64>| v.map_or_else(|| "-".into(), |v| v.to_string());
     let mut text = format!(

@@ -69,6 +69,7 @@ pub fn summary_json(
 }
 
 /// The node table and the summary line.
+#[must_use]
 pub fn table(s: &ScannerState) -> String {
     // The scan list's names, as wide as the longest.
     let name_width =

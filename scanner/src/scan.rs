@@ -236,6 +236,7 @@ pub fn scan(
 }
 
 /// The scan duration as a [`Duration`].
+#[must_use]
 pub fn scan_duration(report: &ScanReport) -> Duration {
     Duration::from_micros(report.scan_micros)
 }

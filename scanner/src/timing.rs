@@ -22,6 +22,7 @@ pub struct Timing {
 }
 
 /// Worst-case bits of the frames carrying `size` bytes of I/O data (fragmented above 8 bytes).
+#[must_use]
 pub fn io_frame_bits(size: u16) -> u64 {
     let bits = |n: u32| u64::from(47 + 8 * n + (34 + 8 * n - 1) / 4);
     let size = u32::from(size);
@@ -34,6 +35,7 @@ pub fn io_frame_bits(size: u16) -> u64 {
 }
 
 /// The timing of `list` at `bitrate`. See the scanner's timing rules ([`crate::engine`]).
+#[must_use]
 pub fn timing(list: &ScanList, bitrate: Bitrate) -> Timing {
     let node_bits = |n: &ScanEntry| match n.io_kind() {
         IoKind::Poll => io_frame_bits(n.output_size) + io_frame_bits(n.input_size),

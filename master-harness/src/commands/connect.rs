@@ -94,6 +94,7 @@ fn outcome(s: &DeviceSummary) -> Outcome {
 }
 
 /// The second line of `connect --io strobe|cos|cyclic`: identifiers, settings, what was exchanged.
+#[must_use]
 pub fn io_text(io: &IoSummary) -> String {
     let id = |v: Option<u16>| v.map_or_else(|| "?".into(), |v| format!("0x{v:03X}"));
     let mut parts = vec![format!(

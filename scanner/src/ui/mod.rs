@@ -107,16 +107,19 @@ pub(crate) struct Context {
 
 impl UiServer {
     /// The address it listens on (with the port the system chose for port 0).
+    #[must_use]
     pub fn addr(&self) -> SocketAddr {
         self.addr
     }
 
     /// The page's URL, `http://127.0.0.1:8080/`.
+    #[must_use]
     pub fn url(&self) -> String {
         format!("http://{}/", self.addr)
     }
 
     /// The token a state-changing request carries in [`TOKEN_HEADER`] (the page has it too).
+    #[must_use]
     pub fn token(&self) -> &str {
         self.context.guard.token()
     }
