@@ -13,6 +13,7 @@
 
 use crate::decode::hex;
 use crate::error::MasterError;
+pub use crate::error::RequestError;
 use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
@@ -95,20 +96,6 @@ pub enum ClientError {
     RequestAborted(String),
 }
 
-/// Why a request cannot be sent as it is.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-pub enum RequestError {
-    /// The request cannot be written in the body format (reserved format, path too long).
-    #[error("cannot build the request: {0}")]
-    Build(devicenet::explicit::ExplicitError),
-    /// The request is longer than the master sends.
-    #[error("the request is {len} bytes; the master sends at most {MAX_MESSAGE}")]
-    TooLong {
-        /// Its length, header included.
-        len: usize,
-    },
-}
-
 /// What became of a frame handed to [`Transaction::handle_frame`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Handled {
@@ -186,7 +173,7 @@ impl Transaction {
         message[0] = Header::new(xid, master).to_byte();
         request.emit(format, &mut message[1..]).map_err(RequestError::Build)?;
         if message.len() > MAX_MESSAGE {
-            return Err(RequestError::TooLong { len: message.len() });
+            return Err(RequestError::TooLong { len: message.len(), max: MAX_MESSAGE });
         }
         Ok(Transaction {
             target,

@@ -1,8 +1,6 @@
 //! The master's error: every way an operation on the bus can stop, with what the user needs to act
 //! on it (MAC, request, timeout name), never a panic.
 
-use crate::bring_up::NodeError;
-use crate::client::RequestError;
 use can_io::bus::BusError;
 use devicenet::explicit::GeneralStatus;
 use devicenet::messages::MessageError;
@@ -70,9 +68,6 @@ pub enum MasterError {
     /// A message the master builds cannot be written.
     #[error("cannot build the message: {0}")]
     Message(#[from] MessageError),
-    /// A bring-up driven by the [`BringUp`](crate::bring_up::BringUp) engine stopped.
-    #[error(transparent)]
-    Node(#[from] NodeError),
     /// The device's connection set is allocated to another master (0x0C / 0x01, notes §3.4).
     #[error("MAC {mac} is allocated to another master{}: a device serves one master at a time; release it there, or reset the device", owner.map_or_else(|| " (its MAC was not seen on the bus)".to_string(), |m| format!(" (MAC {m})")))]
     AllocationConflict {
@@ -172,5 +167,21 @@ pub enum UsageError {
         mac: MacId,
         /// The nodes that answered.
         found: String,
+    },
+}
+
+/// Why a request cannot be sent as it is.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RequestError {
+    /// The request cannot be written in the body format (reserved format, path too long).
+    #[error("cannot build the request: {0}")]
+    Build(devicenet::explicit::ExplicitError),
+    /// The request is longer than the master sends.
+    #[error("the request is {len} bytes; the master sends at most {max}")]
+    TooLong {
+        /// Its length, header included.
+        len: usize,
+        /// The longest message the master sends.
+        max: usize,
     },
 }
