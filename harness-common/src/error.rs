@@ -262,9 +262,58 @@ pub enum HarnessError {
     /// The command ended, but what it allocated could not be released.
     #[error("could not release the device's connections: {0}")]
     Release(Box<MasterError>),
-    /// The device refused or failed a configuration step (the device's reason included).
-    #[error("{0}")]
-    Refused(String),
+    /// The device answered a configuration step with an error response.
+    #[error("MAC {mac} refused the configuration ({step}): {response}: {reason}")]
+    ConfigurationRefused {
+        /// The device.
+        mac: MacId,
+        /// The step (`Begin_Download`, …).
+        step: &'static str,
+        /// The error response, decoded.
+        response: String,
+        /// The device's own reason, read back from it.
+        reason: String,
+    },
+    /// The image read back after a download is not the one downloaded.
+    #[error("MAC {mac}: the stored image read back differs from the one downloaded ({bytes} bytes)")]
+    ReadBackDiffers {
+        /// The device.
+        mac: MacId,
+        /// The image's length.
+        bytes: usize,
+    },
+    /// The device did not come back on-line after the reset that applies a configuration.
+    #[error("MAC {mac} did not come back on-line within {within} of its reset (watched MAC {}){}", watched.iter().map(ToString::to_string).collect::<Vec<_>>().join(" and "), notes.iter().map(|n| format!("; {n}")).collect::<String>())]
+    NotBackOnline {
+        /// The device.
+        mac: MacId,
+        /// How long it was waited for.
+        within: devicenet::Duration,
+        /// The MACs watched for its duplicate MAC ID check.
+        watched: Vec<MacId>,
+        /// What the master noted meanwhile.
+        notes: Vec<String>,
+    },
+    /// The configuration image the device serves does not decode.
+    #[error("MAC {mac} serves a configuration image that does not decode: {detail}")]
+    ImageUndecodable {
+        /// The device.
+        mac: MacId,
+        /// The decoder's reason.
+        detail: String,
+    },
+    /// The device answered the write of a parameter with an error response.
+    #[error("MAC {mac} refused {name} = {value}: {response}")]
+    ParameterRefused {
+        /// The device.
+        mac: MacId,
+        /// The parameter.
+        name: String,
+        /// The value written.
+        value: i64,
+        /// The error response, decoded.
+        response: String,
+    },
     /// A replay diverged from its transcript.
     #[error("{0}")]
     Divergence(Box<Divergence>),
@@ -302,7 +351,11 @@ impl HarnessError {
                 | HarnessError::NothingCompared(_)
                 | HarnessError::NoDevice { .. }
                 | HarnessError::Release(_)
-                | HarnessError::Refused(_)
+                | HarnessError::ConfigurationRefused { .. }
+                | HarnessError::ReadBackDiffers { .. }
+                | HarnessError::NotBackOnline { .. }
+                | HarnessError::ImageUndecodable { .. }
+                | HarnessError::ParameterRefused { .. }
                 | HarnessError::Divergence(_)
         )
     }

@@ -277,13 +277,11 @@ pub fn download(
     master.open_explicit(mac)?;
     let (bus_rate, serial_before) = before_download(master, mac)?;
     let size = u16::try_from(image.len()).map_err(|_| HarnessError::ImageTooLong { bytes: image.len() })?;
-    let refused = |master: &mut Master<'_, '_>, step: &str, e: MasterError| -> HarnessError {
+    let refused = |master: &mut Master<'_, '_>, step: &'static str, e: MasterError| -> HarnessError {
         match e {
-            MasterError::ErrorResponse { ref text, .. } => {
+            MasterError::ErrorResponse { text, .. } => {
                 let reason = refusal_reason(master, mac);
-                HarnessError::Refused(format!(
-                    "MAC {mac} refused the configuration ({step}): {text}: {reason}"
-                ))
+                HarnessError::ConfigurationRefused { mac, step, response: text, reason }
             }
             other => other.into(),
         }
@@ -301,10 +299,7 @@ pub fn download(
     let back = read_image(master, mac, 1, image.len())?;
     report.verified = back == image;
     if !report.verified {
-        return Err(HarnessError::Refused(format!(
-            "MAC {mac}: the stored image read back differs from the one downloaded ({} bytes)",
-            image.len()
-        )));
+        return Err(HarnessError::ReadBackDiffers { mac, bytes: image.len() });
     }
 
     let described_rate = description.converter.device.baud_rate;
@@ -336,11 +331,12 @@ pub fn download(
             break m;
         }
         if master.session.now() >= deadline {
-            return Err(HarnessError::Refused(format!(
-                "MAC {mac} did not come back on-line within {BACK_ONLINE} of its reset (watched MAC {}){}",
-                candidates.iter().map(ToString::to_string).collect::<Vec<_>>().join(" and "),
-                report.notes.iter().map(|n| format!("; {n}")).collect::<String>()
-            )));
+            return Err(HarnessError::NotBackOnline {
+                mac,
+                within: BACK_ONLINE,
+                watched: candidates.clone(),
+                notes: report.notes.clone(),
+            });
         }
         let until = candidates
             .iter()
@@ -446,9 +442,8 @@ pub fn upload(master: &mut Master<'_, '_>, mac: MacId) -> Result<Uploaded, Harne
         reason: "not a UINT".into(),
     })?;
     let image = read_image(master, mac, 0, usize::from(size))?;
-    let converter = slave_fw::image::decode(&image).map_err(|e| {
-        HarnessError::Refused(format!("MAC {mac} serves a configuration image that does not decode: {e}"))
-    })?;
+    let converter = slave_fw::image::decode(&image)
+        .map_err(|e| HarnessError::ImageUndecodable { mac, detail: e.to_string() })?;
     let (serial, _) = master.get(mac, class::IDENTITY, 1, 6)?;
     Ok(Uploaded {
         description: DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() },

@@ -33,14 +33,14 @@ use can_io::bus::{Bitrate, Bus, Origin};
 use can_io::sim::fault::{FaultRates, FaultStats, RandomFaults, Rng, SharedDevice};
 use can_io::sim::{PowerOn, SimBus};
 use converter_sim::device::SoftSlave;
-use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::fragment::IoReassembler;
 use devicenet::id::Group1MessageId;
-use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
+use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use harness_common::error::HarnessError;
-use master_core::client::{self, Link, Port, Received, ReplyBody, Transaction};
+use master_core::bring_up::{self, BringUp, Event, Refusal};
+use master_core::client::{Link, Port, Received};
 use master_core::decode;
 use master_core::error::MasterError;
 use master_core::session::Verdict;
@@ -417,83 +417,23 @@ impl Soak {
         Ok(())
     }
 
-    /// One explicit request on the raw bus; `None` when it went unanswered.
-    fn request(
-        &mut self,
-        port: Port,
-        service: ServiceCode,
-        class_id: u16,
-        instance: u16,
-        data: &[u8],
-    ) -> Result<Option<ReplyBody>, HarnessError> {
-        let req = Request { service, class: class_id, instance, data };
-        let mut tx = Transaction::new(
-            self.target,
-            self.master,
-            port,
-            false,
-            &req,
-            BodyFormat::Class8Instance8,
-            EXPLICIT_TIMEOUT,
-        )?;
-        let (outcome, _) = client::drive(self, &mut tx)?;
-        Ok(outcome.ok().map(|reply| reply.body))
-    }
-
-    fn allocate(&mut self, port: Port, choice: AllocationChoice) -> Result<Option<ReplyBody>, HarnessError> {
-        let data = AllocateRequest { choice, allocator: self.master }.emit();
-        self.request(port, ServiceCode::AllocateMasterSlave, class::DEVICENET, 1, &data)
-    }
-
-    /// The scanner's connection set-up; `false` when a step went unanswered or was refused.
+    /// The scanner's connection set-up on master-core's bring-up engine (explicit through the
+    /// Group 2 Only port, explicit watchdog action deferred delete, poll, the EPR; a set still
+    /// allocated to this master released and allocated again); `false` when a step went
+    /// unanswered or was refused.
     fn establish(&mut self) -> Result<bool, HarnessError> {
-        let ok_or_already = |r: &Option<ReplyBody>| match r {
-            Some(ReplyBody::Success(_)) => true,
-            Some(ReplyBody::Error { general, .. }) => *general == GeneralStatus::AlreadyInRequestedState,
-            None => false,
-        };
-        let r = self.allocate(Port::Group2Only, AllocationChoice::EXPLICIT)?;
-        if !ok_or_already(&r) {
-            return Ok(false);
-        }
-        let r =
-            self.request(Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, 1, &[12, 3])?;
-        if !matches!(r, Some(ReplyBody::Success(_))) {
-            return Ok(false);
-        }
-        match self.allocate(Port::Explicit, AllocationChoice::POLL)? {
-            Some(ReplyBody::Success(_)) => {}
-            Some(ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. }) => {
-                // Left over (timed out): release it and allocate afresh.
-                let data = ReleaseRequest { choice: AllocationChoice::POLL }.emit();
-                let r = self.request(
-                    Port::Explicit,
-                    ServiceCode::ReleaseMasterSlave,
-                    class::DEVICENET,
-                    1,
-                    &data,
-                )?;
-                if !matches!(r, Some(ReplyBody::Success(_))) {
-                    return Ok(false);
-                }
-                if !matches!(
-                    self.allocate(Port::Explicit, AllocationChoice::POLL)?,
-                    Some(ReplyBody::Success(_))
-                ) {
-                    return Ok(false);
-                }
+        let mut node = BringUp::new(self.target, self.master, EXPLICIT_TIMEOUT);
+        let now = Link::now(self);
+        node.allocate(now, Port::Group2Only, AllocationChoice::EXPLICIT);
+        node.set(now, (class::CONNECTION, 1, 12), &[3], Refusal::Stop);
+        node.allocate(now, Port::Explicit, AllocationChoice::POLL);
+        node.expected_packet_rate(now, 2, self.cfg.epr_ms);
+        while let Some(event) = bring_up::drive(self, &mut node)? {
+            if let Event::Failed(_) = event {
+                return Ok(false);
             }
-            _ => return Ok(false),
         }
-        let epr = self.cfg.epr_ms.to_le_bytes();
-        let r = self.request(
-            Port::Explicit,
-            ServiceCode::SetAttributeSingle,
-            class::CONNECTION,
-            2,
-            &[9, epr[0], epr[1]],
-        )?;
-        Ok(matches!(r, Some(ReplyBody::Success(_))))
+        Ok(true)
     }
 
     /// The command numbered `k`: set parameter, close, set parameter, open, …

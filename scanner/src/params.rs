@@ -202,7 +202,7 @@ pub fn set(
     let (class_id, instance, attribute) = row.path;
     master.set(mac, class_id, instance, attribute, &bytes).map_err(|e| match e {
         MasterError::ErrorResponse { text, .. } => {
-            HarnessError::Refused(format!("MAC {mac} refused {} = {value}: {text}", row.name))
+            HarnessError::ParameterRefused { mac, name: row.name.clone(), value, response: text }
         }
         other => other.into(),
     })?;
