@@ -43,10 +43,13 @@ const RATE: &str = "250k";
 /// The explicit response timeout of `configure`, ms. The firmware programs the 640-byte settings
 /// record after Commit_Download; in a debug build the emulator takes about 1.5 s of wall time for
 /// that (every flash operation goes through the FLASH model and refreshes the CPU's copy of the
-/// array), a release build about 0.4 s, and the read-back's first Read_Chunk waits for it. The
-/// master's 1000 ms default would time the emulator, not the firmware: exact-firmware-serve's
-/// summary reports how far the machine fell behind the wall clock.
-const CONFIGURE_TIMEOUT: &str = "5000";
+/// array), a release build about 0.4 s, and the read-back's first Read_Chunk waits for it: the
+/// master's 1000 ms default would time the emulator, not the firmware (exact-firmware-serve's
+/// summary reports how far the machine fell behind the wall clock). Not longer: after the
+/// Identity Reset `configure` repeats its allocation until 6 s after the reset (master-harness
+/// `BACK_ONLINE`), and with the board's start-up checks seen before in the same session the
+/// master reckons it on-line a second early, so the second attempt must fit in those 6 s.
+const CONFIGURE_TIMEOUT: &str = "2500";
 
 /// The ELF scripts/firmware-size leaves for `board`; fails the test when it is not there.
 fn elf(board: &str) -> PathBuf {
@@ -78,6 +81,21 @@ fn boards(every: bool) -> Vec<String> {
         chosen.split(',').map(|b| b.trim().to_string()).filter(|b| !b.is_empty()).collect();
     assert!(!boards.is_empty(), "DNET_EXACT_BOARDS names no board");
     boards
+}
+
+/// The path of `exact-firmware-serve` ([`bin`] finds it), or a failure saying how to build it.
+fn serve_bin() -> PathBuf {
+    let dir = std::env::var_os("DNET_BIN_DIR").map(PathBuf::from).unwrap_or_else(|| {
+        let exe = std::env::current_exe().expect("the test executable's path");
+        let deps = exe.parent().expect("the test executable's folder").to_path_buf();
+        deps.parent().map(Path::to_path_buf).unwrap_or(deps)
+    });
+    assert!(
+        dir.join("exact-firmware-serve").is_file(),
+        "{}/exact-firmware-serve is not built: cargo build -p exact-firmware (scripts/check does), or set DNET_BIN_DIR",
+        dir.display()
+    );
+    bin("exact-firmware-serve")
 }
 
 /// socat, or a failure saying how to get it.
@@ -139,7 +157,7 @@ impl Served {
             "--power-on",
             power_on,
         ];
-        let serve = Proc::spawn(bin("exact-firmware-serve"), &args);
+        let serve = Proc::spawn(serve_bin(), &args);
         let end = std::time::Instant::now() + Duration::from_secs(20);
         while !serve.stderr.text().contains(" started: ") && std::time::Instant::now() < end {
             std::thread::sleep(Duration::from_millis(10));
@@ -180,15 +198,21 @@ impl Served {
     /// `dnet-master --bus slcan:PTY ARGS`: stdout; fails the test on a non-zero exit.
     fn master(&self, args: &[&str]) -> String {
         let bus = format!("slcan:{}", self.can.b);
+        // Every run's frames, for the failure message (a --log in `args` takes precedence).
+        let log = self.dir.join("master-frames.log");
         let mut all = vec!["--bus", bus.as_str()];
+        if !args.contains(&"--log") {
+            all.extend_from_slice(&["--log", path(&log)]);
+        }
         all.extend_from_slice(args);
         let mut master = Proc::spawn(bin("dnet-master"), &all);
         let status = master.wait(Duration::from_secs(60));
         let serve = self.serve.as_ref().map(Proc::dump).unwrap_or_default();
+        let frames = std::fs::read_to_string(&log).unwrap_or_default();
         assert_eq!(
             status.and_then(|s| s.code()),
             Some(0),
-            "{}: dnet-master {}\n{}\n{serve}",
+            "{}: dnet-master {}\n{}\n{serve}\n--- frames:\n{frames}",
             self.board,
             args.join(" "),
             master.dump()
@@ -431,7 +455,7 @@ fn an_instrument_line_at_another_baud_rate_carries_no_meter_data() {
 
 /// `exact-firmware-serve` with its flags as given; its exit code and stderr.
 fn serve_refused(args: &[&str]) -> (Option<i32>, String) {
-    let mut serve = Proc::spawn(bin("exact-firmware-serve"), args);
+    let mut serve = Proc::spawn(serve_bin(), args);
     let status = serve.wait(Duration::from_secs(20));
     (status.and_then(|s| s.code()), serve.stderr.text())
 }
