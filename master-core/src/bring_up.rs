@@ -57,8 +57,10 @@
 //! assert_eq!(node.held(), AllocationChoice::EXPLICIT | AllocationChoice::POLL);
 //! ```
 
-use crate::client::{ClientError, Handled, Port, ReplyBody, RequestError, Transaction};
+use crate::client::{ClientError, Handled, Link, Port, ReplyBody, RequestError, Transaction};
 use crate::decode;
+use crate::error::MasterError;
+use can_io::bus::Origin;
 use devicenet::explicit::{additional, BodyFormat, GeneralStatus, Request, ServiceCode};
 use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
 use devicenet::objects::class;
@@ -544,6 +546,56 @@ impl BringUp {
             _ => {}
         }
         self.events.push_back(Event::Answered { step: queued.step, body: reply.body });
+    }
+}
+
+/// Runs `node` on `link` until its next event (`None`: idle with nothing to say): its frames
+/// sent, the device's answers handed to it and [judged](Link::judged), every other frame passed
+/// to [`Link::other`]. The engine's counterpart of [`client::drive`](crate::client::drive) for a
+/// program with a bus of its own (the soak); on the master's session the driver is
+/// `Master::next_event`.
+///
+/// # Errors
+///
+/// The link's.
+pub fn drive<L: Link>(link: &mut L, node: &mut BringUp) -> Result<Option<Event>, MasterError> {
+    // Own frames sent and not yet seen back from the bus.
+    let mut in_flight = 0usize;
+    loop {
+        while let Some(frame) = node.poll_transmit() {
+            link.send(&frame)?;
+            in_flight += 1;
+        }
+        if let Some(event) = node.poll_event() {
+            if let Some(wait) = link.echo_wait() {
+                let until = link.now() + wait;
+                while in_flight > 0 {
+                    let Some(r) = link.recv(until)? else { break };
+                    match r.origin {
+                        Origin::Local => in_flight -= 1,
+                        Origin::Remote => take(link, node, r),
+                    }
+                }
+            }
+            return Ok(Some(event));
+        }
+        let Some(deadline) = node.poll_at() else { return Ok(None) };
+        match link.recv(deadline)? {
+            Some(r) if r.origin == Origin::Local => in_flight = in_flight.saturating_sub(1),
+            Some(r) => take(link, node, r),
+            None => {
+                let now = link.now();
+                node.handle_timeout(now);
+            }
+        }
+    }
+}
+
+/// Hands a frame from another node to `node`, or to the link's [`Link::other`].
+fn take<L: Link>(link: &mut L, node: &mut BringUp, r: crate::client::Received<L::Seen>) {
+    match node.handle_frame(&r.frame, r.at) {
+        Handled::Frame(verdict) => link.judged(r.seen, verdict),
+        Handled::NotMine => link.other(r.seen),
     }
 }
 
