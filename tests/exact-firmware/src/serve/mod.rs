@@ -22,20 +22,25 @@
 //!
 //! ## Time
 //!
-//! The machine runs in wall time: at each turn of the loop (at most about 2 ms apart) it runs
-//! up to the wall clock's instant; host frames are delivered at the instant their line is read.
-//! When the emulator is slower than the firmware's work needs, the machine falls behind the wall
-//! clock for that turn: [`Summary::worst_lag`] reports the worst. Measured on the 2-core test
-//! machine under load, debug build: the power-on's start-up 150–400 ms, then turns of 5–10 ms
-//! (an explicit request answered in 5–25 ms); the 640 flash operations that store a downloaded
-//! configuration take about 1.5 s of wall time (0.4 s in a release build), longer than the
-//! firmware takes on the chip. The frames on the wire take no time between the adapter and the
-//! board (the simulated bus's frame times are not applied).
+//! The machine runs in wall time, never ahead of it: at each turn of the loop (about 2 ms apart
+//! when it keeps up) it runs up to the wall clock's instant, but at most [`SLICE`] (5 ms) of bus
+//! time; the host's frames read in a turn reach the board at the time the machine has reached.
+//! An emulator slower than the firmware's work needs thus makes the board fall behind the wall
+//! clock, and the host sees it answer late, but the firmware's own timers (a fragment's
+//! acknowledgement, the duplicate MAC ID check) see the host answer in time, as on the chip; a
+//! turn that ran the machine to the wall clock in one go would let them expire first. Behind by
+//! more than a slice, the ptys are read without waiting until the machine has caught up.
+//! [`Summary::worst_lag`] reports how far behind it fell. Measured on the 2-core test machine
+//! under load, debug build: the power-on's start-up 150–700 ms, then turns of 5–10 ms (an
+//! explicit request answered in 5–25 ms); the 640 flash operations that store a downloaded
+//! configuration about 1.5 s of wall time (0.4 s in a release build), longer than the firmware
+//! takes on the chip. The frames on the wire take no time between the adapter and the board (the
+//! simulated bus's frame times are not applied).
 //!
 //! ## The instrument line
 //!
-//! See [`line`](mod@line): the USART's characters are sampled at `--instrument-line`, the line the far end
-//! uses; a BRR, parity or stop bit setting that does not match garbles or drops the bytes.
+//! See [`line`](mod@line): the USART's characters are sampled at `--instrument-line`, the line
+//! the far end uses; a BRR, parity or stop bit setting that does not match garbles or drops the bytes.
 //!
 //! ## Power
 //!
