@@ -1,6 +1,10 @@
 //! The per-node bring-up engine: one device brought into I/O and given back, as a sans-IO state
-//! machine. Every program that brings devices up drives this one engine: `connect`, `scan`, the
-//! scanner, the soak and `dnet-eds check-device`.
+//! machine. The master's allocate, release, get and set run on it ([`Master::step`]), so
+//! `connect`, `get`/`set` and `dnet-eds check-device` drive it, as do `scan` (one engine per MAC)
+//! and the soak ([`drive`]). The plant scanner (`dnet-scanner`'s engine) still runs its own step
+//! machine over single transactions.
+//!
+//! [`Master::step`]: crate::master::Master::step
 //!
 //! The sequence is a queue of [`Step`]s — Allocate_Master/Slave_Connection_Set with the requested
 //! connections, Get_Attribute_Single of what the caller reads, Set_Attribute_Single (the expected
