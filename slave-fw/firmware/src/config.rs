@@ -34,6 +34,7 @@ use board::settings::Settings;
 use board::switches::{self, SwitchReading};
 use board::uart::{self, LineFormat};
 use board::Resolved;
+use devicenet::slave::BaudRate;
 use devicenet::Instant;
 #[cfg(feature = "emulated")]
 use devicenet::MacId;
@@ -182,6 +183,19 @@ pub fn resolve(reading: Option<SwitchReading>, stored: Option<&Settings>) -> Res
     resolved
 }
 
+/// The node joins at `rate`: the rate autobaud found, or the one it was set up at. With no record
+/// stored (autobaud ran), the in-memory settings take it too, so that the record the first
+/// network-set MAC ID writes keeps the network's rate, not the default 125 kbit/s the search
+/// started at: after a power cycle the node comes up at the rate it joined at. Nothing is stored
+/// here ([`board::autobaud`]'s rule 4).
+#[cfg_attr(feature = "emulated", allow(dead_code))] // the emulated board has no bxCAN
+pub fn joined_at(resolved: &mut Resolved, settings: &mut Settings, rate: BaudRate) {
+    resolved.baud_rate = rate;
+    if resolved.autobaud {
+        settings.baud_rate = rate;
+    }
+}
+
 /// The profile's serial settings as the board's USART takes them.
 pub fn line_format(serial: &SerialSettings) -> LineFormat {
     LineFormat {
@@ -207,7 +221,6 @@ mod tests {
     use super::*;
     use board::uart::WordLength;
     use devicenet::led::Indication;
-    use devicenet::slave::BaudRate;
     use devicenet::MacId;
     use slave_fw::converter::ConfigState;
     use slave_fw::description::DeviceDescription;
@@ -391,5 +404,19 @@ mod tests {
         assert_eq!(factory.profile, breaker.profile);
         assert_eq!(factory.input, breaker.input);
         assert_eq!(factory.device.identity, breaker.device.identity);
+    }
+
+    #[test]
+    fn an_autobauded_rate_is_the_one_a_later_record_keeps() {
+        let mut searched = Resolved { autobaud: true, baud_rate: BaudRate::Kbps125, ..resolved() };
+        let mut settings = Settings::default();
+        joined_at(&mut searched, &mut settings, BaudRate::Kbps500);
+        assert_eq!((searched.baud_rate, settings.baud_rate), (BaudRate::Kbps500, BaudRate::Kbps500));
+
+        // A rate from the switches or a record is in force but not copied into the record.
+        let mut fixed = resolved();
+        let mut stored = Settings { baud_rate: BaudRate::Kbps250, ..Settings::default() };
+        joined_at(&mut fixed, &mut stored, BaudRate::Kbps500);
+        assert_eq!((fixed.baud_rate, stored.baud_rate), (BaudRate::Kbps500, BaudRate::Kbps250));
     }
 }

@@ -173,7 +173,7 @@ mod app {
                 resolved.mac_id,
             );
             if let Ok(rate) = started {
-                resolved.baud_rate = rate;
+                config::joined_at(&mut resolved, &mut settings, rate);
             }
             (driver, started.map(|_| ()))
         };
