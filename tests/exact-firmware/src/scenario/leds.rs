@@ -177,8 +177,10 @@ fn check_flashing(
 }
 
 /// The board alone on a bus with the master, powered at the start:
-/// - the power-up test, from the LEDs' first change: MS green, MS red, off, NS green, NS red,
-///   off, 250 ms each (one LED: lit 500 ms, then dark);
+/// - the power-up test, within 200 ms of power-on (from the LEDs' first change; on one LED,
+///   dark in the first step, 250 ms before it): MS green, MS red, off, NS green, NS red,
+///   off, 250 ms each (one LED, by its rule: dark in the MS green step, lit in the MS red step,
+///   then dark; board/src/leds.rs says lit for both MS steps, which the firmware does not do);
 /// - not on-line (the duplicate MAC ID check, up to 1 s after its second request): MS green,
 ///   NS off (one LED: dark);
 /// - on-line, not allocated (until the master's network access ends): NS flashing green
