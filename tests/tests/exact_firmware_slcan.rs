@@ -40,6 +40,10 @@ use std::time::Duration;
 const MAC: &str = "5";
 const RATE: &str = "250k";
 
+/// How long a board powered at the start takes to be on-line: its duplicate MAC ID check (2 s
+/// by its clock) and the emulator's start-up, with a margin.
+const BOARD_ONLINE: Duration = Duration::from_millis(3000);
+
 /// The explicit response timeout of `configure`, ms. The firmware programs the 640-byte settings
 /// record after Commit_Download; in a debug build the emulator takes about 1.5 s of wall time for
 /// that (every flash operation goes through the FLASH model and refreshes the CPU's copy of the
@@ -168,6 +172,13 @@ impl Served {
             serve.dump()
         );
         self.serve = Some(serve);
+        if power_on == "now" {
+            // As on a bench where the board was powered first: its duplicate MAC ID check (two
+            // requests 1 s apart, then 1 s) is over before a master connects. A master that comes
+            // in the middle of it may allocate before the board is on-line by its own clock, and
+            // `configure --read` does not repeat the allocation (reported to the lead).
+            std::thread::sleep(BOARD_ONLINE);
+        }
     }
 
     /// SIGTERM: it must save the flash file, print its summary and exit 0; the summary.
