@@ -1,8 +1,7 @@
 //! The per-node bring-up engine: one device brought into I/O and given back, as a sans-IO state
 //! machine. The master's allocate, release, get and set run on it ([`Master::step`]), so
-//! `connect`, `get`/`set` and `dnet-eds check-device` drive it, as do `scan` (one engine per MAC)
-//! and the soak ([`drive`]). The plant scanner (`dnet-scanner`'s engine) still runs its own step
-//! machine over single transactions.
+//! `connect`, `get`/`set` and `dnet-eds check-device` drive it, as do `scan` and the plant
+//! scanner (one engine per MAC on one bus) and the soak ([`drive`]).
 //!
 //! [`Master::step`]: crate::master::Master::step
 //!
@@ -383,12 +382,13 @@ impl BringUp {
     /// Gives the device back: the queued steps are dropped and, once the step running (if any) is
     /// over, everything [held](Self::held) is released through the Group 2 Only port (which
     /// serves Release whatever state the explicit connection is in, notes §3.4). Nothing is sent
-    /// when nothing is held.
+    /// when nothing is held. An error response to it is reported ([`Refusal::Report`]): there is
+    /// nothing more to give back.
     pub fn give_back(&mut self, now: Instant) {
         self.queue.clear();
         self.queue.push_back(Queued {
             step: Step::Release { port: Port::Group2Only, choice: AllocationChoice::empty() },
-            refusal: Refusal::Stop,
+            refusal: Refusal::Report,
             kept: false,
             retried: false,
         });

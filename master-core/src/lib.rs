@@ -11,7 +11,7 @@
 //! | module | what it holds |
 //! |---|---|
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the log file |
-//! | [`bring_up`] | the per-node bring-up engine ([`BringUp`](bring_up::BringUp)), sans-IO: Allocate with the requested connections, the reads, the expected packet rate that starts I/O, Release; what `connect`, `get`/`set`, `scan`, the soak and `check-device` drive (the plant scanner not yet) |
+//! | [`bring_up`] | the per-node bring-up engine ([`BringUp`](bring_up::BringUp)), sans-IO: Allocate with the requested connections, the reads, the expected packet rate that starts I/O, Release; what `connect`, `get`/`set`, `scan`, the scanner, the soak and `check-device` drive |
 //! | [`client`] | one explicit transaction as a sans-IO state machine ([`Transaction`](client::Transaction)): fragmentation both ways, every response frame checked; [`drive`](client::drive) and [`run`](client::run), the one way to drive it |
 //! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of notes §2 |
 //! | [`io`] | the I/O connections next to poll: bit-strobe, change of state and cyclic with their acknowledgements, every frame and interval checked |

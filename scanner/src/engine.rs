@@ -109,6 +109,7 @@ use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocationChoice, DuplicateMacCheck};
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
 use harness_common::error::HarnessError;
+use master_core::bring_up::BringUp;
 use master_core::client::Handled;
 use master_core::error::MasterError;
 use master_core::master::io::IoKind;
@@ -192,16 +193,13 @@ impl Scanner {
                     exchanges: 0,
                     last_exchange_us: None,
                 },
-                steps: VecDeque::new(),
-                tx: None,
-                reallocated: false,
+                engine: None,
                 allocated: AllocationChoice::empty(),
                 in_io: false,
                 in_io_since: Instant::ZERO,
                 last_exchange: None,
                 awaiting: false,
                 rx: Box::new(IoReassembler::new()),
-                answered: false,
                 duplicate: None,
                 announced: None,
             })
@@ -275,12 +273,12 @@ impl Scanner {
         }
         let now = master.session.now();
         for i in 0..self.nodes.len() {
-            self.begin_bringup(i, master, now)?;
+            self.begin_bringup(i, master, now);
         }
         self.next_reconnect = Some(now + RECONNECT_INTERVAL);
         // Nodes already in I/O are polled while the others' bring-up goes on (an absent node
         // costs a response timeout, longer than a present node's watchdog).
-        while self.nodes.iter().any(|n| n.tx.is_some()) {
+        while self.nodes.iter().any(Node::busy) {
             self.scan(master, false)?;
         }
         self.state.status = ScannerStatus::Running;
@@ -313,21 +311,15 @@ impl Scanner {
             let now = master.session.now();
             let epr = self.timing.epr_ms;
             for n in &mut self.nodes {
-                loop {
-                    if let Some(tx) = &mut n.tx {
-                        while let Some(f) = tx.poll_transmit() {
-                            master.session.send(&f).map_err(HarnessError::Master)?;
-                        }
+                while let Some(e) = n.engine.as_mut() {
+                    while let Some(f) = e.poll_transmit() {
+                        master.session.send(&f).map_err(HarnessError::Master)?;
                     }
-                    let Some(outcome) = n.tx.as_mut().filter(|t| t.is_done()).and_then(|t| t.take_outcome())
-                    else {
-                        break;
-                    };
-                    Self::finish_step(n, outcome, now);
+                    let Some(event) = e.poll_event() else { break };
+                    Self::take_event(n, event, now, epr);
                     if let Some(mac) = MacId::new(n.entry.mac) {
                         master.set_held(mac, n.allocated);
                     }
-                    Self::start_step(n, master, now, epr)?;
                 }
             }
             if done(self) || now >= until {
@@ -336,15 +328,15 @@ impl Scanner {
             let deadline = self
                 .nodes
                 .iter()
-                .filter_map(|n| n.tx.as_ref().and_then(|t| t.poll_at()))
+                .filter_map(|n| n.engine.as_ref().and_then(BringUp::poll_at))
                 .fold(until, Instant::min);
             match master.session.next(deadline) {
                 Ok(Some(i)) => self.handle_record(master, i)?,
                 Ok(None) => {
                     let now = master.session.now();
                     for n in &mut self.nodes {
-                        if let Some(tx) = &mut n.tx {
-                            tx.handle_timeout(now);
+                        if let Some(e) = &mut n.engine {
+                            e.handle_timeout(now);
                         }
                     }
                 }
@@ -389,10 +381,13 @@ impl Scanner {
                 return Ok(());
             }
             Identifier::Group2 { mac, message: Group2Message::ExplicitResponse } => {
-                if let Some(tx) =
-                    self.nodes.iter_mut().find(|n| n.entry.mac == mac.as_raw()).and_then(|n| n.tx.as_mut())
+                if let Some(e) = self
+                    .nodes
+                    .iter_mut()
+                    .find(|n| n.entry.mac == mac.as_raw())
+                    .and_then(|n| n.engine.as_mut())
                 {
-                    if let Handled::Frame(v) = tx.handle_frame(&rec.frame, rec.at) {
+                    if let Handled::Frame(v) = e.handle_frame(&rec.frame, rec.at) {
                         master.session.set_verdict(i, v);
                         return Ok(());
                     }
@@ -525,8 +520,8 @@ impl Scanner {
         let first = master.session.next_index();
         if self.next_reconnect.is_none_or(|t| t0 >= t) {
             for i in 0..self.nodes.len() {
-                if !self.nodes[i].in_io && self.nodes[i].tx.is_none() {
-                    self.begin_bringup(i, master, t0)?;
+                if !self.nodes[i].in_io && !self.nodes[i].busy() {
+                    self.begin_bringup(i, master, t0);
                 }
             }
             self.next_reconnect = Some(t0 + RECONNECT_INTERVAL);
@@ -729,7 +724,7 @@ impl Scanner {
             .iter()
             .find(|n| n.entry.mac == mac)
             .ok_or(format!("MAC {mac} is not in the scan list"))?;
-        if !n.in_io || n.tx.is_some() {
+        if !n.in_io || n.busy() {
             return Err(format!("MAC {mac} has no explicit connection now ({})", n.state.status.name()));
         }
         let target = MacId::new(mac).ok_or(format!("MAC {mac} is out of range"))?;
@@ -782,8 +777,7 @@ impl Scanner {
     /// Releases every node this scanner holds (through the Group 2 Only port).
     pub fn stop(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
         for n in &mut self.nodes {
-            n.tx = None;
-            n.steps.clear();
+            n.engine = None;
             n.awaiting = false;
         }
         let r = master.release_held();

@@ -1,32 +1,19 @@
-//! One node's bring-up, as the scanner runs it: the sequence of explicit transactions ([`Step`])
-//! from the allocation to the EPR that establishes the connection, each answer checked against
-//! the scan list (the scanner's docs, "A node's life").
+//! One node's bring-up, as the scanner runs it on master-core's bring-up engine: the allocation,
+//! the reads, the check against the scan list, the EPR that establishes the connection (the
+//! scanner's docs, "A node's life").
 
 use super::Scanner;
 use crate::model::{NodeState, NodeStatus, ScanEntry};
-use devicenet::explicit::{BodyFormat, GeneralStatus, Request, ServiceCode};
+use devicenet::explicit::GeneralStatus;
 use devicenet::fragment::IoReassembler;
-use devicenet::messages::{AllocateRequest, AllocationChoice, ReleaseRequest};
+use devicenet::messages::AllocationChoice;
 use devicenet::objects::class;
 use devicenet::{Instant, MacId};
-use harness_common::error::HarnessError;
-use master_core::client::{ClientError, Port, Reply, ReplyBody, Transaction};
+use master_core::bring_up::{BringUp, Event, NodeError, Refusal, Step};
+use master_core::client::{Port, ReplyBody};
 use master_core::decode;
 use master_core::master::io::IoKind;
 use master_core::master::Master;
-use std::collections::VecDeque;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Step {
-    Allocate,
-    ReleaseKept(AllocationChoice),
-    Get(u16, u16, u8),
-    Check,
-    /// Connection 4 attribute 17, ms.
-    SetInhibit(u16),
-    SetEpr,
-    Release,
-}
 
 pub(super) struct Node {
     pub(super) entry: ScanEntry,
@@ -41,17 +28,14 @@ pub(super) struct Node {
     /// COS/cyclic: when the scanner's data went out, while its acknowledgement is awaited.
     pub(super) output_ack: Option<Instant>,
     pub(super) state: NodeState,
-    pub(super) steps: VecDeque<Step>,
-    pub(super) tx: Option<Transaction>,
-    pub(super) reallocated: bool,
+    /// The bring-up running or last run (`None`: none since the scanner started or stopped).
+    pub(super) engine: Option<BringUp>,
     pub(super) allocated: AllocationChoice,
     pub(super) in_io: bool,
     pub(super) in_io_since: Instant,
     pub(super) last_exchange: Option<Instant>,
     pub(super) awaiting: bool,
     pub(super) rx: Box<IoReassembler<{ decode::MAX_IO_MESSAGE }>>,
-    /// The device answered the current bring-up at least once.
-    pub(super) answered: bool,
     /// A second device was seen at this MAC (Communication Faulted), and what showed it.
     pub(super) duplicate: Option<String>,
     /// The last duplicate MAC ID request seen at this MAC: serial, time.
@@ -66,9 +50,16 @@ impl Node {
     }
 
     /// The node cannot be brought into I/O: `status` with `detail`, then its connections released.
-    pub(super) fn give_up(&mut self, status: NodeStatus, detail: String) {
+    pub(super) fn give_up(&mut self, status: NodeStatus, detail: String, now: Instant) {
         self.set(status, Some(detail));
-        self.steps = VecDeque::from([Step::Release]);
+        if let Some(e) = &mut self.engine {
+            e.give_back(now);
+        }
+    }
+
+    /// `true` while a bring-up step runs or is queued.
+    pub(super) fn busy(&self) -> bool {
+        self.engine.as_ref().is_some_and(|e| !e.is_idle())
     }
 
     pub(super) fn produced(&self) -> u16 {
@@ -115,88 +106,21 @@ impl Node {
 }
 
 impl Scanner {
-    pub(super) fn begin_bringup(
-        &mut self,
-        i: usize,
-        master: &Master<'_, '_>,
-        now: Instant,
-    ) -> Result<(), HarnessError> {
-        let Some(n) = self.nodes.get_mut(i) else { return Ok(()) };
-        n.steps = VecDeque::from([Step::Allocate]);
-        n.reallocated = false;
-        n.answered = false;
-        *n.rx = IoReassembler::new();
-        Self::start_step(n, master, now, self.timing.epr_ms)
-    }
-
-    pub(super) fn start_step(
-        n: &mut Node,
-        master: &Master<'_, '_>,
-        now: Instant,
-        epr_ms: u16,
-    ) -> Result<(), HarnessError> {
-        loop {
-            let Some(&step) = n.steps.front() else {
-                n.tx = None;
-                return Ok(());
-            };
-            let mut data = Vec::new();
-            let (port, service, c, inst) = match step {
-                Step::Check => {
-                    n.steps.pop_front();
-                    Self::check(n);
-                    continue;
-                }
-                Step::Allocate => {
-                    let mut choice = n.choice();
-                    if n.entry.ack_suppression && n.kind.is_cos_cyclic() {
-                        choice |= AllocationChoice::ACK_SUPPRESSION;
-                    }
-                    data.extend_from_slice(&AllocateRequest { choice, allocator: master.config.mac }.emit());
-                    (Port::Group2Only, ServiceCode::AllocateMasterSlave, class::DEVICENET, 1)
-                }
-                Step::ReleaseKept(choice) => {
-                    data.extend_from_slice(&ReleaseRequest { choice }.emit());
-                    (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
-                }
-                Step::Release => {
-                    data.extend_from_slice(&ReleaseRequest { choice: n.allocated }.emit());
-                    (Port::Group2Only, ServiceCode::ReleaseMasterSlave, class::DEVICENET, 1)
-                }
-                Step::Get(c, inst, a) => {
-                    data.push(a);
-                    (Port::Explicit, ServiceCode::GetAttributeSingle, c, inst)
-                }
-                Step::SetInhibit(ms) => {
-                    data.push(17);
-                    data.extend_from_slice(&ms.to_le_bytes());
-                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, 4)
-                }
-                Step::SetEpr => {
-                    data.push(9);
-                    data.extend_from_slice(&epr_ms.to_le_bytes());
-                    (Port::Explicit, ServiceCode::SetAttributeSingle, class::CONNECTION, n.kind.instance())
-                }
-            };
-            let Some(mac) = MacId::new(n.entry.mac) else { return Ok(()) };
-            let req = Request { service, class: c, instance: inst, data: &data };
-            let mut tx = Transaction::new(
-                mac,
-                master.config.mac,
-                port,
-                false,
-                &req,
-                BodyFormat::Class8Instance8,
-                master.config.response_timeout,
-            )?;
-            tx.start(now);
-            n.tx = Some(tx);
-            return Ok(());
+    pub(super) fn begin_bringup(&mut self, i: usize, master: &Master<'_, '_>, now: Instant) {
+        let Some(n) = self.nodes.get_mut(i) else { return };
+        let Some(mac) = MacId::new(n.entry.mac) else { return };
+        let mut choice = n.choice();
+        if n.entry.ack_suppression && n.kind.is_cos_cyclic() {
+            choice |= AllocationChoice::ACK_SUPPRESSION;
         }
+        let mut engine = master.bring_up(mac);
+        engine.push(now, Step::Allocate { port: Port::Group2Only, choice }, Refusal::Report);
+        n.engine = Some(engine);
+        *n.rx = IoReassembler::new();
     }
 
     /// Electronic key and sizes against the scan list (after the identity and sizes were read).
-    pub(super) fn check(n: &mut Node) {
+    pub(super) fn check(n: &mut Node, now: Instant) -> bool {
         let e = &n.entry;
         let id = &n.state.identity;
         let major =
@@ -219,8 +143,8 @@ impl Scanner {
         key("product code", e.product_code, id.product_code, false);
         key("major revision", e.major_revision.map(u16::from), major.map(u16::from), false);
         if !keying.is_empty() {
-            n.give_up(NodeStatus::KeyingMismatch, keying.join("; "));
-            return;
+            n.give_up(NodeStatus::KeyingMismatch, keying.join("; "), now);
+            return false;
         }
         let mut sizes = Vec::new();
         if n.state.input_size != Some(e.input_size) {
@@ -243,134 +167,125 @@ impl Scanner {
             ));
         }
         if !sizes.is_empty() {
-            n.give_up(NodeStatus::SizeMismatch, sizes.join("; "));
+            n.give_up(NodeStatus::SizeMismatch, sizes.join("; "), now);
+            return false;
         }
+        true
     }
 
-    /// Takes the outcome of node `n`'s current step.
-    pub(super) fn finish_step(n: &mut Node, outcome: Result<Reply, ClientError>, now: Instant) {
-        let Some(step) = n.steps.pop_front() else { return };
-        let reply = match outcome {
-            Ok(r) => r,
-            Err(ClientError::Timeout { name, .. }) => {
-                n.steps.clear();
-                if step == Step::Release {
+    /// Takes an event of node `n`'s bring-up engine at `now`: what was read, the statuses, and the
+    /// steps that follow.
+    pub(super) fn take_event(n: &mut Node, event: Event, now: Instant, epr_ms: u16) {
+        let answered = n.engine.as_ref().is_some_and(BringUp::answered);
+        let (step, body) = match event {
+            Event::Answered { step, body } => (step, body),
+            // Still allocated to this master (an earlier run, or a connection the device still
+            // holds): released and allocated again by the engine.
+            Event::Reallocated { .. } => return,
+            Event::Failed(NodeError::Timeout { step, timeout, .. }) => {
+                if matches!(step, Step::Release { .. }) {
                     return;
                 }
-                if n.answered {
+                let status = if n.duplicate.is_some() {
+                    NodeStatus::CommunicationFaulted
+                } else {
+                    NodeStatus::NotPresent
+                };
+                if answered {
                     n.set(
                         NodeStatus::TimedOut,
-                        Some(format!("stopped answering during its bring-up ({name})")),
+                        Some(format!("stopped answering during its bring-up ({timeout})")),
                     );
-                } else if n.state.status == NodeStatus::TimedOut || n.state.status == NodeStatus::NotPresent {
-                    let detail = n.duplicate.clone();
-                    let status = if detail.is_some() {
-                        NodeStatus::CommunicationFaulted
-                    } else {
-                        NodeStatus::NotPresent
-                    };
-                    n.set(status, detail.or_else(|| Some("nothing answers at this MAC".into())));
                 } else {
-                    let status = if n.duplicate.is_some() {
-                        NodeStatus::CommunicationFaulted
-                    } else {
-                        NodeStatus::NotPresent
-                    };
                     n.set(status, n.duplicate.clone().or_else(|| Some("nothing answers at this MAC".into())));
                 }
                 return;
             }
-            Err(ClientError::RequestAborted(r)) => {
-                n.steps.clear();
-                n.set(NodeStatus::ErrorResponse, Some(r));
+            Event::Failed(NodeError::Aborted { reason, .. }) => {
+                n.set(NodeStatus::ErrorResponse, Some(reason));
+                return;
+            }
+            Event::Failed(other) => {
+                n.set(NodeStatus::ErrorResponse, Some(other.to_string()));
                 return;
             }
         };
-        n.answered = true;
-        match (step, reply.body) {
-            (Step::Allocate, ReplyBody::Success(_)) => {
+        // The input is the connection's produced size; the output what Connection 2 consumes
+        // (poll commands, or the scanner's COS/cyclic data, §II.2.5), for a strobe the strobe
+        // command (Connection 3 attribute 8).
+        let output_instance = if n.kind == IoKind::Strobe { 3 } else { 2 };
+        match (step, body) {
+            (Step::Allocate { .. }, ReplyBody::Success(_)) => {
                 n.allocated = n.choice();
-                let mut steps: Vec<Step> =
-                    [1u8, 2, 3, 4, 6, 7].iter().map(|&a| Step::Get(class::IDENTITY, 1, a)).collect();
-                // The input is the connection's produced size; the output what Connection 2
-                // consumes (poll commands, or the scanner's COS/cyclic data, §II.2.5), for a strobe
-                // the strobe command (Connection 3 attribute 8).
-                let output_instance = if n.kind == IoKind::Strobe { 3 } else { 2 };
-                steps.extend([
-                    Step::Get(class::CONNECTION, n.kind.instance(), 7),
-                    Step::Get(class::CONNECTION, output_instance, 8),
-                    Step::Check,
-                ]);
-                if let (IoKind::ChangeOfState, Some(ms)) = (n.kind, n.entry.inhibit_ms) {
-                    steps.push(Step::SetInhibit(ms));
+                if let Some(e) = &mut n.engine {
+                    for a in [1u8, 2, 3, 4, 6, 7] {
+                        e.get(now, class::IDENTITY, 1, a, Refusal::Report);
+                    }
+                    e.get(now, class::CONNECTION, n.kind.instance(), 7, Refusal::Report);
+                    e.get(now, class::CONNECTION, output_instance, 8, Refusal::Report);
                 }
-                steps.push(Step::SetEpr);
-                n.steps = steps.into();
             }
-            (Step::Allocate, ReplyBody::Error { general: GeneralStatus::AlreadyInRequestedState, .. })
-                if !n.reallocated =>
-            {
-                // Still allocated to this master (an earlier run, or a connection the device
-                // still holds): release, allocate again.
-                n.reallocated = true;
-                n.steps = VecDeque::from([
-                    Step::ReleaseKept(n.kind.choice()),
-                    Step::ReleaseKept(AllocationChoice::EXPLICIT),
-                    Step::Allocate,
-                ]);
-            }
-            (Step::Allocate, ReplyBody::Error { general, additional }) => {
+            (Step::Allocate { .. }, ReplyBody::Error { general, additional }) => {
                 let why = if general == GeneralStatus::ObjectStateConflict && additional == 0x01 {
                     "allocated by another master".to_string()
                 } else {
                     format!("allocation refused: {}", decode::error_text(general, additional))
                 };
                 n.set(NodeStatus::ErrorResponse, Some(why));
-                n.steps.clear();
             }
-            (Step::ReleaseKept(choice), _) => n.allocated = n.allocated.difference(choice),
-            (Step::Release, _) => n.allocated = AllocationChoice::empty(),
-            (Step::Get(c, i, a), ReplyBody::Success(data)) => match (c, i, a) {
-                (class::IDENTITY, 1, a) => {
-                    n.state.identity.take_attribute(a, &data);
+            (Step::Release { .. }, _) => n.allocated = AllocationChoice::empty(),
+            (Step::Get { class: c, instance: i, attribute: a }, ReplyBody::Success(data)) => {
+                match (c, i, a) {
+                    (class::IDENTITY, 1, a) => {
+                        n.state.identity.take_attribute(a, &data);
+                    }
+                    (class::CONNECTION, i, 7) if i == n.kind.instance() => {
+                        n.state.input_size = decode::u16_of(&data)
+                    }
+                    (class::CONNECTION, 2, 8) => n.state.output_size = decode::u16_of(&data),
+                    (class::CONNECTION, 3, 8) => {
+                        // The node's output is its bit of the strobe command: no output data.
+                        n.strobe_consumed = decode::u16_of(&data);
+                        n.state.output_size = Some(0);
+                    }
+                    _ => {}
                 }
-                (class::CONNECTION, i, 7) if i == n.kind.instance() => {
-                    n.state.input_size = decode::u16_of(&data)
+                // The last read: the key and sizes against the scan list, then establish.
+                if (c, i, a) == (class::CONNECTION, output_instance, 8) && Self::check(n, now) {
+                    if let Some(e) = &mut n.engine {
+                        if let (IoKind::ChangeOfState, Some(ms)) = (n.kind, n.entry.inhibit_ms) {
+                            e.set(now, (class::CONNECTION, 4, 17), &ms.to_le_bytes(), Refusal::Report);
+                        }
+                        let epr = epr_ms.to_le_bytes();
+                        e.set(now, (class::CONNECTION, n.kind.instance(), 9), &epr, Refusal::Report);
+                    }
                 }
-                (class::CONNECTION, 2, 8) => n.state.output_size = decode::u16_of(&data),
-                (class::CONNECTION, 3, 8) => {
-                    // The node's output is its bit of the strobe command: no output data.
-                    n.strobe_consumed = decode::u16_of(&data);
-                    n.state.output_size = Some(0);
-                }
-                _ => {}
-            },
-            (Step::Get(c, i, a), ReplyBody::Error { general, additional }) => {
+            }
+            (Step::Get { class: c, instance: i, attribute: a }, ReplyBody::Error { general, additional }) => {
                 // Identity attributes are optional to read (the key then compares "nothing");
                 // the connection sizes are not.
                 if c == class::CONNECTION {
-                    n.give_up(
-                        NodeStatus::ErrorResponse,
-                        format!(
-                            "{} {}: {}",
-                            decode::class_text(c),
-                            decode::attribute_text(c, i, a),
-                            decode::error_text(general, additional)
-                        ),
+                    let why = format!(
+                        "{} {}: {}",
+                        decode::class_text(c),
+                        decode::attribute_text(c, i, a),
+                        decode::error_text(general, additional)
                     );
+                    n.give_up(NodeStatus::ErrorResponse, why, now);
                 }
             }
-            (Step::SetInhibit(_), ReplyBody::Success(_)) => {}
-            (Step::SetInhibit(ms), ReplyBody::Error { general, additional }) => {
-                n.give_up(
-                    NodeStatus::ErrorResponse,
-                    format!(
-                        "production inhibit time {ms} ms refused: {}",
-                        decode::error_text(general, additional)
-                    ),
+            (Step::Set { attribute: 17, value, .. }, ReplyBody::Error { general, additional }) => {
+                let ms = match value.as_slice() {
+                    [lo, hi] => u16::from_le_bytes([*lo, *hi]),
+                    _ => 0,
+                };
+                let why = format!(
+                    "production inhibit time {ms} ms refused: {}",
+                    decode::error_text(general, additional)
                 );
+                n.give_up(NodeStatus::ErrorResponse, why, now);
             }
-            (Step::SetEpr, ReplyBody::Success(_)) => {
+            (Step::Set { attribute: 9, .. }, ReplyBody::Success(_)) => {
                 n.in_io = true;
                 n.in_io_since = now;
                 n.last_exchange = None;
@@ -385,13 +300,12 @@ impl Scanner {
                     n.state.output = vec![0; n.output_len()];
                 }
             }
-            (Step::SetEpr, ReplyBody::Error { general, additional }) => {
-                n.give_up(
-                    NodeStatus::ErrorResponse,
-                    format!("expected packet rate refused: {}", decode::error_text(general, additional)),
-                );
+            (Step::Set { attribute: 9, .. }, ReplyBody::Error { general, additional }) => {
+                let why =
+                    format!("expected packet rate refused: {}", decode::error_text(general, additional));
+                n.give_up(NodeStatus::ErrorResponse, why, now);
             }
-            (Step::Check, _) => {}
+            (Step::Set { .. }, _) => {}
         }
     }
 }
