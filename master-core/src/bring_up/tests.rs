@@ -388,3 +388,24 @@ fn each_allocate_is_released_and_allocated_again_once() {
     let reallocated = events(&mut n).iter().filter(|e| matches!(e, Event::Reallocated { .. })).count();
     assert_eq!(reallocated, 2);
 }
+
+#[test]
+fn a_refused_give_back_is_reported_not_a_failure() {
+    let mut n = node();
+    n.allocate(at(0), Port::Group2Only, AllocationChoice::EXPLICIT);
+    let _ = sent(&mut n);
+    n.handle_frame(&answer(&[0x00, 0xCB, 0x00]), at(1));
+    n.give_back(at(2));
+    assert_eq!(sent(&mut n), vec![(0x42E, vec![0x00, 0x4C, 0x03, 0x01, 0x01])]);
+    n.handle_frame(&answer(&[0x00, 0x94, 0x0B, 0x02]), at(3));
+    let events = events(&mut n);
+    assert!(
+        matches!(
+            events.last(),
+            Some(Event::Answered { step: Step::Release { .. }, body: ReplyBody::Error { .. } })
+        ),
+        "{events:?}"
+    );
+    // Not released as far as the engine knows.
+    assert_eq!(n.held(), AllocationChoice::EXPLICIT);
+}
