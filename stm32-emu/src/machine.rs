@@ -265,7 +265,8 @@ impl Stm32 {
     /// Programs the loadable segments of an ELF executable into flash at their load addresses
     /// (as a debug probe flashes it), then performs a power-on reset.
     pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), Fault> {
-        for (address, data) in crate::cpu::elf::load_segments(elf)? {
+        let segments = crate::cpu::elf::load_segments(elf).map_err(|e| Fault::Elf(e.to_string()))?;
+        for (address, data) in segments {
             let offset = address.checked_sub(FLASH_BASE).filter(|o| o + data.len() as u32 <= FLASH_SIZE);
             let Some(offset) = offset else {
                 return Err(Fault::Elf(format!("segment at {address:#010x} is not in flash")));
