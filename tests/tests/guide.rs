@@ -1,7 +1,7 @@
 //! The user guide (`docs/`, an mdBook) and the README that leads into it.
 //!
-//! - `readme_is_a_front_door`: the README is at most 200 lines and every relative link in it names
-//!   a file of the repository.
+//! - `readme_is_a_front_door`: the README is at most 200 lines, its layout table has a row for
+//!   every workspace member, and every relative link in it names a file of the repository.
 //! - `cli_reference_is_current` (ignored: needs the programs built, `cargo build --bins`): every
 //!   command's `--help` of `dnet-master`, `dnet-eds`, `dnet-soft-slave` and `dnet-sim-breaker`,
 //!   found by walking each program's `Commands:` lists, rendered into `docs/src/reference/cli.md`
@@ -45,6 +45,19 @@ fn readme_is_a_front_door() {
     assert!(
         lines <= README_MAX_LINES,
         "README.md has {lines} lines; at most {README_MAX_LINES}: move the rest into the guide (docs/src/)"
+    );
+    let cargo = std::fs::read_to_string(root().join("Cargo.toml")).expect("Cargo.toml");
+    let members = cargo.lines().find_map(|l| l.strip_prefix("members = [")).expect("the workspace's members");
+    let unlisted: Vec<&str> = members
+        .split('"')
+        .skip(1)
+        .step_by(2)
+        .filter(|member| !readme.contains(&format!("| `{member}/` |")))
+        .collect();
+    assert!(members.contains('"'), "no member found in Cargo.toml's members line");
+    assert!(
+        unlisted.is_empty(),
+        "the README's layout table has no row for the workspace members {unlisted:?}"
     );
     let links = markdown_links(&readme);
     assert!(!links.is_empty(), "the README links into the guide, yet no link was found in it");
