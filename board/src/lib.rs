@@ -73,6 +73,7 @@ pub use settings::{Settings, SettingsStore};
     feature = "fault-usart-brr"
 ))]
 #[used]
+#[allow(unsafe_code)] // #[no_mangle] (an unsafe attribute): the symbol must keep its name for firmware-size
 #[no_mangle]
 pub static BOARD_FAULT_SELF_TEST_ONLY: u8 = 0;
 pub use switches::{Resolved, SwitchReading};
