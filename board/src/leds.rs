@@ -23,7 +23,9 @@
 //! | red (major fault) | any | on |
 //! | flashing green (standby) | any | as NS in the green half, off in the other |
 //!
-//! The power-up test lights it for the two MS steps (0.5 s), then the NS steps leave it off.
+//! In the power-up test it is lit for the MS red step only (0.25–0.5 s after power-up): in the MS
+//! green step the NS is still off, and the NS steps leave it off (checked on the exact ELF by
+//! exact-firmware's `leds` scenario).
 //!
 //! The bus tells the rest (the Identity object's status, `dnet-master`).
 //!
