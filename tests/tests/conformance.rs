@@ -4,13 +4,13 @@
 use can_io::bus::Bitrate;
 use can_io::sim::{PowerOn, SimBus};
 use devicenet::MacId;
-use master_core::master::MasterConfig;
-use master_core::session::Session;
-use master_harness::cli::{run, run_with};
 use dnet_conformance::mutants::{self, Mutant, MUTANTS};
 use dnet_conformance::self_test::{self, SelfTestReport};
 use dnet_conformance::{self as conformance, Category, Grade, Observer, Stopped, SuiteOptions, SuiteReport};
 use harness_common::console::Console;
+use master_core::master::MasterConfig;
+use master_core::session::Session;
+use master_harness::cli::{run, run_with};
 use system_tests::{mac, sim_bus};
 
 fn suite(bus: &mut can_io::sim::SimBus, target: MacId) -> SuiteReport {
