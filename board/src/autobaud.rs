@@ -17,7 +17,7 @@
 //! 3. A rate is **left** at the first error seen there (a wrong rate shows stuff, form or CRC
 //!    errors at the first frame on the bus), or after [`DWELL`] with no frame (a quiet bus).
 //! 4. Once found, the node re-initialises the controller in normal mode at that rate and joins
-//!    (duplicate MAC ID check, devicenet-notes §7.1). Nothing is stored: the rate is stored only
+//!    (duplicate MAC ID check, protocol §7.1). Nothing is stored: the rate is stored only
 //!    when the master sets it (DeviceNet object attribute 2), like a network-set MAC ID.
 //!
 //! Sources: WRC-CANX user manual (Western Reserve Controls / ProSoft, PUB 14.1, §5.1.4
@@ -37,7 +37,7 @@ use devicenet::slave::BaudRate;
 use devicenet::{Duration, Instant};
 
 /// How long a rate is listened to without a frame before the next is tried: 2 s, so that a
-/// joining node's two duplicate MAC ID requests, 1 s apart (devicenet-notes §7.1), fall in one
+/// joining node's two duplicate MAC ID requests, 1 s apart (protocol §7.1), fall in one
 /// dwell, while a bus with a scanning master (frames every few milliseconds) is found at once.
 pub const DWELL: Duration = Duration::from_millis(2000);
 

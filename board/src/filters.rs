@@ -1,5 +1,5 @@
 //! CAN acceptance filtering: only the frames a group-2-only slave consumes reach the core
-//! (notes §8, docs/io-connections.md).
+//! (protocol §8, docs/io-connections.md).
 //!
 //! - Every Group 2 message carrying **its own** MAC ID in the MAC field (`0x400 | mac << 3 |
 //!   message`): the COS/cyclic acknowledge (message 2), the explicit request (4), the poll command
@@ -35,7 +35,7 @@ pub const STROBE_ID: u16 = if cfg!(feature = "fault-filter") { NOTHING } else { 
 /// Offline Connection Set's bank is left as it is).
 const NOTHING: u16 = 0x7FF;
 /// The Offline Connection Set's request identifiers: Communication Faulted request and offline
-/// ownership request (notes §1.4).
+/// ownership request (protocol §1.4).
 pub const OFFLINE_REQUESTS: [u16; 2] = [0x7ED, 0x7EF];
 /// The mask of every bit but the one in which the two [`OFFLINE_REQUESTS`] differ: with the first
 /// of them it passes both and nothing else.

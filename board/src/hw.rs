@@ -505,7 +505,7 @@ pub fn enable_can_error_interrupts() {
 
 /// Turns the controller's automatic bus-off management (CAN_MCR.ABOM, RM0090 §32.9.2) off:
 /// bus-off then lasts until software re-enters and leaves initialisation mode (§32.7.6), which the
-/// converter asks for only with the bus-off interrupt setting 1 (devicenet-notes §7.2). bxcan 0.8's
+/// converter asks for only with the bus-off interrupt setting 1 (protocol §7.2). bxcan 0.8's
 /// `enable_non_blocking` sets ABOM on every start; with it a node set to stay off the bus (BOI 0)
 /// would rejoin by itself after 128 × 11 recessive bits.
 #[cfg(not(feature = "emulated"))]

@@ -29,7 +29,7 @@
 //!
 //! The bus tells the rest (the Identity object's status, `dnet-master`).
 //!
-//! The core decides what to show ([`devicenet::led`], notes §7.3, power-up test included);
+//! The core decides what to show ([`devicenet::led`], protocol §7.3, power-up test included);
 //! [`bsrr`] turns that into one write of the port's bit set/reset register, so the firmware only
 //! writes it.
 

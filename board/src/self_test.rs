@@ -3,7 +3,7 @@
 //! output is looped back to its receiver inside the chip and nothing reaches the CAN_TX pin, so
 //! the test never disturbs the network) and must receive it back, unchanged, within
 //! [`TIMEOUT`]. A failure is a major unrecoverable fault: the converter reports it in the
-//! Identity status (bit 11) and shows Module Status solid red (devicenet-notes §6.2, §7.3), and
+//! Identity status (bit 11) and shows Module Status solid red (protocol §6.2, §7.3), and
 //! the node stays off the bus.
 //!
 //! What it proves: the CAN1 clock, the controller's leaving of initialisation mode, its bit

@@ -9,7 +9,7 @@
 //! that new nodes can be commissioned one at a time from it (Offline Connection Set, ADR):
 //! Rockwell Automation XM-440 user manual (GMSI10-UM009D-EN-P, DeviceNet object attribute 1,
 //! default 63) and 193-EDN (193-UM006A-EN-P, "Nonvolatile MAC ID", default 63); RA 855T, as
-//! summarised in devicenet-notes §II.6 ("several new nodes powered at default MAC 63"). Not
+//! summarised in protocol §II.6 ("several new nodes powered at default MAC 63"). Not
 //! confirmed: that the DeviceNet specification itself requires 63 (its text was not retrieved).
 //!
 //! Each switch connects its pin to ground against the internal pull-up, so a switch that is **on**

@@ -1,5 +1,5 @@
 //! The board's DeviceNet serial number (Identity attribute 6, the serial of the duplicate MAC ID
-//! check, devicenet-notes §7.1), derived from the MCU's 96-bit unique device ID.
+//! check, protocol §7.1), derived from the MCU's 96-bit unique device ID.
 //!
 //! Every STM32F4 carries a factory-programmed unique ID of three 32-bit words at [`UID_ADDRESS`]
 //! (RM0090 §39.1: bits 31:0 the X and Y coordinates on the wafer, bits 63:32 the wafer number and

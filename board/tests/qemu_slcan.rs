@@ -1,6 +1,6 @@
 //! The emulated firmware answers over SLCAN: `scripts/qemu-firmware` runs the real firmware
 //! (feature `emulated`) on QEMU's netduinoplus2, and this test plays the master on the USART1
-//! pseudo-terminal, byte for byte against the reference sequence of notes §2.
+//! pseudo-terminal, byte for byte against the reference sequence of protocol §2.
 //!
 //! Run it (the check script's "emulated firmware run" stage does):
 //!
@@ -182,12 +182,12 @@ fn boot(flash_dir: Option<&std::path::Path>) -> (Emulator, Link) {
 }
 
 /// Opens the adapter, sees the duplicate MAC ID checks and allocates the explicit connection
-/// (frames 3-8 of notes §2).
+/// (frames 3-8 of protocol §2).
 fn bring_up_explicit(link: &mut Link, step: Duration) {
     link.send("O");
     assert_eq!(link.reply(step).as_deref(), Some(""), "{}", link.transcript);
 
-    // Frames 3-4 of notes §2: the two duplicate MAC ID check requests (held by the closed
+    // Frames 3-4 of protocol §2: the two duplicate MAC ID check requests (held by the closed
     // adapter until it opened, as a mailbox is on a bus with no other node).
     for i in [2, 3] {
         assert_eq!(link.frame(step), Some(expected(i)), "frame {}\n{}", i + 1, link.transcript);
@@ -251,7 +251,7 @@ fn settings_survive_a_qemu_restart() {
     std::fs::create_dir_all(&flash_dir).unwrap();
     let step = Duration::from_secs(5);
     // Explicit requests from the master (MAC 0) to MAC 5 (Group 2 message 4) and the answers
-    // (message 3); DeviceNet object, instance 1, attribute 3: bus-off interrupt (notes §7.2).
+    // (message 3); DeviceNet object, instance 1, attribute 3: bus-off interrupt (protocol §7.2).
     let request = |data: &[u8]| {
         let line = slcan::frame_line(&CanFrame::from_raw(0x42C, data).unwrap());
         String::from_utf8(line[..line.len() - 1].to_vec()).unwrap()

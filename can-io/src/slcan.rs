@@ -23,7 +23,7 @@
 //!
 //! Frames from the node go to the host as `tIIILDD…\r` (upper-case hex, no timestamp). While the
 //! channel is closed the adapter is off the bus: the node's frames stay pending, exactly as an
-//! unacknowledged frame stays in a bxCAN mailbox on a bus with no other node (notes §7.1.4),
+//! unacknowledged frame stays in a bxCAN mailbox on a bus with no other node (protocol §7.1.4),
 //! and go out once the host opens the channel. The bit rate is recorded but not enforced.
 //!
 //! ## No-panic contract

@@ -4,7 +4,7 @@
 //! did, the device's identity as read during the run, the date and time (UTC), the tool version,
 //! the transport and its timestamp source, and both MACs. Then the verdict table and, for every
 //! check, its expectations, measurements and a sequence diagram of its frames as inline SVG. The
-//! bring-up of notes §2 is the first check, so its 28 frames are the first diagram.
+//! bring-up of protocol §2 is the first check, so its 28 frames are the first diagram.
 //!
 //! The page cites the protocol clauses by name ([`clause_names`]: "Duplicate MAC ID check
 //! (network access)"), never the section numbers of the project's notes, which mean nothing to a
@@ -258,11 +258,11 @@ fn clause_name(number: &str) -> Option<&'static str> {
     })
 }
 
-/// `text` with every citation of a notes section (`§3.4`, `notes §9.6`) replaced by the name of
+/// `text` with every citation of a notes section (`§3.4`, `protocol §9.6`) replaced by the name of
 /// its clause.
 #[must_use]
 pub fn clause_names(text: &str) -> String {
-    let text = text.replace("notes §", "§");
+    let text = text.replace("protocol §", "§");
     let mut out = String::with_capacity(text.len());
     let mut rest = text.as_str();
     while let Some(at) = rest.find('§') {
@@ -473,7 +473,7 @@ mod tests {
             "Duplicate MAC ID check (network access) (1), Duplicate MAC ID check message"
         );
         assert_eq!(
-            clause_names("0x08/0x03 (notes §9.6)"),
+            clause_names("0x08/0x03 (protocol §9.6)"),
             "0x08/0x03 (Scanner practice (not fixed by the specification))"
         );
         assert_eq!(

@@ -2,7 +2,8 @@
 //!
 //! The conformance suite (`dnet-master conformance --mac N`): the checks a scanner and a
 //! conformance lab apply to a group-2-only DeviceNet slave, run against any such device on any bus,
-//! category by category, each citing the section of `../shared/devicenet-notes.md` it checks.
+//! category by category, each citing the section of the guide's protocol reference it checks
+//! (`docs/src/protocol/`, cited as protocol §N).
 //!
 //! ## Grades
 //!
@@ -319,7 +320,7 @@ impl Timestamps {
     }
 }
 
-/// The device's identity as read during the run (Identity object instance 1, notes §6.2); a
+/// The device's identity as read during the run (Identity object instance 1, protocol §6.2); a
 /// value the run did not read is `None` ("not read" in the reports).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct DeviceIdentity {

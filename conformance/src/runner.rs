@@ -41,7 +41,7 @@ pub(crate) struct Facts {
     /// The EPR the device applies for the suite's EPR.
     pub applied_epr: Option<u16>,
     /// The step between the EPRs applied for the suite's EPR and for 3 ms more (epr-round-trip):
-    /// the device's timer resolution, as far as the rounding shows it (notes §5.3).
+    /// the device's timer resolution, as far as the rounding shows it (protocol §5.3).
     pub epr_step: Option<u16>,
 }
 
@@ -723,7 +723,7 @@ impl<'s, 'b> Runner<'s, 'b> {
         m
     }
 
-    /// The fragment frames of `message` (notes §4.1): 6 body bytes each, counts from 0.
+    /// The fragment frames of `message` (protocol §4.1): 6 body bytes each, counts from 0.
     pub fn fragments(message: &[u8]) -> Vec<Vec<u8>> {
         let Some((&h, body)) = message.split_first() else { return Vec::new() };
         let header = h | 0x80;

@@ -11,7 +11,7 @@
 -- identifier 0x000-0x7EF in the "can.id" table, so SocketCAN captures (link type 227) decode with
 -- no further option; it is also offered under Decode As... (CAN next level dissector).
 --
--- Protocol facts: ../../../shared/devicenet-notes.md (sections cited as "notes §n").
+-- Protocol facts: the guide's protocol reference, docs/src/protocol/ (sections cited as "protocol §n").
 -- Reassembly is done in Lua tables keyed by device MAC and direction on the first pass
 -- (pinfo.visited false); what each frame needs later (the reassembled bytes, the request a
 -- response answers, the body format) is stored per frame number, so a frame dissected again in
@@ -20,18 +20,18 @@
 local dnetx = Proto("dnetx", "DeviceNet (explicit messaging, fragmentation, connection set)")
 
 ---------------------------------------------------------------------------------------------
--- Names (devicenet/src/objects.rs, devicenet/src/explicit.rs; notes §1-§3, §5, §6)
+-- Names (devicenet/src/objects.rs, devicenet/src/explicit.rs; protocol §1-§3, §5, §6)
 
 local group_names = { [1] = "Group 1", [2] = "Group 2", [3] = "Group 3", [4] = "Group 4" }
 
--- notes §1.3
+-- protocol §1.3
 local g1_names = {
     [12] = "Slave's multicast poll response",
     [13] = "Slave's I/O change-of-state/cyclic message",
     [14] = "Slave's I/O bit-strobe response",
     [15] = "Slave's I/O poll response or change-of-state/cyclic acknowledge",
 }
--- notes §1.2
+-- protocol §1.2
 local g2_names = {
     [0] = "Master's I/O bit-strobe command",
     [1] = "Master's I/O multicast poll command",
@@ -42,7 +42,7 @@ local g2_names = {
     [6] = "Group 2 Only unconnected explicit request",
     [7] = "Duplicate MAC ID check message",
 }
--- notes §1.4
+-- protocol §1.4
 local g3_names = {
     [5] = "Unconnected (UCMM) explicit response",
     [6] = "Unconnected (UCMM) explicit request",
@@ -118,7 +118,7 @@ local general_status_names = {
     [0x2A] = "Group 2 only server general failure",
 }
 
--- notes §3.4 (GC/AN additional codes of the connection set)
+-- protocol §3.4 (GC/AN additional codes of the connection set)
 local additional_names = {
     [0xFF] = "no additional code", [0x01] = "allocation conflict",
     [0x02] = "invalid allocation/release choice",
@@ -141,7 +141,7 @@ local identity_state_names = {
     [0] = "non-existent", [1] = "self testing", [2] = "standby", [3] = "operational",
     [4] = "major recoverable fault", [5] = "major unrecoverable fault",
 }
--- notes §3.4, bit 0 first
+-- protocol §3.4, bit 0 first
 local choice_bits = {
     { 0x01, "explicit" }, { 0x02, "poll" }, { 0x04, "bit_strobe" }, { 0x08, "multicast_poll" },
     { 0x10, "change_of_state" }, { 0x20, "cyclic" }, { 0x40, "ack_suppression" }, { 0x80, "reserved" },
@@ -369,7 +369,7 @@ end
 ---------------------------------------------------------------------------------------------
 -- Explicit message bodies: parse into a plain table (no tree), then text and tree from it.
 
--- Widths of class and instance per body format (notes §3.1).
+-- Widths of class and instance per body format (protocol §3.1).
 local format_widths = { [0] = { 1, 1 }, [1] = { 1, 2 }, [2] = { 2, 2 }, [3] = { 2, 1 } }
 
 local function read_le(s, i, w)
@@ -571,7 +571,7 @@ end
 
 local function next_count(c) return (c + 1) % 64 end
 
--- Breaches of the fragmentation protocol (notes §4; decode/fragments.rs FragmentViolation):
+-- Breaches of the fragmentation protocol (protocol §4; decode/fragments.rs FragmentViolation):
 -- " (protocol error: <what>; <what the receiver does>)", exactly as the Rust decoder writes it.
 local function skipped_text(expected, got)
     local ahead = (got - expected) % 64
@@ -604,7 +604,7 @@ end
 
 local ACK_IN_IO_ERROR = protocol_error("acknowledge-type fragment, which I/O fragmentation does not have", "series dropped")
 
--- Explicit reassembly of one direction (notes §4.1; devicenet ExplicitReassembler).
+-- Explicit reassembly of one direction (protocol §4.1; devicenet ExplicitReassembler).
 -- `data` is the frame's whole CAN data; returns status, reason.
 local MAX_EXPLICIT = 1024
 local function explicit_receive(rx, data, number, ctx)
@@ -681,7 +681,7 @@ local function learn_body(d, body, channel, ctx)
     end
 end
 
--- Heartbeat / shutdown (notes §3.7, §II.5): a response whose service is 0xCD/0xCE.
+-- Heartbeat / shutdown (protocol §3.7, §II.5): a response whose service is 0xCD/0xCE.
 local function is_broadcast(data)
     local s = data:byte(2)
     return #data >= 2 and bit.band(data:byte(1), 0x80) == 0 and (s == 0xCD or s == 0xCE)
@@ -718,7 +718,7 @@ local function explicit_first_pass(mac, data, channel, number)
     return ctx
 end
 
--- I/O data on a connection of `size` bytes (notes §4.2; decode.rs io_data).
+-- I/O data on a connection of `size` bytes (protocol §4.2; decode.rs io_data).
 local MAX_IO = 448
 local function io_first_pass(series, size, data, number)
     local ctx = { kind = "io" }
@@ -758,7 +758,7 @@ local function io_first_pass(series, size, data, number)
         return ctx
     end
     if kind == 0 then
-        -- A first fragment restarts the series (notes §4.2): one still in progress lost its end.
+        -- A first fragment restarts the series (protocol §4.2): one still in progress lost its end.
         if series.next ~= nil then ctx.unfinished = unfinished_error(series.next) end
         reset(series)
         if count == 0x3F then
@@ -803,7 +803,7 @@ local function io_first_pass(series, size, data, number)
 end
 
 ---------------------------------------------------------------------------------------------
--- The identifier (notes §1.1)
+-- The identifier (protocol §1.1)
 
 local function split_id(id)
     if id < 0x400 then
@@ -1145,7 +1145,7 @@ local function group3(t, tvb, msg, src, data)
     return string.format("G3 message %d from MAC %d (dynamic connection): %s", msg, src, hex(data))
 end
 
--- Group 4: the Offline Connection Set (notes §3.8, §II.6).
+-- Group 4: the Offline Connection Set (protocol §3.8, §II.6).
 local function group4(t, tvb, msg, data)
     local SET = "Offline Connection Set:"
     local n = #data
@@ -1344,7 +1344,7 @@ function dnetx.dissector(tvb, pinfo, tree)
     return accepted(tvb)
 end
 
--- Every 11-bit identifier DeviceNet uses (notes §1.1: 0x7F0-0x7FF are invalid, shown as such).
+-- Every 11-bit identifier DeviceNet uses (protocol §1.1: 0x7F0-0x7FF are invalid, shown as such).
 DissectorTable.get("can.id"):add("0-2047", dnetx)
 -- And Decode As... > CAN next level dissector.
 local subdissector = DissectorTable.get("can.subdissector")

@@ -1,4 +1,4 @@
-//! Runs the core's slave node through the 28-frame bring-up of `../shared/devicenet-notes.md` §2
+//! Runs the core's slave node through the 28-frame bring-up of protocol §2
 //! on a virtual clock, with a scripted master, and prints the frame-by-frame table with a verdict
 //! for each frame. Exits non-zero on any difference.
 //!
@@ -44,10 +44,10 @@ fn main() -> ExitCode {
         }
     }
     if failures == 0 {
-        println!("\n28 frames, all as in devicenet-notes §2");
+        println!("\n28 frames, all as in protocol §2");
         ExitCode::SUCCESS
     } else {
-        println!("\n{failures} frame(s) differ from devicenet-notes §2");
+        println!("\n{failures} frame(s) differ from protocol §2");
         ExitCode::FAILURE
     }
 }

@@ -1,5 +1,5 @@
 //! Explicit messages: the header byte, service codes, message body formats, requests, responses
-//! and error responses (devicenet-notes §3.1–§3.3).
+//! and error responses (protocol §3.1–§3.3).
 //!
 //! A *message* here is what one explicit transaction carries after reassembly: the header byte
 //! followed by the *body* (service byte onward). Unfragmented messages fit in one frame (header +
@@ -64,9 +64,9 @@ impl fmt::Display for ExplicitError {
 
 impl core::error::Error for ExplicitError {}
 
-/// The explicit header byte: `frag(7) | XID(6) | MAC(5–0)` (notes §3.1).
+/// The explicit header byte: `frag(7) | XID(6) | MAC(5–0)` (protocol §3.1).
 ///
-/// In the Predefined Master/Slave Connection Set the MAC is always the master's (notes §2).
+/// In the Predefined Master/Slave Connection Set the MAC is always the master's (protocol §2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Header {
@@ -162,7 +162,7 @@ macro_rules! code_enum {
 }
 
 code_enum! {
-    /// A service code, without the R/R bit (notes §3.2). Codes 0x4B–0x4E are object-specific: the
+    /// A service code, without the R/R bit (protocol §3.2). Codes 0x4B–0x4E are object-specific: the
     /// names below are those of the DeviceNet object; UCMM and Group 4 reuse the numbers.
     pub enum ServiceCode {
         /// 0x01
@@ -223,7 +223,7 @@ code_enum! {
 }
 
 code_enum! {
-    /// A CIP general status code (notes §3.3).
+    /// A CIP general status code (protocol §3.3).
     pub enum GeneralStatus {
         /// 0x00
         Success = 0x00 => "success",
@@ -310,7 +310,7 @@ code_enum! {
     }
 }
 
-/// Additional status codes used with the Predefined Master/Slave Connection Set (notes §3.3, §3.4).
+/// Additional status codes used with the Predefined Master/Slave Connection Set (protocol §3.3, §3.4).
 pub mod additional {
     /// No additional information.
     pub const NONE: u8 = 0xFF;
@@ -336,7 +336,7 @@ pub mod additional {
     }
 }
 
-/// The message body format: the widths of the class and instance IDs in a request (notes §3.1).
+/// The message body format: the widths of the class and instance IDs in a request (protocol §3.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum BodyFormat {
@@ -408,7 +408,7 @@ fn read_le(bytes: &[u8]) -> u16 {
     }
 }
 
-/// An explicit request body: service, class, instance and service data (notes §3.1).
+/// An explicit request body: service, class, instance and service data (protocol §3.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Request<'a> {
     /// The service requested.
@@ -505,7 +505,7 @@ impl<'a> Request<'a> {
     }
 }
 
-/// An explicit response body (notes §3.2, §3.3).
+/// An explicit response body (protocol §3.2, §3.3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Response<'a> {
     /// `<service | 0x80> <data…>`.

@@ -1,6 +1,6 @@
 //! Fragmentation: the acknowledged protocol that carries explicit messages longer than one frame,
 //! and the unacknowledged one that carries I/O data on connections larger than 8 bytes
-//! (devicenet-notes §4.1, §4.2).
+//! (protocol §4.1, §4.2).
 //!
 //! Both protocols put a *fragmentation byte* ([`FragmentByte`]) in front of every piece: bits 7–6
 //! the type ([`FragmentKind`]: first, middle, last, ack), bits 5–0 the count.
@@ -13,7 +13,7 @@
 //! ## Counts
 //!
 //! The first fragment has count 0 and each following one counts up by one. After 63 the count
-//! wraps to 0: the rollover target is **UNCONFIRMED** (notes §4.1, §9.4); AN wraps 63 → 0 and this
+//! wraps to 0: the rollover target is **UNCONFIRMED** (protocol §4.1, §9.4); AN wraps 63 → 0 and this
 //! crate does the same. A first fragment with count 0x3F ([`SINGLE_FRAGMENT_COUNT`]) is a
 //! one-frame series: that frame holds the whole message.
 //!
@@ -42,20 +42,20 @@ use core::iter::FusedIterator;
 pub type Payload = heapless::Vec<u8, 8>;
 
 /// How long the explicit sender waits for the ack of a fragment before re-sending it once, and
-/// then again before giving up (notes §4.1: JB uses 1 s and one retry; the normative values are
-/// UNCONFIRMED, notes §9.4).
+/// then again before giving up (protocol §4.1: JB uses 1 s and one retry; the normative values are
+/// UNCONFIRMED, protocol §9.4).
 pub const ACK_TIMEOUT: Duration = Duration::from_secs(1);
 
-/// The count of a first fragment that is the whole message (a one-frame series, notes §4.1, §4.2).
+/// The count of a first fragment that is the whole message (a one-frame series, protocol §4.1, §4.2).
 pub const SINGLE_FRAGMENT_COUNT: u8 = 0x3F;
 
-/// Message body bytes carried by one explicit fragment (notes §4.1).
+/// Message body bytes carried by one explicit fragment (protocol §4.1).
 pub const EXPLICIT_FRAGMENT_BODY: usize = 6;
 
-/// Data bytes carried by one I/O fragment (notes §4.2).
+/// Data bytes carried by one I/O fragment (protocol §4.2).
 pub const IO_FRAGMENT_DATA: usize = 7;
 
-/// The fragmentation bit of the explicit header byte (notes §3.1).
+/// The fragmentation bit of the explicit header byte (protocol §3.1).
 const FRAG_BIT: u8 = 0x80;
 
 /// The count field of the fragmentation byte.
@@ -126,7 +126,7 @@ impl fmt::Display for FragmentError {
 
 impl core::error::Error for FragmentError {}
 
-/// The type field of the fragmentation byte, bits 7–6 (notes §4.1).
+/// The type field of the fragmentation byte, bits 7–6 (protocol §4.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FragmentKind {
@@ -173,7 +173,7 @@ impl fmt::Display for FragmentKind {
     }
 }
 
-/// The fragmentation protocol byte: `type(7–6) | count(5–0)` (notes §4.1, §4.2).
+/// The fragmentation protocol byte: `type(7–6) | count(5–0)` (protocol §4.1, §4.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FragmentByte {
@@ -215,12 +215,12 @@ impl fmt::Display for FragmentByte {
     }
 }
 
-/// The count that follows `count`: +1, wrapping 63 → 0 (rollover target UNCONFIRMED, notes §9.4).
+/// The count that follows `count`: +1, wrapping 63 → 0 (rollover target UNCONFIRMED, protocol §9.4).
 pub const fn next_count(count: u8) -> u8 {
     count.wrapping_add(1) & COUNT_MASK
 }
 
-/// The status byte of an explicit fragment ack (notes §4.1).
+/// The status byte of an explicit fragment ack (protocol §4.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AckStatus {
@@ -273,7 +273,7 @@ fn payload(prefix: &[u8], rest: &[u8]) -> Payload {
     p
 }
 
-/// The ack frame data `[header | 0x80, C0 | count, status]` (notes §4.1).
+/// The ack frame data `[header | 0x80, C0 | count, status]` (protocol §4.1).
 pub fn ack_frame(header: Header, count: u8, status: AckStatus) -> Payload {
     let header = Header { fragmented: true, ..header };
     let fragment = FragmentByte { kind: FragmentKind::Ack, count };
@@ -282,7 +282,7 @@ pub fn ack_frame(header: Header, count: u8, status: AckStatus) -> Payload {
 }
 
 /// One explicit fragment frame, parsed: `[header | 0x80, fragment byte, ≤ 6 body bytes]`
-/// (notes §4.1). Acks have the same layout with the status as their only body byte.
+/// (protocol §4.1). Acks have the same layout with the status as their only body byte.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ExplicitFragment<'a> {
@@ -358,7 +358,7 @@ enum RxState {
     Complete,
 }
 
-/// Receiver side of explicit (acknowledged) fragmentation (notes §4.1).
+/// Receiver side of explicit (acknowledged) fragmentation (protocol §4.1).
 ///
 /// `N` is the largest reassembled message in bytes, header included. The receiver follows the
 /// rules of JB: a first fragment with a count other than 0 is dropped and reassembly reset; a
@@ -367,8 +367,8 @@ enum RxState {
 /// dropped; a first fragment in the middle of a series restarts it (so a re-sent first fragment,
 /// whose ack was lost, is simply taken again). A first fragment with count 0x3F is a whole message.
 ///
-/// The caller resets the reassembler when an unfragmented request arrives (notes §4.1) and
-/// filters the header MAC (notes §8); the header of each ack copies that of the fragment acked.
+/// The caller resets the reassembler when an unfragmented request arrives (protocol §4.1) and
+/// filters the header MAC (protocol §8); the header of each ack copies that of the fragment acked.
 #[derive(Clone, Debug)]
 pub struct ExplicitReassembler<const N: usize> {
     buf: [u8; N],
@@ -550,7 +550,7 @@ enum TxState {
     Finished { event: TransmitEvent, at: Instant },
 }
 
-/// Sender side of explicit (acknowledged) fragmentation, one transfer at a time (notes §4.1).
+/// Sender side of explicit (acknowledged) fragmentation, one transfer at a time (protocol §4.1).
 ///
 /// `N` is the largest message in bytes, header included. Each fragment goes out once its
 /// predecessor is acked; a fragment whose ack does not come within [`ACK_TIMEOUT`] is re-sent
@@ -739,7 +739,7 @@ impl<const N: usize> ExplicitTransmitter<N> {
     }
 }
 
-/// One I/O fragment frame, parsed: `[fragment byte, ≤ 7 data bytes]` (notes §4.2).
+/// One I/O fragment frame, parsed: `[fragment byte, ≤ 7 data bytes]` (protocol §4.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct IoFragment<'a> {
@@ -762,12 +762,12 @@ impl<'a> IoFragment<'a> {
     }
 }
 
-/// The frames of one I/O message on a fragmented connection (produced size > 8, notes §4.2): the
+/// The frames of one I/O message on a fragmented connection (produced size > 8, protocol §4.2): the
 /// fragment byte and up to 7 data bytes each, back to back.
 ///
-/// 18 bytes give `[00 + 7]`, `[41 + 7]`, `[82 + 4]` (notes §2, frames 25–27). Data of 7 bytes or
+/// 18 bytes give `[00 + 7]`, `[41 + 7]`, `[82 + 4]` (protocol §2, frames 25–27). Data of 7 bytes or
 /// fewer is a one-frame series, `[3F + data]`; empty data gives the single frame `[3F]`, so that a
-/// zero-length production (whose meaning is UNCONFIRMED, notes §9.12) still reaches the consumer.
+/// zero-length production (whose meaning is UNCONFIRMED, protocol §9.12) still reaches the consumer.
 pub fn io_fragments(data: &[u8]) -> IoFragments<'_> {
     IoFragments { data, offset: 0, count: 0, done: false }
 }
@@ -837,7 +837,7 @@ impl ExactSizeIterator for IoFragments<'_> {}
 
 impl FusedIterator for IoFragments<'_> {}
 
-/// Receiver side of I/O (unacknowledged) fragmentation (notes §4.2).
+/// Receiver side of I/O (unacknowledged) fragmentation (protocol §4.2).
 ///
 /// `N` is the largest reassembled message in bytes. Any error discards the partial series; a
 /// first fragment always starts a new series, also in the middle of one (AN). Duplicated or
@@ -960,7 +960,7 @@ mod tests {
             assert_eq!(FragmentByte::from_byte(b).to_byte(), b);
         }
         assert_eq!(next_count(0), 1);
-        // Rollover target UNCONFIRMED (notes §9.4); this crate wraps 63 -> 0 like AN.
+        // Rollover target UNCONFIRMED (protocol §9.4); this crate wraps 63 -> 0 like AN.
         assert_eq!(next_count(63), 0);
         assert!(FragmentByte::from_byte(0x3F).is_single());
         assert!(!FragmentByte::from_byte(0x7F).is_single());
@@ -990,7 +990,7 @@ mod tests {
     #[test]
     fn to_payload_forces_the_fragmentation_bit() {
         // A fragment built by hand from an unfragmented header still goes out as a fragment
-        // (notes §3.1: bit 7 of the header is the Frag bit).
+        // (protocol §3.1: bit 7 of the header is the Frag bit).
         let frag = ExplicitFragment {
             header: Header::from_byte(0x0A),
             fragment: FragmentByte::from_byte(0x41),
@@ -999,7 +999,7 @@ mod tests {
         assert_eq!(frag.to_payload(), p(&[0x8A, 0x41, 1, 2]));
     }
 
-    /// notes §4.1, PICO worked exchange: master MAC 0 (header 80 both ways), slave MAC 3; the
+    /// protocol §4.1, PICO worked exchange: master MAC 0 (header 80 both ways), slave MAC 3; the
     /// master sends on 0x41C, the slave answers on 0x41B.
     #[test]
     fn pico_worked_exchange() {
@@ -1335,7 +1335,7 @@ mod tests {
 
     #[test]
     fn io_fragments_report_the_frames_still_to_come() {
-        // 18 bytes: three frames (notes §2, frames 25–27); the exact size shrinks by one per frame.
+        // 18 bytes: three frames (protocol §2, frames 25–27); the exact size shrinks by one per frame.
         let data: Vec<u8> = (0..18).collect();
         let mut frames = io_fragments(&data);
         for left in (0..=3).rev() {

@@ -1,5 +1,5 @@
 //! The DeviceNet identifier codec: MAC IDs, the four message groups and their message IDs
-//! (devicenet-notes §1).
+//! (protocol §1).
 //!
 //! [`Identifier`] decodes every 11-bit CAN identifier into its message group and fields, and
 //! encodes it back; every value decodes (0x7F0–0x7FF as [`Identifier::Invalid`]), so decoding
@@ -54,7 +54,7 @@ impl defmt::Format for MacId {
 pub struct Group1MessageId(u8);
 
 impl Group1MessageId {
-    /// Slave's multicast-poll response (notes §1.3).
+    /// Slave's multicast-poll response (protocol §1.3).
     pub const MULTICAST_POLL_RESPONSE: Group1MessageId = Group1MessageId(12);
     /// Slave's change-of-state / cyclic message.
     pub const COS_CYCLIC: Group1MessageId = Group1MessageId(13);
@@ -78,7 +78,7 @@ impl Group1MessageId {
     }
 }
 
-/// The eight Group 2 message IDs of the Predefined Master/Slave Connection Set (notes §1.2).
+/// The eight Group 2 message IDs of the Predefined Master/Slave Connection Set (protocol §1.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Group2Message {
@@ -141,7 +141,7 @@ impl Group3MessageId {
     }
 }
 
-/// A Group 4 message ID, `0x00..=0x2F` (notes §1.4).
+/// A Group 4 message ID, `0x00..=0x2F` (protocol §1.4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Group4MessageId(u8);
 
@@ -170,7 +170,7 @@ impl Group4MessageId {
     }
 }
 
-/// A decoded 11-bit identifier (notes §1.1).
+/// A decoded 11-bit identifier (protocol §1.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Identifier {
     /// `0 mmmm ssssss`: message ID and **source** MAC.

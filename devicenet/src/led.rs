@@ -1,4 +1,4 @@
-//! Module Status and Network Status LED indications (devicenet-notes §7.3).
+//! Module Status and Network Status LED indications (protocol §7.3).
 //!
 //! The node decides *what* each bicolour LED indicates ([`Indication`]); [`Indication::lit`] turns
 //! an indication and the time into the colour to drive now, so the firmware only writes pins.

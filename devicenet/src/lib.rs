@@ -4,8 +4,8 @@
 //! adapter board's firmware, the soft slave on Linux, the master harness and the tests.
 //!
 //! Frames and `now` go in; frames, events and the next deadline come out. The core never reads a
-//! clock and never touches a peripheral (see `../shared/devicenet-notes.md` for the protocol facts
-//! every module cites).
+//! clock and never touches a peripheral. The protocol facts every module cites are those of the
+//! guide's protocol reference (`docs/src/protocol/`), cited as protocol §N.
 //!
 //! ## Layers
 //!
@@ -20,7 +20,7 @@
 //! | [`messages`] | fixed-layout bodies, one file per family (below) |
 //! | [`slave`] | the group-2-only [`SlaveNode`], one file per concern (below) |
 //! | [`led`] | Module/Network Status LED indications, flashing and the power-up test |
-//! | [`reference`](mod@reference) | the reference 28-frame bring-up of notes §2, the golden transcript every test compares with |
+//! | [`reference`](mod@reference) | the reference 28-frame bring-up of protocol §2, the golden transcript every test compares with |
 //! | [`crc32`](mod@crc32) | CRC-32 (IEEE 802.3), not DeviceNet's: the one the board's settings records and the converter's configuration image share |
 //!
 //! [`messages`] holds one file per message family, every type re-exported as
@@ -28,23 +28,23 @@
 //!
 //! | file | messages |
 //! |---|---|
-//! | `messages/duplicate_mac.rs` | the duplicate MAC ID check (notes §3.5) |
-//! | `messages/allocation.rs` | allocation choice, Allocate/Release service data, allocation information (notes §3.4) |
-//! | `messages/ucmm.rs` | UCMM open/close requests and responses (notes §3.6) |
-//! | `messages/heartbeat.rs` | device heartbeat and shutdown (notes §3.7) |
-//! | `messages/offline.rs` | the Group 4 Offline Connection Set (notes §3.8) |
+//! | `messages/duplicate_mac.rs` | the duplicate MAC ID check (protocol §3.5) |
+//! | `messages/allocation.rs` | allocation choice, Allocate/Release service data, allocation information (protocol §3.4) |
+//! | `messages/ucmm.rs` | UCMM open/close requests and responses (protocol §3.6) |
+//! | `messages/heartbeat.rs` | device heartbeat and shutdown (protocol §3.7) |
+//! | `messages/offline.rs` | the Group 4 Offline Connection Set (protocol §3.8) |
 //!
 //! [`slave`] keeps [`SlaveNode`], its inputs and outputs in `slave/mod.rs`, and the rest as
 //! `impl SlaveNode` blocks, one file per concern:
 //!
 //! | file | what it holds |
 //! |---|---|
-//! | `slave/network.rs` | network access: duplicate MAC ID check, Communication Faulted (notes §7.1, §7.2) |
-//! | `slave/allocation.rs` | Allocate/Release of the Predefined Master/Slave Connection Set, the Group 2 Only port (notes §3.4) |
-//! | `slave/explicit_messaging.rs` | the explicit connection: owner check, fragmentation, serving a request (notes §3.1, §4.1) |
-//! | `slave/polled_io.rs` | poll commands and responses (notes §4.2) |
-//! | `slave/objects/{router,identity,devicenet,assembly,connection}.rs` | the Message Router and the Identity, DeviceNet, Assembly and Connection objects, one class each (notes §5, §6) |
-//! | `slave/indications.rs` | the Module and Network Status LEDs (notes §7.3) |
+//! | `slave/network.rs` | network access: duplicate MAC ID check, Communication Faulted (protocol §7.1, §7.2) |
+//! | `slave/allocation.rs` | Allocate/Release of the Predefined Master/Slave Connection Set, the Group 2 Only port (protocol §3.4) |
+//! | `slave/explicit_messaging.rs` | the explicit connection: owner check, fragmentation, serving a request (protocol §3.1, §4.1) |
+//! | `slave/polled_io.rs` | poll commands and responses (protocol §4.2) |
+//! | `slave/objects/{router,identity,devicenet,assembly,connection}.rs` | the Message Router and the Identity, DeviceNet, Assembly and Connection objects, one class each (protocol §5, §6) |
+//! | `slave/indications.rs` | the Module and Network Status LEDs (protocol §7.3) |
 //! | [`slave::config`], [`slave::connection`], [`slave::reply`] | the device configuration, one Connection instance's state machine, response data and [`ServiceError`](slave::ServiceError) |
 //!
 //! ## Driving the slave

@@ -1,4 +1,4 @@
-//! Object class IDs of a group-2-only device and the names of their attributes (devicenet-notes
+//! Object class IDs of a group-2-only device and the names of their attributes (protocol
 //! §5.1, §6.1, §6.2), for decoders, tools and logs.
 //!
 //! [`class`] is the one definition of the class IDs: the slave's Message Router, the master
@@ -8,21 +8,21 @@
 //! Lookups never fail loudly: an unknown class or attribute gives `None`, and the caller shows the
 //! number.
 
-/// Object class IDs (notes §5, §6).
+/// Object class IDs (protocol §5, §6).
 pub mod class {
-    /// Identity object (notes §6.2).
+    /// Identity object (protocol §6.2).
     pub const IDENTITY: u16 = 0x01;
     /// Message Router object.
     pub const MESSAGE_ROUTER: u16 = 0x02;
-    /// DeviceNet object (notes §6.1).
+    /// DeviceNet object (protocol §6.1).
     pub const DEVICENET: u16 = 0x03;
     /// Assembly object.
     pub const ASSEMBLY: u16 = 0x04;
-    /// Connection object (notes §5).
+    /// Connection object (protocol §5).
     pub const CONNECTION: u16 = 0x05;
-    /// Parameter object (notes §II.4).
+    /// Parameter object (protocol §II.4).
     pub const PARAMETER: u16 = 0x0F;
-    /// Acknowledge Handler object (notes §II.2.4).
+    /// Acknowledge Handler object (protocol §II.2.4).
     pub const ACKNOWLEDGE_HANDLER: u16 = 0x2B;
 }
 
@@ -41,7 +41,7 @@ pub fn class_name(class: u16) -> Option<&'static str> {
 }
 
 /// The name of `service` on an object of `class`, if known. Codes 0x4B–0x63 are object-specific
-/// (notes §3.2): they carry the DeviceNet object's names (Allocate / Release_Master/Slave_Connection_Set)
+/// (protocol §3.2): they carry the DeviceNet object's names (Allocate / Release_Master/Slave_Connection_Set)
 /// on the DeviceNet object only, and no name on any other class, whose own services reuse the
 /// numbers (a vendor object's Read_Chunk can be 0x4B).
 pub fn service_name(class: u16, service: crate::explicit::ServiceCode) -> Option<&'static str> {
@@ -62,7 +62,7 @@ pub fn attribute_name(class: u16, instance: u16, attribute: u8) -> Option<&'stat
         };
     }
     Some(match (class, attribute) {
-        // Identity, notes §6.2.
+        // Identity, protocol §6.2.
         (class::IDENTITY, 1) => "vendor ID",
         (class::IDENTITY, 2) => "device type",
         (class::IDENTITY, 3) => "product code",
@@ -73,7 +73,7 @@ pub fn attribute_name(class: u16, instance: u16, attribute: u8) -> Option<&'stat
         (class::IDENTITY, 8) => "state",
         (class::IDENTITY, 9) => "configuration consistency value",
         (class::IDENTITY, 10) => "heartbeat interval",
-        // DeviceNet, notes §6.1.
+        // DeviceNet, protocol §6.1.
         (class::DEVICENET, 1) => "MAC ID",
         (class::DEVICENET, 2) => "baud rate",
         (class::DEVICENET, 3) => "bus-off interrupt",
@@ -86,7 +86,7 @@ pub fn attribute_name(class: u16, instance: u16, attribute: u8) -> Option<&'stat
         // Assembly.
         (class::ASSEMBLY, 3) => "data",
         (class::ASSEMBLY, 4) => "size",
-        // Connection, notes §5.1.
+        // Connection, protocol §5.1.
         (class::CONNECTION, 1) => "state",
         (class::CONNECTION, 2) => "instance type",
         (class::CONNECTION, 3) => "transport class trigger",
@@ -106,7 +106,7 @@ pub fn attribute_name(class: u16, instance: u16, attribute: u8) -> Option<&'stat
     })
 }
 
-/// The name of a Connection object state, attribute 1 (notes §5.2).
+/// The name of a Connection object state, attribute 1 (protocol §5.2).
 pub fn connection_state_name(state: u8) -> Option<&'static str> {
     Some(match state {
         0 => "non-existent",
@@ -119,7 +119,7 @@ pub fn connection_state_name(state: u8) -> Option<&'static str> {
     })
 }
 
-/// The name of a watchdog timeout action, Connection attribute 12 (notes §5.4).
+/// The name of a watchdog timeout action, Connection attribute 12 (protocol §5.4).
 pub fn watchdog_action_name(action: u8) -> Option<&'static str> {
     Some(match action {
         0 => "transition to timed out",

@@ -1,4 +1,4 @@
-//! The reference 28-frame connection sequence of `../shared/devicenet-notes.md` §2, with the
+//! The reference 28-frame connection sequence of protocol §2, with the
 //! project's reference device ([`DeviceConfig::reference`](crate::slave::DeviceConfig::reference)):
 //! master MAC 0 (vendor 0x0001, serial 0x01020304), slave MAC 5 (vendor 0x1234, device type 0x000C,
 //! product code 1, serial 0x12345678), EPR 100 ms, a poll command of 8 zero bytes and an 18-byte
@@ -25,7 +25,7 @@ pub struct ReferenceFrame {
     pub id: u16,
     /// Data bytes.
     pub data: &'static [u8],
-    /// What the frame means (notes §2 "Meaning").
+    /// What the frame means (protocol §2 "Meaning").
     pub meaning: &'static str,
 }
 
@@ -43,7 +43,7 @@ pub const INPUT_IMAGE: [u8; 18] = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0x0F, 0, 0, 0, 0, 
 /// The reference poll command.
 pub const POLL_COMMAND: [u8; 8] = [0; 8];
 
-/// The 28 frames of notes §2 for the reference device, in order.
+/// The 28 frames of protocol §2 for the reference device, in order.
 pub const BRING_UP: [ReferenceFrame; 28] = [
     m(0x407, &[0x00, 0x01, 0x00, 0x04, 0x03, 0x02, 0x01], "master duplicate MAC ID check request #1"),
     m(0x407, &[0x00, 0x01, 0x00, 0x04, 0x03, 0x02, 0x01], "master duplicate MAC ID check request #2"),

@@ -1,4 +1,4 @@
-//! The slave node through the exact 28-frame sequence of `../shared/devicenet-notes.md` §2, on a
+//! The slave node through the exact 28-frame sequence of protocol §2, on a
 //! virtual clock: every byte the slave emits, the two duplicate MAC requests 1 s apart, and
 //! silence towards the two UCMM frames.
 

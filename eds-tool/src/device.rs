@@ -286,7 +286,7 @@ impl ConnectionType {
         }
     }
 
-    /// The allocation choice bit (notes §3.4).
+    /// The allocation choice bit (protocol §3.4).
     pub const fn choice(self) -> AllocationChoice {
         match self {
             ConnectionType::Poll => AllocationChoice::POLL,

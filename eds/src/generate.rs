@@ -12,7 +12,7 @@
 //! | `[Device Classification]` | `Class1 = DeviceNet` | — |
 //! | `[IO_Info]` | `Default` poll (`0x0001`); `PollInfo`, `StrobeInfo`, `COSInfo`, `CyclicInfo` with the compatibility masks [`POLL_STROBE_COMPATIBLE`], [`COS_COMPATIBLE`], [`CYCLIC_COMPATIBLE`]; `Input1` = produced size P, path `20 04 24 <100 or 101> 30 03`, for poll, COS and cyclic (and bit-strobe when P <= 8); when P > 8 `Input2` = the strobe response, min(P, 8) bytes of the same assembly, bit-strobe only; `Output1` = consumed size, path `20 04 24 96 30 03`, for poll, COS and cyclic ([`OUTPUT_CONNECTIONS`]); `StrobeInfo` names no output | Connection instances 2 (poll), 3 (bit-strobe), 4 (COS/cyclic) attributes 7, 8, 14, 16; Assembly (class 0x04) |
 //! | `[ParamClass]` | `MaxInst = 9`, `Descriptor = 0x0B`, `CfgAssembly = 0` | Parameter object (class 0x0F) class attributes 2, 8, 9 |
-//! | `[Params]` 1–9 | the settings a commissioning tool edits (serial line, stale timeout and policy, input assembly, response timeout, retries, Modbus poll period): `ParamN` is Parameter instance N, link path `20 0F 24 NN 30 01` (devicenet-notes §II.4.4); writable, in force after a reset (the poll period is read-only for a framed instrument) | Parameter object ([`slave_fw::converter::PARAMETER_CLASS`]); names, units, help, types, ranges and access from its table, [`PARAMETERS`]; defaults are the description's values, what the device reports as attribute 12 |
+//! | `[Params]` 1–9 | the settings a commissioning tool edits (serial line, stale timeout and policy, input assembly, response timeout, retries, Modbus poll period): `ParamN` is Parameter instance N, link path `20 0F 24 NN 30 01` (protocol §II.4.4); writable, in force after a reset (the poll period is read-only for a framed instrument) | Parameter object ([`slave_fw::converter::PARAMETER_CLASS`]); names, units, help, types, ranges and access from its table, [`PARAMETERS`]; defaults are the description's values, what the device reports as attribute 12 |
 //! | `[Params]` 10–12 | idle action, fault action, serial profile, read-only: `ParamN` is attribute N − 1 | settings object, class 0x65 instance 1 ([`slave_fw::converter::SETTINGS_CLASS`]); from its attribute table, [`SettingsAttribute`] |
 //! | `[Params]` 13–15 | MAC ID, data rate, bus-off interrupt | DeviceNet object, class 0x03 instance 1, attributes 1–3 |
 //! | `[Params]` 16–30 | serial link statistics and status, monitor parameters: `ParamN` is attribute N − 15 | serial link object, class 0x64 instance 1 ([`slave_fw::converter::SERIAL_LINK_CLASS`]); names, units, types and access from its attribute table, [`LinkAttribute`] |
@@ -887,7 +887,7 @@ mod tests {
         for d in &PARAMETERS {
             let n = u32::from(d.parameter.instance());
             let param = eds.param(n).unwrap();
-            // devicenet-notes §II.4.4: `6,"20 0F 24 NN 30 01"`.
+            // protocol §II.4.4: `6,"20 0F 24 NN 30 01"`.
             assert_eq!(param.link_path_size, Some(6));
             assert_eq!(param.link_path, Some(LinkPath::Bytes(vec![0x20, 0x0F, 0x24, n as u8, 0x30, 0x01])));
             assert_eq!(

@@ -19,7 +19,7 @@ fuzz_target!(|data: &[u8]| {
     let Ok(mut conv) = Converter::new(config.clone(), now) else { return };
     conv.power_on(now);
     let drain = |conv: &mut Converter, now: Instant| {
-        // The MAC in force: the Offline Connection Set may change it (notes §II.6).
+        // The MAC in force: the Offline Connection Set may change it (protocol §II.6).
         let mac = conv.node().mac_id();
         while let Some(f) = conv.poll_can_transmit() {
             assert!(slave_may_send(mac, f.id()), "the converter sent {f}");

@@ -12,7 +12,7 @@ fuzz_target!(|data: &[u8]| {
     node.power_on(now);
     let drain = |node: &mut SlaveNode| {
         let mut sent = 0;
-        // The MAC in force: the Offline Connection Set may change it (notes §II.6).
+        // The MAC in force: the Offline Connection Set may change it (protocol §II.6).
         let mac = node.mac_id();
         while let Some(f) = node.poll_transmit() {
             assert!(slave_may_send(mac, f.id()), "the node sent {f}");

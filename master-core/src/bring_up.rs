@@ -7,7 +7,7 @@
 //!
 //! The sequence is a queue of [`Step`]s — Allocate_Master/Slave_Connection_Set with the requested
 //! connections, Get_Attribute_Single of what the caller reads, Set_Attribute_Single (the expected
-//! packet rate that starts I/O, notes §2 frames 22–23), Release (notes §3.4) — run one explicit
+//! packet rate that starts I/O, protocol §2 frames 22–23), Release (protocol §3.4) — run one explicit
 //! [`Transaction`] at a time, so fragmented answers are reassembled and every response frame is
 //! checked as the client does. The engine owns the rules every caller had written out for itself:
 //!
@@ -49,7 +49,7 @@
 //! node.allocate(now, Port::Group2Only, AllocationChoice::EXPLICIT | AllocationChoice::POLL);
 //! node.get(now, class::CONNECTION, 2, 7, Refusal::Stop);
 //! node.expected_packet_rate(now, 2, 100);
-//! // Each request out, the device's answer in (notes §2 frames 17, 19, 23).
+//! // Each request out, the device's answer in (protocol §2 frames 17, 19, 23).
 //! for answer in [&[0x00, 0xCB, 0x00][..], &[0x00, 0x8E, 0x12, 0x00], &[0x00, 0x90, 0x64, 0x00]] {
 //!     assert!(node.poll_transmit().is_some());
 //!     node.handle_frame(&CanFrame::from_raw(0x42B, answer).unwrap(), now);
@@ -74,7 +74,7 @@ use std::fmt;
 /// One request of a bring-up.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Step {
-    /// Allocate_Master/Slave_Connection_Set for `choice` through `port` (notes §3.4).
+    /// Allocate_Master/Slave_Connection_Set for `choice` through `port` (protocol §3.4).
     Allocate {
         /// The Group 2 Only port, or the explicit connection once it is allocated.
         port: Port,
@@ -214,7 +214,7 @@ pub enum NodeError {
         /// Additional code.
         additional: u8,
     },
-    /// The device's connection set is allocated to another master (0x0C / 0x01, notes §3.4).
+    /// The device's connection set is allocated to another master (0x0C / 0x01, protocol §3.4).
     #[error("MAC {mac}: {step}: the set is allocated to another master")]
     AllocationConflict {
         /// The device.
@@ -280,7 +280,7 @@ pub struct BringUp {
     out: VecDeque<CanFrame>,
     held: AllocationChoice,
     events: VecDeque<Event>,
-    /// The message body format of the explicit connection, as its Allocate answered (notes §3.1).
+    /// The message body format of the explicit connection, as its Allocate answered (protocol §3.1).
     format: BodyFormat,
     answered: bool,
 }
@@ -309,7 +309,7 @@ impl BringUp {
     }
 
     /// What the device holds for this master: allocations answered with success, minus releases
-    /// (acknowledge suppression is a property of the allocation, never held, notes §II.2.5).
+    /// (acknowledge suppression is a property of the allocation, never held, protocol §II.2.5).
     pub fn held(&self) -> AllocationChoice {
         self.held
     }
@@ -368,7 +368,7 @@ impl BringUp {
     }
 
     /// Queues the Set of the expected packet rate (attribute 9) of Connection `instance`, which
-    /// takes an I/O connection from configuring to established (notes §2 frame 22); an error
+    /// takes an I/O connection from configuring to established (protocol §2 frame 22); an error
     /// response stops. The answer carries the rate the device applied.
     pub fn expected_packet_rate(&mut self, now: Instant, instance: u16, epr_ms: u16) {
         self.set(now, (class::CONNECTION, instance, 9), &epr_ms.to_le_bytes(), Refusal::Stop);
@@ -381,7 +381,7 @@ impl BringUp {
 
     /// Gives the device back: the queued steps are dropped and, once the step running (if any) is
     /// over, everything [held](Self::held) is released through the Group 2 Only port (which
-    /// serves Release whatever state the explicit connection is in, notes §3.4). Nothing is sent
+    /// serves Release whatever state the explicit connection is in, protocol §3.4). Nothing is sent
     /// when nothing is held. An error response to it is reported ([`Refusal::Report`]): there is
     /// nothing more to give back.
     pub fn give_back(&mut self, now: Instant) {
@@ -446,7 +446,7 @@ impl BringUp {
             }
             let (port, service, class, instance, data) = queued.step.request(self.master);
             let request = Request { service, class, instance, data: &data };
-            // The Group 2 Only port always uses 8/8 (notes §3.1).
+            // The Group 2 Only port always uses 8/8 (protocol §3.1).
             let format = if port == Port::Explicit { self.format } else { BodyFormat::Class8Instance8 };
             match Transaction::build(self.mac, self.master, port, false, &request, format, self.timeout) {
                 Ok(mut tx) => {

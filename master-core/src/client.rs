@@ -1,5 +1,5 @@
 //! The master's side of one explicit transaction with one device, as a sans-IO state machine:
-//! the request goes out (fragmented with acknowledgements when longer than 8 bytes, notes §4.1),
+//! the request goes out (fragmented with acknowledgements when longer than 8 bytes, protocol §4.1),
 //! the response comes back (reassembled and acknowledged when fragmented), and every response frame
 //! is checked: identifier, header MAC (the master's), echoed XID, fragment protocol and the service
 //! byte (`request | 0x80`, or `0x94` for an error response).
@@ -29,7 +29,7 @@ use std::collections::VecDeque;
 pub const MAX_MESSAGE: usize = 1024;
 
 /// The default explicit response timeout (`--timeout`): how long the master waits for a response,
-/// or for the next fragment of one, before it gives up. Not specified publicly (notes §9.4); 1 s
+/// or for the next fragment of one, before it gives up. Not specified publicly (protocol §9.4); 1 s
 /// matches the fragment acknowledge timeout of a conformance-tested slave (JB).
 pub const DEFAULT_RESPONSE_TIMEOUT: Duration = Duration::from_secs(1);
 
@@ -461,7 +461,7 @@ impl Transaction {
     }
 }
 
-/// `true` for a Device Heartbeat or Device Shutdown (notes §3.7, §II.5): 8 bytes on a device's
+/// `true` for a Device Heartbeat or Device Shutdown (protocol §3.7, §II.5): 8 bytes on a device's
 /// explicit response identifier with the device's own MAC in the header (not the master's) and
 /// service 0xCD or 0xCE. It answers no request.
 pub fn is_heartbeat_or_shutdown(data: &[u8], master: MacId) -> bool {

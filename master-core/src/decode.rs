@@ -4,14 +4,14 @@
 //! change-of-state/cyclic, bit-strobe and multicast poll connections), duplicate MAC ID checks,
 //! heartbeat and shutdown messages, UCMM and the Offline Connection Set with every field.
 //!
-//! Explicit connections opened through UCMM (notes §3.6) are followed: the Open request gives the
+//! Explicit connections opened through UCMM (protocol §3.6) are followed: the Open request gives the
 //! group, the Open response the body format and the message IDs, and from then on the frames on
 //! those identifiers are read as that connection's explicit requests and responses (fragments
 //! reassembled on it), until a Close response. An Open response whose request was not seen is
 //! named but not followed (the group is unknown), and so is a connection beyond
 //! [`MAX_UCMM_LINKS`].
 //!
-//! Explicit reassembly follows the node's rules (notes §4.1): an unfragmented request resets
+//! Explicit reassembly follows the node's rules (protocol §4.1): an unfragmented request resets
 //! both directions, an unfragmented response resets the response direction. Requests on the
 //! explicit connection are read in the body format its Allocate response announced; before one
 //! was seen, 8/8 is assumed and the text says so. The Group 2 Only port is always 8/8.
@@ -19,7 +19,7 @@
 //! A [`Decoder`] reads a whole exchange in order and keeps, per device MAC, what it needs to make
 //! sense of later frames: the last explicit request (to interpret its response), the message body
 //! format announced by the Allocate response, and the poll connection sizes read from Connection
-//! instance 2 attributes 7 and 8 (notes §4.2: I/O fragmentation is not signalled per frame, both
+//! instance 2 attributes 7 and 8 (protocol §4.2: I/O fragmentation is not signalled per frame, both
 //! ends know it from the size). When the sizes were not seen, poll data is taken as fragmented
 //! when its fragment bytes say so: an 8-byte frame starting with `00` opens a series, the
 //! fragment due or a shorter frame continues it, and once a whole series was seen every frame of
@@ -58,7 +58,7 @@ use text::{path_request, path_request_text, push_data_text, push_u8};
 
 /// Largest explicit message reassembled by the decoder (header included).
 pub const MAX_EXPLICIT_MESSAGE: usize = 1024;
-/// Largest I/O message reassembled by the decoder (64 fragments of 7 bytes, notes §4.2).
+/// Largest I/O message reassembled by the decoder (64 fragments of 7 bytes, protocol §4.2).
 pub const MAX_IO_MESSAGE: usize = 448;
 
 /// Most UCMM connections followed at once (a trace opening more is not followed beyond them).
@@ -71,7 +71,7 @@ pub struct Decoded {
     pub summary: String,
     /// The whole message this frame completed, for the last fragment of a series.
     pub message: Option<String>,
-    /// The breach of the fragmentation protocol this frame is (notes §4), also named in the
+    /// The breach of the fragmentation protocol this frame is (protocol §4), also named in the
     /// summary.
     pub protocol_error: Option<FragmentViolation>,
 }
@@ -127,7 +127,7 @@ impl PendingRequest {
 enum Channel {
     /// A request on the explicit connection (Group 2 message 4): the connection's body format.
     Request,
-    /// A request on the Group 2 Only port (message 6): always 8/8 (notes §3.1).
+    /// A request on the Group 2 Only port (message 6): always 8/8 (protocol §3.1).
     Group2Only,
     /// A response (message 3).
     Response,
@@ -146,16 +146,16 @@ struct Device {
     poll_command: IoSeries,
     /// The connections allocated, from the Allocate and Release responses seen: with change of
     /// state or cyclic but no poll, Connection 2 carries the master's COS/cyclic data and the
-    /// device's zero-length acknowledgements (notes §II.2.5).
+    /// device's zero-length acknowledgements (protocol §II.2.5).
     allocated: AllocationChoice,
-    /// The other produced I/O connections (notes §II.1-§II.3): Group 1 messages 12 (multicast
+    /// The other produced I/O connections (protocol §II.1-§II.3): Group 1 messages 12 (multicast
     /// poll response), 13 (change-of-state/cyclic data) and 14 (bit-strobe response), each with
     /// the produced size of its Connection instance (5, 4, 3) once read.
     other_io: [(Option<u16>, IoSeries); 3],
 }
 
 /// The Group 1 messages of [`Device::other_io`], each with the Connection instance producing it
-/// (notes §II.1-§II.3), in slot order.
+/// (protocol §II.1-§II.3), in slot order.
 const OTHER_IO: [(Group1MessageId, u16); 3] = [
     (Group1MessageId::MULTICAST_POLL_RESPONSE, 5),
     (Group1MessageId::COS_CYCLIC, 4),
@@ -167,7 +167,7 @@ const COS_OR_CYCLIC: AllocationChoice = AllocationChoice::CHANGE_OF_STATE.union(
 
 impl Device {
     /// `true` when Connection 2 consumes the master's COS/cyclic data: change of state or cyclic
-    /// allocated without poll (notes §II.2.5).
+    /// allocated without poll (protocol §II.2.5).
     fn cos_consumer(&self) -> bool {
         self.allocated.intersects(COS_OR_CYCLIC) && !self.allocated.contains(AllocationChoice::POLL)
     }
@@ -204,7 +204,7 @@ pub struct Decoder {
     ucmm_closes: HashMap<(u8, u8), u16>,
 }
 
-/// An explicit connection opened through UCMM (notes §3.6): its ends, and the state of its
+/// An explicit connection opened through UCMM (protocol §3.6): its ends, and the state of its
 /// explicit messages (body format from the Open response, reassembly, the last request).
 #[derive(Clone)]
 struct UcmmLink {
@@ -230,14 +230,14 @@ impl Target {
     }
 }
 
-/// The CAN identifier of message `message` in `group` with `mac` in its MAC field (notes §1.2);
+/// The CAN identifier of message `message` in `group` with `mac` in its MAC field (protocol §1.2);
 /// `None` where the group has no such dynamic message.
 fn dynamic_id(group: GroupSelect, message: u8, mac: u8) -> Option<u16> {
     let mac = u16::from(mac & 0x3F);
     match group {
         GroupSelect::Group1 if message < 16 => Some(u16::from(message) << 6 | mac),
         GroupSelect::Group2 if message < 8 => Some(0x400 | mac << 3 | u16::from(message)),
-        // Group 3 messages 0-4 are the dynamic ones; 5 and 6 are UCMM's own (notes §1.2).
+        // Group 3 messages 0-4 are the dynamic ones; 5 and 6 are UCMM's own (protocol §1.2).
         GroupSelect::Group3 if message <= 4 => Some(0x600 | u16::from(message) << 6 | mac),
         _ => None,
     }
@@ -481,12 +481,12 @@ impl Decoder {
             let body = &data[1..];
             let device = self.state(target);
             if request {
-                // An unfragmented request resets fragmentation both ways (notes §4.1).
+                // An unfragmented request resets fragmentation both ways (protocol §4.1).
                 device.request_rx.reset();
                 device.response_rx.reset();
             } else {
                 // So does a complete response: a fragment after it begins nothing (the master
-                // waits for one response per request, notes §4.1), so a later last fragment
+                // waits for one response per request, protocol §4.1), so a later last fragment
                 // cannot join an earlier first one into a message nobody sent.
                 device.response_rx.reset();
             }
@@ -545,7 +545,7 @@ impl Decoder {
         let device = self.state(target);
         if channel != Channel::Response {
             // The Group 2 Only port always uses 8/8; the explicit connection the format its
-            // Allocate response announced, 8/8 assumed (and said) before one was seen (notes §3.1).
+            // Allocate response announced, 8/8 assumed (and said) before one was seen (protocol §3.1).
             let (format, assumed) = match (channel, device.body_format) {
                 (Channel::Group2Only, _) => (BodyFormat::Class8Instance8, false),
                 (_, Some(f)) => (f, false),
@@ -627,7 +627,7 @@ fn data_text(data: &[u8]) -> String {
 }
 
 impl Decoder {
-    /// UCMM requests and responses (notes §3.6); an Open response opens a connection that later
+    /// UCMM requests and responses (protocol §3.6); an Open response opens a connection that later
     /// frames are read on, a Close response closes it.
     fn group3(&mut self, message: Group3MessageId, source: u8, data: &[u8]) -> String {
         match message {
@@ -659,7 +659,7 @@ impl Decoder {
                 return format!("{text} (its Open request was not seen: the group is unknown, the connection is not followed)");
             };
             // In Groups 1 and 3 the identifier carries the sender's MAC, in Group 2 the server's
-            // (notes §1.2): the client's requests go on the message ID the server consumes, the
+            // (protocol §1.2): the client's requests go on the message ID the server consumes, the
             // server's responses on the one it produces (CIP Vol 3 3-5.5; which response field is
             // which is UNCONFIRMED beyond the field names).
             let (request_mac, response_mac) = match group {

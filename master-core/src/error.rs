@@ -68,7 +68,7 @@ pub enum MasterError {
     /// A message the master builds cannot be written.
     #[error("cannot build the message: {0}")]
     Message(#[from] MessageError),
-    /// The device's connection set is allocated to another master (0x0C / 0x01, notes §3.4).
+    /// The device's connection set is allocated to another master (0x0C / 0x01, protocol §3.4).
     #[error("MAC {mac} is allocated to another master{}: a device serves one master at a time; release it there, or reset the device", owner.map_or_else(|| " (its MAC was not seen on the bus)".to_string(), |m| format!(" (MAC {m})")))]
     AllocationConflict {
         /// The device.

@@ -3,8 +3,8 @@
 //! The protocol layer of the bench DeviceNet master: what a program needs to talk to a device the
 //! way a scanner does, and to check every frame it answers. The `dnet-master` tool
 //! (`master-harness`) and the EDS tool's live device check (`eds-tool`, `dnet-eds check-device`) are both built
-//! on it. Protocol facts are those of `../shared/devicenet-notes.md`; every wire format comes from
-//! the [`devicenet`] core, every bus from `can_io`.
+//! on it. Protocol facts are those of the guide's protocol reference (`docs/src/protocol/`, cited
+//! as protocol §N); every wire format comes from the [`devicenet`] core, every bus from `can_io`.
 //!
 //! ## What it owns
 //!
@@ -13,7 +13,7 @@
 //! | [`session`] | a bus with its transcript: every frame with time, direction, meaning and [`Verdict`](session::Verdict), and the log file |
 //! | [`bring_up`] | the per-node bring-up engine ([`BringUp`](bring_up::BringUp)), sans-IO: Allocate with the requested connections, the reads, the expected packet rate that starts I/O, Release; what `connect`, `get`/`set`, `scan`, the scanner, the soak and `check-device` drive |
 //! | [`client`] | one explicit transaction as a sans-IO state machine ([`Transaction`](client::Transaction)): fragmentation both ways, every response frame checked; [`drive`](client::drive) and [`run`](client::run), the one way to drive it |
-//! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of notes §2 |
+//! | [`master`] | network access, waiting for the device, UCMM probe, allocation and release, get/set, polling, the bring-up of protocol §2 |
 //! | [`io`] | the I/O connections next to poll: bit-strobe, change of state and cyclic with their acknowledgements, every frame and interval checked |
 //! | [`recovery`] | a Communication Faulted node found and given a new MAC ID through the Offline Connection Set (Who, Identify, ownership, Change MAC ID) |
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly |

@@ -1,18 +1,18 @@
-//! The master: network access, the bring-up of notes §2 decided frame by frame from the device's
+//! The master: network access, the bring-up of protocol §2 decided frame by frame from the device's
 //! answers, explicit messaging and polling.
 //!
-//! ## Timing (the master's own choices, notes §9.1 and §9.4)
+//! ## Timing (the master's own choices, protocol §9.1 and §9.4)
 //!
 //! | constant | value | what |
 //! |---|---|---|
-//! | [`DUP_MAC_INTERVAL`] | 1 s | between the master's two duplicate MAC ID requests, and from the second to on-line (notes §7.1) |
+//! | [`DUP_MAC_INTERVAL`] | 1 s | between the master's two duplicate MAC ID requests, and from the second to on-line (protocol §7.1) |
 //! | [`DEVICE_ONLINE_GRACE`] | 1 s | after going on-line, how long the master waits for the device's own duplicate MAC ID check before taking the device as already on-line |
 //! | [`UCMM_TIMEOUT`] | 500 ms | wait for a UCMM open response; the request is sent twice, then the device is taken as group-2-only |
 //! | `--timeout` | 1 s | explicit response timeout ([`crate::client::DEFAULT_RESPONSE_TIMEOUT`]) |
 //! | poll response timeout | the EPR, at least 100 ms | wait for a complete poll response |
 //!
 //! A device's duplicate MAC ID check is watched on the bus: after its first request it is on-line
-//! 2 s later, after its second 1 s later (notes §7.1).
+//! 2 s later, after its second 1 s later (protocol §7.1).
 
 use crate::bring_up::Step;
 use crate::client::{self, ClientError, Port, Reply, ReplyBody, Transaction};
@@ -38,7 +38,7 @@ pub use node::NodeEvent;
 #[cfg(test)]
 mod scripted;
 
-/// Between the two duplicate MAC ID requests, and from the second to on-line (notes §7.1).
+/// Between the two duplicate MAC ID requests, and from the second to on-line (protocol §7.1).
 pub const DUP_MAC_INTERVAL: Duration = devicenet::slave::DUP_MAC_INTERVAL;
 /// How long the master waits, once on-line, for a device's duplicate MAC ID check to show.
 pub const DEVICE_ONLINE_GRACE: Duration = Duration::from_secs(1);
@@ -52,9 +52,9 @@ pub const MIN_POLL_TIMEOUT: Duration = Duration::from_millis(100);
 pub struct MasterConfig {
     /// The master's MAC ID (`--master-mac`).
     pub mac: MacId,
-    /// Vendor ID sent in its duplicate MAC ID checks (notes §2: 0x0001).
+    /// Vendor ID sent in its duplicate MAC ID checks (protocol §2: 0x0001).
     pub vendor_id: u16,
-    /// Serial number sent in its duplicate MAC ID checks (notes §2: 0x01020304).
+    /// Serial number sent in its duplicate MAC ID checks (protocol §2: 0x01020304).
     pub serial_number: u32,
     /// Explicit response timeout (`--timeout`).
     pub response_timeout: Duration,
@@ -249,7 +249,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Judges a frame nobody waits for: devices' duplicate MAC ID checks are noted (and checked),
-    /// a check of the master's own MAC is answered (notes §7.1), frames from the device under test
+    /// a check of the master's own MAC is answered (protocol §7.1), frames from the device under test
     /// are unexpected, everything else is other traffic.
     pub fn other(&mut self, i: usize) -> Result<(), MasterError> {
         let rec = self.session.record(i).clone();
@@ -281,7 +281,7 @@ impl<'s, 'b> Master<'s, 'b> {
                         ),
                     });
                 }
-                // On-line: answer, to keep the newcomer off the bus (notes §7.1 rule 3).
+                // On-line: answer, to keep the newcomer off the bus (protocol §7.1 rule 3).
                 let response =
                     DuplicateMacCheck::response(0, self.config.vendor_id, self.config.serial_number);
                 let id = Identifier::group2(self.config.mac, Group2Message::DuplicateMacCheck);
@@ -326,7 +326,7 @@ impl<'s, 'b> Master<'s, 'b> {
         Ok(())
     }
 
-    /// The master's own network access (notes §7.1): two duplicate MAC ID requests 1 s apart,
+    /// The master's own network access (protocol §7.1): two duplicate MAC ID requests 1 s apart,
     /// on-line 1 s after the second unless another node claims the MAC.
     pub fn network_access(&mut self) -> Result<(), MasterError> {
         let check = DuplicateMacCheck::request(0, self.config.vendor_id, self.config.serial_number);
@@ -364,7 +364,7 @@ impl<'s, 'b> Master<'s, 'b> {
         }
     }
 
-    /// UCMM open explicit connection to `target`, sent up to twice (notes §2 frames 4–5, §3.6).
+    /// UCMM open explicit connection to `target`, sent up to twice (protocol §2 frames 4–5, §3.6).
     /// Returns whether the device answered (UCMM-capable); a group-2-only device stays silent.
     pub fn ucmm_probe(&mut self, target: MacId) -> Result<bool, MasterError> {
         let open = UcmmOpenRequest {
@@ -521,7 +521,7 @@ impl<'s, 'b> Master<'s, 'b> {
         }
     }
 
-    /// Allocate_Master/Slave_Connection_Set for `choice`, through `port` (notes §3.4). Returns the
+    /// Allocate_Master/Slave_Connection_Set for `choice`, through `port` (protocol §3.4). Returns the
     /// record of the response; the announced message body format is used by later requests.
     ///
     /// The request runs on the device's [bring-up engine](crate::bring_up) ([`Master::step`]): a
@@ -584,7 +584,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// The MAC of another master seen talking to `target` in this session: the source MAC in the
-    /// header of an explicit or Group 2 Only request to it (notes §3.1), or the destination in the
+    /// header of an explicit or Group 2 Only request to it (protocol §3.1), or the destination in the
     /// header of its responses, when it is not this master.
     fn owner_seen(&self, target: MacId) -> Option<u8> {
         self.session.records().iter().rev().find_map(|r| {
@@ -614,7 +614,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Release_Master/Slave_Connection_Set for `choice` through `port` (the Group 2 Only port
-    /// serves Release as well as Allocate, notes §3.4).
+    /// serves Release as well as Allocate, protocol §3.4).
     pub fn release_through(
         &mut self,
         target: MacId,
@@ -653,7 +653,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// Releases everything this master holds, device by device, through the Group 2 Only port
-    /// (which serves Release whatever state the explicit connection is in, notes §3.4). A device
+    /// (which serves Release whatever state the explicit connection is in, protocol §3.4). A device
     /// that already dropped a connection (its watchdog fired) answers 0x0B; then each connection
     /// is released alone, and the ones it no longer has are taken as released. Returns the devices
     /// released.
@@ -768,7 +768,7 @@ impl<'s, 'b> Master<'s, 'b> {
     }
 
     /// One poll cycle: sends `output`, waits for the complete response (reassembled when the
-    /// produced size is over 8, notes §4.2) and checks every fragment. Returns the input data.
+    /// produced size is over 8, protocol §4.2) and checks every fragment. Returns the input data.
     pub fn poll(
         &mut self,
         target: MacId,
@@ -802,7 +802,7 @@ impl<'s, 'b> Master<'s, 'b> {
         }
     }
 
-    /// The whole bring-up of notes §2 against `opts.target`. Every frame is recorded in the
+    /// The whole bring-up of protocol §2 against `opts.target`. Every frame is recorded in the
     /// session with its verdict; the result summarises what was learned.
     pub fn connect(&mut self, opts: &ConnectOptions) -> Result<DeviceSummary, MasterError> {
         self.connect_io(opts, &io::IoOptions::default())
@@ -830,7 +830,7 @@ impl<'s, 'b> Master<'s, 'b> {
         self.await_online(&[target])?;
         summary.ucmm_capable = self.ucmm_probe(target)?;
         self.allocate(target, Port::Group2Only, AllocationChoice::EXPLICIT)?;
-        // Explicit connection: watchdog timeout action = deferred delete (notes §5.4).
+        // Explicit connection: watchdog timeout action = deferred delete (protocol §5.4).
         let (data, i) = self.set(target, class::CONNECTION, 1, 12, &[3])?;
         let failures = if data.is_empty() {
             Vec::new()

@@ -40,7 +40,7 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// The full bring-up of devicenet-notes §2, every frame checked.
+    /// The full bring-up of protocol §2, every frame checked.
     Connect(connect::ConnectArgs),
     /// Find a node that is Communication Faulted after a duplicate MAC ID (Offline Connection
     /// Set: Who, then the answers listed); with --to give it a new MAC ID (long Identify, offline

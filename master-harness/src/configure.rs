@@ -32,7 +32,7 @@
 //! description file ([`slave_fw::description::DeviceDescription::to_toml`]).
 //!
 //! The configuration object's services and attributes are the converter's
-//! (`slave_fw::converter`); notes §3.2 for the service code ranges (0x4B–0x63: object class
+//! (`slave_fw::converter`); protocol §3.2 for the service code ranges (0x4B–0x63: object class
 //! specific).
 
 use devicenet::explicit::{Request, ServiceCode};
@@ -126,7 +126,7 @@ fn service(code: u8) -> ServiceCode {
 
 /// The configuration object's request `code` with `data`, by name: `Read_Chunk (0x4B) of the
 /// stored image at offset 56, 42 bytes, configuration object (class 0x66, instance 1)`. Its
-/// services are class-specific (notes §3.2): the decoder's names for their codes are other
+/// services are class-specific (protocol §3.2): the decoder's names for their codes are other
 /// classes' services (0x4B is the DeviceNet object's Allocate).
 #[must_use]
 pub fn request_name(code: u8, data: &[u8]) -> String {

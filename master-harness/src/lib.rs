@@ -4,8 +4,8 @@
 //! checks every frame against the protocol, replays recorded transcripts as regression tests, scans
 //! a network, reads and writes attributes, monitors polled data and decodes `candump -L` logs. It
 //! is a real master, not a script of canned bytes: each next frame is decided from what the device
-//! answered. Protocol facts are those of `../shared/devicenet-notes.md`; every wire format comes
-//! from the [`devicenet`] core.
+//! answered. Protocol facts are those of the guide's protocol reference (`docs/src/protocol/`,
+//! cited as protocol §N); every wire format comes from the [`devicenet`] core.
 //!
 //! ## Layers
 //!

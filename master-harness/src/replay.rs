@@ -15,7 +15,7 @@
 //!   within `tolerance` of the recorded time ([`power_on_window`] says when);
 //! - [`FromOnline::Now`]: the device is on-line already; the transcript's start-up, every frame
 //!   before the device's recorded on-line instant (one interval after its last duplicate MAC ID
-//!   request, notes §7.1), is skipped;
+//!   request, protocol §7.1), is skipped;
 //! - [`FromOnline::Wait`]: the replay first waits, as long as it takes, for the device's own
 //!   duplicate MAC ID check (it is powered on after the start). When the transcript has the
 //!   device's check, its first request is compared with the transcript's and the replay goes on
@@ -214,7 +214,7 @@ pub fn power_on_note(entries: &[LogEntry], device: MacId, tolerance: Duration) -
 }
 
 /// `true` for the device's I/O messages whose data `--ignore-data io` leaves out: Group 1
-/// messages 12-15 with data (notes §1.3).
+/// messages 12-15 with data (protocol §1.3).
 fn is_io_data(frame: &CanFrame) -> bool {
     let io = [
         Group1MessageId::MULTICAST_POLL_RESPONSE,
@@ -246,7 +246,7 @@ pub fn transcript_devices(entries: &[LogEntry]) -> Vec<MacId> {
 }
 
 /// The master of a transcript: the source MAC in the header of its first request through the
-/// Group 2 Only port or an explicit connection (notes §3.1: a request's header carries the
+/// Group 2 Only port or an explicit connection (protocol §3.1: a request's header carries the
 /// requester's MAC).
 #[must_use]
 pub fn transcript_master(entries: &[LogEntry]) -> Option<MacId> {
@@ -260,7 +260,7 @@ pub fn transcript_master(entries: &[LogEntry]) -> Option<MacId> {
 }
 
 /// What the transcript leaves allocated at `device`: the choices of its Allocate requests the
-/// device answered with success, less those of its successful Releases (notes §3.4). A replay
+/// device answered with success, less those of its successful Releases (protocol §3.4). A replay
 /// releases this when it ends, as every command does.
 #[must_use]
 pub fn held_after(entries: &[LogEntry], device: MacId) -> AllocationChoice {
@@ -273,7 +273,7 @@ pub fn held_after(entries: &[LogEntry], device: MacId) -> AllocationChoice {
                 mac,
                 message: Group2Message::ExplicitRequest | Group2Message::UnconnectedExplicitRequest,
             } if mac == device => {
-                // Unfragmented [hdr] service class instance choice ... (8/8 body, notes §3.4).
+                // Unfragmented [hdr] service class instance choice ... (8/8 body, protocol §3.4).
                 pending = match data {
                     [h, service, 0x03, 0x01, choice, ..] if h & 0x80 == 0 => {
                         let service = ServiceCode::from(*service);
@@ -569,7 +569,7 @@ impl<'s, 'b, 'e> Run<'s, 'b, 'e> {
     /// it takes (a stop request ends the wait). With the device's check in the transcript, that
     /// request is compared with the transcript's first one and the replay goes on after it, timed
     /// from it; otherwise the replay waits until the device is on-line (two intervals after its
-    /// first request, notes §7.1) and starts at the first frame. Returns the index to go on from.
+    /// first request, protocol §7.1) and starts at the first frame. Returns the index to go on from.
     fn wait_for_power_up(&mut self) -> Result<usize, HarnessError> {
         let device = self.opts.device;
         let recorded = first_check(self.entries, device);
@@ -639,7 +639,7 @@ mod tests {
     use super::*;
     use can_io::log::parse_log;
 
-    /// The start of a `connect` transcript (notes §2 frames 0-7): the master's and the device's
+    /// The start of a `connect` transcript (protocol §2 frames 0-7): the master's and the device's
     /// duplicate MAC ID checks, 1 s apart, then the UCMM probe and the Allocate.
     const BRING_UP: &str = "\
 (0.000) sim 407#00010004030201

@@ -6,7 +6,7 @@
 //!
 //! * The device: the reference converter with the input assembly that carries the link status
 //!   (instance 101: the breaker's 18 bytes, the status byte, the freshness counter), the bus-off
-//!   interrupt set (BOI = 1, notes §7.2: a bus-off restarts the duplicate MAC ID check instead of
+//!   interrupt set (BOI = 1, protocol §7.2: a bus-off restarts the duplicate MAC ID check instead of
 //!   faulting for good), attached through [`SharedDevice`] so the soak can reach the breaker.
 //! * The scanner (master MAC 0): allocates through the Group 2 Only port, explicit watchdog action
 //!   deferred delete, allocates the poll connection, sets the EPR, then polls every EPR. Four polls

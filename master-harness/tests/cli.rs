@@ -27,7 +27,7 @@ fn connect_prints_the_table_and_exits_zero() {
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let out = stdout(&o);
     let rows: Vec<&str> = out.lines().filter(|l| l.contains(" M-> ") || l.contains(" S-> ")).collect();
-    // The 28 frames of notes §2, then the connections given back through the Group 2 Only port.
+    // The 28 frames of protocol §2, then the connections given back through the Group 2 Only port.
     assert_eq!(rows.len(), 30, "{out}");
     assert!(rows[27].contains("3C5  82 00 00 00 00") && rows[27].ends_with("ok"), "{}", rows[27]);
     assert!(rows[28].contains("42E  00 4C 03 01 03") && rows[28].ends_with("sent"), "{}", rows[28]);

@@ -4,7 +4,7 @@
 //! arrive in bursts from the serial line); every frame is checked otherwise.
 //!
 //! For `recover` the test makes the soft slave Communication Faulted the way a second node with
-//! its MAC would: it sends a duplicate MAC ID response for MAC 5 on the SLCAN line (notes §7.1
+//! its MAC would: it sends a duplicate MAC ID response for MAC 5 on the SLCAN line (protocol §7.1
 //! rule 3), then `dnet-master recover --mac 5 --to 9` finds it, gives it MAC 9 and watches it come
 //! on-line there.
 //!

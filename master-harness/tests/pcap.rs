@@ -1,5 +1,5 @@
 //! `--pcap`: the capture of a whole bring-up, written by can-io's `PcapBus` around the simulated
-//! bus, holds every frame of notes §2 with the times of the transcript.
+//! bus, holds every frame of protocol §2 with the times of the transcript.
 
 use can_io::bus::Bitrate;
 use can_io::pcap::{record, PcapBus, PcapWriter, CAN_FRAME_LEN, FILE_HEADER_LEN, RECORD_HEADER_LEN};

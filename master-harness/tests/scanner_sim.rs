@@ -690,7 +690,7 @@ fn mixed_scan_list_on_the_command_line_and_a_strobe_input_over_8_bytes_refused()
     let (code, out, _) = dnet(&["--slave-mac", "5,6,7,8", "scanner", "--cycles", "5", "--scanlist", p]);
     assert_eq!(code, 0);
     assert!(out.contains("cyclic (-ack)") && out.contains("strobe"), "{out}");
-    // A strobe response is never fragmented (notes §II.1.3): 18 bytes refused where it is written.
+    // A strobe response is never fragmented (protocol §II.1.3): 18 bytes refused where it is written.
     let bad = temp("strobe18.toml");
     std::fs::write(&bad, "[[node]]\nmac = 6\nconnection = \"strobe\"\ninput_size = 18\noutput_size = 0\n")
         .unwrap();

@@ -25,7 +25,7 @@
 //! | `strobe` | 0x05 | Connection 3 attribute 7; attribute 8 must be 8 (the strobe command), output 0 | Connection 3 |
 //! | `cos`, `cyclic` | 0x11 / 0x21, + 0x40 with `ack_suppression` | Connection 4 attribute 7, Connection 2 attribute 8 (the scanner's data) | Connection 4 |
 //!
-//! (`docs/io-connections.md`, notes §II.1, §II.2; the master's side of each connection is
+//! (`docs/io-connections.md`, protocol §II.1, §II.2; the master's side of each connection is
 //! [`master_core::master::io`]'s, here run for every node at once.)
 //!
 //! ## One scan cycle
@@ -52,7 +52,7 @@
 //! ## Timing: EPR and inter-scan delay (computed unless the scan list sets them)
 //!
 //! - *frame time* of a node = worst-case bits ([`devicenet::CanFrame::worst_case_bits`]) of its
-//!   frames in a cycle, at the data rate (7 data bytes per fragment above 8 bytes, notes §4.2):
+//!   frames in a cycle, at the data rate (7 data bytes per fragment above 8 bytes, protocol §4.2):
 //!   poll: its command and response; strobe: its response (the strobe command, 8 bytes, counted
 //!   once for the list); COS and cyclic: one production, one output of the scanner's data and,
 //!   unless suppressed, the two zero-length acknowledgements (at most one of each per cycle for
@@ -60,7 +60,7 @@
 //! - *minimum cycle* = the sum over the scan list;
 //! - inter-scan delay = max(2 ms, minimum cycle / 10), in whole ms;
 //! - EPR = max(100 ms, 4 × (minimum cycle + inter-scan delay)), rounded up to 10 ms — so the
-//!   device's watchdog (4 × EPR, notes §5.3) spans at least 16 cycles;
+//!   device's watchdog (4 × EPR, protocol §5.3) spans at least 16 cycles;
 //! - response window = max(20 ms, 2 × minimum cycle), at most the EPR;
 //! - a node in I/O with no complete poll response, strobe response or COS/cyclic production for
 //!   4 × EPR is *timed out* (72): its connection is dead at the device too (a COS node produces at
@@ -75,7 +75,7 @@
 //! [`crate::model::NodeStatus::code`]: Rockwell's DeviceNet node status codes (README, "scanner").
 //! Communication Faulted is seen on the bus: a duplicate MAC ID *response* at a node's MAC (an
 //! on-line device keeping a newcomer with the same MAC off the bus), or two devices announcing
-//! different serial numbers at one MAC. The Offline Connection Set (notes §II.6) is not used.
+//! different serial numbers at one MAC. The Offline Connection Set (protocol §II.6) is not used.
 //!
 //! ## Scanner status
 //!
@@ -407,7 +407,7 @@ impl Scanner {
     }
 
     /// A duplicate MAC ID check at a node's MAC: a response, or a second serial number, means two
-    /// devices share the MAC (notes §7.1: the newcomer is Communication Faulted).
+    /// devices share the MAC (protocol §7.1: the newcomer is Communication Faulted).
     fn note_check(n: &mut Node, check: &DuplicateMacCheck, at: Instant) {
         if check.response {
             n.duplicate = Some(format!(
@@ -439,7 +439,7 @@ impl Scanner {
     ) -> (Verdict, bool) {
         let what = n.input_name();
         let produced = n.produced();
-        // A strobe response is never fragmented (notes §II.1.3).
+        // A strobe response is never fragmented (protocol §II.1.3).
         let whole: Vec<u8> = if data.is_empty() || produced <= 8 || n.kind == IoKind::Strobe {
             data.to_vec()
         } else {
@@ -482,7 +482,7 @@ impl Scanner {
     }
 
     /// The acknowledgement of the scanner's COS/cyclic data by node `n` (Group 1 message 15,
-    /// zero length, notes §II.2.5).
+    /// zero length, protocol §II.2.5).
     fn output_acknowledged(n: &mut Node, data: &[u8], at: Instant) -> Verdict {
         let mut failures = Vec::new();
         if !data.is_empty() {
@@ -492,7 +492,7 @@ impl Scanner {
             ));
         }
         let note = if n.entry.ack_suppression {
-            failures.push("an acknowledgement under acknowledge suppression (notes §II.2.1)".into());
+            failures.push("an acknowledgement under acknowledge suppression (protocol §II.2.1)".into());
             "acknowledgement".to_string()
         } else if let Some(sent) = n.output_ack.take() {
             if n.state.detail.as_deref().is_some_and(|d| d.starts_with(UNACKED)) {
@@ -527,7 +527,7 @@ impl Scanner {
             self.next_reconnect = Some(t0 + RECONNECT_INTERVAL);
         }
         let mut commands: Vec<CanFrame> = Vec::new();
-        // One bit-strobe command for every strobed node (notes §II.1.2).
+        // One bit-strobe command for every strobed node (protocol §II.1.2).
         let mut strobe = [0u8; 8];
         let mut strobed = false;
         for n in self.nodes.iter_mut().filter(|n| n.in_io && n.kind == IoKind::Strobe) {
@@ -597,7 +597,7 @@ impl Scanner {
         let isd_end = master.session.now() + self.timing.interscan;
         self.pump(master, isd_end, |_| false)?;
         let now = master.session.now();
-        // The device's watchdog is 4 x EPR (notes §5.3): no response for that long, the
+        // The device's watchdog is 4 x EPR (protocol §5.3): no response for that long, the
         // connection is gone at both ends.
         let watchdog = Duration::from_millis(4 * u64::from(self.timing.epr_ms));
         for n in &mut self.nodes {

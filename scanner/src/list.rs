@@ -37,7 +37,7 @@
 //! output_size = 8
 //! ```
 //!
-//! A strobed node's input is its strobe response, never fragmented (notes §II.1.3): more than 8
+//! A strobed node's input is its strobe response, never fragmented (protocol §II.1.3): more than 8
 //! bytes is refused. Its output is one bit, byte `MAC / 8` bit `MAC % 8` of the scanner's strobe
 //! command, as Rockwell's scanners map it (1 bit per node); no output assembly is consumed
 //! (the EDS's `StrobeInfo` names no output), so `output_size` is 0, and the node's output image in
@@ -49,7 +49,7 @@ use master_core::master::io::IoKind;
 use serde::Deserialize;
 use std::ops::Range;
 
-/// The largest I/O message the scanner reassembles (64 fragments of 7 bytes, notes §4.2).
+/// The largest I/O message the scanner reassembles (64 fragments of 7 bytes, protocol §4.2).
 pub const MAX_IO_SIZE: u16 = master_core::decode::MAX_IO_MESSAGE as u16;
 
 /// Line and column (1-based) of byte `at` in `text`.
@@ -214,7 +214,7 @@ pub fn parse_scan_list_for(
                 "input_size",
                 |n| n.input_size.as_ref().map(|v| v.span()),
                 format!(
-                    "{} bytes: a strobe response carries at most 8 bytes, never fragmented (notes §II.1.3); poll the node, or use cos or cyclic",
+                    "{} bytes: a strobe response carries at most 8 bytes, never fragmented (protocol §II.1.3); poll the node, or use cos or cyclic",
                     node.input_size
                 ),
             )),

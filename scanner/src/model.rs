@@ -34,7 +34,7 @@ pub struct ScanEntry {
     /// [`IoKind::name`]; [`ScanEntry::io_kind`]).
     #[serde(default = "poll")]
     pub connection: String,
-    /// COS and cyclic: allocate with acknowledge suppression (allocation bit 0x40, notes §II.2.5):
+    /// COS and cyclic: allocate with acknowledge suppression (allocation bit 0x40, protocol §II.2.5):
     /// the node's productions and the scanner's data are not acknowledged.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub ack_suppression: bool,

@@ -1,7 +1,7 @@
 //! `params --mac N [--eds FILE] [--set NAME=VALUE ...]`: every parameter of a device read, and
 //! written, as a commissioning tool does.
 //!
-//! Without `--eds` the device's Parameter object (class 0x0F, notes §II.4) is enumerated: class
+//! Without `--eds` the device's Parameter object (class 0x0F, protocol §II.4) is enumerated: class
 //! attribute 2 gives the number of instances; each instance's value (attribute 1), descriptor
 //! (4), data type (5), size (6), name (7), units (8), minimum, maximum and default (10–12). With
 //! `--eds` the EDS `[Params]` are the list: each parameter is read through its link path (notes

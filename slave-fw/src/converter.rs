@@ -14,7 +14,7 @@
 //!   assembly 101 appends the status byte and the freshness counter
 //!   ([`LinkStatus::to_bytes`](crate::serial::LinkStatus::to_bytes)). The description chooses which one the poll connection produces.
 //! - While the instrument is silent the Identity status reports a minor recoverable fault and the
-//!   Module Status LED flashes red (devicenet-notes §6.2, §7.3); so does a configuration fault
+//!   Module Status LED flashes red (protocol §6.2, §7.3); so does a configuration fault
 //!   (built [`Converter::with_origin`] [`ConfigOrigin::Fault`]: the stored image was refused, the
 //!   factory default runs).
 //! - Two vendor-specific objects serve the serial side over explicit messaging:
@@ -84,16 +84,16 @@ pub const OUTPUT_ASSEMBLY: u8 = 150;
 pub const COMMAND_SIZE: u16 = 8;
 /// The time from an Identity Reset request to the reset ([`Converter::poll_reset`]).
 ///
-/// The node queues the success response when it takes the request (devicenet-notes §3.2: respond
+/// The node queues the success response when it takes the request (protocol §3.2: respond
 /// before resetting); the reset must wait until that frame has left the CAN controller, or the
 /// master sees a timeout instead of a response. One frame takes under 1.1 ms at 125 kbit/s, but it
 /// may wait behind queued frames, lose arbitration and be retransmitted after errors; 100 ms
 /// covers that with a wide margin (the adapter board has always waited this long), and is short
 /// against the master's explicit message timeout and a power cycle's own duplicate MAC ID check
-/// (2 s, devicenet-notes §7.1).
+/// (2 s, protocol §7.1).
 pub const RESET_DELAY: Duration = Duration::from_millis(100);
 
-/// What an Identity Reset asks for (the Reset service's type byte, devicenet-notes §3.2).
+/// What an Identity Reset asks for (the Reset service's type byte, protocol §3.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ResetKind {
     /// Type 0 (or no type byte): emulate a power cycle.
@@ -189,7 +189,7 @@ impl core::fmt::Display for ConverterConfigError {
 impl core::error::Error for ConverterConfigError {}
 
 impl ConverterConfig {
-    /// The reference converter: the reference device of devicenet-notes §2 and the breaker.
+    /// The reference converter: the reference device of protocol §2 and the breaker.
     pub fn breaker_reference() -> ConverterConfig {
         ConverterConfig {
             device: DeviceConfig::reference(),
@@ -416,7 +416,7 @@ impl Converter {
 
     /// The board's power-up self-test failed (e.g. its CAN controller, `board::self_test`): a
     /// major unrecoverable fault, for good. The Identity status reports it (bit 11, state 5) and
-    /// Module Status shows solid red (devicenet-notes §6.2, §7.3). Keeping the node off the bus is
+    /// Module Status shows solid red (protocol §6.2, §7.3). Keeping the node off the bus is
     /// the board's part: its CAN driver sends nothing.
     pub fn set_major_unrecoverable_fault(&mut self, now: Instant) {
         self.major_unrecoverable_fault = true;

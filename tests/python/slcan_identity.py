@@ -3,7 +3,7 @@
 
 Proves the firmware's SLCAN side is the Lawicel protocol python-can speaks, not only something our
 own harness tolerates. Over the adapter it does what a minimal DeviceNet master does with a
-group-2-only device (devicenet-notes section 2): waits for the device's duplicate MAC ID checks,
+group-2-only device (protocol §2 of the guide): waits for the device's duplicate MAC ID checks,
 allocates the explicit connection of the Predefined Master/Slave Connection Set through the Group 2
 Only Unconnected Explicit Request port, and reads the Identity vendor ID.
 

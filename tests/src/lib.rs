@@ -1,6 +1,6 @@
 //! System tests across the crates: the master harness (`master_harness`) driving the soft slave
 //! (the core's `SlaveNode` with the built-in instrument model) on the simulated bus, compared with
-//! the reference transcript of `../shared/devicenet-notes.md` §2 (`devicenet::reference`).
+//! the reference transcript of protocol §2 (`devicenet::reference`).
 //!
 //! The tests live in `tests/`, one file per feature; this library holds their shared helpers.
 

@@ -1,4 +1,4 @@
-//! `connect` on the simulated bus reproduces the 28 frames of devicenet-notes §2 byte for byte,
+//! `connect` on the simulated bus reproduces the 28 frames of protocol §2 byte for byte,
 //! deciding each frame from the answers, with every check holding.
 
 use can_io::bus::{Bitrate, Origin};

@@ -4,7 +4,7 @@
 //! (issue 26):
 //!
 //! - `dnet-master connect` brings the node up, every frame checked, and the 28 frames of its log
-//!   are devicenet-notes §2 byte for byte (the board powered when the master is on-line);
+//!   are protocol §2 byte for byte (the board powered when the master is on-line);
 //! - `dnet-master monitor` closes and then opens `dnet-sim-breaker` on the instrument pty through
 //!   the poll output, and the breaker hears each command once;
 //! - `dnet-master configure` downloads the Modbus meter description; the pymodbus meter

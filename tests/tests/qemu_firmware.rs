@@ -1,6 +1,6 @@
 //! End to end on the emulated board: the real firmware (feature `emulated`; on an empty settings
 //! flash the converter runs its factory default, the breaker) runs in QEMU; the bench master
-//! brings it up over SLCAN on USART1 and checks the 28 frames of devicenet-notes §2 byte for byte, then closes and opens the simulated breaker
+//! brings it up over SLCAN on USART1 and checks the 28 frames of protocol §2 byte for byte, then closes and opens the simulated breaker
 //! that answers on USART2, and sees each change in the breaker and in the poll data (byte 9); the
 //! scanner keeps it in I/O; then change of state (`connect --io cos`) and the recovery of the board
 //! made Communication Faulted (`recover --mac 5 --to 9`, issue 14).
@@ -42,15 +42,15 @@ use converter_sim::SimulatedBreaker;
 use devicenet::messages::DuplicateMacCheck;
 use devicenet::reference::{Direction, BRING_UP, INPUT_IMAGE};
 use devicenet::{CanFrame, Duration, Instant};
+use dnet_scanner::model::{ConsoleCommand, NodeStatus, ScanEntry, ScanList};
+use dnet_scanner::monitor::InputLayout;
+use dnet_scanner::{Scanner, ScannerOptions};
+use harness_common::table::print_table;
 use master_core::error::MasterError;
 use master_core::master::io::{IoKind, IoOptions};
 use master_core::master::recovery::RecoverOptions;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::{Session, Verdict};
-use dnet_scanner::monitor::InputLayout;
-use dnet_scanner::model::{ConsoleCommand, NodeStatus, ScanEntry, ScanList};
-use dnet_scanner::{Scanner, ScannerOptions};
-use harness_common::table::print_table;
 use serialport::SerialPort;
 use slave_fw::description::DeviceDescription;
 use slave_fw::serial::breaker::{BreakerCommand, SwitchState};
@@ -69,7 +69,7 @@ const BOOT_LIMIT: StdDuration = StdDuration::from_secs(5);
 /// How long the poll data may take to show a breaker command: the command goes out at once, the
 /// breaker reports its new state in its next status frame (every second).
 const STATE_CHANGE_LIMIT: Duration = Duration::from_secs(5);
-/// The expected packet rate the bring-up sets (notes §2 frame 22).
+/// The expected packet rate the bring-up sets (protocol §2 frame 22).
 const EPR: Duration = Duration::from_millis(100);
 /// The poll response timeout after the bring-up. The firmware answers within milliseconds, but
 /// QEMU's virtual CPU may wait for the host's scheduler (the bring-up's one poll keeps the
@@ -434,7 +434,7 @@ fn run(session: &mut Session<'_>, breaker: &BreakerRig) -> Result<(), String> {
     let mut master = Master::new(session, MasterConfig::default());
     let summary = master.connect(&ConnectOptions::default()).map_err(|e: MasterError| e.to_string())?;
 
-    // The 28 frames of notes §2, byte for byte and in order, every check holding.
+    // The 28 frames of protocol §2, byte for byte and in order, every check holding.
     let records = master.session.records();
     if records.len() != BRING_UP.len() {
         return Err(format!("bring-up took {} frames, the reference {}", records.len(), BRING_UP.len()));
@@ -476,7 +476,7 @@ fn run(session: &mut Session<'_>, breaker: &BreakerRig) -> Result<(), String> {
 
 /// Issue 14 on the board: `connect --io cos` (the breaker's image produced on change and
 /// acknowledged), then the board made Communication Faulted by a duplicate MAC ID response for its
-/// MAC (notes §7.1) and recovered to MAC 9 through the Offline Connection Set (`recover`, §II.6):
+/// MAC (protocol §7.1) and recovered to MAC 9 through the Offline Connection Set (`recover`, §II.6):
 /// the firmware's filters take the Group 4 requests and, after the change, its new MAC.
 fn change_of_state_and_recovery(master: &mut Master<'_, '_>) -> Result<(), String> {
     master.release_held().map_err(|e| e.to_string())?;
@@ -497,7 +497,7 @@ fn change_of_state_and_recovery(master: &mut Master<'_, '_>) -> Result<(), Strin
     }
     master.release_held().map_err(|e| e.to_string())?;
 
-    // Another node claims MAC 5: the on-line board must fault (notes §7.1).
+    // Another node claims MAC 5: the on-line board must fault (protocol §7.1).
     let claim = DuplicateMacCheck::response(0, 0x0FFF, 0xA5A5_0002);
     master
         .session

@@ -5,10 +5,10 @@
 use can_io::bus::Bitrate;
 use can_io::log::{format_line, parse_log, LogEntry};
 use devicenet::reference::BRING_UP;
-use master_core::master::{ConnectOptions, Master, MasterConfig};
-use master_core::session::Session;
 use harness_common::error::Divergence;
 use harness_common::error::HarnessError;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
 use master_harness::replay::{replay, ReplayOptions};
 use system_tests::{log_text, mac, sim_bus};
 
@@ -51,7 +51,7 @@ fn the_connect_transcript_is_the_reference_and_replays() {
 
 #[test]
 fn the_reference_table_itself_replays() {
-    // A transcript written by hand from notes §2, with the capture's timing.
+    // A transcript written by hand from protocol §2, with the capture's timing.
     let times_ms = [0, 1000, 2000, 3000, 4000, 4500];
     let mut text = String::new();
     for (i, r) in BRING_UP.iter().enumerate() {

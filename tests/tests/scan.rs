@@ -3,10 +3,10 @@
 
 use can_io::bus::Bitrate;
 use devicenet::Duration;
+use dnet_scanner::scan::scan;
+use harness_common::console::Progress;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use harness_common::console::Progress;
-use dnet_scanner::scan::scan;
 use system_tests::sim_bus;
 
 #[test]

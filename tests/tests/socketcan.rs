@@ -278,7 +278,7 @@ impl Rig {
 
 /// Listens on the interface until the master's second duplicate MAC ID request has been on the
 /// bus: the master is then 1 s from on-line, and a device powered now starts its own check after
-/// the master's, as in notes §2.
+/// the master's, as in protocol §2.
 fn await_master_second_check(listener: &mut SocketCanBus, timeout: Duration) {
     let master_check =
         Identifier::group2(MacId::from_low_bits(0), devicenet::Group2Message::DuplicateMacCheck);
@@ -314,7 +314,7 @@ fn reference_frames() -> Vec<(bool, u16, Vec<u8>)> {
         .collect()
 }
 
-/// The log at `path` holds notes §2 from frame `from` on (a device started after the master's
+/// The log at `path` holds protocol §2 from frame `from` on (a device started after the master's
 /// checks never saw frames 0 and 1), byte for byte and in order, the checks 1 s apart.
 fn assert_bring_up(what: &str, path: &str, from: usize) {
     let entries = read_log(Path::new(path)).unwrap_or_else(|e| panic!("{what}: {e}"));
@@ -326,12 +326,12 @@ fn assert_bring_up(what: &str, path: &str, from: usize) {
     assert_eq!(
         got.len(),
         want.len(),
-        "{what}: {} frames, notes §2 has {} from frame {from}",
+        "{what}: {} frames, protocol §2 has {} from frame {from}",
         got.len(),
         want.len()
     );
     let t = |i: usize| entries[i - from].at.total_millis() as i64;
-    // The duplicate MAC ID checks are 1 s apart on the real clock too (notes §7.1).
+    // The duplicate MAC ID checks are 1 s apart on the real clock too (protocol §7.1).
     for (a, b) in [(0, 1), (2, 3)].into_iter().filter(|&(a, _)| a >= from) {
         assert!((t(b) - t(a) - 1000).abs() < 150, "{what}: frames {a} and {b} are {} ms apart", t(b) - t(a));
     }

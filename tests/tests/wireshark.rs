@@ -161,7 +161,7 @@ fn bring_up() -> Vec<Record> {
     session.records().to_vec()
 }
 
-/// (group, message ID, identifier MAC) of each frame of the bring-up (notes §2), and the release.
+/// (group, message ID, identifier MAC) of each frame of the bring-up (protocol §2), and the release.
 const BRING_UP_IDS: [(&str, &str, &str); 30] = [
     ("2", "0x07", "0"),
     ("2", "0x07", "0"),
@@ -305,7 +305,7 @@ fn a_fragmented_product_name_and_an_error_response_decode() {
     assert_eq!(error.get("dnetx.service"), "0x14");
 }
 
-/// Frames that the master does not produce on the simulated bus (notes §3.5, §3.7, §3.8, §II.6):
+/// Frames that the master does not produce on the simulated bus (protocol §3.5, §3.7, §3.8, §II.6):
 /// a duplicate MAC ID response, heartbeat and shutdown, the Offline Connection Set, a fragmented
 /// request, an error with an additional code, an invalid identifier.
 #[test]

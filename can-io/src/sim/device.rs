@@ -22,7 +22,7 @@ pub trait SimDevice {
     fn poll_at(&self) -> Option<Instant>;
     /// The device's CAN controller went bus-off at `now` (fault injection, [`super::fault`]): the
     /// frames it had queued are lost. The default ignores it (a device that does not model
-    /// bus-off); a DeviceNet device applies its bus-off interrupt setting (notes §7.2).
+    /// bus-off); a DeviceNet device applies its bus-off interrupt setting (protocol §7.2).
     fn handle_bus_off(&mut self, _now: Instant) {}
 }
 
@@ -30,12 +30,12 @@ pub trait SimDevice {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum PowerOn {
     /// When the master is on-line, as in the source capture: 1 s after the master queued its second
-    /// duplicate MAC ID check request (notes §7.1), the instant a master that heard no answer
+    /// duplicate MAC ID check request (protocol §7.1), the instant a master that heard no answer
     /// goes on-line. The bus sees this on the wire; the master tells it nothing.
     #[default]
     WhenMasterOnline,
     /// This long after the master is on-line: a second device at a MAC ID already in use, which
-    /// must find the first one on-line and end Communication Faulted (notes §7.1).
+    /// must find the first one on-line and end Communication Faulted (protocol §7.1).
     AfterMasterOnline(Duration),
     /// At the start of the simulation.
     AtStart,

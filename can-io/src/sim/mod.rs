@@ -4,7 +4,7 @@
 //!
 //! * **Arbitration.** Every node (the master and each device) has a transmit queue served in
 //!   order. When the bus is idle, the head frames of all queues that are pending at that instant
-//!   contend, and the lowest identifier wins (notes §1.1): a frame that loses waits for the next
+//!   contend, and the lowest identifier wins (protocol §1.1): a frame that loses waits for the next
 //!   idle bus.
 //! * **Time on the wire.** A frame occupies the bus for its exact bit count at the chosen bit rate:
 //!   the stuffed region (start of frame to CRC) with the stuff bits the frame's own bit pattern
@@ -14,7 +14,7 @@
 //!   ([`SimDevice::poll_at`]) and when a frame completes, and queues what they transmit.
 //! * **Power.** Each device powers on according to its [`PowerOn`] policy; by default when the
 //!   master goes on-line, as in the source capture: 1 s after the master queued its second
-//!   duplicate MAC ID check request (notes §7.1). The bus reads that from the master's own frames;
+//!   duplicate MAC ID check request (protocol §7.1). The bus reads that from the master's own frames;
 //!   nothing simulation-specific passes through the [`Bus`] trait.
 //!
 //! * **Faults** (optional, [`SimBus::set_faults`]): a [`WireFaults`] model decides the fate of

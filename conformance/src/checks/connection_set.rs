@@ -1,4 +1,4 @@
-//! The Predefined Master/Slave Connection Set (notes §3.4): every row of the validation table,
+//! The Predefined Master/Slave Connection Set (protocol §3.4): every row of the validation table,
 //! allocation through the Group 2 Only port and through the explicit connection, ownership, release
 //! and re-allocation.
 
@@ -421,7 +421,7 @@ fn group2_only_service(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), Harn
         }) if *a == additional::INVALID_GROUP2_ONLY_REQUEST => {
             c.advise(
                 Basis::Unconfirmed,
-                "Get_Attribute_Single on the Group 2 Only port: 0x08/0x03 (JB uses general status 0x02; notes §9.6)",
+                "Get_Attribute_Single on the Group 2 Only port: 0x08/0x03 (JB uses general status 0x02; protocol §9.6)",
             );
         }
         _ => {

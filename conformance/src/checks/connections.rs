@@ -1,4 +1,4 @@
-//! Connections (notes §4.2, §5, §8): poll ignored before the EPR is set, the EPR round trip, the
+//! Connections (protocol §4.2, §5, §8): poll ignored before the EPR is set, the EPR round trip, the
 //! inactivity watchdog measured against 4 × EPR for every timeout action, deferred delete, idle
 //! polls, I/O fragmentation of the poll response, requests from a master that does not own the
 //! device.
@@ -210,7 +210,7 @@ fn probe_until(
 ///
 /// Within max(EPR / 5, 20 ms) of 4 x EPR it passes. Further off, but by no more than the device's
 /// timer resolution, it is advisory: a timer that counts ticks may be off by one tick (JB counts
-/// 4 x EPR / 50 ms ticks of 50 ms, notes §5.3). The resolution is bounded by the rounding the
+/// 4 x EPR / 50 ms ticks of 50 ms, protocol §5.3). The resolution is bounded by the rounding the
 /// device showed in epr-round-trip (`resolution`); without that, half the EPR (JB's 50 ms for the
 /// suite's 100 ms). Off by more, it fails: a watchdog at 3 x EPR is a fault, not a tick.
 #[allow(clippy::too_many_arguments)]

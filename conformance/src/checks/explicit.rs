@@ -198,7 +198,7 @@ fn identity(r: &mut Runner<'_, '_>, c: &mut Check) -> Result<(), HarnessError> {
     Ok(())
 }
 
-/// Get_Attributes_All of Identity instance 1 (optional, notes §6.2): the attributes concatenated
+/// Get_Attributes_All of Identity instance 1 (optional, protocol §6.2): the attributes concatenated
 /// in order, each whole; `parts` are attributes 1-7 as read with Get_Attribute_Single.
 fn attributes_all(r: &mut Runner<'_, '_>, c: &mut Check, parts: &[Vec<u8>]) -> Result<(), HarnessError> {
     let a =

@@ -1,4 +1,4 @@
-//! Network access: the bring-up of notes §2, the device's own duplicate MAC ID check and its
+//! Network access: the bring-up of protocol §2, the device's own duplicate MAC ID check and its
 //! answer to another node's (§7.1, §3.5), silence to UCMM (§3.4, §1.4), traffic to other MAC IDs
 //! ignored (§8).
 
@@ -25,7 +25,7 @@ pub(super) fn run(r: &mut Runner<'_, '_>) -> Result<(), HarnessError> {
         bring_up,
     )?;
     // Nothing from the device during the whole bring-up (no duplicate MAC ID check, no answer to
-    // the UCMM probes or to the Allocate through the Group 2 Only port, notes §2, §3.4, §7.1):
+    // the UCMM probes or to the Allocate through the Group 2 Only port, protocol §2, §3.4, §7.1):
     // nobody is there, and every other check would only time out.
     if !r.device_heard() {
         return Err(HarnessError::NoDevice {

@@ -1,4 +1,4 @@
-//! The Offline Connection Set (notes §7.1 rule 3, §7.4, §3.8, §II.6; `docs/io-connections.md`):
+//! The Offline Connection Set (protocol §7.1 rule 3, §7.4, §3.8, §II.6; `docs/io-connections.md`):
 //! the device is made Communication Faulted the one way a master can, a duplicate MAC ID
 //! response for its MAC, then found with Who, identified, asked for offline ownership and given
 //! its own MAC again with Change MAC ID, after which it must run its duplicate MAC ID check and
@@ -253,7 +253,7 @@ fn change_mac_id(r: &mut Runner<'_, '_>, c: &mut Check, device: &Faulted) -> Res
     }
     c.firm(
         requests.len() == 2,
-        format!("{} duplicate MAC ID request(s) after Change MAC ID (two, notes §7.1)", requests.len()),
+        format!("{} duplicate MAC ID request(s) after Change MAC ID (two, protocol §7.1)", requests.len()),
         None,
     );
     if let [a, b] = requests[..] {

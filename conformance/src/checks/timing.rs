@@ -1,5 +1,5 @@
 //! Timing: poll response latency and explicit response latency, with the limits a scanner applies
-//! (its own choices: notes §9, FREE).
+//! (its own choices: protocol §9, FREE).
 
 use super::super::runner::{g2, percentile, Check, Runner};
 use super::super::{Basis, Category};

@@ -1,5 +1,5 @@
 //! Allocate_Master/Slave_Connection_Set and Release_Master/Slave_Connection_Set service data and
-//! the DeviceNet object's allocation information (devicenet-notes §3.4, §6.1): which connections
+//! the DeviceNet object's allocation information (protocol §3.4, §6.1): which connections
 //! of the Predefined Master/Slave Connection Set are named, and by which master.
 //!
 //! These layouts are explicit *service data* only, what follows service, class 3 and instance 1
@@ -10,7 +10,7 @@ use crate::id::MacId;
 use core::fmt;
 use core::ops::{BitAnd, BitAndAssign, BitOr, BitOrAssign};
 
-/// Allocation choice bits (notes §3.4): which Predefined Master/Slave connections an Allocate or
+/// Allocation choice bits (protocol §3.4): which Predefined Master/Slave connections an Allocate or
 /// Release names. A bit set that keeps all 8 bits, the reserved bit 7 included, so a validator
 /// can reject it and a decoder can show it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -153,7 +153,7 @@ impl fmt::Display for AllocationChoice {
     }
 }
 
-/// Allocate_Master/Slave_Connection_Set request service data (notes §3.4), what follows service
+/// Allocate_Master/Slave_Connection_Set request service data (protocol §3.4), what follows service
 /// 0x4B, class 3, instance 1: `<allocation choice> <allocator MAC>` (allocator bits 7–6 zero).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -179,7 +179,7 @@ impl AllocateRequest {
 
 fixed_length!(AllocateRequest, 2);
 
-/// Release_Master/Slave_Connection_Set request service data (notes §3.4), what follows service
+/// Release_Master/Slave_Connection_Set request service data (protocol §3.4), what follows service
 /// 0x4C, class 3, instance 1: `<release choice>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -203,7 +203,7 @@ impl ReleaseRequest {
 
 fixed_length!(ReleaseRequest, 1);
 
-/// DeviceNet object attribute 5, allocation information (notes §6.1):
+/// DeviceNet object attribute 5, allocation information (protocol §6.1):
 /// `<allocation choice> <master MAC>`, master MAC 255 when the set is not allocated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -1,12 +1,12 @@
-//! The duplicate MAC ID check message (devicenet-notes §3.5), the whole CAN data field of
+//! The duplicate MAC ID check message (protocol §3.5), the whole CAN data field of
 //! Group 2 message 7: a node sends two requests before going on-line, and a node that owns the
-//! MAC ID answers with a response (notes §7.1).
+//! MAC ID answers with a response (protocol §7.1).
 
 use super::{exact, fixed_length, DeviceKey, MessageError};
 use crate::frame::CanFrame;
 use crate::id::{Group2Message, Identifier, MacId};
 
-/// Duplicate MAC ID check message body (notes §3.5): always 7 bytes, sent on Group 2 message 7
+/// Duplicate MAC ID check message body (protocol §3.5): always 7 bytes, sent on Group 2 message 7
 /// with the checked MAC in the identifier.
 ///
 /// `[R/R(7) | port(6–0)] <vendor LE16> <serial LE32>`.
@@ -52,7 +52,7 @@ impl DuplicateMacCheck {
     }
 
     /// The checked MAC ID when `frame` is a duplicate MAC ID check *request* (Group 2 message 7,
-    /// R/R bit clear, notes §3.5); `None` for a response or any other frame.
+    /// R/R bit clear, protocol §3.5); `None` for a response or any other frame.
     pub fn request_in(frame: &CanFrame) -> Option<MacId> {
         match Identifier::decode(frame.id()) {
             Identifier::Group2 { mac, message: Group2Message::DuplicateMacCheck } => {

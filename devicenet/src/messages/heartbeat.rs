@@ -1,4 +1,4 @@
-//! The Device Heartbeat and Device Shutdown messages (devicenet-notes §3.7, §II.5), sent by a
+//! The Device Heartbeat and Device Shutdown messages (protocol §3.7, §II.5), sent by a
 //! device on its explicit response identifier with its own MAC ID in the header.
 //!
 //! Each layout is the whole CAN data field, header byte included; these messages are never
@@ -13,7 +13,7 @@ pub const DEVICE_HEARTBEAT: u8 = 0xCD;
 /// The Device Shutdown service byte (response form of 0x4E).
 pub const DEVICE_SHUTDOWN: u8 = 0xCE;
 
-/// The Identity object's state (attribute 8, notes §6.2), as carried by the heartbeat; unknown
+/// The Identity object's state (attribute 8, protocol §6.2), as carried by the heartbeat; unknown
 /// values are kept.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -62,7 +62,7 @@ impl From<DeviceState> for u8 {
     }
 }
 
-/// The heartbeat's fault/event flags byte (notes §3.7), a bit set that keeps all 8 bits (bits 7–4
+/// The heartbeat's fault/event flags byte (protocol §3.7), a bit set that keeps all 8 bits (bits 7–4
 /// are reserved).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -99,7 +99,7 @@ impl HeartbeatFlags {
     }
 }
 
-/// Device Heartbeat message, the whole frame data (notes §3.7), sent by a device on its response
+/// Device Heartbeat message, the whole frame data (protocol §3.7), sent by a device on its response
 /// identifier with its own MAC in the header:
 /// `[hdr] CD <Identity instance LE16> <state> <flags> <configuration consistency LE16>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -146,7 +146,7 @@ impl DeviceHeartbeat {
 
 fixed_length!(DeviceHeartbeat, 8);
 
-/// Device Shutdown message, the whole frame data (notes §3.7), sent by a device on its response
+/// Device Shutdown message, the whole frame data (protocol §3.7), sent by a device on its response
 /// identifier with its own MAC in the header:
 /// `[hdr] CE <class LE16> <instance LE16> <shutdown code LE16>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

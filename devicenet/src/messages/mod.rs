@@ -1,14 +1,14 @@
 //! Fixed-layout message bodies: the duplicate MAC ID check, Allocate/Release service data, UCMM
 //! open/close, the device heartbeat and shutdown messages and the Group 4 Offline Connection Set
-//! (devicenet-notes §3.4–§3.8), one file per message family:
+//! (protocol §3.4–§3.8), one file per message family:
 //!
 //! | file | messages |
 //! |---|---|
-//! | `duplicate_mac.rs` | [`DuplicateMacCheck`] (notes §3.5) |
-//! | `allocation.rs` | [`AllocationChoice`], [`AllocateRequest`], [`ReleaseRequest`], [`AllocationInfo`] (notes §3.4) |
-//! | `ucmm.rs` | [`UcmmOpenRequest`], [`UcmmOpenResponse`], [`UcmmCloseRequest`], [`UcmmCloseResponse`] (notes §3.6) |
-//! | `heartbeat.rs` | [`DeviceHeartbeat`], [`DeviceShutdown`] (notes §3.7) |
-//! | `offline.rs` | [`OfflineMessage`], the Group 4 Offline Connection Set (notes §3.8) |
+//! | `duplicate_mac.rs` | [`DuplicateMacCheck`] (protocol §3.5) |
+//! | `allocation.rs` | [`AllocationChoice`], [`AllocateRequest`], [`ReleaseRequest`], [`AllocationInfo`] (protocol §3.4) |
+//! | `ucmm.rs` | [`UcmmOpenRequest`], [`UcmmOpenResponse`], [`UcmmCloseRequest`], [`UcmmCloseResponse`] (protocol §3.6) |
+//! | `heartbeat.rs` | [`DeviceHeartbeat`], [`DeviceShutdown`] (protocol §3.7) |
+//! | `offline.rs` | [`OfflineMessage`], the Group 4 Offline Connection Set (protocol §3.8) |
 //!
 //! Every type is re-exported here: its path is `devicenet::messages::Name`. This file holds what
 //! the families share: [`MessageError`], [`DeviceKey`] and the length and field checks.
@@ -187,7 +187,7 @@ macro_rules! fixed_length {
 use fixed_length;
 
 /// The identity of a device on the wire: vendor ID and serial number, as carried by the duplicate
-/// MAC ID check and the Offline Connection Set (Identity attributes 1 and 6, notes §6.2).
+/// MAC ID check and the Offline Connection Set (Identity attributes 1 and 6, protocol §6.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DeviceKey {
@@ -234,9 +234,9 @@ mod testing {
         }
     }
 
-    /// The master of the reference capture (notes §2, frame 0).
+    /// The master of the reference capture (protocol §2, frame 0).
     pub(super) const MASTER: DeviceKey = DeviceKey { vendor_id: 0x0001, serial_number: 0x0102_0304 };
-    /// The reference slave (notes §2, frame 2).
+    /// The reference slave (protocol §2, frame 2).
     pub(super) const SLAVE: DeviceKey = DeviceKey { vendor_id: 0x1234, serial_number: 0x1234_5678 };
 
     pub(super) fn any_mac() -> impl Strategy<Value = MacId> {

@@ -1,5 +1,5 @@
-//! The Group 4 Offline Connection Set (devicenet-notes §3.8, §II.6): finding a node in the
-//! Communication Faulted state, having it identify itself and giving it a new MAC ID (notes §7.4).
+//! The Group 4 Offline Connection Set (protocol §3.8, §II.6): finding a node in the
+//! Communication Faulted state, having it identify itself and giving it a new MAC ID (protocol §7.4).
 //!
 //! The messages vary in length and share one identifier per direction, so [`OfflineMessage`] is
 //! decoded from the Group 4 message ID together with the whole CAN data field, and emitted into a
@@ -8,7 +8,7 @@
 use super::{exact, mac_byte, service, DeviceKey, MessageError};
 use crate::id::{Group4MessageId, MacId};
 
-/// The first byte of the Communication Faulted request/response messages (notes §3.8):
+/// The first byte of the Communication Faulted request/response messages (protocol §3.8):
 /// `[reserved(7) | match(6) | value(5–0)]`. What "match" and "value" select is UNCONFIRMED (notes
 /// §9 item 11); the ICP example sends `3F` (match 0, value 63).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -45,8 +45,8 @@ const CHANGE_MAC_ID: u8 = 0x4D;
 /// Offline ownership request service byte; the response is `0xCB`.
 const OWNERSHIP: u8 = 0x4B;
 
-/// A message of the Group 4 Offline Connection Set (notes §3.8), decoded from its Group 4 message
-/// ID and data. Used to find and recover a node in the Communication Faulted state (notes §7.4).
+/// A message of the Group 4 Offline Connection Set (protocol §3.8), decoded from its Group 4 message
+/// ID and data. Used to find and recover a node in the Communication Faulted state (protocol §7.4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OfflineMessage {

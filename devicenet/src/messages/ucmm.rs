@@ -1,5 +1,5 @@
 //! UCMM (Group 3) Open Explicit Messaging Connection and Close Connection, request and success
-//! response (devicenet-notes §3.6). A group-2-only slave never answers them; the harness builds
+//! response (protocol §3.6). A group-2-only slave never answers them; the harness builds
 //! frames 4–5 of the reference capture with them, and the decoder names them.
 //!
 //! Each layout is the whole CAN data field, header byte included; these messages are never
@@ -14,7 +14,7 @@ pub const UCMM_OPEN: u8 = 0x4B;
 /// The UCMM Close Connection request service byte.
 pub const UCMM_CLOSE: u8 = 0x4C;
 
-/// The message group a UCMM open request asks the server to use (notes §3.6), a 4-bit code that
+/// The message group a UCMM open request asks the server to use (protocol §3.6), a 4-bit code that
 /// keeps unknown values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -55,7 +55,7 @@ impl GroupSelect {
     }
 }
 
-/// UCMM Open Explicit Messaging Connection request, the whole frame data (notes §3.6), sent on
+/// UCMM Open Explicit Messaging Connection request, the whole frame data (protocol §3.6), sent on
 /// Group 3 message 6 from the client:
 /// `[frag 0 | XID | dest MAC] 4B [reserved 4 | requested body format 4] [group select 4 | source message ID 4]`.
 ///
@@ -106,7 +106,7 @@ impl UcmmOpenRequest {
 
 fixed_length!(UcmmOpenRequest, 4);
 
-/// UCMM Open Explicit Messaging Connection success response, the whole frame data (notes §3.6),
+/// UCMM Open Explicit Messaging Connection success response, the whole frame data (protocol §3.6),
 /// sent on Group 3 message 5 from the server:
 /// `[hdr] CB [reserved 4 | actual body format 4] [dest message ID 4 | source message ID 4] <connection instance LE16>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -161,7 +161,7 @@ impl UcmmOpenResponse {
 
 fixed_length!(UcmmOpenResponse, 6);
 
-/// UCMM Close Connection request, the whole frame data (notes §3.6):
+/// UCMM Close Connection request, the whole frame data (protocol §3.6):
 /// `[hdr] 4C <connection instance LE16>`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -196,7 +196,7 @@ impl UcmmCloseRequest {
 
 fixed_length!(UcmmCloseRequest, 4);
 
-/// UCMM Close Connection success response, the whole frame data (notes §3.6): `[hdr] CC`.
+/// UCMM Close Connection success response, the whole frame data (protocol §3.6): `[hdr] CC`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct UcmmCloseResponse {

@@ -1,8 +1,8 @@
-//! The Predefined Master/Slave Connection Set (devicenet-notes §3.4): Allocate and Release,
+//! The Predefined Master/Slave Connection Set (protocol §3.4): Allocate and Release,
 //! through the Group 2 Only Unconnected Explicit Request port or through the explicit connection
 //! (DeviceNet object, class 3 instance 1).
 //!
-//! Requests are validated in JB's order and answered with the error codes of notes §3.4, with the
+//! Requests are validated in JB's order and answered with the error codes of protocol §3.4, with the
 //! change-of-state/cyclic rules of §II.2.5 (docs/io-connections.md). This node offers every
 //! connection but multicast poll ([`SUPPORTED`]).
 
@@ -21,7 +21,7 @@ pub(super) const SUPPORTED: AllocationChoice = AllocationChoice::from_bits(0x77)
 const COS_OR_CYCLIC: AllocationChoice = AllocationChoice::CHANGE_OF_STATE.union(AllocationChoice::CYCLIC);
 
 impl SlaveNode {
-    /// A request on the Group 2 Only Unconnected Explicit Request port (notes §3.4): only
+    /// A request on the Group 2 Only Unconnected Explicit Request port (protocol §3.4): only
     /// Allocate and Release of the DeviceNet object are served; the response goes out at once.
     pub(super) fn on_group2_only<H: ObjectHandler>(&mut self, data: &[u8], now: Instant) {
         match data {
@@ -53,7 +53,7 @@ impl SlaveNode {
         }
     }
 
-    /// Allocate_Master/Slave_Connection_Set (notes §3.4), validation in JB's order. The success
+    /// Allocate_Master/Slave_Connection_Set (protocol §3.4), validation in JB's order. The success
     /// response carries the body format byte.
     pub(super) fn allocate(
         &mut self,
@@ -125,7 +125,7 @@ impl SlaveNode {
         reply.u8(BodyFormat::Class8Instance8.code())
     }
 
-    /// Release_Master/Slave_Connection_Set (notes §3.4).
+    /// Release_Master/Slave_Connection_Set (protocol §3.4).
     pub(super) fn release(&mut self, requester: MacId, data: &[u8]) -> Result<(), ServiceError> {
         // ReleaseRequest's layout matched in place (firmware size).
         let &[choice] = data else {
@@ -170,7 +170,7 @@ impl SlaveNode {
     }
 }
 
-/// An allocation choice that is malformed or inconsistent: 0x09 / 0x02 (notes §3.4).
+/// An allocation choice that is malformed or inconsistent: 0x09 / 0x02 (protocol §3.4).
 fn invalid_choice() -> ServiceError {
     ServiceError::with_additional(GeneralStatus::InvalidAttributeValue, additional::INVALID_CHOICE)
 }

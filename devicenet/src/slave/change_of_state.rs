@@ -1,11 +1,11 @@
-//! Change-of-state and cyclic I/O (Connection instance 4; devicenet-notes §II.2,
+//! Change-of-state and cyclic I/O (Connection instance 4; protocol §II.2,
 //! docs/io-connections.md) with the Acknowledge Handler (class 0x2B, §II.2.4).
 //!
 //! - Cyclic: the input image is produced every expected packet rate (EPR).
 //! - Change of state: produced when the application says it changed
 //!   ([`SlaveNode::input_changed`]), no sooner than the production inhibit time after the last
 //!   production, and at the latest every EPR (the "heartbeat" of NI and RA 1769-SDN).
-//! - Productions go out on Group 1 message 13, I/O-fragmented above 8 bytes (notes §4.2).
+//! - Productions go out on Group 1 message 13, I/O-fragmented above 8 bytes (protocol §4.2).
 //!   Unless acknowledgement is suppressed, the master acknowledges each with a zero-length frame on
 //!   Group 2 message 2; without it the node sends the whole series again after the acknowledge
 //!   timer, up to the retry limit (§II.2.1: the only consistent reading, UNCONFIRMED), then reports

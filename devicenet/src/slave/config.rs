@@ -11,7 +11,7 @@ pub const MAX_IO_SIZE: usize = 128;
 /// Largest explicit message (header + body) the node reassembles or sends.
 pub const MAX_EXPLICIT_SIZE: usize = 64;
 /// The most input data a bit-strobe response carries: a strobe response is never fragmented
-/// (devicenet-notes §II.1.3), so a device with a larger input image answers a strobe with the first
+/// (protocol §II.1.3), so a device with a larger input image answers a strobe with the first
 /// `STROBE_MAX_SIZE` bytes of it (docs/io-connections.md).
 pub const STROBE_MAX_SIZE: u16 = 8;
 
@@ -26,7 +26,7 @@ pub const fn strobe_produced_size(produced: u16) -> u16 {
 /// Longest product name (Identity attribute 7, SHORT_STRING).
 pub const MAX_PRODUCT_NAME: usize = 32;
 
-/// DeviceNet data rates (DeviceNet object attribute 2, notes §6.1).
+/// DeviceNet data rates (DeviceNet object attribute 2, protocol §6.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum BaudRate {
@@ -68,7 +68,7 @@ impl BaudRate {
     }
 }
 
-/// Identity object values (class 1, notes §6.2).
+/// Identity object values (class 1, protocol §6.2).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Identity {
     /// Attribute 1; also sent in duplicate MAC ID checks.
@@ -212,7 +212,7 @@ impl DeviceConfig {
         Ok(())
     }
 
-    /// The reference device of `../shared/devicenet-notes.md` §2 and of the project's default
+    /// The reference device of protocol §2 and of the project's default
     /// description: MAC 5, vendor 0x1234, device type 0x000C, product code 1, revision 1.1,
     /// serial 0x12345678, "Serial-DeviceNet Bridge", 250 kbit/s, poll produced 18 / consumed 8,
     /// input assembly 100, output assembly 150.

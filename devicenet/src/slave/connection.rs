@@ -1,14 +1,14 @@
 //! Connection object instances of the Predefined Master/Slave Connection Set: 1 explicit, 2 poll,
-//! 3 bit-strobe and 4 change-of-state/cyclic (devicenet-notes §5, §II.1, §II.2).
+//! 3 bit-strobe and 4 change-of-state/cyclic (protocol §5, §II.1, §II.2).
 //!
 //! A [`Connection`] holds the state, expected packet rate, watchdog timeout action and the
-//! inactivity deadline (4 × EPR, notes §5.3). Time-driven transitions happen in
+//! inactivity deadline (4 × EPR, protocol §5.3). Time-driven transitions happen in
 //! [`Connection::expire`]; the node decides what an expiry means for the other connection (deferred
-//! delete, notes §5.2).
+//! delete, protocol §5.2).
 
 use crate::time::{Duration, Instant};
 
-/// Connection object state, attribute 1 (notes §5.2).
+/// Connection object state, attribute 1 (protocol §5.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ConnectionState {
@@ -40,7 +40,7 @@ impl ConnectionState {
     }
 }
 
-/// Watchdog timeout action, attribute 12 (notes §5.4).
+/// Watchdog timeout action, attribute 12 (protocol §5.4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum WatchdogAction {
@@ -74,9 +74,9 @@ pub enum ConnectionKind {
     Explicit,
     /// Instance 2.
     Poll,
-    /// Instance 3: bit-strobe (notes §II.1).
+    /// Instance 3: bit-strobe (protocol §II.1).
     Strobe,
-    /// Instance 4: change of state or cyclic (notes §II.2).
+    /// Instance 4: change of state or cyclic (protocol §II.2).
     ChangeOfState,
 }
 
@@ -91,12 +91,12 @@ impl ConnectionKind {
         }
     }
 
-    /// The watchdog action values legal for this kind (notes §5.4).
+    /// The watchdog action values legal for this kind (protocol §5.4).
     pub const fn parse_action(self, value: u8) -> Option<WatchdogAction> {
         match (self, value) {
             (ConnectionKind::Explicit, 1) => Some(WatchdogAction::AutoDelete),
             (ConnectionKind::Explicit, 3) => Some(WatchdogAction::DeferredDelete),
-            // Every I/O connection takes the poll connection's actions (notes §5.4, §II.1.1, §II.2.2).
+            // Every I/O connection takes the poll connection's actions (protocol §5.4, §II.1.1, §II.2.2).
             (ConnectionKind::Explicit, _) => None,
             (_, 0) => Some(WatchdogAction::TransitionToTimedOut),
             (_, 1) => Some(WatchdogAction::AutoDelete),
@@ -106,7 +106,7 @@ impl ConnectionKind {
     }
 }
 
-/// The default explicit EPR, 2500 ms (notes §5.3).
+/// The default explicit EPR, 2500 ms (protocol §5.3).
 pub const EXPLICIT_DEFAULT_EPR_MS: u16 = 2500;
 /// The largest EPR accepted (JB rejects larger values to avoid overflow after rounding).
 pub const MAX_EPR_MS: u16 = 65000;
@@ -166,7 +166,7 @@ impl Connection {
         matches!(self.state, ConnectionState::Established)
     }
 
-    /// Allocation (notes §5.2): explicit becomes established with EPR 2500 ms, the I/O connections
+    /// Allocation (protocol §5.2): explicit becomes established with EPR 2500 ms, the I/O connections
     /// configuring with EPR 0 (§II.1.1, §II.2.3).
     pub fn allocate(&mut self, now: Instant) {
         *self = Connection::new(self.kind);
@@ -185,7 +185,7 @@ impl Connection {
         *self = Connection::new(self.kind);
     }
 
-    /// The inactivity time, 4 × EPR (notes §5.3); `None` when the EPR is 0.
+    /// The inactivity time, 4 × EPR (protocol §5.3); `None` when the EPR is 0.
     pub fn inactivity_time(&self) -> Option<Duration> {
         match self.expected_packet_rate {
             0 => None,
@@ -199,7 +199,7 @@ impl Connection {
     }
 
     /// Sets the EPR (already rounded) and restarts the timer; a configuring connection becomes
-    /// established (notes §5.2).
+    /// established (protocol §5.2).
     pub fn set_expected_packet_rate(&mut self, epr: u16, now: Instant) {
         self.expected_packet_rate = epr;
         if self.state == ConnectionState::Configuring {
@@ -208,7 +208,7 @@ impl Connection {
         self.restart_timer(now);
     }
 
-    /// Runs the watchdog at `now` (notes §5.2 row "Inactivity timer expiry").
+    /// Runs the watchdog at `now` (protocol §5.2 row "Inactivity timer expiry").
     pub fn expire(&mut self, now: Instant) -> Expiry {
         if now < self.deadline {
             return Expiry::None;
@@ -257,7 +257,7 @@ mod tests {
 
     #[test]
     fn explicit_is_instance_1_and_poll_instance_2() {
-        // The Predefined Master/Slave Connection Set's instances (notes §5).
+        // The Predefined Master/Slave Connection Set's instances (protocol §5).
         assert_eq!(ConnectionKind::Explicit.instance(), 1);
         assert_eq!(ConnectionKind::Poll.instance(), 2);
     }

@@ -1,4 +1,4 @@
-//! The explicit messaging connection (Connection instance 1; devicenet-notes §3.1, §4.1): only
+//! The explicit messaging connection (Connection instance 1; protocol §3.1, §4.1): only
 //! the owning master may use it, every message consumed restarts its watchdog, fragmented
 //! requests are reassembled and long responses are sent in acknowledged fragments.
 //!
@@ -17,7 +17,7 @@ use crate::time::Instant;
 pub(super) enum Port<'h, H> {
     /// The explicit connection: every object; classes the core lacks go to the handler.
     Explicit(&'h mut H),
-    /// The Group 2 Only Unconnected Explicit Request port: Allocate and Release only (notes §3.4).
+    /// The Group 2 Only Unconnected Explicit Request port: Allocate and Release only (protocol §3.4).
     Group2Only,
 }
 
@@ -28,7 +28,7 @@ impl SlaveNode {
         let header = Header::from_byte(first);
         let live =
             matches!(self.explicit.state, ConnectionState::Established | ConnectionState::DeferredDelete);
-        // Only the owning master may use the explicit connection (notes §8, JB).
+        // Only the owning master may use the explicit connection (protocol §8, JB).
         if !live || Some(header.mac) != self.master || data.len() < 2 {
             self.stats.explicit_ignored = self.stats.explicit_ignored.wrapping_add(1);
             return;
@@ -63,7 +63,7 @@ impl SlaveNode {
                     message.copy_from_slice(whole);
                     // The reassembler keeps its last answer (not reset here): a repeat of the last
                     // fragment, whose ack the master missed, is acknowledged again and the request
-                    // is not served twice (notes §4.1, JB; found by the conformance suite).
+                    // is not served twice (protocol §4.1, JB; found by the conformance suite).
                     self.serve(message, now, Port::Explicit(objects));
                 }
                 ExplicitReceive::Ignored(_) => {
@@ -71,7 +71,7 @@ impl SlaveNode {
                 }
             }
         } else {
-            // An unfragmented request resets both directions' fragmentation (JB, notes §4.1).
+            // An unfragmented request resets both directions' fragmentation (JB, protocol §4.1).
             self.explicit_rx.reset();
             self.explicit_tx.reset();
             self.serve(data, now, Port::Explicit(objects));
@@ -139,7 +139,7 @@ impl SlaveNode {
 }
 
 /// The error for a request on the Group 2 Only port too short to parse: 0x13 for Allocate and
-/// Release, else that of any other service (notes §3.4).
+/// Release, else that of any other service (protocol §3.4).
 fn group2_only_truncated(service: ServiceCode) -> ServiceError {
     match service {
         ServiceCode::AllocateMasterSlave | ServiceCode::ReleaseMasterSlave => ServiceError::NOT_ENOUGH_DATA,
@@ -147,7 +147,7 @@ fn group2_only_truncated(service: ServiceCode) -> ServiceError {
     }
 }
 
-/// Any service but Allocate/Release on the Group 2 Only port: 0x02 / 0x03 (JB, notes §3.4 and
+/// Any service but Allocate/Release on the Group 2 Only port: 0x02 / 0x03 (JB, protocol §3.4 and
 /// §9.6).
 // Out of line: the constant built at each of its uses costs some 15 bytes of flash.
 #[inline(never)]

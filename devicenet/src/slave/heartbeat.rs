@@ -1,4 +1,4 @@
-//! The device heartbeat and shutdown messages (devicenet-notes §3.7, §II.5,
+//! The device heartbeat and shutdown messages (protocol §3.7, §II.5,
 //! docs/io-connections.md), sent on our Group 2 message 3 identifier with our own MAC in the
 //! header, unfragmented, 8 bytes (AN, LIM).
 //!

@@ -1,4 +1,4 @@
-//! The Module and Network Status LEDs (devicenet-notes §7.3): what each shows for the node's
+//! The Module and Network Status LEDs (protocol §7.3): what each shows for the node's
 //! state, when the indication last changed (the flashing phase), and the power-up test.
 
 use super::{NetworkState, SlaveNode};
@@ -7,7 +7,7 @@ use crate::time::Instant;
 
 impl SlaveNode {
     /// What the Module and Network Status LEDs show now, including the power-up test
-    /// (notes §7.3).
+    /// (protocol §7.3).
     // Out of line: inlined into the firmware's async task it costs some 25 bytes more of flash.
     #[inline(never)]
     pub fn leds(&self, now: Instant) -> Leds {
@@ -22,7 +22,7 @@ impl SlaveNode {
         }
     }
 
-    /// The Network Status indication (notes §7.3).
+    /// The Network Status indication (protocol §7.3).
     pub fn network_indication(&self) -> Indication {
         match self.network {
             NetworkState::PoweredOff | NetworkState::DuplicateMacCheck { .. } => Indication::Off,
@@ -35,7 +35,7 @@ impl SlaveNode {
         }
     }
 
-    /// The Module Status indication (notes §7.3).
+    /// The Module Status indication (protocol §7.3).
     pub fn module_indication(&self) -> Indication {
         let s = &self.app_status;
         if matches!(self.network, NetworkState::PoweredOff) {

@@ -1,4 +1,4 @@
-//! The group-2-only slave node (devicenet-notes §3–§8).
+//! The group-2-only slave node (protocol §3–§8).
 //!
 //! [`SlaveNode`] is a pure state machine in the style of quinn-proto: inputs are the `handle_*`
 //! methods, outputs are drained with the `poll_*` methods. After any input, drain in this order:
@@ -10,23 +10,23 @@
 //! What it does:
 //! - network access: duplicate MAC ID check (two requests 1 s apart, on-line 1 s after the second),
 //!   answering other nodes' checks for our MAC, Communication Faulted on conflict, bus-off with the
-//!   bus-off interrupt setting and counter (notes §7.1, §7.2); the Offline Connection Set (Group
+//!   bus-off interrupt setting and counter (protocol §7.1, §7.2); the Offline Connection Set (Group
 //!   4) through which a tool finds a faulted node and gives it a new MAC ID (§II.6);
 //! - the Predefined Master/Slave Connection Set through the Group 2 Only Unconnected Explicit
-//!   Request port and through the explicit connection, with the validation of notes §3.4; every
+//!   Request port and through the explicit connection, with the validation of protocol §3.4; every
 //!   Group 3 (UCMM) frame is ignored;
-//! - Identity, Message Router, DeviceNet, Assembly and Connection objects (notes §5, §6), with
-//!   explicit fragmentation both ways (notes §4.1); application objects through [`ObjectHandler`];
+//! - Identity, Message Router, DeviceNet, Assembly and Connection objects (protocol §5, §6), with
+//!   explicit fragmentation both ways (protocol §4.1); application objects through [`ObjectHandler`];
 //! - the explicit (instance 1), poll (instance 2), bit-strobe (instance 3) and change-of-state or
-//!   cyclic (instance 4) connections with their watchdogs (notes §5, §II.1, §II.2); poll and strobe
+//!   cyclic (instance 4) connections with their watchdogs (protocol §5, §II.1, §II.2); poll and strobe
 //!   responses are sent at once from the input image, poll responses and COS/cyclic productions
-//!   fragmented above 8 bytes (notes §4.2); the Acknowledge Handler (class 0x2B) for
+//!   fragmented above 8 bytes (protocol §4.2); the Acknowledge Handler (class 0x2B) for
 //!   acknowledged COS/cyclic productions;
 //! - the device heartbeat (Identity attribute 10) and the shutdown message before an Identity
 //!   Reset (§II.5).
 //!
 //! Multicast poll is not offered: allocating it is answered with 0x02 resource unavailable / 0x02
-//! (notes §3.4, "asks for a connection type the device lacks"; §II.3). What the node does where the
+//! (protocol §3.4, "asks for a connection type the device lacks"; §II.3). What the node does where the
 //! notes are UNCONFIRMED is recorded in `docs/io-connections.md`.
 //!
 //! ## Where each part lives
@@ -131,10 +131,10 @@ pub enum Event {
     /// A fragmented explicit response was abandoned (ack timeout or rejection).
     ExplicitTransferAborted,
     /// A change-of-state or cyclic production went unacknowledged through the Acknowledge
-    /// Handler's retry limit (notes §II.2.4). The connection stays; production goes on at the next
+    /// Handler's retry limit (protocol §II.2.4). The connection stays; production goes on at the next
     /// trigger.
     RetryLimitReached,
-    /// The node took a new MAC ID through the Offline Connection Set (notes §II.6) and restarted its
+    /// The node took a new MAC ID through the Offline Connection Set (protocol §II.6) and restarted its
     /// duplicate MAC ID check there: store it like a network-set MAC ID, and receive for it.
     MacIdChanged(MacId),
 }
@@ -166,7 +166,7 @@ impl ObjectHandler for NoObjects {
     }
 }
 
-/// Fault and status flags the application reports through the Identity object (notes §6.2).
+/// Fault and status flags the application reports through the Identity object (protocol §6.2).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ApplicationStatus {
     /// Identity status bit 2.
@@ -322,12 +322,12 @@ impl SlaveNode {
         &self.cos
     }
 
-    /// This node's bit of the last bit-strobe command consumed (notes §II.1.2).
+    /// This node's bit of the last bit-strobe command consumed (protocol §II.1.2).
     pub fn strobe_bit(&self) -> bool {
         self.strobe_bit
     }
 
-    /// The Acknowledge Handler's settings (class 0x2B instance 1, notes §II.2.4).
+    /// The Acknowledge Handler's settings (class 0x2B instance 1, protocol §II.2.4).
     pub fn ack_handler(&self) -> AckHandler {
         self.ack_handler
     }
@@ -385,7 +385,7 @@ impl SlaveNode {
     }
 
     /// Power-on (or reset): starts the duplicate MAC ID check by queueing the first request
-    /// (notes §7.1). The power-up LED test runs alongside it for 1.5 s.
+    /// (protocol §7.1). The power-up LED test runs alongside it for 1.5 s.
     pub fn power_on(&mut self, now: Instant) {
         self.reset_connections();
         self.tx.clear();
@@ -407,11 +407,11 @@ impl SlaveNode {
     pub fn handle_frame_with<H: ObjectHandler>(&mut self, frame: &CanFrame, now: Instant, objects: &mut H) {
         self.handle_timeout(now);
         self.stats.frames_received = self.stats.frames_received.wrapping_add(1);
-        // Group 1 is produced by slaves and Group 3 is UCMM (never answered, notes §3.4); Group 2
+        // Group 1 is produced by slaves and Group 3 is UCMM (never answered, protocol §3.4); Group 2
         // carries the Predefined Master/Slave Connection Set, Group 4 the Offline Connection Set.
         let data = frame.data();
         match Identifier::decode(frame.id()) {
-            // The strobe carries the owning master's MAC, not ours (notes §II.1.2).
+            // The strobe carries the owning master's MAC, not ours (protocol §II.1.2).
             Identifier::Group2 { mac, message: Group2Message::BitStrobeCommand }
                 if matches!(self.network, NetworkState::Online) && Some(mac) == self.master =>
             {
@@ -432,9 +432,9 @@ impl SlaveNode {
         self.update_indications(now);
     }
 
-    /// The CAN controller reports bus-off (notes §7.2): the bus-off counter increments; with
+    /// The CAN controller reports bus-off (protocol §7.2): the bus-off counter increments; with
     /// BOI = 0 the node enters Communication Faulted, with BOI = 1 the application resets the
-    /// controller and the node restarts its duplicate MAC check (notes §9.9: GC's behaviour).
+    /// controller and the node restarts its duplicate MAC check (protocol §9.9: GC's behaviour).
     pub fn handle_bus_off(&mut self, now: Instant) {
         if matches!(self.network, NetworkState::PoweredOff) {
             return;
@@ -521,7 +521,7 @@ impl SlaveNode {
         Identifier::group1(Group1MessageId::POLL_RESPONSE, self.config.mac_id)
     }
 
-    /// Communication Faulted: silent, every connection gone, until reset (notes §7.4). Here, not in
+    /// Communication Faulted: silent, every connection gone, until reset (protocol §7.4). Here, not in
     /// `network.rs`, because it resets the Offline Connection Set too (`offline.rs`, which reads
     /// the network state).
     // Always inlined: the reason is a constant at each call site (some 15 bytes of flash).

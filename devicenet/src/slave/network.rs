@@ -1,4 +1,4 @@
-//! Network access (devicenet-notes §7.1, §7.2): the duplicate MAC ID check at power-on and after
+//! Network access (protocol §7.1, §7.2): the duplicate MAC ID check at power-on and after
 //! a bus-off reset, answering other nodes' checks for our MAC ID, and Communication Faulted.
 //!
 //! The check sends two requests [`DUP_MAC_INTERVAL`] apart and goes on-line one interval after
@@ -9,20 +9,20 @@ use crate::id::{Group2Message, Identifier};
 use crate::messages::DuplicateMacCheck;
 use crate::time::{Duration, Instant};
 
-/// Time between the two duplicate MAC ID requests, and from the second to on-line (notes §7.1).
+/// Time between the two duplicate MAC ID requests, and from the second to on-line (protocol §7.1).
 pub const DUP_MAC_INTERVAL: Duration = Duration::from_secs(1);
 
 /// Why the node is in the Communication Faulted state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FaultReason {
-    /// Another node uses our MAC ID (notes §7.1).
+    /// Another node uses our MAC ID (protocol §7.1).
     DuplicateMacId,
-    /// The CAN controller went bus-off with BOI = 0 (notes §7.2).
+    /// The CAN controller went bus-off with BOI = 0 (protocol §7.2).
     BusOff,
 }
 
-/// Network access state (notes §7.1).
+/// Network access state (protocol §7.1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum NetworkState {
@@ -37,12 +37,12 @@ pub enum NetworkState {
     },
     /// On-line.
     Online,
-    /// Communication Faulted: silent until reset (notes §7.4).
+    /// Communication Faulted: silent until reset (protocol §7.4).
     CommunicationFaulted(FaultReason),
 }
 
 impl SlaveNode {
-    /// Starts the duplicate MAC ID check by queueing the first request (notes §7.1).
+    /// Starts the duplicate MAC ID check by queueing the first request (protocol §7.1).
     pub(super) fn start_duplicate_mac_check(&mut self, now: Instant) {
         self.send_duplicate_mac(false);
         self.network = NetworkState::DuplicateMacCheck { requests_sent: 1, deadline: now + DUP_MAC_INTERVAL };
@@ -75,7 +75,7 @@ impl SlaveNode {
         }
     }
 
-    /// Queues our duplicate MAC ID check request or response (notes §3.5).
+    /// Queues our duplicate MAC ID check request or response (protocol §3.5).
     fn send_duplicate_mac(&mut self, response: bool) {
         let msg = DuplicateMacCheck {
             response,

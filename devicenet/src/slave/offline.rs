@@ -1,4 +1,4 @@
-//! The Offline Connection Set (Group 4; devicenet-notes §3.8, §7.4, §II.6,
+//! The Offline Connection Set (Group 4; protocol §3.8, §7.4, §II.6,
 //! docs/io-connections.md): a node in Communication Faulted after a duplicate MAC ID answers Who
 //! and Identify, accepts an offline owner, and takes a new MAC ID, after which it runs the
 //! duplicate MAC ID check again at that MAC (DR).

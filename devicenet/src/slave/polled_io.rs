@@ -1,4 +1,4 @@
-//! Polled I/O (Connection instance 2; devicenet-notes §4.2, §5.2): a poll command replaces the
+//! Polled I/O (Connection instance 2; protocol §4.2, §5.2): a poll command replaces the
 //! output image (a zero-length one means the master is idle) and is answered at once with the
 //! input image, both fragmented above 8 bytes.
 //!

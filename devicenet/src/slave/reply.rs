@@ -4,7 +4,7 @@ use crate::explicit::{additional, GeneralStatus};
 use core::fmt;
 
 /// The error response a service answers with: general status and additional code
-/// (devicenet-notes §3.3).
+/// (protocol §3.3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ServiceError {

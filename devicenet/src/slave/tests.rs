@@ -1,4 +1,4 @@
-//! Unit tests of the slave node: network access, the validation tables of notes §3.4 and §5,
+//! Unit tests of the slave node: network access, the validation tables of protocol §3.4 and §5,
 //! objects, connections and fragmentation, driven on a virtual clock.
 
 use super::*;
@@ -99,7 +99,7 @@ fn tx(id: u16, data: &[u8]) -> Tx {
     std::vec![(id, data.to_vec())]
 }
 
-// ----- network access (notes §7.1) -------------------------------------------------------------
+// ----- network access (protocol §7.1) -------------------------------------------------------------
 
 #[test]
 fn duplicate_mac_check_two_requests_one_second_apart() {
@@ -176,7 +176,7 @@ fn nothing_but_dup_mac_before_online() {
     assert_eq!(rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]), Tx::new());
 }
 
-// ----- Predefined Master/Slave Connection Set (notes §3.4) -------------------------------------
+// ----- Predefined Master/Slave Connection Set (protocol §3.4) -------------------------------------
 
 #[rstest]
 #[case::allocate_explicit(&[], 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00], &[0x00, 0xCB, 0x00])]
@@ -265,7 +265,7 @@ fn explicit_request_without_connection_is_ignored() {
 
 #[test]
 fn group2_only_port_ignores_fragmented_frames() {
-    // Unconnected messages are never fragmented (notes §3.1, §3.4): a Frag bit means no request.
+    // Unconnected messages are never fragmented (protocol §3.1, §3.4): a Frag bit means no request.
     let mut rig = Rig::online();
     assert_eq!(rig.send(0x42E, &[0x80, 0x4B, 0x03, 0x01, 0x01, 0x00]), Tx::new());
     assert_eq!(rig.node.allocation(), (AllocationChoice::empty(), None));
@@ -277,7 +277,7 @@ fn header_only_explicit_frame_is_ignored_and_does_not_feed_the_watchdog() {
     rig.advance(Duration::from_secs(9));
     assert_eq!(rig.send(0x42C, &[0x00]), Tx::new());
     assert_eq!(rig.node.stats().explicit_ignored, 1);
-    // Only a message consumed restarts the inactivity timer (notes §5.3): 10 s after allocation.
+    // Only a message consumed restarts the inactivity timer (protocol §5.3): 10 s after allocation.
     rig.advance(Duration::from_secs(1));
     assert_eq!(rig.node.explicit_connection().state, ConnectionState::NonExistent);
 }
@@ -346,7 +346,7 @@ fn explicit_services(#[case] body: &[u8], #[case] response: &[u8]) {
 }
 
 #[rstest]
-// Explicit (instance 1), notes §5.1.
+// Explicit (instance 1), protocol §5.1.
 #[case::e_state(1, 1, &[0x03])]
 #[case::e_instance_type(1, 2, &[0x00])]
 #[case::e_transport(1, 3, &[0x83])]
@@ -450,7 +450,7 @@ fn identity_status_carries_each_application_flag_in_its_bit(
     #[case] status: ApplicationStatus,
     #[case] word: [u8; 2],
 ) {
-    // Identity attribute 5 (notes §6.2): owned (bit 0), configured (bit 2), extended status
+    // Identity attribute 5 (protocol §6.2): owned (bit 0), configured (bit 2), extended status
     // 0b0011 "no I/O connection established" (bits 4–7), faults in bits 8–11.
     let mut rig = Rig::explicit();
     rig.node.set_application_status(status, rig.now);
@@ -459,8 +459,8 @@ fn identity_status_carries_each_application_flag_in_its_bit(
 
 #[test]
 fn identity_get_attributes_all_answers_attributes_1_to_7_in_fragments() {
-    // Get_Attributes_All (notes §3.2): the reply exceeds one frame, so it goes out in acknowledged
-    // fragments (notes §4.1); the master reassembles and acks each one.
+    // Get_Attributes_All (protocol §3.2): the reply exceeds one frame, so it goes out in acknowledged
+    // fragments (protocol §4.1); the master reassembles and acks each one.
     let mut rig = Rig::explicit();
     let mut master = crate::fragment::ExplicitReassembler::<MAX_EXPLICIT_SIZE>::new();
     let mut frames = rig.send(0x42C, &[0x00, 0x01, 0x01, 0x01]);
@@ -542,12 +542,12 @@ fn switch_attributes() {
     assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x09]), tx(0x42B, &[0x00, 0x8E, 0x01]));
 }
 
-// ----- explicit fragmentation (notes §4.1) ------------------------------------------------------
+// ----- explicit fragmentation (protocol §4.1) ------------------------------------------------------
 
 #[test]
 fn output_assembly_reads_the_consumed_size_of_zeros_before_any_output() {
     // Connection 2 attribute 8 and the EDS say 8 bytes: the data reads as 8 bytes from the start
-    // (9 body bytes with the service, so fragmented, notes §4.1).
+    // (9 body bytes with the service, so fragmented, protocol §4.1).
     let mut rig = Rig::explicit();
     let first = rig.send(0x42C, &[0x00, 0x0E, 0x04, 0x96, 0x03]);
     assert_eq!(first, tx(0x42B, &[0x80, 0x00, 0x8E, 0, 0, 0, 0, 0]));
@@ -639,7 +639,7 @@ fn oversized_fragmented_request_is_rejected_with_too_much_data() {
     assert!(acks.iter().any(|(_, d)| d.len() == 3 && d[2] == 0x01), "an ack with status 1: {acks:02X?}");
 }
 
-// ----- polled I/O (notes §4.2, §5) ---------------------------------------------------------------
+// ----- polled I/O (protocol §4.2, §5) ---------------------------------------------------------------
 
 #[test]
 fn poll_ignored_until_epr_is_set() {
@@ -727,7 +727,7 @@ fn poll_with_data_after_an_idle_poll_ends_idle() {
 
 #[test]
 fn eight_byte_poll_response_is_one_unfragmented_frame() {
-    // I/O fragmentation starts above 8 bytes (notes §4.2).
+    // I/O fragmentation starts above 8 bytes (protocol §4.2).
     let mut config = DeviceConfig::reference();
     config.produced_size = 8;
     let mut rig = Rig::new(config);
@@ -741,7 +741,7 @@ fn eight_byte_poll_response_is_one_unfragmented_frame() {
 
 #[test]
 fn fragmented_poll_command_up_to_the_consumed_size_is_accepted() {
-    // Consumed size 10: the command comes in I/O fragments (notes §4.2); a longer one is ignored.
+    // Consumed size 10: the command comes in I/O fragments (protocol §4.2); a longer one is ignored.
     let mut config = DeviceConfig::reference();
     config.consumed_size = 10;
     let mut rig = Rig::new(config);
@@ -802,14 +802,14 @@ fn setting_the_poll_epr_establishes_it_once() {
     let mut rig = Rig::explicit();
     rig.send(0x42C, &[0x00, 0x4B, 0x03, 0x01, 0x02, 0x00]);
     rig.events();
-    // Configuring -> Established when the EPR is set (notes §5.2); a second Set changes nothing.
+    // Configuring -> Established when the EPR is set (protocol §5.2); a second Set changes nothing.
     rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0x64, 0x00]);
     assert_eq!(rig.events(), std::vec![Event::ConnectionEstablished(ConnectionKind::Poll)]);
     rig.send(0x42C, &[0x00, 0x10, 0x05, 0x02, 0x09, 0xC8, 0x00]);
     assert_eq!(rig.events(), Vec::<Event>::new());
 }
 
-// ----- watchdogs (notes §5.2–§5.4) ---------------------------------------------------------------
+// ----- watchdogs (protocol §5.2–§5.4) ---------------------------------------------------------------
 
 #[test]
 fn explicit_inactivity_deletes_after_ten_seconds() {
@@ -913,7 +913,7 @@ fn deferred_delete_without_io_deletes() {
     assert_eq!(rig.node.explicit_connection().state, ConnectionState::NonExistent);
 }
 
-// ----- bus-off (notes §7.2) ------------------------------------------------------------------------
+// ----- bus-off (protocol §7.2) ------------------------------------------------------------------------
 
 #[test]
 fn bus_off_without_boi_faults() {
@@ -955,12 +955,12 @@ fn bus_off_counter_counts_every_bus_off() {
         rig.advance(Duration::from_secs(2));
     }
     assert_eq!(rig.node.bus_off_counter(), 2);
-    // DeviceNet attribute 4 (notes §6.1) reports the same count.
+    // DeviceNet attribute 4 (protocol §6.1) reports the same count.
     rig.send(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]);
     assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x03, 0x01, 0x04]), tx(0x42B, &[0x00, 0x8E, 0x02]));
 }
 
-// ----- LEDs (notes §7.3) ---------------------------------------------------------------------------
+// ----- LEDs (protocol §7.3) ---------------------------------------------------------------------------
 
 #[test]
 fn led_indications_follow_the_state() {
@@ -982,7 +982,7 @@ fn led_indications_follow_the_state() {
 fn leds_show_the_indications_once_the_power_up_test_is_over() {
     use led::{Leds, Lit};
     // Powered on at 0 s (test over at 1.5 s), on-line at 2 s: Module Status solid green,
-    // Network Status flashing green in phase with going on-line, 0.5 s on / 0.5 s off (notes §7.3).
+    // Network Status flashing green in phase with going on-line, 0.5 s on / 0.5 s off (protocol §7.3).
     let rig = Rig::online();
     assert_eq!(rig.node.leds(Instant::from_millis(2000)), Leds { module: Lit::Green, network: Lit::Green });
     assert_eq!(rig.node.leds(Instant::from_millis(2500)), Leds { module: Lit::Green, network: Lit::Off });
@@ -1025,7 +1025,7 @@ mod connection_types {
     /// An input image whose bytes tell where they come from.
     const INPUT: [u8; 18] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17];
 
-    /// The 18-byte input as I/O fragments on `id` (notes §4.2).
+    /// The 18-byte input as I/O fragments on `id` (protocol §4.2).
     fn fragments(id: u16) -> Tx {
         std::vec![
             (id, std::vec![0x00, 0, 1, 2, 3, 4, 5, 6]),

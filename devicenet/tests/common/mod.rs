@@ -44,7 +44,7 @@ pub fn drain(node: &mut SlaveNode, at: Instant, seen: &mut Vec<Seen>) {
     }
 }
 
-/// Plays the master's side of notes §2: its duplicate MAC check at 0 s and 1 s, slave power-on
+/// Plays the master's side of protocol §2: its duplicate MAC check at 0 s and 1 s, slave power-on
 /// when the master is on-line (2 s), the UCMM open at 4 s and its retry 0.5 s later, then every
 /// request 10 ms after the previous answer.
 pub fn play_bring_up(node: &mut SlaveNode) -> Vec<Seen> {

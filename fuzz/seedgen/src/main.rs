@@ -1,7 +1,7 @@
 //! Writes the seed corpora of the fuzz targets into `fuzz/seeds/<target>/` (the argument, or
 //! `fuzz/seeds`), from the project's own transcripts:
 //!
-//! * the reference bring-up of devicenet-notes §2 and every check of the conformance suite run
+//! * the reference bring-up of protocol §2 and every check of the conformance suite run
 //!   against the soft slave on the simulated bus: the master's frames with their timing (node and
 //!   converter targets), explicit fragments and poll responses (reassemblers), the logs
 //!   (`candump -L` target);

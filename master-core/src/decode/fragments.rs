@@ -1,7 +1,7 @@
 //! Fragment series as the decoder reads them: I/O reassembly per connection direction, and the
-//! breaches of the fragmentation protocol (notes §4.1, §4.2) named as protocol errors.
+//! breaches of the fragmentation protocol (protocol §4.1, §4.2) named as protocol errors.
 //!
-//! A receiving node drops a broken series without a word (notes §4: a first fragment whose count
+//! A receiving node drops a broken series without a word (protocol §4: a first fragment whose count
 //! is not 0 is dropped, a middle or last without a first is dropped, an out-of-sequence count
 //! resets reassembly, a first fragment in the middle of a series restarts it). A decoder must not:
 //! each of these is a [`FragmentViolation`] in the frame's text and in
@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 
 use super::MAX_IO_MESSAGE;
 
-/// A breach of the fragmentation protocol seen in a trace (notes §4.1 explicit, §4.2 I/O).
+/// A breach of the fragmentation protocol seen in a trace (protocol §4.1 explicit, §4.2 I/O).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum FragmentViolation {
     /// A first fragment whose count is neither 0 nor the one-frame 0x3F: a series begins at 0.
@@ -47,14 +47,14 @@ pub enum FragmentViolation {
         /// The count the unfinished series waited for.
         expected: u8,
     },
-    /// An acknowledge-type fragment on an I/O connection (notes §4.2: I/O fragmentation has no
+    /// An acknowledge-type fragment on an I/O connection (protocol §4.2: I/O fragmentation has no
     /// acknowledgements).
     #[error("acknowledge-type fragment, which I/O fragmentation does not have")]
     AckInIo,
 }
 
 fn skipped_text(expected: u8, got: u8) -> String {
-    // Counts are 6 bits (notes §4.1): ahead of the due count by less than half the range means
+    // Counts are 6 bits (protocol §4.1): ahead of the due count by less than half the range means
     // fragments were missed; otherwise the fragment is one already seen, or out of order.
     let ahead = got.wrapping_sub(expected) & 0x3F;
     match ahead {
@@ -202,7 +202,7 @@ pub(super) fn io_data_into(
     }
     summary.push_str(": ");
     push_hex(summary, data.get(1..).unwrap_or(&[]));
-    // A first fragment restarts the series (notes §4.2): one still in progress lost its end.
+    // A first fragment restarts the series (protocol §4.2): one still in progress lost its end.
     let unfinished = match (kind, series.next) {
         (FragmentKind::First, Some(expected)) => Some(FragmentViolation::Unfinished { expected }),
         _ => None,
@@ -259,7 +259,7 @@ mod tests {
     }
 
     /// The sizes of the poll connection of MAC 5 (18 produced, 8 consumed) read from Connection 2
-    /// attributes 7 and 8, as in the bring-up (notes §2 frames 18-21).
+    /// attributes 7 and 8, as in the bring-up (protocol §2 frames 18-21).
     fn sized() -> Decoder {
         let mut d = Decoder::new();
         d.decode(&f(0x42C, &[0x00, 0x0E, 0x05, 0x02, 0x07]));
@@ -358,7 +358,7 @@ mod tests {
         }
     }
 
-    /// The reference series of notes §2 (frames 25-27) and a one-frame series are no errors.
+    /// The reference series of protocol §2 (frames 25-27) and a one-frame series are no errors.
     #[test]
     fn whole_series_are_no_errors() {
         let seen = errors(sized(), &[FIRST, MIDDLE, LAST, &[0x3F, 1, 2][..]]);
@@ -399,7 +399,7 @@ mod tests {
             "{}",
             out.text()
         );
-        // A repeated fragment (its ack was lost, notes §4.1) is a retry, not an error.
+        // A repeated fragment (its ack was lost, protocol §4.1) is a retry, not an error.
         let mut d = Decoder::new();
         d.decode(&f(0x42B, &[0x80, 0x00, 0x8E, 0x17, b'S', b'e', b'r', b'i']));
         let again = d.decode(&f(0x42B, &[0x80, 0x00, 0x8E, 0x17, b'S', b'e', b'r', b'i']));

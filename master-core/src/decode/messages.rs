@@ -1,5 +1,5 @@
 //! The texts of the messages outside the predefined connection set: UCMM requests and responses
-//! (notes §3.6), the Offline Connection Set (§3.8, §II.6), heartbeat and shutdown (§3.7).
+//! (protocol §3.6), the Offline Connection Set (§3.8, §II.6), heartbeat and shutdown (§3.7).
 
 use super::{body_format_text, error_text, hex};
 use devicenet::explicit::Response;
@@ -66,7 +66,7 @@ pub(super) fn group_select_text(g: GroupSelect) -> String {
     }
 }
 
-/// A Communication Faulted selector byte in words (notes §3.8, §II.6: match bit 1 = exact MAC
+/// A Communication Faulted selector byte in words (protocol §3.8, §II.6: match bit 1 = exact MAC
 /// ID, 0 = MAC ID mask on the value; the arithmetic is UNCONFIRMED, so both are shown as sent).
 pub(super) fn selector_text(s: devicenet::messages::FaultedSelector) -> String {
     format!(
@@ -81,7 +81,7 @@ pub(super) fn device_text(d: &devicenet::messages::DeviceKey) -> String {
     format!("vendor 0x{:04X}, serial 0x{:08X}", d.vendor_id, d.serial_number)
 }
 
-/// A Group 4 message with every field (notes §3.8, §II.6).
+/// A Group 4 message with every field (protocol §3.8, §II.6).
 pub(super) fn group4(message: Group4MessageId, data: &[u8]) -> String {
     const SET: &str = "Offline Connection Set:";
     match OfflineMessage::parse(message, data) {
@@ -116,7 +116,7 @@ pub(super) fn group4(message: Group4MessageId, data: &[u8]) -> String {
     }
 }
 
-/// A heartbeat or shutdown message (notes §3.7, §II.5: a response on the device's explicit
+/// A heartbeat or shutdown message (protocol §3.7, §II.5: a response on the device's explicit
 /// response identifier, header MAC = its own, exactly 8 bytes), if `body` is one; `None` for any
 /// other response.
 pub(super) fn broadcast_text(mac: u8, header_mac: u8, data: &[u8]) -> Option<String> {

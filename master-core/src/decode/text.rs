@@ -116,7 +116,7 @@ pub fn short_string(data: &[u8]) -> Option<String> {
     (usize::from(len) == text.len()).then(|| text.iter().map(|&b| char::from(b)).collect())
 }
 
-/// An attribute value, typed by class and attribute (notes §5.1, §6.1, §6.2); raw hex when the
+/// An attribute value, typed by class and attribute (protocol §5.1, §6.1, §6.2); raw hex when the
 /// attribute is unknown or the length does not match its type.
 pub fn value_text(class_id: u16, instance: u16, attribute: u8, data: &[u8]) -> String {
     let typed: Option<String> = if instance == 0 {
@@ -213,7 +213,7 @@ pub fn request_text(req: &Request<'_>) -> String {
     }
 }
 
-/// A request in body format 4 (notes §3.1: `<service> <path size in words> <EPATH> <data>`): the
+/// A request in body format 4 (protocol §3.1: `<service> <path size in words> <EPATH> <data>`): the
 /// request with the class and instance of its logical segments, and the attribute of an attribute
 /// segment. Segments (8-bit `20`/`24`/`30 xx`, 16-bit `21`/`25`/`31 00 lo hi`): class first, then
 /// instance, then an optional attribute; anything else is refused with its reason.

@@ -36,24 +36,24 @@ use devicenet::objects::class;
 use devicenet::{CanFrame, CanId, Duration, Group2Message, Identifier, Instant, MacId};
 use std::collections::VecDeque;
 
-/// The Acknowledge Handler object (class 0x2B, notes §II.2.4).
+/// The Acknowledge Handler object (class 0x2B, protocol §II.2.4).
 pub const ACKNOWLEDGE_HANDLER: u16 = 0x2B;
 
-/// The device's default acknowledge timer when the master did not read it (notes §II.2.4: 16 ms).
+/// The device's default acknowledge timer when the master did not read it (protocol §II.2.4: 16 ms).
 pub const DEFAULT_ACK_TIMER_MS: u16 = 16;
 
 /// The kind of I/O connection `connect --io` and `monitor --io` bring up.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum IoKind {
-    /// Polled I/O, Connection 2 (the reference bring-up of notes §2).
+    /// Polled I/O, Connection 2 (the reference bring-up of protocol §2).
     #[default]
     Poll,
-    /// Bit-strobed I/O, Connection 3 (notes §II.1).
+    /// Bit-strobed I/O, Connection 3 (protocol §II.1).
     Strobe,
-    /// Change of state, Connection 4 (notes §II.2).
+    /// Change of state, Connection 4 (protocol §II.2).
     ChangeOfState,
-    /// Cyclic, Connection 4 (notes §II.2).
+    /// Cyclic, Connection 4 (protocol §II.2).
     Cyclic,
 }
 
@@ -61,7 +61,7 @@ impl IoKind {
     /// Every kind, in the order of the allocation bits.
     pub const ALL: [IoKind; 4] = [IoKind::Poll, IoKind::Strobe, IoKind::ChangeOfState, IoKind::Cyclic];
 
-    /// The allocation choice bit of the connection (notes §3.4).
+    /// The allocation choice bit of the connection (protocol §3.4).
     pub const fn choice(self) -> AllocationChoice {
         match self {
             IoKind::Poll => AllocationChoice::POLL,
@@ -71,7 +71,7 @@ impl IoKind {
         }
     }
 
-    /// The Connection object instance (notes §5: 2 poll, 3 bit-strobe, 4 COS/cyclic).
+    /// The Connection object instance (protocol §5: 2 poll, 3 bit-strobe, 4 COS/cyclic).
     pub const fn instance(self) -> u16 {
         match self {
             IoKind::Poll => 2,
@@ -311,7 +311,7 @@ impl IoConnection {
 }
 
 /// One I/O message coming in frame by frame (a poll response, a COS/cyclic production): whole in
-/// one frame up to 8 bytes, else I/O fragments (notes §4.2), each checked against the size.
+/// one frame up to 8 bytes, else I/O fragments (protocol §4.2), each checked against the size.
 #[derive(Clone, Debug)]
 pub(crate) struct IoSeries {
     produced: u16,
@@ -385,7 +385,7 @@ impl IoSeries {
     }
 }
 
-/// The 8 data bytes of a bit-strobe command with the bit of `mac` set (notes §II.1.2: byte
+/// The 8 data bytes of a bit-strobe command with the bit of `mac` set (protocol §II.1.2: byte
 /// `MAC / 8`, bit `MAC % 8`).
 pub fn strobe_data(mac: MacId) -> [u8; 8] {
     let mut d = [0u8; 8];
@@ -396,7 +396,7 @@ pub fn strobe_data(mac: MacId) -> [u8; 8] {
 
 impl Master<'_, '_> {
     /// The identifier of the master's bit-strobe command (Group 2 message 0 with the master's
-    /// MAC, notes §1.2).
+    /// MAC, protocol §1.2).
     pub fn strobe_id(&self) -> CanId {
         Identifier::group2(self.config.mac, Group2Message::BitStrobeCommand)
     }
@@ -544,7 +544,7 @@ impl Master<'_, '_> {
         };
         // The connection is the master's before the Set EPR goes out: the device establishes it on
         // that request and may produce before the response completes (a COS connection produces
-        // at once, notes §II.2.3), and the master judges the frames around the response only once
+        // at once, protocol §II.2.3), and the master judges the frames around the response only once
         // the exchange is over. They are the connection's frames, not unexpected ones.
         self.io = Some(IoConnection {
             target,
@@ -632,7 +632,7 @@ impl Master<'_, '_> {
         Ok(true)
     }
 
-    /// Sets the EPR of Connection `inst` and checks the value applied (rounded up, notes §5.3).
+    /// Sets the EPR of Connection `inst` and checks the value applied (rounded up, protocol §5.3).
     pub(crate) fn set_epr(
         &mut self,
         target: MacId,

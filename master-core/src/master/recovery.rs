@@ -1,5 +1,5 @@
 //! Recovering a node that is Communication Faulted after a duplicate MAC ID, through the Offline
-//! Connection Set (Group 4; notes §1.4, §3.8, §7.4, §II.6; `docs/io-connections.md`):
+//! Connection Set (Group 4; protocol §1.4, §3.8, §7.4, §II.6; `docs/io-connections.md`):
 //!
 //! 1. **Who** on 0x7ED, `[0, match 1, MAC] 4B <time-delay byte offset>` (exactly the faulted
 //!    MAC; [`RecoverOptions::time_delay_offset`]), then every answer on 0x7EC collected for
@@ -14,7 +14,7 @@
 //!    on 0x7EE with the request echoed and the service `CB` (§II.6 step 0).
 //! 5. **Change MAC ID**, `<new MAC> 4D <vendor> <serial>`: no response is defined; the node takes
 //!    the MAC and runs the duplicate MAC ID check there: two requests ~1 s apart with its vendor
-//!    and serial (notes §7.1). A response to them, or another node's request for the same MAC,
+//!    and serial (protocol §7.1). A response to them, or another node's request for the same MAC,
 //!    faults it again ([`MasterError::DuplicateMac`]).
 //! 6. One second after its second request it is on-line: the master allocates its explicit
 //!    connection at the new MAC and reads the Identity serial number and the DeviceNet MAC ID.
@@ -237,7 +237,7 @@ impl Master<'_, '_> {
         let requests = self.watch_dup_mac(&node, to, changed, opts.judge_timing)?;
         report.dup_mac_requests_ms =
             requests.iter().map(|t| (*t - changed).total_micros() as f64 / 1000.0).collect();
-        // On-line 1 s after the second request (notes §7.1), by the device's clock: the master
+        // On-line 1 s after the second request (protocol §7.1), by the device's clock: the master
         // allocates a little later, so a device whose clock runs slow against the master's (an
         // emulated board, a device whose timer ticks coarsely) is on-line by then.
         if let Some(second) = requests.get(1) {

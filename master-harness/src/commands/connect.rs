@@ -1,4 +1,4 @@
-//! `dnet-master connect`: the full bring-up of notes §2 at one device, every frame checked, with
+//! `dnet-master connect`: the full bring-up of protocol §2 at one device, every frame checked, with
 //! the I/O connection `--io` names; the frame table and a summary of the device.
 
 use crate::options::{parse_mac, GlobalOptions, HexBytes, IoArgs};

@@ -1,6 +1,6 @@
 //! `dnet-master recover`: a node Communication Faulted after a duplicate MAC ID found through the
 //! Offline Connection Set (Who, the answers listed) and, with `--to`, given a new MAC ID (long
-//! Identify, offline ownership, Change MAC ID) and watched coming on-line there (notes §II.6).
+//! Identify, offline ownership, Change MAC ID) and watched coming on-line there (protocol §II.6).
 
 use crate::options::{judges_timing, parse_mac, parse_number, GlobalOptions};
 use crate::run::{DeviceRun, Outcome};

@@ -99,7 +99,7 @@ impl Node {
     }
 
     /// The allocation choice of the node's set (explicit + its connection), without acknowledge
-    /// suppression (which is requested, never held or released, notes §II.2.5).
+    /// suppression (which is requested, never held or released, protocol §II.2.5).
     pub(super) fn choice(&self) -> AllocationChoice {
         AllocationChoice::EXPLICIT | self.kind.choice()
     }

@@ -11,7 +11,7 @@
 //!    ([`ConverterConfig::breaker_reference`]): [`ConfigOrigin::FactoryDefault`].
 //! 3. An image that cannot be used (corrupt, another format version, values refused, a line the
 //!    USART cannot make): the factory default with a **configuration fault**, a minor recoverable
-//!    fault in the Identity status, Module Status flashing red (devicenet-notes §6.2, §7.3), the
+//!    fault in the Identity status, Module Status flashing red (protocol §6.2, §7.3), the
 //!    reason in the configuration object: [`ConfigOrigin::Fault`]. Any image bytes boot.
 //!
 //! The same rule for the serial line ([`usart_makes_the_line`]) refuses a download at
@@ -27,7 +27,7 @@
 //! ID ([`board::uid`]). QEMU's `netduinoplus2` models no unique ID (nothing is mapped at
 //! 0x1FFF_7A10, a read is a bus fault), so the emulated board does not read it and keeps the
 //! reference device's serial number, [`EMULATED_SERIAL`], which the reference sequence of
-//! devicenet-notes §2 carries in its duplicate MAC ID checks.
+//! protocol §2 carries in its duplicate MAC ID checks.
 
 use board::clocks::INSTRUMENT_UART_HZ;
 use board::settings::Settings;

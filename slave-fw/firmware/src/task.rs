@@ -41,13 +41,13 @@ pub trait Hardware {
     fn send_frame(&mut self, frame: CanFrame);
     /// Queues `bytes` (one frame) for the instrument's UART.
     fn send_serial(&mut self, bytes: &[u8]);
-    /// Resets the CAN controller after bus-off (bus-off interrupt setting 1, devicenet-notes §7.2).
+    /// Resets the CAN controller after bus-off (bus-off interrupt setting 1, protocol §7.2).
     fn restart_can(&mut self);
     /// Receives for MAC ID `mac` from now on (taken through the Offline Connection Set, §II.6).
     fn set_can_mac(&mut self, mac: MacId);
     /// Stores `settings` in non-volatile memory; `false` when that failed.
     fn save_settings(&mut self, settings: &Settings) -> bool;
-    /// Resets the device (Identity Reset, devicenet-notes §3.2); on the board this does not return.
+    /// Resets the device (Identity Reset, protocol §3.2); on the board this does not return.
     fn reset(&mut self, kind: ResetKind);
     /// Sees every event the converter passes on, before the task acts on it (the log).
     fn event(&mut self, _event: &Event) {}
@@ -280,7 +280,7 @@ mod tests {
     }
 
     /// The reference converter powered on at 2 s and brought up by the master's side of
-    /// devicenet-notes §2, one input per wake-up; then a 5 s EPR on the poll connection.
+    /// protocol §2, one input per wake-up; then a 5 s EPR on the poll connection.
     fn established(hw: &mut Recorder) -> (ConverterTask, Instant) {
         let converter = Converter::new(ConverterConfig::breaker_reference(), Instant::ZERO).unwrap();
         let mut task = ConverterTask::new(converter, Settings::default());
@@ -308,7 +308,7 @@ mod tests {
         (task, now)
     }
 
-    /// A MAC ID taken through the Offline Connection Set (devicenet-notes §II.6) reaches the CAN
+    /// A MAC ID taken through the Offline Connection Set (protocol §II.6) reaches the CAN
     /// driver's filters and the stored settings, and the duplicate MAC ID check runs at it.
     #[test]
     fn a_mac_changed_offline_is_filtered_for_and_stored() {
@@ -348,12 +348,12 @@ mod tests {
         task.take_inputs(burst[0], || rest.next(), now, &mut hw);
         assert_eq!(rest.next(), None, "all 64 taken in one wake-up");
 
-        // Every poll answered: 18 bytes, three fragments each (devicenet-notes §4.2).
+        // Every poll answered: 18 bytes, three fragments each (protocol §4.2).
         let responses: Vec<&CanFrame> = hw.frames.iter().filter(|f| f.id().as_raw() == 0x3C5).collect();
         assert_eq!(responses.len(), 3 * polls, "{polls} polls");
         assert_eq!(responses.iter().filter(|f| f.data()[0] == 0x00).count(), polls, "first fragments");
         // Both explicit requests answered, in their place among the poll responses; the reset's
-        // shutdown message follows its response (devicenet-notes §II.5.2).
+        // shutdown message follows its response (protocol §II.5.2).
         let explicit: Vec<&CanFrame> = hw.frames.iter().filter(|f| f.id().as_raw() == 0x42B).collect();
         let shutdown = frame(0x42B, &[0x05, 0xCE, 0x01, 0x00, 0x01, 0x00, 0x04, 0x00]);
         assert_eq!(explicit, [&frame(0x42B, &[0x00, 0x90]), &frame(0x42B, &[0x00, 0x85]), &shutdown]);

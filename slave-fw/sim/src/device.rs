@@ -11,7 +11,7 @@
 //! | 0–3 | phase A, B, C and neutral current (A) |
 //! | 9 | switch state: `0x0F` open, `0xF0` closed |
 //!
-//! It starts open with zero currents, which is exactly the reference input image of notes §2
+//! It starts open with zero currents, which is exactly the reference input image of protocol §2
 //! ([`devicenet::reference::INPUT_IMAGE`]). Poll command byte 0 is the command (1 open, 2 close,
 //! 3 set parameter, 4 refresh), byte 1 a sequence number; a command is executed exactly once when
 //! either changes. A device description (`--slave-config`) replaces the reference device; whatever
@@ -76,7 +76,7 @@ impl SoftSlave {
         })
     }
 
-    /// The reference converter ([`ConverterConfig::breaker_reference`]: the devicenet-notes §2
+    /// The reference converter ([`ConverterConfig::breaker_reference`]: the protocol §2
     /// device, breaker profile) at `mac`. MAC 5 keeps the reference serial number 0x12345678; other
     /// MACs get 0x12345678 + (MAC − 5), so that every simulated device has its own.
     pub fn reference(mac: MacId) -> SoftSlave {
@@ -138,7 +138,7 @@ impl SoftSlave {
         self.run_serial(now);
     }
 
-    /// The CAN controller went bus-off at `now` (devicenet-notes §7.2): the node applies its bus-off
+    /// The CAN controller went bus-off at `now` (protocol §7.2): the node applies its bus-off
     /// interrupt setting (BOI 0: Communication Faulted; 1: restart the duplicate MAC ID check).
     pub fn handle_bus_off(&mut self, now: Instant) {
         self.run_serial(now);

@@ -12,7 +12,7 @@
 //!
 //! [`MUTANTS`] lists them, each with the conformance check it targets; [`MutantDevice`] is a
 //! mutant on the simulated bus. Response rewrites assume the 8/8 body format (the one the
-//! reference device's explicit connection uses, notes §3.1).
+//! reference device's explicit connection uses, protocol §3.1).
 
 use crate::device::SoftSlave;
 use can_io::sim::SimDevice;
@@ -52,7 +52,7 @@ impl Mutant {
 /// the last request the node received.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Fault {
-    // ----- network access (notes §7.1, §3.4, §8) ---------------------------------------------
+    // ----- network access (protocol §7.1, §3.4, §8) ---------------------------------------------
     /// Its second duplicate MAC ID request is not sent.
     SkipsSecondDupMacRequest,
     /// A duplicate MAC ID request for its MAC gets no response.
@@ -63,7 +63,7 @@ enum Fault {
     AcceptsNextMac,
     /// Connection 2 attribute 7 (produced size) reads one byte short.
     ShortProducedSize,
-    // ----- the Predefined Master/Slave Connection Set (notes §3.4) ---------------------------
+    // ----- the Predefined Master/Slave Connection Set (protocol §3.4) ---------------------------
     /// Allocating poll without explicit succeeds.
     AllocatesPollWithoutExplicit,
     /// Releasing a connection that does not exist succeeds.
@@ -90,7 +90,7 @@ enum Fault {
     NeverShowsOwned,
     /// A Release through the explicit connection is answered with success and not carried out.
     KeepsReleasedConnections,
-    // ----- explicit messaging (notes §3.3, §4.1, §5.1, §6) -----------------------------------
+    // ----- explicit messaging (protocol §3.3, §4.1, §5.1, §6) -----------------------------------
     /// Identity attribute 6 (serial number) differs from the serial its duplicate MAC ID check announced.
     SerialDiffersFromAnnounced,
     /// Get_Attributes_All of the Identity object is one byte short.
@@ -117,7 +117,7 @@ enum Fault {
     AcknowledgesOutOfSequence,
     /// The acknowledgement "too much data" (status 1) is sent as success (status 0).
     TakesAnyLength,
-    // ----- connections (notes §4.2, §5, §8, §9.12) ---------------------------------------------
+    // ----- connections (protocol §4.2, §5, §8, §9.12) ---------------------------------------------
     /// Answers polls while the poll connection is configuring (before the EPR is set).
     PollsWhileConfiguring,
     /// The Set EPR response carries no data instead of the EPR applied.
@@ -145,7 +145,7 @@ enum Fault {
     SlowPollResponses,
     /// Responses on its explicit connection go out 1.2 s late.
     SlowExplicitResponses,
-    // ----- issue 14: I/O connections, heartbeat, Offline Connection Set (notes §II) -------------
+    // ----- issue 14: I/O connections, heartbeat, Offline Connection Set (protocol §II) -------------
     /// Allocating change of state and cyclic together (0x31) succeeds (nothing is allocated).
     AcceptsCosWithCyclic,
     /// A release naming acknowledge suppression is answered with success and not carried out.
@@ -900,7 +900,7 @@ impl FaultHook {
     }
 }
 
-/// `epr` rounded up to `node`'s timer resolution, as the node applies it (notes §5.3).
+/// `epr` rounded up to `node`'s timer resolution, as the node applies it (protocol §5.3).
 fn rounded(node: &SlaveNode, epr: u16) -> u16 {
     let resolution = node.config().epr_resolution_ms.max(1);
     epr.div_ceil(resolution).saturating_mul(resolution)
@@ -995,7 +995,7 @@ mod tests {
 
     proptest! {
         /// Any frames, any mutant: no panic, and the node keeps its own identifiers and the
-        /// Group 3 UCMM response (notes §8).
+        /// Group 3 UCMM response (protocol §8).
         #[test]
         fn any_frames_to_any_mutant(
             k in 0..MUTANTS.len(),

@@ -51,7 +51,7 @@ impl SimSetup {
     /// A MAC given again puts another device there (`--slave-mac 5,5`): the n-th repeat gets
     /// 0x10000 × n more on its serial number and powers on [`DUPLICATE_DELAY`] × n after the
     /// first, which is on-line by then, defends its MAC and leaves the newcomer Communication
-    /// Faulted (notes §7.1): a faulted node for the Offline Connection Set (§II.6).
+    /// Faulted (protocol §7.1): a faulted node for the Offline Connection Set (§II.6).
     ///
     /// # Errors
     ///
@@ -89,7 +89,7 @@ impl SimSetup {
 }
 
 /// How much later a second device at one MAC ID powers on: after the first's duplicate MAC ID
-/// check (2 s, notes §7.1) with room to spare.
+/// check (2 s, protocol §7.1) with room to spare.
 pub const DUPLICATE_DELAY: Duration = Duration::from_secs(3);
 
 /// Why [`open_bus`] failed.
@@ -221,7 +221,7 @@ mod tests {
         setup.online_before_start = true;
         let mut bus = open_bus(&BusSpec::Sim, Bitrate::K250, &setup).unwrap();
         let start = bus.now();
-        // Allocate explicit through the Group 2 Only port (notes §2 frame 6).
+        // Allocate explicit through the Group 2 Only port (protocol §2 frame 6).
         let allocate = devicenet::CanFrame::from_raw(0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]).unwrap();
         bus.send(&allocate).unwrap();
         let mut frames = Vec::new();

@@ -48,7 +48,7 @@ impl Rig {
         self.drain()
     }
 
-    /// Powers on at 2 s (the master is on-line) and plays the master's side of notes §2.
+    /// Powers on at 2 s (the master is on-line) and plays the master's side of protocol §2.
     fn bring_up(&mut self) -> Tx {
         let mut seen = Tx::new();
         self.advance(Duration::from_secs(2));
@@ -219,7 +219,7 @@ fn identity_reset_power_cycles_the_converter() {
     assert!(std::iter::from_fn(|| rig.slave.poll_event()).any(|e| e == devicenet::Event::ResetRequested(0)));
 }
 
-/// A bare converter (no instrument) brought up as in devicenet-notes §2, with its explicit and
+/// A bare converter (no instrument) brought up as in protocol §2, with its explicit and
 /// poll connections established; returns it with the time and its drained frames.
 /// The class instance (0) of the serial link, settings and configuration objects: revision 1 and
 /// nothing else, served by the node for them (`ObjectHandler::class_revision`).
@@ -376,7 +376,7 @@ fn a_download_is_refused_while_polled() {
 #[test]
 fn parameters_are_set_into_the_pending_image_and_refused_while_polled() {
     let (mut c, now) = bare_established();
-    // Parameter class attribute 2: nine instances (devicenet-notes §II.4.3 byte examples).
+    // Parameter class attribute 2: nine instances (protocol §II.4.3 byte examples).
     assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x0F, 0x00, 0x02]), vec![vec![0x00, 0x8E, 9, 0]]);
     // Instance 2 (serial parity) attribute 1: none.
     assert_eq!(explicit(&mut c, now, &[0x00, 0x0E, 0x0F, 0x02, 0x01]), vec![vec![0x00, 0x8E, 0]]);

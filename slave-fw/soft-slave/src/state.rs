@@ -2,7 +2,7 @@
 //! so that a restarted process behaves like the board after a power cycle.
 //!
 //! The file holds the settings written over the network (DeviceNet attributes 1–3: MAC ID, data
-//! rate, bus-off interrupt; notes §II.7) and the configuration image downloaded through the
+//! rate, bus-off interrupt; protocol §II.7) and the configuration image downloaded through the
 //! configuration object, as JSON, and the device's own serial number:
 //!
 //! ```json
@@ -102,7 +102,7 @@ impl StoredState {
     /// What the device runs with after a start or a reset: the stored configuration image when
     /// there is one and it decodes, else `base` (the description; [`ConfigOrigin::resolve`], the
     /// board's rule, a refused image being a configuration fault), with the settings on top. In
-    /// the program position (`network.programmable`, notes §II.7) the MAC ID and data rate set
+    /// the program position (`network.programmable`, protocol §II.7) the MAC ID and data rate set
     /// over the network are used; the bus-off interrupt setting always is. `mac_override`
     /// (`--mac`) wins over all. The serial number is the state's, else `base`'s: never the
     /// stored image's (module docs).

@@ -61,7 +61,7 @@ fn a_mac_id_set_over_the_network_survives_reset_and_restart() {
         let mut session = Session::new(&mut bus);
         let mut master = Master::new(&mut session, MasterConfig::default());
         master.open_explicit(mac(5)).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
-        // DeviceNet attribute 1 := 9, then Identity Reset (notes §II.7: a new MAC takes effect
+        // DeviceNet attribute 1 := 9, then Identity Reset (protocol §II.7: a new MAC takes effect
         // after the reset).
         let (data, _) = master.set(mac(5), 3, 1, 1, &[9]).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
         assert!(data.is_empty());

@@ -9,7 +9,7 @@
 //! | 4 | UDINT | CRC-32 of the image in force (its trailer) |
 //! | 5 | bytes | why the last download (or the stored image at start) was refused: a [`RefusalRecord`], no bytes if nothing was refused |
 //!
-//! Class attribute 1 is the revision, 1. Services (codes object-specific, devicenet-notes §3.2;
+//! Class attribute 1 is the revision, 1. Services (codes object-specific, protocol §3.2;
 //! error codes §3.3):
 //!
 //! | code | service | request data | reply / errors |
@@ -29,7 +29,7 @@
 //!
 //! Who may download: requests reach an object only over the explicit messaging connection of the
 //! predefined master/slave set, and only the master that allocated it (its owner, DeviceNet object
-//! Allocate, devicenet-notes §3.4) holds that connection; any other master's allocation is refused
+//! Allocate, protocol §3.4) holds that connection; any other master's allocation is refused
 //! by the node, so no other master can reach this object.
 
 use super::image::{self, ImageError, IMAGE_VERSION, MAX_IMAGE};

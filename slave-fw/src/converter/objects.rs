@@ -19,7 +19,7 @@
 //! revision 1). Every instance attribute is read-only: the configuration comes from the
 //! description and the non-volatile settings, so Set_Attribute_Single answers 0x0E attribute not
 //! settable for a known attribute and 0x14 attribute not supported for an unknown one (error codes:
-//! devicenet-notes §3.3).
+//! protocol §3.3).
 
 use super::InputAssembly;
 use crate::serial::modbus::ModbusConfig;
@@ -53,7 +53,7 @@ impl AttributeType {
         }
     }
 
-    /// The CIP data type code (devicenet-notes §II.4.2: 0xC6 USINT, 0xC8 UDINT, 0xD1 BYTE).
+    /// The CIP data type code (protocol §II.4.2: 0xC6 USINT, 0xC8 UDINT, 0xD1 BYTE).
     pub const fn cip_code(self) -> u8 {
         match self {
             AttributeType::Usint => 0xC6,

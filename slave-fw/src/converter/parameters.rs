@@ -1,4 +1,4 @@
-//! The Parameter object, class [`PARAMETER_CLASS`] 0x0F (devicenet-notes §II.4): the settings a
+//! The Parameter object, class [`PARAMETER_CLASS`] 0x0F (protocol §II.4): the settings a
 //! commissioning tool edits one by one, each an instance, described once in [`PARAMETERS`] for the
 //! object handler and the EDS generator (`eds::generate`, whose `ParamN` is instance N).
 //!
@@ -42,7 +42,7 @@
 //! value in force since start (the description's value until a download), which the settings
 //! object (class 0x65) also shows.
 //!
-//! ## Services and errors (§II.4.3, notes §3.3)
+//! ## Services and errors (§II.4.3, protocol §3.3)
 //!
 //! Get_Attribute_Single (class and instances) and Set_Attribute_Single (instance attribute 1);
 //! every error has no additional code (0xFF):
@@ -67,7 +67,7 @@ use devicenet::slave::config::MAX_EXPLICIT_SIZE;
 use devicenet::slave::{Reply, ServiceError};
 use heapless::Vec;
 
-/// The Parameter object class (devicenet-notes §II.4).
+/// The Parameter object class (protocol §II.4).
 pub const PARAMETER_CLASS: u16 = 0x0F;
 /// Class attribute 8, the parameter class descriptor: bit 0 parameter instances, bit 1 full
 /// attributes, bit 3 stored in non-volatile memory (§II.4.1).

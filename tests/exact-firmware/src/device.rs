@@ -70,7 +70,7 @@ use stm32_emu::usart::{Usart, UsartId};
 
 /// The longest the bus lets the CPU run unattended: frames it queues are taken this late at most.
 pub const STEP: Nanos = 250_000;
-/// The serial number of the reference transcript (devicenet-notes §2); the emulated chip's
+/// The serial number of the reference transcript (protocol §2); the emulated chip's
 /// unique ID folds to it ([`crate::uid`]).
 pub const REFERENCE_SERIAL: u32 = 0x1234_5678;
 /// The breaker's line: the reference configuration's 9600 bit/s, 8N1.

@@ -24,7 +24,7 @@
 //! every board's build. `bus-off` found the
 //! first firmware bug the models caught: bxcan 0.8's `enable_non_blocking` sets `MCR.ABOM`, so the
 //! controller left bus-off by itself whatever the bus-off interrupt setting said
-//! (devicenet-notes §7.2: BOI 0 stays bus-off); the firmware now clears it
+//! (protocol §7.2: BOI 0 stays bus-off); the firmware now clears it
 //! (`board::hw::disable_automatic_bus_off_management`).
 //!
 //! ## What emulation proves, and what only a real board can

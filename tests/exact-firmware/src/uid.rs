@@ -1,7 +1,7 @@
 //! A unique device ID whose CRC-32 fold ([`board::uid::serial_number`]) is a chosen serial number.
 //!
 //! The firmware derives its DeviceNet serial number from the chip's 96-bit unique ID (RM0090
-//! §39.1, board/src/uid.rs). The reference transcript (devicenet-notes §2) carries the serial
+//! §39.1, board/src/uid.rs). The reference transcript (protocol §2) carries the serial
 //! 0x12345678. Rather than compare the bring-up with the serial substituted, the emulated chip is
 //! given an ID whose fold *is* that serial: the frames are then compared unchanged, and the
 //! firmware's own read and fold of the ID register are exercised on the way.

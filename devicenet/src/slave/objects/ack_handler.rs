@@ -1,4 +1,4 @@
-//! The Acknowledge Handler object (class 0x2B, devicenet-notes §II.2.4): the acknowledge timer
+//! The Acknowledge Handler object (class 0x2B, protocol §II.2.4): the acknowledge timer
 //! and retry limit of acknowledged change-of-state/cyclic productions (used in
 //! `change_of_state.rs`).
 //!

@@ -1,4 +1,4 @@
-//! The Connection object (class 0x05, devicenet-notes §5, §II.1, §II.2): the attributes of the
+//! The Connection object (class 0x05, protocol §5, §II.1, §II.2): the attributes of the
 //! explicit (1), poll (2), bit-strobe (3) and change-of-state/cyclic (4) connections, Set of the
 //! expected packet rate, watchdog action and production inhibit time, the Reset service, and what
 //! happens when a watchdog expires or a connection is deleted. The per-instance state machine is
@@ -16,7 +16,7 @@ use crate::slave::{
 };
 use crate::time::Instant;
 
-/// The attributes of a connection that follow from its kind and the allocation (notes §5.1,
+/// The attributes of a connection that follow from its kind and the allocation (protocol §5.1,
 /// §II.1.1, §II.2.2, docs/io-connections.md).
 struct IoAttributes {
     /// Attribute 3, transport class and trigger.
@@ -62,7 +62,7 @@ impl SlaveNode {
             }
             ServiceCode::Reset => {
                 // Restart the watchdog; deferred delete and timed out return to established
-                // (notes §3.2 Westlock; §9.8 for timed-out I/O, UNCONFIRMED).
+                // (protocol §3.2 Westlock; §9.8 for timed-out I/O, UNCONFIRMED).
                 let was_timed_out = conn.state == ConnectionState::TimedOut;
                 if let Some(c) = self.connection_mut(req.instance) {
                     if matches!(c.state, ConnectionState::DeferredDelete | ConnectionState::TimedOut) {
@@ -83,7 +83,7 @@ impl SlaveNode {
         }
     }
 
-    /// Instance attribute `attr` of `conn` (notes §5.1, §II.1.1, §II.2.2; the values chosen where
+    /// Instance attribute `attr` of `conn` (protocol §5.1, §II.1.1, §II.2.2; the values chosen where
     /// the notes are UNCONFIRMED are in docs/io-connections.md).
     fn connection_attribute(
         &self,
@@ -108,7 +108,7 @@ impl SlaveNode {
             13 => path_len(io.produced_path),
             15 => path_len(io.consumed_path),
             14 | 16 => {
-                // Attributes 14 and 16 (notes §5.1): logical class segment, instance segment,
+                // Attributes 14 and 16 (protocol §5.1): logical class segment, instance segment,
                 // attribute segment: an assembly's data, or the Acknowledge Handler's first
                 // attribute (§II.2.2); one path built for both (firmware size). Empty when absent.
                 let (present, class, instance, attribute) = match (attr, conn.kind) {
@@ -201,7 +201,7 @@ impl SlaveNode {
     }
 
     /// Set_Attribute_Single: the expected packet rate (9), the watchdog timeout action (12) and,
-    /// of Connection 4, the production inhibit time (17) are settable (notes §5.1, §5.3, §5.4,
+    /// of Connection 4, the production inhibit time (17) are settable (protocol §5.1, §5.3, §5.4,
     /// §II.2.2).
     fn set_connection_attribute(
         &mut self,
@@ -223,7 +223,7 @@ impl SlaveNode {
                     return Err(ServiceError::INVALID_ATTRIBUTE_VALUE);
                 }
                 // Rounded up to the timer resolution; the response carries the value in use
-                // (notes §5.3).
+                // (protocol §5.3).
                 let applied = requested.div_ceil(resolution).saturating_mul(resolution);
                 let Some(conn) = self.connection_mut(kind.instance()) else {
                     return Err(ServiceError::OBJECT_DOES_NOT_EXIST);
@@ -263,9 +263,9 @@ impl SlaveNode {
         }
     }
 
-    // ----- watchdogs and deletion (notes §5.2) ----------------------------------------------
+    // ----- watchdogs and deletion (protocol §5.2) ----------------------------------------------
 
-    /// Runs every connection's inactivity watchdog at `now` (notes §5.2, §5.4).
+    /// Runs every connection's inactivity watchdog at `now` (protocol §5.2, §5.4).
     pub(in crate::slave) fn run_watchdogs(&mut self, now: Instant) {
         for kind in [ConnectionKind::Poll, ConnectionKind::Strobe, ConnectionKind::ChangeOfState] {
             let Some(conn) = self.connection_mut(kind.instance()) else { continue };
@@ -293,7 +293,7 @@ impl SlaveNode {
     }
 
     /// An I/O connection timed out or was deleted: an explicit connection in deferred delete
-    /// goes with it (notes §5.2).
+    /// goes with it (protocol §5.2).
     fn after_io_lost(&mut self) {
         if self.explicit.state == ConnectionState::DeferredDelete {
             self.delete_by_watchdog(ConnectionKind::Explicit);
@@ -341,7 +341,7 @@ impl SlaveNode {
             }
         };
         self.allocation = self.allocation.difference(released);
-        // With no connection left the master's ownership ends (JB, notes §3.4).
+        // With no connection left the master's ownership ends (JB, protocol §3.4).
         if self.allocation.difference(AllocationChoice::ACK_SUPPRESSION).is_empty() {
             self.allocation = AllocationChoice::empty();
             self.master = None;

@@ -1,4 +1,4 @@
-//! The DeviceNet object (class 0x03, devicenet-notes §6.1): MAC ID, baud rate, bus-off interrupt
+//! The DeviceNet object (class 0x03, protocol §6.1): MAC ID, baud rate, bus-off interrupt
 //! and counter, allocation information, the switches, and the Allocate/Release services of the
 //! Predefined Master/Slave Connection Set (whose logic is in `allocation.rs`).
 
@@ -47,7 +47,7 @@ impl SlaveNode {
         }
     }
 
-    /// Instance attribute `attr` (notes §6.1 table).
+    /// Instance attribute `attr` (protocol §6.1 table).
     fn devicenet_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
         let sw = &self.config.switches;
         // The one-byte attributes, `None` where there is none: one reply, no `?` (firmware size).

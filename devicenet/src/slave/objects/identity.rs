@@ -1,4 +1,4 @@
-//! The Identity object (class 0x01, devicenet-notes §6.2): the device's identity from its
+//! The Identity object (class 0x01, protocol §6.2): the device's identity from its
 //! configuration, the status word and state drawn from the connections and the application's
 //! fault flags, and the Reset service.
 
@@ -7,7 +7,7 @@ use crate::slave::{Event, Reply, ServiceError, SlaveNode};
 use crate::time::Instant;
 
 impl SlaveNode {
-    /// The Identity status word, attribute 5 (notes §6.2).
+    /// The Identity status word, attribute 5 (protocol §6.2).
     pub fn identity_status(&self) -> u16 {
         let s = &self.app_status;
         let extended: u16 = if self.io_timed_out() {
@@ -91,7 +91,7 @@ impl SlaveNode {
         }
     }
 
-    /// Instance attribute `attr` (notes §6.2 table).
+    /// Instance attribute `attr` (protocol §6.2 table).
     fn identity_attribute(&self, attr: u8, reply: &mut Reply<'_>) -> Result<(), ServiceError> {
         let id = &self.config.identity;
         // Attributes 1-5 are two bytes each and share one reply (firmware size).

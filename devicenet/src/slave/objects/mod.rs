@@ -1,14 +1,14 @@
-//! The objects the core implements (devicenet-notes §5, §6), one file per class, each an
+//! The objects the core implements (protocol §5, §6), one file per class, each an
 //! `impl SlaveNode` block with the class's services and attributes:
 //!
 //! | file | class |
 //! |---|---|
 //! | `router.rs` | the Message Router (class 0x02): routes a request to its class, then its own attributes |
-//! | `identity.rs` | Identity (class 0x01, notes §6.2) |
-//! | `devicenet.rs` | DeviceNet (class 0x03, notes §6.1), Allocate/Release included |
+//! | `identity.rs` | Identity (class 0x01, protocol §6.2) |
+//! | `devicenet.rs` | DeviceNet (class 0x03, protocol §6.1), Allocate/Release included |
 //! | `assembly.rs` | Assembly (class 0x04): the poll connection's input and output images |
-//! | `connection.rs` | Connection (class 0x05, notes §5): attributes, Reset, watchdogs and deletion |
-//! | `ack_handler.rs` | Acknowledge Handler (class 0x2B, notes §II.2.4) |
+//! | `connection.rs` | Connection (class 0x05, protocol §5): attributes, Reset, watchdogs and deletion |
+//! | `ack_handler.rs` | Acknowledge Handler (class 0x2B, protocol §II.2.4) |
 //!
 //! Requests for any other class go to the application's [`ObjectHandler`](super::ObjectHandler).
 //! Class IDs come from [`crate::objects::class`].

@@ -131,7 +131,7 @@ fn cos_productions_are_reassembled_acknowledged_and_the_master_data_acknowledged
 #[test]
 fn a_first_production_before_the_set_epr_response_belongs_to_the_connection() {
     // The device establishes the connection on the Set EPR and produces at once; its response
-    // comes 5 ms later, after the whole production (notes §II.2.3).
+    // comes 5 ms later, after the whole production (protocol §II.2.3).
     let device = cos_attributes(0x10, 0x42A)
         .on(0x42C, &SET_EPR_100, &[(5, 0x42B, &[0x00, 0x90, 0x64, 0x00])])
         .produce((0x42C, &SET_EPR_100), 0, 100, productions(), None)

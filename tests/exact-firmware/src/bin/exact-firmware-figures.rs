@@ -26,7 +26,7 @@
 //!   transmit-complete interrupts of the fragments not (they come when the bus has taken each
 //!   fragment); "exc" counts the exception entries meanwhile.
 //! - **expl**: the same two figures for an explicit request over the explicit connection the
-//!   bring-up allocated (Get_Attribute_Single of the Identity's vendor ID, the notes §2's frame
+//!   bring-up allocated (Get_Attribute_Single of the Identity's vendor ID, the protocol §2's frame
 //!   11), answered by one frame.
 //! - **cycle**: the handler-mode instructions of a whole poll cycle, the three fragments sent and
 //!   acknowledged included, less those of an equally long window without a poll (SysTick and
@@ -337,7 +337,7 @@ fn poll_command() -> Result<CanFrame, FigureError> {
 }
 
 /// Get_Attribute_Single of the Identity's vendor ID over the explicit connection the bring-up
-/// allocated (the notes §2's frame 11).
+/// allocated (the protocol §2's frame 11).
 fn explicit_request() -> Result<CanFrame, FigureError> {
     let id = Identifier::group2(MAC, Group2Message::ExplicitRequest);
     CanFrame::new(id, &[0x00, 0x0E, 0x01, 0x01, 0x01])
@@ -460,7 +460,7 @@ fn sweep(board: &Board, now: &mut u64) -> Result<Sweep, FigureError> {
 }
 
 /// Takes what the board sent; returns how many were the first fragment of a response
-/// (fragment type 0 in the fragmentation byte's bits 7–6, the notes §2's 0x3C5 frames).
+/// (fragment type 0 in the fragmentation byte's bits 7–6, the protocol §2's 0x3C5 frames).
 fn count_first_fragments(board: &mut EmulatedBoard) -> u64 {
     let mut first = 0;
     while let Some(sent) = board.poll_transmit() {

@@ -10,7 +10,7 @@ use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
 use slave_fw::serial::breaker::SwitchState;
 
-/// The 28 frames of devicenet-notes §2, byte for byte and in order, every check holding. The
+/// The 28 frames of protocol §2, byte for byte and in order, every check holding. The
 /// serial number in the device's frames is the reference's own: the emulated chip's unique ID
 /// folds to it ([`crate::uid`]), nothing is substituted.
 pub fn bring_up(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {

@@ -47,7 +47,7 @@ pub fn wrong_bit_rate(board: BoardKind, elf: &[u8], options: &Options) -> Result
     Ok(())
 }
 
-/// Bus-off recovery follows the stored bus-off interrupt setting (devicenet-notes §7.2): the
+/// Bus-off recovery follows the stored bus-off interrupt setting (protocol §7.2): the
 /// node at 125k on a 500k bus, alone, drives its controller bus-off with its own flagged
 /// frames. With BOI 0 it stays bus-off (one bus-off, still off a second later); with BOI 1 it
 /// resets the controller and continues, so it goes bus-off again and again.

@@ -1,4 +1,4 @@
-//! `leds`: the Module Status and Network Status patterns (devicenet-notes §7.3, devicenet's
+//! `leds`: the Module Status and Network Status patterns (protocol §7.3, devicenet's
 //! `led` module, board/src/leds.rs) on the LED pins' output levels, sampled after every slice of
 //! CPU time (at most [`STEP`]) over virtual time.
 //!

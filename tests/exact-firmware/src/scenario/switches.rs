@@ -1,6 +1,6 @@
 //! `switches` (boards with DIP switches): the switches set the MAC ID and the data rate, read
 //! once at reset (board/src/switches.rs); DeviceNet object attributes 6–9 report them
-//! (devicenet-notes §II.7).
+//! (protocol §II.7).
 
 use super::world::{bitrate, bus_with, machine_fault, master_checks, power_cycled, Handle, Options};
 use crate::board::{BoardKind, NodeSetting};

@@ -92,7 +92,7 @@ pub fn bitrate(rate: BaudRate) -> Bitrate {
 }
 
 /// The CAN identifier of `mac`'s duplicate MAC ID check message (Group 2 message 7,
-/// devicenet-notes §1.2).
+/// protocol §1.2).
 pub fn duplicate_mac_id(mac: MacId) -> u16 {
     devicenet::Identifier::group2(mac, devicenet::Group2Message::DuplicateMacCheck).as_raw()
 }
