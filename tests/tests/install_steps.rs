@@ -8,7 +8,10 @@
 //! - a package whose installation would remove one of the machine's packages is refused, naming
 //!   it (Debian 12's `qemu-system-arm` beside the image's newer `qemu-utils`);
 //! - as a user who is not root, apt-get runs through `sudo`; without `sudo` the step fails and
-//!   names the package to install.
+//!   names the package to install;
+//! - the toolchain `rust-toolchain.toml` pins is used as it is when rustup has it, the machine's
+//!   stable toolchain is linked under its name when that is the same release (nothing can be
+//!   downloaded here), and only otherwise does rustup install it (stand-in `rustc` and `rustup`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -27,15 +30,8 @@ impl StandIns {
         let dir = std::env::temp_dir().join(format!("dnet-install-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(dir.join("bin")).unwrap();
-        let log = dir.join("calls.log");
-        let stand_in = |command: &str, body: &str| {
-            let path = dir.join("bin").join(command);
-            let script = format!("#!/bin/bash\necho \"{command} $*\" >> '{}'\n{body}\n", log.display());
-            std::fs::write(&path, script).unwrap();
-            let mut permissions = std::fs::metadata(&path).unwrap().permissions();
-            std::os::unix::fs::PermissionsExt::set_mode(&mut permissions, 0o755);
-            std::fs::set_permissions(&path, permissions).unwrap();
-        };
+        let machine = StandIns { dir };
+        let stand_in = |command: &str, body: &str| machine.stand_in(command, body);
         stand_in("id", &format!("echo {uid}"));
         let remv = removes.map_or(String::new(), |p| format!("echo 'Remv {p} [1:10.0.2]'"));
         stand_in(
@@ -49,7 +45,18 @@ impl StandIns {
         if sudo {
             stand_in("sudo", "shift; exec \"$@\"");
         }
-        StandIns { dir }
+        machine
+    }
+
+    /// A stand-in `command` that logs its call and runs `body` (bash).
+    fn stand_in(&self, command: &str, body: &str) {
+        let path = self.dir.join("bin").join(command);
+        let log = self.dir.join("calls.log");
+        let script = format!("#!/bin/bash\necho \"{command} $*\" >> '{}'\n{body}\n", log.display());
+        std::fs::write(&path, script).unwrap();
+        let mut permissions = std::fs::metadata(&path).unwrap().permissions();
+        std::os::unix::fs::PermissionsExt::set_mode(&mut permissions, 0o755);
+        std::fs::set_permissions(&path, permissions).unwrap();
     }
 
     /// Runs `script` in bash after sourcing the library, with only the stand-ins and the basic
@@ -57,7 +64,9 @@ impl StandIns {
     fn run(&self, script: &str) -> Output {
         let basics = self.dir.join("basics");
         std::fs::create_dir_all(&basics).unwrap();
-        for tool in ["env", "grep", "awk", "tr", "cat", "printf", "mktemp", "rm", "tail"] {
+        for tool in
+            ["env", "grep", "awk", "tr", "cat", "printf", "mktemp", "rm", "tail", "sed", "ln", "readlink"]
+        {
             let target = ["/usr/bin", "/bin"].iter().map(|d| Path::new(d).join(tool)).find(|p| p.exists());
             let link = basics.join(tool);
             if let (Some(target), false) = (target, link.exists()) {
@@ -154,4 +163,73 @@ fn a_user_without_root_or_sudo_is_told_what_to_install() {
     assert!(stderr.contains("cannot install socat: not root and no sudo"), "{stderr}");
     assert!(stderr.contains("apt-get install socat"), "{stderr}");
     assert!(installs(&machine.calls()).is_empty(), "{:?}", machine.calls());
+}
+
+/// A machine whose stable rustc is `stable` and whose rustup lists `listed` toolchains, with the
+/// pin of `rust-toolchain.toml` at 1.95.0; runs `need_rust_toolchain` in that folder.
+fn pinned_toolchain(name: &str, stable: &str, listed: &[&str]) -> (StandIns, Output) {
+    let machine = StandIns::new(name, 0, false, None);
+    let home = machine.dir.join("rustup");
+    std::fs::create_dir_all(home.join("toolchains/stable-x86_64-unknown-linux-gnu")).unwrap();
+    std::fs::write(machine.dir.join("rust-toolchain.toml"), "[toolchain]\nchannel = \"1.95.0\"\n").unwrap();
+    machine.stand_in(
+        "rustc",
+        &format!(
+            "case \"$1\" in -vV) printf 'rustc {stable} (0 2026-01-01)\\nhost: x86_64-unknown-linux-gnu\\n';; \
+             -V) echo 'rustc {stable} (0 2026-01-01)';; esac"
+        ),
+    );
+    let list: String = listed.iter().map(|t| format!("echo '{t}'; ")).collect();
+    machine.stand_in(
+        "rustup",
+        &format!(
+            "case \"$1 $2\" in 'toolchain list') {list}:;; 'show home') echo '{}';; esac; exit 0",
+            home.display()
+        ),
+    );
+    let output = machine.run(&format!("cd '{}' && need_rust_toolchain && echo done", machine.dir.display()));
+    (machine, output)
+}
+
+#[test]
+fn a_pinned_toolchain_rustup_has_is_used_as_it_is() {
+    let (machine, output) = pinned_toolchain(
+        "pin-present",
+        "1.96.0",
+        &["stable-x86_64-unknown-linux-gnu (default)", "1.95.0-x86_64-unknown-linux-gnu"],
+    );
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "done\n", "{output:?}");
+    assert!(
+        machine.calls().iter().all(|c| !c.starts_with("rustup toolchain install")),
+        "{:?}",
+        machine.calls()
+    );
+    assert!(!machine.dir.join("rustup/toolchains/1.95.0-x86_64-unknown-linux-gnu").exists());
+}
+
+#[test]
+fn stable_of_the_pinned_release_is_linked_under_its_name_not_downloaded() {
+    let (machine, output) =
+        pinned_toolchain("pin-link", "1.95.0", &["stable-x86_64-unknown-linux-gnu (default)"]);
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "done\n", "{output:?}");
+    let link = machine.dir.join("rustup/toolchains/1.95.0-x86_64-unknown-linux-gnu");
+    assert_eq!(
+        std::fs::read_link(&link).unwrap(),
+        machine.dir.join("rustup/toolchains/stable-x86_64-unknown-linux-gnu")
+    );
+    assert!(
+        machine.calls().iter().all(|c| !c.starts_with("rustup toolchain install")),
+        "{:?}",
+        machine.calls()
+    );
+}
+
+#[test]
+fn another_stable_release_has_rustup_install_the_pinned_one() {
+    let (machine, output) =
+        pinned_toolchain("pin-install", "1.96.0", &["stable-x86_64-unknown-linux-gnu (default)"]);
+    assert_eq!(String::from_utf8_lossy(&output.stdout), "done\n", "{output:?}");
+    let calls = machine.calls();
+    assert!(calls.iter().any(|c| c == "rustup toolchain install 1.95.0 --profile minimal"), "{calls:?}");
+    assert!(!machine.dir.join("rustup/toolchains/1.95.0-x86_64-unknown-linux-gnu").exists());
 }
