@@ -1,5 +1,5 @@
 //! CAN acceptance filtering: only the frames a group-2-only slave consumes reach the core
-//! (protocol §8, docs/io-connections.md).
+//! (protocol §8, docs/src/reference/io-connections.md).
 //!
 //! - Every Group 2 message carrying **its own** MAC ID in the MAC field (`0x400 | mac << 3 |
 //!   message`): the COS/cyclic acknowledge (message 2), the explicit request (4), the poll command

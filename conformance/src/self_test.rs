@@ -352,7 +352,8 @@ pub fn report_json(report: &SelfTestReport) -> Value {
     })
 }
 
-/// The matrix as the README shows it (Markdown): per check, the mutants that make it fail; per
+/// The matrix as the guide shows it (docs/src/test-engineer/conformance-self-test.md) (Markdown):
+/// per check, the mutants that make it fail; per
 /// mutant, its fault and every check that fails against it.
 #[must_use]
 pub fn markdown(report: &SelfTestReport) -> String {

@@ -595,7 +595,8 @@ pub fn check_device(
     }
 
     // The other connection types: does the device accept what the EDS announces, and does the
-    // connection produce the size of the EDS's default input? (docs/io-connections.md: Connection
+    // connection produce the size of the EDS's default input?
+    // (docs/src/reference/io-connections.md: Connection
     // 3 produces min(P, 8) bytes, Connection 4 P bytes.)
     for (kind, instance) in
         [(ConnectionType::BitStrobe, 3), (ConnectionType::ChangeOfState, 4), (ConnectionType::Cyclic, 4)]

@@ -1,7 +1,8 @@
 //! `dnet-eds`: generate, parse, check and normalize DeviceNet EDS files, and check a device on
 //! the bus against its EDS.
 //!
-//! Exit status, as for every program of this project (README "Exit status"): 0 success; 1 a failed
+//! Exit status, as for every program of this project (guide: docs/src/reference/exit-status.md): 0
+//! success; 1 a failed
 //! check (syntax errors for `parse`/`format`, any error diagnostic for `check`, a device that
 //! disagrees with the EDS) or a device or bus error (no answer, a bus that cannot be opened); 2 a
 //! usage or configuration error (bad option, unreadable input file, refused description).

@@ -19,7 +19,7 @@
 //! | `[Params]` `EnumN` | the strings of every parameter that is a choice (the `EnumN` dialect only; no `[EnumPar]`) | — |
 //! | `[Groups]` | serial line, instrument link, I/O behaviour, DeviceNet, statistics | — |
 //!
-//! The I/O connections announced are those the node offers (docs/io-connections.md): poll,
+//! The I/O connections announced are those the node offers (docs/src/reference/io-connections.md): poll,
 //! bit-strobe, COS and cyclic, poll the default. Multicast poll has no `[IO_Info]` bit and
 //! acknowledge suppression is a scanner setting, so neither appears. The layout follows the
 //! DeviceNet files of `../shared/eds-corpus/` (Hilscher netX 90 and DNS V5): the same `Default`,
@@ -213,7 +213,8 @@ pub const POLL_STROBE_COMPATIBLE: ConnectionMask = ConnectionMask(
     ConnectionMask::POLL | ConnectionMask::STROBE | ConnectionMask::COS | ConnectionMask::CYCLIC,
 );
 /// `COSInfo`: poll, bit-strobe and COS, not cyclic: COS and cyclic are the one Connection instance
-/// 4, and the node refuses them together (docs/io-connections.md, Allocation). The Hilscher files
+/// 4, and the node refuses them together (docs/src/reference/io-connections.md, Allocation). The
+/// Hilscher files
 /// write the same `0x0007`.
 pub const COS_COMPATIBLE: ConnectionMask =
     ConnectionMask(ConnectionMask::POLL | ConnectionMask::STROBE | ConnectionMask::COS);
@@ -809,7 +810,7 @@ mod tests {
     }
 
     /// The strobe response is min(P, 8) bytes of the input assembly: its own `Input2` above 8
-    /// bytes, `Input1` itself up to 8 (docs/io-connections.md).
+    /// bytes, `Input1` itself up to 8 (docs/src/reference/io-connections.md).
     #[rstest]
     #[case::breaker(18, 18, Some(8))]
     #[case::nine(9, 9, Some(8))]

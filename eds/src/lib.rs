@@ -62,7 +62,7 @@
 //!
 //! ## I/O connections
 //!
-//! The generated `[IO_Info]` announces what the node offers (docs/io-connections.md): poll (the
+//! The generated `[IO_Info]` announces what the node offers (docs/src/reference/io-connections.md): poll (the
 //! default), bit-strobe, change of state and cyclic, with the compatibility masks of the
 //! DeviceNet files in `../shared/eds-corpus/`; the strobe response, min(P, 8) bytes of the input
 //! assembly, is an input entry of its own when the input is larger. [`check()`] checks those

@@ -100,7 +100,7 @@ fn model_equals_the_description(#[case] name: &str) {
     assert_eq!(device.prod_name.as_deref(), Some(id.product_name.as_str()));
     assert_eq!(device.catalog.as_deref(), Some(d.catalog.as_str()));
 
-    // Poll, bit-strobe, COS and cyclic, as the node offers them (docs/io-connections.md).
+    // Poll, bit-strobe, COS and cyclic, as the node offers them (docs/src/reference/io-connections.md).
     let io = eds.io_info.as_ref().unwrap();
     assert_eq!(io.default, Some(ConnectionMask(ConnectionMask::POLL)));
     let poll = io.poll.as_ref().unwrap();

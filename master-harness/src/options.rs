@@ -90,7 +90,7 @@ impl std::str::FromStr for PowerOnArg {
     }
 }
 
-/// The I/O connection `connect` and `monitor` bring up (`docs/io-connections.md`).
+/// The I/O connection `connect` and `monitor` bring up (`docs/src/reference/io-connections.md`).
 #[derive(Args, Debug, Clone, Default)]
 pub struct IoArgs {
     /// The I/O connection: poll (Connection 2, the reference bring-up), strobe (bit-strobe,

@@ -323,7 +323,7 @@ fn record_breakers(h: &History, nodes: u8, start_ms: i64, secs: i64) {
 
 #[test]
 fn history_growth_per_node_and_hour_is_measured() {
-    // Not a timed test: the figure the README documents, printed (`-- --nocapture`).
+    // Not a timed test: the figure the guide documents, printed (`-- --nocapture`).
     let dir = scratch("growth");
     let h = History::open(&dir.join("h.sqlite")).unwrap();
     let before = h.used_bytes().unwrap();

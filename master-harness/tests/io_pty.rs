@@ -92,7 +92,7 @@ fn recover_a_faulted_soft_slave_over_slcan() {
     assert_eq!((r["identified"].as_bool(), r["ownership"].as_bool()), (Some(true), Some(true)), "{v}");
     assert_eq!((r["new_mac"].as_u64(), r["online"].as_bool()), (Some(9), Some(true)), "{v}");
     assert_eq!(r["serial_at_new_mac"], 0x1234_5678);
-    // Stored like a network-set MAC ID (docs/io-connections.md).
+    // Stored like a network-set MAC ID (docs/src/reference/io-connections.md).
     let stored: Value = serde_json::from_str(&std::fs::read_to_string(&state).unwrap()).unwrap();
     assert_eq!(stored["mac_id"], 9, "{stored}");
     // And it works as a device at MAC 9.

@@ -1,5 +1,5 @@
 //! `connect --io`, `monitor --io` and `recover` as the command line runs them on the simulated
-//! bus, with the real slave (issue 14, `docs/io-connections.md`): every frame checked, the JSON
+//! bus, with the real slave (issue 14, `docs/src/reference/io-connections.md`): every frame checked, the JSON
 //! and the text, exit statuses, and bad options refused with exit status 2.
 
 use serde_json::Value;

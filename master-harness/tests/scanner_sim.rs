@@ -414,7 +414,8 @@ fn two_devices_at_one_mac_are_communication_faulted() {
     assert_eq!(status(&scanner, 6), NodeStatus::Ok);
 }
 
-// ---- strobe, change of state and cyclic (issue 14, docs/io-connections.md) --------------------
+// ---- strobe, change of state and cyclic (issue 14, docs/src/reference/io-connections.md)
+// --------------------
 
 fn entry_as(mac: u8, connection: &str) -> ScanEntry {
     let mut e = breaker_entry(mac);

@@ -25,7 +25,7 @@
 //! | `strobe` | 0x05 | Connection 3 attribute 7; attribute 8 must be 8 (the strobe command), output 0 | Connection 3 |
 //! | `cos`, `cyclic` | 0x11 / 0x21, + 0x40 with `ack_suppression` | Connection 4 attribute 7, Connection 2 attribute 8 (the scanner's data) | Connection 4 |
 //!
-//! (`docs/io-connections.md`, protocol §II.1, §II.2; the master's side of each connection is
+//! (`docs/src/reference/io-connections.md`, protocol §II.1, §II.2; the master's side of each connection is
 //! [`master_core::master::io`]'s, here run for every node at once.)
 //!
 //! ## One scan cycle
@@ -72,7 +72,8 @@
 //!
 //! ## Status codes
 //!
-//! [`crate::model::NodeStatus::code`]: Rockwell's DeviceNet node status codes (README, "scanner").
+//! [`crate::model::NodeStatus::code`]: Rockwell's DeviceNet node status codes (guide:
+//! docs/src/plant/scanner.md).
 //! Communication Faulted is seen on the bus: a duplicate MAC ID *response* at a node's MAC (an
 //! on-line device keeping a newcomer with the same MAC off the bus), or two devices announcing
 //! different serial numbers at one MAC. The Offline Connection Set (protocol §II.6) is not used.

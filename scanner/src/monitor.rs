@@ -277,7 +277,8 @@ pub struct Field {
     pub text: String,
 }
 
-/// The status byte and the freshness counter of assembly 101, decoded (bit layout in the README,
+/// The status byte and the freshness counter of assembly 101, decoded (bit layout in the guide,
+/// docs/src/reference/io-data.md,
 /// "Input assemblies and the status byte").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct LinkView {

@@ -280,7 +280,7 @@ pub struct Converter {
     /// The board found its hardware faulty ([`Converter::set_major_unrecoverable_fault`]).
     major_unrecoverable_fault: bool,
     /// The status byte and freshness last seen: a change is new instrument data or a new status,
-    /// what a change-of-state connection produces (docs/io-connections.md).
+    /// what a change-of-state connection produces (docs/src/reference/io-connections.md).
     last_status: [u8; 2],
 }
 

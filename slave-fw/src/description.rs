@@ -32,7 +32,7 @@
 //! none is flattened or untagged, which would defeat it), and the error gives the line, the column
 //! and the dotted key (`breaker.toml: TOML parse error at line 36, column 1:
 //! profile.serial.parityy: unknown key ...`). The complete reference, with every optional key, is
-//! in the README and in `slave-fw/descriptions/`.
+//! in the guide (docs/src/reference/description-file.md) and in `slave-fw/descriptions/`.
 
 use crate::converter::{ConverterConfig, InputAssembly, InvalidConfig};
 use crate::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
@@ -276,7 +276,8 @@ struct ModbusSection {
 }
 
 impl DeviceDescription {
-    /// The built-in description: the reference converter with the breaker (README).
+    /// The built-in description: the reference converter with the breaker (guide:
+    /// docs/src/reference/description-file.md).
     pub fn reference() -> DeviceDescription {
         DeviceDescription {
             converter: ConverterConfig::breaker_reference(),

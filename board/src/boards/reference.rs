@@ -10,7 +10,8 @@
 //! | LEDs | PC0–PC3: MS green, MS red, NS green, NS red, high = lit |
 //! | settings | flash sectors 10 and 11 (2 × 128 KiB at 0x080C_0000) |
 //!
-//! Sources: the board's own design (README "Firmware", "Wiring"); the STM32F405 facts from
+//! Sources: the board's own design (guide: docs/src/development/firmware.md,
+//! docs/src/integrator/wiring.md); the STM32F405 facts from
 //! RM0090 (flash organisation §3.3, Table 5: sectors 10 and 11 at 0x080C_0000 and 0x080E_0000)
 //! and DS8626 (alternate functions: CAN1 PB8/PB9 AF9, USART2 PA2/PA3 AF7).
 

@@ -156,7 +156,7 @@ pub fn read(bytes: &[u8], sink: &mut Sink<'_>) -> Result<(), LogError> {
         let reason = if header.iter().any(|f| std::str::from_utf8(f).is_err()) {
             "the CSV header is not UTF-8 text (convert a GBK export with iconv -f GBK -t UTF-8)"
         } else {
-            "the CSV header names no time, identifier and data columns (see the csv format in the README)"
+            "the CSV header names no time, identifier and data columns (see the csv format in the guide, docs/src/reference/trace-formats.md)"
         };
         return Err(sink.error(1, 1, reason, &header_text));
     };

@@ -1,4 +1,5 @@
-//! I/O connections of issue 14 (protocol §II.1, §II.2, §II.5; `docs/io-connections.md`): bit-strobe,
+//! I/O connections of issue 14 (protocol §II.1, §II.2, §II.5;
+//! `docs/src/reference/io-connections.md`): bit-strobe,
 //! change of state acknowledged and with acknowledge suppression, cyclic, the Acknowledge Handler
 //! object and the device heartbeat. The exchanges run through the master's own I/O code
 //! (`master_core::io`), which judges every frame; the checks add what only a test provokes (a

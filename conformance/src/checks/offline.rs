@@ -1,4 +1,5 @@
-//! The Offline Connection Set (protocol §7.1 rule 3, §7.4, §3.8, §II.6; `docs/io-connections.md`):
+//! The Offline Connection Set (protocol §7.1 rule 3, §7.4, §3.8, §II.6;
+//! `docs/src/reference/io-connections.md`):
 //! the device is made Communication Faulted the one way a master can, a duplicate MAC ID
 //! response for its MAC, then found with Who, identified, asked for offline ownership and given
 //! its own MAC again with Change MAC ID, after which it must run its duplicate MAC ID check and

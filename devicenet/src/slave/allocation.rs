@@ -3,7 +3,7 @@
 //! (DeviceNet object, class 3 instance 1).
 //!
 //! Requests are validated in JB's order and answered with the error codes of protocol §3.4, with the
-//! change-of-state/cyclic rules of §II.2.5 (docs/io-connections.md). This node offers every
+//! change-of-state/cyclic rules of §II.2.5 (docs/src/reference/io-connections.md). This node offers every
 //! connection but multicast poll ([`SUPPORTED`]).
 
 use super::explicit_messaging::{invalid_group2_only_request, Port};

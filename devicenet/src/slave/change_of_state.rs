@@ -1,5 +1,5 @@
 //! Change-of-state and cyclic I/O (Connection instance 4; protocol §II.2,
-//! docs/io-connections.md) with the Acknowledge Handler (class 0x2B, §II.2.4).
+//! docs/src/reference/io-connections.md) with the Acknowledge Handler (class 0x2B, §II.2.4).
 //!
 //! - Cyclic: the input image is produced every expected packet rate (EPR).
 //! - Change of state: produced when the application says it changed

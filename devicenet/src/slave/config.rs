@@ -12,7 +12,7 @@ pub const MAX_IO_SIZE: usize = 128;
 pub const MAX_EXPLICIT_SIZE: usize = 64;
 /// The most input data a bit-strobe response carries: a strobe response is never fragmented
 /// (protocol §II.1.3), so a device with a larger input image answers a strobe with the first
-/// `STROBE_MAX_SIZE` bytes of it (docs/io-connections.md).
+/// `STROBE_MAX_SIZE` bytes of it (docs/src/reference/io-connections.md).
 pub const STROBE_MAX_SIZE: u16 = 8;
 
 /// The size of the bit-strobe response of a device that produces `produced` bytes.

@@ -1,5 +1,5 @@
 //! The device heartbeat and shutdown messages (protocol §3.7, §II.5,
-//! docs/io-connections.md), sent on our Group 2 message 3 identifier with our own MAC in the
+//! docs/src/reference/io-connections.md), sent on our Group 2 message 3 identifier with our own MAC in the
 //! header, unfragmented, 8 bytes (AN, LIM).
 //!
 //! - Heartbeat: every Identity attribute 10 seconds while on-line (0 = off, the default; TOSH,

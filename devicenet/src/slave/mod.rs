@@ -27,7 +27,7 @@
 //!
 //! Multicast poll is not offered: allocating it is answered with 0x02 resource unavailable / 0x02
 //! (protocol §3.4, "asks for a connection type the device lacks"; §II.3). What the node does where the
-//! notes are UNCONFIRMED is recorded in `docs/io-connections.md`.
+//! notes are UNCONFIRMED is recorded in `docs/src/reference/io-connections.md`.
 //!
 //! ## Where each part lives
 //!

@@ -1,5 +1,6 @@
 //! The Offline Connection Set (Group 4; protocol §3.8, §7.4, §II.6,
-//! docs/io-connections.md): a node in Communication Faulted after a duplicate MAC ID answers Who
+//! docs/src/reference/io-connections.md): a node in Communication Faulted after a duplicate MAC ID
+//! answers Who
 //! and Identify, accepts an offline owner, and takes a new MAC ID, after which it runs the
 //! duplicate MAC ID check again at that MAC (DR).
 //!
@@ -66,7 +67,8 @@ impl SlaveNode {
             }
             // Offline ownership, `<client MAC> 4B <client vendor> <client serial>` on 0x7EF: the
             // request echoed with CB, so every faulted node sends the same frame and the answers
-            // cannot collide (docs/io-connections.md; who answers is UNCONFIRMED). A second client
+            // cannot collide (docs/src/reference/io-connections.md; who answers is UNCONFIRMED). A
+            // second client
             // is not answered while the first holds it.
             &[client @ 0..=63, 0x4B, k0, k1, k2, k3, k4, k5]
                 if message == Group4MessageId::OFFLINE_OWNERSHIP_REQUEST =>

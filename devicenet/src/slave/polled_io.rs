@@ -57,7 +57,7 @@ impl SlaveNode {
             self.send_input(id);
         } else if !self.ack_suppressed() {
             // The master's COS/cyclic data, acknowledged with a zero-length frame; it also keeps
-            // Connection 4 alive (docs/io-connections.md).
+            // Connection 4 alive (docs/src/reference/io-connections.md).
             self.queue_data(id, &[]);
             self.cos.restart_timer(now);
         }

@@ -1,4 +1,4 @@
-//! Bit-strobe I/O (Connection instance 3; protocol §II.1, docs/io-connections.md): the
+//! Bit-strobe I/O (Connection instance 3; protocol §II.1, docs/src/reference/io-connections.md): the
 //! owning master's 8-byte strobe command carries one bit per MAC ID; the node keeps its own bit and
 //! answers every strobe at once with the first bytes of its input image, never fragmented.
 

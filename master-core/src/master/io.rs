@@ -1,5 +1,6 @@
 //! The I/O connections of issue 14 next to poll: bit-strobe (Connection 3), change of state and
-//! cyclic (Connection 4) with the Acknowledge Handler, as `docs/io-connections.md` and the notes
+//! cyclic (Connection 4) with the Acknowledge Handler, as `docs/src/reference/io-connections.md`
+//! and the notes
 //! (§1.2, §1.3, §4.2, §II.1, §II.2) describe them, each frame checked.
 //!
 //! | kind | allocation | the master sends | the device answers |

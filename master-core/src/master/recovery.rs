@@ -1,5 +1,5 @@
 //! Recovering a node that is Communication Faulted after a duplicate MAC ID, through the Offline
-//! Connection Set (Group 4; protocol §1.4, §3.8, §7.4, §II.6; `docs/io-connections.md`):
+//! Connection Set (Group 4; protocol §1.4, §3.8, §7.4, §II.6; `docs/src/reference/io-connections.md`):
 //!
 //! 1. **Who** on 0x7ED, `[0, match 1, MAC] 4B <time-delay byte offset>` (exactly the faulted
 //!    MAC; [`RecoverOptions::time_delay_offset`]), then every answer on 0x7EC collected for

@@ -30,7 +30,7 @@ pub struct ConformanceArgs {
     /// mutant, every mutant fails its target check and the reference device passes).
     #[arg(long, conflicts_with = "mac")]
     pub self_test: bool,
-    /// With --self-test: print the matrix as Markdown tables (as in the README).
+    /// With --self-test: print the matrix as Markdown tables (as in the guide).
     #[arg(long, requires = "self_test")]
     pub markdown: bool,
 }

@@ -94,7 +94,7 @@ impl Breaker {
         }
     }
 
-    /// The README's command rule: executed when the code or the sequence changes.
+    /// The guide's command rule (docs/src/plant/console.md): executed when the code or the sequence changes.
     fn apply_output(&mut self) {
         let (code, seq) = (self.output[0], self.output[1]);
         if (code, seq) == self.last_command {

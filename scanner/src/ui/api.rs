@@ -428,7 +428,8 @@ fn explicit_set(shared: &Shared, mac: u8, body: &Value) -> Result<Resp, ApiError
     Ok(json_response(200, &json!({"ok": true, "data": hex(&data)})))
 }
 
-/// The breaker's commands through the output image (README, "Commands through the poll output"):
+/// The breaker's commands through the output image (guide: docs/src/reference/io-data.md,
+/// "Commands through the poll output"):
 /// byte 0 the command, byte 1 the sequence number (bumped, so the converter executes it), bytes 2–4
 /// the parameter id and value.
 fn breaker(shared: &Shared, mac: u8, action: &str, body: &[u8]) -> Result<Resp, ApiError> {

@@ -45,7 +45,7 @@
 //! | `POST /api/node/MAC/output` `{"data": hex}` (`"0201000000000000"`) | puts the output image (ConsoleCommand::SetOutput) |
 //! | `POST /api/node/MAC/get` `{"class", "instance", "attribute"}` | Get_Attribute_Single: `{"ok", "data": hex, "text"}` |
 //! | `POST /api/node/MAC/set` `{"class", "instance", "attribute", "value": hex}` | Set_Attribute_Single |
-//! | `POST /api/node/MAC/breaker/open`, `/breaker/close` | the breaker's command 1 / 2 in the output image, with the next sequence number (README, "Commands through the poll output") |
+//! | `POST /api/node/MAC/breaker/open`, `/breaker/close` | the breaker's command 1 / 2 in the output image, with the next sequence number (guide: docs/src/reference/io-data.md, "Commands through the poll output") |
 //! | `POST /api/node/MAC/breaker/param` `{"id", "value"}` | command 3: parameter `id` (0–255) set to `value` (0–65535) |
 //! | `POST /api/record/start`, `/api/record/stop`; `GET /api/record` | recording of the frames to `record-TIMESTAMP.log` (`candump -L`) and `.pcap` in the record directory: `{"ok", "recording", "log", "pcap", "frames"}` |
 //!

@@ -25,7 +25,7 @@
 //!   the settings journal and runs from the next reset.
 //!
 //! The `emulated` feature swaps only the lowest layer (clock from HSI, CAN as SLCAN on USART1,
-//! MAC from `DNET_MAC`); see `README.md` "Firmware".
+//! MAC from `DNET_MAC`); see the guide, docs/src/development/firmware.md.
 //!
 //! On the host this package builds a stub `main` so that `cargo test` and clippy over the
 //! workspace stay clean; the firmware itself is built with `--target thumbv7em-none-eabihf`.
@@ -56,7 +56,7 @@ fn main() {
     println!(
         "slave-fw-firmware is the adapter board's firmware: build it with \
          `cargo build -p slave-fw-firmware --profile firmware --target thumbv7em-none-eabihf` \
-         (add `--features emulated` for QEMU); see README.md \"Firmware\"."
+         (add `--features emulated` for QEMU); see docs/src/development/firmware.md."
     );
 }
 

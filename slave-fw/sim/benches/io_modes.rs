@@ -1,4 +1,5 @@
-//! Benchmarks of the I/O connection types (issue 14; docs/io-connections.md), reported and never
+//! Benchmarks of the I/O connection types (issue 14; docs/src/reference/io-connections.md),
+//! reported and never
 //! asserted (`cargo bench -p converter-sim --bench io_modes`):
 //!
 //! * **bus load** of the breaker converter at 250 kbit/s on the simulated bus, a master polling it

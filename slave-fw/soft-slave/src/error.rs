@@ -59,7 +59,8 @@ pub enum SoftSlaveError {
 }
 
 impl SoftSlaveError {
-    /// The process exit status (README, "Exit status"): 2 for a usage or configuration error
+    /// The process exit status (guide: docs/src/reference/exit-status.md): 2 for a usage or
+    /// configuration error
     /// (as clap uses), an output file (log, state) that cannot be written among them; 1 for the
     /// bus or the serial port failing.
     pub fn exit_code(&self) -> u8 {

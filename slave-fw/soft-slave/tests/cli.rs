@@ -130,7 +130,7 @@ fn scratch(name: &str) -> std::path::PathBuf {
 }
 
 /// Issue 33: an unwritable `--log` made both programs exit 1; it is an output file that cannot be
-/// written, a usage error (README "Exit status": 2), named, and found before the serial port or
+/// written, a usage error (guide, "Exit status": 2), named, and found before the serial port or
 /// the bus is opened (their paths here do not exist: those would fail with 1).
 #[test]
 fn an_unwritable_log_is_a_usage_error_naming_the_file() {

@@ -17,7 +17,7 @@ use crate::slave::{
 use crate::time::Instant;
 
 /// The attributes of a connection that follow from its kind and the allocation (protocol §5.1,
-/// §II.1.1, §II.2.2, docs/io-connections.md).
+/// §II.1.1, §II.2.2, docs/src/reference/io-connections.md).
 struct IoAttributes {
     /// Attribute 3, transport class and trigger.
     transport: u8,
@@ -71,7 +71,7 @@ impl SlaveNode {
                     c.restart_timer(now);
                 }
                 if conn.kind == ConnectionKind::ChangeOfState && self.ack_suppressed() {
-                    // It consumes nothing: no watchdog (docs/io-connections.md).
+                    // It consumes nothing: no watchdog (docs/src/reference/io-connections.md).
                     self.cos.deadline = Instant::MAX;
                 }
                 if was_timed_out {
@@ -84,7 +84,7 @@ impl SlaveNode {
     }
 
     /// Instance attribute `attr` of `conn` (protocol §5.1, §II.1.1, §II.2.2; the values chosen where
-    /// the notes are UNCONFIRMED are in docs/io-connections.md).
+    /// the notes are UNCONFIRMED are in docs/src/reference/io-connections.md).
     fn connection_attribute(
         &self,
         conn: &Connection,

@@ -1,5 +1,5 @@
 //! `dnet-soft-slave`: the serial-to-DeviceNet converter as a Linux process (see `--help` and the
-//! README section "Soft slave and serial bridge").
+//! the guide: docs/src/integrator/soft-slave.md).
 
 use clap::Parser;
 use soft_slave::cli::{run_soft_slave, summary_text, SoftSlaveArgs};
