@@ -150,7 +150,7 @@ impl Bxcan {
                 self.tx.complete(m, true);
                 self.tec = self.tec.saturating_sub(1);
                 self.lec = lec::NONE;
-                if self.loopback() {
+                if self.loopback() && !self.loopback_broken {
                     self.receive(&frame);
                 }
             }
@@ -232,7 +232,8 @@ impl Bxcan {
     }
 
     /// What happens inside the controller without the wire: the end of a bus-off recovery, and
-    /// the transmissions of silent loop back mode (RM0090 §32.5.3), which complete at once.
+    /// the transmissions of silent loop back mode (RM0090 §32.5.3), which complete at once (and
+    /// are not received back when the loop back path is broken, [`Bxcan::set_loopback_broken`]).
     pub(super) fn run_internal(&mut self) {
         if let Some(deadline) = self.next_deadline() {
             if self.mode == Mode::Normal && self.now >= deadline {
@@ -250,7 +251,9 @@ impl Bxcan {
             while let Some(m) = self.tx.highest_priority(by_order) {
                 let frame = self.tx.frame(m);
                 self.tx.complete(m, true);
-                self.receive(&frame);
+                if !self.loopback_broken {
+                    self.receive(&frame);
+                }
             }
         }
     }

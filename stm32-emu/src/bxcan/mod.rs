@@ -32,6 +32,14 @@
 //! source says what the hardware does with one). With the CAN1 clock gate
 //! (`RCC_APB1ENR.CAN1EN`, bit 25) closed, reads return 0 and writes are ignored.
 //!
+//! ## Fault injection
+//!
+//! [`Bxcan::set_loopback_broken`] breaks the path from the transmitter back to the receiver
+//! that loop back mode uses (RM0090 §32.5.2, §32.5.3), a defect of the chip a power-up self-test
+//! in silent loop back mode is meant to catch: a frame sent in loop back mode completes (TXOK) but
+//! is never received. Normal mode is unaffected. The fault survives every reset: it is the
+//! chip's, not a register's.
+//!
 //! ## Not modelled
 //!
 //! Time-triggered communication (TTCM, time stamps, TGT: the time fields read 0), debug freeze
@@ -220,6 +228,8 @@ pub struct Bxcan {
     now: Nanos,
     /// PCLK1 as last seen from the machine, for [`Peripheral::next_event`].
     pclk1: u32,
+    /// The injected fault of [`Bxcan::set_loopback_broken`].
+    loopback_broken: bool,
 }
 
 impl Default for Bxcan {
@@ -248,13 +258,27 @@ impl Bxcan {
             filters: FilterModule::new(),
             now: 0,
             pclk1: Clocks::RESET.pclk1,
+            loopback_broken: false,
         }
     }
 
     /// The reset of CAN1 through `RCC_APB1RSTR` (bit 25) or a system reset: everything,
     /// filters included, to its reset value.
     pub fn reset(&mut self) {
-        *self = Bxcan { now: self.now, pclk1: self.pclk1, ..Bxcan::new() };
+        *self =
+            Bxcan { now: self.now, pclk1: self.pclk1, loopback_broken: self.loopback_broken, ..Bxcan::new() };
+    }
+
+    /// Injects (or removes) the fault of a broken loop back path (module docs, "Fault
+    /// injection"): from now on a frame sent in loop back mode completes but never reaches the
+    /// receive FIFOs.
+    pub fn set_loopback_broken(&mut self, broken: bool) {
+        self.loopback_broken = broken;
+    }
+
+    /// Whether the loop back path is broken ([`Bxcan::set_loopback_broken`]).
+    pub const fn loopback_broken(&self) -> bool {
+        self.loopback_broken
     }
 
     /// The master reset of `CAN_MCR.RESET`: the controller to its reset state (asleep). The

@@ -224,3 +224,36 @@ fn loopback_sends_to_the_wire_and_ignores_the_missing_ack() {
     assert_eq!(d.counters(), (0, 0));
     assert_eq!(d.receive(), Nb::Ok(data(0x123, &[7])));
 }
+
+#[rstest]
+#[case::silent_loopback(true)]
+#[case::loopback(false)]
+fn a_broken_loopback_path_completes_the_frame_but_never_receives_it(#[case] silent: bool) {
+    let mut d = in_test_mode(true, silent);
+    d.can.set_loopback_broken(true);
+    assert_eq!(d.transmit(&data(0x7FF, &[0x55, 0xAA])), Nb::Ok((0, None)));
+    if !silent {
+        assert!(d.send(TxOutcome::NoAcknowledge).is_some(), "still on the wire");
+    }
+    assert_eq!(d.read(offset::TSR) & 0xFF, tsr::RQCP | tsr::TXOK, "the mailbox still completes");
+    assert_eq!(d.receive(), Nb::WouldBlock, "nothing came back");
+    assert_eq!(d.read(offset::RF1R) & 0b11, 0);
+}
+
+#[test]
+fn a_broken_loopback_path_survives_resets_and_leaves_normal_mode_alone() {
+    let mut d = on_bus();
+    d.can.set_loopback_broken(true);
+    d.write(offset::MCR, mcr::RESET);
+    Bxcan::reset(&mut d.can);
+    assert!(d.can.loopback_broken(), "the chip's defect, not a register");
+    d.firmware_setup();
+    let _ = d.enable_non_blocking();
+    let frame = data(0x42B, &[1]);
+    assert_eq!(d.hear(&frame, 125_000), Response::Acknowledge);
+    assert_eq!(d.receive(), Nb::Ok(frame), "reception from the bus works");
+    assert_eq!(d.transmit(&data(0x42C, &[2])), Nb::Ok((0, None)));
+    assert_eq!(d.send(TxOutcome::Acknowledged).map(|t| t.frame), Some(data(0x42C, &[2])));
+    d.can.set_loopback_broken(false);
+    assert!(!d.can.loopback_broken());
+}
