@@ -309,6 +309,17 @@ impl EmulatedBoard {
         (tec, rec, can.is_bus_off())
     }
 
+    /// Breaks the bxCAN's loop back path from power-up (stm32-emu `Bxcan::set_loopback_broken`):
+    /// the fault the firmware's CAN self-test is meant to catch.
+    pub fn break_can_loopback(&mut self) {
+        self.can.borrow_mut().set_loopback_broken(true);
+    }
+
+    /// The bxCAN model's operating mode.
+    pub fn can_mode(&self) -> stm32_emu::bxcan::Mode {
+        self.can.borrow().mode()
+    }
+
     /// `CAN_ESR` as the firmware reads it.
     pub fn esr(&mut self) -> Option<u32> {
         self.mcu.read_peripheral(CAN1_BASE + stm32_emu::bxcan::offset::ESR)

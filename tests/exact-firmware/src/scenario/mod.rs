@@ -12,6 +12,7 @@
 //! | `switches` | boards with DIP switches (the reference board) | [`switches`] |
 //! | `mac63-autobaud-125k`, `-250k`, `-500k`, `autobaud-silent-bus` | boards without switches | [`autobaud`] |
 //! | `leds` | every board | [`leds`] |
+//! | `can-self-test-fault` | every board | [`self_test`] |
 
 pub mod autobaud;
 pub mod bring_up;
@@ -19,6 +20,7 @@ pub mod can;
 pub mod configure;
 pub mod download_cut;
 pub mod leds;
+pub mod self_test;
 pub mod switches;
 pub mod world;
 
@@ -49,7 +51,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 14] = [
+pub const ALL: [Scenario; 15] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -64,6 +66,7 @@ pub const ALL: [Scenario; 14] = [
     Scenario { name: "mac63-autobaud-500k", applies: without_switches, run: autobaud::at_500k },
     Scenario { name: "autobaud-silent-bus", applies: without_switches, run: autobaud::silent_bus },
     Scenario { name: "leds", applies: every_board, run: leds::leds },
+    Scenario { name: "can-self-test-fault", applies: every_board, run: self_test::can_self_test_fault },
 ];
 
 /// The result of one scenario on one board.
