@@ -20,9 +20,8 @@
 //! at every flash operation of a download), `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and
 //! `can-self-test-fault` (the CAN self-test failing); on a board with DIP switches `switches`;
 //! on a board without them `mac63-autobaud-125k`, `-250k`, `-500k` and `autobaud-silent-bus`
-//! ([`scenario`] says what each compares). The binary
-//! `exact-firmware` runs those that apply on every board ELF given and scripts/exact-firmware on
-//! every board's build. `bus-off` found the
+//! ([`scenario`] says what each compares). The binary `exact-firmware` runs those that apply on
+//! every board ELF given and scripts/exact-firmware on every board's build. `bus-off` found the
 //! first firmware bug the models caught: bxcan 0.8's `enable_non_blocking` sets `MCR.ABOM`, so the
 //! controller left bus-off by itself whatever the bus-off interrupt setting said
 //! (protocol §7.2: BOI 0 stays bus-off); the firmware now clears it

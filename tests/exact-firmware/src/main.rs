@@ -10,9 +10,9 @@
 //! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
 //! `configure`, `download-cut` (a power cut at every flash operation of a download),
 //! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and `can-self-test-fault` on every board;
-//! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`, `-250k`, `-500k` and
-//! `autobaud-silent-bus` on a board without them. A scenario that does not apply to a board is
-//! not run on it and not listed.
+//! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
+//! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
+//! apply to a board is not run on it and not listed.
 //!
 //! `--limit` bounds each scenario's wall time (default 300 s, the longest scenario,
 //! `download-cut`, taking a minute or more on a busy machine): past it the machine stops and the
