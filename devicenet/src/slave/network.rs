@@ -43,7 +43,17 @@ pub enum NetworkState {
 
 impl SlaveNode {
     /// Starts the duplicate MAC ID check by queueing the first request (protocol §7.1).
+    ///
+    /// A node whose application reports a major unrecoverable fault (its own hardware failed, e.g.
+    /// the board's CAN self-test) never starts it: it stays off the network, not on-line, with the
+    /// Network Status off and the Module Status red (protocol §7.3). This is the project's rule
+    /// (issue 26: "the node stays off the bus"); no public source says what network access a
+    /// faulted device must attempt.
     pub(super) fn start_duplicate_mac_check(&mut self, now: Instant) {
+        if self.app_status.major_unrecoverable_fault {
+            self.network = NetworkState::DuplicateMacCheck { requests_sent: 0, deadline: Instant::MAX };
+            return;
+        }
         self.send_duplicate_mac(false);
         self.network = NetworkState::DuplicateMacCheck { requests_sent: 1, deadline: now + DUP_MAC_INTERVAL };
     }
@@ -52,7 +62,10 @@ impl SlaveNode {
     pub(super) fn step_duplicate_mac_check(&mut self, now: Instant) {
         if let NetworkState::DuplicateMacCheck { requests_sent, deadline } = self.network {
             if now >= deadline {
-                if requests_sent < 2 {
+                if self.app_status.major_unrecoverable_fault {
+                    // Faulted during the check: no further request, never on-line.
+                    self.network = NetworkState::DuplicateMacCheck { requests_sent, deadline: Instant::MAX };
+                } else if requests_sent < 2 {
                     self.send_duplicate_mac(false);
                     self.network = NetworkState::DuplicateMacCheck {
                         requests_sent: 2,

@@ -21,6 +21,28 @@ fn duplicate_mac_check_two_requests_one_second_apart() {
 }
 
 #[rstest]
+#[case::before_power_on(false)]
+#[case::during_the_check(true)]
+fn a_node_with_a_major_unrecoverable_fault_stays_off_the_network(#[case] after_first_request: bool) {
+    let mut rig = Rig::new(DeviceConfig::reference());
+    let faulty = ApplicationStatus { major_unrecoverable_fault: true, ..ApplicationStatus::default() };
+    if after_first_request {
+        rig.node.power_on(Instant::ZERO);
+        assert_eq!(rig.drain().len(), 1, "the first duplicate MAC ID request");
+        rig.node.set_application_status(faulty, Instant::ZERO);
+    } else {
+        rig.node.set_application_status(faulty, Instant::ZERO);
+        rig.node.power_on(Instant::ZERO);
+        assert_eq!(rig.drain(), Tx::new());
+    }
+    assert_eq!(rig.advance(Duration::from_secs(5)), Tx::new());
+    assert!(matches!(rig.node.network_state(), NetworkState::DuplicateMacCheck { .. }));
+    assert_eq!(rig.events(), Vec::<Event>::new());
+    assert_eq!(rig.node.network_indication(), Indication::Off);
+    assert_eq!(rig.node.module_indication(), Indication::Red);
+}
+
+#[rstest]
 #[case::request_during_check(&[0x00, 0x99, 0x00, 1, 2, 3, 4])]
 #[case::response_during_check(&[0x80, 0x99, 0x00, 1, 2, 3, 4])]
 fn duplicate_during_check_faults(#[case] data: &[u8]) {
