@@ -25,7 +25,7 @@ const TOLERANCE_MS: u64 = 30;
 
 /// The pins' levels as a bit mask: for two bicolour LEDs bit 0 MS green, 1 MS red, 2 NS green,
 /// 3 NS red; for one LED bit 0.
-type Levels = u8;
+pub(super) type Levels = u8;
 
 /// What the board's LED pins show when the Module Status is `module` and the Network Status is
 /// `network`.
@@ -58,10 +58,10 @@ impl Run {
 }
 
 /// The LED pins' changes: (machine time, levels), the first the levels before power-on.
-type Changes = Rc<RefCell<Vec<(Nanos, Levels)>>>;
+pub(super) type Changes = Rc<RefCell<Vec<(Nanos, Levels)>>>;
 
 /// Records every change of the LED pins' levels (machine time, levels).
-fn watch_leds(handle: &Handle) -> Result<Changes, String> {
+pub(super) fn watch_leds(handle: &Handle) -> Result<Changes, String> {
     let kind = handle.borrow().kind();
     let (port, pins): (_, Vec<u8>) = match kind.spec.leds {
         LedWiring::Bicolour { ms_green } => (ms_green.port, (0..4).map(|i| ms_green.number + i).collect()),

@@ -8,17 +8,15 @@
 //! frames, its controller's mode, its LEDs. The Identity status bit 11 the converter sets cannot
 //! be read (the node answers nothing).
 
-use super::world::{machine_fault, world, Handle, Options, MAC};
+use super::leds::{watch_leds, Levels};
+use super::world::{machine_fault, world, Options, MAC};
 use crate::board::BoardKind;
-use crate::device::STEP;
 use board::boards::LedWiring;
 use can_io::bus::Origin;
 use can_io::sim::PowerOn;
 use devicenet::Instant;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
-use std::cell::RefCell;
-use std::rc::Rc;
 use stm32_emu::bxcan::Mode;
 use stm32_emu::periph::Nanos;
 
@@ -30,13 +28,6 @@ const SETTLED_MS: u64 = 1_800;
 /// and the LEDs are watched for the rest.
 const RUN_MS: u64 = 8_000;
 
-/// The pins' levels as a bit mask: for two bicolour LEDs bit 0 MS green, 1 MS red, 2 NS green,
-/// 3 NS red; for one LED bit 0.
-type Levels = u8;
-
-/// The LED pins' changes: (machine time, levels), the first the levels before power-on.
-type Changes = Rc<RefCell<Vec<(Nanos, Levels)>>>;
-
 /// What a node with a major unrecoverable fault that is off the bus shows: Module Status solid
 /// red, Network Status off (not on-line, protocol §7.3); on one LED (board/src/leds.rs, "red
 /// (major fault) | any | on"): lit.
@@ -45,33 +36,6 @@ fn fault_levels(wiring: LedWiring) -> Levels {
         LedWiring::Bicolour { .. } => 0b0010,
         LedWiring::Single(_) => 1,
     }
-}
-
-/// Records every change of the LED pins' levels.
-fn watch_leds(handle: &Handle) -> Result<Changes, String> {
-    let kind = handle.borrow().kind();
-    let (port, pins): (_, Vec<u8>) = match kind.spec.leds {
-        LedWiring::Bicolour { ms_green } => (ms_green.port, (0..4).map(|i| ms_green.number + i).collect()),
-        LedWiring::Single(pin) => (pin.port, vec![pin.number]),
-    };
-    let gpio = handle.borrow().gpio(crate::board::port(port)).ok_or("no model of the LEDs' port")?;
-    let changes = Rc::new(RefCell::new(vec![(0, 0)]));
-    let log = Rc::clone(&changes);
-    handle.borrow_mut().watch(Some((
-        STEP,
-        Box::new(move |mcu| {
-            let gpio = gpio.borrow();
-            let levels = pins
-                .iter()
-                .enumerate()
-                .fold(0, |l, (i, &n)| l | u8::from(gpio.output_level(n) == Some(true)) << i);
-            let mut log = log.borrow_mut();
-            if log.last().is_some_and(|&(_, last)| last != levels) {
-                log.push((mcu.now(), levels));
-            }
-        }),
-    )));
-    Ok(changes)
 }
 
 /// The LEDs from `from` to `end` (machine time) show `levels` throughout, after having changed
