@@ -61,6 +61,19 @@ need_command() {
   apt_install "$package"
 }
 
+# need_free_space DIR GB: fails, naming DIR and both figures, unless DIR's file system has room for
+# GB gigabytes more than DIR already holds (a run that rebuilds in place needs only the difference).
+need_free_space() {
+  local dir=$1 need_gb=$2 probe=$1 free_kb used_kb=0 short_kb
+  while [ ! -e "$probe" ]; do probe=$(dirname "$probe"); done
+  free_kb=$(df -Pk "$probe" | awk 'NR == 2 { print $4 }')
+  [ -d "$dir" ] && used_kb=$(du -sk "$dir" 2>/dev/null | cut -f1)
+  short_kb=$((need_gb * 1024 * 1024 - used_kb - free_kb))
+  [ "$short_kb" -le 0 ] && return 0
+  install_log "not enough disk space: the run writes about $need_gb GB under $dir; $((free_kb / 1048576)) GB free and $((used_kb / 1048576)) GB already there. Free $(((short_kb + 1048575) / 1048576)) GB more and run again"
+  return 1
+}
+
 # need_package PACKAGE...: install each PACKAGE that dpkg does not list as installed, one at a time.
 need_package() {
   local package
