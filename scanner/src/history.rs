@@ -280,6 +280,9 @@ impl History {
                  PRAGMA user_version = 1;",
             )
             .map_err(|e| history.classify(e, "creating the schema"))?;
+            // The audit log (audit.rs) lives beside the samples.
+            conn.execute_batch(crate::audit::CREATE_TABLE)
+                .map_err(|e| history.classify(e, "creating the audit table"))?;
         }
         Ok(history)
     }
@@ -538,6 +541,21 @@ impl History {
             Some(ErrorCode::CannotOpen) => HistoryError::Open { path: self.path.clone(), source },
             _ => self.sql(what, source),
         }
+    }
+}
+
+/// The audit log in the table `audit` (see [`crate::audit`]), kept to the newest
+/// [`audit::MAX_ROWS`](crate::audit::MAX_ROWS) entries.
+impl crate::audit::Audit for History {
+    fn record(&self, entry: &crate::audit::AuditEntry) -> Result<(), crate::audit::AuditError> {
+        let conn = lock(&self.writer);
+        crate::audit::insert(&conn, entry, crate::audit::MAX_ROWS)
+            .map_err(|e| self.sql("recording an audit entry", e).into())
+    }
+
+    fn recent(&self, limit: usize) -> Result<Vec<crate::audit::AuditEntry>, crate::audit::AuditError> {
+        crate::audit::select(&self.read_conn(), limit)
+            .map_err(|e| self.sql("reading the audit log", e).into())
     }
 }
 

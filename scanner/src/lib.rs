@@ -15,6 +15,7 @@
 //! | [`list`], [`model`] | the scan list file; what the scanner knows and shows (node status codes) |
 //! | [`report`] | how a scanner run ends: nodes released, the node table, the `--json` summary |
 //! | [`ui`] | the web console: the page and its JSON API over the scanner's shared state, with its own bounded HTTP server |
+//! | [`accounts`], [`audit`] | who may command the plant (users file, roles), and the log of every command |
 //! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
 //! | [`mqtt`] | node status and decoded values published to an MQTT broker |
 //!
@@ -24,6 +25,8 @@
 //! returns a value or an error naming the file, line and key (or the request, or the frame), never
 //! a panic; every queue and buffer is bounded.
 
+pub mod accounts;
+pub mod audit;
 pub mod engine;
 pub mod history;
 pub mod list;

@@ -425,6 +425,8 @@ pub struct Shared {
     /// The MQTT publisher's state in words, when `--mqtt` is given (`connected to URL`,
     /// `broker unreachable: ...`).
     pub mqtt: Mutex<Option<String>>,
+    /// The audit log every command is recorded in (the history's, or in memory without one).
+    pub audit: std::sync::Arc<dyn crate::audit::Audit>,
 }
 
 impl Shared {

@@ -22,6 +22,7 @@
 use crate::options::{open_bus, GlobalOptions};
 use can_io::bus::BusSpec;
 use clap::Args;
+use dnet_scanner::audit::{Audit, MemoryAudit};
 use dnet_scanner::history::{History, Retention};
 use dnet_scanner::model::{HistoryStore, Shared};
 use dnet_scanner::monitor::InputLayout;
@@ -119,6 +120,10 @@ pub fn execute(
         history: history.as_ref().map(|h| Box::new(Arc::clone(h)) as Box<dyn HistoryStore>),
         record_dir: args.record_dir.clone(),
         mqtt: Mutex::new(publisher.as_ref().map(Publisher::status)),
+        audit: match &history {
+            Some(h) => Arc::clone(h) as Arc<dyn Audit>,
+            None => Arc::new(MemoryAudit::default()),
+        },
     });
     let server = serve(&args.listen, Arc::clone(&shared))?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;

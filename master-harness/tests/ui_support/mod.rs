@@ -234,6 +234,7 @@ impl FakeScanner {
             history: Some(Box::new(SharedHistory(Arc::clone(&history)))),
             record_dir: record_dir.to_path_buf(),
             mqtt: Mutex::new(Some("broker unreachable: tcp://127.0.0.1:1883 (connection refused)".into())),
+            audit: Arc::new(dnet_scanner::audit::MemoryAudit::default()),
         });
         let stop = Arc::new(AtomicBool::new(false));
         let thread = {
