@@ -133,6 +133,10 @@ impl<B: Bus + ?Sized> Bus for PcapBus<B> {
         }
         Ok(event)
     }
+
+    fn error_state(&mut self) -> Option<crate::bus::health::ErrorReport> {
+        self.inner.error_state()
+    }
 }
 
 #[cfg(test)]

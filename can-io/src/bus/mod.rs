@@ -9,6 +9,7 @@
 //! simulation-specific passes through the trait. [`BusSpec`] is what `--bus` names;
 //! [`BusSpec::open`] opens the real ones.
 
+pub mod health;
 pub mod slcan;
 #[cfg(target_os = "linux")]
 pub mod socketcan;
@@ -97,6 +98,13 @@ pub trait Bus {
     /// The next frame that completes on the bus, waiting at most until `deadline`; `None` when the
     /// deadline passed first (the bus clock then reads at least `deadline`).
     fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError>;
+
+    /// The controller's error state and counters, where the backend can tell them
+    /// ([`health`]); `None` (the default) when it cannot. An SLCAN adapter is asked (`F`) at most
+    /// once a second by this call, and its answer comes with a later [`Bus::recv`].
+    fn error_state(&mut self) -> Option<health::ErrorReport> {
+        None
+    }
 }
 
 /// A CAN bit rate of DeviceNet: 125, 250 or 500 kbit/s.

@@ -8,6 +8,7 @@
 //! | `S4\r` / `S5\r` / `S6\r` | 125 / 250 / 500 kbit/s |
 //! | `O\r` | open the channel |
 //! | `tIIILDD..\r` | transmit a standard frame (3 hex identifier digits, 1 DLC digit, data) |
+//! | `F\r` | read the status flags (answer `Fxx\r`, [`SlcanStatus`]), sent by [`Bus::error_state`] at most once a second |
 //!
 //! The adapter answers commands with `\r` (ok) or BEL (`\x07`, error), confirms transmissions with
 //! `z\r` on some firmwares, and reports received frames as `tIIILDD..` lines, optionally followed
@@ -36,8 +37,16 @@
 //!
 //! Two host endpoints joined back to back (a null-modem pty pair) see each other's set-up
 //! commands; each answers them `\r` as an adapter would ([`AdapterLine::HostCommand`]), so a
-//! program that opens with [`SetUp::Adapter`] finds a peer that runs as an adapter.
+//! program that opens with [`SetUp::Adapter`] finds a peer that runs as an adapter. A peer's `F`
+//! is answered `F00\r`: a back-to-back serial link has no CAN controller, so no CAN errors.
+//!
+//! ## Status flags
+//!
+//! [`Bus::error_state`] is `None` until the adapter answered an `F`; an adapter that refuses `F`
+//! (BEL while one is outstanding) is not asked again and its error state stays `None`; the BEL is
+//! not an error of the bus.
 
+use super::health::{ErrorReport, SlcanStatus};
 use super::{Bitrate, Bus, BusError, BusEvent, Origin};
 use crate::slcan::{self, Command, LineBuffer};
 use devicenet::{CanFrame, Instant};
@@ -103,8 +112,11 @@ pub enum AdapterLine {
     Transmitted,
     /// BEL: the last command was refused.
     Error,
-    /// A set-up command (`C`, `Sn`, `O`, `L`): only a host sends these, so the far end is another
-    /// host program on a back-to-back link. Answered `\r`.
+    /// `Fxx`: the status flags, the answer to `F`.
+    Status(SlcanStatus),
+    /// A set-up command (`C`, `Sn`, `O`, `L`) or the status request `F`: only a host sends these,
+    /// so the far end is another host program on a back-to-back link. Answered `\r` (`F`:
+    /// `F00\r`).
     HostCommand(Command),
     /// A line that is not a standard data frame (extended, remote, version, status, noise).
     Other(String),
@@ -115,11 +127,18 @@ pub fn classify(line: &[u8]) -> AdapterLine {
     match line {
         b"" => AdapterLine::Ok,
         b"z" | b"Z" => AdapterLine::Transmitted,
+        _ if SlcanStatus::parse(line).is_some() => {
+            AdapterLine::Status(SlcanStatus::parse(line).unwrap_or_default())
+        }
         _ => match slcan::parse_received(line) {
             Ok(Command::Frame(frame)) => AdapterLine::Frame(frame),
-            Ok(c @ (Command::Open | Command::ListenOnly | Command::Close | Command::Bitrate(_))) => {
-                AdapterLine::HostCommand(c)
-            }
+            Ok(
+                c @ (Command::Open
+                | Command::ListenOnly
+                | Command::Close
+                | Command::Bitrate(_)
+                | Command::StatusFlags),
+            ) => AdapterLine::HostCommand(c),
             _ => AdapterLine::Other(String::from_utf8_lossy(line).into_owned()),
         },
     }
@@ -181,7 +200,25 @@ pub struct SlcanBus<L: SerialLink> {
     /// Frames sent while nothing was heard of the far end yet ([`SetUp::Peer`]), waiting to go out
     /// (`None` once it has been heard, and with [`SetUp::Adapter`]).
     held: Option<VecDeque<CanFrame>>,
+    /// The status flags ([`Bus::error_state`]).
+    status: StatusPoll,
 }
+
+/// The state of the `F` requests (see the [module docs](self)).
+#[derive(Clone, Copy, Debug, Default)]
+struct StatusPoll {
+    /// When the outstanding `F` was sent.
+    asked: Option<std::time::Instant>,
+    /// When the last `F` was sent.
+    last_asked: Option<std::time::Instant>,
+    /// The adapter refused `F`.
+    refused: bool,
+    /// From the answers so far (`None` before the first).
+    report: Option<ErrorReport>,
+}
+
+/// How often [`Bus::error_state`] asks an SLCAN adapter for its status flags, at most.
+pub const STATUS_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// The most frames [`SlcanBus`] holds while its far end is not there; older ones are dropped.
 pub const HELD_LIMIT: usize = 64;
@@ -228,6 +265,7 @@ impl<L: SerialLink> SlcanBus<L> {
             receiver: Receiver::new(),
             pending: VecDeque::new(),
             held: (setup == SetUp::Peer).then(VecDeque::new),
+            status: StatusPoll::default(),
         };
         bus.drain()?;
         let rate = bitrate_command(bitrate);
@@ -304,7 +342,7 @@ impl<L: SerialLink> SlcanBus<L> {
                         let at = self.clock();
                         self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote });
                     }
-                    AdapterLine::HostCommand(_) => self.answer_peer()?,
+                    AdapterLine::HostCommand(c) => self.answer_peer(c)?,
                     AdapterLine::Ok if !answered => answered = true,
                     AdapterLine::Error if !answered && command == "C" => answered = true,
                     AdapterLine::Error if !answered => {
@@ -313,6 +351,7 @@ impl<L: SerialLink> SlcanBus<L> {
                     AdapterLine::Ok
                     | AdapterLine::Error
                     | AdapterLine::Transmitted
+                    | AdapterLine::Status(_)
                     | AdapterLine::Other(_) => {}
                 }
             }
@@ -342,10 +381,11 @@ impl<L: SerialLink> SlcanBus<L> {
         Ok(())
     }
 
-    /// Answers a peer's set-up command `\r`, as an adapter would.
-    fn answer_peer(&mut self) -> Result<(), BusError> {
+    /// Answers a peer's set-up command `\r`, and its `F` `F00\r`, as an adapter would.
+    fn answer_peer(&mut self, command: Command) -> Result<(), BusError> {
+        let answer: &[u8] = if command == Command::StatusFlags { b"F00\r" } else { slcan::OK };
         self.link
-            .write_all(slcan::OK)
+            .write_all(answer)
             .and_then(|()| self.link.flush())
             .map_err(|source| self.io("answering the far end's set-up command", source))
     }
@@ -388,6 +428,11 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
         Ok(())
     }
 
+    fn error_state(&mut self) -> Option<ErrorReport> {
+        // A failed write shows again, as an error, at the next send or receive.
+        self.poll_status().ok().flatten()
+    }
+
     fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError> {
         let mut buf = [0u8; 256];
         loop {
@@ -421,9 +466,9 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                     AdapterLine::Other(_) => false,
                     _ => true,
                 };
-                if let AdapterLine::HostCommand(_) = msg {
+                if let AdapterLine::HostCommand(c) = msg {
                     // Answered first: the held frames follow the answer to the peer's `O`.
-                    self.answer_peer()?;
+                    self.answer_peer(c)?;
                 }
                 if heard {
                     self.far_end_heard()?;
@@ -432,8 +477,19 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                     AdapterLine::Frame(frame) => {
                         self.pending.push_back(BusEvent { at, frame, origin: Origin::Remote })
                     }
+                    AdapterLine::Error if self.status.asked.is_some() => {
+                        self.status.asked = None;
+                        self.status.refused = true;
+                    }
                     AdapterLine::Error => {
                         return Err(BusError::Adapter("the SLCAN adapter refused a command (BEL)".into()))
+                    }
+                    AdapterLine::Status(flags) => {
+                        self.status.asked = None;
+                        let mut report = self.status.report.unwrap_or_default();
+                        report.state = flags.state();
+                        report.error_frames += u64::from(flags.0 & SlcanStatus::BUS_ERROR != 0);
+                        self.status.report = Some(report);
                     }
                     AdapterLine::HostCommand(_)
                     | AdapterLine::Ok
@@ -442,6 +498,26 @@ impl<L: SerialLink> Bus for SlcanBus<L> {
                 }
             }
         }
+    }
+}
+
+impl<L: SerialLink> SlcanBus<L> {
+    /// The error state for [`Bus::error_state`]: asks `F` when none is outstanding (or the last
+    /// went unanswered for [`STATUS_INTERVAL`]) and the last was asked [`STATUS_INTERVAL`] ago.
+    fn poll_status(&mut self) -> Result<Option<ErrorReport>, BusError> {
+        let due = self.held.is_none()
+            && !self.status.refused
+            && self.status.last_asked.is_none_or(|t| t.elapsed() >= STATUS_INTERVAL);
+        if due {
+            self.link
+                .write_all(b"F\r")
+                .and_then(|()| self.link.flush())
+                .map_err(|source| self.io("asking the SLCAN adapter for its status flags (`F`)", source))?;
+            let now = std::time::Instant::now();
+            self.status.asked = Some(now);
+            self.status.last_asked = Some(now);
+        }
+        Ok(self.status.report)
     }
 }
 
@@ -466,6 +542,7 @@ fn shown(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bus::health::ErrorState;
     use rstest::rstest;
 
     /// A scripted adapter: what waits in its input, what it answers to each write (in order),
@@ -532,6 +609,37 @@ mod tests {
     fn encode(#[case] frame: CanFrame, #[case] text: &str) {
         assert_eq!(&slcan::frame_line(&frame)[..], text.as_bytes());
         assert_eq!(classify(text.trim_end_matches('\r').as_bytes()), AdapterLine::Frame(frame));
+    }
+
+    #[test]
+    fn status_flags_are_asked_for_and_read() {
+        let mut bus =
+            SlcanBus::new(FakeLink::new(b"", &["\r", "\r", "\r", "F24\r", "F80\r"]), Bitrate::K250).unwrap();
+        assert_eq!(bus.error_state(), None, "asked, not answered yet");
+        assert!(bus.link().written.ends_with(b"O\rF\r"));
+        assert_eq!(bus.recv(Instant::from_millis(20)).unwrap(), None);
+        let report = bus.error_state().unwrap();
+        assert_eq!((report.state, report.error_frames, report.tec), (ErrorState::Passive, 0, None));
+        assert_eq!(bus.link().written.iter().filter(|&&b| b == b'F').count(), 1, "not again within a second");
+    }
+
+    #[test]
+    fn an_adapter_that_refuses_status_flags_is_not_asked_again() {
+        let mut bus = SlcanBus::new(FakeLink::new(b"", &["\r", "\r", "\r", "\x07"]), Bitrate::K250).unwrap();
+        assert_eq!(bus.error_state(), None);
+        assert_eq!(bus.recv(Instant::from_millis(20)).unwrap(), None, "the BEL to `F` is no bus error");
+        bus.status.last_asked = None;
+        assert_eq!(bus.error_state(), None);
+        assert_eq!(bus.link().written.iter().filter(|&&b| b == b'F').count(), 1);
+    }
+
+    #[test]
+    fn a_peers_status_request_is_answered_with_no_errors() {
+        let mut bus =
+            SlcanBus::set_up(FakeLink::new(b"F\r", &[]), Bitrate::K250, "pty", SetUp::Peer).unwrap();
+        bus.link.input.extend(b"F\r".iter().copied());
+        assert_eq!(bus.recv(Instant::from_millis(20)).unwrap(), None);
+        assert!(bus.link().written.ends_with(b"F00\r"), "{:?}", String::from_utf8_lossy(&bus.link().written));
     }
 
     #[rstest]

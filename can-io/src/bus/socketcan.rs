@@ -1,12 +1,16 @@
 //! Linux SocketCAN (`socketcan:IFACE`), through the `socketcan` crate.
 //!
 //! The bus clock is the time since the interface was opened. Frames this program sends are
-//! reported back as [`Origin::Local`] at the moment they were written to the socket; remote and
-//! error frames on the interface are skipped (not DeviceNet traffic).
+//! reported back as [`Origin::Local`] at the moment they were written to the socket; remote frames
+//! on the interface are skipped (not DeviceNet traffic). The socket asks for every error frame
+//! (`CAN_ERR_MASK`): they are not DeviceNet traffic either, and go to the error state
+//! ([`Bus::error_state`], [`SocketCanErrors`]). A driver reports bus errors only with bus-error
+//! reporting on: `ip link set IFACE type can berr-reporting on`.
 
+use super::health::{ErrorReport, SocketCanErrors};
 use super::{Bus, BusError, BusEvent, Origin};
 use devicenet::{CanFrame, Instant};
-use socketcan::{CanSocket, Socket};
+use socketcan::{CanSocket, Socket, SocketOptions};
 use std::collections::VecDeque;
 
 /// A SocketCAN interface.
@@ -15,6 +19,7 @@ pub struct SocketCanBus {
     iface: String,
     opened: std::time::Instant,
     echo: VecDeque<BusEvent>,
+    errors: SocketCanErrors,
 }
 
 impl SocketCanBus {
@@ -22,11 +27,16 @@ impl SocketCanBus {
     pub fn open(iface: &str) -> Result<SocketCanBus, BusError> {
         let socket = CanSocket::open(iface)
             .map_err(|source| BusError::Open { what: format!("SocketCAN interface '{iface}'"), source })?;
+        socket.set_error_filter_accept_all().map_err(|source| BusError::Open {
+            what: format!("SocketCAN interface '{iface}' (asking for its error frames)"),
+            source,
+        })?;
         Ok(SocketCanBus {
             socket,
             iface: iface.to_string(),
             opened: std::time::Instant::now(),
             echo: VecDeque::new(),
+            errors: SocketCanErrors::default(),
         })
     }
 
@@ -72,6 +82,10 @@ impl Bus for SocketCanBus {
                         return Ok(Some(BusEvent { at: self.clock(), frame, origin: Origin::Remote }));
                     }
                 }
+                Ok(socketcan::CanFrame::Error(error)) => {
+                    use socketcan::EmbeddedFrame;
+                    self.errors.error_frame(error.error_bits(), error.data());
+                }
                 Ok(_) => {}
                 Err(e)
                     if matches!(e.kind(), std::io::ErrorKind::TimedOut | std::io::ErrorKind::WouldBlock) => {}
@@ -81,5 +95,9 @@ impl Bus for SocketCanBus {
                 }
             }
         }
+    }
+
+    fn error_state(&mut self) -> Option<ErrorReport> {
+        Some(self.errors.report())
     }
 }

@@ -22,12 +22,18 @@
 //!   the sender driven bus-off) and of each delivery to each receiver (delivered, dropped, delayed);
 //!   the model and its implementations live in [`fault`]. Without a model the bus behaves
 //!   exactly as described above: the fault paths are never entered.
+//! * **Fault confinement**: every node's transmit and receive error counters follow the ISO
+//!   11898-1 rules under those faults (error frames counted, bus-off at TEC 256, recovery after
+//!   128 × 11 bits); the master's are its [`Bus::error_state`], a device's
+//!   [`SimBus::device_error_counters`] (`sim::errors`, private: its table is in the guide's health
+//!   page).
 //!
 //! Time is virtual: a 2 s duplicate MAC ID check costs no wall time. With
 //! [`SimBus::set_realtime`] the simulation waits for the wall clock to catch up with each instant
 //! it reaches.
 
 mod device;
+mod errors;
 pub mod fault;
 #[cfg(test)]
 mod scripted;
@@ -190,6 +196,8 @@ pub struct SimBus {
     fault_stats: FaultStats,
     /// Sees the master go on-line from its own frames.
     master_online: MasterOnlineWatch,
+    /// Every node's error counters.
+    confinement: errors::Confinement,
 }
 
 impl SimBus {
@@ -210,6 +218,7 @@ impl SimBus {
             delayed: Vec::new(),
             fault_stats: FaultStats::default(),
             master_online: MasterOnlineWatch::default(),
+            confinement: errors::Confinement::default(),
         }
     }
 
@@ -249,6 +258,7 @@ impl SimBus {
 
     fn bus_off(&mut self, i: usize, now: Instant) {
         let recovery = self.bit_time(BUS_OFF_RECOVERY_BITS);
+        self.confine_bus_off(i, now + recovery);
         let d = &mut self.devices[i];
         d.tx.clear();
         d.off_until = Some(now + recovery);
@@ -390,7 +400,9 @@ impl SimBus {
                 .devices
                 .iter()
                 .filter_map(|d| d.tx.front().map(|&(at, _)| d.off_until.map_or(at, |off| at.max(off))));
-            heads.chain(self.master_tx.front().map(|&(at, _)| at)).min().map(|ready| ready.max(self.idle_at))
+            let master =
+                self.master_tx.front().map(|&(at, _)| self.master_off_until().map_or(at, |off| at.max(off)));
+            heads.chain(master).min().map(|ready| ready.max(self.idle_at))
         } else {
             None
         };
@@ -438,6 +450,7 @@ impl SimBus {
     /// A frame completed without a fault: every other powered node receives it.
     fn complete(&mut self, w: &OnWire) {
         self.frames += 1;
+        self.count_frame_ok(w.sender, w.end);
         for i in 0..self.devices.len() {
             if w.sender != Node::Device(i) && self.devices[i].on_bus(w.end) {
                 if self.faults.is_none() {
@@ -501,7 +514,7 @@ impl SimBus {
             }
         };
         if let Some(&(at, f)) = self.master_tx.front() {
-            if at <= now {
+            if at <= now && self.master_off_until().is_none_or(|t| t <= now) {
                 consider(f.id().as_raw(), Node::Master);
             }
         }
@@ -564,6 +577,9 @@ impl SimBus {
             Node::Device(i) => self.devices[i].tx.front().copied(),
         };
         let Some((_, frame)) = head else { return };
+        if fate != TxFate::Deliver {
+            self.count_error(node, fate, now);
+        }
         match fate {
             TxFate::Deliver => {}
             TxFate::Destroy | TxFate::BusOff => {
@@ -600,6 +616,10 @@ impl Bus for SimBus {
         self.master_tx.push_back((self.now, *frame));
         self.watch_master(frame);
         Ok(())
+    }
+
+    fn error_state(&mut self) -> Option<crate::bus::health::ErrorReport> {
+        Some(self.master_error_report())
     }
 
     fn recv(&mut self, deadline: Instant) -> Result<Option<BusEvent>, BusError> {
