@@ -223,6 +223,11 @@ impl<'b> Session<'b> {
         self.bus.name()
     }
 
+    /// The bus controller's error state, where the bus can tell it ([`Bus::error_state`]).
+    pub fn error_state(&mut self) -> Option<can_io::bus::health::ErrorReport> {
+        self.bus.error_state()
+    }
+
     /// Queues a frame; it is recorded when it comes back from the bus. The first frame that is not
     /// a duplicate MAC ID check is the session's first request ([`Session::not_judged`]).
     pub fn send(&mut self, frame: &CanFrame) -> Result<(), MasterError> {
