@@ -34,6 +34,7 @@ pub mod model;
 pub mod monitor;
 pub mod mqtt;
 pub mod params;
+pub mod project;
 pub mod report;
 pub mod scan;
 pub mod timing;
