@@ -61,6 +61,7 @@ use image::ImageError;
 
 pub mod check;
 pub mod config_object;
+pub mod consistency;
 pub mod image;
 pub mod objects;
 pub mod parameters;
@@ -406,6 +407,9 @@ impl Converter {
             last_status: [0; 2],
         };
         converter.refresh_image(now);
+        // Identity attribute 9: the CCV of the configuration in force, the stored one.
+        let ccv = consistency::consistency_value(converter.config.in_force());
+        converter.node.set_configuration_consistency(ccv);
         converter
     }
 
@@ -492,7 +496,10 @@ impl Converter {
     /// image not yet taken.
     #[must_use = "the new image is handed out once: a dropped one is never stored"]
     pub fn poll_new_image(&mut self) -> Option<&[u8]> {
-        self.config.take_new_image()
+        let image = self.config.take_new_image()?;
+        // From now on the stored configuration is this one (protocol §II.5.3).
+        self.node.set_configuration_consistency(consistency::consistency_value(image));
+        Some(image)
     }
 
     /// The configuration image in force (the configuration object's Read_Chunk 0).

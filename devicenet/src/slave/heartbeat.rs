@@ -72,8 +72,8 @@ impl SlaveNode {
             identity_instance: 1,
             state: DeviceState::from(self.identity_state()),
             flags,
-            // No configuration consistency value: 0, as LIM sends (§II.5.1).
-            configuration_consistency: 0,
+            // Identity attribute 9; 0 without one, as LIM sends (§II.5.1, §II.5.3).
+            configuration_consistency: self.configuration_consistency.unwrap_or(0),
         };
         let id = self.response_id();
         self.queue_data(id, &heartbeat.emit());

@@ -229,6 +229,8 @@ pub struct SlaveNode {
     pending_mac: MacId,
     pending_baud: BaudRate,
     app_status: ApplicationStatus,
+    /// Identity attribute 9, the configuration consistency value; `None`: not supported.
+    configuration_consistency: Option<u16>,
     network_indication: (Indication, Instant),
     module_indication: (Indication, Instant),
     stats: NodeStats,
@@ -280,6 +282,7 @@ impl SlaveNode {
             pending_mac: config.mac_id,
             pending_baud: config.baud_rate,
             app_status: ApplicationStatus::default(),
+            configuration_consistency: None,
             network_indication: (Indication::Off, Instant::ZERO),
             module_indication: (Indication::Off, Instant::ZERO),
             stats: NodeStats::default(),
@@ -382,6 +385,19 @@ impl SlaveNode {
     pub fn set_application_status(&mut self, status: ApplicationStatus, now: Instant) {
         self.app_status = status;
         self.update_indications(now);
+    }
+
+    /// Sets Identity attribute 9, the configuration consistency value (protocol §II.5.3): a
+    /// value of the stored configuration that changes whenever it changes. Until it is set the
+    /// node does not support the attribute (Get answers 0x14) and its heartbeat carries 0.
+    pub fn set_configuration_consistency(&mut self, value: u16) {
+        self.configuration_consistency = Some(value);
+    }
+
+    /// Identity attribute 9 as set ([`SlaveNode::set_configuration_consistency`]), `None` when
+    /// the node does not support it.
+    pub fn configuration_consistency(&self) -> Option<u16> {
+        self.configuration_consistency
     }
 
     /// Power-on (or reset): starts the duplicate MAC ID check by queueing the first request

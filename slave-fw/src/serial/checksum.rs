@@ -69,13 +69,21 @@ pub fn xor8(data: &[u8]) -> u8 {
 /// CRC-16/MODBUS: reflected polynomial 0xA001 (0x8005), initial value 0xFFFF, no final XOR.
 /// On the wire the low byte goes first (Modbus over Serial Line §6.2.2).
 pub fn crc16_modbus(data: &[u8]) -> u16 {
-    data.iter().fold(0xFFFF_u16, |crc, &b| {
-        // Two nibbles per byte, low first (the CRC is reflected). The table has 16 entries and
-        // each index is 4 bits.
-        let crc = crc ^ u16::from(b);
-        let crc = (crc >> 4) ^ CRC16_NIBBLES.get(usize::from(crc & 0xF)).copied().unwrap_or(0);
-        (crc >> 4) ^ CRC16_NIBBLES.get(usize::from(crc & 0xF)).copied().unwrap_or(0)
-    })
+    data.iter().fold(CRC16_MODBUS_INIT, |crc, &b| crc16_modbus_step(crc, b))
+}
+
+/// The initial value of CRC-16/MODBUS, for [`crc16_modbus_step`].
+pub const CRC16_MODBUS_INIT: u16 = 0xFFFF;
+
+/// CRC-16/MODBUS `crc` advanced over one byte `b`: folding it over bytes from
+/// [`CRC16_MODBUS_INIT`] gives [`crc16_modbus`] (the configuration consistency value folds it
+/// over an image with some bytes replaced, `crate::converter::consistency`).
+pub fn crc16_modbus_step(crc: u16, b: u8) -> u16 {
+    // Two nibbles per byte, low first (the CRC is reflected). The table has 16 entries and
+    // each index is 4 bits.
+    let crc = crc ^ u16::from(b);
+    let crc = (crc >> 4) ^ CRC16_NIBBLES.get(usize::from(crc & 0xF)).copied().unwrap_or(0);
+    (crc >> 4) ^ CRC16_NIBBLES.get(usize::from(crc & 0xF)).copied().unwrap_or(0)
 }
 
 /// The CRC-16/MODBUS of each 4-bit value, built at compile time: 32 bytes of flash where a

@@ -1,6 +1,7 @@
 //! The Identity object (class 0x01, protocol §6.2): the device's identity from its
 //! configuration, the status word and state drawn from the connections and the application's
-//! fault flags, and the Reset service.
+//! fault flags, the configuration consistency value the application keeps (attribute 9,
+//! protocol §II.5.3), and the Reset service.
 
 use crate::explicit::{Request, ServiceCode};
 use crate::slave::{Event, Reply, ServiceError, SlaveNode};
@@ -55,6 +56,8 @@ impl SlaveNode {
                 self.identity_attribute(attr, reply)
             }
             (1, ServiceCode::GetAttributesAll) => {
+                // Attributes 1-7, the layout every source shows; whether newer editions append
+                // state, CCV and heartbeat interval is UNCONFIRMED (protocol §II.5.3).
                 for attr in 1..=7 {
                     self.identity_attribute(attr, reply)?;
                 }
@@ -64,6 +67,11 @@ impl SlaveNode {
                 let (&attr, value) = req.data.split_first().ok_or(ServiceError::NOT_ENOUGH_DATA)?;
                 match attr {
                     1..=8 => Err(ServiceError::ATTRIBUTE_NOT_SETTABLE),
+                    // The CCV follows the stored configuration; a tool changes it only by
+                    // changing the configuration (§II.5.3).
+                    9 if self.configuration_consistency.is_some() => {
+                        Err(ServiceError::ATTRIBUTE_NOT_SETTABLE)
+                    }
                     // Heartbeat interval, USINT seconds (TOSH, LIM; §II.5.1).
                     10 => {
                         let &[seconds] = value else {
@@ -105,6 +113,11 @@ impl SlaveNode {
             6 => return reply.u32(id.serial_number),
             7 => return reply.short_string(&id.product_name),
             8 => return reply.u8(self.identity_state()),
+            // The configuration consistency value, where the application keeps one (§II.5.3).
+            9 => match self.configuration_consistency {
+                Some(ccv) => ccv,
+                None => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
+            },
             10 => return reply.u8(self.heartbeat.interval),
             _ => return Err(ServiceError::ATTRIBUTE_NOT_SUPPORTED),
         };

@@ -317,6 +317,18 @@ fn heartbeat_every_interval_while_on_line() {
 }
 
 #[test]
+fn heartbeat_carries_the_configuration_consistency_value() {
+    // Its last two bytes are Identity attribute 9, little-endian (AN, LIM; protocol §II.5.1).
+    let mut rig = Rig::explicit();
+    rig.node.set_configuration_consistency(0xA1B2);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x10, 0x01, 0x01, 0x0A, 0x01]), tx(0x42B, &[0x00, 0x90]));
+    assert_eq!(
+        rig.advance(Duration::from_secs(1)),
+        tx(0x42B, &[0x05, 0xCD, 0x01, 0x00, 0x03, 0x00, 0xB2, 0xA1])
+    );
+}
+
+#[test]
 fn heartbeat_flags_a_timed_out_connection() {
     let mut rig = allocated(0x03, 2, 100);
     rig.send(0x42C, &[0x00, 0x10, 0x01, 0x01, 0x0A, 0x01]);

@@ -194,6 +194,38 @@ fn identity_get_attributes_all_answers_attributes_1_to_7_in_fragments() {
     assert_eq!(master.message(), expected);
 }
 
+#[test]
+fn configuration_consistency_is_unsupported_until_the_application_keeps_one() {
+    // Identity attribute 9 is optional (protocol §6.2): without a value the node answers
+    // "attribute not supported" to Get and Set alike.
+    let mut rig = Rig::explicit();
+    assert_eq!(rig.node.configuration_consistency(), None);
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x09]), tx(0x42B, &[0x00, 0x94, 0x14, 0xFF]));
+    assert_eq!(
+        rig.send(0x42C, &[0x00, 0x10, 0x01, 0x01, 0x09, 0x01, 0x00]),
+        tx(0x42B, &[0x00, 0x94, 0x14, 0xFF])
+    );
+}
+
+#[rstest]
+#[case::first(0xBEEF, [0xEF, 0xBE])]
+#[case::changed(0x1234, [0x34, 0x12])]
+#[case::zero(0x0000, [0x00, 0x00])]
+fn configuration_consistency_is_served_as_set_and_not_settable(#[case] ccv: u16, #[case] wire: [u8; 2]) {
+    // UINT, little-endian (protocol §II.5.3); a tool changes it only by changing the
+    // configuration, so Set answers "attribute not settable" and leaves it alone.
+    let mut rig = Rig::explicit();
+    rig.node.set_configuration_consistency(0x5555);
+    rig.node.set_configuration_consistency(ccv);
+    assert_eq!(rig.node.configuration_consistency(), Some(ccv));
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x09]), tx(0x42B, &[0x00, 0x8E, wire[0], wire[1]]));
+    assert_eq!(
+        rig.send(0x42C, &[0x00, 0x10, 0x01, 0x01, 0x09, 0x01, 0x00]),
+        tx(0x42B, &[0x00, 0x94, 0x0E, 0xFF])
+    );
+    assert_eq!(rig.send(0x42C, &[0x00, 0x0E, 0x01, 0x01, 0x09]), tx(0x42B, &[0x00, 0x8E, wire[0], wire[1]]));
+}
+
 #[rstest]
 #[case::power_cycle(&[0x00, 0x05, 0x01, 0x01], 0)]
 #[case::out_of_box(&[0x00, 0x05, 0x01, 0x01, 0x01], 1)]
