@@ -44,6 +44,7 @@ use devicenet::objects::class;
 use devicenet::{CanFrame, Group2Message, Identifier};
 use std::collections::HashMap;
 
+pub mod filter;
 mod fragments;
 mod messages;
 mod text;
