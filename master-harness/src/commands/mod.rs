@@ -16,3 +16,4 @@ pub mod replay;
 pub mod scan;
 pub mod scanner;
 pub mod ui;
+pub mod ui_modbus;

@@ -66,6 +66,9 @@ pub struct UiArgs {
     /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
     #[arg(long, value_name = "N")]
     pub cycles: Option<u64>,
+    /// Modbus TCP: `--modbus-tcp ADDR` and its options (`super::ui_modbus`).
+    #[command(flatten)]
+    pub modbus: super::ui_modbus::ModbusArgs,
 }
 
 /// What `ui` writes to besides the console, checked and opened before the bus is touched: the record
@@ -125,8 +128,12 @@ pub fn execute(
             None => Arc::new(MemoryAudit::default()),
         },
     });
+    let modbus = args.modbus.start(&shared)?;
     let server = serve(&args.listen, Arc::clone(&shared))?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
+    if let Some(m) = &modbus {
+        writeln!(out, "modbus tcp at {}", m.local_addr()).map_err(werr)?;
+    }
     out.flush().map_err(werr)?;
 
     // The console is watched by people: its simulation runs in real time.
@@ -212,6 +219,7 @@ pub fn execute(
     progress.clear();
     drop(progress);
     server.stop();
+    drop(modbus);
     // As `scanner`: 0 only when every node ended ok (in I/O with data exchanged).
     let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, opts.keep);
     drop(publisher);
