@@ -13,8 +13,8 @@
 //! stopped it). Output files are created before the bus is touched.
 
 use crate::commands::{
-    completions, configure, conformance, connect, decode, explicit, man, monitor, params, recover, replay,
-    scan, scanner, ui,
+    completions, configure, conformance, connect, decode, explicit, man, monitor, params, project, recover,
+    replay, scan, scanner, ui,
 };
 use crate::options::GlobalOptions;
 use can_io::trace::write::log_format;
@@ -73,6 +73,9 @@ pub enum Command {
     /// Pretty-print a trace as DeviceNet messages (candump -L, pcap, pcapng, PCAN trc, Vector
     /// asc and blf, csv).
     Decode(decode::DecodeArgs),
+    /// Network projects: upload the network to a TOML file (scan list, identity and keying,
+    /// stored configuration, parameters), compare the network with it, download it back.
+    Project(project::ProjectArgs),
     /// The conformance suite against a group-2-only slave: network access, connection set,
     /// explicit messaging, connections, timing (exit 0 only when no check fails).
     Conformance(conformance::ConformanceArgs),
@@ -154,7 +157,8 @@ pub fn execute(
         Command::Monitor(args) => monitor::execute(opts, args, out, err, console),
         Command::Configure(args) => configure::execute(opts, args, out, err, console),
         Command::Params(args) => params::execute(opts, args, out, err, console),
-        Command::Decode(args) => decode::execute(opts, args, out, err),
+        Command::Decode(args) => decode::execute(opts, args, out, err, console),
+        Command::Project(args) => project::execute(opts, args, out, err, console),
         Command::Conformance(args) => conformance::execute(opts, args, out, err, console),
         Command::Completions(args) => completions::execute(args, Cli::command(), out),
         Command::Man(args) => man::execute(args, Cli::command(), out),

@@ -11,6 +11,7 @@ pub mod explicit;
 pub mod man;
 pub mod monitor;
 pub mod params;
+pub mod project;
 pub mod recover;
 pub mod replay;
 pub mod scan;

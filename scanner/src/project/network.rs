@@ -7,6 +7,7 @@
 use super::{compare, Keying, NodeIdentity, Project, ProjectNode, ProjectParam, FORMAT};
 use crate::params::{self, ParamRow};
 use crate::scan::ScannedDevice;
+use devicenet::messages::AllocationChoice;
 use devicenet::MacId;
 use harness_common::error::HarnessError;
 use master_core::error::MasterError;
@@ -29,6 +30,15 @@ pub trait Configurator {
 /// Whether `e` is the device's error response (it has no such object), not a failure of the bus.
 fn refused(e: &HarnessError) -> bool {
     matches!(e, HarnessError::Master(MasterError::ErrorResponse { .. }))
+}
+
+/// Opens the explicit connection to `mac` unless this master holds it already (a second Allocate
+/// would be refused with 0x0B, and released and made again).
+fn ensure_explicit(master: &mut Master<'_, '_>, mac: MacId) -> Result<(), HarnessError> {
+    if !master.held(mac).contains(AllocationChoice::EXPLICIT) {
+        master.open_explicit(mac)?;
+    }
+    Ok(())
 }
 
 /// The Parameter object's instances at `mac` (none when the node has no Parameter object).
@@ -97,7 +107,7 @@ pub fn read(
             Err(e) if refused(&e) => None,
             Err(e) => return Err(e),
         };
-        master.open_explicit(mac)?;
+        ensure_explicit(master, mac)?;
         let param = read_params(master, mac)?.iter().map(project_param).collect();
         project.node.push(ProjectNode {
             mac: d.mac,
@@ -139,7 +149,7 @@ pub fn download(
         if f.param.is_empty() {
             continue;
         }
-        master.open_explicit(mac)?;
+        ensure_explicit(master, mac)?;
         let rows = read_params(master, mac)?;
         for p in &f.param {
             let Some(row) = rows.iter().find(|r| r.number == p.number) else {
