@@ -40,6 +40,9 @@ fn main() {
                 input_size: 18,
                 output_size: 8,
                 name: None,
+                adr: Default::default(),
+                keying: Default::default(),
+                enabled: true,
             })
             .collect(),
         ..ScanList::default()

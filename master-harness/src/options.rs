@@ -24,6 +24,13 @@ pub fn parse_mac(s: &str) -> Result<MacId, String> {
     u8::try_from(v).ok().and_then(MacId::new).ok_or_else(|| format!("MAC ID {s} is out of range 0..=63"))
 }
 
+/// Parses `--sim-replace MAC@MS`: the device at MAC fails at MS ms of simulated time.
+pub fn parse_sim_replace(s: &str) -> Result<(MacId, Instant), String> {
+    let (mac, ms) = s.split_once('@').ok_or_else(|| format!("'{s}': expected MAC@MS, e.g. 5@3000"))?;
+    let ms = parse_number(ms).map_err(|e| format!("'{s}': the time in ms: {e}"))?;
+    Ok((parse_mac(mac)?, Instant::ZERO + Duration::from_millis(u64::from(ms))))
+}
+
 /// Parses a decimal or `0x` hexadecimal number.
 pub fn parse_number(s: &str) -> Result<u32, String> {
     let t = s.trim();
@@ -187,6 +194,10 @@ pub struct GlobalOptions {
     /// sim: when the slaves power on: master-online (as in the capture), start, or a time in ms.
     #[arg(long, global = true, default_value = "master-online", value_name = "WHEN")]
     pub slave_power_on: PowerOnArg,
+    /// sim: MAC@MS: the device at MAC goes silent at MS ms of simulated time and a factory-fresh
+    /// device of the same kind appears at MAC 63 (automatic device replacement); repeatable.
+    #[arg(long, global = true, value_name = "MAC@MS", value_parser = parse_sim_replace)]
+    pub sim_replace: Vec<(MacId, Instant)>,
 }
 
 impl GlobalOptions {
@@ -253,6 +264,7 @@ pub fn open_bus(
         (policy, _) => policy,
     };
     setup.realtime = opts.realtime;
+    setup.replace = opts.sim_replace.clone();
     converter_sim::open_bus(&opts.bus, opts.bitrate, &setup).map_err(|e| match e {
         OpenError::Setup(detail) => HarnessError::BusSetup { detail },
         OpenError::Bus(e) => HarnessError::from(e),

@@ -64,6 +64,9 @@ fn breaker_entry(mac: u8) -> ScanEntry {
         input_size: 18,
         output_size: 8,
         name: None,
+        adr: Default::default(),
+        keying: Default::default(),
+        enabled: true,
     }
 }
 

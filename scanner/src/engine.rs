@@ -119,9 +119,11 @@ use master_core::session::Verdict;
 use std::collections::{HashMap, VecDeque};
 
 mod node;
+mod replace;
 
 use crate::timing::{timing, Timing};
 use node::Node;
+pub use replace::ADR_MAC;
 
 /// How often a node that is not in I/O is tried again.
 pub const RECONNECT_INTERVAL: Duration = Duration::from_secs(1);
@@ -159,6 +161,10 @@ pub struct Scanner {
     history: VecDeque<(u64, u64)>,
 }
 
+    /// Automatic device replacement ([`crate::adr`]).
+    adr: crate::adr::Adr,
+    /// ADR steps and scan-list changes ([`crate::events`]).
+    events: crate::events::EventLog,
 impl Scanner {
     /// A scanner for `list`, at MAC `master_mac`.
     #[must_use]
@@ -229,9 +235,17 @@ impl Scanner {
 
     /// The timing in force.
     #[must_use]
+            adr: crate::adr::Adr::default(),
+            events: crate::events::EventLog::default(),
     pub fn timing(&self) -> Timing {
         self.timing
     }
+    /// The event log: ADR steps and scan-list changes.
+    #[must_use]
+    pub fn events(&self) -> &crate::events::EventLog {
+        &self.events
+    }
+
 
     /// The options given.
     #[must_use]
@@ -406,6 +420,9 @@ impl Scanner {
         }
         master.other(i).map_err(|e| self.fail(e))
     }
+                if let Ok(check) = DuplicateMacCheck::parse(rec.frame.data()) {
+                    self.adr_note_check(mac.as_raw(), &check, rec.at);
+                }
 
     /// A duplicate MAC ID check at a node's MAC: a response, or a second serial number, means two
     /// devices share the MAC (protocol §7.1: the newcomer is Communication Faulted).
@@ -520,8 +537,9 @@ impl Scanner {
         let t0 = master.session.now();
         let first = master.session.next_index();
         if self.next_reconnect.is_none_or(|t| t0 >= t) {
+            self.adr_step(master, t0)?;
             for i in 0..self.nodes.len() {
-                if !self.nodes[i].in_io && !self.nodes[i].busy() {
+                if !self.nodes[i].in_io && !self.nodes[i].busy() && self.nodes[i].entry.enabled {
                     self.begin_bringup(i, master, t0);
                 }
             }
@@ -861,3 +879,6 @@ pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<
         .collect();
     Ok(ScanList { interscan_delay_ms: None, expected_packet_rate_ms: None, nodes })
 }
+                adr: crate::model::AdrMode::Off,
+                keying: crate::model::Keying::Exact,
+                enabled: true,

@@ -16,6 +16,7 @@
 //! | [`report`] | how a scanner run ends: nodes released, the node table, the `--json` summary |
 //! | [`ui`] | the web console: the page and its JSON API over the scanner's shared state, with its own bounded HTTP server |
 //! | [`accounts`], [`audit`] | who may command the plant (users file, roles), and the log of every command |
+//! | [`adr`], [`events`] | automatic device replacement: what is kept of each node, how a replacement is recognised; the event log of its steps and of scan-list changes |
 //! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
 //! | [`mqtt`] | node status and decoded values published to an MQTT broker |
 //!
@@ -27,7 +28,9 @@
 
 pub mod accounts;
 pub mod audit;
+pub mod adr;
 pub mod engine;
+pub mod events;
 pub mod history;
 pub mod list;
 pub mod model;

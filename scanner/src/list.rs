@@ -15,6 +15,9 @@
 //! input_size = 18                    # poll response (Connection 2 attribute 7)
 //! output_size = 8                    # poll command (Connection 2 attribute 8)
 //! name = "breaker feeder 1"          # optional
+//! adr = "config+address"             # optional: off (default), config, config+address (crate::adr)
+//! keying = "compatible"              # optional: exact (default), compatible, disabled
+//! enabled = false                    # optional: kept in the list, not scanned (maintenance)
 //!
 //! [[node]]
 //! mac = 6
@@ -346,8 +349,8 @@ mod tests {
         "l.toml:1:2: scan list (key `scanner`): unknown field `scanner`"
     )]
     #[case::unknown_key_in_a_node_table(
-        "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n[node.keying]\nvendor_id = 1\n",
-        "l.toml:5:7: scan list (key `keying`): unknown field `keying`"
+        "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\n[node.key]\nvendor_id = 1\n",
+        "l.toml:5:7: scan list (key `key`): unknown field `key`"
     )]
     #[case::unknown_key_in_an_inline_table(
         "[[node]]\nmac = 5\ninput_size = 1\noutput_size = 1\nkey = { vendor = 1 }\n",

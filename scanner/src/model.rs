@@ -65,10 +65,81 @@ pub struct ScanEntry {
     /// A name for the node in reports and the console (default: the product name read).
     #[serde(default)]
     pub name: Option<String>,
+    /// Automatic device replacement for the node (`crate::adr`): `off` (default), `config` or
+    /// `config+address`.
+    #[serde(default, skip_serializing_if = "AdrMode::is_off")]
+    pub adr: AdrMode,
+    /// How the electronic key is compared: `exact` (default), `compatible` or `disabled`.
+    #[serde(default, skip_serializing_if = "Keying::is_exact")]
+    pub keying: Keying,
+    /// `false`: the node is kept in the list but not scanned (maintenance).
+    #[serde(default = "yes", skip_serializing_if = "Clone::clone")]
+    pub enabled: bool,
 }
 
 fn poll() -> String {
     "poll".into()
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// A scan-list entry's automatic device replacement (ADR, Rockwell's and ABB's term).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum AdrMode {
+    /// No replacement.
+    #[default]
+    #[serde(rename = "off")]
+    Off,
+    /// Configuration recovery: a replacement at the node's MAC whose configuration consistency
+    /// value differs gets the stored configuration.
+    #[serde(rename = "config")]
+    Config,
+    /// Configuration and address recovery: a replacement at MAC 63 is also moved to the node's MAC.
+    #[serde(rename = "config+address")]
+    ConfigAddress,
+}
+
+impl AdrMode {
+    /// `true` for [`AdrMode::Off`].
+    #[must_use]
+    pub fn is_off(&self) -> bool {
+        *self == AdrMode::Off
+    }
+
+    /// The name in the scan list file.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            AdrMode::Off => "off",
+            AdrMode::Config => "config",
+            AdrMode::ConfigAddress => "config+address",
+        }
+    }
+}
+
+/// How a scan-list entry's electronic key is compared with the device (Rockwell's keying
+/// choices).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Keying {
+    /// Every key given must match.
+    #[default]
+    Exact,
+    /// Vendor, device type and product code must match; the device's major revision may be the
+    /// entry's or later.
+    Compatible,
+    /// Not compared.
+    Disabled,
+}
+
+impl Keying {
+    /// `true` for [`Keying::Exact`].
+    #[must_use]
+    pub fn is_exact(&self) -> bool {
+        *self == Keying::Exact
+    }
 }
 
 impl ScanEntry {

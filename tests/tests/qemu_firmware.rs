@@ -538,6 +538,9 @@ fn scanner(master: &mut Master<'_, '_>, breaker: &BreakerRig) -> Result<(), Stri
         input_size: 18,
         output_size: 8,
         name: None,
+        adr: Default::default(),
+        keying: Default::default(),
+        enabled: true,
     };
     let list = ScanList { nodes: vec![node], ..ScanList::default() };
     let layout = InputLayout::from_converter(&DeviceDescription::reference().converter);

@@ -14,6 +14,9 @@ use can_io::bus::BusSpec;
 use can_io::log::LogWriter;
 use can_io::trace::TraceFormat;
 use clap::Args;
+use devicenet::MacId;
+use dnet_scanner::adr::ConfigTool;
+use dnet_scanner::model::AdrMode;
 use dnet_scanner::monitor::InputLayout;
 use dnet_scanner::report::{finish, summary_json, table, Ending};
 use dnet_scanner::{build_scan_list, read_scan_list, write_scan_list, Scanner, ScannerOptions};
@@ -38,6 +41,31 @@ pub struct ScannerArgs {
     /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
     #[arg(long, value_name = "N")]
     pub cycles: Option<u64>,
+    /// Automatic device replacement (`adr = "config+address"`) for every node of a scan list
+    /// built by the network scan (a scan list file says it per node).
+    #[arg(long)]
+    pub adr: bool,
+}
+
+/// The scanner's configuration tool: `configure`'s upload and download ([`crate::configure`]).
+struct Configure;
+
+impl ConfigTool for Configure {
+    fn upload(&mut self, master: &mut Master<'_, '_>, mac: MacId) -> Result<String, HarnessError> {
+        let up = crate::configure::upload(master, mac)?;
+        up.description.to_toml().map_err(|detail| HarnessError::DescriptionNotWritable { detail })
+    }
+
+    fn download(
+        &mut self,
+        master: &mut Master<'_, '_>,
+        mac: MacId,
+        config: &str,
+    ) -> Result<(), HarnessError> {
+        let description = DeviceDescription::parse(config)?;
+        crate::configure::download(master, mac, &description, &mut |_| {})?;
+        Ok(())
+    }
 }
 
 /// Runs `scanner`; returns the exit status (errors before the bus is touched are returned).
@@ -76,7 +104,12 @@ pub fn execute(
             Some(l) => l,
             None => {
                 progress.show("scanner: building the scan list from a network scan ...");
-                let l = build_scan_list(&mut master, 0, 63)?;
+                let mut l = build_scan_list(&mut master, 0, 63)?;
+                if args.adr {
+                    for n in &mut l.nodes {
+                        n.adr = AdrMode::ConfigAddress;
+                    }
+                }
                 if let Some(path) = &args.write_scanlist {
                     std::fs::write(path, write_scan_list(&l))
                         .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })?;
@@ -103,6 +136,7 @@ pub fn execute(
         };
         let options = ScannerOptions { cycles: args.cycles, bitrate: opts.bitrate, layouts };
         let s = scanner.insert(Scanner::new(list, master_mac.as_raw(), options));
+        s.set_config_tool(Box::new(Configure));
         progress.show(&format!("scanner: bringing {} node(s) into I/O ...", s.state().nodes.len()));
         s.start(&mut master)?;
         loop {
@@ -130,11 +164,21 @@ pub fn execute(
     let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, opts.keep);
     let state = scanner.as_ref().map(|s| s.state().clone());
     if opts.json {
-        let v = summary_json(state.as_ref(), code, written.as_deref(), interrupted, &result, &cleanup);
+        let mut v = summary_json(state.as_ref(), code, written.as_deref(), interrupted, &result, &cleanup);
+        if let Some(s) = &scanner {
+            v["events"] = serde_json::json!(s.events().all());
+        }
+        if let Some(s) = &scanner {
+            dnet_scanner::health::merge_json(&mut v, &s.health().latest_report());
+        }
         writeln!(out, "{v}").map_err(werr)?;
     } else {
         if let Some(s) = &state {
             write!(out, "{}", table(s)).map_err(werr)?;
+        }
+        for e in scanner.as_ref().map(|s| s.events().all()).unwrap_or_default() {
+            let t = e.time_us as f64 / 1e6;
+            writeln!(out, "{t:10.3} s  MAC {:2}  {:<16} {}", e.mac, e.kind.name(), e.detail).map_err(werr)?;
         }
         if let Some(w) = &written {
             writeln!(err, "scan list written to {w}").map_err(werr)?;

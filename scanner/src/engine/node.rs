@@ -3,7 +3,7 @@
 //! scanner's docs, "A node's life").
 
 use super::Scanner;
-use crate::model::{NodeState, NodeStatus, ScanEntry};
+use crate::model::{Keying, NodeState, NodeStatus, ScanEntry};
 use devicenet::explicit::GeneralStatus;
 use devicenet::fragment::IoReassembler;
 use devicenet::messages::AllocationChoice;
@@ -126,9 +126,16 @@ impl Scanner {
         let major =
             id.revision.as_deref().and_then(|r| r.split('.').next()).and_then(|m| m.parse::<u8>().ok());
         let mut keying = Vec::new();
+        let keyed = e.keying;
         let mut key = |what: &str, want: Option<u16>, got: Option<u16>, hexa: bool| {
             if let Some(w) = want {
-                if got != Some(w) {
+                // Compatible keying: a later major revision fits (crate::adr::key_matches).
+                let fits = match (keyed, what, got) {
+                    (Keying::Disabled, _, _) => true,
+                    (Keying::Compatible, "major revision", Some(g)) => g >= w,
+                    _ => got == Some(w),
+                };
+                if !fits {
                     let show = |v: Option<u16>| match (v, hexa) {
                         (Some(v), true) => format!("0x{v:04X}"),
                         (Some(v), false) => v.to_string(),

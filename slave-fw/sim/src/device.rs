@@ -19,6 +19,7 @@
 
 use crate::breaker::SimulatedBreaker;
 use can_io::sim::SimDevice;
+use devicenet::slave::SettingChanged;
 use devicenet::{CanFrame, Duration, Event, Instant, MacId, SlaveNode};
 use slave_fw::converter::{ConfigOrigin, Converter, ConverterConfig, ConverterConfigError};
 use std::collections::VecDeque;
@@ -53,6 +54,9 @@ pub struct SoftSlave {
     to_converter: VecDeque<(Instant, Vec<u8>)>,
     char_time: Duration,
     powered: bool,
+    /// The MAC ID set over the network (DeviceNet object attribute 1), kept across resets as the
+    /// board's settings journal and the soft slave's state file keep it.
+    set_mac: Option<MacId>,
 }
 
 impl SoftSlave {
@@ -73,6 +77,7 @@ impl SoftSlave {
             to_converter: VecDeque::new(),
             char_time,
             powered: false,
+            set_mac: None,
         })
     }
 
@@ -95,7 +100,10 @@ impl SoftSlave {
     /// configuration ([`ConfigOrigin::resolve`], as the board does: the device keeps its own
     /// serial number). A stored image in force is the bytes downloaded, as on the board.
     fn fresh(&self, now: Instant) -> Result<Converter, ConverterConfigError> {
-        let (config, origin) = ConfigOrigin::resolve(&self.config, self.stored.as_deref());
+        let (mut config, origin) = ConfigOrigin::resolve(&self.config, self.stored.as_deref());
+        if let Some(mac) = self.set_mac {
+            config.device.mac_id = mac;
+        }
         match (origin, self.stored.as_deref()) {
             (ConfigOrigin::Stored, Some(image)) => Converter::with_image(config, origin, image, now),
             _ => Converter::with_origin(config, origin, now),
@@ -239,6 +247,9 @@ impl SoftSlave {
                 }
             }
             while let Some(event) = self.converter.poll_event() {
+                if let Event::SettingChanged(SettingChanged::MacId(mac)) = event {
+                    self.set_mac = Some(mac);
+                }
                 if self.events.len() == 64 {
                     self.events.pop_front();
                 }

@@ -8,6 +8,7 @@
 //! | [`breaker`] | [`SimulatedBreaker`]: the intelligent circuit breaker of the source paper, sans-IO (the serial instrument `dnet-sim-breaker` serves on a real port) |
 //! | [`device`] | [`SoftSlave`]: the one converter-as-a-device type — the real [`Converter`](slave_fw::converter::Converter) and a simulated breaker on a virtual clock, a [`SimDevice`](can_io::sim::SimDevice) of the simulated bus |
 //! | [`mutants`] | [`MUTANTS`](mutants::MUTANTS): the reference converter with one deliberate fault each, as a [`FaultHook`](mutants::FaultHook) around the real node (`conformance --self-test`, `dnet-soft-slave --mutant`) |
+//! | [`replace`] | `--sim-replace`: a device that goes silent, and its factory-fresh replacement at MAC 63 |
 //! | [`open`] | [`open_bus`]: `--bus sim` with its simulated devices ([`SimSetup`]), or a real bus |
 //!
 //! ## What it must not depend on
@@ -35,6 +36,7 @@ pub mod breaker;
 pub mod device;
 pub mod mutants;
 pub mod open;
+pub mod replace;
 
 pub use breaker::SimulatedBreaker;
 pub use device::SoftSlave;

@@ -24,6 +24,13 @@ pub struct SimSetup {
     /// are over, unseen by the caller. A replayed capture of a running network has no check, so
     /// its device must be on-line before the first frame.
     pub online_before_start: bool,
+    /// `--sim-replace`: the device at each MAC goes silent at the instant, and a factory-fresh
+    /// replacement powers on at MAC 63 then ([`crate::replace`]).
+    pub replace: Vec<(MacId, Instant)>,
+    /// The replacements' configuration (`None`: the failed device's, [`crate::replace::replacement`]
+    /// makes it factory-fresh at MAC 63 either way); tests give another kind, or one whose MAC is
+    /// set by switches.
+    pub replacement: Option<ConverterConfig>,
 }
 
 impl SimSetup {
@@ -35,6 +42,8 @@ impl SimSetup {
             power_on: PowerOn::WhenMasterOnline,
             realtime: false,
             online_before_start: false,
+            replace: Vec::new(),
+            replacement: None,
         }
     }
 
@@ -110,7 +119,15 @@ pub fn open_bus(spec: &BusSpec, bitrate: Bitrate, sim: &SimSetup) -> Result<Box<
         BusSpec::Sim => {
             let mut bus = SimBus::new(bitrate);
             let mut online_at = Instant::ZERO;
-            for (device, power) in sim.devices().map_err(OpenError::Setup)? {
+            let devices = sim.devices().map_err(OpenError::Setup)?;
+            if let Some((mac, _)) =
+                sim.replace.iter().find(|(m, _)| !devices.iter().any(|(d, _)| d.node().mac_id() == *m))
+            {
+                return Err(OpenError::Setup(format!(
+                    "--sim-replace {mac}: no simulated device at MAC {mac}"
+                )));
+            }
+            for (device, power) in devices {
                 let power = match power {
                     // Nothing on the bus tells a device when to power on before the caller's
                     // first frame: at the start, or at the instant given.
@@ -123,8 +140,24 @@ pub fn open_bus(spec: &BusSpec, bitrate: Bitrate, sim: &SimSetup) -> Result<Box<
                 if let PowerOn::At(at) = power {
                     online_at = online_at.max(at);
                 }
-                bus.attach(Box::new(device), power);
+                let mac = device.node().mac_id();
+                match sim.replace.iter().find(|(m, _)| *m == mac) {
+                    Some(&(_, at)) => {
+                        let fresh =
+                            crate::replace::replacement(&sim.replacement.clone().unwrap_or_else(|| {
+                                // Factory-fresh, no switches: its MAC is set over the network.
+                                let mut c = device.config().clone();
+                                c.device.switches.programmable = true;
+                                c
+                            }))
+                            .map_err(OpenError::Setup)?;
+                        bus.attach(Box::new(crate::replace::Failing::new(device, at)), power);
+                        bus.attach(Box::new(fresh), crate::replace::power_at(at));
+                    }
+                    None => bus.attach(Box::new(device), power),
+                }
             }
+
             bus.set_realtime(sim.realtime);
             if sim.online_before_start {
                 // Two requests one interval apart, on-line one interval after the second (notes
