@@ -156,6 +156,8 @@ pub struct Scanner {
     options: ScannerOptions,
     next_reconnect: Option<Instant>,
     samples: VecDeque<Sample>,
+    /// Bus and node health ([`crate::health`]).
+    health: crate::health::Health,
     frames_cursor: usize,
     /// (cycle length µs, bits on the wire) of the last cycles.
     history: VecDeque<(u64, u64)>,
@@ -221,6 +223,8 @@ impl Scanner {
             expected_packet_rate_ms: timing.epr_ms,
             nodes: nodes.iter().map(|n| n.state.clone()).collect(),
         };
+        let macs: Vec<(u8, bool)> = nodes.iter().map(|n| (n.entry.mac, n.kind == IoKind::Strobe)).collect();
+        let health = crate::health::Health::new(&macs, master_mac, options.bitrate, timing.epr_ms);
         Scanner {
             nodes,
             state,
@@ -228,6 +232,7 @@ impl Scanner {
             options,
             next_reconnect: None,
             samples: VecDeque::new(),
+            health,
             frames_cursor: 0,
             history: VecDeque::new(),
         }
@@ -616,6 +621,10 @@ impl Scanner {
         let isd_end = master.session.now() + self.timing.interscan;
         self.pump(master, isd_end, |_| false)?;
         let now = master.session.now();
+        for r in master.session.records().iter().filter(|r| r.index >= first) {
+            self.health.observe(&r.frame, r.origin, r.at);
+        }
+        self.health.bus_state(master.session.error_state(), now);
         // The device's watchdog is 4 x EPR (protocol §5.3): no response for that long, the
         // connection is gone at both ends.
         let watchdog = Duration::from_millis(4 * u64::from(self.timing.epr_ms));
@@ -633,6 +642,7 @@ impl Scanner {
                     NodeStatus::TimedOut,
                     Some(format!("no {what} for {} ms (4 x EPR)", watchdog.total_millis())),
                 );
+                self.health.dropped_out(n.entry.mac, now);
             }
         }
         let bits: u64 = master
@@ -684,6 +694,12 @@ impl Scanner {
         &self.state
     }
 
+    /// The bus and node health ([`crate::health`]).
+    #[must_use]
+    pub fn health(&self) -> &crate::health::Health {
+        &self.health
+    }
+
     /// The lengths of the last full cycles in µs, oldest first (their median is
     /// [`ScannerState::cycle_ms`]).
     #[must_use]
@@ -725,6 +741,13 @@ impl Scanner {
             ConsoleCommand::Set { mac, class, instance, attribute, value, reply } => {
                 let answer = self.explicit(master, mac, class, instance, attribute, Some(&value));
                 let _ = reply.send(answer);
+            }
+            ConsoleCommand::Health { clear, reply } => {
+                let now = master.session.now();
+                if clear {
+                    self.health.clear(now);
+                }
+                let _ = reply.send(self.health.report(now));
             }
         }
     }

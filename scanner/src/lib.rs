@@ -31,6 +31,7 @@ pub mod audit;
 pub mod adr;
 pub mod engine;
 pub mod events;
+pub mod health;
 pub mod history;
 pub mod list;
 pub mod model;

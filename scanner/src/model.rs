@@ -442,6 +442,14 @@ pub enum ConsoleCommand {
         /// The answer (empty on success).
         reply: Sender<Reply>,
     },
+    /// The bus and node health report ([`crate::health`]), after clearing the statistics when
+    /// `clear`.
+    Health {
+        /// Clear first.
+        clear: bool,
+        /// The report.
+        reply: Sender<crate::health::HealthReport>,
+    },
 }
 
 /// Where the console finds the history of samples (the SQLite database in `crate::history`).

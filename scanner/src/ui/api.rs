@@ -214,6 +214,10 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
             (["record"], true, _) => Ok(json_response(200, &record_status(ctx))),
             (["record", "start"], _, true) => record_start(ctx),
             (["record", "stop"], _, true) => record_stop(ctx),
+            (["health"], true, _) => Ok(super::health_api::report(shared, false)),
+            (["health.csv"], true, _) => Ok(super::health_api::csv(shared)),
+            (["health", "clear"], _, true) => Ok(super::health_api::report(shared, true)),
+            (["health"] | ["health.csv"] | ["health", "clear"], _, _) => Err(wrong()),
             (
                 ["state"]
                 | ["token"]

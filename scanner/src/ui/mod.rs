@@ -68,6 +68,7 @@
 mod api;
 mod guard;
 pub mod http;
+mod health_api;
 mod record;
 pub mod thinning;
 
