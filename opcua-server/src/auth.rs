@@ -10,16 +10,13 @@
 use async_trait::async_trait;
 use dnet_scanner::accounts::{Action, Role, Users};
 use opcua::crypto::SecurityPolicy;
-use opcua::server::authenticator::{AuthManager, Password, UserToken};
+use opcua::server::authenticator::{user_pass_security_policy_id, AuthManager, Password, UserToken};
 use opcua::server::ServerEndpoint;
 use opcua::types::{Error, StatusCode, UAString, UserTokenPolicy, UserTokenType};
 use std::sync::Arc;
 
-/// The policy id of the anonymous token (any id the client echoes back works; this one is
-/// async-opcua's).
+/// The policy id of the anonymous token: the one async-opcua checks when a session is activated.
 const POLICY_ANONYMOUS: &str = "anonymous";
-/// The policy id of the UserName token; the password is encrypted with the endpoint's policy.
-const POLICY_USERNAME: &str = "username";
 
 /// The server's [`AuthManager`] over the console's accounts.
 pub struct Accounts {
@@ -101,7 +98,8 @@ impl AuthManager for Accounts {
         }];
         if self.takes_usernames(endpoint) {
             policies.push(UserTokenPolicy {
-                policy_id: UAString::from(POLICY_USERNAME),
+                // The id async-opcua checks: it names how the password is encrypted.
+                policy_id: user_pass_security_policy_id(endpoint),
                 token_type: UserTokenType::UserName,
                 issued_token_type: UAString::null(),
                 issuer_endpoint_url: UAString::null(),

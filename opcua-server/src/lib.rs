@@ -157,7 +157,18 @@ impl OpcUaServer {
             },
         ));
         let start_error = |why: String| OpcUaError::Start { address: address.clone(), why };
-        let (server, handle) = builder.build().map_err(start_error)?;
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(WORKER_THREADS)
+            .max_blocking_threads(BLOCKING_THREADS)
+            .thread_name("opcua")
+            .enable_all()
+            .build()
+            .map_err(|e| start_error(e.to_string()))?;
+        // The server starts tasks of its own while it is built: inside its runtime.
+        let (server, handle) = {
+            let _entered = runtime.enter();
+            builder.build().map_err(start_error)?
+        };
         if options.pki_dir.is_some() && handle.info().server_certificate.is_none() {
             return Err(OpcUaError::Pki {
                 dir: pki_dir.display().to_string(),
@@ -168,13 +179,6 @@ impl OpcUaServer {
             .node_managers()
             .get_of_type::<DnetNodeManager>()
             .ok_or_else(|| start_error("the node manager was not built".into()))?;
-        let runtime = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(WORKER_THREADS)
-            .max_blocking_threads(BLOCKING_THREADS)
-            .thread_name("opcua")
-            .enable_all()
-            .build()
-            .map_err(|e| start_error(e.to_string()))?;
         let subscriptions = Arc::clone(handle.subscriptions());
         let token = handle.token().clone();
         let thread = std::thread::Builder::new()

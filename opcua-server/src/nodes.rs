@@ -21,7 +21,7 @@ use opcua::server::SubscriptionCache;
 use opcua::sync::RwLock;
 use opcua::types::{
     DataTypeId, DataValue, EUInformation, ExtensionObject, Identifier, LocalizedText, NodeId, ObjectId,
-    ObjectTypeId, StatusCode, VariableTypeId, Variant,
+    ObjectTypeId, QualifiedName, StatusCode, VariableTypeId, Variant,
 };
 use std::collections::{HashMap, HashSet};
 use std::sync::{mpsc, Arc};
@@ -83,6 +83,12 @@ impl DnetNodes {
     #[must_use]
     pub fn id(&self, path: &str) -> NodeId {
         NodeId::new(self.namespace, path)
+    }
+
+    /// `name` in the namespace, as a browse name.
+    #[must_use]
+    pub fn browse_name(&self, name: &str) -> QualifiedName {
+        QualifiedName::new(self.namespace, name)
     }
 
     /// The MAC and method a method id names (`MAC05/Close`).
@@ -167,12 +173,12 @@ fn what(method: Method, args: &[Variant]) -> String {
 #[async_trait]
 impl InMemoryNodeManagerImpl for DnetNodes {
     async fn init(&self, address_space: &mut AddressSpace, _context: ServerContext) {
-        ObjectBuilder::new(&self.id("DeviceNet"), "DeviceNet", "DeviceNet")
+        ObjectBuilder::new(&self.id("DeviceNet"), self.browse_name("DeviceNet"), "DeviceNet")
             .description("The DeviceNet scanner and every node of its scan list")
             .has_type_definition(ObjectTypeId::FolderType)
             .organized_by(ObjectId::ObjectsFolder)
             .insert(address_space);
-        ObjectBuilder::new(&self.id("Scanner"), "Scanner", "Scanner")
+        ObjectBuilder::new(&self.id("Scanner"), self.browse_name("Scanner"), "Scanner")
             .has_type_definition(ObjectTypeId::BaseObjectType)
             .organized_by(self.id("DeviceNet"))
             .insert(address_space);
@@ -304,14 +310,14 @@ fn add_object(nodes: &DnetNodes, space: &mut AddressSpace, synced: &mut Synced, 
     let name = values::node_name(mac);
     let object = nodes.id(&name);
     if synced.objects.insert(mac) {
-        ObjectBuilder::new(&object, name.as_str(), name.as_str())
+        ObjectBuilder::new(&object, nodes.browse_name(&name), name.as_str())
             .description(format!("The node at MAC ID {mac}"))
             .has_type_definition(ObjectTypeId::BaseObjectType)
             .organized_by(nodes.id("DeviceNet"))
             .insert(space);
         for folder in Folder::SUBFOLDERS {
             let Some(f) = folder.name() else { continue };
-            ObjectBuilder::new(&nodes.id(&format!("{name}/{f}")), f, f)
+            ObjectBuilder::new(&nodes.id(&format!("{name}/{f}")), nodes.browse_name(f), f)
                 .has_type_definition(ObjectTypeId::FolderType)
                 .component_of(object.clone())
                 .insert(space);
@@ -322,12 +328,13 @@ fn add_object(nodes: &DnetNodes, space: &mut AddressSpace, synced: &mut Synced, 
 
 fn add_variable(space: &mut AddressSpace, parent: &NodeId, id: &NodeId, v: &Value) {
     let Identifier::String(path) = &id.identifier else { return };
-    let builder = VariableBuilder::new(id, v.name.as_str(), v.name.as_str())
-        .data_type(v.data_type)
-        .value(v.value.clone())
-        .access_level(AccessLevel::CURRENT_READ)
-        .user_access_level(AccessLevel::CURRENT_READ)
-        .component_of(parent.clone());
+    let builder =
+        VariableBuilder::new(id, QualifiedName::new(id.namespace, v.name.as_str()), v.name.as_str())
+            .data_type(v.data_type)
+            .value(v.value.clone())
+            .access_level(AccessLevel::CURRENT_READ)
+            .user_access_level(AccessLevel::CURRENT_READ)
+            .component_of(parent.clone());
     let builder = match v.unit {
         Some(_) => builder.has_type_definition(VariableTypeId::AnalogItemType),
         None => builder.has_type_definition(VariableTypeId::BaseDataVariableType),
@@ -360,7 +367,7 @@ fn add_method(nodes: &DnetNodes, space: &mut AddressSpace, object: &NodeId, mac:
         Method::Close => "Close the breaker (operator or engineer account)",
         Method::SetOutput => "Write the whole output image (operator or engineer account)",
     };
-    let builder = MethodBuilder::new(&id, method.name(), method.name())
+    let builder = MethodBuilder::new(&id, nodes.browse_name(method.name()), method.name())
         .description(description)
         .executable(true)
         .user_executable(true)

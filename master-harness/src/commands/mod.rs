@@ -18,3 +18,4 @@ pub mod scan;
 pub mod scanner;
 pub mod ui;
 pub mod ui_modbus;
+pub mod ui_opcua;

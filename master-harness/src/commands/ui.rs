@@ -69,6 +69,9 @@ pub struct UiArgs {
     /// Modbus TCP: `--modbus-tcp ADDR` and its options (`super::ui_modbus`).
     #[command(flatten)]
     pub modbus: super::ui_modbus::ModbusArgs,
+    /// OPC UA: `--opcua ADDR`, `--opcua-pki DIR` (`super::ui_opcua`).
+    #[command(flatten)]
+    pub opcua: super::ui_opcua::OpcUaArgs,
 }
 
 /// What `ui` writes to besides the console, checked and opened before the bus is touched: the record
@@ -129,10 +132,15 @@ pub fn execute(
         },
     });
     let modbus = args.modbus.start(&shared)?;
+    // No accounts yet (ui --users): anonymous sessions only.
+    let opcua = args.opcua.start(&shared, None)?;
     let server = serve(&args.listen, Arc::clone(&shared))?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
     if let Some(m) = &modbus {
         writeln!(out, "modbus tcp at {}", m.local_addr()).map_err(werr)?;
+    }
+    if let Some(o) = &opcua {
+        writeln!(out, "opc ua at {}", o.url()).map_err(werr)?;
     }
     out.flush().map_err(werr)?;
 
@@ -220,6 +228,7 @@ pub fn execute(
     drop(progress);
     server.stop();
     drop(modbus);
+    drop(opcua);
     // As `scanner`: 0 only when every node ended ok (in I/O with data exchanged).
     let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, opts.keep);
     drop(publisher);
