@@ -11,7 +11,9 @@
 //!   names the package to install;
 //! - the toolchain `rust-toolchain.toml` pins is used as it is when rustup has it, the machine's
 //!   stable toolchain is linked under its name when that is the same release (nothing can be
-//!   downloaded here), and only otherwise does rustup install it (stand-in `rustc` and `rustup`).
+//!   downloaded here), and only otherwise does rustup install it (stand-in `rustc` and `rustup`);
+//! - a run that would fill the disk stops before it starts, naming the figures (stand-in `df` and
+//!   `du`: the last CI run ended after 18 minutes with "No space left on device").
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -64,9 +66,10 @@ impl StandIns {
     fn run(&self, script: &str) -> Output {
         let basics = self.dir.join("basics");
         std::fs::create_dir_all(&basics).unwrap();
-        for tool in
-            ["env", "grep", "awk", "tr", "cat", "printf", "mktemp", "rm", "tail", "sed", "ln", "readlink"]
-        {
+        for tool in [
+            "env", "grep", "awk", "tr", "cat", "printf", "mktemp", "rm", "tail", "sed", "ln", "readlink",
+            "dirname", "cut",
+        ] {
             let target = ["/usr/bin", "/bin"].iter().map(|d| Path::new(d).join(tool)).find(|p| p.exists());
             let link = basics.join(tool);
             if let (Some(target), false) = (target, link.exists()) {
@@ -232,4 +235,54 @@ fn another_stable_release_has_rustup_install_the_pinned_one() {
     let calls = machine.calls();
     assert!(calls.iter().any(|c| c == "rustup toolchain install 1.95.0 --profile minimal"), "{calls:?}");
     assert!(!machine.dir.join("rustup/toolchains/1.95.0-x86_64-unknown-linux-gnu").exists());
+}
+
+/// A machine whose file system has `free_gb` free and whose `target` holds `used_gb` (stand-in `df`
+/// and `du`, in KiB as theirs print); runs `need_free_space target 20`.
+fn free_space(name: &str, free_gb: u64, used_gb: Option<u64>) -> (StandIns, Output) {
+    let machine = StandIns::new(name, 0, false, None);
+    let kib = |gb: u64| gb * 1024 * 1024;
+    machine.stand_in(
+        "df",
+        &format!(
+            "echo 'Filesystem 1024-blocks Used Available Capacity Mounted on'\necho '/dev/vda 264241152 1 {} 90% /'",
+            kib(free_gb)
+        ),
+    );
+    machine.stand_in("du", &format!("printf '%s\\t%s\\n' {} \"$2\"", kib(used_gb.unwrap_or(0))));
+    if used_gb.is_some() {
+        std::fs::create_dir_all(machine.dir.join("target")).unwrap();
+    }
+    let output =
+        machine.run(&format!("cd '{}' && need_free_space target 20 && echo done", machine.dir.display()));
+    (machine, output)
+}
+
+#[test]
+fn a_disk_with_room_for_the_run_passes() {
+    let (_machine, output) = free_space("room", 25, None);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert_eq!(String::from_utf8_lossy(&output.stdout).trim(), "done");
+}
+
+#[test]
+fn a_disk_without_room_stops_the_run_naming_the_figures() {
+    let (_machine, output) = free_space("full", 9, None);
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("not enough disk space")
+            && stderr.contains("about 20 GB under target")
+            && stderr.contains("9 GB free")
+            && stderr.contains("Free 11 GB more"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn what_target_already_holds_counts_toward_the_need() {
+    // A second run in the same tree rebuilds in place: 9 GB free and 15 GB already there is enough.
+    let (machine, output) = free_space("rerun", 9, Some(15));
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(machine.calls().iter().any(|c| c.starts_with("du ")), "{:?}", machine.calls());
 }
