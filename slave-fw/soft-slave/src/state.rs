@@ -14,7 +14,9 @@
 //! configuration never changes it. Without the key the soft slave takes the serial number of the
 //! description it was started with; give each soft slave on one network a state file with its own.
 //!
-//! Every key is optional; what is absent comes from the description. The file is replaced
+//! Every key is optional; what is absent comes from the description, except the MAC ID of a
+//! device in the program position (`programmable = true`): with none stored it starts at 63, as a
+//! board does out of the box ([`StoredState::apply`]). The file is replaced
 //! atomically (written to a temporary file in the same folder, synced, renamed over the old one,
 //! the folder synced), so a crash or power cut at any point leaves the old state or the new one,
 //! never a mixture. A file that cannot be read or parsed at start is an error naming the file and
@@ -103,7 +105,9 @@ impl StoredState {
     /// there is one and it decodes, else `base` (the description; [`ConfigOrigin::resolve`], the
     /// board's rule, a refused image being a configuration fault), with the settings on top. In
     /// the program position (`network.programmable`, protocol §II.7) the MAC ID and data rate set
-    /// over the network are used; the bus-off interrupt setting always is. `mac_override`
+    /// over the network are used, MAC ID 63 when none was set (the description's `mac_id` is then
+    /// the switches' value, which the program position ignores, as on the board); the bus-off
+    /// interrupt setting always is. `mac_override`
     /// (`--mac`) wins over all. The serial number is the state's, else `base`'s: never the
     /// stored image's (module docs).
     pub fn apply(
@@ -115,9 +119,10 @@ impl StoredState {
         let (mut config, origin) = ConfigOrigin::resolve(base, image.as_deref());
         let device = &mut config.device;
         if device.switches.programmable {
-            if let Some(m) = self.mac_id.and_then(MacId::new) {
-                device.mac_id = m;
-            }
+            // The MAC ID stored over the network; none stored (out of the box): 63, where a
+            // scanner's address recovery and the Offline Connection Set look for new devices, as
+            // the board without switches does (protocol §II.7, `board::switches`).
+            device.mac_id = self.mac_id.and_then(MacId::new).unwrap_or(MacId::MAX);
             if let Some(b) = self.baud() {
                 device.baud_rate = b;
             }
@@ -372,6 +377,11 @@ mod tests {
         base.device.switches.programmable = true;
         let (c, _) = state.apply(&base, None);
         assert_eq!((c.device.mac_id.as_raw(), c.device.baud_rate), (9, BaudRate::Kbps500));
+        // Programmable, nothing stored: MAC 63 (out of the box), the description's rate.
+        let (c, _) = StoredState::default().apply(&base, None);
+        assert_eq!((c.device.mac_id.as_raw(), c.device.baud_rate), (63, BaudRate::Kbps250));
+        let (c, _) = StoredState::default().apply(&base, MacId::new(12));
+        assert_eq!(c.device.mac_id.as_raw(), 12, "--mac wins");
         let (c, _) = state.apply(&base, MacId::new(12));
         assert_eq!(c.device.mac_id.as_raw(), 12);
     }
@@ -409,6 +419,35 @@ mod tests {
         // Nothing stored: the description's own image.
         let converter = StoredState::default().converter(&base, None, Instant::ZERO).unwrap();
         assert_eq!(converter.image_in_force(), slave_fw::image::encode_to_vec(&base).unwrap());
+    }
+
+    #[test]
+    fn the_configuration_consistency_value_follows_the_stored_image_not_the_network_settings() {
+        // Identity attribute 9 (protocol §II.5.3): the MAC ID, rate and bus-off interrupt set
+        // over the network and the device's serial number leave it alone; a stored image sets it.
+        let mut base = ConverterConfig::breaker_reference();
+        base.device.switches.programmable = true;
+        let ccv = |state: &StoredState| {
+            state.converter(&base, None, Instant::ZERO).unwrap().node().configuration_consistency()
+        };
+        let factory = ccv(&StoredState::default());
+        assert!(factory.is_some());
+        let mut state = StoredState { serial_number: Some(0x0BAD_F00D), ..StoredState::default() };
+        for change in [
+            SettingChanged::MacId(MacId::new(9).unwrap()),
+            SettingChanged::BaudRate(BaudRate::Kbps500),
+            SettingChanged::BusOffInterrupt(true),
+        ] {
+            state.note(&change);
+            assert_eq!(ccv(&state), factory, "after {change:?}");
+        }
+        let mut other = base.clone();
+        other.device.identity.product_code = 42;
+        let image = slave_fw::image::encode_to_vec(&other).unwrap();
+        state.set_image(&image);
+        let stored = ccv(&state);
+        assert_ne!(stored, factory);
+        assert_eq!(stored, Some(slave_fw::converter::consistency::consistency_value(&image)));
     }
 
     #[test]

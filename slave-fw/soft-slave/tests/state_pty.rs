@@ -60,13 +60,14 @@ fn a_mac_id_set_over_the_network_survives_reset_and_restart() {
         let mut bus = common::master_bus(&rig);
         let mut session = Session::new(&mut bus);
         let mut master = Master::new(&mut session, MasterConfig::default());
-        master.open_explicit(mac(5)).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
+        // Programmable and nothing stored: out of the box at MAC 63 (protocol §II.7).
+        master.open_explicit(mac(63)).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
         // DeviceNet attribute 1 := 9, then Identity Reset (protocol §II.7: a new MAC takes effect
         // after the reset).
-        let (data, _) = master.set(mac(5), 3, 1, 1, &[9]).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
+        let (data, _) = master.set(mac(63), 3, 1, 1, &[9]).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
         assert!(data.is_empty());
         let reset = Request { service: ServiceCode::Reset, class: 1, instance: 1, data: &[] };
-        master.request_ok(mac(5), Port::Explicit, &reset).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
+        master.request_ok(mac(63), Port::Explicit, &reset).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
     }
     let text = std::fs::read_to_string(&state).unwrap_or_else(|e| panic!("{e}\n{}", rig.dump()));
     assert!(text.contains("\"mac_id\": 9"), "{text}");
@@ -80,10 +81,10 @@ fn a_mac_id_set_over_the_network_survives_reset_and_restart() {
     let started = rig.slave.as_ref().unwrap().stderr.text();
     assert!(started.contains("dnet-soft-slave: MAC 9 "), "{started}");
 
-    // Without the state file the description rules again.
+    // Without the state file nothing is stored: MAC 63 again, not the description's 5.
     rig.stop_slave();
     rig.start_slave_with(Some(&description), &[]);
-    assert_eq!(product_code(&rig, mac(5)), Ok(Some(1)), "without --state, at MAC 5\n{}", rig.dump());
+    assert_eq!(product_code(&rig, mac(63)), Ok(Some(1)), "without --state, at MAC 63\n{}", rig.dump());
 }
 
 /// Issue 33: with `--state` in a folder it cannot write, the soft slave went on-line and quit

@@ -3,22 +3,25 @@
 //! device replacement can tell, by one read, whether a device holds the configuration it saved.
 //!
 //! The converter's whole configuration is its image ([`super::image`]), so the CCV is a CRC of
-//! the image: **CRC-16/MODBUS** ([`crate::serial::checksum::crc16_modbus`], already in the firmware for
-//! Modbus RTU) over the image's header and body (not its CRC-32 trailer), with the four bytes of
-//! the serial number read as 0. So
+//! the image: **CRC-16/MODBUS** ([`crate::serial::checksum::crc16_modbus`], already in the
+//! firmware for Modbus RTU) over the image's header and body (not its CRC-32 trailer), with the
+//! values that are not the configuration's read as 0 ([`masked`]):
 //!
-//! - equal configurations give equal CCVs, whatever device holds them: the serial number is the
-//!   device's own and never taken from an image ([`super::ConfigOrigin::resolve`]), and the
-//!   trailer covers it;
+//! - the serial number: the device's own, never taken from an image
+//!   ([`super::ConfigOrigin::resolve`]);
+//! - the MAC ID, the data rate and the bus-off interrupt bit of the network flags: what a master
+//!   sets through the DeviceNet object (attributes 1–3), which the board keeps beside the image
+//!   in its settings and puts over the image's values at start ([`super::BoardFacts`]); moving a
+//!   device to another MAC ID, as address recovery does, must not change its CCV.
+//!
+//! So
+//!
+//! - equal configurations give equal CCVs, whatever device holds them and at whatever address;
 //! - the factory default has one fixed CCV, [`FACTORY_CCV`] on every board (the image
 //!   [`super::image::BREAKER_REFERENCE`]) and on a soft slave run from the reference description;
 //! - any change of one byte, or of up to 16 adjacent bits, of the rest of the image changes it
 //!   (a CRC-16 detects every burst of up to 16 bits); two different configurations share a CCV
 //!   with a chance of 1 in 65 536.
-//!
-//! The network settings a master sets through the DeviceNet object (MAC ID, data rate, bus-off
-//! interrupt) are stored beside the image, not in it: moving a device to another MAC ID, as
-//! address recovery does, leaves its CCV alone.
 //!
 //! The converter sets the node's attribute from the image in force when it is built, and from a
 //! new image when it hands it over for storage ([`super::Converter::poll_new_image`]): the CCV
@@ -31,18 +34,37 @@ use core::ops::Range;
 /// Where the serial number lies in an image of format version 1: after the 7-byte header,
 /// vendor ID, device type and product code (2 bytes each), major and minor revision.
 pub const SERIAL_NUMBER_AT: Range<usize> = 15..19;
+/// Where the product name's length byte lies (version 1); the network section follows the name:
+/// MAC ID, data rate, port, flags (bit 0 bus-off interrupt).
+const PRODUCT_NAME_AT: usize = 19;
 
 /// The CCV of the factory default ([`super::image::BREAKER_REFERENCE`]).
-pub const FACTORY_CCV: u16 = 0xD212;
+pub const FACTORY_CCV: u16 = 0x3554;
+
+/// Byte `at` of an image whose network section starts at `network`, as the CCV covers it: the
+/// values that are not the configuration's read as 0 (module docs).
+pub fn masked(at: usize, b: u8, network: usize) -> u8 {
+    match at.wrapping_sub(network) {
+        _ if SERIAL_NUMBER_AT.contains(&at) => 0,
+        // MAC ID and data rate.
+        0 | 1 => 0,
+        // The flags without the bus-off interrupt bit.
+        3 => b & !1,
+        _ => b,
+    }
+}
 
 /// The configuration consistency value of `image` (module docs). Any bytes are accepted: a
 /// shorter image is covered as far as it goes.
 pub fn consistency_value(image: &[u8]) -> u16 {
     let covered = image.len().saturating_sub(super::image::CRC_LEN);
-    image.iter().take(covered).enumerate().fold(CRC16_MODBUS_INIT, |crc, (at, &b)| {
-        let b = if SERIAL_NUMBER_AT.contains(&at) { 0 } else { b };
-        crc16_modbus_step(crc, b)
-    })
+    let name_len = image.get(PRODUCT_NAME_AT).map_or(0, |&n| usize::from(n));
+    let network = PRODUCT_NAME_AT + 1 + name_len;
+    image
+        .iter()
+        .take(covered)
+        .enumerate()
+        .fold(CRC16_MODBUS_INIT, |crc, (at, &b)| crc16_modbus_step(crc, masked(at, b, network)))
 }
 
 #[cfg(test)]
@@ -70,9 +92,12 @@ mod tests {
     }
 
     #[test]
-    fn the_factory_value_is_the_crc_of_the_reference_image_without_serial_and_trailer() {
+    fn the_factory_value_is_the_crc_of_the_reference_image_without_serial_address_and_trailer() {
         let mut bytes = BREAKER_REFERENCE[..BREAKER_REFERENCE.len() - 4].to_vec();
         bytes[SERIAL_NUMBER_AT].fill(0);
+        // Product name of 23 bytes: the network section at 43 (MAC 5, 250k, port 0, flags 0).
+        assert_eq!(&bytes[43..47], [5, 1, 0, 0]);
+        bytes[43..45].fill(0);
         assert_eq!(consistency_value(&BREAKER_REFERENCE), crc16_reference(&bytes));
         assert_eq!(consistency_value(&BREAKER_REFERENCE), FACTORY_CCV);
     }
@@ -86,6 +111,9 @@ mod tests {
 
     #[rstest]
     #[case::serial_number(|c: &mut ConverterConfig| c.device.identity.serial_number = 0x0BAD_F00D)]
+    #[case::mac_id(|c: &mut ConverterConfig| c.device.mac_id = devicenet::MacId::new(63).unwrap())]
+    #[case::data_rate(|c: &mut ConverterConfig| c.device.baud_rate = devicenet::slave::BaudRate::Kbps500)]
+    #[case::bus_off_interrupt(|c: &mut ConverterConfig| c.device.bus_off_interrupt = true)]
     #[case::nothing(|_: &mut ConverterConfig| {})]
     fn equal_configurations_give_equal_values(#[case] change: fn(&mut ConverterConfig)) {
         let mut config = ConverterConfig::breaker_reference();
@@ -95,7 +123,8 @@ mod tests {
 
     #[rstest]
     #[case::product_name(|c: &mut ConverterConfig| c.device.identity.product_name = "Other".try_into().unwrap())]
-    #[case::mac_id_in_the_image(|c: &mut ConverterConfig| c.device.mac_id = devicenet::MacId::new(9).unwrap())]
+    #[case::programmable(|c: &mut ConverterConfig| c.device.switches.programmable = true)]
+    #[case::port(|c: &mut ConverterConfig| c.device.port = 1)]
     #[case::input_assembly(|c: &mut ConverterConfig| c.input = InputAssembly::WithStatus)]
     fn a_changed_configuration_changes_the_value(#[case] change: fn(&mut ConverterConfig)) {
         let mut config = ConverterConfig::breaker_reference();
@@ -104,19 +133,29 @@ mod tests {
     }
 
     #[test]
-    fn every_single_byte_change_outside_serial_and_trailer_changes_the_value() {
+    fn every_single_byte_change_of_the_configuration_changes_the_value() {
         let covered = BREAKER_REFERENCE.len() - 4;
-        for at in (0..covered).filter(|at| !SERIAL_NUMBER_AT.contains(at)) {
+        // Serial number 15..19, MAC ID 43, data rate 44 (the network section after the name).
+        let not_configuration = |at: usize| SERIAL_NUMBER_AT.contains(&at) || at == 43 || at == 44;
+        // The name's length byte moves the network section: changing it is changing the
+        // configuration, but the masked bytes move too, so it is left to the cases above.
+        for at in (0..covered).filter(|&at| !not_configuration(at) && at != 19) {
             for flip in [0x01, 0x80, 0xFF] {
                 let mut bytes = BREAKER_REFERENCE;
                 bytes[at] ^= flip;
-                assert_ne!(consistency_value(&bytes), FACTORY_CCV, "byte {at} ^ {flip:#04X}");
+                if at == 46 && flip == 0x01 {
+                    // The bus-off interrupt bit of the flags.
+                    assert_eq!(consistency_value(&bytes), FACTORY_CCV);
+                } else {
+                    assert_ne!(consistency_value(&bytes), FACTORY_CCV, "byte {at} ^ {flip:#04X}");
+                }
             }
         }
-        // The serial number and the trailer are not configuration.
+        // The serial number, MAC ID, data rate and the trailer are not configuration.
         let mut bytes = BREAKER_REFERENCE;
-        bytes[16] ^= 0xFF;
-        bytes[covered] ^= 0xFF;
+        for at in [16, 43, 44, covered] {
+            bytes[at] ^= 0xFF;
+        }
         assert_eq!(consistency_value(&bytes), FACTORY_CCV);
     }
 
