@@ -17,5 +17,7 @@ pub mod replay;
 pub mod scan;
 pub mod scanner;
 pub mod ui;
+pub mod ui_access;
+pub mod user;
 pub mod ui_modbus;
 pub mod ui_opcua;

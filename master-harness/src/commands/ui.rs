@@ -22,14 +22,14 @@
 use crate::options::{open_bus, GlobalOptions};
 use can_io::bus::BusSpec;
 use clap::Args;
-use dnet_scanner::audit::{Audit, MemoryAudit};
+use dnet_scanner::audit::MemoryAudit;
 use dnet_scanner::history::{History, Retention};
 use dnet_scanner::model::{HistoryStore, Shared};
 use dnet_scanner::monitor::InputLayout;
 use dnet_scanner::mqtt::Publisher;
 use dnet_scanner::report::{finish, table, Ending};
 use dnet_scanner::ui::thinning::Thinning;
-use dnet_scanner::ui::{known_descriptions, layout_for, serve};
+use dnet_scanner::ui::{known_descriptions, layout_for, serve_with};
 use dnet_scanner::{build_scan_list, read_scan_list, sample_values, Scanner, ScannerOptions};
 use harness_common::console::{Console, Progress};
 use harness_common::error::HarnessError;
@@ -66,6 +66,9 @@ pub struct UiArgs {
     /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
     #[arg(long, value_name = "N")]
     pub cycles: Option<u64>,
+    /// Accounts and TLS: `--users`, `--tls-cert`, `--tls-key` (`super::ui_access`).
+    #[command(flatten)]
+    pub access: super::ui_access::AccessArgs,
     /// Modbus TCP: `--modbus-tcp ADDR` and its options (`super::ui_modbus`).
     #[command(flatten)]
     pub modbus: super::ui_modbus::ModbusArgs,
@@ -115,6 +118,7 @@ pub fn execute(
     // Everything that can be refused, before the bus is touched.
     let master_mac = opts.master_mac_or_default();
     let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
+    let access = args.access.open(&args.listen)?;
     let (history, publisher) = open_outputs(args)?;
     let slave = opts.slave_description()?;
     let (commands, command_rx) = mpsc::channel();
@@ -127,14 +131,14 @@ pub fn execute(
         record_dir: args.record_dir.clone(),
         mqtt: Mutex::new(publisher.as_ref().map(Publisher::status)),
         audit: match &history {
-            Some(h) => Arc::clone(h) as Arc<dyn Audit>,
+            Some(h) => Arc::clone(h) as Arc<dyn dnet_scanner::audit::Audit>,
             None => Arc::new(MemoryAudit::default()),
         },
     });
     let modbus = args.modbus.start(&shared)?;
     // No accounts yet (ui --users): anonymous sessions only.
     let opcua = args.opcua.start(&shared, None)?;
-    let server = serve(&args.listen, Arc::clone(&shared))?;
+    let server = serve_with(&args.listen, Arc::clone(&shared), access)?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
     if let Some(m) = &modbus {
         writeln!(out, "modbus tcp at {}", m.local_addr()).map_err(werr)?;

@@ -373,6 +373,8 @@ fn run(
                 ConsoleCommand::Set { reply, .. } => {
                     let _ = reply.send(Err("error response: attribute not settable (0x0E)".into()));
                 }
+                // The fake scanner keeps no health: the request goes unanswered (503).
+                ConsoleCommand::Health { .. } => {}
             }
         }
         let mut nodes = Vec::new();
