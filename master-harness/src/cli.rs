@@ -14,7 +14,7 @@
 
 use crate::commands::{
     completions, configure, conformance, connect, decode, explicit, man, monitor, params, project, recover,
-    replay, scan, scanner, ui,
+    replay, scan, scanner, ui, user,
 };
 use crate::options::GlobalOptions;
 use can_io::trace::write::log_format;
@@ -56,7 +56,11 @@ pub enum Command {
     /// The scanner with its web console: `--listen ADDR` serves the network, device and trace
     /// views (and their JSON API) while every node of the scan list is kept in I/O; samples go to
     /// an SQLite history, and with --mqtt to a broker.
-    Ui(ui::UiArgs),
+    Ui(Box<ui::UiArgs>),
+    /// The console's accounts: `user add FILE NAME --role viewer|operator|engineer` (the password
+    /// one line on standard input, stored as an argon2 hash), `user remove FILE NAME`,
+    /// `user list FILE`.
+    User(user::UserArgs),
     /// Get_Attribute_Single.
     Get(explicit::GetArgs),
     /// Set_Attribute_Single.
@@ -152,6 +156,7 @@ pub fn execute(
         Command::Scan(args) => scan::execute(opts, args, out, err, console),
         Command::Scanner(args) => scanner::execute(opts, args, out, err, console),
         Command::Ui(args) => ui::execute(opts, args, out, err, console),
+        Command::User(args) => user::execute(args, &mut std::io::stdin().lock(), out, err),
         Command::Get(args) => explicit::get(opts, args, out, err, console),
         Command::Set(args) => explicit::set(opts, args, out, err, console),
         Command::Monitor(args) => monitor::execute(opts, args, out, err, console),

@@ -77,6 +77,7 @@ try {
     await page.waitForSelector('[data-field="phase_a"] .val');
     if ((await sw()) === "closed") {
       await page.click("#btn-open");
+      await page.click("#confirm-yes");
       await page.waitForFunction(() => document.querySelector('[data-field="switch"] .val')?.textContent === "open",
         null, { timeout: 5000 });
     }
@@ -99,6 +100,10 @@ try {
     before = await phaseA();
     const t0 = Date.now();
     await page.click("#btn-close");
+    // Open and Close ask first, naming the node and the action.
+    const asked = await page.locator("#confirm-text").textContent();
+    if (!/^Close the breaker at MAC 5 \(feeder 1\)\?$|^Close the breaker at MAC 5/.test(asked)) throw new Error(`confirmation: ${asked}`);
+    await page.click("#confirm-yes");
     await page.waitForFunction((b) => {
       const s = document.querySelector('[data-field="switch"] .val')?.textContent;
       const a = parseInt(document.querySelector('[data-field="phase_a"] .val')?.textContent || "0", 10);

@@ -39,8 +39,8 @@ fn hex(bytes: &[u8]) -> String {
 /// A refused request: the HTTP status and the reason in words.
 #[derive(Debug)]
 pub(crate) struct ApiError {
-    status: u16,
-    message: String,
+    pub(crate) status: u16,
+    pub(crate) message: String,
 }
 
 fn err(status: u16, message: impl Into<String>) -> ApiError {
@@ -53,7 +53,7 @@ fn bytes_response(status: u16, content_type: &str, body: Vec<u8>) -> Resp {
     Response::new(status, content_type, body)
 }
 
-fn json_response(status: u16, value: &Value) -> Resp {
+pub(crate) fn json_response(status: u16, value: &Value) -> Resp {
     bytes_response(status, "application/json", value.to_string().into_bytes())
 }
 
@@ -68,8 +68,12 @@ pub(crate) fn handle(ctx: &Arc<Context>, request: &Request) -> Resp {
     if let Err(e) = ctx.guard.check(&request.method, request.header_pairs()) {
         return error_response(403, &e.to_string());
     }
-    route(ctx, &request.method, &request.url, &request.body)
-        .unwrap_or_else(|e| error_response(e.status, &e.message))
+    super::auth::admit(ctx, request, |caller| {
+        super::auth::route(ctx, caller, request).unwrap_or_else(|| {
+            route(ctx, &request.method, &request.url, &request.body)
+                .unwrap_or_else(|e| error_response(e.status, &e.message))
+        })
+    })
 }
 
 /// The query parameter `name`, percent-decoded.
@@ -182,7 +186,7 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
         [] | ["index.html"] if get => Ok(bytes_response(
             200,
             "text/html; charset=utf-8",
-            INDEX_HTML.replace(TOKEN_PLACEHOLDER, ctx.guard.token()).into(),
+            INDEX_HTML.replace(TOKEN_PLACEHOLDER, ctx.auth.page_token()).into(),
         )),
         ["app.js"] if get => Ok(bytes_response(200, "text/javascript; charset=utf-8", APP_JS.into())),
         ["style.css"] if get => Ok(bytes_response(200, "text/css; charset=utf-8", STYLE_CSS.into())),
@@ -190,7 +194,6 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
         [] | ["index.html"] | ["app.js"] | ["style.css"] => Err(wrong()),
         ["api", rest @ ..] => match (rest, get, post) {
             (["state"], true, _) => Ok(json_response(200, &state(ctx))),
-            (["token"], true, _) => Ok(json_response(200, &json!({"ok": true, "token": ctx.guard.token()}))),
             (["frames"], true, _) => frames(shared, &pairs),
             (["node", mac], true, _) => node(shared, parse_mac(mac)?),
             (["node", mac, "params"], true, _) => params(shared, parse_mac(mac)?),

@@ -98,6 +98,7 @@ fn reason(status: u16) -> &'static str {
         200 => "OK",
         204 => "No Content",
         400 => "Bad Request",
+        401 => "Unauthorized",
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
@@ -205,6 +206,7 @@ impl Server {
         handler: Arc<Handler>,
         refusal: Refusal,
         max_body: usize,
+        tls: Option<Arc<rustls::ServerConfig>>,
     ) -> std::io::Result<Server> {
         listener.set_nonblocking(true)?;
         let (queue, waiting) = sync_channel::<TcpStream>(QUEUE);
@@ -212,9 +214,10 @@ impl Server {
         for i in 0..WORKERS {
             let waiting = Arc::clone(&waiting);
             let handler = Arc::clone(&handler);
+            let tls = tls.clone();
             std::thread::Builder::new()
                 .name(format!("ui-worker-{i}"))
-                .spawn(move || work(&waiting, handler.as_ref(), refusal, max_body))?;
+                .spawn(move || work(&waiting, handler.as_ref(), refusal, max_body, tls.as_ref()))?;
         }
         let stop = Arc::new(AtomicBool::new(false));
         let acceptor = {
@@ -324,14 +327,23 @@ fn busy(mut s: TcpStream, refusal: Refusal) {
 }
 
 /// A worker: takes connections from the queue until the server is gone.
-fn work(waiting: &Mutex<Receiver<TcpStream>>, handler: &Handler, refusal: Refusal, max_body: usize) {
+fn work(
+    waiting: &Mutex<Receiver<TcpStream>>,
+    handler: &Handler,
+    refusal: Refusal,
+    max_body: usize,
+    tls: Option<&Arc<rustls::ServerConfig>>,
+) {
     loop {
         let next = match waiting.lock() {
             Ok(rx) => rx.recv_timeout(Duration::from_millis(200)),
             Err(_) => return,
         };
         match next {
-            Ok(stream) => answer(stream, handler, refusal, max_body),
+            Ok(stream) => match tls {
+                None => answer(stream, handler, refusal, max_body),
+                Some(config) => answer_tls(stream, config, handler, refusal, max_body),
+            },
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return,
         }
@@ -357,6 +369,38 @@ fn answer(stream: TcpStream, handler: &Handler, refusal: Refusal, max_body: usiz
     let mut sink = [0u8; 4096];
     let mut left = 64;
     while left > 0 && matches!(reader.get_mut().read(&mut sink), Ok(n) if n > 0) {
+        left -= 1;
+    }
+}
+
+/// [`answer`] over TLS: the handshake happens as the request is read (a client that fails it is
+/// gone, nothing answered); the answer ends with TLS's close_notify.
+fn answer_tls(
+    stream: TcpStream,
+    config: &Arc<rustls::ServerConfig>,
+    handler: &Handler,
+    refusal: Refusal,
+    max_body: usize,
+) {
+    let Ok(conn) = rustls::ServerConnection::new(Arc::clone(config)) else { return };
+    let mut tls = rustls::StreamOwned::new(conn, stream);
+    let (response, head_only) = {
+        let mut reader = BufReader::new(&mut tls);
+        match read_request(&mut reader, max_body) {
+            Ok(request) => (handler(&request), request.method == "HEAD"),
+            Err(ReadError::Refused(status, why)) => (refusal(status, &why), false),
+            Err(ReadError::Gone) => return,
+        }
+    };
+    let _ = response.write_to(&mut tls, head_only);
+    tls.conn.send_close_notify();
+    let _ = tls.flush();
+    let _ = tls.sock.shutdown(std::net::Shutdown::Write);
+    // As `answer`: what the client still sends is read briefly before closing.
+    let _ = tls.sock.set_read_timeout(Some(Duration::from_millis(100)));
+    let mut sink = [0u8; 4096];
+    let mut left = 64;
+    while left > 0 && matches!(tls.sock.read(&mut sink), Ok(n) if n > 0) {
         left -= 1;
     }
 }

@@ -66,16 +66,20 @@
 //! [`ConsoleCommand`]: crate::model::ConsoleCommand
 
 mod api;
+mod auth;
 mod guard;
 pub mod http;
 mod health_api;
 mod record;
 pub mod thinning;
+pub mod tls;
 
 pub use api::{known_descriptions, layout_for};
+pub use auth::{COOKIE, MAX_SESSIONS, SESSION_IDLE};
 pub use guard::{GuardError, TOKEN_HEADER};
 
 use crate::model::Shared;
+use auth::Auth;
 use guard::Guard;
 use harness_common::error::HarnessError;
 use record::Recorder;
@@ -95,6 +99,7 @@ pub const MAX_EXPORT: usize = 64 << 20;
 /// is released) and ends a recording.
 pub struct UiServer {
     addr: SocketAddr,
+    tls: bool,
     server: http::Server,
     context: Arc<Context>,
 }
@@ -104,6 +109,17 @@ pub(crate) struct Context {
     pub(crate) shared: Arc<Shared>,
     pub(crate) recorder: Mutex<Option<Recorder>>,
     pub(crate) guard: Guard,
+    pub(crate) auth: Auth,
+}
+
+/// Who may use the console and how it is reached: the accounts (`None`: no logins, loopback
+/// only) and the TLS configuration (`None`: plain HTTP).
+#[derive(Default)]
+pub struct Access {
+    /// The accounts, from `--users FILE`.
+    pub users: Option<crate::accounts::Users>,
+    /// The TLS configuration, from `--tls-cert` / `--tls-key` ([`tls::server_config`]).
+    pub tls: Option<Arc<rustls::ServerConfig>>,
 }
 
 impl UiServer {
@@ -113,16 +129,17 @@ impl UiServer {
         self.addr
     }
 
-    /// The page's URL, `http://127.0.0.1:8080/`.
+    /// The page's URL, `http://127.0.0.1:8080/` (`https://` with TLS).
     #[must_use]
     pub fn url(&self) -> String {
-        format!("http://{}/", self.addr)
+        format!("{}://{}/", if self.tls { "https" } else { "http" }, self.addr)
     }
 
-    /// The token a state-changing request carries in [`TOKEN_HEADER`] (the page has it too).
+    /// The token a state-changing request carries in [`TOKEN_HEADER`] (the page has it too)
+    /// without a users file; empty with one (each session has its own).
     #[must_use]
     pub fn token(&self) -> &str {
-        self.context.guard.token()
+        self.context.auth.page_token()
     }
 
     /// Stops the server: no new requests; a recording is closed. Requests being answered finish
@@ -151,18 +168,29 @@ impl Drop for UiServer {
 /// [`UiServer::addr`]). The address is bound before this returns: an address in use or not
 /// available is a [`HarnessError::Listen`] naming it.
 pub fn serve(listen: &str, shared: Arc<Shared>) -> Result<UiServer, HarnessError> {
+    serve_with(listen, shared, Access::default())
+}
+
+/// [`serve`] with accounts and / or TLS ([`Access`]).
+pub fn serve_with(listen: &str, shared: Arc<Shared>, access: Access) -> Result<UiServer, HarnessError> {
     let (listener, addr) =
         http::bind(listen).map_err(|error| HarnessError::Listen { address: listen.to_string(), error })?;
     let token = guard::new_token().map_err(|e| HarnessError::ConsoleStart {
         address: String::new(),
         error: format!("no random token: {e}"),
     })?;
-    let context = Arc::new(Context { shared, recorder: Mutex::new(None), guard: Guard::new(addr, token) });
+    let tls = access.tls.is_some();
+    let context = Arc::new(Context {
+        shared,
+        recorder: Mutex::new(None),
+        guard: Guard::new(addr, tls),
+        auth: Auth::new(access.users, token, tls),
+    });
     let handler = {
         let context = Arc::clone(&context);
         Arc::new(move |r: &http::Request| api::handle(&context, r)) as Arc<http::Handler>
     };
-    let server = http::Server::start(listener, handler, api::error_response, MAX_BODY)
+    let server = http::Server::start(listener, handler, api::error_response, MAX_BODY, access.tls)
         .map_err(|e| HarnessError::ConsoleStart { address: listen.to_string(), error: e.to_string() })?;
-    Ok(UiServer { addr, server, context })
+    Ok(UiServer { addr, tls, server, context })
 }

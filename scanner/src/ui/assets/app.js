@@ -17,11 +17,13 @@ async function api(path, opts) {
   let body;
   try { body = await r.json(); } catch (_) { body = { ok: false, error: `HTTP ${r.status}` }; }
   if (!r.ok && body.ok !== false) body = { ok: false, error: `HTTP ${r.status}` };
+  // No session (never logged in, logged out, or it expired): the login form.
+  if (r.status === 401 && body.login) showLogin();
   return body;
 }
-// Every change carries the page's token (the server refuses it otherwise, as it refuses other
-// origins and other content types): see master-harness/src/ui/guard.rs.
-const TOKEN = (document.querySelector('meta[name="csrf-token"]') || {}).content || "";
+// Every change carries the token (the server refuses it otherwise, as it refuses other origins
+// and other content types): the page's without logins, the session's with them (scanner/src/ui/auth.rs).
+let TOKEN = (document.querySelector('meta[name="csrf-token"]') || {}).content || "";
 const post = (path, body) => api(path, {
   method: "POST",
   headers: { "Content-Type": "application/json", "X-CSRF-Token": TOKEN },
@@ -35,12 +37,15 @@ let currentMac = null;
 function route() {
   const h = location.hash || "#/network";
   const m = h.match(/^#\/node\/(\d+)/);
-  const view = m ? "device" : h.startsWith("#/trace") ? "trace" : h.startsWith("#/node") ? "device" : "network";
+  const view = loginShown ? "login" : m ? "device" : h.startsWith("#/trace") ? "trace"
+    : h.startsWith("#/audit") ? "audit" : h.startsWith("#/node") ? "device" : "network";
   if (m) currentMac = Number(m[1]);
-  for (const v of ["network", "device", "trace"]) {
+  $("view-login").hidden = view !== "login";
+  for (const v of ["network", "device", "trace", "audit"]) {
     $("view-" + v).hidden = v !== view;
     $("nav-" + v).classList.toggle("active", v === view);
   }
+  if (view === "audit") refreshAudit();
   if (currentMac !== null) $("nav-device").href = "#/node/" + currentMac;
   if (view === "device") { lastNodeMac = null; refreshNode(); refreshPlot(); }
   if (view === "trace") refreshTrace();
@@ -171,6 +176,12 @@ function showOutcome(r) {
 
 async function breakerCommand(action, body) {
   const out = $("cmd-outcome");
+  if (action !== "param") {
+    const node = ((state && state.nodes) || []).find((n) => n.mac === currentMac) || {};
+    const name = node.name || (node.identity && node.identity.product_name) || "";
+    const asked = `${action === "open" ? "Open" : "Close"} the breaker at MAC ${currentMac}${name ? ` (${name})` : ""}?`;
+    if (!(await confirmStep(asked))) { out.className = "outcome"; out.textContent = `${action}: cancelled`; return; }
+  }
   out.className = "outcome"; out.textContent = action + "…";
   const r = await post(`/api/node/${currentMac}/breaker/${action}`, body || {});
   if (!r.ok) { out.className = "outcome err"; out.textContent = `${action}: ${r.error}`; lastCommand = null; return; }
@@ -325,8 +336,74 @@ function showRecord(r, verb) {
     `${verb || "recording"}: ${r.log} and ${r.pcap} · ${r.frames} frames` + (r.missed ? ` (${r.missed} missed)` : "");
 }
 
+// ---- accounts, confirmation, audit -----------------------------------------------------------
+let loginShown = false;
+
+function showLogin() {
+  if (loginShown) return;
+  loginShown = true;
+  $("who").hidden = true;
+  route();
+  $("login-user").focus();
+}
+
+function showSession(s) {
+  TOKEN = s.token;
+  loginShown = false;
+  // Without logins the caller is "-": nothing to show, nothing to log out of.
+  $("who").hidden = s.user === "-";
+  $("who-name").textContent = `${s.user} (${s.role})`;
+  route();
+}
+
+async function login(e) {
+  e.preventDefault();
+  const r = await api("/api/login", {
+    method: "POST",
+    headers: { "Content-Type": "application/json" },
+    body: JSON.stringify({ user: $("login-user").value, password: $("login-password").value }),
+  });
+  $("login-password").value = "";
+  if (!r.ok) { $("login-error").textContent = r.error; return; }
+  $("login-error").textContent = "";
+  showSession(r);
+}
+
+async function logout() {
+  await post("/api/logout");
+  TOKEN = "";
+  showLogin();
+}
+
+// Open and Close ask first, naming the node and the action: resolves true on Confirm.
+function confirmStep(text) {
+  const d = $("confirm");
+  $("confirm-text").textContent = text;
+  return new Promise((resolve) => {
+    const done = (yes) => { d.close(); $("confirm-yes").onclick = null; $("confirm-no").onclick = null; resolve(yes); };
+    $("confirm-yes").onclick = () => done(true);
+    $("confirm-no").onclick = () => done(false);
+    d.oncancel = () => done(false);
+    d.showModal();
+  });
+}
+
+async function refreshAudit() {
+  const r = await api("/api/audit?limit=200");
+  $("audit-error").textContent = r.ok ? "" : r.error;
+  if (!r.ok) return;
+  const rows = r.entries.map((a) => el("tr", {},
+    el("td", { text: new Date(a.unix_ms).toISOString().replace("T", " ").replace("Z", "") }),
+    el("td", { text: a.user }), el("td", { text: a.via }), el("td", { text: a.mac === null ? "" : String(a.mac) }),
+    el("td", { text: a.what }), el("td", { class: a.result === "ok" ? "" : "err", text: a.result })));
+  $("audit-table").tBodies[0].replaceChildren(...rows);
+}
+
 // ---- wiring ----------------------------------------------------------------------------------
 function init() {
+  $("login-form").addEventListener("submit", login);
+  $("btn-logout").addEventListener("click", logout);
+  $("btn-audit").addEventListener("click", refreshAudit);
   buildGrid();
   $("btn-open").addEventListener("click", () => breakerCommand("open"));
   $("btn-close").addEventListener("click", () => breakerCommand("close"));
@@ -342,6 +419,7 @@ function init() {
   });
   $("rec-start").addEventListener("click", () => recordCommand("start", "recording to"));
   $("rec-stop").addEventListener("click", () => recordCommand("stop", "recorded"));
+  api("/api/session").then((s) => s.ok && showSession(s));
   api("/api/record").then((r) => r.recording && showRecord(r, "recording to"));
   route();
   refreshState();
