@@ -66,6 +66,10 @@ pub(crate) struct Pending {
     pub(crate) appeared: Option<Instant>,
     /// Its duplicate MAC ID check at the lost MAC was seen.
     pub(crate) checked: bool,
+    /// When it is on-line at the lost MAC (from its check).
+    pub(crate) online: Option<Instant>,
+    /// When it was moved.
+    pub(crate) moved_at: Option<Instant>,
 }
 
 /// The ADR state of a scanner. See the [module docs](self).
@@ -78,6 +82,8 @@ pub(crate) struct Adr {
     /// The sets of MACs reported as identical lost nodes.
     pub(crate) disabled: HashSet<Vec<u8>>,
     pub(crate) tool: Option<Box<dyn ConfigTool + Send>>,
+    /// When devices ADR waits for come on-line (at most 64).
+    pub(crate) wakes: Vec<Instant>,
 }
 
 /// The major revision of `revision` ("1.3" → 1).

@@ -161,12 +161,12 @@ pub struct Scanner {
     frames_cursor: usize,
     /// (cycle length µs, bits on the wire) of the last cycles.
     history: VecDeque<(u64, u64)>,
-}
-
     /// Automatic device replacement ([`crate::adr`]).
     adr: crate::adr::Adr,
     /// ADR steps and scan-list changes ([`crate::events`]).
     events: crate::events::EventLog,
+}
+
 impl Scanner {
     /// A scanner for `list`, at MAC `master_mac`.
     #[must_use]
@@ -235,22 +235,22 @@ impl Scanner {
             health,
             frames_cursor: 0,
             history: VecDeque::new(),
+            adr: crate::adr::Adr::default(),
+            events: crate::events::EventLog::default(),
         }
     }
 
-    /// The timing in force.
-    #[must_use]
-            adr: crate::adr::Adr::default(),
-            events: crate::events::EventLog::default(),
-    pub fn timing(&self) -> Timing {
-        self.timing
-    }
     /// The event log: ADR steps and scan-list changes.
     #[must_use]
     pub fn events(&self) -> &crate::events::EventLog {
         &self.events
     }
 
+    /// The timing in force.
+    #[must_use]
+    pub fn timing(&self) -> Timing {
+        self.timing
+    }
 
     /// The options given.
     #[must_use]
@@ -420,14 +420,14 @@ impl Scanner {
                 ) {
                     Self::note_check(n, &check, rec.at);
                 }
+                if let Ok(check) = DuplicateMacCheck::parse(rec.frame.data()) {
+                    self.adr_note_check(mac.as_raw(), &check, rec.at);
+                }
             }
             _ => {}
         }
         master.other(i).map_err(|e| self.fail(e))
     }
-                if let Ok(check) = DuplicateMacCheck::parse(rec.frame.data()) {
-                    self.adr_note_check(mac.as_raw(), &check, rec.at);
-                }
 
     /// A duplicate MAC ID check at a node's MAC: a response, or a second serial number, means two
     /// devices share the MAC (protocol §7.1: the newcomer is Communication Faulted).
@@ -544,11 +544,12 @@ impl Scanner {
         if self.next_reconnect.is_none_or(|t| t0 >= t) {
             self.adr_step(master, t0)?;
             for i in 0..self.nodes.len() {
-                if !self.nodes[i].in_io && !self.nodes[i].busy() && self.nodes[i].entry.enabled {
+                let deferred = self.adr_defers(self.nodes[i].entry.mac, t0);
+                if !self.nodes[i].in_io && !self.nodes[i].busy() && self.nodes[i].entry.enabled && !deferred {
                     self.begin_bringup(i, master, t0);
                 }
             }
-            self.next_reconnect = Some(t0 + RECONNECT_INTERVAL);
+            self.next_reconnect = Some(self.next_reconnect_after(t0, t0 + RECONNECT_INTERVAL));
         }
         let mut commands: Vec<CanFrame> = Vec::new();
         // One bit-strobe command for every strobed node (protocol §II.1.2).
@@ -618,6 +619,7 @@ impl Scanner {
             }
         }
         self.pump(master, t0 + self.timing.window, |s| s.nodes.iter().all(|n| !n.awaiting))?;
+        self.adr_cycle(master)?;
         let isd_end = master.session.now() + self.timing.interscan;
         self.pump(master, isd_end, |_| false)?;
         let now = master.session.now();
@@ -897,11 +899,11 @@ pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<
                 input_size: d.produced_size?,
                 output_size: d.consumed_size?,
                 name: d.identity.product_name.clone(),
+                adr: crate::model::AdrMode::Off,
+                keying: crate::model::Keying::Exact,
+                enabled: true,
             })
         })
         .collect();
     Ok(ScanList { interscan_delay_ms: None, expected_packet_rate_ms: None, nodes })
 }
-                adr: crate::model::AdrMode::Off,
-                keying: crate::model::Keying::Exact,
-                enabled: true,

@@ -87,6 +87,9 @@ fn a_replacement_at_63_is_moved_to_the_lost_mac_and_brought_into_io() {
     let appeared = events.iter().find(|e| e.kind == EventKind::AppearedAt63).unwrap().time_us;
     let in_io = events.iter().find(|e| e.kind == EventKind::Replaced).unwrap().time_us;
     assert!(appeared >= fails_at.total_micros(), "{events:#?}");
+    for e in &events {
+        println!("{:>9} us  MAC {:2}  {:?}  {}", e.time_us, e.mac, e.kind, e.detail);
+    }
     println!("simulated time from the replacement at 63 to I/O: {} ms", (in_io - appeared) / 1000);
     // The other node never left I/O.
     assert!(!seen.contains(&(6, EventKind::NodeLost)), "{events:#?}");
@@ -153,7 +156,9 @@ fn cli_scanner_adr_with_sim_replace_reports_the_events_in_json() {
     assert_eq!(code, 0, "{out}\n{err}");
     let events = v["events"].as_array().unwrap();
     let names: Vec<&str> = events.iter().map(|e| e["kind"].as_str().unwrap()).collect();
-    for want in ["appeared_at_63", "node_lost", "moved", "duplicate_check", "replaced"] {
+    // The factory-fresh replacement (MAC settable) has another CCV than the node it replaces: the
+    // configuration stored when the node joined is downloaded (`configure`'s download).
+    for want in ["appeared_at_63", "node_lost", "moved", "duplicate_check", "ccv_differs", "downloaded", "replaced"] {
         assert!(names.contains(&want), "{want} missing: {names:?}");
     }
     let n5 = v["nodes"].as_array().unwrap().iter().find(|n| n["mac"] == 5).unwrap();

@@ -15,6 +15,13 @@ use master_core::client::Port;
 use master_core::error::MasterError;
 use master_core::master::Master;
 
+/// How long a moved device may take to come on-line at its new MAC before the scanner tries the
+/// MAC anyway.
+const MOVE_TIMEOUT: devicenet::Duration = devicenet::Duration::from_secs(10);
+
+/// After a device's on-line instant, before the scanner turns to it.
+const ONLINE_MARGIN: devicenet::Duration = devicenet::Duration::from_millis(5);
+
 /// The MAC a device without a stored MAC comes up at (protocol §ADR).
 pub const ADR_MAC: u8 = 63;
 
@@ -39,6 +46,21 @@ impl Scanner {
         self.events.push(at.total_micros(), mac, kind, detail);
     }
 
+    /// The next ADR step and bring-ups at `at` at the latest.
+    fn wake(&mut self, at: Instant) {
+        self.next_reconnect = Some(self.next_reconnect.map_or(at, |t| t.min(at)));
+        if self.adr.wakes.len() < 64 {
+            self.adr.wakes.push(at);
+        }
+    }
+
+    /// When the next reconnect is due after one at `now`: `regular`, or sooner for a device
+    /// coming on-line that ADR waits for.
+    pub(super) fn next_reconnect_after(&mut self, now: Instant, regular: Instant) -> Instant {
+        self.adr.wakes.retain(|&w| w > now);
+        self.adr.wakes.iter().copied().fold(regular, Instant::min)
+    }
+
     fn adr_wanted(&self) -> bool {
         self.nodes.iter().any(|n| !n.entry.adr.is_off())
     }
@@ -56,12 +78,14 @@ impl Scanner {
                     check.vendor_id, check.serial_number
                 );
                 self.event(at, mac, EventKind::AppearedAt63, detail);
+                self.wake(at + DUP_MAC_INTERVAL + DUP_MAC_INTERVAL + ONLINE_MARGIN);
             }
             return;
         }
         if let Some(p) = self.adr.pending.get_mut(&mac) {
             if p.serial == check.serial_number && !p.checked {
                 p.checked = true;
+                p.online = Some(at + DUP_MAC_INTERVAL + DUP_MAC_INTERVAL);
                 let since = p.appeared.map(|a| format!(", {} ms after it appeared at 63", ms(a, at)));
                 let detail = format!(
                     "the replacement (serial 0x{:08X}) runs its duplicate MAC ID check at MAC {mac}{}",
@@ -69,8 +93,29 @@ impl Scanner {
                     since.unwrap_or_default()
                 );
                 self.event(at, mac, EventKind::DuplicateCheck, detail);
+                // On-line two intervals after its first request (protocol §7.1): brought up then.
+                self.wake(at + DUP_MAC_INTERVAL + DUP_MAC_INTERVAL + ONLINE_MARGIN);
             }
         }
+    }
+
+    /// `true` while the node at `mac` is not to be brought up: a replacement moved there is
+    /// still running its duplicate MAC ID check (a bring-up then would only wait out its timeout).
+    pub(super) fn adr_defers(&self, mac: u8, now: Instant) -> bool {
+        self.adr.pending.get(&mac).is_some_and(|p| p.appeared.is_some() && p.online.is_none_or(|o| now < o))
+            && self.adr.pending.get(&mac).is_some_and(|p| p.moved_at.is_some_and(|m| now - m < MOVE_TIMEOUT))
+    }
+
+    /// Each cycle: a node with ADR that came into I/O is looked at at once ([`Scanner::adr_step`]
+    /// does the rest every reconnect interval).
+    pub(super) fn adr_cycle(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
+        if !self.adr_wanted() {
+            return Ok(());
+        }
+        for i in 0..self.nodes.len() {
+            self.adr_joined(master, i)?;
+        }
+        Ok(())
     }
 
     /// The ADR step: nodes joined and lost, a device at MAC 63, replacements' configurations.
@@ -219,7 +264,10 @@ impl Scanner {
         // The reset dropped its connections.
         master.set_held(target, AllocationChoice::empty());
         let serial = device.serial_number.unwrap_or(at63.serial);
-        self.adr.pending.insert(mac, Pending { serial, appeared: Some(at63.at), checked: false });
+        let moved_at = Some(master.session.now());
+        self.adr
+            .pending
+            .insert(mac, Pending { serial, appeared: Some(at63.at), checked: false, online: None, moved_at });
         let detail = format!(
             "the device at MAC 63 ({what}) was given MAC {mac} (DeviceNet attribute 1) and reset, {} ms after it appeared",
             ms(at63.at, master.session.now())
@@ -277,6 +325,8 @@ impl Scanner {
             serial: serial.unwrap_or(0),
             appeared: None,
             checked: false,
+            online: None,
+            moved_at: None,
         });
         let ccv = read_ccv(master, target);
         let show = |c: Option<u16>| c.map_or("none".to_string(), |c| format!("0x{c:04X}"));
