@@ -57,7 +57,9 @@ pub struct DecodeArgs {
 }
 
 impl DecodeArgs {
-    fn filter(&self) -> Filter {
+    /// The filter of `--mac`, `--group` and `--kind`.
+    #[must_use]
+    pub fn filter(&self) -> Filter {
         Filter { macs: self.macs.clone(), groups: self.groups.clone(), kinds: self.kinds.clone() }
     }
 }
