@@ -19,6 +19,7 @@
 //! | [`adr`], [`events`] | automatic device replacement: what is kept of each node, how a replacement is recognised; the event log of its steps and of scan-list changes |
 //! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
 //! | [`mqtt`] | node status and decoded values published to an MQTT broker |
+//! | [`sparkplug`] | the scanner as a Sparkplug B edge node: births, data by exception, store and forward, DCMD |
 //!
 //! ## No-panic contract
 //!
@@ -41,6 +42,7 @@ pub mod params;
 pub mod project;
 pub mod report;
 pub mod scan;
+pub mod sparkplug;
 pub mod timing;
 pub mod ui;
 

@@ -2,7 +2,7 @@
 //! broker, where one bench grows into a plant (a SCADA, Node-RED, Grafana or Home Assistant
 //! subscribes there).
 //!
-//! The client is `rumqttc`'s synchronous [`Client`] (MQTT 3.1.1, plain TCP), its event loop
+//! The client is `rumqttc`'s synchronous [`Client`] (MQTT 3.1.1, over TCP or TLS), its event loop
 //! turned by a background thread of the [`Publisher`]: the scanner's thread only puts messages in
 //! a bounded queue and never waits for the network.
 //!
@@ -11,7 +11,17 @@
 //! `mqtt://[USER[:PASSWORD]@]HOST[:PORT][/PREFIX]` (`tcp://` is the same): port 1883 by default,
 //! topic prefix `devicenet` by default (`mqtt://broker/plant/line1` publishes under
 //! `plant/line1/...`). An IPv6 host is written in brackets (`mqtt://[::1]:1883`). A malformed URL
-//! is an error of [`Publisher::start`]; `mqtts://` and `ws://` are refused (no TLS in this build).
+//! is an error of [`Publisher::start`]; `ws://` is refused (no websockets in this build).
+//!
+//! ## TLS
+//!
+//! `mqtts://` (`ssl://`, `tls://` are the same) connects with TLS 1.2 or 1.3 (rustls), port 8883 by
+//! default. The broker's certificate is checked against [`TlsFiles::ca`] (`--mqtt-ca FILE`, PEM)
+//! when given, else against the system's trusted roots, and its name against the URL's host. With
+//! [`TlsFiles::cert`] and [`TlsFiles::key`] (`--mqtt-cert`, `--mqtt-key`, PEM) the client
+//! authenticates itself with a certificate too. An unreadable file is an error of
+//! [`Publisher::start`]; a certificate the broker's does not match is a failed connection (the
+//! status says why, and it is tried again like a broker that is down).
 //!
 //! ## Topics and payloads
 //!
@@ -107,30 +117,138 @@ pub struct Endpoint {
     pub prefix: String,
     /// User name and password.
     pub credentials: Option<(String, String)>,
+    /// `mqtts://`: TLS.
+    pub tls: bool,
 }
 
 impl Endpoint {
-    /// `mqtt://HOST:PORT/PREFIX`, without the password.
+    /// `mqtt://HOST:PORT/PREFIX` (`mqtts://` with TLS), without the password.
     #[must_use]
     pub fn display(&self) -> String {
-        format!("mqtt://{}:{}/{}", self.host, self.port, self.prefix)
+        let scheme = if self.tls { "mqtts" } else { "mqtt" };
+        format!("{scheme}://{}:{}/{}", self.host, self.port, self.prefix)
     }
+}
+
+/// The files of a TLS connection to the broker (see the [module docs](self#tls)).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TlsFiles {
+    /// The certificate authority (PEM) the broker's certificate must chain to; `None`: the
+    /// system's trusted roots.
+    pub ca: Option<std::path::PathBuf>,
+    /// The client's certificate chain (PEM), for a broker that asks for one.
+    pub cert: Option<std::path::PathBuf>,
+    /// The client's private key (PEM).
+    pub key: Option<std::path::PathBuf>,
+}
+
+/// Why a TLS configuration cannot be made.
+#[derive(Debug, thiserror::Error)]
+pub enum TlsError {
+    /// A PEM file cannot be read or holds no certificate / key.
+    #[error("{option} {path}: {detail}")]
+    File {
+        /// `--mqtt-ca`, `--mqtt-cert` or `--mqtt-key`.
+        option: &'static str,
+        /// The file.
+        path: String,
+        /// Why.
+        detail: String,
+    },
+    /// Only one of the certificate and the key is given.
+    #[error("--mqtt-cert and --mqtt-key go together")]
+    HalfClientAuth,
+    /// TLS files given for a plain `mqtt://` URL.
+    #[error("--mqtt-ca, --mqtt-cert and --mqtt-key need an mqtts:// URL")]
+    NotTls,
+    /// rustls refused the configuration.
+    #[error("TLS: {0}")]
+    Rustls(#[from] rustls::Error),
+}
+
+/// The rustls client configuration of `files` (ring provider).
+fn tls_config(files: &TlsFiles) -> Result<rustls::ClientConfig, TlsError> {
+    use rustls::pki_types::pem::PemObject;
+    use rustls::pki_types::{CertificateDer, PrivateKeyDer};
+    fn file_err<'a>(
+        option: &'static str,
+        path: &'a std::path::Path,
+    ) -> impl Fn(&dyn std::fmt::Display) -> TlsError + 'a {
+        move |e| TlsError::File { option, path: path.display().to_string(), detail: e.to_string() }
+    }
+    let certs =
+        |option: &'static str, path: &std::path::Path| -> Result<Vec<CertificateDer<'static>>, TlsError> {
+            let e = file_err(option, path);
+            let certs: Vec<_> = CertificateDer::pem_file_iter(path)
+                .map_err(|x| e(&x))?
+                .collect::<Result<_, _>>()
+                .map_err(|x| e(&x))?;
+            if certs.is_empty() {
+                return Err(e(&"no certificate (PEM) in the file"));
+            }
+            Ok(certs)
+        };
+    let provider = std::sync::Arc::new(rustls::crypto::ring::default_provider());
+    let builder =
+        rustls::ClientConfig::builder_with_provider(provider).with_safe_default_protocol_versions()?;
+    let mut roots = rustls::RootCertStore::empty();
+    match &files.ca {
+        Some(ca) => {
+            for cert in certs("--mqtt-ca", ca)? {
+                roots.add(cert).map_err(|x| file_err("--mqtt-ca", ca)(&x))?;
+            }
+        }
+        None => {
+            let _ = roots.add_parsable_certificates(rustls_native_certs::load_native_certs().certs);
+        }
+    }
+    let builder = builder.with_root_certificates(roots);
+    Ok(match (&files.cert, &files.key) {
+        (Some(cert), Some(key)) => {
+            let chain = certs("--mqtt-cert", cert)?;
+            let key = PrivateKeyDer::from_pem_file(key).map_err(|x| file_err("--mqtt-key", key)(&x))?;
+            builder.with_client_auth_cert(chain, key)?
+        }
+        (None, None) => builder.with_no_client_auth(),
+        _ => return Err(TlsError::HalfClientAuth),
+    })
+}
+
+/// The options of a connection to `endpoint` as `client_id`: keep-alive 10 s, clean session,
+/// credentials, and TLS for `mqtts://` (see the [module docs](self#tls)).
+pub fn mqtt_options(endpoint: &Endpoint, client_id: &str, tls: &TlsFiles) -> Result<MqttOptions, TlsError> {
+    // rumqttc joins host and port as `HOST:PORT`: an IPv6 host keeps its brackets.
+    let mut options = MqttOptions::new(client_id, endpoint.host.clone(), endpoint.port);
+    options.set_keep_alive(Duration::from_secs(10)).set_clean_session(true);
+    if let Some((user, pass)) = &endpoint.credentials {
+        options.set_credentials(user.clone(), pass.clone());
+    }
+    if endpoint.tls {
+        let config = tls_config(tls)?;
+        options.set_transport(rumqttc::Transport::tls_with_config(rumqttc::TlsConfiguration::Rustls(
+            std::sync::Arc::new(config),
+        )));
+    } else if *tls != TlsFiles::default() {
+        return Err(TlsError::NotTls);
+    }
+    Ok(options)
 }
 
 /// Parses `mqtt://[USER[:PASSWORD]@]HOST[:PORT][/PREFIX]` (see the [module docs](self)).
 pub fn parse_url(url: &str) -> Result<Endpoint, String> {
     let bad = |why: &str| format!("malformed MQTT URL `{url}`: {why} (expected mqtt://HOST[:PORT][/PREFIX])");
     let (scheme, rest) = url.split_once("://").ok_or_else(|| bad("no scheme"))?;
-    match scheme.to_ascii_lowercase().as_str() {
-        "mqtt" | "tcp" => {}
-        "mqtts" | "ssl" | "tls" | "ws" | "wss" => {
+    let tls = match scheme.to_ascii_lowercase().as_str() {
+        "mqtt" | "tcp" => false,
+        "mqtts" | "ssl" | "tls" => true,
+        "ws" | "wss" => {
             return Err(format!(
-                "MQTT URL `{url}`: {scheme}:// is not supported (no TLS or websockets in this \
-                 build): use mqtt://"
+                "MQTT URL `{url}`: {scheme}:// is not supported (no websockets in this build): use \
+                 mqtt:// or mqtts://"
             ))
         }
         _ => return Err(bad(&format!("unknown scheme `{scheme}`"))),
-    }
+    };
     if rest.contains('?') {
         return Err(bad("a query is not allowed"));
     }
@@ -163,6 +281,7 @@ pub fn parse_url(url: &str) -> Result<Endpoint, String> {
         return Err(bad("a space, `#` or control character in the host"));
     }
     let port = match port {
+        None if tls => 8883,
         None => 1883,
         Some(p) => match p.parse::<u16>() {
             Ok(n) if n > 0 => n,
@@ -174,7 +293,7 @@ pub fn parse_url(url: &str) -> Result<Endpoint, String> {
         return Err(bad("the topic prefix may not hold `+`, `#`, `?` or NUL"));
     }
     let prefix = if prefix.is_empty() { DEFAULT_PREFIX } else { prefix };
-    Ok(Endpoint { host, port, prefix: prefix.to_owned(), credentials })
+    Ok(Endpoint { host, port, prefix: prefix.to_owned(), credentials, tls })
 }
 
 /// The state of the link to the broker.
@@ -226,18 +345,21 @@ impl Publisher {
     /// Parses `url` and starts the background connection as `client_id` (empty: `dnet-master`).
     /// A malformed URL is an error; a broker that is down is not (see [`Publisher::status`]).
     pub fn start(url: &str, client_id: &str) -> Result<Publisher, String> {
+        Publisher::start_tls(url, client_id, &TlsFiles::default())
+    }
+
+    /// [`Publisher::start`] with the files of a TLS connection (`mqtts://`). An unreadable file
+    /// is an error.
+    pub fn start_tls(url: &str, client_id: &str, tls: &TlsFiles) -> Result<Publisher, String> {
         let endpoint = parse_url(url)?;
         let client_id = if client_id.is_empty() { "dnet-master" } else { client_id };
-        let mut options = MqttOptions::new(client_id, endpoint.host.clone(), endpoint.port);
-        options.set_keep_alive(Duration::from_secs(10)).set_clean_session(true).set_last_will(LastWill::new(
+        let mut options = mqtt_options(&endpoint, client_id, tls).map_err(|e| e.to_string())?;
+        options.set_last_will(LastWill::new(
             format!("{}/scanner", endpoint.prefix),
             r#"{"status":"offline"}"#,
             QoS::AtLeastOnce,
             true,
         ));
-        if let Some((user, pass)) = &endpoint.credentials {
-            options.set_credentials(user.clone(), pass.clone());
-        }
         let (client, mut connection) = Client::new(options, QUEUE);
         let shared = Arc::new(Shared {
             inner: Mutex::new(Inner {
@@ -477,7 +599,7 @@ mod tests {
     use rstest::rstest;
 
     fn ep(host: &str, port: u16, prefix: &str) -> Endpoint {
-        Endpoint { host: host.into(), port, prefix: prefix.into(), credentials: None }
+        Endpoint { host: host.into(), port, prefix: prefix.into(), credentials: None, tls: false }
     }
 
     #[rstest]
@@ -486,6 +608,8 @@ mod tests {
     #[case::prefix("mqtt://b:1883/plant/line1/", ep("b", 1883, "plant/line1"))]
     #[case::tcp("tcp://b", ep("b", 1883, "devicenet"))]
     #[case::ipv6("mqtt://[::1]:1885/x", ep("[::1]", 1885, "x"))]
+    #[case::tls("mqtts://b", Endpoint { tls: true, ..ep("b", 8883, "devicenet") })]
+    #[case::tls_port("ssl://b:8884", Endpoint { tls: true, ..ep("b", 8884, "devicenet") })]
     fn urls(#[case] url: &str, #[case] endpoint: Endpoint) {
         assert_eq!(parse_url(url), Ok(endpoint));
     }
@@ -500,7 +624,7 @@ mod tests {
     #[rstest]
     #[case::no_scheme("broker:1883", "no scheme")]
     #[case::scheme("http://b", "unknown scheme `http`")]
-    #[case::tls("mqtts://b", "not supported")]
+    #[case::websocket("ws://b", "not supported")]
     #[case::no_host("mqtt://:1883", "no host")]
     #[case::port_text("mqtt://b:abc", "port `abc`")]
     #[case::port_zero("mqtt://b:0", "port `0`")]

@@ -21,3 +21,4 @@ pub mod ui_access;
 pub mod user;
 pub mod ui_modbus;
 pub mod ui_opcua;
+pub mod ui_sparkplug;

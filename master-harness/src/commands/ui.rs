@@ -75,6 +75,10 @@ pub struct UiArgs {
     /// OPC UA: `--opcua ADDR`, `--opcua-pki DIR` (`super::ui_opcua`).
     #[command(flatten)]
     pub opcua: super::ui_opcua::OpcUaArgs,
+    /// Sparkplug B: `--sparkplug GROUP/EDGE_NODE`, its store, DCMD; TLS files of `--mqtt`
+    /// (`super::ui_sparkplug`).
+    #[command(flatten)]
+    pub sparkplug: super::ui_sparkplug::SparkplugArgs,
 }
 
 /// What `ui` writes to besides the console, checked and opened before the bus is touched: the record
@@ -96,9 +100,10 @@ fn open_outputs(args: &UiArgs) -> Result<(Option<Arc<History>>, Option<Publisher
         }
         None => None,
     };
-    let publisher = match &args.mqtt {
+    // With --sparkplug the broker gets the Sparkplug edge node instead (`super::ui_sparkplug`).
+    let publisher = match args.mqtt.as_ref().filter(|_| args.sparkplug.sparkplug.is_none()) {
         Some(url) => Some(
-            Publisher::start(url, "dnet-master")
+            Publisher::start_tls(url, "dnet-master", &args.sparkplug.tls_files())
                 .map_err(|detail| HarnessError::Mqtt { url: url.clone(), detail })?,
         ),
         None => None,
@@ -138,6 +143,7 @@ pub fn execute(
     let modbus = args.modbus.start(&shared)?;
     // No accounts yet (ui --users): anonymous sessions only.
     let opcua = args.opcua.start(&shared, None)?;
+    let sparkplug = args.sparkplug.start(args.mqtt.as_deref(), &shared)?;
     let server = serve_with(&args.listen, Arc::clone(&shared), access)?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
     if let Some(m) = &modbus {
@@ -226,6 +232,13 @@ pub fn execute(
                     *status = Some(p.status());
                 }
             }
+            if let Some(e) = &sparkplug {
+                e.publish_state(s.state());
+                e.publish_samples(&samples);
+                if let Ok(mut status) = shared.mqtt.lock() {
+                    *status = Some(e.status());
+                }
+            }
         }
     })();
     progress.clear();
@@ -236,6 +249,7 @@ pub fn execute(
     // As `scanner`: 0 only when every node ended ok (in I/O with data exchanged).
     let Ending { interrupted, cleanup, code } = finish(&mut master, scanner.as_mut(), &result, opts.keep);
     drop(publisher);
+    drop(sparkplug);
     if let Some(s) = &scanner {
         write!(out, "{}", table(s.state())).map_err(werr)?;
     }

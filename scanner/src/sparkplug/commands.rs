@@ -1,0 +1,183 @@
+//! DCMD (`--sparkplug-commands`): a host application's writes to a device's output image and its
+//! breaker commands, carried out by the scanner's loop like the console's and recorded through the
+//! [`CommandLog`] given to the publisher.
+
+use super::edge::{Device, Edge, BREAKER_CLOSE, BREAKER_OPEN, OUTPUT_IMAGE};
+use super::proto::{self, Payload};
+use crate::history::hex;
+use crate::model::ConsoleCommand;
+use crate::monitor::ImageProfile;
+use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::time::Duration;
+
+/// How long a command waits for the scanner's loop to carry it out.
+const ANSWER_WITHIN: Duration = Duration::from_secs(10);
+
+/// One DCMD metric carried out or refused, for the audit log.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CommandRecord {
+    /// Who sent it: `sparkplug` (MQTT carries no user of its own; the broker's ACL decides who may
+    /// publish DCMD).
+    pub user: String,
+    /// The device's MAC ID.
+    pub mac: u8,
+    /// What: `Outputs/Image = 0102...`, `Commands/Close`.
+    pub what: String,
+    /// `ok`, or the reason it was refused or failed.
+    pub result: String,
+}
+
+/// Where commands are recorded (the audit log); called once per DCMD metric.
+pub type CommandLog = Box<dyn Fn(&CommandRecord) + Send>;
+
+/// A DCMD as received: the device and the payload.
+pub(super) struct Dcmd {
+    pub mac: u8,
+    pub payload: Vec<u8>,
+}
+
+/// Starts the thread that carries out DCMD: `scanner` is the scanner loop's command queue.
+pub(super) fn spawn(
+    edge: Arc<Mutex<Edge>>,
+    scanner: Sender<ConsoleCommand>,
+    log: Option<CommandLog>,
+) -> std::io::Result<mpsc::SyncSender<Dcmd>> {
+    let (tx, rx) = mpsc::sync_channel::<Dcmd>(16);
+    std::thread::Builder::new()
+        .name("sparkplug-dcmd".into())
+        .spawn(move || run(&rx, &edge, &scanner, log.as_ref()))?;
+    Ok(tx)
+}
+
+fn run(rx: &Receiver<Dcmd>, edge: &Mutex<Edge>, scanner: &Sender<ConsoleCommand>, log: Option<&CommandLog>) {
+    while let Ok(cmd) = rx.recv() {
+        let records = match <Payload as prost::Message>::decode(cmd.payload.as_slice()) {
+            Ok(p) => p
+                .metrics
+                .iter()
+                .map(|m| {
+                    let device =
+                        edge.lock().unwrap_or_else(PoisonError::into_inner).devices.get(&cmd.mac).cloned();
+                    carry_out(cmd.mac, device.as_ref(), m, scanner)
+                })
+                .collect(),
+            Err(e) => vec![CommandRecord {
+                user: "sparkplug".into(),
+                mac: cmd.mac,
+                what: "DCMD".into(),
+                result: format!("refused: not a Sparkplug B payload ({e})"),
+            }],
+        };
+        if let Some(log) = log {
+            for r in &records {
+                log(r);
+            }
+        }
+    }
+}
+
+/// What one DCMD metric asks, as the output image to write.
+fn output_for(device: &Device, metric: &proto::Metric) -> Result<(String, Vec<u8>), String> {
+    let name = metric.name.as_deref().unwrap_or("");
+    match (name, &metric.value) {
+        (OUTPUT_IMAGE, Some(proto::Value::BytesValue(b))) => {
+            Ok((format!("{OUTPUT_IMAGE} = {}", hex(b)), b.clone()))
+        }
+        (OUTPUT_IMAGE, _) => Err(format!("{OUTPUT_IMAGE} takes Bytes")),
+        (BREAKER_OPEN | BREAKER_CLOSE, _) if device.layout.profile != ImageProfile::Breaker => {
+            Err("not a breaker".into())
+        }
+        (BREAKER_OPEN | BREAKER_CLOSE, Some(proto::Value::BooleanValue(true))) => {
+            // The breaker's command through the output image (guide: reference/io-data.md,
+            // "Commands through the poll output"): byte 0 the command, byte 1 a new sequence number.
+            let code = if name == BREAKER_OPEN { 1 } else { 2 };
+            let size = device.output_size.map_or(8, usize::from).max(5);
+            let mut data = vec![0u8; size];
+            data[0] = code;
+            data[1] = device.output.get(1).copied().unwrap_or(0).wrapping_add(1);
+            Ok((name.to_owned(), data))
+        }
+        (BREAKER_OPEN | BREAKER_CLOSE, _) => Err(format!("{name} takes Boolean true")),
+        (other, _) => Err(format!(
+            "no writable metric {other:?} (writable: {OUTPUT_IMAGE}, {BREAKER_OPEN}, {BREAKER_CLOSE})"
+        )),
+    }
+}
+
+fn carry_out(
+    mac: u8,
+    device: Option<&Device>,
+    metric: &proto::Metric,
+    scanner: &Sender<ConsoleCommand>,
+) -> CommandRecord {
+    let mut record = CommandRecord {
+        user: "sparkplug".into(),
+        mac,
+        what: metric.name.clone().unwrap_or_default(),
+        result: String::new(),
+    };
+    let Some(device) = device else {
+        record.result = "refused: no such device".into();
+        return record;
+    };
+    let (what, data) = match output_for(device, metric) {
+        Ok(x) => x,
+        Err(why) => {
+            record.result = format!("refused: {why}");
+            return record;
+        }
+    };
+    record.what = what;
+    let (reply, answer) = mpsc::channel();
+    if scanner.send(ConsoleCommand::SetOutput { mac, data, reply }).is_err() {
+        record.result = "failed: the scanner has stopped".into();
+        return record;
+    }
+    record.result = match answer.recv_timeout(ANSWER_WITHIN) {
+        Ok(Ok(_)) => "ok".into(),
+        Ok(Err(e)) => format!("failed: {e}"),
+        Err(_) => "failed: no answer from the scanner".into(),
+    };
+    record
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::monitor::InputLayout;
+
+    fn device(profile: ImageProfile) -> Device {
+        Device {
+            metrics: Default::default(),
+            output: vec![0, 7, 0, 0, 0, 0, 0, 0],
+            output_size: Some(8),
+            layout: InputLayout { profile, image_len: 18, with_status: false },
+        }
+    }
+
+    fn metric(name: &str, value: proto::Value) -> proto::Metric {
+        proto::Metric { name: Some(name.into()), value: Some(value), ..Default::default() }
+    }
+
+    #[test]
+    fn breaker_close_bumps_the_sequence() {
+        let (what, data) = output_for(
+            &device(ImageProfile::Breaker),
+            &metric(BREAKER_CLOSE, proto::Value::BooleanValue(true)),
+        )
+        .unwrap();
+        assert_eq!((what.as_str(), data), (BREAKER_CLOSE, vec![2, 8, 0, 0, 0, 0, 0, 0]));
+    }
+
+    #[test]
+    fn refusals_say_why() {
+        let raw = device(ImageProfile::Raw);
+        let e = output_for(&raw, &metric(BREAKER_OPEN, proto::Value::BooleanValue(true))).unwrap_err();
+        assert_eq!(e, "not a breaker");
+        let e = output_for(&raw, &metric(OUTPUT_IMAGE, proto::Value::IntValue(3))).unwrap_err();
+        assert!(e.contains("Bytes"), "{e}");
+        let e = output_for(&raw, &metric("Inputs/phase_a", proto::Value::DoubleValue(1.0))).unwrap_err();
+        assert!(e.contains("no writable metric"), "{e}");
+    }
+}

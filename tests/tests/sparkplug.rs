@@ -1,0 +1,599 @@
+//! `dnet-master ui --mqtt URL --sparkplug GROUP/EDGE_NODE` against Debian's mosquitto, with an
+//! independent Sparkplug B host application as the oracle: `tests/python/sparkplug_host.py` on
+//! PyPI's pysparkplug (its own protobuf code, generated from Eclipse Tahu's `.proto`). Each test
+//! starts its own broker on a free port of 127.0.0.1 and drives `dnet-master` as a process:
+//!
+//! - births, data by exception, the seq rules, Rebirth, DCMD (recorded in the audit log) and the
+//!   clean NDEATH, on the simulated bus;
+//! - store and forward across a broker stop and restart: a change made while the broker is away
+//!   reaches the host afterwards, flagged historical, with its own time, and the new session has
+//!   the next bdSeq;
+//! - TLS (`mqtts://`, certificates made by `openssl` for the test), and a broker whose certificate
+//!   the given CA did not sign is not talked to;
+//! - the real SLCAN path: `dnet-soft-slave` with `dnet-sim-breaker` on socat pty pairs.
+//!
+//! Needs mosquitto, openssl, socat and the venv's pysparkplug (`DNET_PYTHON`, else
+//! `.venv/bin/python`): ignored in the plain run; `scripts/check` runs them with `--ignored`. They
+//! fail, not skip, when a tool is missing.
+
+use pty_rig::{bin, require_socat, scratch, Proc, PtyRig};
+use serde_json::{json, Value};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver};
+use std::time::{Duration, Instant};
+
+const GROUP: &str = "plant";
+const EDGE: &str = "line1";
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+fn python() -> PathBuf {
+    let python = std::env::var_os("DNET_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| pty_rig::workspace_dir().join(".venv/bin/python"));
+    let ok = Command::new(&python).args(["-c", "import pysparkplug"]).status().is_ok_and(|s| s.success());
+    assert!(ok, "{} cannot import pysparkplug: .venv/bin/pip install pysparkplug==0.6.1", python.display());
+    python
+}
+
+/// A mosquitto of its own on `port`, plain or with TLS files (`cafile`, `certfile`, `keyfile`).
+struct Broker {
+    child: Child,
+    conf: PathBuf,
+    port: u16,
+}
+
+impl Broker {
+    fn start(dir: &Path, port: u16, tls: Option<(&Path, &Path, &Path)>) -> Broker {
+        let conf = dir.join(format!("mosquitto-{port}.conf"));
+        let mut text = format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n");
+        if let Some((ca, cert, key)) = tls {
+            text +=
+                &format!("cafile {}\ncertfile {}\nkeyfile {}\n", ca.display(), cert.display(), key.display());
+        }
+        std::fs::write(&conf, text).unwrap();
+        Broker::run(conf, port)
+    }
+
+    fn run(conf: PathBuf, port: u16) -> Broker {
+        let child = Command::new("mosquitto")
+            .arg("-c")
+            .arg(&conf)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("mosquitto is missing: apt-get install mosquitto");
+        let until = Instant::now() + Duration::from_secs(10);
+        while TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(Instant::now() < until, "mosquitto did not listen on {port}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Broker { child, conf, port }
+    }
+
+    /// Stops it (SIGKILL: the edge node's link breaks as in a crash) and starts it again after
+    /// `away`, on the same port.
+    fn restart_after(&mut self, away: Duration, meanwhile: impl FnOnce()) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        meanwhile();
+        std::thread::sleep(away);
+        let again = Broker::run(self.conf.clone(), self.port);
+        drop(std::mem::replace(self, again));
+    }
+}
+
+impl Drop for Broker {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// The host application: its decoded messages as JSON values, and its stdin for commands.
+struct Host {
+    child: Child,
+    stdin: ChildStdin,
+    rx: Receiver<Value>,
+    seen: Vec<Value>,
+}
+
+impl Host {
+    fn start(port: u16, ca: Option<&Path>) -> Host {
+        let script = pty_rig::workspace_dir().join("tests/python/sparkplug_host.py");
+        let mut cmd = Command::new(python());
+        cmd.arg(script).arg("127.0.0.1").arg(port.to_string()).arg(GROUP);
+        if let Some(ca) = ca {
+            cmd.arg("--ca").arg(ca);
+        }
+        let mut child =
+            cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::inherit()).spawn().unwrap();
+        let stdin = child.stdin.take().unwrap();
+        let stdout = child.stdout.take().unwrap();
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                match serde_json::from_str::<Value>(&line) {
+                    Ok(v) => {
+                        let _ = tx.send(v);
+                    }
+                    Err(e) => panic!("the host printed a line that is not JSON ({e}): {line}"),
+                }
+            }
+        });
+        let mut host = Host { child, stdin, rx, seen: Vec::new() };
+        host.next(Duration::from_secs(20), "the host connected", |v| v["ready"] == true);
+        host
+    }
+
+    /// The next message (after those already taken) that `want` accepts, within `limit`.
+    fn next(&mut self, limit: Duration, what: &str, want: impl Fn(&Value) -> bool) -> Value {
+        let until = Instant::now() + limit;
+        loop {
+            let left = until.saturating_duration_since(Instant::now());
+            match self.rx.recv_timeout(left) {
+                Ok(v) => {
+                    self.seen.push(v.clone());
+                    assert!(v.get("error").is_none(), "the host could not decode: {v}");
+                    if want(&v) {
+                        return v;
+                    }
+                }
+                Err(_) => panic!("{what}: not within {limit:?}; the host saw:\n{}", self.dump()),
+            }
+        }
+    }
+
+    /// A message already taken that `want` accepts, else [`Host::next`].
+    fn seen_or_next(&mut self, limit: Duration, what: &str, want: impl Fn(&Value) -> bool) -> Value {
+        match self.seen.iter().find(|v| want(v)) {
+            Some(v) => v.clone(),
+            None => self.next(limit, what, want),
+        }
+    }
+
+    fn send(&mut self, command: &Value) {
+        writeln!(self.stdin, "{command}").unwrap();
+        self.stdin.flush().unwrap();
+    }
+
+    fn dump(&self) -> String {
+        self.seen.iter().map(Value::to_string).collect::<Vec<_>>().join("\n")
+    }
+}
+
+impl Drop for Host {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn of_type<'a>(kind: &'a str, device: Option<&'a str>) -> impl Fn(&Value) -> bool + 'a {
+    move |v| v["type"] == kind && device.is_none_or(|d| v["device"] == d)
+}
+
+/// The metric `name` of a decoded message.
+fn metric<'a>(message: &'a Value, name: &str) -> Option<&'a Value> {
+    message["metrics"].as_array()?.iter().find(|m| m["name"] == name)
+}
+
+/// `dnet-master --bus BUS ui ... --mqtt URL --sparkplug plant/line1 ...`.
+fn master(bus: &[&str], dir: &Path, url: &str, extra: &[&str]) -> (Proc, String) {
+    let store = dir.join("sparkplug.sqlite");
+    let history = dir.join("history.sqlite");
+    let mut args: Vec<&str> = bus.to_vec();
+    args.extend([
+        "ui",
+        "--listen",
+        "127.0.0.1:0",
+        "--history",
+        history.to_str().unwrap(),
+        "--record-dir",
+        dir.to_str().unwrap(),
+        "--mqtt",
+        url,
+        "--sparkplug",
+        "plant/line1",
+        "--sparkplug-store",
+        store.to_str().unwrap(),
+    ]);
+    args.extend(extra);
+    let p = Proc::spawn(bin("dnet-master"), &args);
+    let line = p
+        .wait_stdout("console at http://", Duration::from_secs(30))
+        .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
+    let addr = line.trim().trim_start_matches("console at http://").trim_end_matches('/').to_string();
+    (p, addr)
+}
+
+/// One HTTP/1.1 request to the console, as its page sends it (token and origin).
+fn http(addr: &str, method: &str, path: &str) -> (u16, String) {
+    let raw = |method: &str, path: &str, guard: &str| {
+        let mut s = TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        let request = format!(
+            "{method} {path} HTTP/1.1\r\nHost: {addr}\r\n{guard}Content-Type: application/json\r\nContent-Length: 0\r\nConnection: close\r\n\r\n"
+        );
+        s.write_all(request.as_bytes()).unwrap();
+        let mut answer = String::new();
+        s.read_to_string(&mut answer).unwrap();
+        let status = answer.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+        (status, answer.split_once("\r\n\r\n").map_or(String::new(), |(_, b)| b.to_string()))
+    };
+    if method == "GET" {
+        return raw(method, path, "");
+    }
+    let (_, body) = raw("GET", "/api/token", "");
+    let token: Value = serde_json::from_str(&body).unwrap_or(Value::Null);
+    let token = token["token"].as_str().unwrap_or_default().to_string();
+    raw(method, path, &format!("Origin: http://{addr}\r\nX-CSRF-Token: {token}\r\n"))
+}
+
+/// Every message of the edge node after its last NBIRTH has seq one more than the one before
+/// (255 wraps to 0), NBIRTH seq 0.
+fn assert_seq_rules(seen: &[Value]) {
+    let mut last: Option<u64> = None;
+    let mut checked = 0;
+    for v in seen.iter().filter(|v| v["type"].is_string()) {
+        let Some(seq) = v["seq"].as_u64() else { continue };
+        match v["type"].as_str() {
+            Some("NBIRTH") => {
+                assert_eq!(seq, 0, "NBIRTH seq: {v}");
+                last = Some(0);
+            }
+            Some("DBIRTH" | "DDATA") => {
+                let before = last.unwrap_or_else(|| panic!("{v} before any NBIRTH"));
+                assert_eq!(seq, (before + 1) % 256, "seq after {before}: {v}");
+                last = Some(seq);
+                checked += 1;
+            }
+            _ => {}
+        }
+    }
+    assert!(checked > 0, "no DBIRTH/DDATA to check the seq of");
+}
+
+/// The reference device's product name (the simulated breaker's and the soft slave's).
+fn product_name() -> String {
+    slave_fw::description::DeviceDescription::reference().converter.device.identity.product_name.to_string()
+}
+
+const SWITCH_CLOSED: f64 = converter_sim::device::SWITCH_CLOSED as f64;
+const SWITCH_OPEN: f64 = converter_sim::device::SWITCH_OPEN as f64;
+
+#[test]
+#[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
+fn births_data_rebirth_dcmd_and_death_on_the_simulated_bus() {
+    let dir = scratch("spb-sim");
+    let port = free_port();
+    let _broker = Broker::start(&dir, port, None);
+    let mut host = Host::start(port, None);
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let (mut p, addr) = master(&["--bus", "sim", "--slave-mac", "5"], &dir, &url, &["--sparkplug-commands"]);
+
+    let nbirth = host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH", None));
+    let bd_seq = nbirth["bd_seq"].as_u64().unwrap_or_else(|| panic!("NBIRTH without bdSeq: {nbirth}"));
+    assert_eq!(nbirth["topic"], "spBv1.0/plant/NBIRTH/line1");
+    assert_eq!(metric(&nbirth, "Node Control/Rebirth").map(|m| m["value"].clone()), Some(json!(false)));
+    let dbirth = host.next(Duration::from_secs(30), "DBIRTH mac05", of_type("DBIRTH", Some("mac05")));
+    let value = |m: &Value, name: &str| metric(m, name).map(|x| x["value"].clone()).unwrap_or(Value::Null);
+    assert_eq!(value(&dbirth, "Identity/Product Name"), product_name(), "{dbirth}");
+    assert!(value(&dbirth, "Identity/Vendor ID").is_u64(), "{dbirth}");
+    assert_eq!(
+        metric(&dbirth, "Inputs/phase_a").map(|m| m["datatype"].clone()),
+        Some(json!("DOUBLE")),
+        "{dbirth}"
+    );
+    for name in [
+        "Inputs/phase_b",
+        "Inputs/phase_c",
+        "Inputs/neutral",
+        "Inputs/switch",
+        "Status/State",
+        "Outputs/Image",
+        "Commands/Close",
+    ] {
+        assert!(metric(&dbirth, name).is_some(), "DBIRTH without {name}: {dbirth}");
+    }
+    let units_of = |v: &Value| v["topic"] == "spBv1.0/plant/DBIRTH/line1/mac05" && v.get("units").is_some();
+    let units = host.seen_or_next(Duration::from_secs(5), "the DBIRTH's units", units_of);
+    assert_eq!(units["units"]["Inputs/phase_a"], "A", "{units}");
+    assert!(units["units"].get("Inputs/switch").is_none(), "the switch has no unit: {units}");
+
+    // A node that comes into I/O: its status changes by exception.
+    let ok = |v: &Value| {
+        of_type("DDATA", Some("mac05"))(v) && metric(v, "Status/State").is_some_and(|m| m["value"] == "ok")
+            || of_type("DBIRTH", Some("mac05"))(v)
+                && metric(v, "Status/State").is_some_and(|m| m["value"] == "ok")
+    };
+    let ok_seen = host.seen.iter().any(ok);
+    if !ok_seen {
+        host.next(Duration::from_secs(30), "mac05 ok", ok);
+    }
+
+    // DCMD Close: the breaker closes; the switch and the currents change in DDATA.
+    host.send(&json!({"dcmd": [EDGE, "mac05"], "name": "Commands/Close", "type": "BOOLEAN", "value": true}));
+    let closed = host.next(Duration::from_secs(30), "DDATA switch closed", |v| {
+        of_type("DDATA", Some("mac05"))(v)
+            && metric(v, "Inputs/switch").is_some_and(|m| m["value"] == SWITCH_CLOSED)
+    });
+    assert_eq!(metric(&closed, "Inputs/switch").unwrap()["historical"], false);
+    host.seen_or_next(Duration::from_secs(30), "DDATA phase_a above 0", |v| {
+        of_type("DDATA", Some("mac05"))(v)
+            && metric(v, "Inputs/phase_a").is_some_and(|m| m["value"].as_f64() > Some(0.0))
+    });
+    // A metric a host may not write: refused, recorded, nothing changes.
+    host.send(&json!({"dcmd": [EDGE, "mac05"], "name": "Inputs/phase_a", "type": "DOUBLE", "value": 3.0}));
+
+    // Rebirth: NBIRTH again (seq 0, the same bdSeq), then the DBIRTH with the current values.
+    host.send(&json!({"rebirth": EDGE}));
+    let again = host.next(Duration::from_secs(10), "NBIRTH after Rebirth", of_type("NBIRTH", None));
+    assert_eq!(again["bd_seq"].as_u64(), Some(bd_seq), "{again}");
+    let reborn = host.next(Duration::from_secs(10), "DBIRTH after Rebirth", of_type("DBIRTH", Some("mac05")));
+    assert_eq!(value(&reborn, "Inputs/switch"), json!(SWITCH_CLOSED), "{reborn}");
+
+    // SIGINT: NDEATH with the session's bdSeq before the clean disconnect.
+    p.signal("INT");
+    let death = host.next(Duration::from_secs(10), "NDEATH", of_type("NDEATH", None));
+    assert_eq!(death["bd_seq"].as_u64(), Some(bd_seq), "{death}");
+    let status = p.wait(Duration::from_secs(20)).expect("dnet-master ended");
+    assert_eq!(status.code(), Some(130), "{}", p.dump());
+    assert_seq_rules(&host.seen);
+    let _ = addr;
+
+    // The audit log: both DCMD, via sparkplug, one carried out and one refused.
+    let history = dnet_scanner::history::History::open(&dir.join("history.sqlite")).unwrap();
+    let entries = dnet_scanner::audit::Audit::recent(&history, 50).unwrap();
+    let ours: Vec<_> = entries.iter().filter(|e| e.via == "sparkplug" && e.mac == Some(5)).collect();
+    assert!(
+        ours.iter().any(|e| e.what == "Commands/Close" && e.result == "ok"),
+        "no Close recorded: {entries:?}"
+    );
+    assert!(
+        ours.iter().any(|e| e.what == "Inputs/phase_a" && e.result.starts_with("refused")),
+        "no refusal recorded: {entries:?}"
+    );
+}
+
+#[test]
+#[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
+fn dcmd_is_refused_without_the_flag() {
+    let dir = scratch("spb-nocmd");
+    let port = free_port();
+    let _broker = Broker::start(&dir, port, None);
+    let mut host = Host::start(port, None);
+    let (mut p, _) =
+        master(&["--bus", "sim", "--slave-mac", "5"], &dir, &format!("mqtt://127.0.0.1:{port}"), &[]);
+    host.next(Duration::from_secs(30), "DBIRTH", of_type("DBIRTH", Some("mac05")));
+    host.send(&json!({"dcmd": [EDGE, "mac05"], "name": "Commands/Close", "type": "BOOLEAN", "value": true}));
+    // Five seconds of messages: none says the switch closed.
+    let until = Instant::now() + Duration::from_secs(5);
+    while let Some(left) = until.checked_duration_since(Instant::now()) {
+        if let Ok(v) = host.rx.recv_timeout(left) {
+            assert!(
+                metric(&v, "Inputs/switch").is_none_or(|m| m["value"] == SWITCH_OPEN),
+                "a DCMD was carried out without --sparkplug-commands: {v}"
+            );
+            host.seen.push(v);
+        }
+    }
+    p.signal("INT");
+    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
+}
+
+#[test]
+#[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
+fn store_and_forward_across_a_broker_restart() {
+    let dir = scratch("spb-saf");
+    let port = free_port();
+    let mut broker = Broker::start(&dir, port, None);
+    let mut host = Host::start(port, None);
+    let (mut p, addr) =
+        master(&["--bus", "sim", "--slave-mac", "5"], &dir, &format!("mqtt://127.0.0.1:{port}"), &[]);
+    let nbirth = host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH", None));
+    let bd_seq = nbirth["bd_seq"].as_u64().unwrap();
+    host.next(Duration::from_secs(30), "mac05 ok", |v| {
+        (of_type("DDATA", Some("mac05"))(v) || of_type("DBIRTH", Some("mac05"))(v))
+            && metric(v, "Status/State").is_some_and(|m| m["value"] == "ok")
+    });
+    drop(host);
+
+    // The broker goes away; meanwhile the breaker is closed from the console.
+    let mut closed_at = 0u64;
+    broker.restart_after(Duration::from_secs(4), || {
+        std::thread::sleep(Duration::from_secs(1));
+        let (status, body) = http(&addr, "POST", "/api/node/5/breaker/close");
+        assert_eq!(status, 200, "close: {body}");
+        closed_at = u64::try_from(dnet_scanner::model::unix_ms_now()).unwrap();
+    });
+    let (_, state) = http(&addr, "GET", "/api/state");
+    let mut host = Host::start(port, None);
+    let nbirth = host.next(Duration::from_secs(30), "NBIRTH after the restart", of_type("NBIRTH", None));
+    assert_eq!(nbirth["bd_seq"].as_u64(), Some((bd_seq + 1) % 256), "the next session's bdSeq: {nbirth}");
+    let historical = host.next(Duration::from_secs(30), "the stored DDATA", |v| {
+        of_type("DDATA", Some("mac05"))(v)
+            && metric(v, "Inputs/switch")
+                .is_some_and(|m| m["value"] == SWITCH_CLOSED && m["historical"] == true)
+    });
+    let m = metric(&historical, "Inputs/switch").unwrap();
+    let at = m["timestamp"].as_u64().unwrap();
+    let reconnected = nbirth["metrics"][0]["timestamp"].as_u64().unwrap();
+    assert!(at < reconnected, "the stored value keeps its own time ({at} < {reconnected}): {historical}");
+    assert!(at + 5000 > closed_at, "the change of the outage ({at} near {closed_at})");
+    p.signal("INT");
+    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
+    assert_seq_rules(&host.seen);
+    assert!(state.contains("stored") || state.contains("unreachable"), "status while away: {state}");
+}
+
+/// openssl: a CA, and a server certificate for 127.0.0.1 signed by it.
+fn certificates(dir: &Path, name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let ca_key = dir.join(format!("{name}-ca.key"));
+    let ca = dir.join(format!("{name}-ca.pem"));
+    let key = dir.join(format!("{name}-server.key"));
+    let csr = dir.join(format!("{name}-server.csr"));
+    let cert = dir.join(format!("{name}-server.pem"));
+    let ext = dir.join(format!("{name}-ext.cnf"));
+    std::fs::write(&ext, "subjectAltName=IP:127.0.0.1\nbasicConstraints=CA:FALSE\n").unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new("openssl").args(args).output().expect("openssl is missing");
+        assert!(out.status.success(), "openssl {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    };
+    let p = |x: &PathBuf| x.to_str().unwrap().to_string();
+    run(&[
+        "req",
+        "-x509",
+        "-newkey",
+        "rsa:2048",
+        "-nodes",
+        "-days",
+        "2",
+        "-subj",
+        &format!("/CN={name} test CA"),
+        "-keyout",
+        &p(&ca_key),
+        "-out",
+        &p(&ca),
+    ]);
+    run(&[
+        "req",
+        "-newkey",
+        "rsa:2048",
+        "-nodes",
+        "-subj",
+        "/CN=127.0.0.1",
+        "-keyout",
+        &p(&key),
+        "-out",
+        &p(&csr),
+    ]);
+    run(&[
+        "x509",
+        "-req",
+        "-in",
+        &p(&csr),
+        "-CA",
+        &p(&ca),
+        "-CAkey",
+        &p(&ca_key),
+        "-CAcreateserial",
+        "-days",
+        "2",
+        "-extfile",
+        &p(&ext),
+        "-out",
+        &p(&cert),
+    ]);
+    // mosquitto started as root reads its key as the user `mosquitto`: a throwaway test key may be
+    // readable by all.
+    std::fs::set_permissions(&key, std::os::unix::fs::PermissionsExt::from_mode(0o644)).unwrap();
+    (ca, cert, key)
+}
+
+#[test]
+#[ignore = "needs mosquitto, openssl and pysparkplug: run by scripts/check"]
+fn tls_to_the_broker_with_a_ca_made_for_the_test() {
+    let dir = scratch("spb-tls");
+    let (ca, cert, key) = certificates(&dir, "good");
+    let (other_ca, _, _) = certificates(&dir, "other");
+    let port = free_port();
+    let _broker = Broker::start(&dir, port, Some((&ca, &cert, &key)));
+    let mut host = Host::start(port, Some(&ca));
+    let url = format!("mqtts://127.0.0.1:{port}");
+
+    // A CA that did not sign the broker's certificate: no session, the status says why.
+    let wrong = dir.join("wrong");
+    std::fs::create_dir_all(&wrong).unwrap();
+    let (mut p, addr) = master(
+        &["--bus", "sim", "--slave-mac", "5"],
+        &wrong,
+        &url,
+        &["--mqtt-ca", other_ca.to_str().unwrap()],
+    );
+    // The console's MQTT line, until the link has been tried (the scan list is built meanwhile).
+    let mut mqtt = String::new();
+    let until = Instant::now() + Duration::from_secs(30);
+    while !mqtt.contains("unreachable") && Instant::now() < until {
+        std::thread::sleep(Duration::from_millis(300));
+        let (_, state) = http(&addr, "GET", "/api/state");
+        let state: Value = serde_json::from_str(&state).unwrap_or(Value::Null);
+        mqtt = state["mqtt"].as_str().unwrap_or_default().to_string();
+    }
+    assert!(mqtt.contains("unreachable"), "a broker with a foreign certificate: {mqtt}");
+    p.signal("INT");
+    p.wait(Duration::from_secs(20));
+    assert!(
+        !host.seen.iter().any(of_type("NBIRTH", None)),
+        "a session without a trusted certificate: {}",
+        host.dump()
+    );
+
+    // The right CA: births over TLS.
+    let (mut p, _) =
+        master(&["--bus", "sim", "--slave-mac", "5"], &dir, &url, &["--mqtt-ca", ca.to_str().unwrap()]);
+    host.next(Duration::from_secs(30), "NBIRTH over TLS", of_type("NBIRTH", None));
+    host.next(Duration::from_secs(30), "DBIRTH over TLS", of_type("DBIRTH", Some("mac05")));
+    p.signal("INT");
+    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
+    assert!(
+        mqtt.contains("certificate")
+            || mqtt.contains("Certificate")
+            || mqtt.contains("TLS")
+            || mqtt.contains("tls"),
+        "the reason names the certificate: {mqtt}"
+    );
+}
+
+#[test]
+#[ignore = "needs socat, mosquitto and pysparkplug: run by scripts/check"]
+fn the_soft_slave_on_slcan_as_a_sparkplug_device() {
+    if !require_socat() {
+        return;
+    }
+    let rig = PtyRig::breaker("spb", &["--period", "0.3"], None);
+    let dir = scratch("spb-pty");
+    let port = free_port();
+    let _broker = Broker::start(&dir, port, None);
+    let mut host = Host::start(port, None);
+    let bus = rig.master_bus_arg();
+    let (mut p, _) = master(
+        &["--bus", bus.as_str()],
+        &dir,
+        &format!("mqtt://127.0.0.1:{port}"),
+        &["--sparkplug-commands"],
+    );
+    let dbirth = host.next(Duration::from_secs(60), "a DBIRTH over SLCAN", |v| {
+        v["type"] == "DBIRTH" && v["device"].is_string()
+    });
+    let device = dbirth["device"].as_str().unwrap().to_string();
+    assert_eq!(
+        metric(&dbirth, "Identity/Product Name").map(|m| m["value"].clone()),
+        Some(json!(product_name())),
+        "{dbirth}\n{}",
+        rig.dump()
+    );
+    host.seen_or_next(Duration::from_secs(60), "the node ok", |v| {
+        v["device"] == device.as_str() && metric(v, "Status/State").is_some_and(|m| m["value"] == "ok")
+    });
+    host.send(&json!({"dcmd": [EDGE, device], "name": "Commands/Close", "type": "BOOLEAN", "value": true}));
+    host.next(Duration::from_secs(30), "DDATA: the breaker closed", |v| {
+        v["type"] == "DDATA"
+            && v["device"] == device.as_str()
+            && metric(v, "Inputs/switch").is_some_and(|m| m["value"] == SWITCH_CLOSED)
+    });
+    p.signal("INT");
+    assert_eq!(
+        p.wait(Duration::from_secs(20)).and_then(|s| s.code()),
+        Some(130),
+        "{}\n{}",
+        p.dump(),
+        rig.dump()
+    );
+    assert_seq_rules(&host.seen);
+}
