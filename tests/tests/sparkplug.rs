@@ -541,6 +541,42 @@ fn tls_to_the_broker_with_a_ca_made_for_the_test() {
     host.next(Duration::from_secs(30), "DBIRTH over TLS", of_type("DBIRTH", Some("mac05")));
     p.signal("INT");
     assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
+    // The plain JSON publisher over the same TLS listener: mosquitto_sub, trusting the test CA,
+    // reads the scanner's retained topic.
+    let json_dir = dir.join("json");
+    std::fs::create_dir_all(&json_dir).unwrap();
+    let mut sub = Command::new("mosquitto_sub")
+        .args(["-h", "127.0.0.1", "-p", &port.to_string(), "--cafile", ca.to_str().unwrap()])
+        .args(["-t", "devicenet/scanner", "-C", "1", "-W", "60"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("mosquitto_sub is missing: apt-get install mosquitto-clients");
+    let p = Proc::spawn(
+        bin("dnet-master"),
+        &[
+            "--bus",
+            "sim",
+            "--slave-mac",
+            "5",
+            "ui",
+            "--listen",
+            "127.0.0.1:0",
+            "--no-history",
+            "--record-dir",
+            json_dir.to_str().unwrap(),
+            "--mqtt",
+            &url,
+            "--mqtt-ca",
+            ca.to_str().unwrap(),
+        ],
+    );
+    let mut line = String::new();
+    BufReader::new(sub.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let _ = sub.wait();
+    let scanner: Value =
+        serde_json::from_str(line.trim()).unwrap_or_else(|e| panic!("{e}: {line:?}\n{}", p.dump()));
+    assert!(scanner["status"].is_string(), "the scanner topic over TLS: {scanner}");
+    drop(p);
     assert!(
         mqtt.contains("certificate")
             || mqtt.contains("Certificate")
