@@ -110,3 +110,43 @@ impl AuthManager for Accounts {
         policies
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn accounts() -> Accounts {
+        let mut users = Users::empty(Path::new("users.toml"));
+        users.add("op", "op pw", Role::Operator).unwrap();
+        users.add("en", "en pw", Role::Engineer).unwrap();
+        users.add("vi", "vi pw", Role::Viewer).unwrap();
+        Accounts::new(Some(Arc::new(users)))
+    }
+
+    fn token(name: &str) -> UserToken {
+        UserToken(name.to_string())
+    }
+
+    #[test]
+    fn operators_and_engineers_may_operate() {
+        let a = accounts();
+        assert_eq!(a.may_operate(&token("op")), Ok(()));
+        assert_eq!(a.may_operate(&token("en")), Ok(()));
+    }
+
+    #[test]
+    fn viewers_anonymous_and_unknown_names_may_not() {
+        let a = accounts();
+        assert_eq!(a.may_operate(&token("vi")), Err("role viewer may not operate".into()));
+        let anonymous = token(opcua::server::ANONYMOUS_USER_TOKEN_ID);
+        assert!(a.may_operate(&anonymous).unwrap_err().contains("anonymous"));
+        assert!(a.may_operate(&token("gone")).is_err());
+    }
+
+    #[test]
+    fn without_accounts_nobody_may_operate() {
+        let a = Accounts::new(None);
+        assert!(a.may_operate(&token("op")).unwrap_err().contains("--users"));
+    }
+}

@@ -33,7 +33,7 @@ pub const NAMESPACE: &str = "urn:dnet-master:devicenet";
 /// How long a method waits for the scanner's loop to carry out its command (the console's wait).
 pub const COMMAND_TIMEOUT: Duration = dnet_scanner::ui::COMMAND_TIMEOUT;
 
-/// The namespace for UNECE units in EUInformation (OPC 10000-8 §5.6.3).
+/// The namespace of UN/CEFACT units in EUInformation (OPC 10000-8 v1.05 §5.6.3.3).
 const UNECE_NAMESPACE: &str = "http://www.opcfoundation.org/UA/units/un/cefact";
 
 /// The node manager serving [`NAMESPACE`].

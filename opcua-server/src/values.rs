@@ -86,7 +86,7 @@ impl Unit {
     }
 
     /// EUInformation's `unitId`: the common code's (up to 3) ASCII bytes, big-endian in an i32
-    /// (OPC 10000-8 §5.6.3, the mapping of UNECE codes).
+    /// (OPC 10000-8 v1.05 §5.6.3.3, the mapping of UN/CEFACT codes).
     #[must_use]
     pub fn unit_id(self) -> i32 {
         self.code().bytes().fold(0i32, |id, b| (id << 8) | i32::from(b))
