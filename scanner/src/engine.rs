@@ -81,10 +81,12 @@
 //! ## Scanner status
 //!
 //! Another node answering the scanner's duplicate MAC ID check: [`ScannerStatus::DuplicateMac`]
-//! (code 70), and [`Scanner::start`] fails. The [`Bus`](can_io::bus::Bus) trait exposes neither
-//! the controller's error counters nor its bus-off state, so bus warning is never shown, and a bus
-//! that fails (an adapter error, an interface gone) is shown as [`ScannerStatus::BusOff`] (code 91)
-//! with the cycle ending in the error.
+//! (code 70), and [`Scanner::start`] fails. While running, a controller that is not error active
+//! (error warning, error passive or bus-off, where the bus reports its error state:
+//! [`Bus::error_state`](can_io::bus::Bus::error_state), [`crate::health`]) shows as
+//! [`ScannerStatus::BusWarning`] until it is error active again; a bus that fails (an adapter
+//! error, an interface gone) is shown as [`ScannerStatus::BusOff`] (code 91) with the cycle ending
+//! in the error.
 //!
 //! ## Limits
 //!
@@ -626,7 +628,12 @@ impl Scanner {
         for r in master.session.records().iter().filter(|r| r.index >= first) {
             self.health.observe(&r.frame, r.origin, r.at);
         }
-        self.health.bus_state(master.session.error_state(), now);
+        let controller = master.session.error_state();
+        self.health.bus_state(controller, now);
+        if matches!(self.state.status, ScannerStatus::Running | ScannerStatus::BusWarning) {
+            let troubled = controller.is_some_and(|c| c.state != can_io::bus::health::ErrorState::Active);
+            self.state.status = if troubled { ScannerStatus::BusWarning } else { ScannerStatus::Running };
+        }
         // The device's watchdog is 4 x EPR (protocol §5.3): no response for that long, the
         // connection is gone at both ends.
         let watchdog = Duration::from_millis(4 * u64::from(self.timing.epr_ms));

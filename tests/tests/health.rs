@@ -132,7 +132,7 @@ fn fewer_errors_leave_the_master_error_passive_then_recovering() {
         seen.push((r.bus.state, r.bus.tec.unwrap()));
     }
     let peak = seen.iter().map(|s| s.1).max().unwrap();
-    assert!(peak >= 128 && peak <= 136, "{seen:?}");
+    assert!((128..=136).contains(&peak), "{seen:?}");
     assert!(
         seen.iter().all(|s| (s.1 >= 128) == (s.0 == "passive")),
         "passive exactly at 128 and above: {seen:?}"
@@ -310,4 +310,108 @@ fn the_scanner_reports_health_on_the_slcan_pty_path() {
     assert!(t["min"].as_f64().unwrap() <= t["avg"].as_f64().unwrap(), "{v}");
     assert_eq!(node["dropouts"], 0, "{v}");
     assert_eq!(v["health"]["score"], 100, "{v}");
+}
+
+/// One HTTP/1.1 request to the console at `addr`: status and body.
+fn http(addr: &str, method: &str, path: &str, token: Option<&str>) -> (u16, String) {
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
+    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    if let Some(t) = token {
+        req.push_str(&format!(
+            "Origin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {t}\r\nContent-Length: 2\r\n\r\n{{}}"
+        ));
+    } else {
+        req.push_str("\r\n");
+    }
+    s.write_all(req.as_bytes()).unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).unwrap();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    (status, body.to_string())
+}
+
+#[test]
+#[ignore = "needs dnet-master built: run by scripts/check's health stage"]
+fn the_console_serves_clears_and_exports_the_health() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let addr = format!("127.0.0.1:{port}");
+    let dir = pty_rig::scratch("health-console");
+    let history = dir.join("h.sqlite");
+    let mut ui = pty_rig::Proc::spawn(
+        pty_rig::bin("dnet-master"),
+        &[
+            "--bus",
+            "sim",
+            "--slave-mac",
+            "5,6",
+            "--realtime",
+            "ui",
+            "--listen",
+            &addr,
+            "--history",
+            history.to_str().unwrap(),
+        ],
+    );
+    let end = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    let report = loop {
+        assert!(std::time::Instant::now() < end, "no health report with responses\n{}", ui.dump());
+        if std::net::TcpStream::connect(&addr).is_ok() {
+            let (status, body) = http(&addr, "GET", "/api/health", None);
+            if status == 200 {
+                let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+                if v["nodes"].as_array().is_some_and(|n| {
+                    n.len() == 2 && n.iter().all(|n| n["response_ms"]["count"].as_u64() >= Some(5))
+                }) {
+                    break v;
+                }
+            }
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    };
+    assert_eq!(
+        (report["ok"].as_bool(), report["bus"]["state"].as_str()),
+        (Some(true), Some("active")),
+        "{report}"
+    );
+    // The simulated bus at 250 kbit/s with two polled nodes runs near 70 % load: the only finding.
+    let load = report["bus"]["load"].as_f64().unwrap();
+    let expected = if load > 0.8 {
+        80
+    } else if load > 0.6 {
+        90
+    } else {
+        100
+    };
+    assert_eq!(report["score"], expected, "{report}");
+    let findings = report["findings"].as_array().unwrap();
+    assert!(findings.iter().all(|f| f.as_str().unwrap().starts_with("bus load ")), "{report}");
+    assert_eq!(findings.len(), usize::from(expected < 100), "{report}");
+    let (status, csv) = http(&addr, "GET", "/api/health.csv", None);
+    assert_eq!(status, 200, "{csv}");
+    let rows: Vec<&str> = csv.lines().collect();
+    assert!(rows[0].starts_with("mac,frames,traffic_pct,response_min_ms"), "{csv}");
+    assert_eq!(rows.len(), 3, "{csv}");
+    assert!(rows[1].starts_with("5,") && rows[2].starts_with("6,"), "{csv}");
+    // A GET cannot clear; a POST with the page's token does.
+    assert_eq!(http(&addr, "GET", "/api/health/clear", None).0, 405);
+    let (_, page) = http(&addr, "GET", "/", None);
+    let token =
+        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
+    let (status, body) = http(&addr, "POST", "/api/health/clear", Some(token));
+    assert_eq!(status, 200, "{body}");
+    let cleared: serde_json::Value = serde_json::from_str(&body).unwrap();
+    let before: u64 = report["bus"]["frames"].as_u64().unwrap();
+    let after = cleared["bus"]["frames"].as_u64().unwrap();
+    assert!(before > 0 && after < before, "cleared: {after} frames after {before}");
+    assert!(
+        cleared["nodes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|n| n["response_ms"]["count"].as_u64().unwrap_or(0) <= 2),
+        "{cleared}"
+    );
+    ui.terminate();
 }
