@@ -43,36 +43,78 @@ pub(super) fn spawn(
     scanner: Sender<ConsoleCommand>,
     log: Option<CommandLog>,
 ) -> std::io::Result<mpsc::SyncSender<Dcmd>> {
-    let (tx, rx) = mpsc::sync_channel::<Dcmd>(16);
+    let (tx, rx) = mpsc::sync_channel::<Dcmd>(PENDING);
     std::thread::Builder::new()
         .name("sparkplug-dcmd".into())
         .spawn(move || run(&rx, &edge, &scanner, log.as_ref()))?;
     Ok(tx)
 }
 
+/// DCMD waiting for the scanner's answer at most.
+const PENDING: usize = 256;
+
+/// A command handed to the scanner, its answer not read yet.
+struct Pending {
+    record: CommandRecord,
+    answer: Receiver<crate::model::Reply>,
+    until: std::time::Instant,
+}
+
 fn run(rx: &Receiver<Dcmd>, edge: &Mutex<Edge>, scanner: &Sender<ConsoleCommand>, log: Option<&CommandLog>) {
-    while let Ok(cmd) = rx.recv() {
-        let records = match <Payload as prost::Message>::decode(cmd.payload.as_slice()) {
-            Ok(p) => p
-                .metrics
-                .iter()
-                .map(|m| {
+    let mut pending: Vec<Pending> = Vec::new();
+    let record = |r: &CommandRecord| {
+        if let Some(log) = log {
+            log(r);
+        }
+    };
+    loop {
+        // Every command is handed over at once (the scanner carries out all that are queued
+        // between two cycles); the answers are collected as they come.
+        match rx.recv_timeout(Duration::from_millis(20)) {
+            Ok(cmd) => {
+                for m in metrics(&cmd, &mut |r| record(r)) {
                     let device =
                         edge.lock().unwrap_or_else(PoisonError::into_inner).devices.get(&cmd.mac).cloned();
-                    carry_out(cmd.mac, device.as_ref(), m, scanner)
-                })
-                .collect(),
-            Err(e) => vec![CommandRecord {
+                    match hand_over(cmd.mac, device.as_ref(), &m, scanner, pending.len()) {
+                        Ok(p) => pending.push(p),
+                        Err(r) => record(&r),
+                    }
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) if pending.is_empty() => return,
+            Err(mpsc::RecvTimeoutError::Disconnected) => std::thread::sleep(Duration::from_millis(20)),
+        }
+        let now = std::time::Instant::now();
+        pending.retain_mut(|p| {
+            let result = match p.answer.try_recv() {
+                Ok(Ok(_)) => "ok".to_owned(),
+                Ok(Err(e)) => format!("failed: {e}"),
+                Err(mpsc::TryRecvError::Disconnected) => "failed: the scanner has stopped".into(),
+                Err(mpsc::TryRecvError::Empty) if now >= p.until => {
+                    "failed: no answer from the scanner".into()
+                }
+                Err(mpsc::TryRecvError::Empty) => return true,
+            };
+            p.record.result = result;
+            record(&p.record);
+            false
+        });
+    }
+}
+
+/// The metrics of a DCMD; an undecodable payload is recorded as refused.
+fn metrics(cmd: &Dcmd, record: &mut dyn FnMut(&CommandRecord)) -> Vec<proto::Metric> {
+    match <Payload as prost::Message>::decode(cmd.payload.as_slice()) {
+        Ok(p) => p.metrics,
+        Err(e) => {
+            record(&CommandRecord {
                 user: "sparkplug".into(),
                 mac: cmd.mac,
                 what: "DCMD".into(),
                 result: format!("refused: not a Sparkplug B payload ({e})"),
-            }],
-        };
-        if let Some(log) = log {
-            for r in &records {
-                log(r);
-            }
+            });
+            Vec::new()
         }
     }
 }
@@ -105,41 +147,38 @@ fn output_for(device: &Device, metric: &proto::Metric) -> Result<(String, Vec<u8
     }
 }
 
-fn carry_out(
+/// Hands one DCMD metric to the scanner; a refusal is the record to log.
+fn hand_over(
     mac: u8,
     device: Option<&Device>,
     metric: &proto::Metric,
     scanner: &Sender<ConsoleCommand>,
-) -> CommandRecord {
+    waiting: usize,
+) -> Result<Pending, CommandRecord> {
     let mut record = CommandRecord {
         user: "sparkplug".into(),
         mac,
         what: metric.name.clone().unwrap_or_default(),
         result: String::new(),
     };
-    let Some(device) = device else {
-        record.result = "refused: no such device".into();
-        return record;
+    let refuse = |mut record: CommandRecord, why: String| {
+        record.result = why;
+        Err(record)
     };
+    let Some(device) = device else { return refuse(record, "refused: no such device".into()) };
     let (what, data) = match output_for(device, metric) {
         Ok(x) => x,
-        Err(why) => {
-            record.result = format!("refused: {why}");
-            return record;
-        }
+        Err(why) => return refuse(record, format!("refused: {why}")),
     };
     record.what = what;
+    if waiting >= PENDING {
+        return refuse(record, format!("refused: {PENDING} commands already wait for the scanner"));
+    }
     let (reply, answer) = mpsc::channel();
     if scanner.send(ConsoleCommand::SetOutput { mac, data, reply }).is_err() {
-        record.result = "failed: the scanner has stopped".into();
-        return record;
+        return refuse(record, "failed: the scanner has stopped".into());
     }
-    record.result = match answer.recv_timeout(ANSWER_WITHIN) {
-        Ok(Ok(_)) => "ok".into(),
-        Ok(Err(e)) => format!("failed: {e}"),
-        Err(_) => "failed: no answer from the scanner".into(),
-    };
-    record
+    Ok(Pending { record, answer, until: std::time::Instant::now() + ANSWER_WITHIN })
 }
 
 #[cfg(test)]

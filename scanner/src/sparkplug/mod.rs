@@ -234,7 +234,12 @@ impl EdgeNode {
         };
         let sender = std::thread::Builder::new().name("sparkplug".into()).spawn(move || sender.run(&rx))?;
         Ok(EdgeNode {
-            url: endpoint.display(),
+            url: format!(
+                "{}://{}:{}",
+                if endpoint.tls { "mqtts" } else { "mqtt" },
+                endpoint.host,
+                endpoint.port
+            ),
             topics,
             edge,
             jobs,
