@@ -9,8 +9,9 @@
 //! that new nodes can be commissioned one at a time from it (Offline Connection Set, ADR):
 //! Rockwell Automation XM-440 user manual (GMSI10-UM009D-EN-P, DeviceNet object attribute 1,
 //! default 63) and 193-EDN (193-UM006A-EN-P, "Nonvolatile MAC ID", default 63); RA 855T, as
-//! summarised in protocol §II.6 ("several new nodes powered at default MAC 63"). Not
-//! confirmed: that the DeviceNet specification itself requires 63 (its text was not retrieved).
+//! summarised in protocol §II.6 ("several new nodes powered at default MAC 63"); the scanners'
+//! address recovery looks for replacements there (protocol §II.9.2). Not confirmed: that the
+//! DeviceNet specification itself requires 63 (its text was not retrieved).
 //!
 //! Each switch connects its pin to ground against the internal pull-up, so a switch that is **on**
 //! reads 0; [`SwitchReading::from_port`] inverts the port so that "on" counts as 1.
@@ -237,6 +238,16 @@ mod tests {
         assert_eq!((r.mac_id, r.baud_rate), (mac(20), BaudRate::Kbps500));
         assert!(r.switches.programmable);
         assert_eq!(r.switches.baud_rate, Some(3));
+    }
+
+    #[test]
+    fn program_position_with_nothing_stored_is_mac_63() {
+        // The reference board out of the box with its rate switches at "program": MAC ID 63, where
+        // a scanner's address recovery looks for it (protocol §II.9.2), settable over the network.
+        let r = resolve(SwitchReading::from_bits(0b11_000101), &Settings::default());
+        assert_eq!((r.mac_id.as_raw(), r.baud_rate), (63, BaudRate::Kbps125));
+        assert!(r.switches.programmable);
+        assert_eq!(r.switches.mac_id, Some(5), "attribute 8 still reports the switches");
     }
 
     #[rstest]
