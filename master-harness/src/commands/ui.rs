@@ -18,6 +18,10 @@
 //! and the nodes' table printed. A history file or a
 //! listening address that cannot be used is an error (exit 2) before the bus is touched; a broker
 //! that is down is not: the console and MQTT status say so and the scanner scans on.
+//!
+//! `--users FILE` turns logins and roles on, `--tls-cert` / `--tls-key` TLS
+//! ([`super::ui_access`]); without `--users` the console listens on loopback only (another
+//! address is refused, exit 2, before the bus is touched).
 
 use crate::options::{open_bus, GlobalOptions};
 use can_io::bus::BusSpec;

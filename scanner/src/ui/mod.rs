@@ -11,10 +11,17 @@
 //! others for long, and no number of connections makes threads.
 //!
 //! Every request is checked first (`guard`): `Host` must name the console; a state-changing
-//! request (anything but `GET` / `HEAD`) must also carry the page's token in `X-CSRF-Token`,
-//! come from the console's own `Origin` and be `Content-Type: application/json`. Anything else is
-//! `403` with the reason: another web page open in the same browser cannot drive the console.
-//! Scripts read the token from `GET /api/token` (or the page's `<meta name="csrf-token">`).
+//! request (anything but `GET` / `HEAD`) must also come from the console's own `Origin` and be
+//! `Content-Type: application/json`. Then `auth` finds the caller and checks the rest: with
+//! accounts ([`serve_with`], [`Access::users`], `dnet-master ui --users FILE`) a session cookie
+//! ([`COOKIE`], from `POST /api/login`; `401` without one), the session's token in
+//! `X-CSRF-Token` on every state-changing request, and the role ([`crate::accounts::Role::may`];
+//! `403` with the reason when it may not). Without accounts every caller may do everything, with
+//! the process's token (`GET /api/token`, the page's `<meta name="csrf-token">`); the program
+//! then listens on loopback only. Anything refused is answered with the reason: another web page
+//! open in the same browser cannot drive the console. Every state-changing request is recorded in
+//! the audit log ([`crate::audit`], [`Shared::audit`]). With [`Access::tls`] the server speaks
+//! TLS only ([`tls`]).
 //!
 //! ## The page: three views
 //!
@@ -41,7 +48,10 @@
 //! | `GET /api/node/MAC/params` | `{"params": [ParamRow...], "note"}`: the Parameter object (class 0x0F) read with Get_Attribute_Single; empty with a note when the device has none |
 //! | `GET /api/history?mac=N&from=MS&to=MS&limit=L` | `{"mac", "samples": [{unix_ms, bus_us, input, values: [[name, number]...]}]}` from the history database (default: the last 60 s, at most 2000 samples, the newest when there are more) |
 //! | `GET /api/export.csv?mac=N&from=MS&to=MS` | the samples as a CSV download (`mac` left out: every node), at most [`MAX_EXPORT`] bytes |
-//! | `GET /api/token` | `{"ok", "token"}`: the token every state-changing request carries in `X-CSRF-Token` |
+//! | `GET /api/token` | `{"ok", "token"}`: the token every state-changing request carries in `X-CSRF-Token` (the session's with accounts) |
+//! | `POST /api/login` `{"user", "password"}` | a session: `{"ok", "user", "role", "token", "may"}` and the cookie [`COOKIE`] (`HttpOnly; SameSite=Strict; Path=/`, `Secure` with TLS); `401` for a wrong name or password |
+//! | `GET /api/session`; `POST /api/logout` | who is logged in (as the login's answer; `401` when nobody); the session ended and its cookie cleared |
+//! | `GET /api/audit?limit=N` | `{"ok", "entries": [{unix_ms, user, via, mac, what, result}]}`: the audit log, newest first (default 200, at most 2000) |
 //! | `POST /api/node/MAC/output` `{"data": hex}` (`"0201000000000000"`) | puts the output image (ConsoleCommand::SetOutput) |
 //! | `POST /api/node/MAC/get` `{"class", "instance", "attribute"}` | Get_Attribute_Single: `{"ok", "data": hex, "text"}` |
 //! | `POST /api/node/MAC/set` `{"class", "instance", "attribute", "value": hex}` | Set_Attribute_Single |
@@ -62,6 +72,7 @@
 //!
 //! [`Shared`]: crate::model::Shared
 //! [`Shared::state`]: crate::model::Shared::state
+//! [`Shared::audit`]: crate::model::Shared::audit
 //! [`Shared::push_frames`]: crate::model::Shared::push_frames
 //! [`ConsoleCommand`]: crate::model::ConsoleCommand
 
@@ -71,6 +82,7 @@ mod guard;
 pub mod http;
 mod health_api;
 mod record;
+mod scanlist_api;
 pub mod thinning;
 pub mod tls;
 

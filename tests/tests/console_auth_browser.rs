@@ -1,0 +1,98 @@
+//! The console's logins in a real browser: `dnet-master --bus sim ui --users FILE` with a viewer
+//! and an operator (made by `dnet-master user add`), driven by Debian's `chromium` through
+//! `playwright-core` (`tests/browser/console_auth.test.mjs`): the login form, a wrong password
+//! refused, the viewer's Close refused by role in the page, logout, the operator's Close asked
+//! for (Cancel sends nothing) and carried out, the Audit view.
+//!
+//! Ignored by a plain `cargo test`; run by `scripts/check` with `-- --ignored` after chromium,
+//! node and `npm ci --prefix tests/browser`. A missing chromium, node or `node_modules` is a
+//! failure, never a skip. Screenshots go to `$UI_ARTIFACTS_DIR/console-auth/` (default: the
+//! test's scratch folder).
+
+use pty_rig::{bin, scratch, workspace_dir, Proc};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+fn add_user(file: &Path, name: &str, role: &str, password: &str) {
+    let mut child = Command::new(bin("dnet-master"))
+        .args(["user", "add", file.to_str().unwrap(), name, "--role", role])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dnet-master runs");
+    child.stdin.take().unwrap().write_all(format!("{password}\n").as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "user add {name}: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+fn artifacts(dir: &Path) -> PathBuf {
+    let out = std::env::var_os("UI_ARTIFACTS_DIR").map_or_else(|| dir.join("artifacts"), PathBuf::from);
+    let out = out.join("console-auth");
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    out
+}
+
+#[test]
+#[ignore = "needs chromium, node and playwright-core: run by scripts/check"]
+fn login_refusal_by_role_and_logout_in_chromium() {
+    let browser = workspace_dir().join("tests/browser");
+    let chromium =
+        std::env::var_os("CHROMIUM").map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
+    assert!(chromium.exists(), "{} is missing: apt-get install chromium", chromium.display());
+    assert!(
+        Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success()),
+        "node is missing: install Node.js"
+    );
+    assert!(
+        browser.join("node_modules/playwright-core").is_dir(),
+        "playwright-core is missing: npm ci --prefix tests/browser"
+    );
+    let dir = scratch("console-auth-browser");
+    let users = dir.join("users.toml");
+    let _ = std::fs::remove_file(&users);
+    add_user(&users, "vera", "viewer", "veravera");
+    add_user(&users, "otto", "operator", "ottootto");
+    let list = dir.join("list.toml");
+    std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
+    let mut p = Proc::spawn(
+        bin("dnet-master"),
+        &[
+            "--bus",
+            "sim",
+            "ui",
+            "--listen",
+            "127.0.0.1:0",
+            "--no-history",
+            "--scanlist",
+            list.to_str().unwrap(),
+            "--users",
+            users.to_str().unwrap(),
+        ],
+    );
+    let line = p
+        .wait_stdout("console at ", Duration::from_secs(30))
+        .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
+    let url = line.trim_start_matches("console at ").trim().to_string();
+    let out = artifacts(&dir);
+    let result = Command::new("node")
+        .arg("console_auth.test.mjs")
+        .current_dir(&browser)
+        .env("CONSOLE_URL", &url)
+        .env("ARTIFACTS_DIR", &out)
+        .env("CHROMIUM", &chromium)
+        .output()
+        .expect("node runs");
+    let text =
+        format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
+    println!("{text}");
+    assert!(result.status.success(), "the browser test failed:\n{text}\n{}", p.dump());
+    assert!(text.contains("6 passed, 0 failed"), "{text}");
+    for shot in ["login", "refused-by-role", "audit"] {
+        assert!(out.join(format!("{shot}.png")).is_file(), "no screenshot {shot}.png");
+    }
+    p.signal("INT");
+    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
+}
