@@ -16,7 +16,8 @@
 //!
 //! The scanner's loop is synchronous; the server runs on a tokio runtime of its own with
 //! [`WORKER_THREADS`] workers and at most [`BLOCKING_THREADS`] blocking threads (argon2 checks,
-//! commands waiting for the scanner's answer), at most [`MAX_SESSIONS`] sessions. A task copies
+//! commands waiting for the scanner's answer), at most [`MAX_SESSIONS`] sessions and
+//! [`MAX_MONITORED_ITEMS`] monitored items in a subscription. A task copies
 //! the state into the address space every [`SYNC_EVERY`]; subscriptions are notified of each
 //! value that changed.
 //!
@@ -54,6 +55,9 @@ pub const WORKER_THREADS: usize = 2;
 pub const BLOCKING_THREADS: usize = 4;
 /// Sessions open at once, at most.
 pub const MAX_SESSIONS: usize = 16;
+/// Monitored items in one subscription, at most: every variable of 63 nodes (about 30 each for
+/// a breaker) fits in one.
+pub const MAX_MONITORED_ITEMS: usize = 4096;
 /// How often the address space is brought in step with the scanner's state.
 pub const SYNC_EVERY: Duration = Duration::from_millis(100);
 
@@ -262,6 +266,7 @@ fn server_builder(
         .diagnostics_enabled(false)
         .add_endpoint("none", ("/", SecurityPolicy::None, MessageSecurityMode::None, &tokens as &[&str]))
         .discovery_urls(vec![format!("opc.tcp://{}:{port}/", endpoint.host)]);
+    builder.limits_mut().subscriptions.max_monitored_items_per_sub = MAX_MONITORED_ITEMS;
     if encrypted {
         builder = builder.add_endpoint(
             "basic256sha256_sign_encrypt",
