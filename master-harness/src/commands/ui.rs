@@ -145,8 +145,7 @@ pub fn execute(
         },
     });
     let modbus = args.modbus.start(&shared)?;
-    // No accounts yet (ui --users): anonymous sessions only.
-    let opcua = args.opcua.start(&shared, None)?;
+    let opcua = args.opcua.start(&shared, args.access.users.as_deref())?;
     let sparkplug = args.sparkplug.start(args.mqtt.as_deref(), &shared)?;
     let server = serve_with(&args.listen, Arc::clone(&shared), access)?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
