@@ -292,7 +292,7 @@ fn check_configuration(text: &str, config: &str, starts: usize) -> Result<(), (u
             match e.kind {
                 slave_fw::description::DescriptionErrorKind::Toml(t) => {
                     let key = t.key.map(|k| format!("{k}: ")).unwrap_or_default();
-                    Err((first + t.line - 1, format!("{key}{}", t.message)))
+                    Err(((first + t.line).saturating_sub(1), format!("{key}{}", t.message)))
                 }
                 slave_fw::description::DescriptionErrorKind::Invalid { key, message } => {
                     Err((starts, format!("{key}: {message}")))

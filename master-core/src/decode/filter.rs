@@ -113,11 +113,7 @@ fn explicit_kind(data: &[u8], request: bool) -> Kind {
     // protocol byte (protocol §4.1), and the service follows.
     let service = match data {
         [header, service, ..] if header & 0x80 == 0 => Some(*service),
-        [header, fragment, service, ..]
-            if header & 0x80 != 0 && fragment & 0x3F == 0 && fragment & 0xC0 == 0 =>
-        {
-            Some(*service)
-        }
+        [header, 0, service, ..] if header & 0x80 != 0 => Some(*service),
         _ => None,
     };
     match service {
