@@ -102,12 +102,11 @@
 //! cycles.
 
 use crate::model::{
-    ConsoleCommand, FrameRow, Identity, NodeState, NodeStatus, Sample, ScanEntry, ScanList, ScannerState,
-    ScannerStatus,
+    ConsoleCommand, FrameRow, NodeStatus, Sample, ScanEntry, ScanList, ScannerState, ScannerStatus,
 };
 use crate::monitor::InputLayout;
 use can_io::bus::{Bitrate, Origin};
-use devicenet::fragment::{io_fragments, IoReassembler};
+use devicenet::fragment::io_fragments;
 use devicenet::id::Group1MessageId;
 use devicenet::messages::{AllocationChoice, DuplicateMacCheck};
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
@@ -120,10 +119,12 @@ use master_core::master::{Master, MIN_POLL_TIMEOUT};
 use master_core::session::Verdict;
 use std::collections::{HashMap, VecDeque};
 
+mod edit;
 mod node;
 mod replace;
 
 use crate::timing::{timing, Timing};
+pub use edit::ListEditError;
 use node::Node;
 pub use replace::ADR_MAC;
 
@@ -174,47 +175,8 @@ impl Scanner {
     #[must_use]
     pub fn new(list: ScanList, master_mac: u8, options: ScannerOptions) -> Scanner {
         let timing = timing(&list, options.bitrate);
-        let nodes: Vec<Node> = list
-            .nodes
-            .iter()
-            .filter(|e| e.mac <= 63 && e.mac != master_mac)
-            .map(|e| Node {
-                entry: e.clone(),
-                kind: e.io_kind(),
-                strobe_consumed: None,
-                output_sent: None,
-                next_output: Instant::ZERO,
-                output_ack: None,
-                state: NodeState {
-                    mac: e.mac,
-                    name: e.name.clone(),
-                    connection: e.io_kind().name().into(),
-                    ack_suppression: e.ack_suppression,
-                    status: NodeStatus::Initializing,
-                    code: NodeStatus::Initializing.code(),
-                    detail: None,
-                    identity: Identity::default(),
-                    input_size: None,
-                    output_size: None,
-                    input: Vec::new(),
-                    output: vec![
-                        0;
-                        if e.io_kind() == IoKind::Strobe { 1 } else { usize::from(e.output_size) }
-                    ],
-                    exchanges: 0,
-                    last_exchange_us: None,
-                },
-                engine: None,
-                allocated: AllocationChoice::empty(),
-                in_io: false,
-                in_io_since: Instant::ZERO,
-                last_exchange: None,
-                awaiting: false,
-                rx: Box::new(IoReassembler::new()),
-                duplicate: None,
-                announced: None,
-            })
-            .collect();
+        let nodes: Vec<Node> =
+            list.nodes.iter().filter(|e| e.mac <= 63 && e.mac != master_mac).map(Node::new).collect();
         let state = ScannerState {
             mac: master_mac,
             status: ScannerStatus::Starting,
@@ -749,6 +711,14 @@ impl Scanner {
             }
             ConsoleCommand::Set { mac, class, instance, attribute, value, reply } => {
                 let answer = self.explicit(master, mac, class, instance, attribute, Some(&value));
+                let _ = reply.send(answer);
+            }
+            ConsoleCommand::Events { since, reply } => {
+                let _ = reply.send(self.events.since(since));
+            }
+            ConsoleCommand::EditList { edit, reply } => {
+                let answer = self.edit(master, edit).map(|()| Vec::new()).map_err(|e| e.to_string());
+                self.publish();
                 let _ = reply.send(answer);
             }
             ConsoleCommand::Health { clear, reply } => {

@@ -46,7 +46,7 @@
 //! (the EDS's `StrobeInfo` names no output), so `output_size` is 0, and the node's output image in
 //! the scanner is 1 byte whose bit 0 is that bit.
 
-use crate::model::{ScanEntry, ScanList};
+use crate::model::{Keying, ScanEntry, ScanList};
 use harness_common::error::HarnessError;
 use master_core::master::io::IoKind;
 use serde::Deserialize;
@@ -290,6 +290,17 @@ fn entry_toml(n: &ScanEntry) -> String {
     if let Some(name) = &n.name {
         s.push_str(&format!("name = {}\n", toml_string(name)));
     }
+    if !n.adr.is_off() {
+        s.push_str(&format!("adr = \"{}\"\n", n.adr.name()));
+    }
+    match n.keying {
+        Keying::Exact => {}
+        Keying::Compatible => s.push_str("keying = \"compatible\"\n"),
+        Keying::Disabled => s.push_str("keying = \"disabled\"\n"),
+    }
+    if !n.enabled {
+        s.push_str("enabled = false\n");
+    }
     s
 }
 
@@ -320,6 +331,16 @@ mod tests {
         assert_eq!((list.nodes[4].inhibit_ms, list.nodes[4].ack_suppression), (None, true));
         let again = parse_scan_list(&write_scan_list(&list), "w.toml").unwrap();
         assert_eq!(again, list);
+        // ADR, keying and maintenance round-trip too.
+        let mut edited = list.clone();
+        edited.nodes[0].adr = crate::model::AdrMode::ConfigAddress;
+        edited.nodes[1].adr = crate::model::AdrMode::Config;
+        edited.nodes[1].keying = Keying::Compatible;
+        edited.nodes[2].keying = Keying::Disabled;
+        edited.nodes[3].enabled = false;
+        let text = write_scan_list(&edited);
+        assert!(text.contains("adr = \"config+address\"") && text.contains("enabled = false"), "{text}");
+        assert_eq!(parse_scan_list(&text, "w.toml").unwrap(), edited);
     }
 
     #[rstest]

@@ -85,6 +85,24 @@ fn yes() -> bool {
     true
 }
 
+/// A change of the scan list while the scanner runs (the console's `POST /api/scanlist/...`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ListEdit {
+    /// A new entry (its MAC not in the list).
+    Add(ScanEntry),
+    /// The entry at the entry's MAC replaced (the node is brought up again).
+    Edit(ScanEntry),
+    /// The entry at the MAC removed (its connections released).
+    Remove(u8),
+    /// The node at the MAC enabled or disabled (maintenance: kept, not scanned).
+    Enable {
+        /// MAC ID.
+        mac: u8,
+        /// `false`: disabled.
+        enabled: bool,
+    },
+}
+
 /// A scan-list entry's automatic device replacement (ADR, Rockwell's and ABB's term).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum AdrMode {
@@ -191,6 +209,9 @@ pub enum NodeStatus {
     CommunicationFaulted,
     /// Being brought into I/O (code 84).
     Initializing,
+    /// Disabled in the scan list (maintenance): kept, not scanned. A scanner shows no fault for
+    /// a node it does not scan: code 0, with this status's name.
+    Disabled,
 }
 
 impl NodeStatus {
@@ -201,7 +222,7 @@ impl NodeStatus {
     #[must_use]
     pub fn code(self) -> u8 {
         match self {
-            NodeStatus::Ok => 0,
+            NodeStatus::Ok | NodeStatus::Disabled => 0,
             NodeStatus::TimedOut => 72,
             NodeStatus::KeyingMismatch => 73,
             NodeStatus::SizeMismatch => 77,
@@ -225,6 +246,7 @@ impl NodeStatus {
             NodeStatus::ErrorResponse => "error_response",
             NodeStatus::CommunicationFaulted => "communication_faulted",
             NodeStatus::Initializing => "initializing",
+            NodeStatus::Disabled => "disabled",
         }
     }
 }
@@ -439,6 +461,20 @@ pub enum ConsoleCommand {
         attribute: u8,
         /// The value's bytes.
         value: Vec<u8>,
+        /// The answer (empty on success).
+        reply: Sender<Reply>,
+    },
+    /// The events after sequence number `since` ([`crate::events`]).
+    Events {
+        /// The last sequence number seen (0: all).
+        since: u64,
+        /// The events, oldest first.
+        reply: Sender<Vec<crate::events::ScanEvent>>,
+    },
+    /// A change of the scan list while the scanner runs.
+    EditList {
+        /// The change.
+        edit: ListEdit,
         /// The answer (empty on success).
         reply: Sender<Reply>,
     },

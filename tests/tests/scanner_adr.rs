@@ -158,7 +158,9 @@ fn cli_scanner_adr_with_sim_replace_reports_the_events_in_json() {
     let names: Vec<&str> = events.iter().map(|e| e["kind"].as_str().unwrap()).collect();
     // The factory-fresh replacement (MAC settable) has another CCV than the node it replaces: the
     // configuration stored when the node joined is downloaded (`configure`'s download).
-    for want in ["appeared_at_63", "node_lost", "moved", "duplicate_check", "ccv_differs", "downloaded", "replaced"] {
+    for want in
+        ["appeared_at_63", "node_lost", "moved", "duplicate_check", "ccv_differs", "downloaded", "replaced"]
+    {
         assert!(names.contains(&want), "{want} missing: {names:?}");
     }
     let n5 = v["nodes"].as_array().unwrap().iter().find(|n| n["mac"] == 5).unwrap();

@@ -375,6 +375,8 @@ fn run(
                 }
                 // The fake scanner keeps no health: the request goes unanswered (503).
                 ConsoleCommand::Health { .. } => {}
+                // Nor events or scan-list changes.
+                ConsoleCommand::Events { .. } | ConsoleCommand::EditList { .. } => {}
             }
         }
         let mut nodes = Vec::new();

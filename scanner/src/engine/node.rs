@@ -3,7 +3,7 @@
 //! scanner's docs, "A node's life").
 
 use super::Scanner;
-use crate::model::{Keying, NodeState, NodeStatus, ScanEntry};
+use crate::model::{Identity, Keying, NodeState, NodeStatus, ScanEntry};
 use devicenet::explicit::GeneralStatus;
 use devicenet::fragment::IoReassembler;
 use devicenet::messages::AllocationChoice;
@@ -14,6 +14,9 @@ use master_core::client::{Port, ReplyBody};
 use master_core::decode;
 use master_core::master::io::IoKind;
 use master_core::master::Master;
+
+/// The detail of a disabled node.
+pub(super) const DISABLED: &str = "disabled in the scan list (maintenance): not scanned";
 
 pub(super) struct Node {
     pub(super) entry: ScanEntry,
@@ -43,6 +46,47 @@ pub(super) struct Node {
 }
 
 impl Node {
+    /// A node for scan-list entry `e`, not yet brought up (disabled when the entry says so).
+    pub(super) fn new(e: &ScanEntry) -> Node {
+        let mut n = Node {
+            entry: e.clone(),
+            kind: e.io_kind(),
+            strobe_consumed: None,
+            output_sent: None,
+            next_output: Instant::ZERO,
+            output_ack: None,
+            state: NodeState {
+                mac: e.mac,
+                name: e.name.clone(),
+                connection: e.io_kind().name().into(),
+                ack_suppression: e.ack_suppression,
+                status: NodeStatus::Initializing,
+                code: NodeStatus::Initializing.code(),
+                detail: None,
+                identity: Identity::default(),
+                input_size: None,
+                output_size: None,
+                input: Vec::new(),
+                output: vec![0; if e.io_kind() == IoKind::Strobe { 1 } else { usize::from(e.output_size) }],
+                exchanges: 0,
+                last_exchange_us: None,
+            },
+            engine: None,
+            allocated: AllocationChoice::empty(),
+            in_io: false,
+            in_io_since: Instant::ZERO,
+            last_exchange: None,
+            awaiting: false,
+            rx: Box::new(IoReassembler::new()),
+            duplicate: None,
+            announced: None,
+        };
+        if !e.enabled {
+            n.set(NodeStatus::Disabled, Some(DISABLED.into()));
+        }
+        n
+    }
+
     pub(super) fn set(&mut self, status: NodeStatus, detail: Option<String>) {
         self.state.status = status;
         self.state.code = status.code();

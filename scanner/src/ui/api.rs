@@ -221,6 +221,9 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
             (["health.csv"], true, _) => Ok(super::health_api::csv(shared)),
             (["health", "clear"], _, true) => Ok(super::health_api::report(shared, true)),
             (["health"] | ["health.csv"] | ["health", "clear"], _, _) => Err(wrong()),
+            (["events"], true, _) => Ok(super::scanlist_api::events(shared, number(&pairs, "since")?)),
+            (["scanlist", action], _, true) => Ok(super::scanlist_api::edit(shared, action, body)),
+            (["events"] | ["scanlist", _], _, _) => Err(wrong()),
             (
                 ["state"]
                 | ["token"]
