@@ -249,6 +249,23 @@ mod tests {
     }
 
     #[test]
+    fn the_history_keeps_the_audit_log_across_a_reopen() {
+        let dir = std::env::temp_dir().join(format!("dnet-audit-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("history.sqlite");
+        let _ = std::fs::remove_file(&path);
+        {
+            let history = crate::history::History::open(&path).unwrap();
+            let audit: &dyn Audit = &history;
+            audit.record(&entry(1)).unwrap();
+            audit.record(&entry(2)).unwrap();
+        }
+        let history = crate::history::History::open(&path).unwrap();
+        assert_eq!(Audit::recent(&history, 10).unwrap(), [entry(2), entry(1)]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn long_texts_are_cut() {
         let e = AuditEntry::now(&"u".repeat(1000), Via::Console, None, &"w".repeat(1000), "ok");
         assert_eq!(e.user.chars().count(), MAX_TEXT);
