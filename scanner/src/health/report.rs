@@ -10,7 +10,7 @@
 //! | the controller error warning / error passive / bus-off now | 10 / 25 / 50 |
 //! | each bus-off since the start (or the last clear) | 10, at most 30 |
 //! | error frames per 1000 frames | 2 each, at most 20 |
-//! | bus load above 60 % / above 80 % | 10 / 20 |
+//! | bus load above 60 % / above 80 % (over a second or more) | 10 / 20 |
 //! | each node's drop-outs | 5 each, at most 30 |
 //! | a node whose mean response is slow (over 2 ms and over 3 × the median of the nodes' means) | 5 each |
 //!
@@ -160,7 +160,7 @@ pub(super) fn build(h: &Health, now: Instant) -> HealthReport {
         })
         .collect();
     let incidents: Vec<IncidentReport> = h.incidents.iter().filter_map(incident).collect();
-    let (score, findings) = judge(&bus, &nodes, &incidents);
+    let (score, findings) = judge(&bus, secs(duration_us), &nodes, &incidents);
     HealthReport {
         since_s: secs(since.total_micros()),
         duration_s: secs(duration_us),
@@ -184,6 +184,7 @@ fn incident(i: &Incident) -> Option<IncidentReport> {
 /// The score and the findings, worst first (each with the points it cost).
 fn judge(
     bus: &BusHealthReport,
+    duration_s: f64,
     nodes: &[NodeHealthReport],
     incidents: &[IncidentReport],
 ) -> (u8, Vec<String>) {
@@ -212,7 +213,9 @@ fn judge(
             format!("{e} error frame(s) in {} frames ({per_1000:.1} per 1000)", bus.frames),
         ));
     }
-    if bus.load > 0.8 {
+    // Over less than a second the load says little (the bring-up's bursts).
+    if duration_s < 1.0 {
+    } else if bus.load > 0.8 {
         found.push((20, format!("bus load {:.0} %: above 80 %, low-priority frames wait", bus.load * 100.0)));
     } else if bus.load > 0.6 {
         found.push((10, format!("bus load {:.0} %: above 60 %", bus.load * 100.0)));

@@ -400,7 +400,31 @@ async function refreshAudit() {
 }
 
 // ---- wiring ----------------------------------------------------------------------------------
+// ---- health (scanner/src/health.rs, docs/src/plant/health.md) --------------------------------
+function showHealth(h) {
+  if (!h || !h.ok) return;
+  const b = h.bus;
+  const counters = b.tec === null ? "" : ` · TEC ${b.tec} · REC ${b.rec}`;
+  const errors = b.error_frames === null ? "" : ` · ${b.error_frames} error frames · ${b.bus_offs} bus-offs`;
+  $("health-score").textContent = `score ${h.score}`;
+  $("health-bus").textContent = `controller ${b.state}${counters}${errors} · load ${fmtPct(b.load)} · ${b.frames} frames in ${h.duration_s.toFixed(1)} s`;
+  $("health-findings").replaceChildren(...(h.findings.length ? h.findings : ["no findings"]).map((f) => el("li", { text: f })));
+  const ms = (r) => r ? `${r.min.toFixed(2)} / ${r.avg.toFixed(2)} / ${r.max.toFixed(2)} ms` : "–";
+  $("health-nodes").replaceChildren(
+    el("tr", {}, ...["MAC", "response min / avg / max", "traffic", "drop-outs", "last drop-out"].map((t) => el("th", { text: t }))),
+    ...h.nodes.map((n) => el("tr", { "data-mac": n.mac },
+      el("td", { text: String(n.mac) }), el("td", { text: ms(n.response_ms) }),
+      el("td", { text: `${n.traffic_pct.toFixed(1)} %` }), el("td", { text: String(n.dropouts) }),
+      el("td", { text: n.last_dropout_s === null ? "–" : `${n.last_dropout_s.toFixed(1)} s` }))));
+}
+
+async function refreshHealth() {
+  if ($("view-network").hidden) return;
+  showHealth(await api("/api/health"));
+}
+
 function init() {
+  $("btn-health-clear").addEventListener("click", async () => showHealth(await post("/api/health/clear")));
   $("login-form").addEventListener("submit", login);
   $("btn-logout").addEventListener("click", logout);
   $("btn-audit").addEventListener("click", refreshAudit);
@@ -427,6 +451,8 @@ function init() {
   setInterval(() => { if (!$("view-device").hidden) refreshNode(); }, 250);
   setInterval(refreshPlot, 1000);
   setInterval(refreshTrace, 300);
+  refreshHealth();
+  setInterval(refreshHealth, 2000);
   setInterval(async () => {
     if ($("rec-stop").disabled || recordBusy) return;
     const seq = recordSeq;
