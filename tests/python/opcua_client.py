@@ -11,7 +11,8 @@ read  (ui without --users): browses Objects/DeviceNet anonymously on the endpoin
 call  (ui --users FILE --opcua-pki DIR): the methods. Anonymous and viewer calls are refused
       (BadUserAccessDenied), a wrong password is refused at session activation; the operator,
       over Basic256Sha256 Sign & Encrypt, subscribes to the breaker's switch_state, calls Close
-      and sees it change to `closed` as the breaker reports it, then Open and `open`.
+      and sees it change to `closed` as the breaker reports it, then Open and `open`; SetOutput
+      of the image as it is is carried out, of 3 bytes refused by the scanner (BadInvalidState).
 """
 
 import argparse
@@ -241,6 +242,16 @@ async def call_mode(args):
         await changes.wait_for(then_state, args.timeout)
         compared += 1
         print(f"switch_state notifications: {changes.values}")
+        # SetOutput: the image as it is (the sequence number unchanged: nothing executes again),
+        # then an image of the wrong size, which the scanner refuses.
+        image = await (await obj.get_child([f"{ns}:OutputImage"])).read_value()
+        await obj.call_method(f"{ns}:SetOutput", ua.Variant(image, ua.VariantType.ByteString))
+        compared += 1
+        try:
+            await obj.call_method(f"{ns}:SetOutput", ua.Variant(b"\x01\x02\x03", ua.VariantType.ByteString))
+            fail("SetOutput of 3 bytes was accepted")
+        except ua.uaerrors.BadInvalidState:
+            compared += 1
         await sub.delete()
     finally:
         await c.disconnect()

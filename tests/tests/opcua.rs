@@ -5,7 +5,7 @@
 //!   `GET /api/node/MAC`, the currents' EngineeringUnits, an anonymous Close refused;
 //! - `call` (with `--users` and `--opcua-pki`): anonymous and viewer calls refused, a wrong
 //!   password refused, the operator's Close and Open carried out and seen by subscription as the
-//!   breaker reports its switch; afterwards the audit table of the history holds every call with
+//!   breaker reports its switch, SetOutput carried out and one of the wrong size refused; afterwards the audit table of the history holds every call with
 //!   its user and result.
 //!
 //! On the simulated bus, and on the real SLCAN path (the soft slave and the simulated breaker on
@@ -157,17 +157,17 @@ fn call_check(python: &Path, bus: &str, dir: &Path, limit: Duration) -> Vec<Stri
     let args = ["--url", &url, "--mac", "5", "--user", OPERATOR.0, "--password", OPERATOR.1];
     let args = [&args[..], &["--viewer", VIEWER.0, "--viewer-password", VIEWER.1]].concat();
     let compared = run_client(python, "call", &args, &p);
-    assert_eq!(compared, 6, "four refusals, Close and Open");
+    assert_eq!(compared, 8, "four refusals, Close and Open, SetOutput carried out and refused");
     stop(p, "");
     assert!(pki.join("own/cert.der").is_file(), "the server's certificate is made in --opcua-pki");
     audit_rows(python, &history)
 }
 
 /// The audit log holds each call with its user and result: the two anonymous refusals, the
-/// viewer's, and the operator's two commands (in the order the client made them).
+/// viewer's, the operator's two breaker commands and two SetOutput (in the order made).
 fn assert_audited(rows: &[String]) {
     let opcua: Vec<&String> = rows.iter().filter(|r| r.contains("|opcua|")).collect();
-    assert_eq!(opcua.len(), 5, "{rows:#?}");
+    assert_eq!(opcua.len(), 7, "{rows:#?}");
     assert!(
         opcua[..2].iter().all(|r| r.starts_with("anonymous|opcua|5|") && r.contains("|refused: ")),
         "{rows:#?}"
@@ -175,6 +175,8 @@ fn assert_audited(rows: &[String]) {
     assert!(opcua[2].starts_with("vi|opcua|5|close|refused: role viewer"), "{rows:#?}");
     assert!(opcua[3].starts_with("op|opcua|5|") && opcua[3].ends_with("|ok"), "{rows:#?}");
     assert!(opcua[4].starts_with("op|opcua|5|") && opcua[4].ends_with("|ok"), "{rows:#?}");
+    assert!(opcua[5].starts_with("op|opcua|5|output ") && opcua[5].ends_with("|ok"), "{rows:#?}");
+    assert!(opcua[6].starts_with("op|opcua|5|output 01 02 03|failed: "), "{rows:#?}");
 }
 
 #[test]
