@@ -25,6 +25,8 @@
 //! most [`INCIDENTS_KEPT`] incidents.
 
 pub mod report;
+#[cfg(test)]
+mod tests;
 
 use can_io::bus::health::{ErrorReport, ErrorState};
 use can_io::bus::{Bitrate, Origin};
