@@ -58,6 +58,7 @@
 //! | `POST /api/node/MAC/breaker/open`, `/breaker/close` | the breaker's command 1 / 2 in the output image, with the next sequence number (guide: docs/src/reference/io-data.md, "Commands through the poll output") |
 //! | `POST /api/node/MAC/breaker/param` `{"id", "value"}` | command 3: parameter `id` (0–255) set to `value` (0–65535) |
 //! | `POST /api/record/start`, `/api/record/stop`; `GET /api/record` | recording of the frames to `record-TIMESTAMP.log` (`candump -L`) and `.pcap` in the record directory: `{"ok", "recording", "log", "pcap", "frames"}` |
+//! | `GET /api/health`, `GET /api/health.csv`, `POST /api/health/clear` | bus and node health ([`crate::health`]; handlers in `health_api`): the report as JSON, its node table as CSV, the statistics cleared (then the fresh report) |
 //!
 //! Commands wait for the scanner's answer for at most [`COMMAND_TIMEOUT`] and return
 //! `{"ok": true, "data": hex}` or `{"ok": false, "error": "..."}` (the device's error response by
