@@ -30,6 +30,7 @@
 //! | `PREFIX/scanner` | yes | 1 | when the scanner's status changes, else at most once a second |
 //! | `PREFIX/node/<mac>/status` | yes | 1 | when the node's status, identity or sizes change |
 //! | `PREFIX/node/<mac>/values` | no | 0 | every sample given to [`Publisher::publish_samples`] |
+//! | `PREFIX/events` | no | 1 | each event given to [`Publisher::publish_events`] (automatic device replacement, scan-list changes): the [`crate::events::ScanEvent`] as JSON, `{"seq":4,"time_us":12018504,"mac":5,"kind":"moved","detail":"..."}` |
 //!
 //! `<mac>` is the decimal MAC ID (`devicenet/node/5/status`). Every retained message is published
 //! again on each (re)connection, so a broker restarted empty learns the current state at once.
@@ -461,6 +462,21 @@ impl Publisher {
             }
             let topic = format!("{}/node/{}/values", self.endpoint.prefix, sample.mac);
             self.send(&topic, QoS::AtMostOnce, false, values_payload(sample));
+        }
+    }
+
+    /// Publishes each event on the events topic, not retained (see the [module docs](self)). Never
+    /// blocks: while the broker is unreachable they are dropped and counted.
+    pub fn publish_events(&self, events: &[crate::events::ScanEvent]) {
+        let connected = self.shared.lock().link == Link::Connected;
+        for event in events {
+            if !connected {
+                self.shared.dropped.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+            let topic = format!("{}/events", self.endpoint.prefix);
+            let payload = serde_json::to_vec(event).unwrap_or_default();
+            self.send(&topic, QoS::AtLeastOnce, false, payload);
         }
     }
 

@@ -175,6 +175,8 @@ pub fn execute(
     let result = (|| -> Result<(), HarnessError> {
         let list = match given.clone() {
             Some(l) => l,
+    // The last event published on MQTT (its sequence number).
+    let mut events_seen: u64 = 0;
             None => {
                 progress.show("ui: building the scan list from a network scan ...");
                 build_scan_list(&mut master, 0, 63)?
@@ -234,6 +236,10 @@ pub fn execute(
                 if let Ok(mut status) = shared.mqtt.lock() {
                     *status = Some(p.status());
                 }
+                // The events since the last cycle (automatic device replacement, scan-list changes).
+                let events = s.events().since(events_seen);
+                events_seen = events.last().map_or(events_seen, |e| e.seq);
+                p.publish_events(&events);
             }
             if let Some(e) = &sparkplug {
                 e.publish_state(s.state());
