@@ -411,6 +411,19 @@ fn refusals_before_the_bus() {
     assert!(!file.exists());
     let e = refused(&["user", "add", file.to_str().unwrap(), "ann", "--role", "admin"]);
     assert!(e.contains("unknown role `admin`"), "{e}");
+    // With --users every address is allowed; beyond loopback without TLS, with a warning.
+    add_user(&file, "ann", "viewer", "annann");
+    let list = dir.join("list.toml");
+    std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
+    let out = Command::new(bin("dnet-master"))
+        .args(["--bus", "sim", "ui", "--listen", "0.0.0.0:0", "--no-history", "--cycles", "3"])
+        .args(["--users", file.to_str().unwrap(), "--scanlist", list.to_str().unwrap()])
+        .output()
+        .expect("dnet-master runs");
+    let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("console at http://0.0.0.0:"), "{stdout}\n{stderr}");
+    assert!(stderr.contains("warning: the console listens beyond loopback without TLS"), "{stderr}");
+    assert_eq!(out.status.code(), Some(0), "{stdout}\n{stderr}");
 }
 
 #[test]

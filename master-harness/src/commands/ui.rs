@@ -128,6 +128,9 @@ pub fn execute(
     let master_mac = opts.master_mac_or_default();
     let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
     let access = args.access.open(&args.listen)?;
+    if let Some(w) = args.access.warning(&args.listen) {
+        writeln!(err, "warning: {w}").map_err(werr)?;
+    }
     let (history, publisher) = open_outputs(args)?;
     let slave = opts.slave_description()?;
     let (commands, command_rx) = mpsc::channel();

@@ -39,6 +39,16 @@ fn loopback_only(listen: &str) -> bool {
 }
 
 impl AccessArgs {
+    /// A warning for a console on `listen` beyond loopback without TLS: passwords and session
+    /// cookies would cross the network readable.
+    #[must_use]
+    pub fn warning(&self, listen: &str) -> Option<&'static str> {
+        (self.tls_cert.is_none() && !loopback_only(listen)).then_some(
+            "the console listens beyond loopback without TLS: passwords and session cookies cross the \
+             network readable (give --tls-cert and --tls-key)",
+        )
+    }
+
     /// The accounts and TLS configuration for a console on `listen`, or the refusal.
     pub fn open(&self, listen: &str) -> Result<Access, HarnessError> {
         let start = |error: String| HarnessError::ConsoleStart { address: listen.to_string(), error };
@@ -83,5 +93,6 @@ mod tests {
             assert_eq!(e.exit_code(), 2);
             assert!(e.to_string().contains("--users"), "{e}");
         }
+        assert_eq!(AccessArgs::default().warning(listen).is_some(), !ok);
     }
 }
