@@ -1,0 +1,125 @@
+//! Scan-list changes and the event log through the web console's API (issue 28 item 5), over
+//! HTTP against `dnet-master ui` on the simulated bus: a node disabled and enabled again, an
+//! entry with compatible keying added, a bad entry refused naming its key, the events listed.
+//!
+//! Needs the dnet-master program: ignored in the plain host-test run, run by scripts/check's
+//! scanner-adr stage.
+
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+
+/// One HTTP/1.1 request to the console at `addr` (a POST with the page's CSRF token and `body`):
+/// status and body.
+fn http(addr: &str, method: &str, path: &str, token: Option<&str>, body: &str) -> (u16, String) {
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    if let Some(t) = token {
+        req.push_str(&format!(
+            "Origin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {t}\r\nContent-Length: {}\r\n\r\n{body}",
+            body.len()
+        ));
+    } else {
+        req.push_str("\r\n");
+    }
+    s.write_all(req.as_bytes()).unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).unwrap();
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    (status, body.to_string())
+}
+
+fn node_status(addr: &str, mac: u64) -> Option<String> {
+    let (status, body) = http(addr, "GET", "/api/state", None, "");
+    if status != 200 {
+        return None;
+    }
+    let v: serde_json::Value = serde_json::from_str(&body).ok()?;
+    let n = v["nodes"].as_array()?.iter().find(|n| n["mac"] == mac)?.clone();
+    n["status"].as_str().map(str::to_string)
+}
+
+fn wait_status(addr: &str, mac: u64, want: &str, ui: &pty_rig::Proc) {
+    let end = Instant::now() + Duration::from_secs(30);
+    while node_status(addr, mac).as_deref() != Some(want) {
+        assert!(Instant::now() < end, "MAC {mac} never {want}: {:?}\n{}", node_status(addr, mac), ui.dump());
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+#[test]
+#[ignore = "needs dnet-master built: run by scripts/check's scanner-adr stage"]
+fn the_console_edits_the_scan_list_and_lists_the_events() {
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let addr = format!("127.0.0.1:{port}");
+    let dir = pty_rig::scratch("scanner-adr-console");
+    let list = dir.join("list.toml");
+    // MAC 7 is on the bus but not in the list: added through the API.
+    std::fs::write(
+        &list,
+        "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n\n[[node]]\nmac = 6\ninput_size = 18\noutput_size = 8\n",
+    )
+    .unwrap();
+    let mut ui = pty_rig::Proc::spawn(
+        pty_rig::bin("dnet-master"),
+        &[
+            "--bus",
+            "sim",
+            "--slave-mac",
+            "5,6,7",
+            "ui",
+            "--listen",
+            &addr,
+            "--scanlist",
+            list.to_str().unwrap(),
+        ],
+    );
+    let end = Instant::now() + Duration::from_secs(30);
+    while std::net::TcpStream::connect(&addr).is_err() {
+        assert!(Instant::now() < end, "the console does not listen\n{}", ui.dump());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    wait_status(&addr, 5, "ok", &ui);
+    let (_, page) = http(&addr, "GET", "/", None, "");
+    let token =
+        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
+    let post = |path: &str, body: &str| http(&addr, "POST", path, Some(token), body);
+
+    assert_eq!(http(&addr, "GET", "/api/scanlist/enable", None, "").0, 405);
+    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": false}"#);
+    assert_eq!(status, 200, "{body}");
+    wait_status(&addr, 5, "disabled", &ui);
+    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": true}"#);
+    assert_eq!(status, 200, "{body}");
+    wait_status(&addr, 5, "ok", &ui);
+
+    let (status, body) = post(
+        "/api/scanlist/add",
+        r#"{"mac": 7, "input_size": 18, "output_size": 8, "keying": "compatible", "major_revision": 1}"#,
+    );
+    assert_eq!(status, 200, "{body}");
+    wait_status(&addr, 7, "ok", &ui);
+    let (status, body) = post("/api/scanlist/add", r#"{"mac": 9, "input_size": 500, "output_size": 8}"#);
+    assert_eq!(status, 400, "{body}");
+    assert!(body.contains("input_size") && body.contains("448"), "{body}");
+    let (status, body) = post("/api/scanlist/remove", r#"{"mac": 7}"#);
+    assert_eq!(status, 200, "{body}");
+
+    let (status, body) = http(&addr, "GET", "/api/events", None, "");
+    assert_eq!(status, 200, "{body}");
+    let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+    let events = v["events"].as_array().unwrap();
+    let details: Vec<&str> = events.iter().map(|e| e["detail"].as_str().unwrap()).collect();
+    assert_eq!(
+        details,
+        ["MAC 5 disabled (maintenance)", "MAC 5 enabled", "MAC 7 added (poll connection)", "MAC 7 removed"],
+        "{body}"
+    );
+    assert!(events.iter().all(|e| e["kind"] == "list_changed"), "{body}");
+    let last = events[1]["seq"].as_u64().unwrap();
+    let (_, body) = http(&addr, "GET", &format!("/api/events?since={last}"), None, "");
+    let after: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(after["events"].as_array().unwrap().len(), 2, "{body}");
+    ui.terminate();
+}
