@@ -197,8 +197,12 @@ async def refused_call(client, mac, method, who):
 
 
 async def call_mode(args):
+    with tempfile.TemporaryDirectory(prefix="opcua-client-") as work:
+        await calls(args, Path(work))
+
+
+async def calls(args, work):
     compared = 0
-    work = Path(tempfile.mkdtemp(prefix="opcua-client-"))
     # Anonymous, on the endpoint without security and on the encrypted one.
     c = Client(args.url)
     await c.connect()
