@@ -143,6 +143,8 @@ pub fn download(
         let c = compare(&one(f), &one(n));
         if let Some(config) = &f.configuration {
             if c.differences.iter().any(|d| d.what.starts_with("configuration")) {
+                // The download allocates its own connection: what the read left open is released.
+                master.release_held()?;
                 done.push(configurator.download(master, mac, config)?);
             }
         }
