@@ -94,6 +94,13 @@
 //! production that comes meanwhile is not taken nor acknowledged (the node sends it again after
 //! its acknowledge timer, then at its next trigger).
 //!
+//! ## Automatic device replacement and scan-list changes
+//!
+//! Between cycles, every reconnect interval (and when a device ADR waits for comes on-line), the
+//! ADR step runs ([`crate::adr`], in `engine/replace.rs`): nodes joined and lost, a device at MAC
+//! 63, a replacement's CCV and configuration. [`Scanner::edit`] changes the scan list while the
+//! scanner runs (`engine/edit.rs`). Both leave events in [`Scanner::events`].
+//!
 //! ## Memory
 //!
 //! The session keeps at most [`RECORDS_KEPT`] frames (older ones are forgotten,

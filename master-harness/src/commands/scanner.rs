@@ -8,6 +8,11 @@
 //! under acknowledge suppression); `--json`: one object with `cycle_ms` (the median full cycle),
 //! `bus_load` and `nodes` (each with `connection` and `ack_suppression`). Exit 0 when every node ended ok, 1 otherwise, 2 for a usage
 //! or scan list error.
+//!
+//! Automatic device replacement ([`dnet_scanner::adr`]): per scan-list entry (`adr = ...`), or with
+//! `--adr` for every node of a list built by the scan; configurations are uploaded and downloaded
+//! with `configure`'s functions ([`crate::configure`]). The events ([`dnet_scanner::events`]) are
+//! printed after the node table, and are `events` in the `--json` object.
 
 use crate::options::{open_bus_with_pcap, GlobalOptions};
 use can_io::bus::BusSpec;

@@ -59,6 +59,8 @@
 //! | `POST /api/node/MAC/breaker/param` `{"id", "value"}` | command 3: parameter `id` (0–255) set to `value` (0–65535) |
 //! | `POST /api/record/start`, `/api/record/stop`; `GET /api/record` | recording of the frames to `record-TIMESTAMP.log` (`candump -L`) and `.pcap` in the record directory: `{"ok", "recording", "log", "pcap", "frames"}` |
 //! | `GET /api/health`, `GET /api/health.csv`, `POST /api/health/clear` | bus and node health ([`crate::health`]; handlers in `health_api`): the report as JSON, its node table as CSV, the statistics cleared (then the fresh report) |
+//! | `GET /api/events?since=N` | `{"ok", "events": [ScanEvent...]}`: the scanner's events after sequence number N ([`crate::events`]: automatic device replacement, scan-list changes; handlers in `scanlist_api`) |
+//! | `POST /api/scanlist/add`, `/edit` (an entry as JSON, the scan list file's keys), `/remove` `{"mac"}`, `/enable` `{"mac", "enabled"}` | the scan list changed while the scanner runs ([`ListEdit`](crate::model::ListEdit)); `400` with the reason (the key, the MAC) when refused |
 //!
 //! Commands wait for the scanner's answer for at most [`COMMAND_TIMEOUT`] and return
 //! `{"ok": true, "data": hex}` or `{"ok": false, "error": "..."}` (the device's error response by
