@@ -53,7 +53,7 @@ pub struct ScannerArgs {
 }
 
 /// The scanner's configuration tool: `configure`'s upload and download ([`crate::configure`]).
-struct Configure;
+pub(crate) struct Configure;
 
 impl ConfigTool for Configure {
     fn upload(&mut self, master: &mut Master<'_, '_>, mac: MacId) -> Result<String, HarnessError> {

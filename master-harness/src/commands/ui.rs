@@ -55,6 +55,10 @@ pub struct UiArgs {
     /// The scan list (TOML) [default: built from a network scan].
     #[arg(long, value_name = "FILE.toml")]
     pub scanlist: Option<PathBuf>,
+    /// Automatic device replacement (`adr = "config+address"`) for every node of a scan list
+    /// built by the network scan (a scan list file says it per node).
+    #[arg(long)]
+    pub adr: bool,
     /// The sample history (SQLite; created when missing).
     #[arg(long, value_name = "FILE", default_value = "dnet-history.sqlite")]
     pub history: PathBuf,
@@ -175,14 +179,20 @@ pub fn execute(
     let mut scanner: Option<Scanner> = None;
     let mut thinning = Thinning::default();
     let mut history_error: Option<String> = None;
+    // The last event published on MQTT (its sequence number).
+    let mut events_seen: u64 = 0;
     let result = (|| -> Result<(), HarnessError> {
         let list = match given.clone() {
             Some(l) => l,
-    // The last event published on MQTT (its sequence number).
-    let mut events_seen: u64 = 0;
             None => {
                 progress.show("ui: building the scan list from a network scan ...");
-                build_scan_list(&mut master, 0, 63)?
+                let mut l = build_scan_list(&mut master, 0, 63)?;
+                if args.adr {
+                    for n in &mut l.nodes {
+                        n.adr = dnet_scanner::model::AdrMode::ConfigAddress;
+                    }
+                }
+                l
             }
         };
         if list.nodes.is_empty() {
@@ -198,6 +208,7 @@ pub fn execute(
         };
         let options = ScannerOptions { cycles: args.cycles, bitrate: opts.bitrate, layouts };
         let s = scanner.insert(Scanner::new(list, master_mac.as_raw(), options));
+        s.set_config_tool(Box::new(super::scanner::Configure));
         progress.show(&format!("ui: bringing {} node(s) into I/O ...", s.state().nodes.len()));
         s.start(&mut master)?;
         progress.clear();
@@ -236,13 +247,13 @@ pub fn execute(
             if let Some(p) = &publisher {
                 p.publish_state(s.state());
                 p.publish_samples(&samples);
-                if let Ok(mut status) = shared.mqtt.lock() {
-                    *status = Some(p.status());
-                }
                 // The events since the last cycle (automatic device replacement, scan-list changes).
                 let events = s.events().since(events_seen);
                 events_seen = events.last().map_or(events_seen, |e| e.seq);
                 p.publish_events(&events);
+                if let Ok(mut status) = shared.mqtt.lock() {
+                    *status = Some(p.status());
+                }
             }
             if let Some(e) = &sparkplug {
                 e.publish_state(s.state());
