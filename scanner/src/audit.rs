@@ -112,9 +112,16 @@ pub(crate) fn cut(text: &str) -> String {
 /// Why the audit log could not be written or read.
 #[derive(Debug, thiserror::Error)]
 pub enum AuditError {
-    /// The history database failed.
-    #[error(transparent)]
-    History(#[from] crate::history::HistoryError),
+    /// The history database failed (disk full, locked by another program, ...).
+    #[error("history database {}: {what}: {source}", path.display())]
+    Database {
+        /// The history file.
+        path: std::path::PathBuf,
+        /// What was being done.
+        what: &'static str,
+        /// SQLite's reason.
+        source: rusqlite::Error,
+    },
 }
 
 /// Where audit entries go: the history's `audit` table or [`MemoryAudit`]. `Send + Sync`: the

@@ -544,18 +544,25 @@ impl History {
     }
 }
 
+impl History {
+    /// An SQL failure of the audit table, naming the file and what was being done.
+    fn audit_error(&self, what: &'static str, source: rusqlite::Error) -> crate::audit::AuditError {
+        crate::audit::AuditError::Database { path: self.path.clone(), what, source }
+    }
+}
+
 /// The audit log in the table `audit` (see [`crate::audit`]), kept to the newest
 /// [`audit::MAX_ROWS`](crate::audit::MAX_ROWS) entries.
 impl crate::audit::Audit for History {
     fn record(&self, entry: &crate::audit::AuditEntry) -> Result<(), crate::audit::AuditError> {
         let conn = lock(&self.writer);
         crate::audit::insert(&conn, entry, crate::audit::MAX_ROWS)
-            .map_err(|e| self.sql("recording an audit entry", e).into())
+            .map_err(|source| self.audit_error("recording an audit entry", source))
     }
 
     fn recent(&self, limit: usize) -> Result<Vec<crate::audit::AuditEntry>, crate::audit::AuditError> {
         crate::audit::select(&self.read_conn(), limit)
-            .map_err(|e| self.sql("reading the audit log", e).into())
+            .map_err(|source| self.audit_error("reading the audit log", source))
     }
 }
 
