@@ -16,7 +16,8 @@
 //!
 //! ## Scenarios
 //!
-//! On every board `bring-up`, `breaker`, `power-cycle`, `configure`, `download-cut` (a power cut
+//! On every board `bring-up`, `breaker`, `power-cycle`, `configure`, `ccv` (the configuration
+//! consistency value after a download and a power cycle), `download-cut` (a power cut
 //! at every flash operation of a download), `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and
 //! `can-self-test-fault` (the CAN self-test failing); on a board with DIP switches `switches`;
 //! on a board without them `mac63-autobaud-125k`, `-250k`, `-500k` and `autobaud-silent-bus`

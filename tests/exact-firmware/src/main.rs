@@ -8,7 +8,7 @@
 //! ```
 //!
 //! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
-//! `configure`, `download-cut` (a power cut at every flash operation of a download),
+//! `configure`, `ccv`, `download-cut` (a power cut at every flash operation of a download),
 //! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and `can-self-test-fault` on every board;
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not

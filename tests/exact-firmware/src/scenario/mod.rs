@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | `bring-up`, `breaker`, `power-cycle` | every board | [`bring_up`] |
 //! | `configure` | every board | [`configure`] |
+//! | `ccv` | every board | [`ccv`] |
 //! | `download-cut` | every board | [`download_cut`] |
 //! | `wrong-bit-rate`, `bus-load`, `bus-off` | every board | [`can`] |
 //! | `switches` | boards with DIP switches (the reference board) | [`switches`] |
@@ -17,6 +18,7 @@
 pub mod autobaud;
 pub mod bring_up;
 pub mod can;
+pub mod ccv;
 pub mod configure;
 pub mod download_cut;
 pub mod leds;
@@ -51,11 +53,12 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 15] = [
+pub const ALL: [Scenario; 16] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
     Scenario { name: "configure", applies: every_board, run: configure::configure },
+    Scenario { name: "ccv", applies: every_board, run: ccv::ccv },
     Scenario { name: "download-cut", applies: every_board, run: download_cut::download_cut },
     Scenario { name: "wrong-bit-rate", applies: every_board, run: can::wrong_bit_rate },
     Scenario { name: "bus-load", applies: every_board, run: can::bus_load },
