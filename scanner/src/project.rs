@@ -47,6 +47,7 @@
 //! number: name and value). Product name and serial number are recorded, not compared: a
 //! replacement device of the same kind has its own serial number.
 
+pub mod console;
 pub mod network;
 #[cfg(test)]
 mod tests;
