@@ -56,9 +56,22 @@ pub struct ScannerArgs {
 pub(crate) struct Configure;
 
 impl ConfigTool for Configure {
+    /// The image in force read over the node's explicit connection, which the scanner holds
+    /// (`configure::upload` would allocate it again and wait for the device: long enough for the
+    /// other nodes' connections to time out).
     fn upload(&mut self, master: &mut Master<'_, '_>, mac: MacId) -> Result<String, HarnessError> {
-        let up = crate::configure::upload(master, mac)?;
-        up.description.to_toml().map_err(|detail| HarnessError::DescriptionNotWritable { detail })
+        use crate::configure::{read_image, CONFIGURATION_CLASS};
+        let size = master.get_u16(mac, CONFIGURATION_CLASS, 1, 2)?.ok_or_else(|| {
+            master_core::error::MasterError::Protocol {
+                what: "configuration size".into(),
+                reason: "not a UINT".into(),
+            }
+        })?;
+        let image = read_image(master, mac, 0, usize::from(size))?;
+        let converter = slave_fw::image::decode(&image)
+            .map_err(|e| HarnessError::ImageUndecodable { mac, detail: e.to_string() })?;
+        let description = DeviceDescription { converter, vendor_name: String::new(), catalog: String::new() };
+        description.to_toml().map_err(|detail| HarnessError::DescriptionNotWritable { detail })
     }
 
     fn download(

@@ -423,6 +423,30 @@ async function refreshHealth() {
   showHealth(await api("/api/health"));
 }
 
+// ---- events (scanner/src/events.rs, docs/src/plant/scanner.md) --------------------------------
+// The newest events first, at most 50 rows; each poll asks only for those after the last seen.
+let eventsSeen = 0;
+const eventRows = [];
+function showEvents(r) {
+  if (!r || !r.ok || !r.events.length) return;
+  for (const e of r.events) {
+    if (e.seq <= eventsSeen) continue;
+    eventsSeen = e.seq;
+    eventRows.unshift(el("tr", { "data-kind": e.kind, "data-mac": e.mac },
+      el("td", { text: `${(e.time_us / 1e6).toFixed(3)} s` }), el("td", { text: `MAC ${e.mac}` }),
+      el("td", { text: e.kind }), el("td", { text: e.detail })));
+  }
+  eventRows.splice(50);
+  $("events").replaceChildren(el("tr", {}, ...["time", "MAC", "kind", "detail"].map((t) => el("th", { text: t }))), ...eventRows);
+}
+
+let eventsBusy = false;
+async function refreshEvents() {
+  if (eventsBusy) return;
+  eventsBusy = true;
+  try { showEvents(await api(`/api/events?since=${eventsSeen}`)); } finally { eventsBusy = false; }
+}
+
 function init() {
   $("btn-health-clear").addEventListener("click", async () => showHealth(await post("/api/health/clear")));
   $("login-form").addEventListener("submit", login);
@@ -453,6 +477,8 @@ function init() {
   setInterval(refreshTrace, 300);
   refreshHealth();
   setInterval(refreshHealth, 2000);
+  refreshEvents();
+  setInterval(refreshEvents, 1000);
   setInterval(async () => {
     if ($("rec-stop").disabled || recordBusy) return;
     const seq = recordSeq;
