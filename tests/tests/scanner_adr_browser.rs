@@ -34,6 +34,7 @@ fn events_panel_in_chromium() {
             "5@10000",
             "--realtime",
             "ui",
+            "--no-history",
             "--listen",
             &addr,
             "--adr",

@@ -69,6 +69,7 @@ fn the_console_edits_the_scan_list_and_lists_the_events() {
             "--slave-mac",
             "5,6,7",
             "ui",
+            "--no-history",
             "--listen",
             &addr,
             "--scanlist",
