@@ -59,6 +59,10 @@ pub struct UiArgs {
     /// built by the network scan (a scan list file says it per node).
     #[arg(long)]
     pub adr: bool,
+    /// A network project (`dnet-master project upload`) the console compares with the running
+    /// network (`GET /api/project/compare`, the page's Project panel); read and checked at start.
+    #[arg(long, value_name = "FILE.toml")]
+    pub project: Option<PathBuf>,
     /// The sample history (SQLite; created when missing).
     #[arg(long, value_name = "FILE", default_value = "dnet-history.sqlite")]
     pub history: PathBuf,
@@ -131,7 +135,16 @@ pub fn execute(
     // Everything that can be refused, before the bus is touched.
     let master_mac = opts.master_mac_or_default();
     let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
-    let access = args.access.open(&args.listen)?;
+    let project = match args.project.as_deref().map(|f| dnet_scanner::project::read(f).map(|p| (f, p))) {
+        None => None,
+        Some(Ok((f, p))) => Some((f.display().to_string(), p)),
+        Some(Err(e)) => {
+            writeln!(err, "error: {e}").map_err(werr)?;
+            return Ok(2);
+        }
+    };
+    let mut access = args.access.open(&args.listen)?;
+    access.project = project;
     if let Some(w) = args.access.warning(&args.listen) {
         writeln!(err, "warning: {w}").map_err(werr)?;
     }

@@ -68,7 +68,7 @@ impl AccessArgs {
             (Some(cert), Some(key)) => Some(tls::server_config(cert, key).map_err(|e| start(e.to_string()))?),
             _ => None,
         };
-        Ok(Access { users, tls })
+        Ok(Access { users, tls, project: None })
     }
 }
 

@@ -45,6 +45,7 @@
 //! | `GET /api/state` | the [`ScannerState`](crate::model::ScannerState) (scanner status, cycles, `cycle_ms`, `bus_load`, `nodes`), plus `mqtt` (the publisher's state or `null`), `recording` and `history` (whether samples are kept) |
 //! | `GET /api/frames?after=SEQ&mac=N&kind=K&limit=L` | `{"next": SEQ, "frames": [FrameRow...]}`: the frames after `SEQ` (default 0) concerning MAC `N`, of kind `K` (`explicit`, `io`, `duplicate_mac`, `ucmm`, `offline`), the newest `L` (default 500, at most 5000); `next` is the sequence number to ask after next time |
 //! | `GET /api/node/MAC` | `{"node": NodeState, "profile", "fields", "link", "note", "input_hex", "output_hex"}`: the node decoded by its profile ([`layout_for`]); `fields` each `{name, values, text}`; `link` the status byte and freshness counter decoded, or `null` |
+//! | `GET /api/project/compare` | the network project of `--project FILE` against the running network ([`crate::project::console`]): `{"ok", "project", "compared": {nodes, scan_list, identity, configuration, parameters}, "not_compared": [{mac, what, why, wanted}], "differences": [{mac, what, expected, found}], "equal"}`; `equal` only when something was compared and nothing differs or was left out; `409` when nothing could be compared, `404` without `--project` |
 //! | `GET /api/node/MAC/params` | `{"params": [ParamRow...], "note"}`: the Parameter object (class 0x0F) read with Get_Attribute_Single; empty with a note when the device has none |
 //! | `GET /api/history?mac=N&from=MS&to=MS&limit=L` | `{"mac", "samples": [{unix_ms, bus_us, input, values: [[name, number]...]}]}` from the history database (default: the last 60 s, at most 2000 samples, the newest when there are more) |
 //! | `GET /api/export.csv?mac=N&from=MS&to=MS` | the samples as a CSV download (`mac` left out: every node), at most [`MAX_EXPORT`] bytes |
@@ -84,6 +85,7 @@ mod auth;
 mod guard;
 pub mod http;
 mod health_api;
+mod project_api;
 mod record;
 mod scanlist_api;
 pub mod thinning;
@@ -125,6 +127,8 @@ pub(crate) struct Context {
     pub(crate) recorder: Mutex<Option<Recorder>>,
     pub(crate) guard: Guard,
     pub(crate) auth: Auth,
+    /// The network project (its file's name and the project), from `--project FILE`.
+    pub(crate) project: Option<(String, crate::project::Project)>,
 }
 
 /// Who may use the console and how it is reached: the accounts (`None`: no logins, loopback
@@ -135,6 +139,9 @@ pub struct Access {
     pub users: Option<crate::accounts::Users>,
     /// The TLS configuration, from `--tls-cert` / `--tls-key` ([`tls::server_config`]).
     pub tls: Option<Arc<rustls::ServerConfig>>,
+    /// The network project `GET /api/project/compare` compares with the network (the file's
+    /// name, the project), from `dnet-master ui --project FILE`.
+    pub project: Option<(String, crate::project::Project)>,
 }
 
 impl UiServer {
@@ -200,6 +207,7 @@ pub fn serve_with(listen: &str, shared: Arc<Shared>, access: Access) -> Result<U
         recorder: Mutex::new(None),
         guard: Guard::new(addr, tls),
         auth: Auth::new(access.users, token, tls),
+        project: access.project,
     });
     let handler = {
         let context = Arc::clone(&context);

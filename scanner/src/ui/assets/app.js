@@ -399,6 +399,43 @@ async function refreshAudit() {
   $("audit-table").tBodies[0].replaceChildren(...rows);
 }
 
+// ---- project (scanner/src/ui/project_api.rs, docs/src/plant/projects.md) ----------------------
+// The network project of `ui --project FILE` against the network: what was compared, what was not
+// and why, every difference. A comparison reads attributes over the bus, so it runs at start, on
+// the button and every 15 s while the network view is shown, never two at a time.
+let projectBusy = false;
+function showProject(r) {
+  if (!r || r.project === null) { $("project-card").hidden = true; return false; }
+  $("project-card").hidden = false;
+  $("project-file").textContent = r.project || "";
+  const verdict = $("project-verdict");
+  const diffs = r.differences || [];
+  verdict.textContent = r.equal ? "equal" : diffs.length ? `${diffs.length} difference(s)` : "not compared";
+  verdict.classList.toggle("err", !r.equal);
+  const c = r.compared;
+  $("project-compared").textContent = (r.ok ? "" : `${r.error} · `) + (c
+    ? `compared: ${c.nodes} node(s), ${c.scan_list} scan-list entr${c.scan_list === 1 ? "y" : "ies"}, ${c.identity} identit${c.identity === 1 ? "y" : "ies"}, ${c.configuration} configuration(s) by CCV, ${c.parameters} parameter(s)`
+    : "");
+  $("project-differences").replaceChildren(
+    el("tr", {}, ...["MAC", "what", "project", "network"].map((t) => el("th", { text: t }))),
+    ...(diffs.length ? diffs.map((d) => el("tr", { "data-mac": d.mac },
+      el("td", { text: String(d.mac) }), el("td", { text: d.what }),
+      el("td", { class: "val", text: d.expected }), el("td", { class: "val err", text: d.found })))
+      : [el("tr", {}, el("td", { colspan: "4", text: r.ok ? "no differences" : "nothing compared" }))]));
+  $("project-not-compared").replaceChildren(...(r.not_compared || []).map((n) => el("li", {
+    text: `MAC ${n.mac}: ${n.what} not compared: ${n.why}${n.wanted ? "" : " (as the project asks)"}` })));
+  return true;
+}
+async function compareProject() {
+  if (projectBusy) return;
+  projectBusy = true;
+  try { return showProject(await api("/api/project/compare")); } finally { projectBusy = false; }
+}
+window.addEventListener("load", async () => {
+  $("btn-project").addEventListener("click", compareProject);
+  if (await compareProject()) setInterval(() => { if (!$("view-network").hidden) compareProject(); }, 15000);
+});
+
 // ---- wiring ----------------------------------------------------------------------------------
 // ---- health (scanner/src/health.rs, docs/src/plant/health.md) --------------------------------
 function showHealth(h) {
