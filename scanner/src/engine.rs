@@ -195,7 +195,10 @@ impl Scanner {
             nodes: nodes.iter().map(|n| n.state.clone()).collect(),
         };
         let macs: Vec<(u8, bool)> = nodes.iter().map(|n| (n.entry.mac, n.kind == IoKind::Strobe)).collect();
-        let health = crate::health::Health::new(&macs, master_mac, options.bitrate, timing.epr_ms);
+        let mut health = crate::health::Health::new(&macs, master_mac, options.bitrate, timing.epr_ms);
+        for n in nodes.iter().filter(|n| !n.entry.enabled) {
+            health.set_enabled(n.entry.mac, false);
+        }
         Scanner {
             nodes,
             state,

@@ -18,6 +18,10 @@
 //!   records the order the nodes went silent in (by the last frame heard from each), so the node
 //!   that dropped first is named.
 //!
+//! The nodes follow the scan list while the scanner runs ([`Health::track`],
+//! [`Health::untrack`], [`Health::set_enabled`]): an added node is measured from then on, a
+//! removed one leaves the statistics, a disabled one (maintenance) has no drop-outs counted.
+//!
 //! [`Health::report`] gives all of it with the score and findings ([`report`]); the console serves
 //! it as JSON and CSV (`crate::ui`'s `health_api`).
 //!
@@ -89,6 +93,8 @@ pub struct NodeHealth {
     awaiting_since: Option<Instant>,
     /// Strobed (answers the scanner's bit-strobe command).
     strobed: bool,
+    /// Disabled in the scan list (maintenance): its drop-outs are not counted.
+    pub disabled: bool,
 }
 
 /// Why an incident was recorded.
@@ -202,7 +208,7 @@ impl Health {
             Identifier::Group2 { mac, message: Group2Message::BitStrobeCommand }
                 if origin == Origin::Local =>
             {
-                for n in self.nodes.values_mut().filter(|n| n.strobed) {
+                for n in self.nodes.values_mut().filter(|n| n.strobed && !n.disabled) {
                     n.awaiting_since = Some(at);
                 }
                 (mac.as_raw(), false)
@@ -247,9 +253,40 @@ impl Health {
         self.bus = Some(report);
     }
 
-    /// Node `mac` dropped out at `now` (its I/O connection timed out).
+    /// Node `mac` is measured from now on (added to the scan list while running), strobed or
+    /// not; a node measured already (its entry edited) keeps its figures, with the new connection.
+    pub fn track(&mut self, mac: u8, strobed: bool, enabled: bool) {
+        if mac == self.master_mac {
+            return;
+        }
+        let n = self.nodes.entry(mac).or_default();
+        n.strobed = strobed;
+        n.disabled = !enabled;
+        n.awaiting_since = None;
+    }
+
+    /// Node `mac` leaves the statistics (removed from the scan list). Incidents it was part of
+    /// stay: they happened.
+    pub fn untrack(&mut self, mac: u8) {
+        self.nodes.remove(&mac);
+    }
+
+    /// Node `mac` enabled or disabled (maintenance): while disabled, its drop-outs are not
+    /// counted (the scanner released it on purpose).
+    pub fn set_enabled(&mut self, mac: u8, enabled: bool) {
+        if let Some(n) = self.nodes.get_mut(&mac) {
+            n.disabled = !enabled;
+            n.awaiting_since = None;
+        }
+    }
+
+    /// Node `mac` dropped out at `now` (its I/O connection timed out); not counted while the node
+    /// is disabled or not in the scan list.
     pub fn dropped_out(&mut self, mac: u8, now: Instant) {
         let Some(n) = self.nodes.get_mut(&mac) else { return };
+        if n.disabled {
+            return;
+        }
         n.dropouts += 1;
         n.awaiting_since = None;
         if n.drop_times.len() == DROP_TIMES_KEPT {
@@ -296,7 +333,7 @@ impl Health {
         self.frames = 0;
         self.bits = 0;
         for n in self.nodes.values_mut() {
-            *n = NodeHealth { strobed: n.strobed, ..NodeHealth::default() };
+            *n = NodeHealth { strobed: n.strobed, disabled: n.disabled, ..NodeHealth::default() };
         }
         self.incidents.clear();
     }

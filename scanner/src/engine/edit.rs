@@ -4,7 +4,9 @@
 //!
 //! An added or edited entry is checked as a scan list file's is ([`crate::list`]); an edited,
 //! removed or disabled node's connections are released first. The timing computed at the start
-//! (EPR, inter-scan delay) stays in force: an added node gets the same EPR.
+//! (EPR, inter-scan delay) stays in force: an added node gets the same EPR. Bus and node health
+//! ([`crate::health`]) follows: an added node is measured from then on, a removed one leaves the
+//! statistics, a disabled one has no drop-outs counted.
 
 use super::node::{Node, DISABLED};
 use super::Scanner;
@@ -13,6 +15,7 @@ use crate::model::{ListEdit, NodeStatus, ScanEntry, ScanList};
 use devicenet::messages::AllocationChoice;
 use devicenet::MacId;
 use harness_common::error::HarnessError;
+use master_core::master::io::IoKind;
 use master_core::master::Master;
 
 /// Why a scan-list change was refused.
@@ -42,6 +45,7 @@ impl Scanner {
                 }
                 let at = self.nodes.partition_point(|n| n.entry.mac < mac);
                 self.nodes.insert(at, Node::new(&entry));
+                self.health_follows(mac);
                 (mac, format!("MAC {mac} added ({} connection)", entry.connection))
             }
             ListEdit::Edit(entry) => {
@@ -50,6 +54,7 @@ impl Scanner {
                 let i = self.index(mac)?;
                 self.release(master, i);
                 self.nodes[i] = Node::new(&entry);
+                self.health_follows(mac);
                 self.adr.known.remove(&mac);
                 (mac, format!("MAC {mac} edited: brought up again"))
             }
@@ -57,6 +62,7 @@ impl Scanner {
                 let i = self.index(mac)?;
                 self.release(master, i);
                 self.nodes.remove(i);
+                self.health.untrack(mac);
                 self.adr.known.remove(&mac);
                 self.adr.lost.remove(&mac);
                 self.adr.pending.remove(&mac);
@@ -68,6 +74,7 @@ impl Scanner {
                     return Ok(());
                 }
                 self.nodes[i].entry.enabled = enabled;
+                self.health.set_enabled(mac, enabled);
                 if enabled {
                     self.nodes[i].set(NodeStatus::Initializing, None);
                     (mac, format!("MAC {mac} enabled"))
@@ -92,6 +99,13 @@ impl Scanner {
             interscan_delay_ms: None,
             expected_packet_rate_ms: None,
             nodes: self.nodes.iter().map(|n| n.entry.clone()).collect(),
+        }
+    }
+
+    /// Health measures node `mac` as its entry now says (added or edited: connection, enabled).
+    fn health_follows(&mut self, mac: u8) {
+        if let Some(n) = self.nodes.iter().find(|n| n.entry.mac == mac) {
+            self.health.track(mac, n.kind == IoKind::Strobe, n.entry.enabled);
         }
     }
 

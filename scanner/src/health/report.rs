@@ -74,6 +74,8 @@ pub struct NodeHealthReport {
     pub last_dropout_s: Option<f64>,
     /// Mean time between its drop-outs, s (`null`: fewer than two).
     pub dropout_interval_s: Option<f64>,
+    /// Disabled in the scan list (maintenance): drop-outs are not counted while it is.
+    pub disabled: bool,
 }
 
 /// One incident of the report.
@@ -156,6 +158,7 @@ pub(super) fn build(h: &Health, now: Instant) -> HealthReport {
                 dropouts: n.dropouts,
                 last_dropout_s: n.drop_times.back().map(|t| secs(t.total_micros())),
                 dropout_interval_s: interval,
+                disabled: n.disabled,
             }
         })
         .collect();

@@ -94,3 +94,51 @@ fn a_bus_that_reports_nothing_says_unknown() {
     assert_eq!((r.bus.state, r.bus.tec, r.bus.error_frames, r.bus.bus_off), ("unknown", None, None, None));
     assert_eq!(r.score, 100);
 }
+
+#[test]
+fn a_node_added_while_running_is_measured_from_then_on() {
+    let mut h = health();
+    h.observe(&frame(0x405 | 7 << 3, &[0; 8]), Origin::Local, ms(10)); // poll to 7: not listed yet
+    h.observe(&frame(0x3C0 | 7, &[1]), Origin::Remote, ms(11));
+    assert!(h.report(ms(12)).node(7).is_none());
+    h.track(7, false, true);
+    h.observe(&frame(0x405 | 7 << 3, &[0; 8]), Origin::Local, ms(20));
+    h.observe(&frame(0x3C0 | 7, &[1]), Origin::Remote, ms(24));
+    h.dropped_out(7, ms(900));
+    let r = h.report(ms(1_000));
+    let n7 = r.node(7).unwrap();
+    assert_eq!((n7.frames, n7.response_ms.unwrap().avg, n7.dropouts), (2, 4.0, 1));
+    assert!(n7.traffic_pct > 0.0);
+}
+
+#[test]
+fn a_removed_node_leaves_the_statistics() {
+    let mut h = health();
+    h.observe(&frame(0x3C0 | 5, &[1]), Origin::Remote, ms(10));
+    h.dropped_out(5, ms(500));
+    h.untrack(5);
+    h.dropped_out(5, ms(600));
+    h.observe(&frame(0x3C0 | 5, &[1]), Origin::Remote, ms(700));
+    let r = h.report(ms(1_000));
+    assert!(r.node(5).is_none());
+    assert_eq!(r.nodes.iter().map(|n| n.mac).collect::<Vec<_>>(), vec![9]);
+    assert_eq!(r.score, 100, "its drop-out left with it: {:?}", r.findings);
+}
+
+#[test]
+fn a_disabled_node_has_no_drop_outs_counted_until_enabled_again() {
+    let mut h = health();
+    h.set_enabled(9, false);
+    h.observe(&frame(0x400, &[0; 8]), Origin::Local, ms(10)); // bit-strobe: 9 is not awaited
+    h.observe(&frame(0x380 | 9, &[1]), Origin::Remote, ms(12));
+    h.dropped_out(9, ms(500));
+    h.dropped_out(5, ms(600));
+    let r = h.report(ms(700));
+    let n9 = r.node(9).unwrap();
+    assert_eq!((n9.dropouts, n9.disabled, n9.response_ms), (0, true, None));
+    assert!(r.incidents.is_empty(), "one counted drop-out is no incident: {:?}", r.incidents);
+    h.set_enabled(9, true);
+    h.dropped_out(9, ms(5_000));
+    let n9 = h.report(ms(5_100)).node(9).cloned().unwrap();
+    assert_eq!((n9.dropouts, n9.disabled), (1, false));
+}
