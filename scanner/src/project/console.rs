@@ -22,13 +22,17 @@
 //! - **parameters**, each read (Parameter object, class 0x0F, instance N, attribute 1, decoded by
 //!   its data type, attribute 5) and compared with the project's value.
 //!
+//! The CCV and the parameters are read only from a node the scanner has in I/O (ok or idle): a
+//! node that does not answer would make each read wait for its timeout. One comparison makes at
+//! most [`MAX_READS`] reads.
+//!
 //! Whatever could not be compared (an attribute the node did not give, an identity the scanner
 //! never read, a keying that asks for nothing) is listed in [`RunningComparison::not_compared`]
 //! with why. [`RunningComparison::equal`] is true only when something was compared, nothing
 //! differs and nothing that should have been compared was left out.
 
 use super::{Keying, Project, ProjectNode, ProjectParam};
-use crate::model::NodeState;
+use crate::model::{NodeState, NodeStatus};
 use crate::params::{decode_value, PARAMETER_CLASS};
 use serde::Serialize;
 
@@ -36,6 +40,10 @@ use serde::Serialize;
 const IDENTITY_CLASS: u16 = 0x01;
 /// Identity attribute 9, the configuration consistency value.
 const CCV_ATTRIBUTE: u8 = 9;
+/// Attribute reads one comparison makes at most (each is answered between two scan cycles; a
+/// project of 63 converters with their 9 parameters needs 1197); what would need more is listed
+/// as not compared.
+pub const MAX_READS: usize = 2048;
 
 /// Reads one attribute of a node (`mac`, class, instance, attribute): the value's bytes, or why
 /// not in words.
@@ -119,6 +127,14 @@ pub fn compare_running(
     read: &mut ReadAttribute<'_>,
 ) -> RunningComparison {
     let mut c = RunningComparison::default();
+    let mut reads = 0usize;
+    let mut read = |mac: u8, class: u16, instance: u16, attribute: u8| {
+        reads += 1;
+        if reads > MAX_READS {
+            return Err(format!("more than {MAX_READS} reads in one comparison"));
+        }
+        read(mac, class, instance, attribute)
+    };
     let mut macs: Vec<u8> = project.node.iter().map(|n| n.mac).chain(nodes.iter().map(|n| n.mac)).collect();
     macs.sort_unstable();
     macs.dedup();
@@ -143,7 +159,7 @@ pub fn compare_running(
             }),
             (Some(f), Some(s)) => {
                 c.compared.nodes += 1;
-                compare_node(f, s, read, &mut c);
+                compare_node(f, s, &mut read, &mut c);
             }
             (None, None) => {}
         }
@@ -155,6 +171,17 @@ fn compare_node(f: &ProjectNode, s: &NodeState, read: &mut ReadAttribute<'_>, c:
     let mac = f.mac;
     compare_scan_list(f, s, c);
     compare_identity(f, s, c);
+    // A node the scanner has not in I/O is not asked: each read would wait for its timeout.
+    if !matches!(s.status, NodeStatus::Ok | NodeStatus::Idle) {
+        let why = format!("not read: the node is {} (code {})", s.status.name(), s.code);
+        if f.configuration.is_some() {
+            not(c, mac, "configuration", why.clone());
+        }
+        for p in &f.param {
+            not(c, mac, &format!("parameter {} ({})", p.number, p.name), why.clone());
+        }
+        return;
+    }
     if let Some(config) = &f.configuration {
         match expected_ccv(config) {
             Ok(expected) => match read(mac, IDENTITY_CLASS, 1, CCV_ATTRIBUTE) {
@@ -179,7 +206,7 @@ fn compare_node(f: &ProjectNode, s: &NodeState, read: &mut ReadAttribute<'_>, c:
                     not(c, mac, "configuration", format!("the CCV (Identity attribute 9) not read: {e}"))
                 }
             },
-            Err(e) => not(c, mac, "configuration", e),
+            Err(e) => not(c, mac, "configuration", e.to_string()),
         }
     }
     for p in &f.param {
@@ -327,13 +354,22 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02X}")).collect()
 }
 
+/// Why no CCV could be computed for a project's configuration.
+#[derive(Debug, thiserror::Error)]
+pub enum CcvError {
+    /// The description reader refused it.
+    #[error("the project's configuration is refused: {0}")]
+    Description(slave_fw::description::DescriptionError),
+    /// It does not encode to an image.
+    #[error("the project's configuration does not encode to an image: {0}")]
+    Image(slave_fw::converter::image::ImageError),
+}
+
 /// The CCV a device storing the configuration `description` reports: the consistency value of
 /// the image it encodes to (`slave_fw::converter::consistency::consistency_value`).
-pub fn expected_ccv(description: &str) -> Result<u16, String> {
-    let d = slave_fw::description::DeviceDescription::parse(description)
-        .map_err(|e| format!("the project's configuration is refused: {e}"))?;
-    let image = slave_fw::converter::image::encode_to_vec(&d.converter)
-        .map_err(|e| format!("the project's configuration does not encode to an image: {e}"))?;
+pub fn expected_ccv(description: &str) -> Result<u16, CcvError> {
+    let d = slave_fw::description::DeviceDescription::parse(description).map_err(CcvError::Description)?;
+    let image = slave_fw::converter::image::encode_to_vec(&d.converter).map_err(CcvError::Image)?;
     Ok(slave_fw::converter::consistency::consistency_value(&image))
 }
 
@@ -420,7 +456,10 @@ mod tests {
 
     #[test]
     fn the_reference_configuration_has_the_factory_ccv() {
-        assert_eq!(expected_ccv(&reference_config()), Ok(FACTORY_CCV));
+        assert_eq!(expected_ccv(&reference_config()).unwrap(), FACTORY_CCV);
+        let refused = expected_ccv("[network]\nmac_id = 70\n").unwrap_err();
+        assert!(matches!(refused, CcvError::Description(_)), "{refused}");
+        assert!(refused.to_string().starts_with("the project's configuration is refused: "), "{refused}");
     }
 
     #[test]
@@ -487,6 +526,50 @@ mod tests {
         assert!(!c.equal(), "nothing but the connection compared is no \"equal\"");
         let empty = compare_running(&Project { format: FORMAT, node: vec![] }, &[], &mut silent);
         assert!(!empty.anything_compared() && !empty.equal());
+    }
+
+    #[test]
+    fn a_node_not_in_io_is_not_read() {
+        let mut s = state(5);
+        s.status = NodeStatus::TimedOut;
+        s.code = 72;
+        let mut asked = 0;
+        let mut count = |_: u8, _: u16, _: u16, _: u8| {
+            asked += 1;
+            Err::<Vec<u8>, String>("no answer".into())
+        };
+        let c = compare_running(&one(file_node(5)), &[s], &mut count);
+        assert_eq!(asked, 0);
+        assert_eq!(c.compared.identity, 1, "the identity the scanner read is still compared");
+        let why: Vec<&str> = c.not_compared.iter().map(|n| n.why.as_str()).collect();
+        assert_eq!(why, ["not read: the node is timed_out (code 72)"; 2], "{c:?}");
+        assert!(!c.equal());
+    }
+
+    #[test]
+    fn the_reads_are_bounded() {
+        let mut f = file_node(5);
+        f.param = (1..=3000)
+            .map(|number| ProjectParam {
+                number,
+                name: format!("p{number}"),
+                value: Some(0),
+                ..Default::default()
+            })
+            .collect();
+        let mut asked = 0;
+        let mut zero = |_: u8, _: u16, _: u16, _: u8| {
+            asked += 1;
+            Ok::<Vec<u8>, String>(vec![0, 0])
+        };
+        let c = compare_running(&one(f), &[state(5)], &mut zero);
+        assert_eq!(asked, MAX_READS);
+        assert!(
+            c.not_compared.iter().any(|n| n.why.contains("more than 2048 reads")),
+            "{:?}",
+            c.not_compared.last()
+        );
+        assert!(!c.equal());
     }
 
     #[test]
