@@ -224,7 +224,9 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
             (["events"], true, _) => Ok(super::scanlist_api::events(shared, number(&pairs, "since")?)),
             (["scanlist", action], _, true) => Ok(super::scanlist_api::edit(shared, action, body)),
             (["events"] | ["scanlist", _], _, _) => Err(wrong()),
-            (["project", "compare"], true, _) => Ok(super::project_api::compare(shared, ctx.project.as_ref())),
+            (["project", "compare"], true, _) => {
+                Ok(super::project_api::compare(shared, ctx.project.as_ref()))
+            }
             (["project", "compare"], _, _) => Err(wrong()),
             (
                 ["state"]
