@@ -27,7 +27,7 @@
 //!
 //! | view | what it shows |
 //! |---|---|
-//! | Network | the 64 MAC IDs, each with its status (colour and the scanner's numeric code), product name, I/O connection (poll, strobe, cos, cyclic) and I/O sizes; the scanner's state, cycle time, bus load and MQTT state |
+//! | Network | the 64 MAC IDs, each with its status (colour and the scanner's numeric code), product name, I/O connection (poll, strobe, cos, cyclic) and I/O sizes; the scanner's state, cycle time, bus load and MQTT state; with `dnet-master ui --project FILE`, the Project panel: what of the network project was compared, what not and why, every difference ([`crate::project::console`]) |
 //! | Device (click a node) | identity; the input image decoded by the device's profile (breaker: the four phase currents, the switch state, parameters 0–3; Modbus: the scan-list values; otherwise raw bytes) with the status byte and freshness counter when the input assembly carries them; a live plot of the numeric values from the history; the breaker's Open / Close / Set parameter buttons and their outcome (status bits 4–6, or the switch state with assembly 100); explicit Get / Set; the Parameter object's table |
 //! | Trace | the live frames decoded as `dnet-master decode` does, filtered by MAC and message kind; Start / Stop recording with the files named |
 //!
@@ -83,8 +83,8 @@
 mod api;
 mod auth;
 mod guard;
-pub mod http;
 mod health_api;
+pub mod http;
 mod project_api;
 mod record;
 mod scanlist_api;
