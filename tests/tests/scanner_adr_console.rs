@@ -124,3 +124,68 @@ fn the_console_edits_the_scan_list_and_lists_the_events() {
     assert_eq!(after["events"].as_array().unwrap().len(), 2, "{body}");
     ui.terminate();
 }
+
+/// The same edits on the real SLCAN path: `dnet-master ui` over an SLCAN pty against
+/// `dnet-soft-slave` with `dnet-sim-breaker` (pty-rig): the node disabled (released, status
+/// `disabled`), enabled (back in I/O), removed, added again.
+#[test]
+#[ignore = "needs dnet-master, dnet-soft-slave and socat: run by scripts/check's scanner-adr stage"]
+fn the_console_edits_the_scan_list_over_slcan() {
+    if !pty_rig::require_socat() {
+        return;
+    }
+    let rig = pty_rig::PtyRig::breaker("scanner-edit-slcan", &[], None);
+    let bus = rig.master_bus_arg();
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let addr = format!("127.0.0.1:{port}");
+    let dir = pty_rig::scratch("scanner-edit-slcan-list");
+    let list = dir.join("list.toml");
+    std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
+    let mut ui = pty_rig::Proc::spawn(
+        pty_rig::bin("dnet-master"),
+        &[
+            "--bus",
+            &bus,
+            "--bitrate",
+            "500k",
+            "ui",
+            "--no-history",
+            "--listen",
+            &addr,
+            "--scanlist",
+            list.to_str().unwrap(),
+        ],
+    );
+    let end = Instant::now() + Duration::from_secs(30);
+    while std::net::TcpStream::connect(&addr).is_err() {
+        assert!(Instant::now() < end, "the console does not listen\n{}\n{}", ui.dump(), rig.dump());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    wait_status(&addr, 5, "ok", &ui);
+    let (_, page) = http(&addr, "GET", "/", None, "");
+    let token =
+        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
+    let post = |path: &str, body: &str| http(&addr, "POST", path, Some(token), body);
+
+    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": false}"#);
+    assert_eq!(status, 200, "{body}");
+    wait_status(&addr, 5, "disabled", &ui);
+    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": true}"#);
+    assert_eq!(status, 200, "{body}");
+    wait_status(&addr, 5, "ok", &ui);
+    let (status, body) = post("/api/scanlist/remove", r#"{"mac": 5}"#);
+    assert_eq!(status, 200, "{body}");
+    let end = Instant::now() + Duration::from_secs(30);
+    while node_status(&addr, 5).is_some() {
+        assert!(Instant::now() < end, "MAC 5 still listed after remove\n{}", ui.dump());
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    let (status, body) = post("/api/scanlist/add", r#"{"mac": 5, "input_size": 18, "output_size": 8}"#);
+    assert_eq!(status, 200, "{body}");
+    wait_status(&addr, 5, "ok", &ui);
+    let (_, body) = http(&addr, "GET", "/api/events", None, "");
+    for want in ["MAC 5 disabled (maintenance)", "MAC 5 enabled", "MAC 5 removed", "MAC 5 added"] {
+        assert!(body.contains(want), "no event {want:?}: {body}");
+    }
+    ui.terminate();
+}
