@@ -194,6 +194,7 @@ pub fn execute(
     let mut history_error: Option<String> = None;
     // The last event published on MQTT (its sequence number).
     let mut events_seen: u64 = 0;
+    let mut sparkplug_events_seen: u64 = 0;
     let result = (|| -> Result<(), HarnessError> {
         let list = match given.clone() {
             Some(l) => l,
@@ -271,6 +272,9 @@ pub fn execute(
             if let Some(e) = &sparkplug {
                 e.publish_state(s.state());
                 e.publish_samples(&samples);
+                let events = s.events().since(sparkplug_events_seen);
+                sparkplug_events_seen = events.last().map_or(sparkplug_events_seen, |e| e.seq);
+                e.publish_events(&events);
                 if let Ok(mut status) = shared.mqtt.lock() {
                     *status = Some(e.status());
                 }

@@ -11,13 +11,14 @@
 //! | `spBv1.0/G/NBIRTH/E` | on each connection, and on a Rebirth | 0 |
 //! | `spBv1.0/G/DBIRTH/E/macNN` | after NBIRTH, each device; again when its metric names change | 0 |
 //! | `spBv1.0/G/DDATA/E/macNN` | a metric changed (report by exception) | 0 |
+//! | `spBv1.0/G/NDATA/E` | a scanner event (ADR step, scan-list change): `ADR/Last Event` ([`events`]) | 0 |
 //! | `spBv1.0/G/NDEATH/E` | the MQTT will (the broker sends it when the link is lost), or before a clean disconnect | 1 |
 //! | `spBv1.0/G/NCMD/E` | received: `Node Control/Rebirth` = true sends NBIRTH and every DBIRTH again | - |
 //! | `spBv1.0/G/DCMD/E/macNN` | received with `--sparkplug-commands`: `Outputs/Image`, `Commands/Open`, `Commands/Close` | - |
 //!
 //! `bdSeq` (0..=255) is in NBIRTH and in the will NDEATH set for the same connection; it goes up by
 //! one with each new MQTT session, and is kept in the store file across restarts. `seq` is 0 in
-//! NBIRTH and goes up by one (255 wraps to 0) with each DBIRTH and DDATA after it.
+//! NBIRTH and goes up by one (255 wraps to 0) with each DBIRTH, DDATA and NDATA after it.
 //!
 //! ## Store and forward
 //!
@@ -37,6 +38,7 @@
 
 pub mod commands;
 pub mod edge;
+pub mod events;
 pub mod proto;
 pub mod store;
 
@@ -142,6 +144,8 @@ impl Topics {
 /// What the sender thread is asked.
 enum Job {
     Change(Change),
+    /// Scanner events: node-level NDATA ([`events`]).
+    Events(Vec<crate::events::ScanEvent>),
     Up(Client),
     Down,
     Incoming(String, Vec<u8>),
@@ -231,6 +235,7 @@ impl EdgeNode {
             client: None,
             seq: 0,
             dcmd,
+            last_event: events::LastEvent::default(),
         };
         let sender = std::thread::Builder::new().name("sparkplug".into()).spawn(move || sender.run(&rx))?;
         Ok(EdgeNode {
@@ -400,6 +405,7 @@ struct Outbox {
     client: Option<Client>,
     seq: u8,
     dcmd: Option<mpsc::SyncSender<Dcmd>>,
+    last_event: events::LastEvent,
 }
 
 impl Outbox {
@@ -410,6 +416,7 @@ impl Outbox {
                     self.shared.queued.fetch_sub(1, Ordering::Relaxed);
                     self.change(c);
                 }
+                Job::Events(e) => self.events(e),
                 Job::Up(client) => {
                     self.client = Some(client);
                     let bd_seq = self.shared.bd_seq.load(Ordering::Relaxed);
@@ -456,10 +463,11 @@ impl Outbox {
     fn births(&mut self) {
         let now = Self::now();
         let bd_seq = self.shared.bd_seq.load(Ordering::Relaxed);
-        let (nbirth, macs) = {
+        let (mut nbirth, macs) = {
             let edge = self.edge.lock().unwrap_or_else(PoisonError::into_inner);
             (edge.nbirth(bd_seq, now), edge.devices.keys().copied().collect::<Vec<_>>())
         };
+        nbirth.metrics.push(self.last_event.birth(now));
         self.seq = 0;
         if !self.publish(self.topics.node("NBIRTH"), &nbirth) {
             return;

@@ -1,0 +1,220 @@
+//! The scanner's events (automatic device replacement) on Sparkplug B, read by an independent host
+//! application: `tests/python/sparkplug_host.py` on PyPI's pysparkplug, against Debian's
+//! mosquitto. `dnet-master --bus sim --slave-mac 5,6 --sim-replace 5@10000 --realtime ui --adr
+//! --mqtt URL --sparkplug plant/line1`: MAC 5 is replaced by a factory-fresh device at MAC 63 at
+//! 10 s; each step reaches the host as an NDATA with the node-level metric `ADR/Last Event`
+//! (String, the event as JSON, with its own timestamp), declared in NBIRTH; a Rebirth after the
+//! replacement carries the newest event.
+//!
+//! Needs mosquitto and the venv's pysparkplug (`DNET_PYTHON`, else `.venv/bin/python`): ignored in
+//! the plain run; it fails, not skips, when a tool is missing.
+
+use pty_rig::{bin, scratch, Proc};
+use serde_json::{json, Value};
+use std::io::{BufRead, BufReader, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver};
+use std::time::{Duration, Instant};
+
+const LAST_EVENT: &str = "ADR/Last Event";
+
+fn python() -> PathBuf {
+    let python = std::env::var_os("DNET_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| pty_rig::workspace_dir().join(".venv/bin/python"));
+    let ok = Command::new(&python).args(["-c", "import pysparkplug"]).status().is_ok_and(|s| s.success());
+    assert!(ok, "{} cannot import pysparkplug: .venv/bin/pip install pysparkplug==0.6.1", python.display());
+    python
+}
+
+/// A process killed when dropped (mosquitto, the host).
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn broker(dir: &std::path::Path, port: u16) -> Killed {
+    let conf = dir.join("mosquitto.conf");
+    std::fs::write(&conf, format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"))
+        .unwrap();
+    let child = Command::new("mosquitto")
+        .arg("-c")
+        .arg(&conf)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("mosquitto is missing: apt-get install mosquitto");
+    let until = Instant::now() + Duration::from_secs(10);
+    while TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(Instant::now() < until, "mosquitto did not listen on {port}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Killed(child)
+}
+
+/// The host's decoded messages, in order.
+struct Host {
+    _child: Killed,
+    stdin: ChildStdin,
+    rx: Receiver<Value>,
+    seen: Vec<Value>,
+}
+
+impl Host {
+    fn start(port: u16) -> Host {
+        let script = pty_rig::workspace_dir().join("tests/python/sparkplug_host.py");
+        let mut child = Command::new(python())
+            .arg(script)
+            .args(["127.0.0.1", &port.to_string(), "plant"])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .unwrap();
+        let stdin = child.stdin.take().unwrap();
+        let stdout = child.stdout.take().unwrap();
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                let v = serde_json::from_str::<Value>(&line)
+                    .unwrap_or_else(|e| json!({"error": format!("not JSON ({e}): {line}")}));
+                let _ = tx.send(v);
+            }
+        });
+        let mut host = Host { _child: Killed(child), stdin, rx, seen: Vec::new() };
+        host.next(Duration::from_secs(20), "the host connected", |v| v["ready"] == true);
+        host
+    }
+
+    fn next(&mut self, limit: Duration, what: &str, want: impl Fn(&Value) -> bool) -> Value {
+        let until = Instant::now() + limit;
+        loop {
+            match self.rx.recv_timeout(until.saturating_duration_since(Instant::now())) {
+                Ok(v) => {
+                    self.seen.push(v.clone());
+                    assert!(v.get("error").is_none(), "the host could not decode: {v}");
+                    if want(&v) {
+                        return v;
+                    }
+                }
+                Err(_) => panic!("{what}: not within {limit:?}; the host saw:\n{}", self.dump()),
+            }
+        }
+    }
+
+    fn dump(&self) -> String {
+        self.seen.iter().map(Value::to_string).collect::<Vec<_>>().join("\n")
+    }
+}
+
+fn of_type(kind: &'static str) -> impl Fn(&Value) -> bool {
+    move |v| v["type"] == kind
+}
+
+fn last_event(message: &Value) -> Option<&Value> {
+    message["metrics"].as_array()?.iter().find(|m| m["name"] == LAST_EVENT)
+}
+
+/// The event an `ADR/Last Event` metric carries (its value is JSON text).
+fn event_of(metric: &Value) -> Value {
+    let text = metric["value"].as_str().unwrap_or_else(|| panic!("not a string: {metric}"));
+    serde_json::from_str(text).unwrap_or_else(|e| panic!("not JSON ({e}): {text}"))
+}
+
+#[test]
+#[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
+fn adr_steps_reach_a_sparkplug_host_as_node_data() {
+    let dir = scratch("spb-adr");
+    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let _broker = broker(&dir, port);
+    let mut host = Host::start(port);
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let store = dir.join("sparkplug.sqlite");
+    let p = Proc::spawn(
+        bin("dnet-master"),
+        &[
+            "--bus",
+            "sim",
+            "--slave-mac",
+            "5,6",
+            "--sim-replace",
+            "5@10000",
+            "--realtime",
+            "ui",
+            "--no-history",
+            "--listen",
+            "127.0.0.1:0",
+            "--adr",
+            "--mqtt",
+            &url,
+            "--sparkplug",
+            "plant/line1",
+            "--sparkplug-store",
+            store.to_str().unwrap(),
+        ],
+    );
+
+    // Declared in NBIRTH, a String (null until the first event).
+    let nbirth = host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH"));
+    let declared = last_event(&nbirth).unwrap_or_else(|| panic!("NBIRTH without {LAST_EVENT}: {nbirth}"));
+    assert_eq!(declared["datatype"], "STRING", "{declared}");
+
+    // Each step an NDATA, in order, ending with the replacement in I/O at MAC 5.
+    let mut kinds: Vec<String> = Vec::new();
+    let mut seqs: Vec<u64> = Vec::new();
+    let mut last_seq: Option<u64> = None;
+    while kinds.last().is_none_or(|k| k != "replaced") {
+        let ndata = host.next(Duration::from_secs(40), "NDATA with the replacement", of_type("NDATA"));
+        assert_eq!(ndata["topic"], "spBv1.0/plant/NDATA/line1");
+        let m = last_event(&ndata).unwrap_or_else(|| panic!("NDATA without {LAST_EVENT}: {ndata}"));
+        assert_eq!((m["datatype"].as_str(), m["null"].as_bool()), (Some("STRING"), Some(false)), "{m}");
+        let now_ms = u64::try_from(std::time::SystemTime::UNIX_EPOCH.elapsed().unwrap().as_millis()).unwrap();
+        let stamp = m["timestamp"].as_u64().unwrap_or_else(|| panic!("no timestamp: {m}"));
+        assert!(stamp <= now_ms && now_ms - stamp < 60_000, "timestamp {stamp}, now {now_ms}");
+        let e = event_of(m);
+        let seq = e["seq"].as_u64().unwrap_or_else(|| panic!("{e}"));
+        assert!(last_seq.is_none_or(|l| seq == l + 1), "event {seq} after {last_seq:?}: none lost");
+        last_seq = Some(seq);
+        seqs.push(seq);
+        kinds.push(e["kind"].as_str().unwrap_or_default().to_string());
+        if e["kind"] == "replaced" {
+            assert_eq!(e["mac"], 5, "{e}");
+        }
+    }
+    for step in ["node_lost", "appeared_at_63", "moved", "replaced"] {
+        assert!(kinds.iter().any(|k| k == step), "no {step}: {kinds:?}\n{}", host.dump());
+    }
+
+    // A Rebirth now carries the newest event in NBIRTH, with its own time.
+    writeln!(host.stdin, "{}", json!({"rebirth": "line1"})).unwrap();
+    host.stdin.flush().unwrap();
+    let again = host.next(Duration::from_secs(20), "NBIRTH after the Rebirth", of_type("NBIRTH"));
+    let m = last_event(&again).unwrap_or_else(|| panic!("{again}"));
+    let newest = event_of(m);
+    assert!(newest["seq"].as_u64() >= seqs.last().copied(), "{newest} older than {seqs:?}");
+
+    // NDATA counts in the edge node's seq like DBIRTH and DDATA: one more than the message before.
+    let mut last: Option<u64> = None;
+    let mut ndata_checked = 0;
+    for v in host.seen.iter().filter(|v| v["type"].is_string()) {
+        let Some(seq) = v["seq"].as_u64() else { continue };
+        match v["type"].as_str() {
+            Some("NBIRTH") => last = Some(seq),
+            Some(kind @ ("DBIRTH" | "DDATA" | "NDATA")) => {
+                let before = last.unwrap_or_else(|| panic!("{v} before any NBIRTH"));
+                assert_eq!(seq, (before + 1) % 256, "seq after {before}: {v}");
+                ndata_checked += usize::from(kind == "NDATA");
+                last = Some(seq);
+            }
+            _ => {}
+        }
+    }
+    assert!(ndata_checked >= 4, "{ndata_checked} NDATA seq checked");
+    drop(p);
+}
