@@ -18,7 +18,7 @@ pub mod scan;
 pub mod scanner;
 pub mod ui;
 pub mod ui_access;
-pub mod user;
 pub mod ui_modbus;
 pub mod ui_opcua;
 pub mod ui_sparkplug;
+pub mod user;
