@@ -124,7 +124,7 @@ fn node(v: &serde_json::Value, mac: u64) -> Option<&serde_json::Value> {
 /// simulated breaker on socat pty pairs; MAC 5 removed (gone from `GET /api/health`), added again
 /// (measured anew), disabled for 3 s (flagged, no drop-out), enabled again.
 #[test]
-#[ignore = "needs dnet-master, dnet-soft-slave and socat: run by scripts/check's scanner-adr stage"]
+#[ignore = "needs dnet-master, dnet-soft-slave and socat: run by scripts/check's health stage"]
 fn health_follows_the_console_s_scan_list_changes_over_slcan() {
     if !pty_rig::require_socat() {
         return;
