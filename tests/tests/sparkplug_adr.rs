@@ -187,6 +187,7 @@ fn adr_steps_reach_a_sparkplug_host_as_node_data() {
             assert_eq!(e["mac"], 5, "{e}");
         }
     }
+    println!("events as NDATA (seq {seqs:?}): {kinds:?}");
     for step in ["node_lost", "appeared_at_63", "moved", "replaced"] {
         assert!(kinds.iter().any(|k| k == step), "no {step}: {kinds:?}\n{}", host.dump());
     }
