@@ -4,9 +4,10 @@
 //! --mqtt URL --sparkplug plant/line1`: MAC 5 is replaced by a factory-fresh device at MAC 63 at
 //! 10 s; each step reaches the host as an NDATA with the node-level metric `ADR/Last Event`
 //! (String, the event as JSON, with its own timestamp), declared in NBIRTH; a Rebirth after the
-//! replacement carries the newest event.
+//! replacement carries the newest event. On the real SLCAN path (the soft slave on socat ptys), a
+//! scan-list change made in the console reaches the host the same way.
 //!
-//! Needs mosquitto and the venv's pysparkplug (`DNET_PYTHON`, else `.venv/bin/python`): ignored in
+//! Needs mosquitto, socat and the venv's pysparkplug (`DNET_PYTHON`, else `.venv/bin/python`): ignored in
 //! the plain run; it fails, not skips, when a tool is missing.
 
 use pty_rig::{bin, scratch, Proc};
@@ -217,5 +218,83 @@ fn adr_steps_reach_a_sparkplug_host_as_node_data() {
         }
     }
     assert!(ndata_checked >= 4, "{ndata_checked} NDATA seq checked");
+    drop(p);
+}
+
+/// One HTTP/1.1 POST to the console at `addr` with the page's CSRF token: status and body.
+fn post(addr: &str, path: &str, body: &str) -> (u16, String) {
+    use std::io::Read;
+    let request = |req: String| {
+        let mut s = TcpStream::connect(addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
+        s.write_all(req.as_bytes()).unwrap();
+        let mut text = String::new();
+        s.read_to_string(&mut text).unwrap();
+        let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+        let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+        (status, body.to_string())
+    };
+    let (_, page) = request(format!("GET / HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"));
+    let token = page
+        .split("name=\"csrf-token\" content=\"")
+        .nth(1)
+        .and_then(|t| t.split('"').next())
+        .unwrap_or_default();
+    request(format!(
+        "POST {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nOrigin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {token}\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    ))
+}
+
+/// On the real SLCAN path (`dnet-soft-slave` with the simulated breaker on socat pty pairs): a
+/// scan-list change made in the console (MAC 5 disabled, enabled) reaches the host as NDATA.
+#[test]
+#[ignore = "needs socat, mosquitto and pysparkplug: run by scripts/check"]
+fn scan_list_changes_over_slcan_reach_a_sparkplug_host() {
+    assert!(pty_rig::require_socat(), "socat is missing: apt-get install socat");
+    let rig = pty_rig::PtyRig::breaker("spb-adr-slcan", &[], None);
+    let bus = rig.master_bus_arg();
+    let dir = scratch("spb-adr-slcan");
+    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let _broker = broker(&dir, port);
+    let mut host = Host::start(port);
+    let url = format!("mqtt://127.0.0.1:{port}");
+    let store = dir.join("sparkplug.sqlite");
+    let http_port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let addr = format!("127.0.0.1:{http_port}");
+    let p = Proc::spawn(
+        bin("dnet-master"),
+        &[
+            "--bus",
+            &bus,
+            "--bitrate",
+            "500k",
+            "ui",
+            "--no-history",
+            "--listen",
+            &addr,
+            "--mqtt",
+            &url,
+            "--sparkplug",
+            "plant/line1",
+            "--sparkplug-store",
+            store.to_str().unwrap(),
+        ],
+    );
+    host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH"));
+    host.next(Duration::from_secs(30), "DBIRTH mac05", |v| v["type"] == "DBIRTH" && v["device"] == "mac05");
+    for (body, want) in [
+        (r#"{"mac": 5, "enabled": false}"#, "MAC 5 disabled (maintenance)"),
+        (r#"{"mac": 5, "enabled": true}"#, "MAC 5 enabled"),
+    ] {
+        let (status, answer) = post(&addr, "/api/scanlist/enable", body);
+        assert_eq!(status, 200, "{answer}\n{}\n{}", p.dump(), rig.dump());
+        let ndata = host.next(Duration::from_secs(20), want, of_type("NDATA"));
+        let e = event_of(last_event(&ndata).unwrap_or_else(|| panic!("{ndata}")));
+        assert_eq!(
+            (e["kind"].as_str(), e["mac"].as_u64(), e["detail"].as_str()),
+            (Some("list_changed"), Some(5), Some(want))
+        );
+    }
     drop(p);
 }
