@@ -17,6 +17,7 @@ Reads commands from stdin, one JSON object a line:
     {"rebirth": "EDGE"}                                  -> NCMD Node Control/Rebirth = true
     {"dcmd": ["EDGE", "mac05"], "name": "Commands/Close", "type": "BOOLEAN", "value": true}
     {"dcmd": [...], "name": "Outputs/Image", "type": "BYTES", "hex": "0001..."}
+    {"dcmd": [...], "metrics": [{"name": ..., "type": ..., "value": ...}, ...]}  -> one DCMD, several
 """
 
 import json
@@ -115,10 +116,16 @@ def main() -> None:
         else:
             edge, device = cmd["dcmd"]
             topic = psp.Topic(group_id=group, message_type=psp.MessageType.DCMD, edge_node_id=edge, device_id=device)
-            dtype = psp.DataType[cmd["type"]]
-            value = bytes.fromhex(cmd["hex"]) if "hex" in cmd else cmd["value"]
-            metric = psp.Metric(timestamp=ts, name=cmd["name"], datatype=dtype, value=value)
-            payload = psp.DCmd(timestamp=ts, metrics=(metric,))
+            metrics = tuple(
+                psp.Metric(
+                    timestamp=ts,
+                    name=m["name"],
+                    datatype=psp.DataType[m["type"]],
+                    value=bytes.fromhex(m["hex"]) if "hex" in m else m["value"],
+                )
+                for m in cmd.get("metrics", [cmd])
+            )
+            payload = psp.DCmd(timestamp=ts, metrics=metrics)
         client.publish(psp.Message(topic=topic, payload=payload, qos=psp.QoS.AT_MOST_ONCE, retain=False), include_dtypes=True)
         emit({"sent": line})
     client.disconnect()

@@ -1,12 +1,19 @@
 //! DCMD (`--sparkplug-commands`): a host application's writes to a device's output image and its
 //! breaker commands, carried out by the scanner's loop like the console's and recorded through the
 //! [`CommandLog`] given to the publisher.
+//!
+//! A device's commands are handed to the scanner one at a time, in the order they came: the next
+//! only two cycles after the scanner took the last, so that the cycle that sends it has run. The
+//! scanner sends one output image per node per cycle; two handed over between the same two cycles
+//! would leave only the second on the bus (a Close then an Open: the Close never reached the
+//! breaker, yet both were recorded `ok`). Commands for other devices do not wait for it.
 
 use super::edge::{Device, Edge, BREAKER_CLOSE, BREAKER_OPEN, OUTPUT_IMAGE};
 use super::proto::{self, Payload};
 use crate::history::hex;
 use crate::model::ConsoleCommand;
 use crate::monitor::ImageProfile;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::Duration;
@@ -50,8 +57,15 @@ pub(super) fn spawn(
     Ok(tx)
 }
 
-/// DCMD waiting for the scanner's answer at most.
+/// DCMD metrics waiting to be handed to the scanner at most.
 const PENDING: usize = 256;
+
+/// Cycles after the scanner's answer before a device's next command: the scanner takes commands
+/// between two cycles and sends one output image per node per cycle, so a second image handed over
+/// before the next cycle would overwrite the first unsent (and two breaker commands would share a
+/// sequence number). Two, because the answer may be read before or after the edge has seen the
+/// state of the cycle that took the command.
+const CYCLES_BETWEEN: u64 = 2;
 
 /// A command handed to the scanner, its answer not read yet.
 struct Pending {
@@ -60,46 +74,88 @@ struct Pending {
     until: std::time::Instant,
 }
 
+/// Why a device's next command waits.
+enum Busy {
+    /// The scanner's answer to its last command is not read yet.
+    Answer(Pending),
+    /// Answered when the edge had seen `at` cycles: free once it has seen [`CYCLES_BETWEEN`] more.
+    Sent { at: u64 },
+}
+
+/// One DCMD metric waiting for its device to be free.
+struct Queued {
+    mac: u8,
+    metric: proto::Metric,
+}
+
 fn run(rx: &Receiver<Dcmd>, edge: &Mutex<Edge>, scanner: &Sender<ConsoleCommand>, log: Option<&CommandLog>) {
-    let mut pending: Vec<Pending> = Vec::new();
+    let mut queue: VecDeque<Queued> = VecDeque::new();
+    let mut busy: BTreeMap<u8, Busy> = BTreeMap::new();
     let record = |r: &CommandRecord| {
         if let Some(log) = log {
             log(r);
         }
     };
     loop {
-        // Every command is handed over at once (the scanner carries out all that are queued
-        // between two cycles); the answers are collected as they come.
-        match rx.recv_timeout(Duration::from_millis(20)) {
+        // Commands are handed over in the order they came, one at a time per device (see
+        // CYCLES_BETWEEN); other devices' commands do not wait for it.
+        let wait = if queue.is_empty() && busy.is_empty() { 20 } else { 5 };
+        match rx.recv_timeout(Duration::from_millis(wait)) {
             Ok(cmd) => {
-                for m in metrics(&cmd, &mut |r| record(r)) {
-                    let device =
-                        edge.lock().unwrap_or_else(PoisonError::into_inner).devices.get(&cmd.mac).cloned();
-                    match hand_over(cmd.mac, device.as_ref(), &m, scanner, pending.len()) {
-                        Ok(p) => pending.push(p),
-                        Err(r) => record(&r),
+                for metric in metrics(&cmd, &mut |r| record(r)) {
+                    if queue.len() >= PENDING {
+                        record(&CommandRecord {
+                            user: "sparkplug".into(),
+                            mac: cmd.mac,
+                            what: metric.name.clone().unwrap_or_default(),
+                            result: format!("refused: {PENDING} commands already wait for the scanner"),
+                        });
+                    } else {
+                        queue.push_back(Queued { mac: cmd.mac, metric });
                     }
                 }
             }
             Err(mpsc::RecvTimeoutError::Timeout) => {}
-            Err(mpsc::RecvTimeoutError::Disconnected) if pending.is_empty() => return,
+            Err(mpsc::RecvTimeoutError::Disconnected) if queue.is_empty() && busy.is_empty() => return,
             Err(mpsc::RecvTimeoutError::Disconnected) => std::thread::sleep(Duration::from_millis(20)),
         }
+        let cycles = edge.lock().unwrap_or_else(PoisonError::into_inner).cycles;
         let now = std::time::Instant::now();
-        pending.retain_mut(|p| {
-            let result = match p.answer.try_recv() {
-                Ok(Ok(_)) => "ok".to_owned(),
-                Ok(Err(e)) => format!("failed: {e}"),
-                Err(mpsc::TryRecvError::Disconnected) => "failed: the scanner has stopped".into(),
-                Err(mpsc::TryRecvError::Empty) if now >= p.until => {
-                    "failed: no answer from the scanner".into()
-                }
-                Err(mpsc::TryRecvError::Empty) => return true,
-            };
-            p.record.result = result;
-            record(&p.record);
-            false
+        busy.retain(|_, b| match b {
+            Busy::Answer(p) => {
+                let (result, sent) = match p.answer.try_recv() {
+                    Ok(Ok(_)) => ("ok".to_owned(), true),
+                    Ok(Err(e)) => (format!("failed: {e}"), false),
+                    Err(mpsc::TryRecvError::Disconnected) => {
+                        ("failed: the scanner has stopped".into(), false)
+                    }
+                    Err(mpsc::TryRecvError::Empty) if now >= p.until => {
+                        ("failed: no answer from the scanner".into(), false)
+                    }
+                    Err(mpsc::TryRecvError::Empty) => return true,
+                };
+                p.record.result = result;
+                record(&p.record);
+                *b = Busy::Sent { at: cycles };
+                sent
+            }
+            Busy::Sent { at } => cycles < at.saturating_add(CYCLES_BETWEEN),
         });
+        let mut i = 0;
+        while let Some(q) = queue.get(i) {
+            if busy.contains_key(&q.mac) {
+                i += 1;
+                continue;
+            }
+            let Some(q) = queue.remove(i) else { break };
+            let device = edge.lock().unwrap_or_else(PoisonError::into_inner).devices.get(&q.mac).cloned();
+            match hand_over(q.mac, device.as_ref(), &q.metric, scanner) {
+                Ok(p) => {
+                    busy.insert(q.mac, Busy::Answer(p));
+                }
+                Err(r) => record(&r),
+            }
+        }
     }
 }
 
@@ -153,7 +209,6 @@ fn hand_over(
     device: Option<&Device>,
     metric: &proto::Metric,
     scanner: &Sender<ConsoleCommand>,
-    waiting: usize,
 ) -> Result<Pending, CommandRecord> {
     let mut record = CommandRecord {
         user: "sparkplug".into(),
@@ -171,9 +226,6 @@ fn hand_over(
         Err(why) => return refuse(record, format!("refused: {why}")),
     };
     record.what = what;
-    if waiting >= PENDING {
-        return refuse(record, format!("refused: {PENDING} commands already wait for the scanner"));
-    }
     let (reply, answer) = mpsc::channel();
     if scanner.send(ConsoleCommand::SetOutput { mac, data, reply }).is_err() {
         return refuse(record, "failed: the scanner has stopped".into());
@@ -207,6 +259,42 @@ mod tests {
         )
         .unwrap();
         assert_eq!((what.as_str(), data), (BREAKER_CLOSE, vec![2, 8, 0, 0, 0, 0, 0, 0]));
+    }
+
+    /// Two breaker commands for one device in one DCMD: the scanner sends one output image per
+    /// node per cycle, so the Open is handed over only once the cycle that sends the Close has run,
+    /// with the next sequence number (else the Close would be overwritten before it was sent).
+    #[test]
+    fn a_second_command_for_a_device_waits_for_the_cycle_that_sends_the_first() {
+        let mut edge = Edge::default();
+        edge.devices.insert(5, device(ImageProfile::Breaker));
+        let edge = Arc::new(Mutex::new(edge));
+        let (scanner, commands) = mpsc::channel();
+        let dcmd = spawn(Arc::clone(&edge), scanner, None).unwrap();
+        let payload = Payload {
+            metrics: vec![
+                metric(BREAKER_CLOSE, proto::Value::BooleanValue(true)),
+                metric(BREAKER_OPEN, proto::Value::BooleanValue(true)),
+            ],
+            ..Default::default()
+        };
+        dcmd.send(Dcmd { mac: 5, payload: prost::Message::encode_to_vec(&payload) }).unwrap();
+        let set_output = |c: ConsoleCommand| match c {
+            ConsoleCommand::SetOutput { mac, data, reply } => (mac, data, reply),
+            _ => panic!("not an output"),
+        };
+        let (mac, close, reply) = set_output(commands.recv_timeout(Duration::from_secs(5)).unwrap());
+        assert_eq!((mac, close.as_slice()), (5, [2, 8, 0, 0, 0, 0, 0, 0].as_slice()));
+        // The scanner's loop takes it between two cycles; the edge sees the new output.
+        edge.lock().unwrap().devices.get_mut(&5).unwrap().output = close;
+        reply.send(Ok(Vec::new())).unwrap();
+        assert!(
+            commands.recv_timeout(Duration::from_millis(300)).is_err(),
+            "the Open was handed over before a cycle sent the Close"
+        );
+        edge.lock().unwrap().cycles += 2;
+        let (_, open, _) = set_output(commands.recv_timeout(Duration::from_secs(5)).unwrap());
+        assert_eq!(open, [1, 9, 0, 0, 0, 0, 0, 0]);
     }
 
     #[test]

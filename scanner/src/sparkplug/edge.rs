@@ -220,6 +220,8 @@ pub struct Device {
 pub struct Edge {
     /// The devices by MAC ID.
     pub devices: BTreeMap<u8, Device>,
+    /// The scanner's cycle count at the last [`Edge::update_state`] (DCMD waits on it).
+    pub cycles: u64,
 }
 
 impl Edge {
@@ -227,6 +229,7 @@ impl Edge {
     /// identity, images (a [`Change::Data`]).
     pub fn update_state(&mut self, state: &ScannerState, unix_ms: u64) -> Vec<Change> {
         let mut changes = Vec::new();
+        self.cycles = state.cycles;
         for node in &state.nodes {
             let layout = layout_for(node, known_descriptions());
             let known: Vec<(String, f64)> = match self.devices.get(&node.mac) {
