@@ -28,8 +28,8 @@
 //! a panic; every queue and buffer is bounded.
 
 pub mod accounts;
-pub mod audit;
 pub mod adr;
+pub mod audit;
 pub mod engine;
 pub mod events;
 pub mod health;
