@@ -78,8 +78,9 @@ struct Pending {
 enum Busy {
     /// The scanner's answer to its last command is not read yet.
     Answer(Pending),
-    /// Answered when the edge had seen `at` cycles: free once it has seen [`CYCLES_BETWEEN`] more.
-    Sent { at: u64 },
+    /// Answered when the edge had seen `at` cycles: free once it has seen [`CYCLES_BETWEEN`] more,
+    /// or at `until` if the scanner's loop stopped cycling.
+    Sent { at: u64, until: std::time::Instant },
 }
 
 /// One DCMD metric waiting for its device to be free.
@@ -136,10 +137,10 @@ fn run(rx: &Receiver<Dcmd>, edge: &Mutex<Edge>, scanner: &Sender<ConsoleCommand>
                 };
                 p.record.result = result;
                 record(&p.record);
-                *b = Busy::Sent { at: cycles };
+                *b = Busy::Sent { at: cycles, until: now + ANSWER_WITHIN };
                 sent
             }
-            Busy::Sent { at } => cycles < at.saturating_add(CYCLES_BETWEEN),
+            Busy::Sent { at, until } => cycles < at.saturating_add(CYCLES_BETWEEN) && now < *until,
         });
         let mut i = 0;
         while let Some(q) = queue.get(i) {
