@@ -9,9 +9,10 @@
 //! failure, never a skip. Screenshots go to `$UI_ARTIFACTS_DIR/console-auth/` (default: the
 //! test's scratch folder).
 
-use pty_rig::{bin, scratch, workspace_dir, Proc};
+use pty_rig::browser::{artifacts, Browser};
+use pty_rig::{bin, scratch, Proc};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -27,29 +28,10 @@ fn add_user(file: &Path, name: &str, role: &str, password: &str) {
     assert!(out.status.success(), "user add {name}: {}", String::from_utf8_lossy(&out.stderr));
 }
 
-fn artifacts(dir: &Path) -> PathBuf {
-    let out = std::env::var_os("UI_ARTIFACTS_DIR").map_or_else(|| dir.join("artifacts"), PathBuf::from);
-    let out = out.join("console-auth");
-    let _ = std::fs::remove_dir_all(&out);
-    std::fs::create_dir_all(&out).unwrap();
-    out
-}
-
 #[test]
 #[ignore = "needs chromium, node and playwright-core: run by scripts/check"]
 fn login_refusal_by_role_and_logout_in_chromium() {
-    let browser = workspace_dir().join("tests/browser");
-    let chromium =
-        std::env::var_os("CHROMIUM").map_or_else(|| PathBuf::from("/usr/bin/chromium"), PathBuf::from);
-    assert!(chromium.exists(), "{} is missing: apt-get install chromium", chromium.display());
-    assert!(
-        Command::new("node").arg("--version").output().is_ok_and(|o| o.status.success()),
-        "node is missing: install Node.js"
-    );
-    assert!(
-        browser.join("node_modules/playwright-core").is_dir(),
-        "playwright-core is missing: npm ci --prefix tests/browser"
-    );
+    let browser = Browser::require();
     let dir = scratch("console-auth-browser");
     let users = dir.join("users.toml");
     let _ = std::fs::remove_file(&users);
@@ -76,20 +58,10 @@ fn login_refusal_by_role_and_logout_in_chromium() {
         .wait_stdout("console at ", Duration::from_secs(30))
         .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
     let url = line.trim_start_matches("console at ").trim().to_string();
-    let out = artifacts(&dir);
-    let result = Command::new("node")
-        .arg("console_auth.test.mjs")
-        .current_dir(&browser)
-        .env("CONSOLE_URL", &url)
-        .env("ARTIFACTS_DIR", &out)
-        .env("CHROMIUM", &chromium)
-        .output()
-        .expect("node runs");
-    let text =
-        format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
-    println!("{text}");
-    assert!(result.status.success(), "the browser test failed:\n{text}\n{}", p.dump());
-    assert!(text.contains("6 passed, 0 failed"), "{text}");
+    let out = artifacts("console-auth", "console-auth-browser-artifacts");
+    let run = browser.run("console_auth.test.mjs", &url, &out);
+    assert!(run.success, "the browser test failed:\n{}\n{}", run.text, p.dump());
+    assert!(run.text.contains("6 passed, 0 failed"), "{}", run.text);
     for shot in ["login", "refused-by-role", "audit"] {
         assert!(out.join(format!("{shot}.png")).is_file(), "no screenshot {shot}.png");
     }

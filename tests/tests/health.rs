@@ -18,8 +18,9 @@ use dnet_scanner::engine::{build_scan_list, Scanner, ScannerOptions};
 use dnet_scanner::health::HealthReport;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
+use pty_rig::console::{csrf_token, free_addr, get, http};
 use std::collections::HashMap;
-use std::io::{Read, Write};
+use std::io::Write;
 
 fn mac(m: u8) -> MacId {
     MacId::new(m).unwrap()
@@ -312,31 +313,10 @@ fn the_scanner_reports_health_on_the_slcan_pty_path() {
     assert_eq!(v["health"]["score"], 100, "{v}");
 }
 
-/// One HTTP/1.1 request to the console at `addr`: status and body.
-fn http(addr: &str, method: &str, path: &str, token: Option<&str>) -> (u16, String) {
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
-    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
-    if let Some(t) = token {
-        req.push_str(&format!(
-            "Origin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {t}\r\nContent-Length: 2\r\n\r\n{{}}"
-        ));
-    } else {
-        req.push_str("\r\n");
-    }
-    s.write_all(req.as_bytes()).unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).unwrap();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
-    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-    (status, body.to_string())
-}
-
 #[test]
 #[ignore = "needs dnet-master built: run by scripts/check's health stage"]
 fn the_console_serves_clears_and_exports_the_health() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
+    let addr = free_addr();
     let dir = pty_rig::scratch("health-console");
     let history = dir.join("h.sqlite");
     let mut ui = pty_rig::Proc::spawn(
@@ -358,7 +338,7 @@ fn the_console_serves_clears_and_exports_the_health() {
     let report = loop {
         assert!(std::time::Instant::now() < end, "no health report with responses\n{}", ui.dump());
         if std::net::TcpStream::connect(&addr).is_ok() {
-            let (status, body) = http(&addr, "GET", "/api/health", None);
+            let (status, body) = get(&addr, "/api/health");
             if status == 200 {
                 let v: serde_json::Value = serde_json::from_str(&body).unwrap();
                 if v["nodes"].as_array().is_some_and(|n| {
@@ -391,18 +371,16 @@ fn the_console_serves_clears_and_exports_the_health() {
     let findings = report["findings"].as_array().unwrap();
     assert!(findings.iter().all(|f| f.as_str().unwrap().starts_with("bus load ")), "{report}");
     assert_eq!(findings.len(), usize::from(expected < 100), "{report}");
-    let (status, csv) = http(&addr, "GET", "/api/health.csv", None);
+    let (status, csv) = get(&addr, "/api/health.csv");
     assert_eq!(status, 200, "{csv}");
     let rows: Vec<&str> = csv.lines().collect();
     assert!(rows[0].starts_with("mac,frames,traffic_pct,response_min_ms"), "{csv}");
     assert_eq!(rows.len(), 3, "{csv}");
     assert!(rows[1].starts_with("5,") && rows[2].starts_with("6,"), "{csv}");
     // A GET cannot clear; a POST with the page's token does.
-    assert_eq!(http(&addr, "GET", "/api/health/clear", None).0, 405);
-    let (_, page) = http(&addr, "GET", "/", None);
-    let token =
-        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
-    let (status, body) = http(&addr, "POST", "/api/health/clear", Some(token));
+    assert_eq!(get(&addr, "/api/health/clear").0, 405);
+    let token = csrf_token(&addr);
+    let (status, body) = http(&addr, "POST", "/api/health/clear", Some(&token), "{}");
     assert_eq!(status, 200, "{body}");
     let cleared: serde_json::Value = serde_json::from_str(&body).unwrap();
     let before: u64 = report["bus"]["frames"].as_u64().unwrap();

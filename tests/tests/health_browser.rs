@@ -8,21 +8,16 @@
 //! `node_modules` is a failure, never a skip. The screenshot and the CSV go to
 //! `$UI_ARTIFACTS_DIR/health/` (default: a scratch folder).
 
-use std::path::Path;
-use std::process::Command;
+use pty_rig::browser::{artifacts, Browser};
+use pty_rig::console::{free_addr, wait_listening};
+use std::time::Duration;
 
 #[test]
 #[ignore = "needs chromium, node and playwright-core: run by scripts/check's health stage"]
 fn health_panel_in_chromium() {
-    let browser = Path::new(env!("CARGO_MANIFEST_DIR")).join("browser");
-    assert!(browser.join("node_modules/playwright-core").is_dir(), "npm ci --prefix tests/browser");
-    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    assert!(Path::new(&chromium).exists(), "{chromium} is missing: apt-get install chromium");
-    let out = std::env::var_os("UI_ARTIFACTS_DIR")
-        .map_or_else(|| pty_rig::scratch("health-browser"), |d| Path::new(&d).join("health"));
-    std::fs::create_dir_all(&out).unwrap();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
+    let browser = Browser::require();
+    let out = artifacts("health", "health-browser");
+    let addr = free_addr();
     let history = out.join("h.sqlite");
     let mut ui = pty_rig::Proc::spawn(
         pty_rig::bin("dnet-master"),
@@ -39,27 +34,10 @@ fn health_panel_in_chromium() {
             history.to_str().unwrap(),
         ],
     );
-    let end = std::time::Instant::now() + std::time::Duration::from_secs(20);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(std::time::Instant::now() < end, "the console did not start\n{}", ui.dump());
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
-    let result = Command::new("node")
-        .arg("health.test.mjs")
-        .current_dir(&browser)
-        .env("CONSOLE_URL", format!("http://{addr}/"))
-        .env("ARTIFACTS_DIR", &out)
-        .env("CHROMIUM", &chromium)
-        .output()
-        .expect("node runs (install Node.js)");
-    let text =
-        format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
-    println!("{text}");
+    wait_listening(&addr, Duration::from_secs(20), || ui.dump());
+    let run = browser.run("health.test.mjs", &format!("http://{addr}/"), &out);
     ui.terminate();
-    assert!(result.status.success(), "the browser test failed:\n{text}\n{}", ui.dump());
-    assert!(
-        text.matches("\nok   ").count() + usize::from(text.starts_with("ok   ")) == 4,
-        "four steps passed:\n{text}"
-    );
+    assert!(run.success, "the browser test failed:\n{}\n{}", run.text, ui.dump());
+    assert_eq!(run.steps_passed(), 4, "four steps passed:\n{}", run.text);
     assert!(out.join("console-health.png").is_file(), "no screenshot");
 }

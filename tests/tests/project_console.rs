@@ -9,37 +9,17 @@
 //! Needs the dnet-master program (and socat for the SLCAN test): ignored in the plain host-test
 //! run, run by scripts/check's project-console stage.
 
+use pty_rig::console::{free_addr, get, request, wait_listening};
 use pty_rig::{require_socat, Proc, PtyRig};
 use serde_json::Value;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
-
-/// `GET path` on the console at `addr`: status and body.
-fn get(addr: &str, path: &str) -> (u16, String) {
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let req = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n");
-    s.write_all(req.as_bytes()).unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).unwrap();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
-    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-    (status, body.to_string())
-}
-
-fn free_addr() -> String {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    format!("127.0.0.1:{port}")
-}
 
 /// Waits until the console listens and every node of `macs` is ok in the console's state.
 fn wait_ok(addr: &str, macs: &[u64], ui: &Proc) {
     let end = Instant::now() + Duration::from_secs(60);
-    while std::net::TcpStream::connect(addr).is_err() {
-        assert!(Instant::now() < end, "the console does not listen\n{}", ui.dump());
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_listening(addr, Duration::from_secs(60), || ui.dump());
     loop {
         let (status, body) = get(addr, "/api/state");
         let v: Value = serde_json::from_str(&body).unwrap_or_default();
@@ -174,22 +154,6 @@ fn sim_console_compares_the_project() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// One request with extra header lines: status, head and body.
-fn request(addr: &str, method: &str, path: &str, headers: &str, body: &str) -> (u16, String, String) {
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let req = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n{headers}Content-Length: {}\r\n\r\n{body}",
-        body.len()
-    );
-    s.write_all(req.as_bytes()).unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).unwrap();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
-    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-    (status, head.to_string(), body.to_string())
-}
-
 #[test]
 #[ignore = "needs dnet-master built: run by scripts/check's project-console stage"]
 fn a_viewer_may_compare() {
@@ -233,21 +197,17 @@ fn a_viewer_may_compare() {
         ],
     );
     let end = Instant::now() + Duration::from_secs(30);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(Instant::now() < end, "the console does not listen\n{}", ui.dump());
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let (status, _, body) = request(&addr, "GET", "/api/project/compare", "", "");
-    assert_eq!(status, 401, "no session: {body}");
+    wait_listening(&addr, Duration::from_secs(30), || ui.dump());
+    let r = request(&addr, "GET", "/api/project/compare", "", "");
+    assert_eq!(r.status, 401, "no session: {}", r.body);
     let json = format!("Origin: http://{addr}\r\nContent-Type: application/json\r\n");
-    let (status, head, body) =
-        request(&addr, "POST", "/api/login", &json, r#"{"user":"vera","password":"veravera"}"#);
-    assert_eq!(status, 200, "{body}");
-    let cookie = head.lines().find_map(|l| l.strip_prefix("Set-Cookie: ")).unwrap();
+    let r = request(&addr, "POST", "/api/login", &json, r#"{"user":"vera","password":"veravera"}"#);
+    assert_eq!(r.status, 200, "{}", r.body);
+    let cookie = r.head.lines().find_map(|l| l.strip_prefix("Set-Cookie: ")).unwrap();
     let cookie = format!("Cookie: {}\r\n", cookie.split(';').next().unwrap());
     // Compared once the scanner has the node in I/O (before, its identity may not be read yet).
     loop {
-        let (_, _, body) = request(&addr, "GET", "/api/state", &cookie, "");
+        let body = request(&addr, "GET", "/api/state", &cookie, "").body;
         let state: Value = serde_json::from_str(&body).unwrap_or_default();
         if state["nodes"].as_array().is_some_and(|n| n.iter().any(|n| n["mac"] == 5 && n["status"] == "ok")) {
             break;
@@ -255,9 +215,9 @@ fn a_viewer_may_compare() {
         assert!(Instant::now() < end + Duration::from_secs(30), "MAC 5 never ok: {body}\n{}", ui.dump());
         std::thread::sleep(Duration::from_millis(200));
     }
-    let (status, _, body) = request(&addr, "GET", "/api/project/compare", &cookie, "");
-    assert_eq!(status, 200, "a viewer may compare: {body}");
-    let v: Value = serde_json::from_str(&body).unwrap();
+    let r = request(&addr, "GET", "/api/project/compare", &cookie, "");
+    assert_eq!(r.status, 200, "a viewer may compare: {}", r.body);
+    let v: Value = serde_json::from_str(&r.body).unwrap();
     ui.terminate();
     assert_eq!(v["equal"], true, "{v}");
     let c = &v["compared"];

@@ -9,20 +9,15 @@
 //! `node_modules` is a failure, never a skip. The screenshot goes to
 //! `$UI_ARTIFACTS_DIR/project/` (default: a scratch folder).
 
-use std::path::Path;
-use std::process::Command;
+use pty_rig::browser::{artifacts, Browser};
+use pty_rig::console::{free_addr, wait_listening};
 use std::time::Duration;
 
 #[test]
 #[ignore = "needs chromium, node and playwright-core: run by scripts/check's project-console stage"]
 fn project_panel_in_chromium() {
-    let browser = Path::new(env!("CARGO_MANIFEST_DIR")).join("browser");
-    assert!(browser.join("node_modules/playwright-core").is_dir(), "npm ci --prefix tests/browser");
-    let chromium = std::env::var("CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    assert!(Path::new(&chromium).exists(), "{chromium} is missing: apt-get install chromium");
-    let out = std::env::var_os("UI_ARTIFACTS_DIR")
-        .map_or_else(|| pty_rig::scratch("project-browser"), |d| Path::new(&d).join("project"));
-    std::fs::create_dir_all(&out).unwrap();
+    let browser = Browser::require();
+    let out = artifacts("project", "project-browser");
 
     let file = out.join("plant.toml");
     let mut upload = pty_rig::Proc::spawn(
@@ -44,8 +39,7 @@ fn project_panel_in_chromium() {
     let other = out.join("other.toml");
     std::fs::write(&other, format!("{}{node}", &text[..at])).unwrap();
 
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
+    let addr = free_addr();
     let mut ui = pty_rig::Proc::spawn(
         pty_rig::bin("dnet-master"),
         &[
@@ -61,27 +55,10 @@ fn project_panel_in_chromium() {
             other.to_str().unwrap(),
         ],
     );
-    let end = std::time::Instant::now() + Duration::from_secs(20);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(std::time::Instant::now() < end, "the console did not start\n{}", ui.dump());
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let result = Command::new("node")
-        .arg("project_console.test.mjs")
-        .current_dir(&browser)
-        .env("CONSOLE_URL", format!("http://{addr}/"))
-        .env("ARTIFACTS_DIR", &out)
-        .env("CHROMIUM", &chromium)
-        .output()
-        .expect("node runs (install Node.js)");
-    let text =
-        format!("{}{}", String::from_utf8_lossy(&result.stdout), String::from_utf8_lossy(&result.stderr));
-    println!("{text}");
+    wait_listening(&addr, Duration::from_secs(20), || ui.dump());
+    let run = browser.run("project_console.test.mjs", &format!("http://{addr}/"), &out);
     ui.terminate();
-    assert!(result.status.success(), "the browser test failed:\n{text}\n{}", ui.dump());
-    assert!(
-        text.matches("\nok   ").count() + usize::from(text.starts_with("ok   ")) == 3,
-        "three steps passed:\n{text}"
-    );
+    assert!(run.success, "the browser test failed:\n{}\n{}", run.text, ui.dump());
+    assert_eq!(run.steps_passed(), 3, "three steps passed:\n{}", run.text);
     assert!(out.join("console-project.png").is_file(), "no screenshot");
 }

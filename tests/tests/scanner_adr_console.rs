@@ -5,30 +5,8 @@
 //! Needs the dnet-master program: ignored in the plain host-test run, run by scripts/check's
 //! scanner-adr stage.
 
-use std::io::{Read, Write};
+use pty_rig::console::{csrf_token, free_addr, http, wait_listening};
 use std::time::{Duration, Instant};
-
-/// One HTTP/1.1 request to the console at `addr` (a POST with the page's CSRF token and `body`):
-/// status and body.
-fn http(addr: &str, method: &str, path: &str, token: Option<&str>, body: &str) -> (u16, String) {
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
-    if let Some(t) = token {
-        req.push_str(&format!(
-            "Origin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {t}\r\nContent-Length: {}\r\n\r\n{body}",
-            body.len()
-        ));
-    } else {
-        req.push_str("\r\n");
-    }
-    s.write_all(req.as_bytes()).unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).unwrap();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
-    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-    (status, body.to_string())
-}
 
 fn node_status(addr: &str, mac: u64) -> Option<String> {
     let (status, body) = http(addr, "GET", "/api/state", None, "");
@@ -51,8 +29,7 @@ fn wait_status(addr: &str, mac: u64, want: &str, ui: &pty_rig::Proc) {
 #[test]
 #[ignore = "needs dnet-master built: run by scripts/check's scanner-adr stage"]
 fn the_console_edits_the_scan_list_and_lists_the_events() {
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
+    let addr = free_addr();
     let dir = pty_rig::scratch("scanner-adr-console");
     let list = dir.join("list.toml");
     // MAC 7 is on the bus but not in the list: added through the API.
@@ -76,16 +53,10 @@ fn the_console_edits_the_scan_list_and_lists_the_events() {
             list.to_str().unwrap(),
         ],
     );
-    let end = Instant::now() + Duration::from_secs(30);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(Instant::now() < end, "the console does not listen\n{}", ui.dump());
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_listening(&addr, Duration::from_secs(30), || ui.dump());
     wait_status(&addr, 5, "ok", &ui);
-    let (_, page) = http(&addr, "GET", "/", None, "");
-    let token =
-        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
-    let post = |path: &str, body: &str| http(&addr, "POST", path, Some(token), body);
+    let token = csrf_token(&addr);
+    let post = |path: &str, body: &str| http(&addr, "POST", path, Some(&*token), body);
 
     assert_eq!(http(&addr, "GET", "/api/scanlist/enable", None, "").0, 405);
     let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": false}"#);
@@ -136,8 +107,7 @@ fn the_console_edits_the_scan_list_over_slcan() {
     }
     let rig = pty_rig::PtyRig::breaker("scanner-edit-slcan", &[], None);
     let bus = rig.master_bus_arg();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
+    let addr = free_addr();
     let dir = pty_rig::scratch("scanner-edit-slcan-list");
     let list = dir.join("list.toml");
     std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
@@ -156,16 +126,10 @@ fn the_console_edits_the_scan_list_over_slcan() {
             list.to_str().unwrap(),
         ],
     );
-    let end = Instant::now() + Duration::from_secs(30);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(Instant::now() < end, "the console does not listen\n{}\n{}", ui.dump(), rig.dump());
-        std::thread::sleep(Duration::from_millis(100));
-    }
+    wait_listening(&addr, Duration::from_secs(30), || format!("{}\n{}", ui.dump(), rig.dump()));
     wait_status(&addr, 5, "ok", &ui);
-    let (_, page) = http(&addr, "GET", "/", None, "");
-    let token =
-        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
-    let post = |path: &str, body: &str| http(&addr, "POST", path, Some(token), body);
+    let token = csrf_token(&addr);
+    let post = |path: &str, body: &str| http(&addr, "POST", path, Some(&*token), body);
 
     let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": false}"#);
     assert_eq!(status, 200, "{body}");

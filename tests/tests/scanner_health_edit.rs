@@ -10,6 +10,7 @@ use dnet_scanner::model::{ListEdit, NodeStatus, ScanList};
 use dnet_scanner::{build_scan_list, Scanner, ScannerOptions};
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
+use pty_rig::console::{csrf_token, free_addr, http, wait_listening};
 
 fn run_for(s: &mut Scanner, m: &mut Master<'_, '_>, d: Duration) {
     let end = m.session.now() + d;
@@ -77,28 +78,6 @@ fn health_measures_added_nodes_forgets_removed_ones_and_counts_no_drop_outs_whil
     assert!(share > 0.0 && share <= 100.0, "{share}");
 }
 
-/// One HTTP/1.1 request to the console at `addr` (a POST with the page's CSRF token and `body`).
-fn http(addr: &str, method: &str, path: &str, token: Option<&str>, body: &str) -> (u16, String) {
-    use std::io::{Read, Write};
-    let mut s = std::net::TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
-    let mut req = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
-    if let Some(t) = token {
-        req.push_str(&format!(
-            "Origin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {t}\r\nContent-Length: {}\r\n\r\n{body}",
-            body.len()
-        ));
-    } else {
-        req.push_str("\r\n");
-    }
-    s.write_all(req.as_bytes()).unwrap();
-    let mut text = String::new();
-    s.read_to_string(&mut text).unwrap();
-    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
-    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-    (status, body.to_string())
-}
-
 /// `GET /api/health` until `want` accepts it (30 s).
 fn health_until(addr: &str, what: &str, ui: &pty_rig::Proc, want: impl Fn(&serde_json::Value) -> bool) {
     let end = std::time::Instant::now() + std::time::Duration::from_secs(30);
@@ -131,8 +110,7 @@ fn health_follows_the_console_s_scan_list_changes_over_slcan() {
     }
     let rig = pty_rig::PtyRig::breaker("health-edit-slcan", &[], None);
     let bus = rig.master_bus_arg();
-    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{port}");
+    let addr = free_addr();
     let dir = pty_rig::scratch("health-edit-slcan-list");
     let list = dir.join("list.toml");
     std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
@@ -151,23 +129,12 @@ fn health_follows_the_console_s_scan_list_changes_over_slcan() {
             list.to_str().unwrap(),
         ],
     );
-    let end = std::time::Instant::now() + std::time::Duration::from_secs(30);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(
-            std::time::Instant::now() < end,
-            "the console does not listen\n{}\n{}",
-            ui.dump(),
-            rig.dump()
-        );
-        std::thread::sleep(std::time::Duration::from_millis(100));
-    }
+    wait_listening(&addr, std::time::Duration::from_secs(30), || format!("{}\n{}", ui.dump(), rig.dump()));
     let responses = |v: &serde_json::Value| node(v, 5).and_then(|n| n["response_ms"]["count"].as_u64());
     health_until(&addr, "MAC 5 measured", &ui, |v| responses(v) >= Some(10));
-    let (_, page) = http(&addr, "GET", "/", None, "");
-    let token =
-        page.split("name=\"csrf-token\" content=\"").nth(1).and_then(|t| t.split('"').next()).unwrap();
+    let token = csrf_token(&addr);
     let post = |path: &str, body: &str| {
-        let (status, answer) = http(&addr, "POST", path, Some(token), body);
+        let (status, answer) = http(&addr, "POST", path, Some(&*token), body);
         assert_eq!(status, 200, "{path} {body}: {answer}");
     };
 

@@ -10,10 +10,11 @@
 //! Needs mosquitto, socat and the venv's pysparkplug (`DNET_PYTHON`, else `.venv/bin/python`): ignored in
 //! the plain run; it fails, not skips, when a tool is missing.
 
+use pty_rig::console::{csrf_token, free_addr, free_port, http};
 use pty_rig::{bin, scratch, Proc};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Write};
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpStream;
 use std::path::PathBuf;
 use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{self, Receiver};
@@ -132,7 +133,7 @@ fn event_of(metric: &Value) -> Value {
 #[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
 fn adr_steps_reach_a_sparkplug_host_as_node_data() {
     let dir = scratch("spb-adr");
-    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = free_port();
     let _broker = broker(&dir, port);
     let mut host = Host::start(port);
     let url = format!("mqtt://127.0.0.1:{port}");
@@ -221,31 +222,6 @@ fn adr_steps_reach_a_sparkplug_host_as_node_data() {
     drop(p);
 }
 
-/// One HTTP/1.1 POST to the console at `addr` with the page's CSRF token: status and body.
-fn post(addr: &str, path: &str, body: &str) -> (u16, String) {
-    use std::io::Read;
-    let request = |req: String| {
-        let mut s = TcpStream::connect(addr).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-        s.write_all(req.as_bytes()).unwrap();
-        let mut text = String::new();
-        s.read_to_string(&mut text).unwrap();
-        let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
-        let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-        (status, body.to_string())
-    };
-    let (_, page) = request(format!("GET / HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"));
-    let token = page
-        .split("name=\"csrf-token\" content=\"")
-        .nth(1)
-        .and_then(|t| t.split('"').next())
-        .unwrap_or_default();
-    request(format!(
-        "POST {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nOrigin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {token}\r\nContent-Length: {}\r\n\r\n{body}",
-        body.len()
-    ))
-}
-
 /// On the real SLCAN path (`dnet-soft-slave` with the simulated breaker on socat pty pairs): a
 /// scan-list change made in the console (MAC 5 disabled, enabled) reaches the host as NDATA.
 #[test]
@@ -255,13 +231,12 @@ fn scan_list_changes_over_slcan_reach_a_sparkplug_host() {
     let rig = pty_rig::PtyRig::breaker("spb-adr-slcan", &[], None);
     let bus = rig.master_bus_arg();
     let dir = scratch("spb-adr-slcan");
-    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let port = free_port();
     let _broker = broker(&dir, port);
     let mut host = Host::start(port);
     let url = format!("mqtt://127.0.0.1:{port}");
     let store = dir.join("sparkplug.sqlite");
-    let http_port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let addr = format!("127.0.0.1:{http_port}");
+    let addr = free_addr();
     let p = Proc::spawn(
         bin("dnet-master"),
         &[
@@ -287,7 +262,7 @@ fn scan_list_changes_over_slcan_reach_a_sparkplug_host() {
         (r#"{"mac": 5, "enabled": false}"#, "MAC 5 disabled (maintenance)"),
         (r#"{"mac": 5, "enabled": true}"#, "MAC 5 enabled"),
     ] {
-        let (status, answer) = post(&addr, "/api/scanlist/enable", body);
+        let (status, answer) = http(&addr, "POST", "/api/scanlist/enable", Some(&csrf_token(&addr)), body);
         assert_eq!(status, 200, "{answer}\n{}\n{}", p.dump(), rig.dump());
         let ndata = host.next(Duration::from_secs(20), want, of_type("NDATA"));
         let e = event_of(last_event(&ndata).unwrap_or_else(|| panic!("{ndata}")));

@@ -15,6 +15,9 @@
 //! A missing tool (socat, the Python virtual environment) skips a test with a message, except in CI
 //! (`CI=true`), where it fails.
 
+pub mod browser;
+pub mod console;
+
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};

@@ -1,0 +1,106 @@
+//! The web console (`dnet-master ui`) as the system tests talk to it: raw HTTP/1.1 requests over
+//! one TCP connection each (`Connection: close`, so the answer ends when the console closes), a
+//! free loopback address to listen on, waiting until the console listens, and the page's CSRF
+//! token.
+//!
+//! The requests are written by hand, not by an HTTP client crate, so that a test sends exactly
+//! the bytes it means to (the headers of the console's page, or hostile ones) and sees the
+//! status line as the console wrote it.
+
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::time::{Duration, Instant};
+
+/// How long a request waits for the console's answer before the read fails.
+const READ_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// The console's answer to [`request`]: the status code (0 when the status line has none), the
+/// head (status line and header lines) and the body.
+#[derive(Debug, Clone)]
+pub struct Reply {
+    /// The status code of the status line; 0 when it has none.
+    pub status: u16,
+    /// The status line and the header lines, without the blank line.
+    pub head: String,
+    /// Everything after the blank line.
+    pub body: String,
+}
+
+/// Sends `text` (a whole request) to `addr` on a new connection and reads until the console
+/// closes it. Panics when the console cannot be reached or does not answer within a minute.
+fn exchange(addr: &str, text: &str) -> Reply {
+    let mut s = TcpStream::connect(addr).unwrap_or_else(|e| panic!("connect to the console at {addr}: {e}"));
+    s.set_read_timeout(Some(READ_TIMEOUT)).unwrap();
+    s.write_all(text.as_bytes()).unwrap_or_else(|e| panic!("send to the console at {addr}: {e}"));
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).unwrap_or_else(|e| panic!("the console's answer at {addr}: {e}"));
+    let (head, body) = answer.split_once("\r\n\r\n").unwrap_or((&answer, ""));
+    let status = head.split_whitespace().nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    Reply { status, head: head.to_string(), body: body.to_string() }
+}
+
+/// One request with the header lines `headers` (each ending in `\r\n`, may be empty) and `body`:
+/// `METHOD PATH HTTP/1.1`, `Host`, `Connection: close`, `headers`, `Content-Length`.
+pub fn request(addr: &str, method: &str, path: &str, headers: &str, body: &str) -> Reply {
+    exchange(
+        addr,
+        &format!(
+            "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n{headers}Content-Length: {}\r\n\r\n{body}",
+            body.len()
+        ),
+    )
+}
+
+/// One request as the console's page sends it: with `token`, the page's own `Origin`, JSON,
+/// `X-CSRF-Token` and `body`; without, a bare request (no body, no `Content-Length`). Status and
+/// body.
+pub fn http(addr: &str, method: &str, path: &str, token: Option<&str>, body: &str) -> (u16, String) {
+    let mut text = format!("{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    if let Some(t) = token {
+        text.push_str(&format!(
+            "Origin: http://{addr}\r\nContent-Type: application/json\r\nX-CSRF-Token: {t}\r\nContent-Length: {}\r\n\r\n{body}",
+            body.len()
+        ));
+    } else {
+        text.push_str("\r\n");
+    }
+    let r = exchange(addr, &text);
+    (r.status, r.body)
+}
+
+/// `GET path` without a session or token: status and body.
+pub fn get(addr: &str, path: &str) -> (u16, String) {
+    http(addr, "GET", path, None, "")
+}
+
+/// The CSRF token of the console's page (`GET /`, its `csrf-token` meta tag). Panics, showing
+/// the page, when it has none.
+pub fn csrf_token(addr: &str) -> String {
+    let (status, page) = get(addr, "/");
+    page.split("name=\"csrf-token\" content=\"")
+        .nth(1)
+        .and_then(|t| t.split('"').next())
+        .unwrap_or_else(|| panic!("no csrf-token in the page (status {status}):\n{page}"))
+        .to_string()
+}
+
+/// A loopback address with a port that was free a moment ago (the system's choice), as
+/// `127.0.0.1:PORT`.
+pub fn free_addr() -> String {
+    format!("127.0.0.1:{}", free_port())
+}
+
+/// A loopback port that was free a moment ago (the system's choice).
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Waits until something accepts connections at `addr`, trying every 100 ms; after `limit`,
+/// panics with `dump()` (the programs' output).
+pub fn wait_listening(addr: &str, limit: Duration, dump: impl Fn() -> String) {
+    let end = Instant::now() + limit;
+    while TcpStream::connect(addr).is_err() {
+        assert!(Instant::now() < end, "nothing listens at {addr} within {limit:?}\n{}", dump());
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
