@@ -8,38 +8,18 @@
 // seconds, exports the CSV and finds the samples in it, records a trace; a screenshot of each
 // view goes into ARTIFACTS_DIR. Any request to another host fails the test (the page must work
 // offline). Run by master-harness/tests/ui_browser.rs.
-import { chromium } from "playwright-core";
-import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
+import { launch, settings, Steps } from "./lib.mjs";
+import { readFileSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-const url = process.env.CONSOLE_URL;
-const artifacts = process.env.ARTIFACTS_DIR || "browser-artifacts";
-const executablePath = process.env.CHROMIUM || "/usr/bin/chromium";
-if (!url) {
-  console.error("CONSOLE_URL is not set");
-  process.exit(2);
-}
-mkdirSync(artifacts, { recursive: true });
-
-let passed = 0;
-let failed = 0;
-async function step(name, f) {
-  const t0 = Date.now();
-  try {
-    await f();
-    passed++;
-    console.log(`ok   ${name} (${Date.now() - t0} ms)`);
-  } catch (e) {
-    failed++;
-    console.log(`FAIL ${name}: ${e && e.message ? e.message : e}`);
-    throw e;
-  }
-}
+const { url, artifacts, executablePath } = settings();
+const steps = new Steps();
+const { step } = steps;
 
 const origin = new URL(url).origin;
 const outside = [];
 const pageErrors = [];
-const browser = await chromium.launch({ executablePath, headless: true, args: ["--no-sandbox"] });
+const browser = await launch(executablePath);
 try {
   const context = await browser.newContext({ viewport: { width: 1280, height: 900 }, acceptDownloads: true });
   await context.route("**/*", (route) => {
@@ -189,7 +169,7 @@ try {
   // The failing step said why.
 } finally {
   await browser.close();
-  writeFileSync(join(artifacts, "result.txt"), `${passed} passed, ${failed} failed\n`);
-  console.log(`${passed} passed, ${failed} failed`);
-  process.exit(failed ? 1 : 0);
+  writeFileSync(join(artifacts, "result.txt"), `${steps.passed} passed, ${steps.failed} failed\n`);
+  console.log(`${steps.passed} passed, ${steps.failed} failed`);
+  process.exit(steps.failed ? 1 : 0);
 }

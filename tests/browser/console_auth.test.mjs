@@ -8,36 +8,16 @@
 // and the login form is back; otto logs in, Close asks "Close the breaker at MAC 5 ...?", Cancel
 // sends nothing, Confirm closes the breaker; the Audit view lists otto's close (ok) and vera's
 // (refused). Screenshots go into ARTIFACTS_DIR. Run by tests/tests/console_auth_browser.rs.
-import { chromium } from "playwright-core";
-import { mkdirSync, writeFileSync } from "node:fs";
+import { launch, settings, Steps } from "./lib.mjs";
+import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
-const url = process.env.CONSOLE_URL;
-const artifacts = process.env.ARTIFACTS_DIR || "browser-artifacts";
-const executablePath = process.env.CHROMIUM || "/usr/bin/chromium";
-if (!url) {
-  console.error("CONSOLE_URL is not set");
-  process.exit(2);
-}
-mkdirSync(artifacts, { recursive: true });
-
-let passed = 0;
-let failed = 0;
-async function step(name, f) {
-  const t0 = Date.now();
-  try {
-    await f();
-    passed++;
-    console.log(`ok   ${name} (${Date.now() - t0} ms)`);
-  } catch (e) {
-    failed++;
-    console.log(`FAIL ${name}: ${e && e.message ? e.message : e}`);
-    throw e;
-  }
-}
+const { url, artifacts, executablePath } = settings();
+const steps = new Steps();
+const { step } = steps;
 
 const pageErrors = [];
-const browser = await chromium.launch({ executablePath, headless: true, args: ["--no-sandbox"] });
+const browser = await launch(executablePath);
 try {
   const context = await browser.newContext({ viewport: { width: 1280, height: 900 } });
   const page = await context.newPage();
@@ -121,7 +101,7 @@ try {
   // The failing step said why.
 } finally {
   await browser.close();
-  writeFileSync(join(artifacts, "result.txt"), `${passed} passed, ${failed} failed\n`);
-  console.log(`${passed} passed, ${failed} failed`);
-  process.exit(failed ? 1 : 0);
+  writeFileSync(join(artifacts, "result.txt"), `${steps.passed} passed, ${steps.failed} failed\n`);
+  console.log(`${steps.passed} passed, ${steps.failed} failed`);
+  process.exit(steps.failed ? 1 : 0);
 }

@@ -7,34 +7,14 @@
 // verdict, compares the panel with GET /api/project/compare (the counts of what was compared, a row
 // per difference), clicks Compare and sees a new comparison asked; a screenshot goes into
 // ARTIFACTS_DIR. Run by tests/tests/project_console_browser.rs.
-import { chromium } from "playwright-core";
-import { mkdirSync } from "node:fs";
+import { check, launch, settings, Steps } from "./lib.mjs";
 import { join } from "node:path";
 
-const url = process.env.CONSOLE_URL;
-const artifacts = process.env.ARTIFACTS_DIR || "browser-artifacts";
-const executablePath = process.env.CHROMIUM || "/usr/bin/chromium";
-if (!url) {
-  console.error("CONSOLE_URL is not set");
-  process.exit(2);
-}
-mkdirSync(artifacts, { recursive: true });
+const { url, artifacts, executablePath } = settings();
+const steps = new Steps();
+const { step } = steps;
 
-let failed = 0;
-async function step(name, f) {
-  const t0 = Date.now();
-  try {
-    await f();
-    console.log(`ok   ${name} (${Date.now() - t0} ms)`);
-  } catch (e) {
-    failed++;
-    console.log(`FAIL ${name}: ${e && e.message ? e.message : e}`);
-    throw e;
-  }
-}
-const check = (cond, what) => { if (!cond) throw new Error(what); };
-
-const browser = await chromium.launch({ executablePath, headless: true, args: ["--no-sandbox"] });
+const browser = await launch(executablePath);
 try {
   const context = await browser.newContext({ viewport: { width: 1280, height: 1000 } });
   const page = await context.newPage();
@@ -89,8 +69,8 @@ try {
 
   check(errors.length === 0, `page errors: ${errors.join("; ")}`);
 } catch (_) {
-  failed = failed || 1;
+  steps.failed = steps.failed || 1;
 } finally {
   await browser.close();
-  process.exit(failed ? 1 : 0);
+  process.exit(steps.failed ? 1 : 0);
 }

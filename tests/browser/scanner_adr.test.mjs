@@ -6,34 +6,14 @@
 // 5@10000, every node on ADR), waits until the events panel shows the replacement in I/O, and
 // compares the panel with GET /api/events; a screenshot goes into ARTIFACTS_DIR. Run by
 // tests/tests/scanner_adr_browser.rs.
-import { chromium } from "playwright-core";
-import { mkdirSync } from "node:fs";
+import { check, launch, settings, Steps } from "./lib.mjs";
 import { join } from "node:path";
 
-const url = process.env.CONSOLE_URL;
-const artifacts = process.env.ARTIFACTS_DIR || "browser-artifacts";
-const executablePath = process.env.CHROMIUM || "/usr/bin/chromium";
-if (!url) {
-  console.error("CONSOLE_URL is not set");
-  process.exit(2);
-}
-mkdirSync(artifacts, { recursive: true });
+const { url, artifacts, executablePath } = settings();
+const steps = new Steps();
+const { step } = steps;
 
-let failed = 0;
-async function step(name, f) {
-  const t0 = Date.now();
-  try {
-    await f();
-    console.log(`ok   ${name} (${Date.now() - t0} ms)`);
-  } catch (e) {
-    failed++;
-    console.log(`FAIL ${name}: ${e && e.message ? e.message : e}`);
-    throw e;
-  }
-}
-const check = (cond, what) => { if (!cond) throw new Error(what); };
-
-const browser = await chromium.launch({ executablePath, headless: true, args: ["--no-sandbox"] });
+const browser = await launch(executablePath);
 try {
   const page = await (await browser.newContext({ viewport: { width: 1280, height: 1200 } })).newPage();
   const errors = [];
@@ -60,4 +40,4 @@ try {
 } finally {
   await browser.close();
 }
-process.exit(failed ? 1 : 0);
+process.exit(steps.failed ? 1 : 0);

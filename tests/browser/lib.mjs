@@ -1,0 +1,54 @@
+// What every browser script of this folder shares: its settings from the environment, chromium
+// launched headless through playwright-core, and the steps it prints.
+//
+//   CONSOLE_URL=http://127.0.0.1:PORT/ ARTIFACTS_DIR=DIR [CHROMIUM=/usr/bin/chromium] node SCRIPT
+//
+// A step prints `ok   NAME (N ms)` or `FAIL NAME: WHY` (the Rust side counts the `ok   ` lines);
+// a failed step throws, so the steps after it do not run.
+import { chromium } from "playwright-core";
+import { mkdirSync } from "node:fs";
+
+/// The console's URL (CONSOLE_URL, required: exit 2 without), the folder for screenshots and
+/// downloads (ARTIFACTS_DIR, made here; default browser-artifacts), chromium's path (CHROMIUM,
+/// default /usr/bin/chromium).
+export function settings() {
+  const url = process.env.CONSOLE_URL;
+  const artifacts = process.env.ARTIFACTS_DIR || "browser-artifacts";
+  const executablePath = process.env.CHROMIUM || "/usr/bin/chromium";
+  if (!url) {
+    console.error("CONSOLE_URL is not set");
+    process.exit(2);
+  }
+  mkdirSync(artifacts, { recursive: true });
+  return { url, artifacts, executablePath };
+}
+
+/// Chromium, headless, without the sandbox (the tests run as root in CI).
+export function launch(executablePath) {
+  return chromium.launch({ executablePath, headless: true, args: ["--no-sandbox"] });
+}
+
+/// The steps of one script and how many passed and failed.
+export class Steps {
+  passed = 0;
+  failed = 0;
+
+  /// Runs `f`; prints ok with the time it took, or FAIL with the reason and throws it again.
+  step = async (name, f) => {
+    const t0 = Date.now();
+    try {
+      await f();
+      this.passed++;
+      console.log(`ok   ${name} (${Date.now() - t0} ms)`);
+    } catch (e) {
+      this.failed++;
+      console.log(`FAIL ${name}: ${e && e.message ? e.message : e}`);
+      throw e;
+    }
+  };
+}
+
+/// Throws `what` unless `cond` holds.
+export const check = (cond, what) => {
+  if (!cond) throw new Error(what);
+};
