@@ -6,7 +6,7 @@ use crate::replay;
 use can_io::bus::{Bitrate, Bus, BusSpec};
 use can_io::pcap::{PcapBus, PcapWriter};
 use can_io::sim::PowerOn;
-use can_io::trace::{read_trace, ReadOptions, Trace, TraceFormat};
+use can_io::trace::{read_trace, ReadOptions, Skipped, Trace, TraceFormat};
 use clap::Args;
 use converter_sim::{OpenError, SimSetup};
 use devicenet::{Duration, Instant, MacId};
@@ -328,25 +328,7 @@ pub fn read_input(
     let trace = read_trace(path, input.options())?;
     let name =
         if path.as_os_str() == "-" { "standard input".to_string() } else { path.display().to_string() };
-    if trace.skipped_count > 0 {
-        let unit = if matches!(trace.format, TraceFormat::Pcap | TraceFormat::Pcapng | TraceFormat::Blf) {
-            "record"
-        } else {
-            "line"
-        };
-        let _ = writeln!(
-            err,
-            "dnet-master: {name}: {} {unit}{} skipped, not DeviceNet traffic (--strict stops at the first):",
-            trace.skipped_count,
-            if trace.skipped_count == 1 { "" } else { "s" }
-        );
-        for s in &trace.skipped {
-            let _ = writeln!(err, "  {name}:{}: {}", s.line, s.reason);
-        }
-        if trace.skipped_count > trace.skipped.len() {
-            let _ = writeln!(err, "  ... and {} more", trace.skipped_count - trace.skipped.len());
-        }
-    }
+    report_skipped(err, &name, trace.format, trace.skipped_count, &trace.skipped);
     if trace.entries.is_empty() {
         return Err(HarnessError::NothingCompared(format!(
             "{name}: no DeviceNet frames in this {} trace ({} skipped)",
@@ -361,6 +343,38 @@ pub fn read_input(
 pub fn create_output(path: &std::path::Path) -> Result<std::fs::File, HarnessError> {
     std::fs::File::create(path)
         .map_err(|source| HarnessError::Write { path: path.display().to_string(), source })
+}
+
+/// Says which lines (records, in a binary format) of the trace `name` were skipped as not
+/// DeviceNet traffic: `count` in all, `named` the first of them with their reasons. Nothing when
+/// `count` is 0. Every command that reads a trace words it so, standard input read line by line
+/// included.
+pub(crate) fn report_skipped(
+    err: &mut dyn Write,
+    name: &str,
+    format: TraceFormat,
+    count: usize,
+    named: &[Skipped],
+) {
+    if count == 0 {
+        return;
+    }
+    let unit = if matches!(format, TraceFormat::Pcap | TraceFormat::Pcapng | TraceFormat::Blf) {
+        "record"
+    } else {
+        "line"
+    };
+    let _ = writeln!(
+        err,
+        "dnet-master: {name}: {count} {unit}{} skipped, not DeviceNet traffic (--strict stops at the first):",
+        if count == 1 { "" } else { "s" }
+    );
+    for s in named {
+        let _ = writeln!(err, "  {name}:{}: {}", s.line, s.reason);
+    }
+    if count > named.len() {
+        let _ = writeln!(err, "  ... and {} more", count - named.len());
+    }
 }
 
 #[cfg(test)]

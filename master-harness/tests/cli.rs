@@ -362,6 +362,16 @@ fn decode_reads_standard_input_given_as_dash() {
     assert_eq!(out.status.code(), Some(1));
     assert!(stderr(&out).contains("standard input:1: odd number of hex digits"), "{}", stderr(&out));
     assert!(stderr(&out).contains("standard input: no DeviceNet frames"), "{}", stderr(&out));
+    // Read line by line, the skipped lines are counted and named as those of a file are.
+    let log = b"(0.1) can0 42C#0\n(0.000100) can0 42C#000E010101\n(0.2) can0 42C#1\n";
+    let out = dnet_with_stdin(&["decode", "-"], log);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("standard input: 2 lines skipped, not DeviceNet traffic")
+            && stderr(&out).contains("standard input:3: odd number of hex digits"),
+        "{}",
+        stderr(&out)
+    );
     let out = dnet_with_stdin(&["decode", "--strict", "-"], b"(0.1) can0 42C#0\n");
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("standard input:1:"), "{}", stderr(&out));

@@ -11,10 +11,10 @@
 
 pub mod live;
 
-use crate::options::{read_input, GlobalOptions, TraceInput};
+use crate::options::{read_input, report_skipped, GlobalOptions, TraceInput};
 use can_io::bus::BusSpec;
 use can_io::log::LogEntry;
-use can_io::trace::{parse_trace, ReadOptions, Trace, TraceFormat};
+use can_io::trace::{parse_trace, ReadOptions, Skipped, Trace, TraceFormat};
 use clap::Args;
 use devicenet::{Duration, Instant};
 use harness_common::console::Console;
@@ -128,7 +128,7 @@ pub fn stream_stdin(
     let mut number = 0usize;
     let mut raw = Vec::with_capacity(256);
     let mut decided = args.input.input_format.is_some();
-    let (mut frames, mut skipped) = (0usize, Vec::new());
+    let (mut frames, mut skipped, mut skipped_count) = (0usize, Vec::new(), 0usize);
     loop {
         if console.stop.requested().is_some() {
             break;
@@ -157,6 +157,7 @@ pub fn stream_stdin(
                     error: source,
                 })?;
                 let trace = parse_trace(&all, name, args.input.options())?;
+                report_skipped(err, name, trace.format, trace.skipped_count, &trace.skipped);
                 let mut count = 0;
                 for e in &trace.entries {
                     count += 1;
@@ -179,8 +180,9 @@ pub fn stream_stdin(
             HarnessError::from(e)
         })?;
         for s in &trace.skipped {
+            skipped_count += 1;
             if skipped.len() < can_io::trace::NAMED_SKIPS {
-                skipped.push((number, s.reason.clone()));
+                skipped.push(Skipped { line: number, reason: s.reason.clone() });
             }
         }
         for mut e in trace.entries {
@@ -193,9 +195,7 @@ pub fn stream_stdin(
             }
         }
     }
-    for (line, reason) in &skipped {
-        let _ = writeln!(err, "  {name}:{line}: skipped, not DeviceNet traffic: {reason}");
-    }
+    report_skipped(err, name, TraceFormat::Candump, skipped_count, &skipped);
     if frames == 0 {
         return Err(HarnessError::NothingCompared(format!("{name}: no DeviceNet frames")));
     }
