@@ -9,7 +9,7 @@
 // view goes into ARTIFACTS_DIR. Any request to another host fails the test (the page must work
 // offline). Run by master-harness/tests/ui_browser.rs.
 import { launch, settings, Steps } from "./lib.mjs";
-import { readFileSync, writeFileSync } from "node:fs";
+import { readFileSync } from "node:fs";
 import { join } from "node:path";
 
 const { url, artifacts, executablePath } = settings();
@@ -168,8 +168,5 @@ try {
 } catch (_) {
   // The failing step said why.
 } finally {
-  await browser.close();
-  writeFileSync(join(artifacts, "result.txt"), `${steps.passed} passed, ${steps.failed} failed\n`);
-  console.log(`${steps.passed} passed, ${steps.failed} failed`);
-  process.exit(steps.failed ? 1 : 0);
+  await steps.finish(browser, artifacts);
 }

@@ -9,7 +9,6 @@
 // sends nothing, Confirm closes the breaker; the Audit view lists otto's close (ok) and vera's
 // (refused). Screenshots go into ARTIFACTS_DIR. Run by tests/tests/console_auth_browser.rs.
 import { launch, settings, Steps } from "./lib.mjs";
-import { writeFileSync } from "node:fs";
 import { join } from "node:path";
 
 const { url, artifacts, executablePath } = settings();
@@ -100,8 +99,5 @@ try {
 } catch (_) {
   // The failing step said why.
 } finally {
-  await browser.close();
-  writeFileSync(join(artifacts, "result.txt"), `${steps.passed} passed, ${steps.failed} failed\n`);
-  console.log(`${steps.passed} passed, ${steps.failed} failed`);
-  process.exit(steps.failed ? 1 : 0);
+  await steps.finish(browser, artifacts);
 }

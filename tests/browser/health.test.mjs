@@ -6,7 +6,7 @@
 // panel shows the controller's state and a row per node with response times, compares the panel
 // with GET /api/health, downloads the CSV, clicks Clear and sees the frame count start again; a
 // screenshot goes into ARTIFACTS_DIR. Run by tests/tests/health_browser.rs.
-import { check, launch, settings, Steps } from "./lib.mjs";
+import { check, launch, openPage, settings, Steps } from "./lib.mjs";
 import { readFileSync } from "node:fs";
 import { join } from "node:path";
 
@@ -16,11 +16,10 @@ const { step } = steps;
 
 const browser = await launch(executablePath);
 try {
-  const context = await browser.newContext({ viewport: { width: 1280, height: 1000 }, acceptDownloads: true });
-  const page = await context.newPage();
-  const errors = [];
-  page.on("pageerror", (e) => errors.push(String(e)));
-  await page.goto(url);
+  const { page, errors } = await openPage(browser, url, {
+    viewport: { width: 1280, height: 1000 },
+    acceptDownloads: true,
+  });
 
   await step("the panel shows the controller and both nodes with response times", async () => {
     await page.waitForFunction(() => {

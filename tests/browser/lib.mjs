@@ -6,7 +6,8 @@
 // A step prints `ok   NAME (N ms)` or `FAIL NAME: WHY` (the Rust side counts the `ok   ` lines);
 // a failed step throws, so the steps after it do not run.
 import { chromium } from "playwright-core";
-import { mkdirSync } from "node:fs";
+import { mkdirSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
 
 /// The console's URL (CONSOLE_URL, required: exit 2 without), the folder for screenshots and
 /// downloads (ARTIFACTS_DIR, made here; default browser-artifacts), chromium's path (CHROMIUM,
@@ -46,6 +47,26 @@ export class Steps {
       throw e;
     }
   };
+
+  /// Closes the browser, writes `N passed, M failed` to ARTIFACTS_DIR/result.txt and to standard
+  /// output, and exits (1 when a step failed).
+  async finish(browser, artifacts) {
+    await browser.close();
+    writeFileSync(join(artifacts, "result.txt"), `${this.passed} passed, ${this.failed} failed\n`);
+    console.log(`${this.passed} passed, ${this.failed} failed`);
+    process.exit(this.failed ? 1 : 0);
+  }
+}
+
+/// A new page in a new browser context made with `options` (viewport, downloads), at `url`; the
+/// page's script errors are collected in `errors`.
+export async function openPage(browser, url, options) {
+  const context = await browser.newContext(options);
+  const page = await context.newPage();
+  const errors = [];
+  page.on("pageerror", (e) => errors.push(String(e)));
+  await page.goto(url);
+  return { context, page, errors };
 }
 
 /// Throws `what` unless `cond` holds.

@@ -7,7 +7,7 @@
 // verdict, compares the panel with GET /api/project/compare (the counts of what was compared, a row
 // per difference), clicks Compare and sees a new comparison asked; a screenshot goes into
 // ARTIFACTS_DIR. Run by tests/tests/project_console_browser.rs.
-import { check, launch, settings, Steps } from "./lib.mjs";
+import { check, launch, openPage, settings, Steps } from "./lib.mjs";
 import { join } from "node:path";
 
 const { url, artifacts, executablePath } = settings();
@@ -16,11 +16,7 @@ const { step } = steps;
 
 const browser = await launch(executablePath);
 try {
-  const context = await browser.newContext({ viewport: { width: 1280, height: 1000 } });
-  const page = await context.newPage();
-  const errors = [];
-  page.on("pageerror", (e) => errors.push(String(e)));
-  await page.goto(url);
+  const { page, errors } = await openPage(browser, url, { viewport: { width: 1280, height: 1000 } });
 
   await step("the Project panel shows the differences of MAC 6", async () => {
     // The first comparison may come before the scan list (503): the button asks again.

@@ -6,7 +6,7 @@
 // 5@10000, every node on ADR), waits until the events panel shows the replacement in I/O, and
 // compares the panel with GET /api/events; a screenshot goes into ARTIFACTS_DIR. Run by
 // tests/tests/scanner_adr_browser.rs.
-import { check, launch, settings, Steps } from "./lib.mjs";
+import { check, launch, openPage, settings, Steps } from "./lib.mjs";
 import { join } from "node:path";
 
 const { url, artifacts, executablePath } = settings();
@@ -15,10 +15,7 @@ const { step } = steps;
 
 const browser = await launch(executablePath);
 try {
-  const page = await (await browser.newContext({ viewport: { width: 1280, height: 1200 } })).newPage();
-  const errors = [];
-  page.on("pageerror", (e) => errors.push(String(e)));
-  await page.goto(url);
+  const { page, errors } = await openPage(browser, url, { viewport: { width: 1280, height: 1200 } });
 
   await step("the events panel shows the replacement of MAC 5, step by step", async () => {
     await page.waitForSelector('#events tr[data-kind="replaced"]', { timeout: 60000 });

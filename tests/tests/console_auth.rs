@@ -11,6 +11,7 @@
 //! test, `python3` for the TLS test): ignored in the plain host-test run, run by `scripts/check`
 //! with `-- --ignored`.
 
+use pty_rig::console::{add_user, stop_ui};
 use pty_rig::{bin, require_socat, scratch, Proc, PtyRig};
 use serde_json::Value;
 use std::io::{Read, Write};
@@ -18,20 +19,6 @@ use std::net::TcpStream;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-/// Adds `name` with `role` and `password` to `file` with `dnet-master user add`.
-fn add_user(file: &Path, name: &str, role: &str, password: &str) {
-    let mut child = Command::new(bin("dnet-master"))
-        .args(["user", "add", file.to_str().unwrap(), name, "--role", role])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("dnet-master runs");
-    child.stdin.take().unwrap().write_all(format!("{password}\n").as_bytes()).unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "user add {name}: {}", String::from_utf8_lossy(&out.stderr));
-}
 
 /// A users file with a viewer, an operator and an engineer (password: the name twice).
 fn users_file(dir: &Path) -> PathBuf {
@@ -315,9 +302,7 @@ fn roles_sessions_and_hostile_requests_on_the_simulated_bus() {
     let entries = roles_and_hostile_requests(&addr, &p);
     eprintln!("audit entries: {}", entries.len());
     assert!(p.running(), "dnet-master still runs\n{}", p.dump());
-    p.signal("INT");
-    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
-    assert!(!p.stderr.text().contains("panicked"), "{}", p.dump());
+    stop_ui(&mut p, Duration::from_secs(20), "");
 }
 
 #[test]
@@ -503,7 +488,5 @@ print("tls ok", ssl.OPENSSL_VERSION)
     let _ = s.read_to_end(&mut raw);
     assert!(!raw.starts_with(b"HTTP/1.1 200"), "plain HTTP was answered over the TLS port");
     assert!(p.running(), "{}", p.dump());
-    p.signal("INT");
-    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
-    assert!(!p.stderr.text().contains("panicked"), "{}", p.dump());
+    stop_ui(&mut p, Duration::from_secs(20), "");
 }

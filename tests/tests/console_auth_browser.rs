@@ -10,23 +10,9 @@
 //! test's scratch folder).
 
 use pty_rig::browser::{artifacts, Browser};
+use pty_rig::console::add_user;
 use pty_rig::{bin, scratch, Proc};
-use std::io::Write;
-use std::path::Path;
-use std::process::{Command, Stdio};
 use std::time::Duration;
-
-fn add_user(file: &Path, name: &str, role: &str, password: &str) {
-    let mut child = Command::new(bin("dnet-master"))
-        .args(["user", "add", file.to_str().unwrap(), name, "--role", role])
-        .stdin(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("dnet-master runs");
-    child.stdin.take().unwrap().write_all(format!("{password}\n").as_bytes()).unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(out.status.success(), "user add {name}: {}", String::from_utf8_lossy(&out.stderr));
-}
 
 #[test]
 #[ignore = "needs chromium, node and playwright-core: run by scripts/check"]

@@ -56,6 +56,19 @@ struct Incremental {
     printed_before: Vec<usize>,
 }
 
+impl Incremental {
+    /// `LINES`, none read yet, with decode's output going to `out`.
+    fn new(out: &Shared) -> Incremental {
+        Incremental {
+            lines: LINES.iter().map(|l| l.as_bytes()).collect(),
+            next: 0,
+            at: 0,
+            out: out.clone(),
+            printed_before: vec![],
+        }
+    }
+}
+
 impl Read for Incremental {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = {
@@ -102,13 +115,7 @@ fn args(triggers: &[&str]) -> DecodeArgs {
 #[test]
 fn standard_input_is_decoded_line_by_line() {
     let out = Shared::default();
-    let mut input = Incremental {
-        lines: LINES.iter().map(|l| l.as_bytes()).collect(),
-        next: 0,
-        at: 0,
-        out: out.clone(),
-        printed_before: vec![],
-    };
+    let mut input = Incremental::new(&out);
     let a = args(&[]);
     let mut printer = Printer::new(false, a.filter(), a.triggers.clone());
     let mut err = Vec::new();
@@ -125,13 +132,7 @@ fn standard_input_is_decoded_line_by_line() {
 #[test]
 fn a_trigger_stops_reading() {
     let out = Shared::default();
-    let mut input = Incremental {
-        lines: LINES.iter().map(|l| l.as_bytes()).collect(),
-        next: 0,
-        at: 0,
-        out: out.clone(),
-        printed_before: vec![],
-    };
+    let mut input = Incremental::new(&out);
     let a = args(&["mac=5,kind=explicit-response"]);
     let mut printer = Printer::new(false, a.filter(), a.triggers.clone());
     let code =
@@ -144,13 +145,7 @@ fn a_trigger_stops_reading() {
     // A trigger that never matches: exit 1, said on standard error.
     let a = args(&["mac=9"]);
     let mut printer = Printer::new(false, a.filter(), a.triggers.clone());
-    let mut input = Incremental {
-        lines: LINES.iter().map(|l| l.as_bytes()).collect(),
-        next: 0,
-        at: 0,
-        out: out.clone(),
-        printed_before: vec![],
-    };
+    let mut input = Incremental::new(&out);
     let mut err = Vec::new();
     let code =
         stream_stdin(&mut input, &a, &mut printer, &mut out.clone(), &mut err, &Console::plain()).unwrap();

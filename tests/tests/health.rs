@@ -18,7 +18,7 @@ use dnet_scanner::engine::{build_scan_list, Scanner, ScannerOptions};
 use dnet_scanner::health::HealthReport;
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use pty_rig::console::{csrf_token, free_addr, get, http};
+use pty_rig::console::{csrf_token, get, http, spawn_ui};
 use std::collections::HashMap;
 use std::io::Write;
 
@@ -316,36 +316,24 @@ fn the_scanner_reports_health_on_the_slcan_pty_path() {
 #[test]
 #[ignore = "needs dnet-master built: run by scripts/check's health stage"]
 fn the_console_serves_clears_and_exports_the_health() {
-    let addr = free_addr();
     let dir = pty_rig::scratch("health-console");
     let history = dir.join("h.sqlite");
-    let mut ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            "sim",
-            "--slave-mac",
-            "5,6",
-            "--realtime",
-            "ui",
-            "--listen",
-            &addr,
-            "--history",
-            history.to_str().unwrap(),
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", "sim", "--slave-mac", "5,6", "--realtime"],
+        &["--history", history.to_str().unwrap()],
+        std::time::Duration::from_secs(30),
+        String::new,
     );
     let end = std::time::Instant::now() + std::time::Duration::from_secs(30);
     let report = loop {
         assert!(std::time::Instant::now() < end, "no health report with responses\n{}", ui.dump());
-        if std::net::TcpStream::connect(&addr).is_ok() {
-            let (status, body) = get(&addr, "/api/health");
-            if status == 200 {
-                let v: serde_json::Value = serde_json::from_str(&body).unwrap();
-                if v["nodes"].as_array().is_some_and(|n| {
-                    n.len() == 2 && n.iter().all(|n| n["response_ms"]["count"].as_u64() >= Some(5))
-                }) {
-                    break v;
-                }
+        let (status, body) = get(&addr, "/api/health");
+        if status == 200 {
+            let v: serde_json::Value = serde_json::from_str(&body).unwrap();
+            if v["nodes"].as_array().is_some_and(|n| {
+                n.len() == 2 && n.iter().all(|n| n["response_ms"]["count"].as_u64() >= Some(5))
+            }) {
+                break v;
             }
         }
         std::thread::sleep(std::time::Duration::from_millis(200));

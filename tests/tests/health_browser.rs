@@ -9,7 +9,7 @@
 //! `$UI_ARTIFACTS_DIR/health/` (default: a scratch folder).
 
 use pty_rig::browser::{artifacts, Browser};
-use pty_rig::console::{free_addr, wait_listening};
+use pty_rig::console::spawn_ui;
 use std::time::Duration;
 
 #[test]
@@ -17,24 +17,13 @@ use std::time::Duration;
 fn health_panel_in_chromium() {
     let browser = Browser::require();
     let out = artifacts("health", "health-browser");
-    let addr = free_addr();
     let history = out.join("h.sqlite");
-    let mut ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            "sim",
-            "--slave-mac",
-            "5,6",
-            "--realtime",
-            "ui",
-            "--listen",
-            &addr,
-            "--history",
-            history.to_str().unwrap(),
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", "sim", "--slave-mac", "5,6", "--realtime"],
+        &["--history", history.to_str().unwrap()],
+        Duration::from_secs(20),
+        String::new,
     );
-    wait_listening(&addr, Duration::from_secs(20), || ui.dump());
     let run = browser.run("health.test.mjs", &format!("http://{addr}/"), &out);
     ui.terminate();
     assert!(run.success, "the browser test failed:\n{}\n{}", run.text, ui.dump());

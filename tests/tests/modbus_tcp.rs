@@ -10,6 +10,7 @@
 //! the pymodbus virtual environment (`DNET_PYTHON`) and socat: ignored in the plain host-test run,
 //! run by `scripts/check` with `-- --ignored`.
 
+use pty_rig::console::stop_ui;
 use pty_rig::{bin, require_pymodbus, require_socat, scratch, workspace_dir, Proc, PtyRig};
 use std::path::Path;
 use std::process::Command;
@@ -98,10 +99,7 @@ fn pymodbus_reads_the_tables_as_the_console_shows_them_on_the_simulated_bus() {
     let line = run_client(&python, &console, &modbus, 2, &p);
     eprintln!("{line}");
     assert!(p.running(), "dnet-master still runs\n{}", p.dump());
-    p.signal("INT");
-    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
-    let stderr = p.stderr.text();
-    assert!(!stderr.contains("panicked"), "a panic:\n{stderr}");
+    stop_ui(&mut p, Duration::from_secs(20), "");
 }
 
 #[test]
@@ -117,15 +115,7 @@ fn pymodbus_reads_the_soft_slave_over_slcan() {
     wait_scanning(&console, Duration::from_secs(90), &python);
     let line = run_client(&python, &console, &modbus, 1, &p);
     eprintln!("{line}");
-    p.signal("INT");
-    assert_eq!(
-        p.wait(Duration::from_secs(30)).and_then(|s| s.code()),
-        Some(130),
-        "{}\n{}",
-        p.dump(),
-        rig.dump()
-    );
-    assert!(!p.stderr.text().contains("panicked"), "{}", p.dump());
+    stop_ui(&mut p, Duration::from_secs(30), &rig.dump());
 }
 
 #[test]

@@ -15,8 +15,8 @@
 //! Python with asyncua (`DNET_PYTHON`, default `.venv/bin/python`) and socat: ignored in the plain
 //! host-test run, run by `scripts/check` with `-- --ignored`.
 
+use pty_rig::console::{add_user, stop_ui};
 use pty_rig::{bin, in_ci, require_socat, scratch, workspace_dir, Proc, PtyRig};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Duration;
@@ -106,14 +106,7 @@ fn users_file(dir: &Path) -> PathBuf {
     let path = dir.join("users.toml");
     let _ = std::fs::remove_file(&path);
     for ((name, password), role) in [(OPERATOR, "operator"), (VIEWER, "viewer")] {
-        let mut child = Command::new(bin("dnet-master"))
-            .args(["user", "add", path.to_str().unwrap(), name, "--role", role])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::null())
-            .spawn()
-            .expect("dnet-master user add runs");
-        writeln!(child.stdin.take().unwrap(), "{password}").unwrap();
-        assert!(child.wait().unwrap().success(), "user add {name}");
+        add_user(&path, name, role, password);
     }
     path
 }
@@ -128,20 +121,13 @@ fn audit_rows(python: &Path, history: &Path) -> Vec<String> {
     String::from_utf8_lossy(&out.stdout).lines().map(str::to_string).collect()
 }
 
-/// Stops `p` with SIGINT and checks it ended as `ui` does (130) without a panic.
-fn stop(mut p: Proc, extra: &str) {
-    p.signal("INT");
-    assert_eq!(p.wait(Duration::from_secs(30)).and_then(|s| s.code()), Some(130), "{}\n{extra}", p.dump());
-    assert!(!p.stderr.text().contains("panicked"), "a panic:\n{}", p.dump());
-}
-
 /// The read check: anonymous, compared with the console.
 fn read_check(python: &Path, bus: &str, extra: &[&str], macs: &[u8], limit: Duration) -> usize {
-    let (p, console, url) = start_ui(bus, &[&["--no-history"][..], extra].concat());
+    let (mut p, console, url) = start_ui(bus, &[&["--no-history"][..], extra].concat());
     wait_scanning(python, &url, macs, limit);
     let n = macs.len().to_string();
     let compared = run_client(python, "read", &["--url", &url, "--console", &console, "--min-nodes", &n], &p);
-    stop(p, "");
+    stop_ui(&mut p, Duration::from_secs(30), "");
     compared
 }
 
@@ -152,13 +138,13 @@ fn call_check(python: &Path, bus: &str, dir: &Path, limit: Duration) -> Vec<Stri
     let _ = std::fs::remove_file(&history);
     let pki = dir.join("pki");
     let (u, h, k) = (users.to_str().unwrap(), history.to_str().unwrap(), pki.to_str().unwrap());
-    let (p, _, url) = start_ui(bus, &["--users", u, "--history", h, "--opcua-pki", k]);
+    let (mut p, _, url) = start_ui(bus, &["--users", u, "--history", h, "--opcua-pki", k]);
     wait_scanning(python, &url, &[5], limit);
     let args = ["--url", &url, "--mac", "5", "--user", OPERATOR.0, "--password", OPERATOR.1];
     let args = [&args[..], &["--viewer", VIEWER.0, "--viewer-password", VIEWER.1]].concat();
     let compared = run_client(python, "call", &args, &p);
     assert_eq!(compared, 8, "four refusals, Close and Open, SetOutput carried out and refused");
-    stop(p, "");
+    stop_ui(&mut p, Duration::from_secs(30), "");
     assert!(pki.join("own/cert.der").is_file(), "the server's certificate is made in --opcua-pki");
     audit_rows(python, &history)
 }

@@ -9,10 +9,9 @@
 //! Needs the dnet-master program (and socat for the SLCAN test): ignored in the plain host-test
 //! run, run by scripts/check's project-console stage.
 
-use pty_rig::console::{free_addr, get, request, wait_listening};
+use pty_rig::console::{add_user, free_addr, get, request, spawn_ui, wait_listening};
 use pty_rig::{require_socat, Proc, PtyRig};
 use serde_json::Value;
-use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -160,16 +159,7 @@ fn a_viewer_may_compare() {
     let dir = pty_rig::scratch("project-console-viewer");
     let users = dir.join("users.toml");
     let _ = std::fs::remove_file(&users);
-    let mut add = std::process::Command::new(pty_rig::bin("dnet-master"))
-        .args(["user", "add", users.to_str().unwrap(), "vera", "--role", "viewer"])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    add.stdin.take().unwrap().write_all(b"veravera\n").unwrap();
-    let out = add.wait_with_output().unwrap();
-    assert!(out.status.success(), "user add: {}", String::from_utf8_lossy(&out.stderr));
+    add_user(&users, "vera", "viewer", "veravera");
     // The identity and the scan list only: no configuration, no parameters.
     let file = dir.join("plant.toml");
     std::fs::write(
@@ -178,26 +168,13 @@ fn a_viewer_may_compare() {
          vendor_id = 0x1234\ndevice_type = 0x000C\nproduct_code = 1\nmajor_revision = 1\nminor_revision = 1\n",
     )
     .unwrap();
-    let addr = free_addr();
-    let mut ui = Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            "sim",
-            "--slave-mac",
-            "5",
-            "ui",
-            "--listen",
-            &addr,
-            "--no-history",
-            "--users",
-            users.to_str().unwrap(),
-            "--project",
-            file.to_str().unwrap(),
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", "sim", "--slave-mac", "5"],
+        &["--no-history", "--users", users.to_str().unwrap(), "--project", file.to_str().unwrap()],
+        Duration::from_secs(30),
+        String::new,
     );
     let end = Instant::now() + Duration::from_secs(30);
-    wait_listening(&addr, Duration::from_secs(30), || ui.dump());
     let r = request(&addr, "GET", "/api/project/compare", "", "");
     assert_eq!(r.status, 401, "no session: {}", r.body);
     let json = format!("Origin: http://{addr}\r\nContent-Type: application/json\r\n");

@@ -10,7 +10,7 @@
 //! `$UI_ARTIFACTS_DIR/project/` (default: a scratch folder).
 
 use pty_rig::browser::{artifacts, Browser};
-use pty_rig::console::{free_addr, wait_listening};
+use pty_rig::console::spawn_ui;
 use std::time::Duration;
 
 #[test]
@@ -39,23 +39,12 @@ fn project_panel_in_chromium() {
     let other = out.join("other.toml");
     std::fs::write(&other, format!("{}{node}", &text[..at])).unwrap();
 
-    let addr = free_addr();
-    let mut ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            "sim",
-            "--slave-mac",
-            "5,6",
-            "ui",
-            "--listen",
-            &addr,
-            "--no-history",
-            "--project",
-            other.to_str().unwrap(),
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", "sim", "--slave-mac", "5,6"],
+        &["--no-history", "--project", other.to_str().unwrap()],
+        Duration::from_secs(20),
+        String::new,
     );
-    wait_listening(&addr, Duration::from_secs(20), || ui.dump());
     let run = browser.run("project_console.test.mjs", &format!("http://{addr}/"), &out);
     ui.terminate();
     assert!(run.success, "the browser test failed:\n{}\n{}", run.text, ui.dump());

@@ -9,7 +9,7 @@
 //! (default: a scratch folder).
 
 use pty_rig::browser::{artifacts, Browser};
-use pty_rig::console::{free_addr, wait_listening};
+use pty_rig::console::spawn_ui;
 use std::time::Duration;
 
 #[test]
@@ -17,25 +17,12 @@ use std::time::Duration;
 fn events_panel_in_chromium() {
     let browser = Browser::require();
     let out = artifacts("scanner-adr", "scanner-adr-browser");
-    let addr = free_addr();
-    let mut ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            "sim",
-            "--slave-mac",
-            "5,6",
-            "--sim-replace",
-            "5@10000",
-            "--realtime",
-            "ui",
-            "--no-history",
-            "--listen",
-            &addr,
-            "--adr",
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", "sim", "--slave-mac", "5,6", "--sim-replace", "5@10000", "--realtime"],
+        &["--no-history", "--adr"],
+        Duration::from_secs(30),
+        String::new,
     );
-    wait_listening(&addr, Duration::from_secs(30), || ui.dump());
     let run = browser.run("scanner_adr.test.mjs", &format!("http://{addr}/"), &out);
     ui.terminate();
     assert!(run.success, "the browser test failed:\n{}\n{}", run.text, ui.dump());

@@ -5,7 +5,7 @@
 //! Needs the dnet-master program: ignored in the plain host-test run, run by scripts/check's
 //! scanner-adr stage.
 
-use pty_rig::console::{csrf_token, free_addr, http, wait_listening};
+use pty_rig::console::{csrf_token, http, spawn_ui};
 use std::time::{Duration, Instant};
 
 fn node_status(addr: &str, mac: u64) -> Option<String> {
@@ -26,10 +26,20 @@ fn wait_status(addr: &str, mac: u64, want: &str, ui: &pty_rig::Proc) {
     }
 }
 
+/// Disables MAC 5 through the console (`POST /api/scanlist/enable` with the page's token), waits
+/// until the console shows it `disabled`, enables it again and waits until it is `ok`.
+fn disable_and_enable_mac_5(addr: &str, token: &str, ui: &pty_rig::Proc) {
+    for (enabled, status) in [(false, "disabled"), (true, "ok")] {
+        let body = format!(r#"{{"mac": 5, "enabled": {enabled}}}"#);
+        let (code, answer) = http(addr, "POST", "/api/scanlist/enable", Some(token), &body);
+        assert_eq!(code, 200, "{answer}");
+        wait_status(addr, 5, status, ui);
+    }
+}
+
 #[test]
 #[ignore = "needs dnet-master built: run by scripts/check's scanner-adr stage"]
 fn the_console_edits_the_scan_list_and_lists_the_events() {
-    let addr = free_addr();
     let dir = pty_rig::scratch("scanner-adr-console");
     let list = dir.join("list.toml");
     // MAC 7 is on the bus but not in the list: added through the API.
@@ -38,33 +48,18 @@ fn the_console_edits_the_scan_list_and_lists_the_events() {
         "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n\n[[node]]\nmac = 6\ninput_size = 18\noutput_size = 8\n",
     )
     .unwrap();
-    let mut ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            "sim",
-            "--slave-mac",
-            "5,6,7",
-            "ui",
-            "--no-history",
-            "--listen",
-            &addr,
-            "--scanlist",
-            list.to_str().unwrap(),
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", "sim", "--slave-mac", "5,6,7"],
+        &["--no-history", "--scanlist", list.to_str().unwrap()],
+        Duration::from_secs(30),
+        String::new,
     );
-    wait_listening(&addr, Duration::from_secs(30), || ui.dump());
     wait_status(&addr, 5, "ok", &ui);
     let token = csrf_token(&addr);
     let post = |path: &str, body: &str| http(&addr, "POST", path, Some(&*token), body);
 
     assert_eq!(http(&addr, "GET", "/api/scanlist/enable", None, "").0, 405);
-    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": false}"#);
-    assert_eq!(status, 200, "{body}");
-    wait_status(&addr, 5, "disabled", &ui);
-    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": true}"#);
-    assert_eq!(status, 200, "{body}");
-    wait_status(&addr, 5, "ok", &ui);
+    disable_and_enable_mac_5(&addr, &token, &ui);
 
     let (status, body) = post(
         "/api/scanlist/add",
@@ -107,36 +102,20 @@ fn the_console_edits_the_scan_list_over_slcan() {
     }
     let rig = pty_rig::PtyRig::breaker("scanner-edit-slcan", &[], None);
     let bus = rig.master_bus_arg();
-    let addr = free_addr();
     let dir = pty_rig::scratch("scanner-edit-slcan-list");
     let list = dir.join("list.toml");
     std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
-    let mut ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            &bus,
-            "--bitrate",
-            "500k",
-            "ui",
-            "--no-history",
-            "--listen",
-            &addr,
-            "--scanlist",
-            list.to_str().unwrap(),
-        ],
+    let (mut ui, addr) = spawn_ui(
+        &["--bus", &bus, "--bitrate", "500k"],
+        &["--no-history", "--scanlist", list.to_str().unwrap()],
+        Duration::from_secs(30),
+        || rig.dump(),
     );
-    wait_listening(&addr, Duration::from_secs(30), || format!("{}\n{}", ui.dump(), rig.dump()));
     wait_status(&addr, 5, "ok", &ui);
     let token = csrf_token(&addr);
     let post = |path: &str, body: &str| http(&addr, "POST", path, Some(&*token), body);
 
-    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": false}"#);
-    assert_eq!(status, 200, "{body}");
-    wait_status(&addr, 5, "disabled", &ui);
-    let (status, body) = post("/api/scanlist/enable", r#"{"mac": 5, "enabled": true}"#);
-    assert_eq!(status, 200, "{body}");
-    wait_status(&addr, 5, "ok", &ui);
+    disable_and_enable_mac_5(&addr, &token, &ui);
     let (status, body) = post("/api/scanlist/remove", r#"{"mac": 5}"#);
     assert_eq!(status, 200, "{body}");
     let end = Instant::now() + Duration::from_secs(30);

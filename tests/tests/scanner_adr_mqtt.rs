@@ -13,50 +13,16 @@ use dnet_scanner::mqtt::Publisher;
 use dnet_scanner::{build_scan_list, Scanner, ScannerOptions};
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use std::net::{TcpListener, TcpStream};
-use std::process::{Child, Command, Stdio};
+use pty_rig::console::free_port;
+use pty_rig::mqtt::Mosquitto;
+use std::process::{Command, Stdio};
 use std::time::Duration;
-
-/// A mosquitto broker of the test's own on 127.0.0.1:`port`, killed when dropped.
-struct Broker(Child);
-
-impl Broker {
-    fn start(port: u16) -> Broker {
-        let dir = std::env::temp_dir().join(format!("dnet-scanner-adr-mqtt-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let conf = dir.join("mosquitto.conf");
-        std::fs::write(
-            &conf,
-            format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
-        )
-        .unwrap();
-        let spawn = |program: &str| {
-            Command::new(program).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn()
-        };
-        let child = spawn("mosquitto")
-            .or_else(|_| spawn("/usr/sbin/mosquitto"))
-            .unwrap_or_else(|e| panic!("cannot start mosquitto ({e}): apt-get install -y mosquitto"));
-        let end = std::time::Instant::now() + Duration::from_secs(10);
-        while TcpStream::connect(("127.0.0.1", port)).is_err() {
-            assert!(std::time::Instant::now() < end, "mosquitto does not listen on {port}");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        Broker(child)
-    }
-}
-
-impl Drop for Broker {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 #[test]
 #[ignore = "needs mosquitto: run by scripts/check's scanner-adr stage"]
 fn adr_events_reach_an_mqtt_subscriber() {
-    let port = TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
-    let _broker = Broker::start(port);
+    let port = free_port();
+    let _broker = Mosquitto::start(&pty_rig::scratch("scanner-adr-mqtt"), port, None);
     let sub = Command::new("mosquitto_sub")
         .args(["-h", "127.0.0.1", "-p", &port.to_string(), "-t", "devicenet/events", "-v"])
         .args(["-W", "60", "-F", "%r %t %p"])

@@ -10,7 +10,7 @@ use dnet_scanner::model::{ListEdit, NodeStatus, ScanList};
 use dnet_scanner::{build_scan_list, Scanner, ScannerOptions};
 use master_core::master::{Master, MasterConfig};
 use master_core::session::Session;
-use pty_rig::console::{csrf_token, free_addr, http, wait_listening};
+use pty_rig::console::{csrf_token, http, spawn_ui};
 
 fn run_for(s: &mut Scanner, m: &mut Master<'_, '_>, d: Duration) {
     let end = m.session.now() + d;
@@ -110,26 +110,15 @@ fn health_follows_the_console_s_scan_list_changes_over_slcan() {
     }
     let rig = pty_rig::PtyRig::breaker("health-edit-slcan", &[], None);
     let bus = rig.master_bus_arg();
-    let addr = free_addr();
     let dir = pty_rig::scratch("health-edit-slcan-list");
     let list = dir.join("list.toml");
     std::fs::write(&list, "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\n").unwrap();
-    let ui = pty_rig::Proc::spawn(
-        pty_rig::bin("dnet-master"),
-        &[
-            "--bus",
-            &bus,
-            "--bitrate",
-            "500k",
-            "ui",
-            "--no-history",
-            "--listen",
-            &addr,
-            "--scanlist",
-            list.to_str().unwrap(),
-        ],
+    let (ui, addr) = spawn_ui(
+        &["--bus", &bus, "--bitrate", "500k"],
+        &["--no-history", "--scanlist", list.to_str().unwrap()],
+        std::time::Duration::from_secs(30),
+        || rig.dump(),
     );
-    wait_listening(&addr, std::time::Duration::from_secs(30), || format!("{}\n{}", ui.dump(), rig.dump()));
     let responses = |v: &serde_json::Value| node(v, 5).and_then(|n| n["response_ms"]["count"].as_u64());
     health_until(&addr, "MAC 5 measured", &ui, |v| responses(v) >= Some(10));
     let token = csrf_token(&addr);

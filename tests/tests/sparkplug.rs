@@ -19,163 +19,19 @@
 //! `.venv/bin/python`): ignored in the plain run; `scripts/check` runs them with `--ignored`. They
 //! fail, not skip, when a tool is missing.
 
+use pty_rig::console::free_port;
+use pty_rig::mqtt::Mosquitto;
+use pty_rig::sparkplug::{broker_and_host, Host};
 use pty_rig::{bin, require_socat, scratch, Proc, PtyRig};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{TcpListener, TcpStream};
+use std::net::TcpStream;
 use std::path::{Path, PathBuf};
-use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{self, Receiver};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 const GROUP: &str = "plant";
 const EDGE: &str = "line1";
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
-fn python() -> PathBuf {
-    let python = std::env::var_os("DNET_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| pty_rig::workspace_dir().join(".venv/bin/python"));
-    let ok = Command::new(&python).args(["-c", "import pysparkplug"]).status().is_ok_and(|s| s.success());
-    assert!(ok, "{} cannot import pysparkplug: .venv/bin/pip install pysparkplug==0.6.1", python.display());
-    python
-}
-
-/// A mosquitto of its own on `port`, plain or with TLS files (`cafile`, `certfile`, `keyfile`).
-struct Broker {
-    child: Child,
-    conf: PathBuf,
-    port: u16,
-}
-
-impl Broker {
-    fn start(dir: &Path, port: u16, tls: Option<(&Path, &Path, &Path)>) -> Broker {
-        let conf = dir.join(format!("mosquitto-{port}.conf"));
-        let mut text = format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n");
-        if let Some((ca, cert, key)) = tls {
-            text +=
-                &format!("cafile {}\ncertfile {}\nkeyfile {}\n", ca.display(), cert.display(), key.display());
-        }
-        std::fs::write(&conf, text).unwrap();
-        Broker::run(conf, port)
-    }
-
-    fn run(conf: PathBuf, port: u16) -> Broker {
-        let child = Command::new("mosquitto")
-            .arg("-c")
-            .arg(&conf)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("mosquitto is missing: apt-get install mosquitto");
-        let until = Instant::now() + Duration::from_secs(10);
-        while TcpStream::connect(("127.0.0.1", port)).is_err() {
-            assert!(Instant::now() < until, "mosquitto did not listen on {port}");
-            std::thread::sleep(Duration::from_millis(50));
-        }
-        Broker { child, conf, port }
-    }
-
-    /// Stops it (SIGKILL: the edge node's link breaks as in a crash) and starts it again after
-    /// `away`, on the same port.
-    fn restart_after(&mut self, away: Duration, meanwhile: impl FnOnce()) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-        meanwhile();
-        std::thread::sleep(away);
-        let again = Broker::run(self.conf.clone(), self.port);
-        drop(std::mem::replace(self, again));
-    }
-}
-
-impl Drop for Broker {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-/// The host application: its decoded messages as JSON values, and its stdin for commands.
-struct Host {
-    child: Child,
-    stdin: ChildStdin,
-    rx: Receiver<Value>,
-    seen: Vec<Value>,
-}
-
-impl Host {
-    fn start(port: u16, ca: Option<&Path>) -> Host {
-        let script = pty_rig::workspace_dir().join("tests/python/sparkplug_host.py");
-        let mut cmd = Command::new(python());
-        cmd.arg(script).arg("127.0.0.1").arg(port.to_string()).arg(GROUP);
-        if let Some(ca) = ca {
-            cmd.arg("--ca").arg(ca);
-        }
-        let mut child =
-            cmd.stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::inherit()).spawn().unwrap();
-        let stdin = child.stdin.take().unwrap();
-        let stdout = child.stdout.take().unwrap();
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                match serde_json::from_str::<Value>(&line) {
-                    Ok(v) => {
-                        let _ = tx.send(v);
-                    }
-                    Err(e) => panic!("the host printed a line that is not JSON ({e}): {line}"),
-                }
-            }
-        });
-        let mut host = Host { child, stdin, rx, seen: Vec::new() };
-        host.next(Duration::from_secs(20), "the host connected", |v| v["ready"] == true);
-        host
-    }
-
-    /// The next message (after those already taken) that `want` accepts, within `limit`.
-    fn next(&mut self, limit: Duration, what: &str, want: impl Fn(&Value) -> bool) -> Value {
-        let until = Instant::now() + limit;
-        loop {
-            let left = until.saturating_duration_since(Instant::now());
-            match self.rx.recv_timeout(left) {
-                Ok(v) => {
-                    self.seen.push(v.clone());
-                    assert!(v.get("error").is_none(), "the host could not decode: {v}");
-                    if want(&v) {
-                        return v;
-                    }
-                }
-                Err(_) => panic!("{what}: not within {limit:?}; the host saw:\n{}", self.dump()),
-            }
-        }
-    }
-
-    /// A message already taken that `want` accepts, else [`Host::next`].
-    fn seen_or_next(&mut self, limit: Duration, what: &str, want: impl Fn(&Value) -> bool) -> Value {
-        match self.seen.iter().find(|v| want(v)) {
-            Some(v) => v.clone(),
-            None => self.next(limit, what, want),
-        }
-    }
-
-    fn send(&mut self, command: &Value) {
-        writeln!(self.stdin, "{command}").unwrap();
-        self.stdin.flush().unwrap();
-    }
-
-    fn dump(&self) -> String {
-        self.seen.iter().map(Value::to_string).collect::<Vec<_>>().join("\n")
-    }
-}
-
-impl Drop for Host {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 fn of_type<'a>(kind: &'a str, device: Option<&'a str>) -> impl Fn(&Value) -> bool + 'a {
     move |v| v["type"] == kind && device.is_none_or(|d| v["device"] == d)
@@ -274,10 +130,7 @@ const SWITCH_OPEN: f64 = converter_sim::device::SWITCH_OPEN as f64;
 #[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
 fn births_data_rebirth_dcmd_and_death_on_the_simulated_bus() {
     let dir = scratch("spb-sim");
-    let port = free_port();
-    let _broker = Broker::start(&dir, port, None);
-    let mut host = Host::start(port, None);
-    let url = format!("mqtt://127.0.0.1:{port}");
+    let (_broker, mut host, url) = broker_and_host(&dir, GROUP);
     let (mut p, addr) = master(&["--bus", "sim", "--slave-mac", "5"], &dir, &url, &["--sparkplug-commands"]);
 
     let nbirth = host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH", None));
@@ -380,10 +233,7 @@ const TOGGLES: usize = 6;
 fn every_switch_change_of_several_breakers_toggled_through_dcmd_reaches_the_host() {
     const DEVICES: [&str; 4] = ["mac05", "mac06", "mac07", "mac08"];
     let dir = scratch("spb-toggle");
-    let port = free_port();
-    let _broker = Broker::start(&dir, port, None);
-    let mut host = Host::start(port, None);
-    let url = format!("mqtt://127.0.0.1:{port}");
+    let (_broker, mut host, url) = broker_and_host(&dir, GROUP);
     let (mut p, _addr) =
         master(&["--bus", "sim", "--slave-mac", "5,6,7,8"], &dir, &url, &["--sparkplug-commands"]);
     // Every breaker born and in I/O (open, the simulated breaker's power-up state).
@@ -451,10 +301,7 @@ fn every_switch_change_of_several_breakers_toggled_through_dcmd_reaches_the_host
 #[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
 fn two_breaker_commands_in_one_dcmd_each_reach_the_bus() {
     let dir = scratch("spb-two");
-    let port = free_port();
-    let _broker = Broker::start(&dir, port, None);
-    let mut host = Host::start(port, None);
-    let url = format!("mqtt://127.0.0.1:{port}");
+    let (_broker, mut host, url) = broker_and_host(&dir, GROUP);
     let (mut p, _addr) = master(&["--bus", "sim", "--slave-mac", "5"], &dir, &url, &["--sparkplug-commands"]);
     let ok = |v: &Value| {
         (of_type("DDATA", Some("mac05"))(v) || of_type("DBIRTH", Some("mac05"))(v))
@@ -487,8 +334,8 @@ fn two_breaker_commands_in_one_dcmd_each_reach_the_bus() {
 fn dcmd_is_refused_without_the_flag() {
     let dir = scratch("spb-nocmd");
     let port = free_port();
-    let _broker = Broker::start(&dir, port, None);
-    let mut host = Host::start(port, None);
+    let _broker = Mosquitto::start(&dir, port, None);
+    let mut host = Host::start(port, GROUP, None);
     let (mut p, _) =
         master(&["--bus", "sim", "--slave-mac", "5"], &dir, &format!("mqtt://127.0.0.1:{port}"), &[]);
     host.next(Duration::from_secs(30), "DBIRTH", of_type("DBIRTH", Some("mac05")));
@@ -513,8 +360,8 @@ fn dcmd_is_refused_without_the_flag() {
 fn store_and_forward_across_a_broker_restart() {
     let dir = scratch("spb-saf");
     let port = free_port();
-    let mut broker = Broker::start(&dir, port, None);
-    let mut host = Host::start(port, None);
+    let mut broker = Mosquitto::start(&dir, port, None);
+    let mut host = Host::start(port, GROUP, None);
     let (mut p, addr) =
         master(&["--bus", "sim", "--slave-mac", "5"], &dir, &format!("mqtt://127.0.0.1:{port}"), &[]);
     let nbirth = host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH", None));
@@ -534,7 +381,7 @@ fn store_and_forward_across_a_broker_restart() {
         closed_at = u64::try_from(dnet_scanner::model::unix_ms_now()).unwrap();
     });
     let (_, state) = http(&addr, "GET", "/api/state");
-    let mut host = Host::start(port, None);
+    let mut host = Host::start(port, GROUP, None);
     let nbirth = host.next(Duration::from_secs(30), "NBIRTH after the restart", of_type("NBIRTH", None));
     assert_eq!(nbirth["bd_seq"].as_u64(), Some((bd_seq + 1) % 256), "the next session's bdSeq: {nbirth}");
     let historical = host.next(Duration::from_secs(30), "the stored DDATA", |v| {
@@ -624,8 +471,8 @@ fn tls_to_the_broker_with_a_ca_made_for_the_test() {
     let (ca, cert, key) = certificates(&dir, "good");
     let (other_ca, _, _) = certificates(&dir, "other");
     let port = free_port();
-    let _broker = Broker::start(&dir, port, Some((&ca, &cert, &key)));
-    let mut host = Host::start(port, Some(&ca));
+    let _broker = Mosquitto::start(&dir, port, Some((&ca, &cert, &key)));
+    let mut host = Host::start(port, GROUP, Some(&ca));
     let url = format!("mqtts://127.0.0.1:{port}");
 
     // A CA that did not sign the broker's certificate: no session, the status says why.
@@ -716,8 +563,8 @@ fn the_soft_slave_on_slcan_as_a_sparkplug_device() {
     let rig = PtyRig::breaker("spb", &["--period", "0.3"], None);
     let dir = scratch("spb-pty");
     let port = free_port();
-    let _broker = Broker::start(&dir, port, None);
-    let mut host = Host::start(port, None);
+    let _broker = Mosquitto::start(&dir, port, None);
+    let mut host = Host::start(port, GROUP, None);
     let bus = rig.master_bus_arg();
     let (mut p, _) = master(
         &["--bus", bus.as_str()],

@@ -10,110 +10,13 @@
 //! Needs mosquitto, socat and the venv's pysparkplug (`DNET_PYTHON`, else `.venv/bin/python`): ignored in
 //! the plain run; it fails, not skips, when a tool is missing.
 
-use pty_rig::console::{csrf_token, free_addr, free_port, http};
+use pty_rig::console::{csrf_token, http, spawn_ui};
+use pty_rig::sparkplug::broker_and_host;
 use pty_rig::{bin, scratch, Proc};
 use serde_json::{json, Value};
-use std::io::{BufRead, BufReader, Write};
-use std::net::TcpStream;
-use std::path::PathBuf;
-use std::process::{Child, ChildStdin, Command, Stdio};
-use std::sync::mpsc::{self, Receiver};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const LAST_EVENT: &str = "ADR/Last Event";
-
-fn python() -> PathBuf {
-    let python = std::env::var_os("DNET_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| pty_rig::workspace_dir().join(".venv/bin/python"));
-    let ok = Command::new(&python).args(["-c", "import pysparkplug"]).status().is_ok_and(|s| s.success());
-    assert!(ok, "{} cannot import pysparkplug: .venv/bin/pip install pysparkplug==0.6.1", python.display());
-    python
-}
-
-/// A process killed when dropped (mosquitto, the host).
-struct Killed(Child);
-
-impl Drop for Killed {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn broker(dir: &std::path::Path, port: u16) -> Killed {
-    let conf = dir.join("mosquitto.conf");
-    std::fs::write(&conf, format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"))
-        .unwrap();
-    let child = Command::new("mosquitto")
-        .arg("-c")
-        .arg(&conf)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("mosquitto is missing: apt-get install mosquitto");
-    let until = Instant::now() + Duration::from_secs(10);
-    while TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(Instant::now() < until, "mosquitto did not listen on {port}");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    Killed(child)
-}
-
-/// The host's decoded messages, in order.
-struct Host {
-    _child: Killed,
-    stdin: ChildStdin,
-    rx: Receiver<Value>,
-    seen: Vec<Value>,
-}
-
-impl Host {
-    fn start(port: u16) -> Host {
-        let script = pty_rig::workspace_dir().join("tests/python/sparkplug_host.py");
-        let mut child = Command::new(python())
-            .arg(script)
-            .args(["127.0.0.1", &port.to_string(), "plant"])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()
-            .unwrap();
-        let stdin = child.stdin.take().unwrap();
-        let stdout = child.stdout.take().unwrap();
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                let v = serde_json::from_str::<Value>(&line)
-                    .unwrap_or_else(|e| json!({"error": format!("not JSON ({e}): {line}")}));
-                let _ = tx.send(v);
-            }
-        });
-        let mut host = Host { _child: Killed(child), stdin, rx, seen: Vec::new() };
-        host.next(Duration::from_secs(20), "the host connected", |v| v["ready"] == true);
-        host
-    }
-
-    fn next(&mut self, limit: Duration, what: &str, want: impl Fn(&Value) -> bool) -> Value {
-        let until = Instant::now() + limit;
-        loop {
-            match self.rx.recv_timeout(until.saturating_duration_since(Instant::now())) {
-                Ok(v) => {
-                    self.seen.push(v.clone());
-                    assert!(v.get("error").is_none(), "the host could not decode: {v}");
-                    if want(&v) {
-                        return v;
-                    }
-                }
-                Err(_) => panic!("{what}: not within {limit:?}; the host saw:\n{}", self.dump()),
-            }
-        }
-    }
-
-    fn dump(&self) -> String {
-        self.seen.iter().map(Value::to_string).collect::<Vec<_>>().join("\n")
-    }
-}
 
 fn of_type(kind: &'static str) -> impl Fn(&Value) -> bool {
     move |v| v["type"] == kind
@@ -133,10 +36,7 @@ fn event_of(metric: &Value) -> Value {
 #[ignore = "needs mosquitto and pysparkplug: run by scripts/check"]
 fn adr_steps_reach_a_sparkplug_host_as_node_data() {
     let dir = scratch("spb-adr");
-    let port = free_port();
-    let _broker = broker(&dir, port);
-    let mut host = Host::start(port);
-    let url = format!("mqtt://127.0.0.1:{port}");
+    let (_broker, mut host, url) = broker_and_host(&dir, "plant");
     let store = dir.join("sparkplug.sqlite");
     let p = Proc::spawn(
         bin("dnet-master"),
@@ -195,8 +95,7 @@ fn adr_steps_reach_a_sparkplug_host_as_node_data() {
     }
 
     // A Rebirth now carries the newest event in NBIRTH, with its own time.
-    writeln!(host.stdin, "{}", json!({"rebirth": "line1"})).unwrap();
-    host.stdin.flush().unwrap();
+    host.send(&json!({"rebirth": "line1"}));
     let again = host.next(Duration::from_secs(20), "NBIRTH after the Rebirth", of_type("NBIRTH"));
     let m = last_event(&again).unwrap_or_else(|| panic!("{again}"));
     let newest = event_of(m);
@@ -231,23 +130,12 @@ fn scan_list_changes_over_slcan_reach_a_sparkplug_host() {
     let rig = pty_rig::PtyRig::breaker("spb-adr-slcan", &[], None);
     let bus = rig.master_bus_arg();
     let dir = scratch("spb-adr-slcan");
-    let port = free_port();
-    let _broker = broker(&dir, port);
-    let mut host = Host::start(port);
-    let url = format!("mqtt://127.0.0.1:{port}");
+    let (_broker, mut host, url) = broker_and_host(&dir, "plant");
     let store = dir.join("sparkplug.sqlite");
-    let addr = free_addr();
-    let p = Proc::spawn(
-        bin("dnet-master"),
+    let (p, addr) = spawn_ui(
+        &["--bus", &bus, "--bitrate", "500k"],
         &[
-            "--bus",
-            &bus,
-            "--bitrate",
-            "500k",
-            "ui",
             "--no-history",
-            "--listen",
-            &addr,
             "--mqtt",
             &url,
             "--sparkplug",
@@ -255,6 +143,8 @@ fn scan_list_changes_over_slcan_reach_a_sparkplug_host() {
             "--sparkplug-store",
             store.to_str().unwrap(),
         ],
+        Duration::from_secs(30),
+        || rig.dump(),
     );
     host.next(Duration::from_secs(30), "NBIRTH", of_type("NBIRTH"));
     host.next(Duration::from_secs(30), "DBIRTH mac05", |v| v["type"] == "DBIRTH" && v["device"] == "mac05");

@@ -7,6 +7,7 @@
 //! the bytes it means to (the headers of the console's page, or hostile ones) and sees the
 //! status line as the console wrote it.
 
+use crate::Proc;
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::time::{Duration, Instant};
@@ -103,4 +104,51 @@ pub fn wait_listening(addr: &str, limit: Duration, dump: impl Fn() -> String) {
         assert!(Instant::now() < end, "nothing listens at {addr} within {limit:?}\n{}", dump());
         std::thread::sleep(Duration::from_millis(100));
     }
+}
+
+/// Stops `dnet-master ui` with SIGINT and checks that it ended as `ui` does on an interrupt
+/// (exit status 130) within `limit` and that it did not panic; `extra` (other programs' output)
+/// is shown with its own when either fails.
+pub fn stop_ui(p: &mut Proc, limit: Duration, extra: &str) {
+    p.signal("INT");
+    assert_eq!(p.wait(limit).and_then(|s| s.code()), Some(130), "{}\n{extra}", p.dump());
+    assert!(!p.stderr.text().contains("panicked"), "a panic:\n{}", p.dump());
+}
+
+/// Starts `dnet-master GLOBAL ui --listen ADDR EXTRA` on a free loopback address and waits
+/// until it listens (at most `limit`; else panics with its output and `also()`, the other
+/// programs' output): the process and ADDR.
+pub fn spawn_ui(
+    global: &[&str],
+    extra: &[&str],
+    limit: Duration,
+    also: impl Fn() -> String,
+) -> (Proc, String) {
+    let addr = free_addr();
+    let args: Vec<&str> = [global, &["ui", "--listen", &addr], extra].concat();
+    let ui = Proc::spawn(crate::bin("dnet-master"), &args);
+    wait_listening(&addr, limit, || format!("{}\n{}", ui.dump(), also()));
+    (ui, addr)
+}
+
+/// Adds `name` with `role` and `password` to the users file `file` with `dnet-master user add`
+/// (the password on its standard input, as an operator types it); panics with its standard
+/// error when it fails.
+pub fn add_user(file: &std::path::Path, name: &str, role: &str, password: &str) {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(crate::bin("dnet-master"))
+        .args(["user", "add", &file.to_string_lossy(), name, "--role", role])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("dnet-master runs");
+    child
+        .stdin
+        .take()
+        .expect("user add's stdin")
+        .write_all(format!("{password}\n").as_bytes())
+        .expect("user add reads the password");
+    let out = child.wait_with_output().expect("user add ends");
+    assert!(out.status.success(), "user add {name}: {}", String::from_utf8_lossy(&out.stderr));
 }

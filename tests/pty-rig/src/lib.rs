@@ -9,6 +9,12 @@
 //! CAN link: each side's transmit lines arrive as the other's receive lines; set-up commands are
 //! ignored.
 //!
+//! The system tests of the web console and the plant interfaces share their helpers here too:
+//! [`console`] (raw HTTP/1.1 to `dnet-master ui`, a free loopback address, waiting until it
+//! listens, the page's CSRF token, starting and stopping the console), [`browser`] (a script of
+//! `tests/browser/` driving chromium), [`mqtt`] (a mosquitto of the test's own) and
+//! [`sparkplug`] (the independent Sparkplug B host on pysparkplug).
+//!
 //! The programs are found with [`bin`]: next to the test executable (`target/<profile>/`), or in
 //! `DNET_BIN_DIR`.
 //!
@@ -17,6 +23,8 @@
 
 pub mod browser;
 pub mod console;
+pub mod mqtt;
+pub mod sparkplug;
 
 use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
