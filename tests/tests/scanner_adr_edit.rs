@@ -2,91 +2,74 @@
 //! disabled for maintenance (released, not scanned, kept) and enabled again, an entry added,
 //! edited (keying) and removed; each change an event; refused changes name the reason.
 
-use can_io::bus::{Bitrate, BusSpec};
-use converter_sim::{open_bus, SimSetup};
-use devicenet::{Duration, MacId};
+#[path = "support/scan_edit.rs"]
+mod scan_edit;
+
+use devicenet::Duration;
 use dnet_scanner::events::EventKind;
-use dnet_scanner::model::{Keying, ListEdit, NodeStatus, ScanList};
-use dnet_scanner::{build_scan_list, Scanner, ScannerOptions};
-use master_core::master::{Master, MasterConfig};
-use master_core::session::Session;
+use dnet_scanner::model::{Keying, ListEdit, NodeStatus};
+use dnet_scanner::Scanner;
+use scan_edit::{run_for, with_5_and_6_scanned};
 
 fn status(s: &Scanner, mac: u8) -> (NodeStatus, u64) {
     let n = s.state().nodes.iter().find(|n| n.mac == mac).unwrap_or_else(|| panic!("no MAC {mac}"));
     (n.status, n.exchanges)
 }
 
-fn run_for(s: &mut Scanner, m: &mut Master<'_, '_>, d: Duration) {
-    let end = m.session.now() + d;
-    while m.session.now() < end {
-        s.cycle(m).unwrap();
-    }
-}
-
 #[test]
 fn nodes_are_disabled_enabled_added_edited_and_removed_while_running() {
-    let mut setup = SimSetup::reference();
-    setup.macs = [5, 6, 7].map(|m| MacId::new(m).unwrap()).to_vec();
-    let mut bus = open_bus(&BusSpec::Sim, Bitrate::K250, &setup).unwrap();
-    let mut session = Session::new(bus.as_mut());
-    let mut m = Master::new(&mut session, MasterConfig::default());
-    let full: ScanList = build_scan_list(&mut m, 0, 63).unwrap();
-    let seven = full.nodes.iter().find(|n| n.mac == 7).unwrap().clone();
-    let mut list = full.clone();
-    list.nodes.retain(|n| n.mac != 7);
-    let mut s = Scanner::new(list, 0, ScannerOptions::default());
-    s.start(&mut m).unwrap();
-    run_for(&mut s, &mut m, Duration::from_millis(500));
-    assert_eq!(status(&s, 5).0, NodeStatus::Ok);
+    with_5_and_6_scanned(|s, m, seven| {
+        assert_eq!(status(s, 5).0, NodeStatus::Ok);
 
-    // Disabled: released, not scanned, kept in the list with code 0.
-    s.edit(&mut m, ListEdit::Enable { mac: 5, enabled: false }).unwrap();
-    run_for(&mut s, &mut m, Duration::from_millis(100));
-    let (st, before) = status(&s, 5);
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    assert_eq!(status(&s, 5), (NodeStatus::Disabled, before), "not scanned while disabled");
-    assert_eq!(st, NodeStatus::Disabled);
-    assert!(!s.scan_list().nodes.iter().find(|n| n.mac == 5).unwrap().enabled);
-    assert_eq!(status(&s, 6).0, NodeStatus::Ok, "the others go on");
+        // Disabled: released, not scanned, kept in the list with code 0.
+        s.edit(m, ListEdit::Enable { mac: 5, enabled: false }).unwrap();
+        run_for(s, m, Duration::from_millis(100));
+        let (st, before) = status(s, 5);
+        run_for(s, m, Duration::from_secs(2));
+        assert_eq!(status(s, 5), (NodeStatus::Disabled, before), "not scanned while disabled");
+        assert_eq!(st, NodeStatus::Disabled);
+        assert!(!s.scan_list().nodes.iter().find(|n| n.mac == 5).unwrap().enabled);
+        assert_eq!(status(s, 6).0, NodeStatus::Ok, "the others go on");
 
-    // Enabled again: back in I/O.
-    s.edit(&mut m, ListEdit::Enable { mac: 5, enabled: true }).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    let (st, after) = status(&s, 5);
-    assert_eq!(st, NodeStatus::Ok);
-    assert!(after > before);
+        // Enabled again: back in I/O.
+        s.edit(m, ListEdit::Enable { mac: 5, enabled: true }).unwrap();
+        run_for(s, m, Duration::from_secs(2));
+        let (st, after) = status(s, 5);
+        assert_eq!(st, NodeStatus::Ok);
+        assert!(after > before);
 
-    // Added, then keyed to a later major revision: exact refuses it, compatible too (1 < 2),
-    // disabled keying takes it.
-    s.edit(&mut m, ListEdit::Add(seven.clone())).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    assert_eq!(status(&s, 7).0, NodeStatus::Ok);
-    let mut later = seven.clone();
-    later.major_revision = Some(2);
-    later.keying = Keying::Compatible;
-    s.edit(&mut m, ListEdit::Edit(later.clone())).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    assert_eq!(status(&s, 7).0, NodeStatus::KeyingMismatch);
-    later.keying = Keying::Disabled;
-    s.edit(&mut m, ListEdit::Edit(later)).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    assert_eq!(status(&s, 7).0, NodeStatus::Ok, "{:?}", s.state().nodes.iter().find(|n| n.mac == 7));
+        // Added, then keyed to a later major revision: exact refuses it, compatible too (1 < 2),
+        // disabled keying takes it.
+        s.edit(m, ListEdit::Add(seven.clone())).unwrap();
+        run_for(s, m, Duration::from_secs(2));
+        assert_eq!(status(s, 7).0, NodeStatus::Ok);
+        let mut later = seven.clone();
+        later.major_revision = Some(2);
+        later.keying = Keying::Compatible;
+        s.edit(m, ListEdit::Edit(later.clone())).unwrap();
+        run_for(s, m, Duration::from_secs(2));
+        assert_eq!(status(s, 7).0, NodeStatus::KeyingMismatch);
+        later.keying = Keying::Disabled;
+        s.edit(m, ListEdit::Edit(later)).unwrap();
+        run_for(s, m, Duration::from_secs(2));
+        assert_eq!(status(s, 7).0, NodeStatus::Ok, "{:?}", s.state().nodes.iter().find(|n| n.mac == 7));
 
-    // Refusals name the reason.
-    let e = s.edit(&mut m, ListEdit::Add(seven.clone())).unwrap_err();
-    assert!(e.to_string().contains("MAC 7 is in the scan list already"), "{e}");
-    let mut zero = seven.clone();
-    zero.mac = 0;
-    let e = s.edit(&mut m, ListEdit::Add(zero)).unwrap_err();
-    assert!(e.to_string().contains("scanner's own"), "{e}");
-    let e = s.edit(&mut m, ListEdit::Remove(9)).unwrap_err();
-    assert!(e.to_string().contains("MAC 9 is not in the scan list"), "{e}");
+        // Refusals name the reason.
+        let e = s.edit(m, ListEdit::Add(seven.clone())).unwrap_err();
+        assert!(e.to_string().contains("MAC 7 is in the scan list already"), "{e}");
+        let mut zero = seven.clone();
+        zero.mac = 0;
+        let e = s.edit(m, ListEdit::Add(zero)).unwrap_err();
+        assert!(e.to_string().contains("scanner's own"), "{e}");
+        let e = s.edit(m, ListEdit::Remove(9)).unwrap_err();
+        assert!(e.to_string().contains("MAC 9 is not in the scan list"), "{e}");
 
-    // Removed: released and gone.
-    s.edit(&mut m, ListEdit::Remove(7)).unwrap();
-    run_for(&mut s, &mut m, Duration::from_millis(200));
-    assert!(s.state().nodes.iter().all(|n| n.mac != 7));
-    let changes = s.events().of(EventKind::ListChanged).len();
-    assert_eq!(changes, 6, "{:#?}", s.events().all());
-    s.stop(&mut m).unwrap();
+        // Removed: released and gone.
+        s.edit(m, ListEdit::Remove(7)).unwrap();
+        run_for(s, m, Duration::from_millis(200));
+        assert!(s.state().nodes.iter().all(|n| n.mac != 7));
+        let changes = s.events().of(EventKind::ListChanged).len();
+        assert_eq!(changes, 6, "{:#?}", s.events().all());
+        s.stop(m).unwrap();
+    });
 }

@@ -2,22 +2,16 @@
 //! node added is measured from then on, a disabled one has no drop-outs counted, a removed one
 //! leaves the statistics.
 
-use can_io::bus::{Bitrate, BusSpec};
-use converter_sim::{open_bus, SimSetup};
-use devicenet::{Duration, MacId};
-use dnet_scanner::health::HealthReport;
-use dnet_scanner::model::{ListEdit, NodeStatus, ScanList};
-use dnet_scanner::{build_scan_list, Scanner, ScannerOptions};
-use master_core::master::{Master, MasterConfig};
-use master_core::session::Session;
-use pty_rig::console::{csrf_token, http, spawn_ui};
+#[path = "support/scan_edit.rs"]
+mod scan_edit;
 
-fn run_for(s: &mut Scanner, m: &mut Master<'_, '_>, d: Duration) {
-    let end = m.session.now() + d;
-    while m.session.now() < end {
-        s.cycle(m).unwrap();
-    }
-}
+use devicenet::Duration;
+use dnet_scanner::health::HealthReport;
+use dnet_scanner::model::{ListEdit, NodeStatus};
+use dnet_scanner::Scanner;
+use master_core::master::Master;
+use pty_rig::console::{csrf_token, http, spawn_ui};
+use scan_edit::{run_for, with_5_and_6_scanned};
 
 fn report(s: &Scanner, m: &mut Master<'_, '_>) -> HealthReport {
     s.health().report(m.session.now())
@@ -29,53 +23,43 @@ fn macs(r: &HealthReport) -> Vec<u8> {
 
 #[test]
 fn health_measures_added_nodes_forgets_removed_ones_and_counts_no_drop_outs_while_disabled() {
-    let mut setup = SimSetup::reference();
-    setup.macs = [5, 6, 7].map(|m| MacId::new(m).unwrap()).to_vec();
-    let mut bus = open_bus(&BusSpec::Sim, Bitrate::K250, &setup).unwrap();
-    let mut session = Session::new(bus.as_mut());
-    let mut m = Master::new(&mut session, MasterConfig::default());
-    let full: ScanList = build_scan_list(&mut m, 0, 63).unwrap();
-    let seven = full.nodes.iter().find(|n| n.mac == 7).unwrap().clone();
-    let mut list = full.clone();
-    list.nodes.retain(|n| n.mac != 7);
-    let mut s = Scanner::new(list, 0, ScannerOptions::default());
-    s.start(&mut m).unwrap();
-    run_for(&mut s, &mut m, Duration::from_millis(500));
-    assert_eq!(macs(&report(&s, &mut m)), vec![5, 6]);
+    with_5_and_6_scanned(|s, m, seven| {
+        assert_eq!(macs(&report(s, m)), vec![5, 6]);
 
-    // Added: measured from then on (response times, traffic).
-    s.edit(&mut m, ListEdit::Add(seven)).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    let r = report(&s, &mut m);
-    assert_eq!(macs(&r), vec![5, 6, 7]);
-    let n7 = r.node(7).unwrap();
-    assert!(n7.frames > 10 && n7.traffic_pct > 0.0, "{n7:?}");
-    assert!(n7.response_ms.is_some_and(|t| t.count > 5 && t.avg > 0.0), "{n7:?}");
+        // Added: measured from then on (response times, traffic).
+        s.edit(m, ListEdit::Add(seven)).unwrap();
+        run_for(s, m, Duration::from_secs(2));
+        let r = report(s, m);
+        assert_eq!(macs(&r), vec![5, 6, 7]);
+        let n7 = r.node(7).unwrap();
+        assert!(n7.frames > 10 && n7.traffic_pct > 0.0, "{n7:?}");
+        assert!(n7.response_ms.is_some_and(|t| t.count > 5 && t.avg > 0.0), "{n7:?}");
 
-    // Disabled for maintenance: kept, flagged, released without a drop-out or a finding.
-    s.edit(&mut m, ListEdit::Enable { mac: 6, enabled: false }).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(3));
-    let r = report(&s, &mut m);
-    let n6 = r.node(6).unwrap();
-    assert!(n6.disabled && n6.dropouts == 0, "{n6:?}");
-    assert!(r.nodes.iter().all(|n| n.dropouts == 0) && r.incidents.is_empty(), "{r:?}");
-    assert!(!r.findings.iter().any(|f| f.contains("MAC 6") || f.contains("drop")), "{:?}", r.findings);
-    let frames_disabled = n6.frames;
-    run_for(&mut s, &mut m, Duration::from_secs(1));
-    assert_eq!(report(&s, &mut m).node(6).unwrap().frames, frames_disabled, "not scanned while disabled");
-    s.edit(&mut m, ListEdit::Enable { mac: 6, enabled: true }).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(2));
-    let n6 = report(&s, &mut m).node(6).cloned().unwrap();
-    assert!(!n6.disabled && n6.frames > frames_disabled, "{n6:?}");
+        // Disabled for maintenance: kept, flagged, released without a drop-out or a finding.
+        s.edit(m, ListEdit::Enable { mac: 6, enabled: false }).unwrap();
+        run_for(s, m, Duration::from_secs(3));
+        let r = report(s, m);
+        let n6 = r.node(6).unwrap();
+        assert!(n6.disabled && n6.dropouts == 0, "{n6:?}");
+        assert!(r.nodes.iter().all(|n| n.dropouts == 0) && r.incidents.is_empty(), "{r:?}");
+        assert!(!r.findings.iter().any(|f| f.contains("MAC 6") || f.contains("drop")), "{:?}", r.findings);
+        let frames_disabled = n6.frames;
+        run_for(s, m, Duration::from_secs(1));
+        assert_eq!(report(s, m).node(6).unwrap().frames, frames_disabled, "not scanned while disabled");
+        s.edit(m, ListEdit::Enable { mac: 6, enabled: true }).unwrap();
+        run_for(s, m, Duration::from_secs(2));
+        let n6 = report(s, m).node(6).cloned().unwrap();
+        assert!(!n6.disabled && n6.frames > frames_disabled, "{n6:?}");
 
-    // Removed: gone from the statistics; the others stay.
-    s.edit(&mut m, ListEdit::Remove(5)).unwrap();
-    run_for(&mut s, &mut m, Duration::from_secs(1));
-    let r = report(&s, &mut m);
-    assert_eq!(macs(&r), vec![6, 7]);
-    assert!(s.state().nodes.iter().all(|n| n.mac != 5 || n.status != NodeStatus::Ok));
-    let share: f64 = r.nodes.iter().map(|n| n.traffic_pct).sum();
-    assert!(share > 0.0 && share <= 100.0, "{share}");
+        // Removed: gone from the statistics; the others stay.
+        s.edit(m, ListEdit::Remove(5)).unwrap();
+        run_for(s, m, Duration::from_secs(1));
+        let r = report(s, m);
+        assert_eq!(macs(&r), vec![6, 7]);
+        assert!(s.state().nodes.iter().all(|n| n.mac != 5 || n.status != NodeStatus::Ok));
+        let share: f64 = r.nodes.iter().map(|n| n.traffic_pct).sum();
+        assert!(share > 0.0 && share <= 100.0, "{share}");
+    });
 }
 
 /// `GET /api/health` until `want` accepts it (30 s).
