@@ -11,7 +11,7 @@
 //! test, `python3` for the TLS test): ignored in the plain host-test run, run by `scripts/check`
 //! with `-- --ignored`.
 
-use pty_rig::console::{add_user, stop_ui};
+use pty_rig::console::{add_user, console_addr, stop_ui};
 use pty_rig::{bin, require_socat, scratch, Proc, PtyRig};
 use serde_json::Value;
 use std::io::{Read, Write};
@@ -42,11 +42,7 @@ fn start_ui(bus: &str, extra: &[&str]) -> (Proc, String) {
     let mut args = vec!["--bus", bus, "ui", "--listen", "127.0.0.1:0", "--no-history"];
     args.extend_from_slice(extra);
     let p = Proc::spawn(bin("dnet-master"), &args);
-    let line = p
-        .wait_stdout("console at ", Duration::from_secs(30))
-        .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
-    let url = line.trim_start_matches("console at ").trim();
-    let addr = url.split("://").nth(1).unwrap().trim_end_matches('/').to_string();
+    let addr = console_addr(&p, Duration::from_secs(30));
     (p, addr)
 }
 
@@ -318,10 +314,7 @@ fn roles_sessions_and_hostile_requests_over_slcan() {
     let mut args = vec!["--bus", bus.as_str(), "ui", "--listen", "127.0.0.1:0"];
     args.extend(["--users", users.to_str().unwrap(), "--history", history.to_str().unwrap()]);
     let mut p = Proc::spawn(bin("dnet-master"), &args);
-    let line = p
-        .wait_stdout("console at ", Duration::from_secs(30))
-        .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
-    let addr = line.trim_start_matches("console at http://").trim().trim_end_matches('/').to_string();
+    let addr = console_addr(&p, Duration::from_secs(30));
     let entries = roles_and_hostile_requests(&addr, &p);
     p.signal("INT");
     assert_eq!(

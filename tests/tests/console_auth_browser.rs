@@ -10,7 +10,7 @@
 //! test's scratch folder).
 
 use pty_rig::browser::{artifacts, Browser};
-use pty_rig::console::add_user;
+use pty_rig::console::{add_user, console_url};
 use pty_rig::{bin, scratch, Proc};
 use std::time::Duration;
 
@@ -40,10 +40,7 @@ fn login_refusal_by_role_and_logout_in_chromium() {
             users.to_str().unwrap(),
         ],
     );
-    let line = p
-        .wait_stdout("console at ", Duration::from_secs(30))
-        .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
-    let url = line.trim_start_matches("console at ").trim().to_string();
+    let url = console_url(&p, Duration::from_secs(30));
     let out = artifacts("console-auth", "console-auth-browser-artifacts");
     let run = browser.run("console_auth.test.mjs", &url, &out);
     assert!(run.success, "the browser test failed:\n{}\n{}", run.text, p.dump());

@@ -10,7 +10,7 @@
 //! the pymodbus virtual environment (`DNET_PYTHON`) and socat: ignored in the plain host-test run,
 //! run by `scripts/check` with `-- --ignored`.
 
-use pty_rig::console::stop_ui;
+use pty_rig::console::{console_url, stop_ui};
 use pty_rig::{bin, require_pymodbus, require_socat, scratch, workspace_dir, Proc, PtyRig};
 use std::path::Path;
 use std::process::Command;
@@ -39,9 +39,7 @@ fn start_ui(bus: &str, extra: &[&str]) -> (Proc, String, String) {
     let modbus = p
         .wait_stdout("modbus tcp at ", Duration::from_secs(30))
         .unwrap_or_else(|| panic!("no Modbus TCP address\n{}", p.dump()));
-    let console =
-        p.stdout.lines().into_iter().find_map(|l| l.strip_prefix("console at ").map(str::to_string));
-    let console = console.unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
+    let console = console_url(&p, Duration::from_secs(30));
     let modbus = modbus.trim_start_matches("modbus tcp at ").trim().to_string();
     (p, console, modbus)
 }

@@ -15,7 +15,7 @@
 //! Python with asyncua (`DNET_PYTHON`, default `.venv/bin/python`) and socat: ignored in the plain
 //! host-test run, run by `scripts/check` with `-- --ignored`.
 
-use pty_rig::console::{add_user, stop_ui};
+use pty_rig::console::{add_user, console_url, stop_ui};
 use pty_rig::{bin, in_ci, require_socat, scratch, workspace_dir, Proc, PtyRig};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -53,9 +53,7 @@ fn start_ui(bus: &str, extra: &[&str]) -> (Proc, String, String) {
     let opcua = p
         .wait_stdout("opc ua at ", Duration::from_secs(30))
         .unwrap_or_else(|| panic!("no OPC UA endpoint\n{}", p.dump()));
-    let console =
-        p.stdout.lines().into_iter().find_map(|l| l.strip_prefix("console at ").map(str::to_string));
-    let console = console.unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
+    let console = console_url(&p, Duration::from_secs(30));
     (p, console, opcua.trim_start_matches("opc ua at ").trim().to_string())
 }
 

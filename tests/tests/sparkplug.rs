@@ -19,7 +19,7 @@
 //! `.venv/bin/python`): ignored in the plain run; `scripts/check` runs them with `--ignored`. They
 //! fail, not skip, when a tool is missing.
 
-use pty_rig::console::free_port;
+use pty_rig::console::{console_addr, free_port};
 use pty_rig::mqtt::Mosquitto;
 use pty_rig::sparkplug::{broker_and_host, Host};
 use pty_rig::{bin, require_socat, scratch, Proc, PtyRig};
@@ -64,10 +64,7 @@ fn master(bus: &[&str], dir: &Path, url: &str, extra: &[&str]) -> (Proc, String)
     ]);
     args.extend(extra);
     let p = Proc::spawn(bin("dnet-master"), &args);
-    let line = p
-        .wait_stdout("console at http://", Duration::from_secs(30))
-        .unwrap_or_else(|| panic!("no console address\n{}", p.dump()));
-    let addr = line.trim().trim_start_matches("console at http://").trim_end_matches('/').to_string();
+    let addr = console_addr(&p, Duration::from_secs(30));
     (p, addr)
 }
 

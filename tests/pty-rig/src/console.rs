@@ -152,3 +152,25 @@ pub fn add_user(file: &std::path::Path, name: &str, role: &str, password: &str) 
     let out = child.wait_with_output().expect("user add ends");
     assert!(out.status.success(), "user add {name}: {}", String::from_utf8_lossy(&out.stderr));
 }
+
+/// The console's URL (`http://HOST:PORT/`, or `https://…` with TLS) from `dnet-master ui`'s
+/// `console at URL` line, waiting for that line at most `limit` (then panics with the output).
+pub fn console_url(p: &Proc, limit: Duration) -> String {
+    let end = Instant::now() + limit;
+    loop {
+        let url =
+            p.stdout.lines().iter().find_map(|l| l.strip_prefix("console at ").map(|u| u.trim().to_string()));
+        if let Some(url) = url {
+            return url;
+        }
+        assert!(Instant::now() < end, "no console address within {limit:?}\n{}", p.dump());
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// The `HOST:PORT` of [`console_url`].
+pub fn console_addr(p: &Proc, limit: Duration) -> String {
+    let url = console_url(p, limit);
+    let rest = url.split_once("://").map_or(url.as_str(), |(_, rest)| rest);
+    rest.trim_end_matches('/').to_string()
+}
