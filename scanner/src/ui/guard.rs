@@ -20,7 +20,6 @@
 //! Anything else is refused with `403` and the reason, before the body is read. Who the caller is
 //! and what its role may do (accounts, sessions) is checked next, in `auth`.
 
-use std::io::Read;
 use std::net::{IpAddr, SocketAddr};
 
 /// The header that carries the page's token.
@@ -64,10 +63,11 @@ pub(crate) struct Guard {
     scheme: &'static str,
 }
 
-/// A fresh token: 16 random bytes from the system (`/dev/urandom`) as 32 hex digits.
+/// A fresh token: 16 random bytes from the operating system's generator (`getrandom`: the
+/// `getrandom` call on Linux, `ProcessPrng` on Windows) as 32 hex digits.
 pub(crate) fn new_token() -> std::io::Result<String> {
     let mut bytes = [0u8; 16];
-    std::fs::File::open("/dev/urandom")?.read_exact(&mut bytes)?;
+    getrandom::fill(&mut bytes).map_err(std::io::Error::other)?;
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
