@@ -805,11 +805,19 @@ impl Scanner {
         rows
     }
 
-    /// Releases every node this scanner holds (through the Group 2 Only port).
+    /// Releases every node this scanner holds (through the Group 2 Only port), after one response
+    /// window in which no poll is sent: an answer to the last poll still on its way (a node on a
+    /// slow link answering one poll behind) is taken as the node's input then, not met by the
+    /// Release as a frame nothing expects.
     pub fn stop(&mut self, master: &mut Master<'_, '_>) -> Result<(), HarnessError> {
         for n in &mut self.nodes {
             n.engine = None;
             n.awaiting = false;
+        }
+        if self.nodes.iter().any(|n| n.in_io) {
+            let drain = master.session.now() + self.timing.window;
+            // A bus that fails here fails the Release below too, which says so.
+            let _ = self.pump(master, drain, |_| false);
         }
         let r = master.release_held();
         for n in &mut self.nodes {
