@@ -18,6 +18,11 @@
 //!    faults it again ([`MasterError::DuplicateMac`]).
 //! 6. One second after its second request it is on-line: the master allocates its explicit
 //!    connection at the new MAC and reads the Identity serial number and the DeviceNet MAC ID.
+//!    Where timing is not judged ([`RecoverOptions::judge_timing`] `false`: SLCAN, an emulated
+//!    board on a loaded host), "one second" is the node's own: the gap between its two requests
+//!    when that is longer, and an allocation left unanswered (the node drops requests until it is
+//!    on-line) is sent again up to [`LATE_ONLINE_RETRIES`] times. Both are notes of the report
+//!    ([`RecoveryReport::notes`]), never findings.
 //!
 //! Every frame is judged; what the node failed to send (an Identify or ownership answer) is a
 //! finding of the report ([`RecoveryReport::findings`]).
@@ -51,6 +56,15 @@ pub const ONLINE_MARGIN: Duration = Duration::from_millis(250);
 
 /// How far the interval between the two duplicate MAC ID requests may be from 1 s.
 pub const DUP_MAC_TOLERANCE: Duration = Duration::from_millis(200);
+
+/// Where timing is not judged: how long the master waits for the node's second duplicate MAC ID
+/// request, in intervals. QEMU on a loaded host loses SysTick interrupts, so the emulated board's
+/// second ran 1.9 s and more of the host's (measured with three busy loops on two cores).
+pub const LATE_SECOND_INTERVALS: u64 = 4;
+
+/// Where timing is not judged: how many more times an unanswered allocation at the new MAC is
+/// sent, each after the explicit response timeout.
+pub const LATE_ONLINE_RETRIES: u32 = 2;
 
 /// What `recover` does.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -135,6 +149,8 @@ pub struct RecoveryReport {
     pub serial_at_new_mac: Option<u32>,
     /// What the node did not do that the protocol says it does.
     pub findings: Vec<String>,
+    /// What was late where timing is not judged: noted, not a finding.
+    pub notes: Vec<String>,
 }
 
 fn offline_frame(msg: &OfflineMessage) -> Result<CanFrame, MasterError> {
@@ -240,11 +256,18 @@ impl Master<'_, '_> {
         // On-line 1 s after the second request (protocol §7.1), by the device's clock: the master
         // allocates a little later, so a device whose clock runs slow against the master's (an
         // emulated board, a device whose timer ticks coarsely) is on-line by then.
-        if let Some(second) = requests.get(1) {
-            self.idle_until(*second + DUP_MAC_INTERVAL + ONLINE_MARGIN)?;
+        if let [first, second, ..] = requests[..] {
+            let device_second =
+                if opts.judge_timing { DUP_MAC_INTERVAL } else { (second - first).max(DUP_MAC_INTERVAL) };
+            if device_second > DUP_MAC_INTERVAL {
+                report.notes.push(format!(
+                    "the node's second was {device_second} of the master's (its two requests): allocated that long after the second, not 1 s"
+                ));
+            }
+            self.idle_until(second + device_second + ONLINE_MARGIN)?;
         }
         self.set_device(to);
-        self.allocate(to, Port::Group2Only, AllocationChoice::EXPLICIT)?;
+        self.allocate_when_online(to, opts.judge_timing, &mut report)?;
         report.online = true;
         let (serial, i) = self.get(to, class::IDENTITY, 1, 6)?;
         report.serial_at_new_mac = match serial.as_slice() {
@@ -268,6 +291,33 @@ impl Master<'_, '_> {
         };
         self.judge(i, "DeviceNet MAC ID is the new one", failures);
         Ok(report)
+    }
+
+    /// Allocates the explicit connection of the recovered node at `to`. Where timing is not judged
+    /// an unanswered allocation is sent again, up to [`LATE_ONLINE_RETRIES`] times, and noted: a
+    /// node drops what comes before it is on-line, and a slow clock brings it on-line late.
+    fn allocate_when_online(
+        &mut self,
+        to: MacId,
+        judge_timing: bool,
+        report: &mut RecoveryReport,
+    ) -> Result<(), MasterError> {
+        let retries = if judge_timing { 0 } else { LATE_ONLINE_RETRIES };
+        let mut attempt = 0;
+        loop {
+            match self.allocate(to, Port::Group2Only, AllocationChoice::EXPLICIT) {
+                Ok(_) => return Ok(()),
+                Err(MasterError::Timeout { .. }) if attempt < retries => {
+                    attempt += 1;
+                    report.notes.push(format!(
+                        "allocation at MAC {to} unanswered (the node not yet on-line by the master's clock); sent again, attempt {} of {}",
+                        attempt + 1,
+                        retries + 1
+                    ));
+                }
+                Err(e) => return Err(e),
+            }
+        }
     }
 
     /// Collects Who answers until `until`.
@@ -387,7 +437,7 @@ impl Master<'_, '_> {
         let second_wait = if judge_timing {
             DUP_MAC_INTERVAL + DUP_MAC_TOLERANCE
         } else {
-            DUP_MAC_INTERVAL + DUP_MAC_INTERVAL
+            Duration::from_micros(DUP_MAC_INTERVAL.total_micros() * LATE_SECOND_INTERVALS)
         };
         loop {
             let deadline = match requests.last() {
@@ -502,7 +552,14 @@ mod tests {
 
     /// [`faulted`] with its two duplicate MAC ID requests at 9 `gap_ms` apart.
     fn faulted_with_gap(gap_ms: u64) -> Scripted {
+        faulted_with(gap_ms, 0)
+    }
+
+    /// [`faulted_with_gap`], deaf at MAC 9 (on-line, by its own clock) until `online_ms` after
+    /// Change MAC ID; 0: never deaf.
+    fn faulted_with(gap_ms: u64, online_ms: u64) -> Scripted {
         Scripted::new(5)
+            .deaf_after((0x7ED, &CHANGE_TO_9), online_ms)
             .on(0x7ED, &WHO_5, &[(120, 0x7EC, &ANSWER)])
             .on(0x7ED, &IDENTIFY, &[(1, 0x7EC, &[0x3F, 0xCC])])
             .on(0x7EF, &OWNERSHIP, &[(1, 0x7EE, &OWNED)])
@@ -612,8 +669,42 @@ mod tests {
         let r = r.unwrap();
         assert!(r.online && failures.is_empty(), "{r:?} {failures:#?}");
         assert_eq!(r.dup_mac_requests_ms.len(), 2);
-        let (r, _) = run(vec![faulted_with_gap(2500)], &lenient);
+        let (r, _) = run(vec![faulted_with_gap(4500)], &lenient);
         let e = r.unwrap_err().to_string();
-        assert!(e.contains("second duplicate MAC ID request at MAC 9") && e.contains("2000"), "{e}");
+        assert!(e.contains("second duplicate MAC ID request at MAC 9") && e.contains("4000"), "{e}");
+    }
+
+    /// The QEMU board on a loaded host (CI, and three busy loops here): its second ran 1.85 s of
+    /// the master's, so 1 s + margin after its second request it was still checking and dropped
+    /// the allocation. Where timing is not judged the master waits one of the node's seconds.
+    #[test]
+    fn a_slow_node_is_allocated_one_of_its_own_seconds_after_its_second_request() {
+        let slow = || faulted_with(1850, 1 + 1850 + 1850);
+        let (r, _) = run(vec![slow()], &to_9());
+        assert!(r.is_err(), "where timing is judged a 1.85 s interval fails: {r:?}");
+        let lenient = RecoverOptions { judge_timing: false, ..to_9() };
+        let (r, failures) = run(vec![slow()], &lenient);
+        let r = r.unwrap();
+        assert!(r.online && r.findings.is_empty() && failures.is_empty(), "{r:?} {failures:#?}");
+        assert!(r.notes.len() == 1 && r.notes[0].contains("1850ms"), "{:?}", r.notes);
+    }
+
+    /// A node later still (its clock slowing further after the second request) drops the first
+    /// allocation; where timing is not judged it is sent again and noted, where it is judged the
+    /// timeout stands.
+    #[test]
+    fn an_unanswered_allocation_is_sent_again_only_where_timing_is_not_judged() {
+        let late = || faulted_with(1000, 1 + 1000 + 1800);
+        let (r, _) = run(vec![late()], &to_9());
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("Allocate") && e.contains("explicit response timeout"), "{e}");
+        let lenient = RecoverOptions { judge_timing: false, ..to_9() };
+        let (r, failures) = run(vec![late()], &lenient);
+        let r = r.unwrap();
+        assert!(r.online && failures.is_empty(), "{r:?} {failures:#?}");
+        assert!(r.notes.len() == 1 && r.notes[0].contains("attempt 2 of 3"), "{:?}", r.notes);
+        let never = || faulted_with(1000, 60_000);
+        let (r, _) = run(vec![never()], &lenient);
+        assert!(r.unwrap_err().to_string().contains("explicit response timeout"));
     }
 }

@@ -29,6 +29,10 @@ pub(crate) struct Scripted {
     producer: Option<Producer>,
     timed: Vec<(Instant, CanFrame)>,
     now: Instant,
+    /// After this frame the device ignores every other frame for the duration (a node still in
+    /// its duplicate MAC ID check drops requests).
+    deaf_after: Option<((u16, Vec<u8>), Duration)>,
+    deaf_until: Option<Instant>,
 }
 
 impl Scripted {
@@ -39,7 +43,17 @@ impl Scripted {
             producer: None,
             timed: Vec::new(),
             now: Instant::ZERO,
+            deaf_after: None,
+            deaf_until: None,
         }
+    }
+
+    /// Once `trigger` arrives, every other frame is ignored for `ms` (0: never deaf).
+    pub(crate) fn deaf_after(mut self, trigger: (u16, &[u8]), ms: u64) -> Scripted {
+        if ms > 0 {
+            self.deaf_after = Some(((trigger.0, trigger.1.to_vec()), Duration::from_millis(ms)));
+        }
+        self
     }
 
     /// When `(id, data)` arrives, answer `replies` (`(delay ms, id, data)`).
@@ -96,6 +110,13 @@ impl SimDevice for Scripted {
     fn handle_frame(&mut self, frame: &CanFrame, now: Instant) {
         self.now = now;
         let (id, data) = (frame.id().as_raw(), frame.data().to_vec());
+        if let Some((trigger, ms)) = &self.deaf_after {
+            if *trigger == (id, data.clone()) {
+                self.deaf_until = Some(now + *ms);
+            } else if self.deaf_until.is_some_and(|until| now < until) {
+                return;
+            }
+        }
         let replies: Vec<(u64, u16, Vec<u8>)> = self
             .rules
             .iter()

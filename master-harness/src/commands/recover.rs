@@ -94,6 +94,9 @@ fn outcome(r: &RecoveryReport) -> Outcome {
         }
         _ => lines.push("nothing changed (give --to MAC to recover a node)".into()),
     }
+    for n in &r.notes {
+        lines.push(format!("note: {n}"));
+    }
     for f in &r.findings {
         lines.push(format!("finding: {f}"));
     }
