@@ -195,6 +195,10 @@ impl Bridge {
                     self.summary.serial_bytes_received += bytes.len() as u64;
                     self.converter.handle_serial(&bytes, at);
                 }
+                SerialEvent::Connection(change) => {
+                    let text = format!("instrument {}: {change}", self.serial.name());
+                    self.note(now.max(self.last_now), &text);
+                }
                 SerialEvent::Failed(what, source) => {
                     return Err(SoftSlaveError::SerialIo {
                         path: self.serial.name().to_string(),

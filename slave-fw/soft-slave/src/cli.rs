@@ -8,6 +8,7 @@ use crate::clock::{from_secs_f64, Clock};
 use crate::error::SoftSlaveError;
 use crate::serial::{settings_text, SerialLine};
 use crate::state::{StateFile, StoredState};
+use crate::tcp::{TcpLine, TcpTarget, BACKOFF_FIRST, BACKOFF_MAX};
 use can_io::bus::{Bitrate, BusSpec};
 use can_io::log::LogWriter;
 use can_io::trace::write::log_format;
@@ -25,7 +26,7 @@ use std::sync::atomic::AtomicBool;
 #[command(
     name = "dnet-soft-slave",
     version = crate::VERSION,
-    about = "The serial-to-DeviceNet converter as a Linux process: a group-2-only DeviceNet slave on a real CAN bus whose data comes from a serial instrument (the breaker profile or a Modbus RTU scan list) on a real serial port.",
+    about = "The serial-to-DeviceNet converter as a Linux process: a group-2-only DeviceNet slave on a real CAN bus whose data comes from a serial instrument (the breaker profile or a Modbus RTU scan list) on a real serial port or behind a serial device server (TCP).",
     after_help = "Stops cleanly on SIGINT or SIGTERM (the log is flushed). Exit status: 0 after a clean stop, 1 when the bus or the serial port failed, 2 for a usage or configuration error (a --log or --state file that cannot be written among them; both are checked before the device goes on the bus)."
 )]
 pub struct SoftSlaveArgs {
@@ -37,10 +38,14 @@ pub struct SoftSlaveArgs {
         help = "The CAN bus: socketcan:IFACE (e.g. socketcan:can0) or slcan:PATH[@SERIALBAUD] (e.g. slcan:/dev/ttyACM0@115200). The CAN bit rate is the description's network.baud_rate"
     )]
     pub bus: BusSpec,
-    /// The instrument's serial port (e.g. /dev/ttyUSB0); baud rate, parity and stop bits come
-    /// from the description's profile.
-    #[arg(long, value_name = "PATH")]
-    pub serial: PathBuf,
+    /// The instrument: a serial port, or a device server's TCP port.
+    #[arg(
+        long,
+        value_name = "PORT",
+        value_parser = parse_instrument_port,
+        help = "The instrument: a serial port (e.g. /dev/ttyUSB0; baud rate, parity and stop bits from the description's profile), or tcp:HOST:PORT (e.g. tcp:192.168.127.254:4001, tcp:[fe80::1]:4001): a serial device server in TCP server mode (raw socket, e.g. Moxa NPort), its serial port set to the profile's settings. A lost or refused connection is retried after 0.5 s, doubling to at most 30 s; meanwhile the instrument counts as silent (the profile's stale policy) and the DeviceNet side keeps running"
+    )]
+    pub serial: InstrumentPort,
     /// The device description file (TOML) [default: the built-in reference converter: the
     /// breaker at MAC 5, 250 kbit/s, 9600 8N1].
     #[arg(long, value_name = "FILE")]
@@ -112,6 +117,33 @@ pub struct SimBreakerArgs {
     /// Stop after this many seconds [default: run until SIGINT or SIGTERM].
     #[arg(long, value_name = "SECONDS", value_parser = parse_seconds)]
     pub duration: Option<Duration>,
+}
+
+/// Where the instrument is (`--serial`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum InstrumentPort {
+    /// A local serial port or pty.
+    Serial(PathBuf),
+    /// A serial device server in TCP server mode: `tcp:HOST:PORT`.
+    Tcp(TcpTarget),
+}
+
+impl std::fmt::Display for InstrumentPort {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            InstrumentPort::Serial(path) => write!(f, "{}", path.display()),
+            InstrumentPort::Tcp(target) => write!(f, "{target}"),
+        }
+    }
+}
+
+/// `--serial`: `tcp:HOST:PORT`, else a path (`./tcp:x` for a file of that name).
+pub fn parse_instrument_port(s: &str) -> Result<InstrumentPort, String> {
+    match s.strip_prefix(crate::tcp::PREFIX) {
+        Some(rest) => TcpTarget::parse(rest, s).map(InstrumentPort::Tcp),
+        None if s.is_empty() => Err("an empty path: expected a serial port or tcp:HOST:PORT".into()),
+        None => Ok(InstrumentPort::Serial(PathBuf::from(s))),
+    }
 }
 
 /// `--bus`: a real bus; the simulated one lives inside `dnet-master`.
@@ -228,18 +260,31 @@ pub fn run_soft_slave(
         None => None,
     };
     let clock = Clock::start();
-    let serial_path = args.serial.display().to_string();
-    let serial = SerialLine::open(&serial_path, &serial_settings, clock)?;
+    let (serial, line_text) = match &args.serial {
+        InstrumentPort::Serial(path) => {
+            let path = path.display().to_string();
+            let text = format!("{path} ({})", settings_text(&serial_settings));
+            (SerialLine::open(&path, &serial_settings, clock)?, text)
+        }
+        InstrumentPort::Tcp(target) => {
+            let text = format!(
+                "{target} (the device server's serial port at {}; reconnecting after {:.1} s doubling to {} s)",
+                settings_text(&serial_settings),
+                BACKOFF_FIRST.as_secs_f64(),
+                BACKOFF_MAX.as_secs()
+            );
+            (TcpLine::open(target, clock), text)
+        }
+    };
     // The far end of an SLCAN line may be a host that starts later (the pty rig's master): the
     // set-up answers are not awaited.
     let bus = args.bus.open_as(rate, can_io::bus::slcan::SetUp::Peer)?;
     let _ = writeln!(
         report,
-        "dnet-soft-slave: MAC {} at {rate} on {}, {} profile on {serial_path} ({}), input assembly {}",
+        "dnet-soft-slave: MAC {} at {rate} on {}, {} profile on {line_text}, input assembly {}",
         config.device.mac_id,
         bus.name(),
         profile_name(&config.profile),
-        settings_text(&serial_settings),
         config.input.instance(),
     );
     if let Some(m) = args.mutant {
@@ -351,6 +396,39 @@ mod tests {
         let e = parse_real_bus(text).unwrap_err();
         assert!(e.contains(msg), "{e}");
         assert!(!e.contains("expected sim"), "{e}");
+    }
+
+    #[rstest]
+    #[case::device("/dev/ttyUSB0", Ok(InstrumentPort::Serial("/dev/ttyUSB0".into())))]
+    #[case::file_named_tcp("./tcp:x", Ok(InstrumentPort::Serial("./tcp:x".into())))]
+    #[case::tcp("tcp:10.0.0.7:4001", Ok(InstrumentPort::Tcp(TcpTarget { host: "10.0.0.7".into(), port: 4001 })))]
+    #[case::tcp_no_port("tcp:10.0.0.7", Err("'tcp:10.0.0.7': no port"))]
+    #[case::tcp_bad_port("tcp:nport:http", Err("'tcp:nport:http': the port 'http' is not"))]
+    #[case::empty("", Err("an empty path"))]
+    fn instrument_ports(#[case] text: &str, #[case] want: Result<InstrumentPort, &str>) {
+        match (parse_instrument_port(text), want) {
+            (Ok(got), Ok(w)) => assert_eq!(got, w),
+            (Err(e), Err(w)) => assert!(e.starts_with(w), "{e}"),
+            (got, w) => panic!("{got:?} vs {w:?}"),
+        }
+    }
+
+    #[test]
+    fn a_bad_tcp_port_is_a_usage_error_naming_the_argument() {
+        let e = SoftSlaveArgs::try_parse_from([
+            "dnet-soft-slave",
+            "--bus",
+            "slcan:/dev/null",
+            "--serial",
+            "tcp:nport",
+        ])
+        .unwrap_err();
+        assert_eq!(e.exit_code(), 2);
+        let text = e.to_string();
+        assert!(
+            text.contains("invalid value 'tcp:nport' for '--serial <PORT>': 'tcp:nport': no port"),
+            "{text}"
+        );
     }
 
     #[rstest]

@@ -17,6 +17,7 @@
 //! | [`bridge`] | [`Bridge`](bridge::Bridge): the main loop — bus, serial line and converter, the drain order of the converter docs, Identity Reset, the `candump -L` log |
 //! | [`breaker`] | [`BreakerRunner`](breaker::BreakerRunner): the simulated breaker on any byte stream, with fault knobs and an event log |
 //! | [`state`] | `--state FILE`: the settings and configuration image kept across restarts, replaced atomically |
+//! | [`tcp`] | [`TcpLine`](tcp::TcpLine): the instrument behind a serial device server (`--serial tcp:HOST:PORT`), reconnected with back-off |
 //! | [`cli`] | the two command lines (clap) and their `run` functions |
 //! | [`error`] | [`SoftSlaveError`](error::SoftSlaveError): every failure named, with its exit status |
 //!
@@ -88,6 +89,7 @@ pub mod clock;
 pub mod error;
 pub mod serial;
 pub mod state;
+pub mod tcp;
 
 pub use can_io::bus::Bus;
 

@@ -3,8 +3,10 @@
 //!
 //! The reader thread timestamps each chunk with the shared [`Clock`] as it arrives; the converter
 //! gets the bytes with that time (the Modbus master measures line silence from it). The writer
-//! thread takes whole frames from a channel. Either thread reports a failed port once through the
-//! same channel as the bytes ([`SerialEvent::Failed`]) and stops.
+//! thread takes whole frames from a channel of at most [`OUTGOING_FRAMES`] (more are dropped, as
+//! on a line nobody drains). Either thread reports a failed port once through the same channel as
+//! the bytes ([`SerialEvent::Failed`]) and stops. An instrument behind a device server
+//! (`--serial tcp:HOST:PORT`) is a line too, with its own threads (`crate::tcp`).
 
 use crate::clock::Clock;
 use crate::error::SoftSlaveError;
@@ -12,7 +14,7 @@ use devicenet::Instant;
 use slave_fw::serial::{DataBits, Parity, SerialSettings, StopBits};
 use std::io::{ErrorKind, Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, Receiver, Sender, TryRecvError};
+use std::sync::mpsc::{self, Receiver, SyncSender, TryRecvError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
@@ -22,6 +24,9 @@ pub const READ_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(2
 /// How long a write may block before its frame is given up (a line nobody drains).
 pub const WRITE_TIMEOUT: std::time::Duration = std::time::Duration::from_millis(500);
 
+/// The most frames queued for the writer thread; more are dropped until it catches up.
+pub const OUTGOING_FRAMES: usize = 16;
+
 /// What the serial threads report.
 #[derive(Debug)]
 pub enum SerialEvent {
@@ -29,6 +34,46 @@ pub enum SerialEvent {
     Bytes(Instant, Vec<u8>),
     /// The port failed (`reading` or `writing`); the thread that saw it has stopped.
     Failed(&'static str, std::io::Error),
+    /// A line over TCP connected, lost its connection or failed to connect (it keeps trying).
+    Connection(ConnectionEvent),
+}
+
+/// A change of a TCP line's connection (`--serial tcp:HOST:PORT`).
+#[derive(Debug)]
+pub enum ConnectionEvent {
+    /// Connected to `peer`.
+    Connected {
+        /// The address the connection went to.
+        peer: std::net::SocketAddr,
+    },
+    /// The connection ended; the next attempt comes after `retry_in`.
+    Lost {
+        /// Why (`UnexpectedEof`: the device server closed it).
+        error: std::io::Error,
+        /// The back-off wait before the next attempt.
+        retry_in: std::time::Duration,
+    },
+    /// An attempt to connect failed; the next comes after `retry_in`.
+    Failed {
+        /// Why (refused, timed out, the name did not resolve).
+        error: std::io::Error,
+        /// The back-off wait before the next attempt.
+        retry_in: std::time::Duration,
+    },
+}
+
+impl std::fmt::Display for ConnectionEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ConnectionEvent::Connected { peer } => write!(f, "connected to {peer}"),
+            ConnectionEvent::Lost { error, retry_in } => {
+                write!(f, "connection lost ({error}): reconnecting in {:.1} s", retry_in.as_secs_f64())
+            }
+            ConnectionEvent::Failed { error, retry_in } => {
+                write!(f, "cannot connect ({error}): next attempt in {:.1} s", retry_in.as_secs_f64())
+            }
+        }
+    }
 }
 
 /// `9600 8N1`, `19200 8E1`: the settings as a bench engineer writes them.
@@ -93,7 +138,7 @@ pub fn open_port(path: &str, s: &SerialSettings) -> Result<Box<dyn serialport::S
 pub struct SerialLine {
     name: String,
     events: Receiver<SerialEvent>,
-    outgoing: Option<Sender<Vec<u8>>>,
+    outgoing: Option<SyncSender<Vec<u8>>>,
     stop: Arc<AtomicBool>,
     threads: Vec<JoinHandle<()>>,
 }
@@ -140,7 +185,7 @@ impl SerialLine {
         W: Write + Send + 'static,
     {
         let (event_tx, events) = mpsc::channel();
-        let (outgoing, frames) = mpsc::channel::<Vec<u8>>();
+        let (outgoing, frames) = mpsc::sync_channel::<Vec<u8>>(OUTGOING_FRAMES);
         let stop = Arc::new(AtomicBool::new(false));
         let read_events = event_tx.clone();
         let read_stop = Arc::clone(&stop);
@@ -188,25 +233,33 @@ impl SerialLine {
                 }
             }
         });
-        SerialLine {
-            name: name.to_string(),
-            events,
-            outgoing: Some(outgoing),
-            stop,
-            threads: vec![read, write],
-        }
+        SerialLine::from_threads(name, events, outgoing, stop, vec![read, write])
     }
 
-    /// The port's name (its path).
+    /// A line served by `threads`, which deliver `events`, take frames from `outgoing`'s
+    /// receiver and end once `stop` is set and `outgoing` is dropped.
+    pub(crate) fn from_threads(
+        name: &str,
+        events: Receiver<SerialEvent>,
+        outgoing: SyncSender<Vec<u8>>,
+        stop: Arc<AtomicBool>,
+        threads: Vec<JoinHandle<()>>,
+    ) -> SerialLine {
+        SerialLine { name: name.to_string(), events, outgoing: Some(outgoing), stop, threads }
+    }
+
+    /// The port's name (its path, or `tcp:HOST:PORT`).
     pub fn name(&self) -> &str {
         &self.name
     }
 
-    /// Queues bytes for the writer thread; never blocks.
+    /// Queues bytes for the writer thread; never blocks. Dropped when [`OUTGOING_FRAMES`] frames
+    /// are already waiting.
     pub fn write(&self, bytes: &[u8]) {
         if let Some(tx) = &self.outgoing {
-            // A stopped writer has reported its error through the event channel.
-            let _ = tx.send(bytes.to_vec());
+            // A full queue loses the frame, as a line nobody drains would; a stopped writer has
+            // reported its error through the event channel.
+            let _ = tx.try_send(bytes.to_vec());
         }
     }
 

@@ -52,7 +52,7 @@ fn the_simulated_bus_is_refused_with_a_reason() {
 fn missing_arguments_are_usage_errors() {
     let o = soft(&["--bus", "socketcan:can0"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("--serial <PATH>"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--serial <PORT>"), "{}", stderr(&o));
     let o = breaker(&["--serial", "/dev/null", "--load", "1,2"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("expected four currents"), "{}", stderr(&o));
