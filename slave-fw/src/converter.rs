@@ -49,7 +49,8 @@
 //! behind the first and third are small (the node's 16 frames, 8 events): a caller that hands
 //! several inputs over before draining loses frames and events.
 
-use crate::serial::{ConfigError, LinkState, Profile, ProfileConfig};
+use crate::serial::trace::{Trace, TraceKind};
+use crate::serial::{ConfigError, Counter, LinkState, Profile, ProfileConfig};
 use devicenet::led::Leds;
 use devicenet::slave::{
     ApplicationStatus, BaudRate, ConfigError as NodeConfigError, ConnectionKind, ConnectionState,
@@ -59,6 +60,7 @@ use devicenet::{CanFrame, Duration, Instant, MacId, SlaveNode};
 use heapless::Deque;
 use image::ImageError;
 
+pub mod analyzer_object;
 pub mod check;
 pub mod config_object;
 pub mod consistency;
@@ -283,6 +285,8 @@ pub struct Converter {
     /// The status byte and freshness last seen: a change is new instrument data or a new status,
     /// what a change-of-state connection produces (docs/src/reference/io-connections.md).
     last_status: [u8; 2],
+    /// The serial-line analyzer's ring (class 0x68, [`analyzer_object`]).
+    trace: Trace,
 }
 
 impl Converter {
@@ -405,6 +409,7 @@ impl Converter {
             configuration_fault: matches!(origin, ConfigOrigin::Fault(_)),
             major_unrecoverable_fault: false,
             last_status: [0; 2],
+            trace: Trace::new(),
         };
         converter.refresh_image(now);
         // Identity attribute 9: the CCV of the configuration in force, the stored one.
@@ -440,6 +445,7 @@ impl Converter {
             input: self.input,
             config: &mut self.config,
             io_established,
+            trace: &mut self.trace,
         };
         self.node.handle_frame_with(frame, now, &mut objects);
         self.sync(now);
@@ -447,8 +453,30 @@ impl Converter {
 
     /// Bytes were read from the instrument's UART at `now`.
     pub fn handle_serial(&mut self, bytes: &[u8], now: Instant) {
+        self.trace.record_bytes(TraceKind::Receive, bytes, now);
+        // The profile's checksum and framing errors, as the counters that moved (protocol-free).
+        const ERRORS: [(Counter, TraceKind); 2] =
+            [(Counter::ChecksumErrors, TraceKind::Checksum), (Counter::FramingErrors, TraceKind::Framing)];
+        let count = |p: &Profile, c: Counter| p.counts().get(c as usize).copied();
+        let before = ERRORS.map(|(c, _)| count(&self.profile, c));
         self.profile.on_bytes(bytes, now);
+        for ((c, kind), before) in ERRORS.into_iter().zip(before) {
+            if count(&self.profile, c) != before {
+                self.trace.record_event(kind, now);
+            }
+        }
         self.sync(now);
+    }
+
+    /// A line event the UART's owner saw at `now` (RS-485 driver edges, UART errors), for the
+    /// serial-line analyzer ([`analyzer_object`]).
+    pub fn record_line_event(&mut self, kind: TraceKind, now: Instant) {
+        self.trace.record_event(kind, now);
+    }
+
+    /// The serial-line analyzer's ring.
+    pub fn trace(&self) -> &Trace {
+        &self.trace
     }
 
     /// The CAN controller went bus-off.
@@ -472,7 +500,9 @@ impl Converter {
     /// The next bytes to write to the instrument's UART.
     #[must_use = "the bytes are handed out once: dropped ones are never sent"]
     pub fn poll_serial_transmit(&mut self, now: Instant) -> Option<&[u8]> {
-        self.profile.poll_transmit(now)
+        let frame = self.profile.poll_transmit(now)?;
+        self.trace.record_bytes(TraceKind::Transmit, frame, now);
+        Some(frame)
     }
 
     /// Node events for the application: settings changed (store them), a CAN controller reset

@@ -1,14 +1,16 @@
 //! The request handler of the converter's own objects ([`VendorObjects`]): the serial link and
 //! settings objects (`objects.rs`), the configuration object (`config_object.rs`) and the
-//! Parameter object (`parameters.rs`), each class sent to the file that serves it. The node calls
+//! Parameter object (`parameters.rs`), the serial-line analyzer (`analyzer_object.rs`), each class sent to the file that serves it. The node calls
 //! it for every class the DeviceNet core does not serve itself.
 
+use super::analyzer_object::{self, ANALYZER_CLASS};
 use super::config_object::{ConfigObject, CONFIG_CLASS};
 use super::objects::{
     AttributeType, LinkAttribute, SettingsAttribute, SettingsValues, SERIAL_LINK_CLASS, SETTINGS_CLASS,
 };
 use super::parameters::{self, PARAMETER_CLASS};
 use super::InputAssembly;
+use crate::serial::trace::Trace;
 use crate::serial::Profile;
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::{ObjectHandler, Reply, ServiceError};
@@ -24,6 +26,8 @@ pub(super) struct VendorObjects<'a> {
     pub(super) config: &'a mut ConfigObject,
     /// Whether an I/O (poll) connection is established.
     pub(super) io_established: bool,
+    /// The serial-line analyzer's ring.
+    pub(super) trace: &'a mut Trace,
 }
 
 impl VendorObjects<'_> {
@@ -56,6 +60,7 @@ impl ObjectHandler for VendorObjects<'_> {
             SETTINGS_CLASS => false,
             CONFIG_CLASS => return Some(self.config.handle(req, reply, self.io_established)),
             PARAMETER_CLASS => return Some(parameters::handle(self.config, req, reply, self.io_established)),
+            ANALYZER_CLASS => return Some(analyzer_object::handle(self.trace, req, reply)),
             _ => return None,
         };
         let known = |id| {
@@ -83,6 +88,6 @@ impl ObjectHandler for VendorObjects<'_> {
     /// The serial link, settings and configuration objects serve their revision, 1, and nothing
     /// else at class instance 0: the node answers there.
     fn class_revision(&self, class: u16) -> Option<u16> {
-        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS).then_some(1)
+        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS | ANALYZER_CLASS).then_some(1)
     }
 }

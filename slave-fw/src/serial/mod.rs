@@ -30,6 +30,7 @@ pub mod line;
 pub mod modbus;
 pub mod profile;
 pub mod sequencer;
+pub mod trace;
 
 pub use checksum::Checksum;
 pub use error::{ConfigError, Conflict, Field, FieldPath, Problem};
