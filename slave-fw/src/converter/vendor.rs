@@ -1,7 +1,8 @@
 //! The request handler of the converter's own objects ([`VendorObjects`]): the serial link and
-//! settings objects (`objects.rs`), the configuration object (`config_object.rs`) and the
-//! Parameter object (`parameters.rs`), the serial-line analyzer (`analyzer_object.rs`), each class sent to the file that serves it. The node calls
-//! it for every class the DeviceNet core does not serve itself.
+//! settings objects (`objects.rs`), the configuration object (`config_object.rs`), the Parameter
+//! object (`parameters.rs`) and the serial-line analyzer (`analyzer_object.rs`), each class sent
+//! to the file that serves it. The node calls it for every class the DeviceNet core does not serve
+//! itself.
 
 use super::analyzer_object::{self, ANALYZER_CLASS};
 use super::config_object::{ConfigObject, CONFIG_CLASS};
@@ -85,8 +86,8 @@ impl ObjectHandler for VendorObjects<'_> {
         })
     }
 
-    /// The serial link, settings and configuration objects serve their revision, 1, and nothing
-    /// else at class instance 0: the node answers there.
+    /// The serial link, settings, configuration and analyzer objects serve their revision, 1, and
+    /// nothing else at class instance 0: the node answers there.
     fn class_revision(&self, class: u16) -> Option<u16> {
         matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS | ANALYZER_CLASS).then_some(1)
     }
