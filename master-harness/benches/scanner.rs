@@ -37,6 +37,7 @@ fn main() {
                 device_type: Some(0x000C),
                 product_code: Some(1),
                 major_revision: None,
+                minor_revision: None,
                 input_size: 18,
                 output_size: 8,
                 name: None,

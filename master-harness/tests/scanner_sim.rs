@@ -61,6 +61,7 @@ fn breaker_entry(mac: u8) -> ScanEntry {
         device_type: Some(0x000C),
         product_code: Some(1),
         major_revision: Some(1),
+        minor_revision: None,
         input_size: 18,
         output_size: 8,
         name: None,

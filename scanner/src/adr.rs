@@ -21,6 +21,7 @@
 //!    configuration is stored, it is downloaded ([`ConfigTool::download`]: the device resets and
 //!    comes back with it) and the node is brought up again. Then the replacement is in I/O.
 
+use crate::keying::{mismatches, ElectronicKey};
 use crate::model::{Identity, Keying, ScanEntry};
 use devicenet::{Instant, MacId};
 use harness_common::error::HarnessError;
@@ -92,24 +93,25 @@ pub fn major_of(revision: Option<&str>) -> Option<u8> {
     revision.and_then(|r| r.split('.').next()).and_then(|m| m.parse().ok())
 }
 
-/// Whether `device` fits `entry`'s electronic key under the entry's keying, falling back to the
-/// identity the node had (`known`) for a key the entry does not give: a replacement must be the
-/// same kind of device (vendor, device type, product code) whatever the keying.
+/// Whether `device` fits `entry`'s electronic key under the entry's keying
+/// ([`crate::keying::mismatches`]), falling back to the identity the node had (`known`) for a
+/// vendor ID, device type, product code or major revision the entry does not give: a replacement
+/// must be the same kind of device (vendor, device type, product code) whatever the keying.
 #[must_use]
 pub fn key_matches(entry: &ScanEntry, known: &Identity, device: &Identity) -> bool {
-    let same = |want: Option<u16>, had: Option<u16>, got: Option<u16>| match want.or(had) {
-        Some(w) => got == Some(w),
-        None => true,
+    let given = entry.electronic_key();
+    let had = known.electronic_key();
+    let key = ElectronicKey {
+        vendor_id: given.vendor_id.or(had.vendor_id),
+        device_type: given.device_type.or(had.device_type),
+        product_code: given.product_code.or(had.product_code),
+        major_revision: given.major_revision.or(had.major_revision),
+        minor_revision: given.minor_revision,
     };
-    let kind = same(entry.vendor_id, known.vendor_id, device.vendor_id)
-        && same(entry.device_type, known.device_type, device.device_type)
-        && same(entry.product_code, known.product_code, device.product_code);
-    let want_major = entry.major_revision.or(major_of(known.revision.as_deref()));
-    let got_major = major_of(device.revision.as_deref());
+    let got = device.electronic_key();
     match entry.keying {
-        Keying::Disabled => kind,
-        Keying::Exact => kind && want_major.is_none_or(|w| got_major == Some(w)),
-        Keying::Compatible => kind && want_major.is_none_or(|w| got_major.is_some_and(|g| g >= w)),
+        Keying::Disabled => mismatches(Keying::Exact, &key.kind(), &got).is_empty(),
+        keying => mismatches(keying, &key, &got).is_empty(),
     }
 }
 
@@ -134,6 +136,7 @@ mod tests {
             device_type: None,
             product_code: Some(1),
             major_revision: major,
+            minor_revision: None,
             input_size: 18,
             output_size: 8,
             name: None,
@@ -153,10 +156,22 @@ mod tests {
         }
     }
 
+    #[test]
+    fn keys_minor_from_the_entry_only() {
+        let known = id(0x1234, 12, 1, "1.5");
+        let mut e = entry(Keying::Compatible, None);
+        e.minor_revision = Some(3);
+        assert!(key_matches(&e, &known, &id(0x1234, 12, 1, "1.3")));
+        assert!(!key_matches(&e, &known, &id(0x1234, 12, 1, "1.2")), "older minor than the entry's");
+        e.minor_revision = None;
+        assert!(key_matches(&e, &known, &id(0x1234, 12, 1, "1.2")), "the lost node's minor is no key");
+    }
+
     #[rstest]
     #[case::exact_same(Keying::Exact, Some(1), id(0x1234, 12, 1, "1.2"), true)]
     #[case::exact_later_major(Keying::Exact, Some(1), id(0x1234, 12, 1, "2.1"), false)]
-    #[case::compatible_later_major(Keying::Compatible, Some(1), id(0x1234, 12, 1, "2.1"), true)]
+    #[case::compatible_later_major(Keying::Compatible, Some(1), id(0x1234, 12, 1, "2.1"), false)]
+    #[case::compatible_same_major(Keying::Compatible, Some(1), id(0x1234, 12, 1, "1.7"), true)]
     #[case::compatible_earlier_major(Keying::Compatible, Some(2), id(0x1234, 12, 1, "1.1"), false)]
     #[case::disabled_other_revision(Keying::Disabled, Some(3), id(0x1234, 12, 1, "1.1"), true)]
     #[case::disabled_other_product(Keying::Disabled, None, id(0x1234, 12, 2, "1.1"), false)]

@@ -891,6 +891,7 @@ pub fn build_scan_list(master: &mut Master<'_, '_>, from: u8, to: u8) -> Result<
                     .as_deref()
                     .and_then(|r| r.split('.').next())
                     .and_then(|m| m.parse().ok()),
+                minor_revision: None,
                 input_size: d.produced_size?,
                 output_size: d.consumed_size?,
                 name: d.identity.product_name.clone(),

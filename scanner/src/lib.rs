@@ -34,6 +34,7 @@ pub mod engine;
 pub mod events;
 pub mod health;
 pub mod history;
+pub mod keying;
 pub mod list;
 pub mod model;
 pub mod monitor;

@@ -12,6 +12,7 @@
 //! device_type = 0x000C
 //! product_code = 1
 //! major_revision = 1
+//! # minor_revision = 1               # optional; keying "compatible": this minor revision or later
 //! input_size = 18                    # poll response (Connection 2 attribute 7)
 //! output_size = 8                    # poll command (Connection 2 attribute 8)
 //! name = "breaker feeder 1"          # optional
@@ -285,6 +286,9 @@ fn entry_toml(n: &ScanEntry) -> String {
     }
     if let Some(v) = n.major_revision {
         s.push_str(&format!("major_revision = {v}\n"));
+    }
+    if let Some(v) = n.minor_revision {
+        s.push_str(&format!("minor_revision = {v}\n"));
     }
     s.push_str(&format!("input_size = {}\noutput_size = {}\n", n.input_size, n.output_size));
     if let Some(name) = &n.name {

@@ -54,6 +54,9 @@ pub struct ScanEntry {
     /// Electronic key: Identity attribute 4 major revision.
     #[serde(default)]
     pub major_revision: Option<u8>,
+    /// Electronic key: Identity attribute 4 minor revision (`compatible` keying: this or later).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub minor_revision: Option<u8>,
     /// The input size in bytes, what the node produces: poll response (Connection 2 attribute
     /// 7), strobe response (Connection 3 attribute 7, at most 8), COS/cyclic production
     /// (Connection 4 attribute 7).
@@ -69,7 +72,8 @@ pub struct ScanEntry {
     /// `config+address`.
     #[serde(default, skip_serializing_if = "AdrMode::is_off")]
     pub adr: AdrMode,
-    /// How the electronic key is compared: `exact` (default), `compatible` or `disabled`.
+    /// How the electronic key is compared: `exact` (default), `compatible` or `disabled`
+    /// ([`crate::keying`]).
     #[serde(default, skip_serializing_if = "Keying::is_exact")]
     pub keying: Keying,
     /// `false`: the node is kept in the list but not scanned (maintenance).
@@ -137,30 +141,21 @@ impl AdrMode {
     }
 }
 
-/// How a scan-list entry's electronic key is compared with the device (Rockwell's keying
-/// choices).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Keying {
-    /// Every key given must match.
-    #[default]
-    Exact,
-    /// Vendor, device type and product code must match; the device's major revision may be the
-    /// entry's or later.
-    Compatible,
-    /// Not compared.
-    Disabled,
-}
-
-impl Keying {
-    /// `true` for [`Keying::Exact`].
-    #[must_use]
-    pub fn is_exact(&self) -> bool {
-        *self == Keying::Exact
-    }
-}
+pub use crate::keying::Keying;
 
 impl ScanEntry {
+    /// The entry's electronic key (the parts it gives).
+    #[must_use]
+    pub fn electronic_key(&self) -> crate::keying::ElectronicKey {
+        crate::keying::ElectronicKey {
+            vendor_id: self.vendor_id,
+            device_type: self.device_type,
+            product_code: self.product_code,
+            major_revision: self.major_revision,
+            minor_revision: self.minor_revision,
+        }
+    }
+
     /// The connection type: the [`IoKind`] named by `connection` (poll for a name that is none,
     /// which [`super::parse_scan_list`] refuses).
     #[must_use]
@@ -269,6 +264,18 @@ pub struct Identity {
 }
 
 impl Identity {
+    /// What the device answered for the electronic key (attributes 1–4).
+    #[must_use]
+    pub fn electronic_key(&self) -> crate::keying::ElectronicKey {
+        crate::keying::ElectronicKey {
+            vendor_id: self.vendor_id,
+            device_type: self.device_type,
+            product_code: self.product_code,
+            ..Default::default()
+        }
+        .with_revision_text(self.revision.as_deref())
+    }
+
     /// Keeps the value of Identity attribute `attribute` (instance 1) as read: 1-3 as u16, 4 as
     /// `major.minor`, 6 as u32, 7 the product name (a value of the wrong length is kept as
     /// unknown); `false` for an attribute it does not hold.

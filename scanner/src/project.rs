@@ -41,8 +41,9 @@
 //!
 //! [`compare`] compares two projects — the file and the network read as a project
 //! ([`network::read`]) — node by node: present on both sides, the scan list entry, the identity as
-//! the node's keying says (exact: vendor, device type, product code, major and minor revision;
-//! compatible: the same, with a minor revision at least the file's; disabled: nothing), the
+//! the node's keying says ([`crate::keying`]: exact: vendor, device type, product code, major and
+//! minor revision equal; compatible: the same, with the network's minor revision the file's or
+//! later; disabled: nothing), the
 //! configuration key by key (`profile.serial.baud`), the parameters one by one (by instance
 //! number: name and value). Product name and serial number are recorded, not compared: a
 //! replacement device of the same kind has its own serial number.
@@ -73,32 +74,8 @@ pub struct ProjectError {
     pub message: String,
 }
 
-/// How a node's identity is compared (the electronic key, protocol §II.3 Identity attributes
-/// 1–4).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Keying {
-    /// Vendor, device type, product code, major and minor revision all equal.
-    #[default]
-    Exact,
-    /// Vendor, device type, product code and major revision equal; the network's minor revision
-    /// at least the file's.
-    Compatible,
-    /// Not compared.
-    Disabled,
-}
-
-impl Keying {
-    /// The name in the file.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            Keying::Exact => "exact",
-            Keying::Compatible => "compatible",
-            Keying::Disabled => "disabled",
-        }
-    }
-}
+/// How a node's identity is compared: the scanner's keying ([`crate::keying`]), the same rule.
+pub use crate::keying::Keying;
 
 /// A node's identity (Identity object, class 1, instance 1).
 #[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize, serde::Serialize)]
@@ -120,6 +97,20 @@ pub struct NodeIdentity {
     /// Attribute 6 (recorded, not compared).
     #[serde(default)]
     pub serial_number: Option<u32>,
+}
+
+impl NodeIdentity {
+    /// The electronic key: attributes 1–4.
+    #[must_use]
+    pub fn electronic_key(&self) -> crate::keying::ElectronicKey {
+        crate::keying::ElectronicKey {
+            vendor_id: Some(self.vendor_id),
+            device_type: Some(self.device_type),
+            product_code: Some(self.product_code),
+            major_revision: Some(self.major_revision),
+            minor_revision: Some(self.minor_revision),
+        }
+    }
 }
 
 /// One parameter (a Parameter object instance).
@@ -456,28 +447,9 @@ fn compare_node(f: &ProjectNode, n: &ProjectNode, c: &mut Comparison) {
         }
     }
     let (fi, ni) = (&f.identity, &n.identity);
-    if f.keying != Keying::Disabled {
-        for (what, a, b) in [
-            ("vendor_id", fi.vendor_id, ni.vendor_id),
-            ("device_type", fi.device_type, ni.device_type),
-            ("product_code", fi.product_code, ni.product_code),
-            ("major_revision", u16::from(fi.major_revision), u16::from(ni.major_revision)),
-        ] {
-            if a != b {
-                push(format!("identity {what} (keying {})", f.keying.name()), a.to_string(), b.to_string());
-            }
-        }
-        let minor_ok = match f.keying {
-            Keying::Compatible => ni.minor_revision >= fi.minor_revision,
-            _ => ni.minor_revision == fi.minor_revision,
-        };
-        if !minor_ok {
-            push(
-                format!("identity minor_revision (keying {})", f.keying.name()),
-                fi.minor_revision.to_string(),
-                ni.minor_revision.to_string(),
-            );
-        }
+    for m in crate::keying::mismatches(f.keying, &fi.electronic_key(), &ni.electronic_key()) {
+        let read = m.read.map_or_else(|| "-".into(), |v| v.to_string());
+        push(format!("identity {} (keying {})", m.part.key(), f.keying.name()), m.expected.to_string(), read);
     }
     match (&f.configuration, &n.configuration) {
         (Some(a), Some(b)) => {

@@ -535,6 +535,7 @@ fn scanner(master: &mut Master<'_, '_>, breaker: &BreakerRig) -> Result<(), Stri
         device_type: Some(12),
         product_code: Some(1),
         major_revision: None,
+        minor_revision: None,
         input_size: 18,
         output_size: 8,
         name: None,

@@ -3,7 +3,7 @@
 //! scanner's docs, "A node's life").
 
 use super::Scanner;
-use crate::model::{Identity, Keying, NodeState, NodeStatus, ScanEntry};
+use crate::model::{Identity, NodeState, NodeStatus, ScanEntry};
 use devicenet::explicit::GeneralStatus;
 use devicenet::fragment::IoReassembler;
 use devicenet::messages::AllocationChoice;
@@ -166,33 +166,11 @@ impl Scanner {
     /// Electronic key and sizes against the scan list (after the identity and sizes were read).
     pub(super) fn check(n: &mut Node, now: Instant) -> bool {
         let e = &n.entry;
-        let id = &n.state.identity;
-        let major =
-            id.revision.as_deref().and_then(|r| r.split('.').next()).and_then(|m| m.parse::<u8>().ok());
-        let mut keying = Vec::new();
-        let keyed = e.keying;
-        let mut key = |what: &str, want: Option<u16>, got: Option<u16>, hexa: bool| {
-            if let Some(w) = want {
-                // Compatible keying: a later major revision fits (crate::adr::key_matches).
-                let fits = match (keyed, what, got) {
-                    (Keying::Disabled, _, _) => true,
-                    (Keying::Compatible, "major revision", Some(g)) => g >= w,
-                    _ => got == Some(w),
-                };
-                if !fits {
-                    let show = |v: Option<u16>| match (v, hexa) {
-                        (Some(v), true) => format!("0x{v:04X}"),
-                        (Some(v), false) => v.to_string(),
-                        (None, _) => "nothing".into(),
-                    };
-                    keying.push(format!("expected {what} {}, read {}", show(Some(w)), show(got)));
-                }
-            }
-        };
-        key("vendor ID", e.vendor_id, id.vendor_id, true);
-        key("device type", e.device_type, id.device_type, true);
-        key("product code", e.product_code, id.product_code, false);
-        key("major revision", e.major_revision.map(u16::from), major.map(u16::from), false);
+        let keying: Vec<String> =
+            crate::keying::mismatches(e.keying, &e.electronic_key(), &n.state.identity.electronic_key())
+                .iter()
+                .map(ToString::to_string)
+                .collect();
         if !keying.is_empty() {
             n.give_up(NodeStatus::KeyingMismatch, keying.join("; "), now);
             return false;
