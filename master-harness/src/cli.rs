@@ -14,7 +14,7 @@
 
 use crate::commands::{
     completions, configure, conformance, connect, decode, explicit, man, monitor, params, project, recover,
-    replay, scan, scanner, ui, user,
+    replay, scan, scanner, serial_trace, ui, user,
 };
 use crate::options::GlobalOptions;
 use can_io::trace::write::log_format;
@@ -77,6 +77,9 @@ pub enum Command {
     /// Pretty-print a trace as DeviceNet messages (candump -L, pcap, pcapng, PCAN trc, Vector
     /// asc and blf, csv).
     Decode(decode::DecodeArgs),
+    /// Read the converter's serial-line analyzer (vendor class 0x68): the last bytes each way on
+    /// the instrument's line and the line events, decoded by its profile; --follow keeps reading.
+    SerialTrace(serial_trace::SerialTraceArgs),
     /// Network projects: upload the network to a TOML file (scan list, identity and keying,
     /// stored configuration, parameters), compare the network with it, download it back.
     Project(project::ProjectArgs),
@@ -163,6 +166,7 @@ pub fn execute(
         Command::Configure(args) => configure::execute(opts, args, out, err, console),
         Command::Params(args) => params::execute(opts, args, out, err, console),
         Command::Decode(args) => decode::execute(opts, args, out, err, console),
+        Command::SerialTrace(args) => serial_trace::execute(opts, args, out, err, console),
         Command::Project(args) => project::execute(opts, args, out, err, console),
         Command::Conformance(args) => conformance::execute(opts, args, out, err, console),
         Command::Completions(args) => completions::execute(args, Cli::command(), out),

@@ -16,6 +16,7 @@ pub mod recover;
 pub mod replay;
 pub mod scan;
 pub mod scanner;
+pub mod serial_trace;
 pub mod ui;
 pub mod ui_access;
 pub mod ui_modbus;
