@@ -35,7 +35,7 @@
 //! in the guide (docs/src/reference/description-file.md) and in `slave-fw/descriptions/`.
 
 use crate::converter::{ConverterConfig, InputAssembly, InvalidConfig};
-use crate::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
+use crate::serial::modbus::{ByteOrder, Framing, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
 use crate::serial::{
     FramedProfileConfig, HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings,
 };
@@ -265,6 +265,7 @@ struct ProfileSection {
 #[serde(deny_unknown_fields)]
 struct ModbusSection {
     serial: Option<SerialSettings>,
+    framing: Option<Framing>,
     response_timeout_ms: Option<u32>,
     retries: Option<u8>,
     poll_period_ms: Option<u32>,
@@ -434,6 +435,9 @@ fn build_profile(section: ProfileSection) -> Result<ProfileConfig, DescriptionEr
             let mut c = ModbusConfig::new(scan);
             if let Some(s) = m.serial {
                 c.serial = s;
+            }
+            if let Some(v) = m.framing {
+                c.framing = v;
             }
             if let Some(v) = m.response_timeout_ms {
                 c.response_timeout_ms = v;

@@ -11,7 +11,7 @@
 
 use crate::converter::InputAssembly;
 use crate::description::DeviceDescription;
-use crate::serial::modbus::{ByteOrder, ScanEntry};
+use crate::serial::modbus::{ByteOrder, Framing, ScanEntry};
 use crate::serial::{
     FramedProfileConfig, HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings,
 };
@@ -71,6 +71,9 @@ struct Profile<'a> {
 #[derive(Serialize)]
 struct Modbus<'a> {
     serial: &'a SerialSettings,
+    /// Left out for RTU, the default, so that RTU descriptions read as before the key existed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    framing: Option<Framing>,
     response_timeout_ms: u32,
     retries: u8,
     poll_period_ms: u32,
@@ -133,6 +136,7 @@ impl DeviceDescription {
                 framed: None,
                 modbus: Some(Modbus {
                     serial: &m.serial,
+                    framing: (m.framing != Framing::Rtu).then_some(m.framing),
                     response_timeout_ms: m.response_timeout_ms,
                     retries: m.retries,
                     poll_period_ms: m.poll_period_ms,

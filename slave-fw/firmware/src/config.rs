@@ -40,6 +40,7 @@ use devicenet::Instant;
 use devicenet::MacId;
 use slave_fw::converter::{BoardFacts, ConfigOrigin, Converter, ConverterConfig, InvalidConfig};
 use slave_fw::image::{self, ImageError};
+use slave_fw::serial::modbus::Framing;
 use slave_fw::serial::{
     ConfigError, Conflict, DataBits, Field, Parity, ProfileConfig, SerialSettings, StopBits,
 };
@@ -118,10 +119,17 @@ fn start(image: &[u8], origin: ConfigOrigin, board: &BoardFacts, now: Instant) -
     Ok(Boot { converter, line, origin })
 }
 
-/// The board's own rule for a configuration ([`slave_fw::converter::PlatformCheck`]): the
-/// instrument USART makes its serial line (7 data bits only with parity; the baud rate within the
-/// divider's range, [`LineFormat::baud_range`]).
+/// The board's own rule for a configuration ([`slave_fw::converter::PlatformCheck`]): no Modbus
+/// TCP framing (the board has no TCP), and the instrument USART makes its serial line (7 data
+/// bits only with parity; the baud rate within the divider's range, [`LineFormat::baud_range`]).
 pub fn usart_makes_the_line(config: &ConverterConfig) -> Result<(), InvalidConfig> {
+    // The board has no network port: Modbus TCP is for the soft slave's TCP serial port.
+    if let ProfileConfig::Modbus(m) = &config.profile {
+        if m.framing == Framing::Tcp {
+            let error = ConfigError::conflict(Field::ModbusFraming, Conflict::NoTcpPort);
+            return Err(InvalidConfig::Profile { modbus: true, error });
+        }
+    }
     let line = line_format(config.profile.serial());
     if line.check(INSTRUMENT_UART_HZ).is_ok() {
         return Ok(());
@@ -224,6 +232,7 @@ mod tests {
     use devicenet::MacId;
     use slave_fw::converter::ConfigState;
     use slave_fw::description::DeviceDescription;
+    use slave_fw::serial::Problem;
     use std::path::Path;
 
     /// The board's serial number in these tests.
@@ -366,6 +375,35 @@ mod tests {
             Err("profile.modbus.serial.baud".into())
         );
         assert_eq!(usart_makes_the_line(&described("modbus-meter.toml")), Ok(()));
+    }
+
+    #[test]
+    fn a_modbus_tcp_image_is_refused_and_ascii_runs() {
+        let mut meter = described("modbus-meter.toml");
+        let ProfileConfig::Modbus(modbus) = &mut meter.profile else { unreachable!() };
+        modbus.framing = Framing::Tcp;
+        let mut boot = boot(&resolved(), &settings_with(&encoded(&meter)), SERIAL, Instant::ZERO);
+        let ConfigOrigin::Fault(ImageError::Invalid(InvalidConfig::Profile { error, .. })) = boot.origin
+        else {
+            panic!("{:?}", boot.origin);
+        };
+        assert_eq!(
+            (error.field, error.problem),
+            (Field::ModbusFraming, Problem::Conflict(Conflict::NoTcpPort))
+        );
+        // The converter keeps working, on the factory default.
+        assert!(matches!(boot.converter.profile(), slave_fw::serial::Profile::Framed(_)));
+        assert_eq!(module_status(&mut boot), Indication::FlashingRed);
+        assert_eq!(
+            usart_makes_the_line(&meter).map_err(|e| e.key().to_string()),
+            Err("profile.modbus.framing".into())
+        );
+        let ProfileConfig::Modbus(modbus) = &mut meter.profile else { unreachable!() };
+        modbus.framing = Framing::Ascii;
+        let ascii = super::boot(&resolved(), &settings_with(&encoded(&meter)), SERIAL, Instant::ZERO);
+        assert_eq!(ascii.origin, ConfigOrigin::Stored);
+        let slave_fw::serial::Profile::Modbus(m) = ascii.converter.profile() else { panic!("not Modbus") };
+        assert_eq!(m.config().framing, Framing::Ascii);
     }
 
     /// Any image bytes boot: every truncation and every single-bit flip of a valid image.

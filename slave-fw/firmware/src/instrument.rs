@@ -8,13 +8,13 @@
 
 use board::hw::{Rs485, SerialEvent};
 use heapless::Deque;
-use slave_fw::serial::modbus::ADU_CAPACITY;
+use slave_fw::serial::modbus::WIRE_CAPACITY;
 use slave_fw::serial::FRAME_CAPACITY;
 
-/// Bytes that may wait for the transmitter: the longest frame either profile sends. A profile
-/// has one frame in flight at a time (a command awaiting its acknowledgement, a Modbus request
-/// awaiting its response), so one frame's room is enough.
-pub const SERIAL_TX_LEN: usize = if FRAME_CAPACITY > ADU_CAPACITY { FRAME_CAPACITY } else { ADU_CAPACITY };
+/// Bytes that may wait for the transmitter: the longest frame either profile sends (for Modbus,
+/// an ASCII frame). A profile has one frame in flight at a time (a command awaiting its
+/// acknowledgement, a Modbus request awaiting its response), so one frame's room is enough.
+pub const SERIAL_TX_LEN: usize = if FRAME_CAPACITY > WIRE_CAPACITY { FRAME_CAPACITY } else { WIRE_CAPACITY };
 
 /// The instrument's USART and its transmit queue.
 pub struct InstrumentPort {

@@ -25,7 +25,8 @@
 //!            sequencer: response_timeout_ms u32, retries u8, execute_first u8, on_idle, on_fault,
 //!            health
 //!   modbus   serial, response_timeout_ms u32, retries u8, poll_period_ms u32, input_len u16,
-//!            output_len u16, byte_order u8 (0 little, 1 big), scan: count u8, then
+//!            output_len u16, order u8 (bit 0 byte order: 0 little, 1 big; bits 1-2 framing:
+//!            0 RTU, 1 ASCII, 2 TCP, so older images read as RTU), scan: count u8, then
 //!            unit u8, function u8 (Modbus code), address u16, count u16, offset u16 each,
 //!            health, on_idle, on_fault
 //! serial     baud u32, format u8 (bit 0 seven data bits, bits 1-2 parity 0 none 1 even 2 odd,
@@ -62,7 +63,7 @@
 //! passes [`ConverterConfig::check`], the same value rules as the TOML device description.
 
 use super::{ConverterConfig, InputAssembly, InvalidConfig};
-use crate::serial::modbus::{ByteOrder, Function, ModbusConfig, ScanEntry};
+use crate::serial::modbus::{ByteOrder, Framing, Function, ModbusConfig, ScanEntry};
 use crate::serial::{
     AckFormat, Checksum, CommandFormat, DataBits, FramedConfig, FramedProfileConfig, HealthConfig,
     IdleAction, LengthField, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
@@ -421,10 +422,12 @@ impl Writer<'_> {
                 self.u32(m.poll_period_ms);
                 self.u16(m.input_len);
                 self.u16(m.output_len);
-                self.u8(match m.byte_order {
-                    ByteOrder::LittleEndian => 0,
-                    ByteOrder::BigEndian => 1,
-                });
+                let framing = match m.framing {
+                    Framing::Rtu => 0,
+                    Framing::Ascii => 1,
+                    Framing::Tcp => 2,
+                };
+                self.u8(framing << 1 | u8::from(m.byte_order == ByteOrder::BigEndian));
                 self.u8(m.scan.len() as u8);
                 for e in &m.scan {
                     self.u8(e.unit);
@@ -676,7 +679,14 @@ impl Reader<'_> {
         let poll_period_ms = self.u32();
         let input_len = self.u16();
         let output_len = self.u16();
-        let byte_order = if self.flag() { ByteOrder::BigEndian } else { ByteOrder::LittleEndian };
+        // Bit 0 the byte order, bits 1-2 the framing (0..=2).
+        let order = self.code(6);
+        let byte_order = if order & 1 != 0 { ByteOrder::BigEndian } else { ByteOrder::LittleEndian };
+        let framing = match order >> 1 {
+            0 => Framing::Rtu,
+            1 => Framing::Ascii,
+            _ => Framing::Tcp,
+        };
         let mut scan = heapless::Vec::new();
         for _ in 0..self.u8() {
             let unit = self.u8();
@@ -698,6 +708,7 @@ impl Reader<'_> {
             input_len,
             output_len,
             byte_order,
+            framing,
             scan,
             health: self.health(),
             on_idle: self.action(),

@@ -82,11 +82,13 @@ pub enum Field {
     OnIdle,
     /// `on_fault`
     OnFault,
+    /// `framing` (Modbus)
+    ModbusFraming,
 }
 
 impl Field {
     /// Every field, in code order.
-    pub const ALL: [Field; 29] = [
+    pub const ALL: [Field; 30] = [
         Field::SerialBaud,
         Field::SerialDataBits,
         Field::SerialParity,
@@ -116,6 +118,7 @@ impl Field {
         Field::ScanOffset,
         Field::OnIdle,
         Field::OnFault,
+        Field::ModbusFraming,
     ];
 
     /// The key, dotted from the profile's root, as the description file spells it (`scan.count`).
@@ -150,6 +153,7 @@ impl Field {
             Field::ScanOffset => "scan.offset",
             Field::OnIdle => "on_idle",
             Field::OnFault => "on_fault",
+            Field::ModbusFraming => "framing",
         }
     }
 
@@ -208,17 +212,20 @@ pub enum Conflict {
     /// 7 data bits without parity, which the adapter board's USART cannot make (the firmware's
     /// own check).
     SevenBitsNeedParity,
+    /// Modbus TCP framing on a device without a TCP port (the firmware's own check).
+    NoTcpPort,
 }
 
 impl Conflict {
     /// Every reason, in code order.
-    pub const ALL: [Conflict; 6] = [
+    pub const ALL: [Conflict; 7] = [
         Conflict::NoEndDelimiter,
         Conflict::EndEqualsStart,
         Conflict::ContainsEndDelimiter,
         Conflict::EqualsEndDelimiter,
         Conflict::ModbusDataBits,
         Conflict::SevenBitsNeedParity,
+        Conflict::NoTcpPort,
     ];
 
     /// The reason in words.
@@ -230,6 +237,7 @@ impl Conflict {
             Conflict::EqualsEndDelimiter => "equals the end delimiter",
             Conflict::ModbusDataBits => "Modbus RTU uses 8 data bits",
             Conflict::SevenBitsNeedParity => "7 data bits need parity on this USART",
+            Conflict::NoTcpPort => "Modbus TCP needs a TCP connection, which this device does not have",
         }
     }
 

@@ -270,16 +270,29 @@ fn modbus() -> impl Strategy<Value = ProfileConfig> {
         0..4_000_000u32,
         0..70u16,
         0..70u16,
-        any::<bool>(),
+        (any::<bool>(), 0..3u8),
         scan,
         health(),
         action(),
         action(),
     )
         .prop_map(
-            |(serial, rt, retries, poll, input_len, output_len, big, scan, health, on_idle, on_fault)| {
+            |(
+                serial,
+                rt,
+                retries,
+                poll,
+                input_len,
+                output_len,
+                (big, framing),
+                scan,
+                health,
+                on_idle,
+                on_fault,
+            )| {
                 ProfileConfig::Modbus(ModbusConfig {
                     serial,
+                    framing: [Framing::Rtu, Framing::Ascii, Framing::Tcp][usize::from(framing)],
                     response_timeout_ms: rt,
                     retries,
                     poll_period_ms: poll,

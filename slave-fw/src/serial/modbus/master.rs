@@ -32,6 +32,8 @@
 //! packed LSB first as on the Modbus wire (unused high bits of the last byte are zero on reads
 //! and ignored on writes; a single coil is bit 0).
 
+use super::entry::{append_crc, encode_entry, same_output, store_read};
+use super::framing::{Framer, Framing, Received};
 use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
 use crate::serial::error::{as_u32, ConfigError, Conflict, Field, Problem};
 use crate::serial::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
@@ -80,7 +82,7 @@ impl ScanEntry {
         self.function.data_len(self.count)
     }
 
-    fn range(&self) -> core::ops::Range<usize> {
+    pub(crate) fn range(&self) -> core::ops::Range<usize> {
         let start = usize::from(self.offset);
         start..start + self.image_len()
     }
@@ -93,6 +95,9 @@ impl ScanEntry {
 pub struct ModbusConfig {
     /// The serial line; RTU requires 8 data bits.
     pub serial: SerialSettings,
+    /// How requests and responses are framed on the line.
+    #[cfg_attr(feature = "serde", serde(default))]
+    pub framing: Framing,
     /// Milliseconds to wait for a response after the request's transmission, `1..=60_000`.
     pub response_timeout_ms: u32,
     /// Repetitions of a request after a timeout or corrupted answer, `0..=10`.
@@ -135,6 +140,7 @@ impl ModbusConfig {
         let len = |write| u16::try_from(end(write)).unwrap_or(u16::MAX);
         ModbusConfig {
             serial: SerialSettings::new_8e1(19200),
+            framing: Framing::Rtu,
             response_timeout_ms: 1000,
             retries: 2,
             poll_period_ms: 100,
@@ -152,7 +158,8 @@ impl ModbusConfig {
     /// entries do not overlap in the input image.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.serial.validate()?;
-        if self.serial.data_bits != DataBits::Eight {
+        // ASCII takes 7 data bits (§2.5.2.1) or 8, which many ASCII instruments offer too.
+        if self.serial.data_bits != DataBits::Eight && self.framing != Framing::Ascii {
             return Err(ConfigError::conflict(Field::SerialDataBits, Conflict::ModbusDataBits));
         }
         ConfigError::check_range(
@@ -275,6 +282,9 @@ pub struct ModbusMaster {
     /// `heapless::Vec` zero-filled before each encode (firmware size).
     tx: [u8; ADU_CAPACITY],
     tx_len: usize,
+    /// The request framed for the line (ASCII, TCP) and the decoders of their responses.
+    framer: Framer,
+    /// Received bytes: the response being delimited (RTU), or the address and PDU (ASCII, TCP).
     rx: Vec<u8, ADU_CAPACITY>,
     awaiting: Option<Transaction>,
     /// An entry to send again, with its next attempt number.
@@ -311,7 +321,13 @@ impl ModbusMaster {
         let mut input = Vec::new();
         // validate() bounds input_len by IMAGE_CAPACITY.
         let _ = input.resize(usize::from(config.input_len).min(IMAGE_CAPACITY), 0);
-        let silence = config.serial.modbus_interframe_silence();
+        // Only RTU frames are delimited by silence.
+        let silence = if config.framing == Framing::Rtu {
+            config.serial.modbus_interframe_silence()
+        } else {
+            Duration::from_micros(0)
+        };
+        let framer = Framer::new(config.framing);
         let mut master = ModbusMaster {
             config,
             health,
@@ -323,6 +339,7 @@ impl ModbusMaster {
             mode_frame_due: false,
             tx: [0; ADU_CAPACITY],
             tx_len: 0,
+            framer,
             rx: Vec::new(),
             awaiting: None,
             retry: None,
@@ -408,6 +425,7 @@ impl ModbusMaster {
         for &b in bytes {
             match self.awaiting {
                 None => self.unexpected(1),
+                Some(t) if !self.framer.is_rtu() => self.on_framed_byte(t, b, now),
                 Some(t) => {
                     if self.rx.push(b).is_err() {
                         // Unreachable: a response is delimited before it can exceed an ADU.
@@ -418,6 +436,49 @@ impl ModbusMaster {
                 }
             }
         }
+    }
+
+    /// Takes byte `b` of the ASCII or TCP response to `t`.
+    fn on_framed_byte(&mut self, t: Transaction, b: u8, now: Instant) {
+        match self.framer.push(b, &mut self.rx, now) {
+            Received::Pending => {}
+            Received::Skipped(n) => self.health.on_discarded_bytes(as_u32(n)),
+            Received::Error(e) => {
+                self.awaiting = None;
+                self.rx.clear();
+                // The rest of the broken frame is discarded, not another framing error.
+                self.unexpected_burst = true;
+                if e.is_checksum() {
+                    self.health.on_checksum_error();
+                } else {
+                    self.health.on_framing_error();
+                }
+                self.attempt_failed(t.job, t.attempt, false);
+            }
+            Received::Frame => self.complete_framed(t, now),
+        }
+    }
+
+    /// Handles the address and PDU of an ASCII or TCP response in the receive buffer, which its
+    /// framing has delimited and checked. Another unit's frame is dropped and the response still
+    /// awaited; otherwise the frame must be exactly the response [`pdu::response_len`] delimits,
+    /// checked as an RTU frame is (a CRC is appended so that the same checks serve).
+    fn complete_framed(&mut self, t: Transaction, now: Instant) {
+        let len = self.rx.len() + 2;
+        if self.rx.first() != self.tx.first() {
+            self.drop_rx_front(len - 2);
+            return;
+        }
+        self.awaiting = None;
+        let crc = crate::serial::checksum::crc16_modbus(&self.rx).to_le_bytes();
+        let whole = self.rx.extend_from_slice(&crc).is_ok() && pdu::response_len(&self.rx) == Ok(Some(len));
+        if whole && pdu::check_delimited_response(&self.rx).is_ok() {
+            self.on_response(t, len, now);
+        } else {
+            self.health.on_framing_error();
+            self.attempt_failed(t.job, t.attempt, false);
+        }
+        self.rx.clear();
     }
 
     /// Bytes nobody asked for: counted, one framing error per burst between transmissions.
@@ -608,6 +669,12 @@ impl ModbusMaster {
         if self.health.poll(now) {
             self.health.apply_stale_policy(&mut self.input);
         }
+        if let (Some(_), Some(t)) = (self.framer.poll(now), self.awaiting) {
+            self.awaiting = None;
+            self.rx.clear();
+            self.health.on_framing_error();
+            self.attempt_failed(t.job, t.attempt, false);
+        }
         if let Some(t) = self.awaiting {
             if now >= t.deadline {
                 self.awaiting = None;
@@ -670,7 +737,7 @@ impl ModbusMaster {
                 }
                 continue;
             }
-            let tx_done = now + self.config.serial.transmit_time(self.tx_len);
+            let tx_done = now + self.config.serial.transmit_time(self.request().len());
             self.awaiting = Some(Transaction {
                 job,
                 attempt,
@@ -702,9 +769,13 @@ impl ModbusMaster {
         }
     }
 
-    /// The last request encoded (empty when it could not be).
+    /// The last request encoded, framed for the line (empty when it could not be).
     fn request(&self) -> &[u8] {
-        self.tx.get(..self.tx_len).unwrap_or(&[])
+        if self.framer.is_rtu() {
+            self.tx.get(..self.tx_len).unwrap_or(&[])
+        } else {
+            self.framer.wire()
+        }
     }
 
     /// Encodes `job` into `self.tx`.
@@ -722,6 +793,11 @@ impl ModbusMaster {
         };
         // At least the CRC's two bytes when encoded.
         self.tx_len = n.and_then(|n| append_crc(&mut self.tx, n)).unwrap_or(0);
+        if !self.framer.is_rtu() {
+            // The address and PDU, without the CRC.
+            let frame = self.tx.get(..self.tx_len.saturating_sub(2)).unwrap_or(&[]);
+            return !self.framer.wrap(frame).is_empty();
+        }
         self.tx_len != 0
     }
 
@@ -729,7 +805,7 @@ impl ModbusMaster {
     /// the line silence when a transaction is waiting, the next cycle start, the stale deadline.
     pub fn poll_at(&self) -> Option<Instant> {
         let own = if let Some(t) = self.awaiting {
-            Some(t.deadline)
+            Some(self.framer.poll_at().map_or(t.deadline, |c| c.min(t.deadline)))
         } else if self.next_job().is_some() {
             Some(self.quiet_at)
         } else if !self.cycle_running {
@@ -777,90 +853,6 @@ impl ModbusMaster {
     pub fn completed_cycles(&self) -> u32 {
         self.cycles
     }
-}
-
-/// Whether write entry `e` has the same significant bits in both output images.
-fn same_output(e: &ScanEntry, old: &[u8; IMAGE_CAPACITY], new: &[u8; IMAGE_CAPACITY]) -> bool {
-    let r = e.range();
-    let len = r.len();
-    match (old.get(r.clone()), new.get(r)) {
-        (Some(a), Some(b)) => {
-            a.iter().zip(b).enumerate().all(|(k, (&x, &y))| (x ^ y) & significant_bits(e, k, len) == 0)
-        }
-        _ => true,
-    }
-}
-
-/// The bits of byte `k` (of `len`) that carry data for entry `e`.
-fn significant_bits(e: &ScanEntry, k: usize, len: usize) -> u8 {
-    let rem = e.count % 8;
-    if e.function.is_bits() && k + 1 == len && rem != 0 {
-        (1u8 << rem) - 1
-    } else {
-        0xFF
-    }
-}
-
-/// Copies a read response's data into the input image at the entry's offset.
-fn store_read(input: &mut [u8], e: &ScanEntry, data: &[u8], order: ByteOrder) {
-    if let Some(dst) = input.get_mut(e.range()) {
-        convert(e, order, data, dst);
-    }
-}
-
-/// Copies entry `e`'s data between the wire and its image, the same conversion either way: bits
-/// masked to the entry's quantity, register bytes swapped for little-endian images.
-fn convert(e: &ScanEntry, order: ByteOrder, from: &[u8], to: &mut [u8]) {
-    let len = from.len();
-    let swap = usize::from(!e.function.is_bits() && order == ByteOrder::LittleEndian);
-    for (k, d) in to.iter_mut().enumerate().take(len) {
-        *d = from.get(k ^ swap).copied().unwrap_or(0) & significant_bits(e, k, len);
-    }
-}
-
-/// Writes the request of scan entry `e` without its CRC into `out` and returns its length (writes
-/// take their data from `output`); `None` where [`pdu::Request::emit`] refuses the entry (a quantity
-/// out of range) or its data lies outside `output`. The bytes `Request::emit` writes, written
-/// here directly: building a `Request` to emit it costs some 500 bytes of firmware flash.
-fn encode_entry(e: &ScanEntry, output: &[u8], order: ByteOrder, out: &mut [u8]) -> Option<usize> {
-    let f = e.function;
-    let single = matches!(f, Function::WriteSingleCoil | Function::WriteSingleRegister);
-    if !single && !(1..=f.max_count()).contains(&e.count) {
-        return None;
-    }
-    let data = if f.is_write() { output.get(e.range())? } else { &[] };
-    let (head, rest) = out.split_first_chunk_mut::<6>()?;
-    let [address_hi, address_lo] = e.address.to_be_bytes();
-    let [count_hi, count_lo] = e.count.to_be_bytes();
-    *head = [e.unit, f.code(), address_hi, address_lo, count_hi, count_lo];
-    // Tested by kind rather than matched on the function: a match copies the header's stores
-    // into every arm (firmware size).
-    if !f.is_write() {
-        return Some(6);
-    }
-    if !single {
-        let (byte_count, payload) = rest.split_first_mut()?;
-        *byte_count = data.len() as u8;
-        convert(e, order, data, payload.get_mut(..data.len())?);
-        return Some(7 + data.len());
-    }
-    // The single writes carry the value where the quantity would be.
-    head[4..].fill(0);
-    if f.is_bits() {
-        if data.first().is_some_and(|b| b & 1 != 0) {
-            head[4] = 0xFF;
-        }
-    } else {
-        convert(e, order, data, &mut head[4..]);
-    }
-    Some(6)
-}
-
-/// Appends the CRC to the `n` bytes of `out` (unit, function, data); returns the ADU's length.
-fn append_crc(out: &mut [u8], n: usize) -> Option<usize> {
-    let crc = crate::serial::checksum::crc16_modbus(out.get(..n)?).to_le_bytes();
-    out.get_mut(n..n + 2)?.copy_from_slice(&crc);
-    Some(n + 2)
 }
 
 #[cfg(test)]

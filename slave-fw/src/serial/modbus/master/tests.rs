@@ -496,3 +496,5 @@ proptest! {
         prop_assert_eq!(&m.input_image()[..2], &[0xEF, 0xBE]);
     }
 }
+
+mod framing;
