@@ -10,7 +10,8 @@ use crate::auth::Accounts;
 use crate::values::{self, Folder, Value};
 use async_trait::async_trait;
 use dnet_scanner::audit::{AuditEntry, Via};
-use dnet_scanner::model::{ConsoleCommand, NodeState, Reply, Shared};
+use dnet_scanner::breaker::{breaker_output, BreakerCommand};
+use dnet_scanner::model::{ConsoleCommand, Reply, Shared};
 use opcua::server::address_space::{
     AccessLevel, AddressSpace, MethodBuilder, ObjectBuilder, VariableBuilder,
 };
@@ -108,8 +109,8 @@ impl DnetNodes {
             return (StatusCode::BadNodeIdUnknown, format!("failed: MAC {mac} is not in the scan list"));
         };
         let data = match method {
-            Method::Open => breaker_output(&node, 1),
-            Method::Close => breaker_output(&node, 2),
+            Method::Open => breaker_output(BreakerCommand::Open, &node.output, node.output_size),
+            Method::Close => breaker_output(BreakerCommand::Close, &node.output, node.output_size),
             Method::SetOutput => match args {
                 [Variant::ByteString(b)] => b.value.clone().unwrap_or_default(),
                 _ => {
@@ -128,17 +129,6 @@ impl DnetNodes {
             Err(_) => (StatusCode::BadInternalError, "failed: the command's thread stopped".into()),
         }
     }
-}
-
-/// The breaker's command through the output image (guide: reference/io-data.md, "Commands through
-/// the poll output"): byte 0 the command (1 open, 2 close), byte 1 the sequence number bumped so
-/// that the converter executes it, as the console's breaker buttons send it.
-fn breaker_output(node: &NodeState, code: u8) -> Vec<u8> {
-    let size = node.output_size.map_or(8, usize::from).max(5);
-    let mut data = vec![0u8; size];
-    data[0] = code;
-    data[1] = node.output.get(1).copied().unwrap_or(0).wrapping_add(1);
-    data
 }
 
 /// Puts `data` in the node's output image through the scanner's loop and waits for its answer.
@@ -386,15 +376,6 @@ fn add_method(nodes: &DnetNodes, space: &mut AddressSpace, object: &NodeId, mac:
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_breaker_command_bumps_the_sequence_number() {
-        let mut node = crate::values::tests_support::node();
-        node.output = vec![2, 41, 0, 0, 0, 0, 0, 0];
-        assert_eq!(breaker_output(&node, 1), vec![1, 42, 0, 0, 0, 0, 0, 0]);
-        node.output_size = Some(2);
-        assert_eq!(breaker_output(&node, 2).len(), 5, "at least the command's 5 bytes");
-    }
 
     #[test]
     fn the_audit_text_names_the_bytes_written() {

@@ -226,11 +226,7 @@ pub(crate) mod tests_support {
     use dnet_scanner::model::{Identity, NodeState, NodeStatus};
     use slave_fw::description::DeviceDescription;
 
-    /// The reference breaker at MAC 5, its 18-byte image all zero.
-    pub(crate) fn node() -> NodeState {
-        breaker_node(vec![0; 18])
-    }
-
+    /// The reference breaker at MAC 5 with the image `input`.
     pub(crate) fn breaker_node(input: Vec<u8>) -> NodeState {
         let known = DeviceDescription::reference().converter.device.identity;
         NodeState {

@@ -30,6 +30,7 @@
 pub mod accounts;
 pub mod adr;
 pub mod audit;
+pub mod breaker;
 pub mod engine;
 pub mod events;
 pub mod health;

@@ -10,6 +10,7 @@
 
 use super::edge::{Device, Edge, BREAKER_CLOSE, BREAKER_OPEN, OUTPUT_IMAGE};
 use super::proto::{self, Payload};
+use crate::breaker::{breaker_output, BreakerCommand};
 use crate::history::hex;
 use crate::model::ConsoleCommand;
 use crate::monitor::ImageProfile;
@@ -188,13 +189,8 @@ fn output_for(device: &Device, metric: &proto::Metric) -> Result<(String, Vec<u8
             Err("not a breaker".into())
         }
         (BREAKER_OPEN | BREAKER_CLOSE, Some(proto::Value::BooleanValue(true))) => {
-            // The breaker's command through the output image (guide: reference/io-data.md,
-            // "Commands through the poll output"): byte 0 the command, byte 1 a new sequence number.
-            let code = if name == BREAKER_OPEN { 1 } else { 2 };
-            let size = device.output_size.map_or(8, usize::from).max(5);
-            let mut data = vec![0u8; size];
-            data[0] = code;
-            data[1] = device.output.get(1).copied().unwrap_or(0).wrapping_add(1);
+            let command = if name == BREAKER_OPEN { BreakerCommand::Open } else { BreakerCommand::Close };
+            let data = breaker_output(command, &device.output, device.output_size);
             Ok((name.to_owned(), data))
         }
         (BREAKER_OPEN | BREAKER_CLOSE, _) => Err(format!("{name} takes Boolean true")),

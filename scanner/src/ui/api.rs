@@ -5,6 +5,7 @@
 use super::http::{Request, Response};
 use super::record::Recorder;
 use super::{Context, COMMAND_TIMEOUT, MAX_EXPORT};
+use crate::breaker::{breaker_output, BreakerCommand};
 use crate::model::{ConsoleCommand, NodeState, Reply, Shared};
 use crate::monitor::{Field, ImageProfile, InputLayout, LinkView};
 use crate::params::{decode_value, ParamRow, PARAMETER_CLASS};
@@ -447,15 +448,14 @@ fn explicit_set(shared: &Shared, mac: u8, body: &Value) -> Result<Resp, ApiError
 /// byte 0 the command, byte 1 the sequence number (bumped, so the converter executes it), bytes 2–4
 /// the parameter id and value.
 fn breaker(shared: &Shared, mac: u8, action: &str, body: &[u8]) -> Result<Resp, ApiError> {
-    let (code, args) = match action {
-        "open" => (1u8, Vec::new()),
-        "close" => (2, Vec::new()),
+    let breaker_command = match action {
+        "open" => BreakerCommand::Open,
+        "close" => BreakerCommand::Close,
         "param" => {
             let b = parse_json(body)?;
             let id = json_uint(&b, "id", 0xFF)? as u8;
             let value = json_uint(&b, "value", 0xFFFF)? as u16;
-            let [lo, hi] = value.to_le_bytes();
-            (3, vec![id, lo, hi])
+            BreakerCommand::SetParameter { id, value }
         }
         other => return Err(err(404, format!("no breaker command {other:?}: open, close or param"))),
     };
@@ -464,14 +464,8 @@ fn breaker(shared: &Shared, mac: u8, action: &str, body: &[u8]) -> Result<Resp, 
     if layout.profile != ImageProfile::Breaker {
         return Err(err(409, format!("MAC {mac} is not a breaker (profile {})", profile_name(&layout))));
     }
-    let size = node.output_size.map_or(8, usize::from).max(5);
-    let sequence = node.output.get(1).copied().unwrap_or(0).wrapping_add(1);
-    let mut data = vec![0u8; size];
-    data[0] = code;
-    data[1] = sequence;
-    for (slot, a) in data[2..].iter_mut().zip(args) {
-        *slot = a;
-    }
+    let data = breaker_output(breaker_command, &node.output, node.output_size);
+    let sequence = data.get(1).copied().unwrap_or(0);
     let text = hex(&data);
     command(shared, |reply| ConsoleCommand::SetOutput { mac, data, reply })?;
     Ok(json_response(200, &json!({"ok": true, "data": text, "command": action, "sequence": sequence})))
