@@ -17,6 +17,7 @@
 //! | [`ui`] | the web console: the page and its JSON API over the scanner's shared state, with its own bounded HTTP server |
 //! | [`accounts`], [`audit`] | who may command the plant (users file, roles), and the log of every command |
 //! | [`adr`], [`events`] | automatic device replacement: what is kept of each node, how a replacement is recognised; the event log of its steps and of scan-list changes |
+//! | [`plant`] | the plant file of `ui --plant`: several networks, each with its bus and scan list |
 //! | [`history`] | the sample history in SQLite (schema, CSV export, retention) |
 //! | [`mqtt`] | node status and decoded values published to an MQTT broker |
 //! | [`sparkplug`] | the scanner as a Sparkplug B edge node: births, data by exception, store and forward, DCMD |
@@ -41,6 +42,7 @@ pub mod model;
 pub mod monitor;
 pub mod mqtt;
 pub mod params;
+pub mod plant;
 pub mod project;
 pub mod report;
 pub mod scan;

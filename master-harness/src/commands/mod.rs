@@ -21,5 +21,6 @@ pub mod ui;
 pub mod ui_access;
 pub mod ui_modbus;
 pub mod ui_opcua;
+pub mod ui_plant;
 pub mod ui_sparkplug;
 pub mod user;

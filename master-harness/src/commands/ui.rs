@@ -55,6 +55,11 @@ pub struct UiArgs {
     /// The scan list (TOML) [default: built from a network scan].
     #[arg(long, value_name = "FILE.toml")]
     pub scanlist: Option<PathBuf>,
+    /// A plant file (TOML): several networks, each `[[network]]` with its `name`, `bus` and
+    /// `scanlist`, behind one console (`super::ui_plant`); refused with `--bus` other than sim.
+    #[arg(long, value_name = "FILE.toml",
+          conflicts_with_all = ["scanlist", "adr", "project", "sparkplug", "modbus_tcp", "opcua"])]
+    pub plant: Option<PathBuf>,
     /// Automatic device replacement (`adr = "config+address"`) for every node of a scan list
     /// built by the network scan (a scan list file says it per node).
     #[arg(long)]
@@ -131,6 +136,9 @@ pub fn execute(
     err: &mut dyn Write,
     console: &Console,
 ) -> Result<u8, HarnessError> {
+    if let Some(plant) = &args.plant {
+        return super::ui_plant::execute(opts, args, plant, out, err, console);
+    }
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     // Everything that can be refused, before the bus is touched.
     let master_mac = opts.master_mac_or_default();

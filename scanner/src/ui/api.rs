@@ -70,10 +70,12 @@ pub(crate) fn handle(ctx: &Arc<Context>, request: &Request) -> Resp {
         return error_response(403, &e.to_string());
     }
     super::auth::admit(ctx, request, |caller| {
-        super::auth::route(ctx, caller, request).unwrap_or_else(|| {
-            route(ctx, &request.method, &request.url, &request.body)
-                .unwrap_or_else(|e| error_response(e.status, &e.message))
-        })
+        super::auth::route(ctx, caller, request)
+            .or_else(|| super::networks::route(ctx, &request.method, &request.url, &request.body))
+            .unwrap_or_else(|| {
+                route(ctx, &request.method, &request.url, &request.body)
+                    .unwrap_or_else(|e| error_response(e.status, &e.message))
+            })
     })
 }
 
@@ -175,7 +177,7 @@ fn json_uint(body: &Value, name: &str, max: u64) -> Result<u64, ApiError> {
     }
 }
 
-fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Resp, ApiError> {
+pub(crate) fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Resp, ApiError> {
     let (path, q) = url.split_once('?').unwrap_or((url, ""));
     let pairs = parse_query(q);
     let segments: Vec<&str> = path.split('/').filter(|s| !s.is_empty()).collect();
@@ -263,6 +265,7 @@ fn state(ctx: &Context) -> Value {
         map.insert("recording".into(), Value::Bool(ctx.recorder.lock().is_ok_and(|r| r.is_some())));
         map.insert("history".into(), Value::Bool(shared.history.is_some()));
         map.insert("ok".into(), Value::Bool(true));
+        super::networks::add_to_state(ctx, map);
     }
     v
 }

@@ -66,6 +66,8 @@ pub(crate) fn required(method: &str, path: &str) -> Action {
     if method == "GET" || method == "HEAD" {
         return Action::View;
     }
+    // A network's request (`/api/net/NAME/...`) needs what the same request of one network does.
+    let (_, path) = super::networks::split(path);
     let segments: Vec<&str> = path.split('/').filter(|s| !s.is_empty()).collect();
     match segments.as_slice() {
         ["api", "login" | "logout"] | ["api", "node", _, "get"] => Action::View,
@@ -231,12 +233,16 @@ pub(crate) fn check_token<'a>(
 /// The audit entry of a console command: the node from the path, what from the path and body,
 /// the result from the response.
 pub(crate) fn audit_entry(user: &str, request: &Request, response: &Response) -> AuditEntry {
-    let path = request.url.split('?').next().unwrap_or("");
+    let (network, path) = super::networks::split(request.url.split('?').next().unwrap_or(""));
     let segments: Vec<&str> = path.split('/').filter(|s| !s.is_empty()).collect();
     let (mac, what) = match segments.as_slice() {
         ["api", "node", mac, rest @ ..] => (mac.parse::<u8>().ok().filter(|m| *m <= 63), rest.join(" ")),
         ["api", rest @ ..] => (None, rest.join(" ")),
-        _ => (None, path.to_string()),
+        _ => (None, path.clone()),
+    };
+    let what = match network {
+        Some(name) => format!("net {name}: {what}"),
+        None => what,
     };
     let body = String::from_utf8_lossy(&request.body);
     // The body tells the values (output image, attribute, parameter); never a login's password.

@@ -61,6 +61,7 @@
 //! | `POST /api/record/start`, `/api/record/stop`; `GET /api/record` | recording of the frames to `record-TIMESTAMP.log` (`candump -L`) and `.pcap` in the record directory: `{"ok", "recording", "log", "pcap", "frames"}` |
 //! | `GET /api/health`, `GET /api/health.csv`, `POST /api/health/clear` | bus and node health ([`crate::health`]; handlers in `health_api`): the report as JSON, its node table as CSV, the statistics cleared (then the fresh report) |
 //! | `GET /api/events?since=N` | `{"ok", "events": [ScanEvent...]}`: the scanner's events after sequence number N ([`crate::events`]: automatic device replacement, scan-list changes; handlers in `scanlist_api`) |
+//! | `GET /api/networks`; `/api/net/NAME/...` | with `dnet-master ui --plant` (`networks`): the plant's networks `{"ok", "networks": [{name, bus}]}`; any request above for network `NAME` (`/api/net/line-b/node/5/breaker/open`); the unprefixed API is the first network's, and `GET /api/state` carries `networks`, each network's state with its `name` and `bus` |
 //! | `POST /api/scanlist/add`, `/edit` (an entry as JSON, the scan list file's keys), `/remove` `{"mac"}`, `/enable` `{"mac", "enabled"}` | the scan list changed while the scanner runs ([`ListEdit`](crate::model::ListEdit)); `400` with the reason (the key, the MAC) when refused |
 //!
 //! Commands wait for the scanner's answer for at most [`COMMAND_TIMEOUT`] and return
@@ -85,6 +86,7 @@ mod auth;
 mod guard;
 mod health_api;
 pub mod http;
+mod networks;
 mod project_api;
 mod record;
 mod scanlist_api;
@@ -94,6 +96,7 @@ pub mod tls;
 pub use api::{known_descriptions, layout_for};
 pub use auth::{COOKIE, MAX_SESSIONS, SESSION_IDLE};
 pub use guard::{GuardError, TOKEN_HEADER};
+pub use networks::ConsoleNetwork;
 
 use crate::model::Shared;
 use auth::Auth;
@@ -129,6 +132,8 @@ pub(crate) struct Context {
     pub(crate) auth: Auth,
     /// The network project (its file's name and the project), from `--project FILE`.
     pub(crate) project: Option<(String, crate::project::Project)>,
+    /// The plant's networks (`ui --plant`; empty: one network, [`networks`]).
+    pub(crate) networks: Vec<networks::NetworkContext>,
 }
 
 /// Who may use the console and how it is reached: the accounts (`None`: no logins, loopback
@@ -172,9 +177,12 @@ impl UiServer {
 
     fn shutdown(&mut self) {
         self.server.stop();
-        if let Ok(mut recorder) = self.context.recorder.lock() {
-            if let Some(r) = recorder.take() {
-                let _ = r.stop();
+        let networks = self.context.networks.iter().map(|n| &n.context);
+        for context in std::iter::once(&self.context).chain(networks) {
+            if let Ok(mut recorder) = context.recorder.lock() {
+                if let Some(r) = recorder.take() {
+                    let _ = r.stop();
+                }
             }
         }
     }
@@ -195,6 +203,17 @@ pub fn serve(listen: &str, shared: Arc<Shared>) -> Result<UiServer, HarnessError
 
 /// [`serve`] with accounts and / or TLS ([`Access`]).
 pub fn serve_with(listen: &str, shared: Arc<Shared>, access: Access) -> Result<UiServer, HarnessError> {
+    serve_plant(listen, shared, access, Vec::new())
+}
+
+/// [`serve_with`] for several networks (`dnet-master ui --plant`): each network's API under
+/// `/api/net/NAME/`, the unprefixed API `shared`'s (the first network's); see `networks`.
+pub fn serve_plant(
+    listen: &str,
+    shared: Arc<Shared>,
+    access: Access,
+    plant: Vec<ConsoleNetwork>,
+) -> Result<UiServer, HarnessError> {
     let (listener, addr) =
         http::bind(listen).map_err(|error| HarnessError::Listen { address: listen.to_string(), error })?;
     let token = guard::new_token().map_err(|e| HarnessError::ConsoleStart {
@@ -202,12 +221,28 @@ pub fn serve_with(listen: &str, shared: Arc<Shared>, access: Access) -> Result<U
         error: format!("no random token: {e}"),
     })?;
     let tls = access.tls.is_some();
+    let networks = plant
+        .into_iter()
+        .map(|n| networks::NetworkContext {
+            name: n.name,
+            bus: n.bus,
+            context: Arc::new(Context {
+                shared: n.shared,
+                recorder: Mutex::new(None),
+                guard: Guard::new(addr, tls),
+                auth: Auth::new(None, token.clone(), tls),
+                project: None,
+                networks: Vec::new(),
+            }),
+        })
+        .collect();
     let context = Arc::new(Context {
         shared,
         recorder: Mutex::new(None),
         guard: Guard::new(addr, tls),
         auth: Auth::new(access.users, token, tls),
         project: access.project,
+        networks,
     });
     let handler = {
         let context = Arc::clone(&context);
