@@ -12,8 +12,44 @@ const el = (tag, attrs, ...kids) => {
   return e;
 };
 
+// ---- networks (dnet-master ui --plant: scanner/src/ui/networks.rs) ----------------------------
+// The network shown (null: the console runs one). Its requests go to /api/net/NAME/...; logins,
+// the audit log and the list of networks are the plant's.
+let NET = null;
+const PLANT_WIDE = /^\/api\/(login|logout|session|token|audit|networks)(\/|\?|$)/;
+const netPath = (path) =>
+  NET && path.startsWith("/api/") && !PLANT_WIDE.test(path) ? `/api/net/${encodeURIComponent(NET)}/${path.slice(5)}` : path;
+
+// Asked until answered (before a login it is refused).
+let networksKnown = false;
+function showNetworks(r) {
+  if (!r || !r.ok) return;
+  networksKnown = true;
+  const nets = r.networks || [];
+  if (!nets.length) return;
+  const bar = $("networks");
+  bar.replaceChildren(...nets.map((n) => {
+    const b = el("button", { type: "button", class: "net-tab", "data-network": n.name, title: n.bus, text: n.name });
+    b.addEventListener("click", () => selectNetwork(n.name));
+    return b;
+  }));
+  bar.hidden = false;
+  selectNetwork(NET || nets[0].name);
+}
+
+function selectNetwork(name) {
+  if (NET !== name) {
+    NET = name;
+    // Another network's frames, events and nodes: start afresh.
+    traceFilter = ""; eventsSeen = 0; eventRows.length = 0; currentMac = null;
+    if (location.hash.startsWith("#/node")) location.hash = "#/network";
+  }
+  for (const b of $("networks").children) b.classList.toggle("active", b.dataset.network === NET);
+  refreshState();
+}
+
 async function api(path, opts) {
-  const r = await fetch(path, opts);
+  const r = await fetch(netPath(path), opts);
   let body;
   try { body = await r.json(); } catch (_) { body = { ok: false, error: `HTTP ${r.status}` }; }
   if (!r.ok && body.ok !== false) body = { ok: false, error: `HTTP ${r.status}` };
@@ -71,7 +107,7 @@ function fmtPct(x) { return (100 * (x || 0)).toFixed(1) + " %"; }
 
 function renderState(s) {
   state = s;
-  const line = `scanner MAC ${s.mac} · ${s.status} · cycle ${Number(s.cycle_ms).toFixed(1)} ms · bus load ${fmtPct(s.bus_load)}`
+  const line = (NET ? `network ${NET} · ` : "") + `scanner MAC ${s.mac} · ${s.status} · cycle ${Number(s.cycle_ms).toFixed(1)} ms · bus load ${fmtPct(s.bus_load)}`
     + ` · MQTT: ${s.mqtt || "off"}` + (s.recording ? " · ● recording" : "");
   $("scanner-line").textContent = line;
   const sum = $("net-summary");
@@ -105,6 +141,7 @@ function renderState(s) {
 }
 
 async function refreshState() {
+  if (!networksKnown) api("/api/networks").then(showNetworks);
   try { renderState(await api("/api/state")); } catch (e) { $("scanner-line").textContent = "console unreachable"; }
 }
 
@@ -158,7 +195,7 @@ async function refreshNode() {
     lastCommand = null;
   }
   const now = Date.now();
-  $("export-csv").href = `/api/export.csv?mac=${n.mac}&from=${now - 3600e3}&to=${now + 1000}`;
+  $("export-csv").href = netPath(`/api/export.csv?mac=${n.mac}&from=${now - 3600e3}&to=${now + 1000}`);
 }
 
 // The outcome of the last breaker command: status bits 4-6 with assembly 101, else the switch.
@@ -500,7 +537,7 @@ function init() {
   $("btn-params").addEventListener("click", readParams);
   $("export-csv").addEventListener("click", () => {
     const now = Date.now();
-    $("export-csv").href = `/api/export.csv?mac=${currentMac}&from=${now - 3600e3}&to=${now + 1000}`;
+    $("export-csv").href = netPath(`/api/export.csv?mac=${currentMac}&from=${now - 3600e3}&to=${now + 1000}`);
   });
   $("rec-start").addEventListener("click", () => recordCommand("start", "recording to"));
   $("rec-stop").addEventListener("click", () => recordCommand("stop", "recorded"));
