@@ -16,6 +16,7 @@ use can_io::trace::TraceFormat;
 use clap::Parser;
 use devicenet::{Duration, MacId};
 use slave_fw::description::DeviceDescription;
+use slave_fw::serial::modbus::Framing;
 use slave_fw::serial::{ProfileConfig, SerialSettings};
 use std::io::Write;
 use std::path::PathBuf;
@@ -220,7 +221,25 @@ pub fn load_description(args: &SoftSlaveArgs) -> Result<DeviceDescription, SoftS
 fn profile_name(p: &ProfileConfig) -> &'static str {
     match p {
         ProfileConfig::Framed(_) => "framed serial",
-        ProfileConfig::Modbus(_) => "Modbus RTU",
+        ProfileConfig::Modbus(m) => match m.framing {
+            Framing::Rtu => "Modbus RTU",
+            Framing::Ascii => "Modbus ASCII",
+            Framing::Tcp => "Modbus TCP",
+        },
+    }
+}
+
+/// Modbus TCP (`framing = "tcp"`) needs an instrument reached over TCP: its MBAP frames on a
+/// serial line would reach no instrument.
+pub fn check_instrument_port(port: &InstrumentPort, profile: &ProfileConfig) -> Result<(), SoftSlaveError> {
+    match (port, profile) {
+        (InstrumentPort::Serial(path), ProfileConfig::Modbus(m)) if m.framing == Framing::Tcp => {
+            Err(SoftSlaveError::Usage(format!(
+                "--serial {}: the description's [profile.modbus] framing = \"tcp\" (Modbus TCP) needs --serial tcp:HOST:PORT; on a serial port use framing = \"rtu\" or \"ascii\"",
+                path.display()
+            )))
+        }
+        _ => Ok(()),
     }
 }
 
@@ -249,6 +268,7 @@ pub fn run_soft_slave(
     if let slave_fw::converter::ConfigOrigin::Fault(e) = &origin {
         let _ = writeln!(report, "dnet-soft-slave: the stored configuration is refused ({e}): the description runs, with a configuration fault");
     }
+    check_instrument_port(&args.serial, &config.profile)?;
     let serial_settings: SerialSettings = *config.profile.serial();
     let rate = Bitrate::from(config.device.baud_rate);
     let log = match &args.log {
@@ -410,6 +430,33 @@ mod tests {
             (Ok(got), Ok(w)) => assert_eq!(got, w),
             (Err(e), Err(w)) => assert!(e.starts_with(w), "{e}"),
             (got, w) => panic!("{got:?} vs {w:?}"),
+        }
+    }
+
+    #[rstest]
+    #[case::tcp_on_a_port(
+        Framing::Tcp,
+        "/dev/ttyUSB0",
+        Some("--serial /dev/ttyUSB0: the description's [profile.modbus] framing = \"tcp\"")
+    )]
+    #[case::tcp_on_tcp(Framing::Tcp, "tcp:10.0.0.7:502", None)]
+    #[case::rtu_on_tcp(Framing::Rtu, "tcp:10.0.0.7:4001", None)]
+    #[case::ascii_on_a_port(Framing::Ascii, "/dev/ttyUSB0", None)]
+    fn modbus_tcp_needs_a_tcp_instrument(
+        #[case] framing: Framing,
+        #[case] port: &str,
+        #[case] refused: Option<&str>,
+    ) {
+        let mut modbus = slave_fw::serial::modbus::ModbusConfig::new(Default::default());
+        modbus.framing = framing;
+        let port = parse_instrument_port(port).unwrap();
+        match (check_instrument_port(&port, &ProfileConfig::Modbus(modbus)), refused) {
+            (Ok(()), None) => {}
+            (Err(e), Some(msg)) => {
+                assert_eq!(e.exit_code(), 2);
+                assert!(e.to_string().starts_with(msg), "{e}");
+            }
+            (got, want) => panic!("{got:?} vs {want:?}"),
         }
     }
 
