@@ -54,7 +54,7 @@ use slave_fw::converter::objects::{
 use slave_fw::converter::parameters::{Parameter, ParameterDef, CLASS_DESCRIPTOR, PARAMETERS};
 use slave_fw::converter::{ConverterConfig, InputAssembly, OUTPUT_ASSEMBLY, PARAMETER_CLASS};
 use slave_fw::description::DeviceDescription;
-use slave_fw::serial::modbus::{ByteOrder, ModbusConfig, ScanEntry};
+use slave_fw::serial::modbus::{ByteOrder, Framing, ModbusConfig, ScanEntry};
 use slave_fw::serial::{HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings};
 
 /// The `CreateDate` and `ModDate` written when [`GenerateOptions::date`] is not changed.
@@ -355,7 +355,13 @@ fn modbus_layout(m: &ModbusConfig, writes: bool) -> String {
         ByteOrder::BigEndian => "registers high byte first",
     };
     let list: Vec<String> = entries.into_iter().map(modbus_item).collect();
-    format!("{}; {order}", list.join("; "))
+    // RTU, the default, is not named: RTU descriptions keep their help text.
+    let framing = match m.framing {
+        Framing::Rtu => "",
+        Framing::Ascii => "; Modbus ASCII",
+        Framing::Tcp => "; Modbus TCP",
+    };
+    format!("{}; {order}{framing}", list.join("; "))
 }
 
 fn input_help(description: &DeviceDescription) -> String {
@@ -872,6 +878,23 @@ mod tests {
         let mut grouped: Vec<u32> = eds.groups().flat_map(|(_, g)| g.params.clone()).collect();
         grouped.sort_unstable();
         assert_eq!(grouped, params, "every parameter is in exactly one group");
+    }
+
+    #[rstest]
+    #[case::rtu(Framing::Rtu, None)]
+    #[case::ascii(Framing::Ascii, Some("; Modbus ASCII"))]
+    #[case::tcp(Framing::Tcp, Some("; Modbus TCP"))]
+    fn the_assembly_help_names_the_framing(#[case] framing: Framing, #[case] named: Option<&str>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../slave-fw/descriptions/modbus-meter.toml");
+        let mut description = DeviceDescription::load(&path).unwrap();
+        let ProfileConfig::Modbus(m) = &mut description.converter.profile else { panic!("not Modbus") };
+        m.framing = framing;
+        let help = input_help(&description);
+        match named {
+            Some(text) => assert!(help.contains(text), "{help}"),
+            None => assert!(!help.contains("Modbus ASCII") && !help.contains("Modbus TCP"), "{help}"),
+        }
     }
 
     #[rstest]
