@@ -215,3 +215,43 @@ fn a_plant_that_cannot_start_is_refused_before_any_bus() {
     let (code, _, err) = dnet(&["ui", "--plant", "p.toml", "--scanlist", "s.toml"]);
     assert!(code == 2 && err.contains("cannot be used with"), "{code} {err}");
 }
+
+#[test]
+#[ignore = "needs mosquitto and the built dnet-master: run by scripts/check's plant-networks stage"]
+fn each_network_publishes_under_its_name() {
+    let dir = scratch("plant-mqtt");
+    let port = pty_rig::console::free_port();
+    let _broker = pty_rig::mqtt::Mosquitto::start(&dir, port, None);
+    // Network a scans MAC 5, network b MAC 6 (both simulated buses hold both).
+    let file = plant(&dir, &[("a", "sim"), ("b", "sim")]);
+    std::fs::write(dir.join("b.toml"), LIST.replace("mac = 5", "mac = 6")).unwrap();
+    let sub = Command::new("mosquitto_sub")
+        .args(["-h", "127.0.0.1", "-p", &port.to_string(), "-t", "plant/#", "-v", "-W", "20", "-C", "60"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot run mosquitto_sub ({e}): apt-get install -y mosquitto-clients"));
+    std::thread::sleep(Duration::from_millis(500));
+    let url = format!("mqtt://127.0.0.1:{port}/plant");
+    let (mut ui, _addr) = spawn_ui(
+        &["--slave-mac", "5,6"],
+        &["--plant", file.to_str().unwrap(), "--no-history", "--mqtt", &url],
+        Duration::from_secs(20),
+        String::new,
+    );
+    let out = sub.wait_with_output().unwrap();
+    stop_ui(&mut ui, Duration::from_secs(20), "");
+    let text = String::from_utf8_lossy(&out.stdout);
+    let topics: std::collections::BTreeSet<&str> = text.lines().filter_map(|l| l.split(' ').next()).collect();
+    for want in ["plant/a/node/5/status", "plant/b/node/6/status", "plant/a/scanner", "plant/b/scanner"] {
+        assert!(topics.contains(want), "{want} missing: {topics:?}\n{}", ui.dump());
+    }
+    assert!(
+        !topics.iter().any(|t| t.starts_with("plant/node")
+            || *t == "plant/a/node/6/status"
+            || *t == "plant/b/node/5/status"),
+        "a node under another network or no network: {topics:?}"
+    );
+    let ok = |topic: &str| text.lines().any(|l| l.starts_with(&format!("{topic} ")) && l.contains("\"ok\""));
+    assert!(ok("plant/a/node/5/status") && ok("plant/b/node/6/status"), "{text}");
+}
