@@ -4,6 +4,7 @@
 use rstest::rstest;
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::description::DeviceDescription;
+use slave_fw::serial::modbus::Framing;
 use slave_fw::serial::ProfileConfig;
 use std::path::Path;
 
@@ -112,6 +113,32 @@ fn modbus_scan_errors_name_the_entry() {
     assert!(err.contains("profile.modbus.scan[1].offset"), "{err}");
     let none = DeviceDescription::parse(&text.replace("[[profile.modbus.scan]]", "[[profile.modbus.other]]"));
     assert!(none.is_err());
+}
+
+/// `framing`: an unknown value names the file, the line and the key; each known value round-trips
+/// through the description writer (RTU, the default, is not written).
+#[test]
+fn modbus_framing_key() {
+    let text = std::fs::read_to_string(example("modbus-meter.toml")).unwrap();
+    let find = "[profile.modbus]\n";
+    let (err, path, bad) =
+        load_error("framing.toml", &text, find, "[profile.modbus]\nframing = \"rtu-over-tcp\"\n");
+    let line = line_of(&bad, "framing");
+    assert!(err.starts_with(&format!("{}: ", path.display())), "{err}");
+    assert!(err.contains(&format!("line {line},")), "{err}");
+    assert!(
+        err.contains("profile.modbus.framing") && err.contains("unknown variant `rtu-over-tcp`"),
+        "{err}"
+    );
+    for (value, framing) in [("rtu", Framing::Rtu), ("ascii", Framing::Ascii), ("tcp", Framing::Tcp)] {
+        let d = DeviceDescription::parse(&text.replacen(find, &format!("{find}framing = \"{value}\"\n"), 1))
+            .unwrap();
+        let ProfileConfig::Modbus(m) = &d.converter.profile else { panic!("not Modbus") };
+        assert_eq!(m.framing, framing);
+        let written = d.to_toml().unwrap();
+        assert_eq!(written.contains("framing = "), framing != Framing::Rtu, "{written}");
+        assert_eq!(DeviceDescription::parse(&written).unwrap().converter, d.converter);
+    }
 }
 
 #[test]
