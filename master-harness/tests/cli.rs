@@ -229,7 +229,7 @@ fn version_names_the_package_version_and_the_commit() {
 }
 
 fn workspace_file(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(path).to_str().unwrap().to_string()
+    pty_rig::workspace_dir().join(path).to_str().unwrap().to_string()
 }
 
 #[test]

@@ -8,7 +8,7 @@
 //! Needs socat and the soft slave's binaries: ignored in the plain host-test run, run by the
 //! `scripts/check` stage "dnet-master on the real SLCAN path".
 
-use pty_rig::{require_socat, Proc, PtyRig};
+use pty_rig::{require_socat, workspace_dir, Proc, PtyRig};
 use slave_fw::description::DeviceDescription;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -29,15 +29,11 @@ fn ok(rig: &PtyRig, args: &[&str]) -> String {
     out
 }
 
-fn workspace() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
 /// A breaker of another make: its own product code and name, the status assembly (20 bytes
 /// produced), a 5 s stale timeout, a serial number of its own (which no device takes: each keeps
 /// its own); 9600 8N1 like the simulated breaker on the pty.
 fn other_breaker(dir: &std::path::Path) -> PathBuf {
-    let text = std::fs::read_to_string(workspace().join("slave-fw/descriptions/breaker.toml"))
+    let text = std::fs::read_to_string(workspace_dir().join("slave-fw/descriptions/breaker.toml"))
         .unwrap()
         .replace("product_code = 1", "product_code = 42")
         .replace("product_name = \"Serial-DeviceNet Bridge\"", "product_name = \"Breaker Gateway B\"")

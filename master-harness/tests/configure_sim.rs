@@ -14,7 +14,7 @@ use slave_fw::description::DeviceDescription;
 use std::path::PathBuf;
 
 fn workspace_file(path: &str) -> String {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(path).to_str().unwrap().to_string()
+    pty_rig::workspace_dir().join(path).to_str().unwrap().to_string()
 }
 
 fn dnet(args: &[&str]) -> (u8, String, String) {

@@ -11,22 +11,15 @@ use dnet_scanner::model::{
     HistoryStore, Identity, NodeState, NodeStatus, Sample, ScannerState, ScannerStatus,
 };
 use dnet_scanner::mqtt::Publisher;
+use pty_rig::console::free_port;
+use pty_rig::mqtt::Mosquitto;
+use pty_rig::scratch;
 use serde_json::Value;
-use std::net::{TcpListener, TcpStream};
-use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
-
-/// A fresh directory for one test under Cargo's scratch space.
-fn scratch(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("history_mqtt-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 fn sample(mac: u8, unix_ms: i64, values: &[(&str, f64)]) -> Sample {
     Sample {
@@ -82,51 +75,6 @@ fn wait_until(what: &str, timeout: Duration, mut done: impl FnMut() -> bool) {
     while !done() {
         assert!(Instant::now() < deadline, "timed out waiting for {what}");
         std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
-fn free_port() -> u16 {
-    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
-}
-
-/// A mosquitto broker of the test's own, killed when dropped.
-struct Broker {
-    child: Child,
-}
-
-impl Broker {
-    fn start(port: u16, dir: &std::path::Path) -> Broker {
-        let conf = dir.join(format!("mosquitto-{port}.conf"));
-        std::fs::write(
-            &conf,
-            format!("listener {port} 127.0.0.1\nallow_anonymous true\npersistence false\n"),
-        )
-        .unwrap();
-        // Debian puts it in /usr/sbin, which a non-root PATH may lack.
-        let spawn = |program: &str| {
-            Command::new(program).arg("-c").arg(&conf).stdout(Stdio::null()).stderr(Stdio::null()).spawn()
-        };
-        let child = spawn("mosquitto").or_else(|_| spawn("/usr/sbin/mosquitto")).unwrap_or_else(|e| {
-            panic!(
-                "cannot start mosquitto ({e}): this test needs Debian's mosquitto \
-                     (apt-get install -y mosquitto mosquitto-clients)"
-            )
-        });
-        let mut broker = Broker { child };
-        wait_until("mosquitto to listen", Duration::from_secs(10), || {
-            if let Ok(Some(status)) = broker.child.try_wait() {
-                panic!("mosquitto exited at start: {status}");
-            }
-            TcpStream::connect(("127.0.0.1", port)).is_ok()
-        });
-        broker
-    }
-}
-
-impl Drop for Broker {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 
@@ -473,7 +421,7 @@ fn mqtt_broker_down_is_not_an_error_and_publishing_does_not_block() {
 fn mqtt_publishes_retained_status_and_values_to_mosquitto() {
     let dir = scratch("mosquitto");
     let port = free_port();
-    let _broker = Broker::start(port, &dir);
+    let _broker = Mosquitto::start(&dir, port, None);
     let p = Publisher::start(&format!("mqtt://127.0.0.1:{port}"), "dnet-master-test").unwrap();
     wait_until("the publisher to connect", Duration::from_secs(10), || p.is_connected());
     assert_eq!(p.status(), format!("connected to mqtt://127.0.0.1:{port}/devicenet"));
@@ -557,7 +505,7 @@ fn mqtt_connects_when_the_broker_starts_later() {
     p.publish_samples(&[sample(5, 1, &[("a", 1.0)])]);
     eprintln!("publish with the broker down: {:?}", started.elapsed());
 
-    let _broker = Broker::start(port, &dir);
+    let _broker = Mosquitto::start(&dir, port, None);
     wait_until("the publisher to connect", Duration::from_secs(20), || p.is_connected());
     assert_eq!(p.status(), format!("connected to mqtt://127.0.0.1:{port}/plant/line1"));
     // What was published while the broker was down is there now, retained.
@@ -574,7 +522,7 @@ fn mqtt_connects_when_the_broker_starts_later() {
         p.status().starts_with("broker unreachable: ")
     });
     eprintln!("{}", p.status());
-    let _broker = Broker::start(port, &dir);
+    let _broker = Mosquitto::start(&dir, port, None);
     wait_until("the publisher to reconnect", Duration::from_secs(20), || p.is_connected());
     let got = messages(subscriber(port, "plant/line1/#", 2, 10));
     assert_eq!(got.len(), 2, "{got:?}");
@@ -586,7 +534,7 @@ fn mqtt_connects_when_the_broker_starts_later() {
 fn mqtt_clean_stop_leaves_the_last_state_not_the_last_will() {
     let dir = scratch("mosquitto-will");
     let port = free_port();
-    let _broker = Broker::start(port, &dir);
+    let _broker = Mosquitto::start(&dir, port, None);
     {
         let p = Publisher::start(&format!("mqtt://127.0.0.1:{port}"), "clean").unwrap();
         wait_until("the publisher to connect", Duration::from_secs(10), || p.is_connected());

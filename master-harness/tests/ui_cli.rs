@@ -2,6 +2,7 @@
 //! history that cannot be opened and a malformed broker URL are refused before the bus is touched
 //! (exit 2, the thing named); a broker that is down is not an error: the scanner scans to the end.
 
+use pty_rig::{console, scratch};
 use std::process::{Command, Output};
 
 fn dnet(args: &[&str]) -> Output {
@@ -10,12 +11,6 @@ fn dnet(args: &[&str]) -> Output {
 
 fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
-}
-
-fn scratch(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("dnet-ui-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
 }
 
 #[test]
@@ -158,20 +153,9 @@ impl Running {
 
     /// One request with exactly `headers` (besides Host, Content-Length and Connection).
     fn request(&self, method: &str, path: &str, headers: &[(&str, &str)], body: &str) -> (u16, String) {
-        use std::io::{Read, Write};
-        let mut s = std::net::TcpStream::connect(&self.addr).unwrap();
-        s.set_read_timeout(Some(std::time::Duration::from_secs(20))).unwrap();
         let extra: String = headers.iter().map(|(k, v)| format!("{k}: {v}\r\n")).collect();
-        let head = format!(
-            "{method} {path} HTTP/1.1\r\nHost: {}\r\n{extra}Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
-            self.addr,
-            body.len()
-        );
-        s.write_all(head.as_bytes()).unwrap();
-        let mut answer = String::new();
-        let _ = s.read_to_string(&mut answer);
-        let status = answer.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-        (status, answer.split_once("\r\n\r\n").map_or(String::new(), |(_, b)| b.to_string()))
+        let reply = console::request(&self.addr, method, path, &extra, body);
+        (reply.status, reply.body)
     }
 
     fn get(&self, path: &str) -> (u16, String) {
@@ -183,9 +167,7 @@ impl Running {
     }
 
     fn token(&self) -> String {
-        let (_, page) = self.get("/");
-        let at = page.find(r#"<meta name="csrf-token" content=""#).expect("the page carries its token") + 33;
-        page[at..].split('"').next().unwrap().to_string()
+        console::csrf_token(&self.addr)
     }
 
     fn threads(&self) -> usize {

@@ -7,32 +7,16 @@
 //! Needs socat and the soft slave's binaries (`cargo build -p soft-slave`): ignored in the plain
 //! host-test run, run by `scripts/check`; skips with a message without socat.
 
-use pty_rig::{require_socat, Proc, PtyRig};
-use std::io::{Read, Write};
-use std::net::TcpStream;
+use pty_rig::{console, require_socat, Proc, PtyRig};
 use std::time::{Duration, Instant};
 
-/// One HTTP/1.1 request; the status and the body. A state-changing one carries what the page
-/// sends: the console's token (`GET /api/token`) and its own origin.
+/// One request as the console's page sends it; a state-changing one carries the page's CSRF token
+/// (pty_rig::console). The status and the body.
 fn http(addr: &str, method: &str, path: &str, body: &str) -> (u16, String) {
-    let guard = if method == "GET" {
-        String::new()
-    } else {
-        let token = json(addr, "/api/token")["token"].as_str().unwrap_or_default().to_string();
-        format!("Origin: http://{addr}\r\nX-CSRF-Token: {token}\r\n")
-    };
-    let mut s = TcpStream::connect(addr).unwrap_or_else(|e| panic!("connect {addr}: {e}"));
-    s.set_read_timeout(Some(Duration::from_secs(20))).unwrap();
-    let request = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\n{guard}Content-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
-        body.len()
-    );
-    s.write_all(request.as_bytes()).unwrap();
-    let mut answer = String::new();
-    s.read_to_string(&mut answer).unwrap();
-    let status = answer.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
-    let body = answer.split_once("\r\n\r\n").map_or(String::new(), |(_, b)| b.to_string());
-    (status, body)
+    if method == "GET" {
+        return console::get(addr, path);
+    }
+    console::http(addr, method, path, Some(&console::csrf_token(addr)), body)
 }
 
 fn json(addr: &str, path: &str) -> serde_json::Value {
@@ -75,15 +59,7 @@ fn the_console_drives_the_soft_slave_over_slcan() {
         dir.to_str().unwrap(),
     ];
     let mut p = Proc::spawn(env!("CARGO_BIN_EXE_dnet-master"), &args);
-    let line = p
-        .wait_stdout("console at http://", Duration::from_secs(30))
-        .unwrap_or_else(|| panic!("no console address\n{}\n{}", p.dump(), rig.dump()));
-    let addr = line
-        .split("http://")
-        .nth(1)
-        .and_then(|rest| rest.split('/').next())
-        .unwrap_or_else(|| panic!("{line}"))
-        .to_string();
+    let addr = console::console_addr(&p, Duration::from_secs(30));
 
     // Node 5 in I/O, identified.
     let node = until(Duration::from_secs(60), "node 5 ok", || {
