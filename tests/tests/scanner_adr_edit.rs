@@ -38,8 +38,8 @@ fn nodes_are_disabled_enabled_added_edited_and_removed_while_running() {
         assert_eq!(st, NodeStatus::Ok);
         assert!(after > before);
 
-        // Added, then keyed to a later major revision: exact refuses it, compatible too (1 < 2),
-        // disabled keying takes it.
+        // Added, then keyed to another major revision: exact refuses it, compatible too (the major
+        // revision must be equal, scanner/src/keying.rs), disabled keying takes it.
         s.edit(m, ListEdit::Add(seven.clone())).unwrap();
         run_for(s, m, Duration::from_secs(2));
         assert_eq!(status(s, 7).0, NodeStatus::Ok);
