@@ -56,7 +56,7 @@ pub struct UiArgs {
     #[arg(long, value_name = "FILE.toml")]
     pub scanlist: Option<PathBuf>,
     /// A plant file (TOML): several networks, each `[[network]]` with its `name`, `bus` and
-    /// `scanlist`, behind one console (`super::ui_plant`); refused with `--bus` other than sim.
+    /// `scanlist`, behind one console (guide: Several networks); not with a --bus other than sim.
     #[arg(long, value_name = "FILE.toml",
           conflicts_with_all = ["scanlist", "adr", "project", "sparkplug", "modbus_tcp", "opcua"])]
     pub plant: Option<PathBuf>,
