@@ -1,0 +1,156 @@
+//! Modbus ASCII in the real firmware on QEMU: the emulated board (a new settings flash file)
+//! starts as the factory default; `dnet-master configure` downloads the meter description
+//! (`slave-fw/descriptions/modbus-meter.toml`) with `framing = "ascii"` and 7E1, the format of
+//! Modbus over Serial Line V1.02 §2.5.2.1; after its reset the board is an ASCII master and reads
+//! pymodbus's ASCII framer (`FramerType.ASCII`) on USART2 into its poll response, and writes the
+//! poll command to it. Then a download with `framing = "tcp"` is refused at Commit_Download with
+//! the key, and the board keeps its ASCII configuration.
+//!
+//! QEMU's USART model carries data bytes only (see `qemu_configure.rs`, "The serial line"): the
+//! board runs 7E1 (8-bit words with parity, the parity bit masked off), the host end of USART2 is
+//! 8N1; the ASCII characters are 7-bit either way.
+//!
+//! ```sh
+//! scripts/qemu-firmware --build-only
+//! DNET_QEMU=1 DNET_PYTHON=.venv/bin/python cargo test -p system-tests --test qemu_modbus_ascii -- --ignored
+//! ```
+
+use pty_rig::{bin, require_pymodbus, scratch, workspace_dir, Proc};
+use serde_json::Value;
+use slave_fw::serial::StatusByte;
+use std::path::Path;
+use std::time::Duration;
+
+/// pymodbus's serial server with the ASCII framer on `argv[1]` at 19200 baud, unit 1: input
+/// registers 0..3 = 0x0102, 0x0304, 0x0506, 0x0708; holding registers 16..17 = 0, 0;
+/// 100..101 = 0xABCD, 0x1234. Prints `ready`, and one line per write.
+const MODBUS_ASCII_SERVER: &str = r#"
+import asyncio, sys
+from pymodbus.framer import FramerType
+from pymodbus.server import ModbusSerialServer
+from pymodbus.simulator import DataType, SimData, SimDevice
+
+async def on_access(function_code, _start, address, _count, _registers, set_values):
+    if set_values is not None:
+        values = ",".join(f"0x{int(v):04X}" for v in set_values)
+        print(f"write unit=1 function={function_code} address={address} values={values}", flush=True)
+    return None
+
+async def main():
+    bits = [SimData(address=0, values=[False], datatype=DataType.BITS)]
+    holding = [SimData(address=16, values=[0, 0], datatype=DataType.REGISTERS),
+               SimData(address=100, values=[0xABCD, 0x1234], datatype=DataType.REGISTERS)]
+    inputs = [SimData(address=0, values=[0x0102, 0x0304, 0x0506, 0x0708], datatype=DataType.REGISTERS)]
+    device = SimDevice(id=1, simdata=(bits, list(bits), holding, inputs), action=on_access)
+    server = ModbusSerialServer(device, framer=FramerType.ASCII, port=sys.argv[1], baudrate=19200,
+                                bytesize=8, parity="N", stopbits=1)
+    await server.serve_forever(background=True)
+    print("ready", flush=True)
+    await asyncio.Event().wait()
+
+asyncio.run(main())
+"#;
+
+/// The emulated board's MAC ID (the script's default build).
+const BOARD: &str = "5";
+
+/// The meter description with `framing` and the serial format replaced, written to `dir`.
+fn meter_with(dir: &Path, framing: &str, data_bits: &str) -> std::path::PathBuf {
+    let text =
+        std::fs::read_to_string(workspace_dir().join("slave-fw/descriptions/modbus-meter.toml")).unwrap();
+    let find = ["[profile.modbus]\n", "data_bits = \"eight\"\n"];
+    assert!(find.iter().all(|f| text.contains(f)), "the meter description changed");
+    let text = text.replacen(find[0], &format!("{}framing = \"{framing}\"\n", find[0]), 1).replacen(
+        find[1],
+        &format!("data_bits = \"{data_bits}\"\n"),
+        1,
+    );
+    let path = dir.join(format!("modbus-meter-{framing}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// `dnet-master --bus slcan:USART1 ARGS...`: the exit status, stdout and stderr.
+fn dnet_master(usart1: &str, args: &[&str]) -> (Option<i32>, String, String) {
+    let bus = format!("slcan:{usart1}");
+    let mut all = vec!["--bus", bus.as_str()];
+    all.extend_from_slice(args);
+    let mut p = Proc::spawn(bin("dnet-master"), &all);
+    let status = p.wait(Duration::from_secs(120));
+    (status.and_then(|s| s.code()), p.stdout.text(), p.stderr.text())
+}
+
+#[test]
+#[ignore = "runs QEMU and pymodbus: scripts/qemu-firmware --build-only && DNET_QEMU=1 cargo test -p system-tests --test qemu_modbus_ascii -- --ignored"]
+fn the_firmware_reads_and_writes_a_modbus_ascii_instrument_and_refuses_tcp() {
+    if std::env::var("DNET_QEMU").as_deref() != Ok("1") {
+        eprintln!("DNET_QEMU=1 not set: not running QEMU");
+        return;
+    }
+    let Some(python) = require_pymodbus() else {
+        return;
+    };
+    let dir = scratch("qemu-modbus-ascii");
+    let flash_dir = dir.join("flash");
+    std::fs::create_dir_all(&flash_dir).unwrap();
+    let pty_file = dir.join("qemu.ptys");
+    let mut qemu = Proc::spawn(
+        workspace_dir().join("scripts/qemu-firmware"),
+        &[
+            "--no-build",
+            "--timeout",
+            "180",
+            "--flash-dir",
+            flash_dir.to_str().unwrap(),
+            "--pty-file",
+            pty_file.to_str().unwrap(),
+        ],
+    );
+    assert!(qemu.wait_stdout("FLASH=", Duration::from_secs(20)).is_some(), "{}", qemu.dump());
+    let lines = qemu.stdout.lines();
+    let value = |key: &str| {
+        lines
+            .iter()
+            .find_map(|l| l.strip_prefix(key).map(str::to_string))
+            .unwrap_or_else(|| panic!("no {key}"))
+    };
+    let (usart1, usart2) = (value("USART1="), value("USART2="));
+    let server = Proc::spawn(&python, &["-c", MODBUS_ASCII_SERVER, &usart2]);
+    assert!(server.wait_stdout("ready", Duration::from_secs(20)).is_some(), "{}", server.dump());
+
+    let ascii = meter_with(&dir, "ascii", "seven");
+    let (code, out, err) = dnet_master(&usart1, &["configure", "--mac", BOARD, ascii.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "configure:\n{out}\n{err}\n{}", qemu.dump());
+
+    // The poll command 11 22 33 44 goes to holding registers 16..17 (little-endian image).
+    let poll = |qemu: &Proc| {
+        let (code, out, err) = dnet_master(
+            &usart1,
+            &["--json", "monitor", "--mac", BOARD, "--epr", "100", "--count", "30", "--output", "11223344"],
+        );
+        assert_eq!(code, Some(0), "monitor:\n{out}\n{err}\n{}", qemu.dump());
+        let json: Value =
+            serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("monitor's JSON: {e}\n{out}"));
+        let list = json["samples"].as_array().unwrap_or_else(|| panic!("no samples in {json}")).clone();
+        let raw = |s: &Value| -> Vec<u8> {
+            s["raw"].as_array().unwrap().iter().map(|b| u8::try_from(b.as_u64().unwrap()).unwrap()).collect()
+        };
+        raw(list.last().unwrap_or_else(|| panic!("no sample: {json}")))
+    };
+    let last = poll(&qemu);
+    assert_eq!(last.len(), 14, "{last:02X?}");
+    assert_eq!(&last[..8], &[0x02, 0x01, 0x04, 0x03, 0x06, 0x05, 0x08, 0x07], "input registers 0..3");
+    assert_eq!(&last[8..12], &[0xCD, 0xAB, 0x34, 0x12], "holding registers 100..101");
+    assert_eq!(last[12] & 0x0F, StatusByte::LINK_OK, "link ok, no errors: {:#04X}", last[12]);
+    let write = "write unit=1 function=16 address=16 values=0x2211,0x4433";
+    assert!(server.wait_stdout(write, Duration::from_secs(3)).is_some(), "{write}\n{}", server.dump());
+
+    // Modbus TCP is refused where the board checks a configuration, and ASCII keeps running.
+    let tcp = meter_with(&dir, "tcp", "eight");
+    let (code, out, err) = dnet_master(&usart1, &["configure", "--mac", BOARD, tcp.to_str().unwrap()]);
+    assert_ne!(code, Some(0), "a TCP download must be refused:\n{out}\n{err}");
+    assert!(format!("{out}{err}").contains("profile.modbus.framing"), "{out}\n{err}");
+    let last = poll(&qemu);
+    assert_eq!(&last[..8], &[0x02, 0x01, 0x04, 0x03, 0x06, 0x05, 0x08, 0x07], "still reading over ASCII");
+    qemu.terminate();
+}
