@@ -206,9 +206,16 @@ impl Decoder {
                 out
             }
             LineProfile::ModbusRtu => {
+                let mut out = Vec::new();
+                // A request ends the response before it, and a response the request: what is
+                // left of the other direction was cut short.
+                let other = if tx { &mut self.rx } else { &mut self.tx };
+                if !other.is_empty() {
+                    let other_name = if tx { "rx" } else { "tx" };
+                    out.push(line(other_name, &std::mem::take(other), "incomplete frame".into()));
+                }
                 let buf = if tx { &mut self.tx } else { &mut self.rx };
                 buf.extend_from_slice(entry.bytes());
-                let mut out = Vec::new();
                 loop {
                     let len = if tx { pdu::request_len(buf) } else { pdu::response_len(buf) };
                     match len {
@@ -326,7 +333,7 @@ pub fn execute(
         let mut sink = std::io::sink();
         let screen: &mut dyn Write = if opts.json { &mut sink } else { out };
         let mut state = Traced::default();
-        let result = follow(master, args, duration, screen, &mut state);
+        let result = follow(master, args, duration, screen, opts.json, &mut state);
         let outcome = state.outcome();
         match result {
             Ok(()) => Ran { result: Ok(outcome), partial: None, cleanup: Vec::new() },
@@ -335,11 +342,17 @@ pub fn execute(
     })
 }
 
+/// The most lines `--json` keeps (the newest): a long `--follow` holds bounded memory.
+pub const JSON_LINES: usize = 10_000;
+
 /// What was read so far.
 #[derive(Default)]
 struct Traced {
     profile: Option<LineProfile>,
-    lines: Vec<TraceLine>,
+    /// The newest lines, for `--json` only.
+    lines: std::collections::VecDeque<TraceLine>,
+    /// Lines dropped from `lines` to keep it within [`JSON_LINES`].
+    lines_dropped: u64,
     entries: u64,
     missed: u64,
 }
@@ -357,6 +370,7 @@ impl Traced {
                 "entries": self.entries,
                 "missed": self.missed,
                 "lines": self.lines,
+                "lines_dropped": self.lines_dropped,
             }),
             code: 0,
         }
@@ -369,6 +383,7 @@ fn follow(
     args: &SerialTraceArgs,
     duration: Option<Duration>,
     screen: &mut dyn Write,
+    keep_lines: bool,
     state: &mut Traced,
 ) -> Result<(), HarnessError> {
     let mac = args.mac;
@@ -406,7 +421,13 @@ fn follow(
             let seq = reply.first.wrapping_add(k as u32);
             for line in decoder.push(seq, entry) {
                 writeln!(screen, "{line}").map_err(werr)?;
-                state.lines.push(line);
+                if keep_lines {
+                    if state.lines.len() == JSON_LINES {
+                        state.lines.pop_front();
+                        state.lines_dropped += 1;
+                    }
+                    state.lines.push_back(line);
+                }
             }
         }
         state.entries += reply.entries.len() as u64;
@@ -513,5 +534,13 @@ mod tests {
         assert_eq!(lines[0].decoded, "response unit 1: 0x04 registers FFFF");
         let lines = d.push(3, &entry(9, TraceKind::Receive, &[0x01, 0x63]));
         assert!(lines[0].decoded.starts_with("not a Modbus RTU frame"), "{lines:?}");
+        // A response cut short, then the next request: the rest is named incomplete.
+        assert!(d.push(4, &entry(20, TraceKind::Receive, &[0x01, 0x04, 0x02])).is_empty());
+        let lines = d.push(5, &entry(30, TraceKind::Transmit, &adu));
+        assert_eq!(
+            (lines[0].kind, lines[0].hex.as_str(), lines[0].decoded.as_str()),
+            ("rx", "01 04 02", "incomplete frame")
+        );
+        assert_eq!(lines[1].decoded, "request unit 1: 0x04 read input registers 7 count 1");
     }
 }

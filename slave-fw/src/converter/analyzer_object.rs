@@ -66,9 +66,8 @@ fn read_trace(trace: &mut Trace, from: u32, reply: &mut Reply<'_>) -> Result<(),
     trace.seal();
     let first = trace.start_from(from);
     let next = trace.next_seq();
-    let mut out = [0u8; MAX_REPLY];
-    let (head, body) = out.split_at_mut(8);
-    head.copy_from_slice(&[0; 8]);
+    // The entries, after the two sequence numbers.
+    let mut body = [0u8; MAX_REPLY - 8];
     let mut len = 0;
     let mut seq = first;
     while seq != next {
