@@ -33,8 +33,9 @@
 //! and ignored on writes; a single coil is bit 0).
 
 use super::entry::{append_crc, encode_entry, same_output, store_read};
+pub use super::entry::{ByteOrder, ScanEntry};
 use super::framing::{Framer, Framing, Received};
-use super::pdu::{self, CodecError, ExceptionCode, Function, ADU_CAPACITY};
+use super::pdu::{self, CodecError, ExceptionCode, ADU_CAPACITY};
 use crate::serial::error::{as_u32, ConfigError, Conflict, Field, Problem};
 use crate::serial::health::{Counter, HealthConfig, LinkHealth, LinkStatus, Stats};
 use crate::serial::line::{DataBits, SerialSettings};
@@ -45,48 +46,6 @@ use heapless::Vec;
 
 /// The most entries in a scan list.
 pub const SCAN_LIST_CAPACITY: usize = 16;
-
-/// How a register's two bytes are laid out in the DeviceNet images.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
-pub enum ByteOrder {
-    /// Low byte first, as DeviceNet carries an INT/UINT (registers are swapped from the wire).
-    #[default]
-    LittleEndian,
-    /// High byte first, as on the Modbus wire.
-    BigEndian,
-}
-
-/// One transaction of the scan list.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
-#[cfg_attr(feature = "serde", serde(deny_unknown_fields))]
-pub struct ScanEntry {
-    /// The slave's unit address, `1..=247` (broadcast is not used).
-    pub unit: u8,
-    /// The function: 1–4 read into the input image, 5, 6, 15, 16 write from the output image.
-    pub function: Function,
-    /// The first coil, input or register (0-based protocol address).
-    pub address: u16,
-    /// How many coils, inputs or registers: `1..=2000` bits / `1..=125` registers to read,
-    /// `1..=1968` / `1..=123` to write, exactly 1 for functions 5 and 6.
-    pub count: u16,
-    /// Byte offset of this entry's data in the input image (reads) or output image (writes).
-    pub offset: u16,
-}
-
-impl ScanEntry {
-    /// Bytes this entry occupies in its image.
-    pub const fn image_len(&self) -> usize {
-        self.function.data_len(self.count)
-    }
-
-    pub(crate) fn range(&self) -> core::ops::Range<usize> {
-        let start = usize::from(self.offset);
-        start..start + self.image_len()
-    }
-}
 
 /// Everything that describes a Modbus RTU gateway.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]

@@ -1,5 +1,5 @@
 use super::*;
-use crate::serial::modbus::{Request, Response};
+use crate::serial::modbus::{Function, Request, Response};
 use crate::serial::{LinkState, StalePolicy, StatusByte};
 use proptest::prelude::*;
 use rstest::rstest;
