@@ -136,8 +136,18 @@ pub fn execute(
     err: &mut dyn Write,
     console: &Console,
 ) -> Result<u8, HarnessError> {
-    if let Some(plant) = &args.plant {
-        return super::ui_plant::execute(opts, args, plant, out, err, console);
+    if let Some(file) = &args.plant {
+        let plant = super::ui_plant::PlantArgs {
+            file,
+            listen: &args.listen,
+            access: &args.access,
+            record_dir: &args.record_dir,
+            history: (!args.no_history).then_some(args.history.as_path()),
+            mqtt: args.mqtt.as_deref(),
+            tls: args.sparkplug.tls_files(),
+            cycles: args.cycles,
+        };
+        return super::ui_plant::execute(opts, &plant, out, err, console);
     }
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     // Everything that can be refused, before the bus is touched.

@@ -15,7 +15,7 @@
 //! under `PREFIX/NAME/` as client `dnet-master-NAME`. `--sparkplug`, `--modbus-tcp`, `--opcua`
 //! and `--project` serve one network and are refused with `--plant` (a usage error).
 
-use super::ui::UiArgs;
+use super::ui_access::AccessArgs;
 use crate::options::{open_bus, GlobalOptions};
 use can_io::bus::BusSpec;
 use devicenet::MacId;
@@ -23,7 +23,7 @@ use dnet_scanner::audit::{Audit, MemoryAudit};
 use dnet_scanner::history::{History, Retention};
 use dnet_scanner::model::{ConsoleCommand, HistoryStore, ScannerState, Shared};
 use dnet_scanner::monitor::InputLayout;
-use dnet_scanner::mqtt::Publisher;
+use dnet_scanner::mqtt::{Publisher, TlsFiles};
 use dnet_scanner::plant::{read_plant, PlantNetwork};
 use dnet_scanner::report::{finish, table, Ending};
 use dnet_scanner::ui::thinning::Thinning;
@@ -38,6 +38,26 @@ use std::collections::{HashMap, VecDeque};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{mpsc, Arc, Mutex};
+
+/// What `ui --plant` was asked (`ui`'s options that apply to a plant).
+pub struct PlantArgs<'a> {
+    /// The plant file.
+    pub file: &'a Path,
+    /// The console's address.
+    pub listen: &'a str,
+    /// Accounts and TLS.
+    pub access: &'a AccessArgs,
+    /// Where the console's recordings go.
+    pub record_dir: &'a Path,
+    /// The history file (each network's beside it, the audit log in it); `None`: no history.
+    pub history: Option<&'a Path>,
+    /// `--mqtt URL`.
+    pub mqtt: Option<&'a str>,
+    /// The TLS files of `--mqtt`.
+    pub tls: TlsFiles,
+    /// `--cycles N`.
+    pub cycles: Option<u64>,
+}
 
 /// How one network's thread ended.
 struct Outcome {
@@ -90,13 +110,13 @@ struct Job {
 /// Runs `ui --plant FILE`; returns the exit status.
 pub fn execute(
     opts: &GlobalOptions,
-    args: &UiArgs,
-    file: &Path,
+    args: &PlantArgs<'_>,
     out: &mut dyn Write,
     err: &mut dyn Write,
     console: &Console,
 ) -> Result<u8, HarnessError> {
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
+    let file = args.file;
     // `--bus` is a global option with a default: a bus given with `--plant` is found here.
     if opts.bus != BusSpec::Sim {
         writeln!(
@@ -114,8 +134,8 @@ pub fn execute(
             return Ok(2);
         }
     };
-    let access = args.access.open(&args.listen)?;
-    if let Some(w) = args.access.warning(&args.listen) {
+    let access = args.access.open(args.listen)?;
+    if let Some(w) = args.access.warning(args.listen) {
         writeln!(err, "warning: {w}").map_err(werr)?;
     }
     if !args.record_dir.is_dir() {
@@ -124,24 +144,24 @@ pub fn execute(
             path: args.record_dir.display().to_string(),
         });
     }
-    let audit: Arc<dyn Audit> = match args.no_history {
-        false => open_history(&args.history)? as Arc<dyn Audit>,
-        true => Arc::new(MemoryAudit::default()),
+    let audit: Arc<dyn Audit> = match args.history {
+        Some(path) => open_history(path)? as Arc<dyn Audit>,
+        None => Arc::new(MemoryAudit::default()),
     };
     let slave = opts.slave_description()?;
     let mut jobs = Vec::new();
     let mut console_networks = Vec::new();
     for net in &plant.networks {
-        let history = match args.no_history {
-            false => Some(open_history(&history_path(&args.history, &net.name))?),
-            true => None,
+        let history = match args.history {
+            Some(path) => Some(open_history(&history_path(path, &net.name))?),
+            None => None,
         };
-        let publisher = match args.mqtt.as_ref().filter(|_| args.sparkplug.sparkplug.is_none()) {
+        let publisher = match args.mqtt {
             Some(url) => {
                 let url = network_url(url, &net.name);
                 let client = format!("dnet-master-{}", net.name);
                 Some(
-                    Publisher::start_tls(&url, &client, &args.sparkplug.tls_files())
+                    Publisher::start_tls(&url, &client, &args.tls)
                         .map_err(|detail| HarnessError::Mqtt { url: url.clone(), detail })?,
                 )
             }
@@ -154,7 +174,7 @@ pub fn execute(
             frames: Mutex::new(VecDeque::new()),
             commands: Mutex::new(commands),
             history: history.as_ref().map(|h| Box::new(Arc::clone(h)) as Box<dyn HistoryStore>),
-            record_dir: args.record_dir.clone(),
+            record_dir: args.record_dir.to_path_buf(),
             mqtt: Mutex::new(publisher.as_ref().map(Publisher::status)),
             audit: Arc::clone(&audit),
         });
@@ -185,7 +205,7 @@ pub fn execute(
     let Some(first) = console_networks.first() else {
         return Err(HarnessError::NothingCompared("the plant file names no network".into()));
     };
-    let server = serve_plant(&args.listen, Arc::clone(&first.shared), access, console_networks.clone())?;
+    let server = serve_plant(args.listen, Arc::clone(&first.shared), access, console_networks.clone())?;
     writeln!(out, "console at {}", server.url()).map_err(werr)?;
     for n in &console_networks {
         writeln!(out, "network {} on {}", n.name, n.bus).map_err(werr)?;

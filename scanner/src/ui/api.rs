@@ -70,12 +70,15 @@ pub(crate) fn handle(ctx: &Arc<Context>, request: &Request) -> Resp {
         return error_response(403, &e.to_string());
     }
     super::auth::admit(ctx, request, |caller| {
-        super::auth::route(ctx, caller, request)
-            .or_else(|| super::networks::route(ctx, &request.method, &request.url, &request.body))
-            .unwrap_or_else(|| {
-                route(ctx, &request.method, &request.url, &request.body)
-                    .unwrap_or_else(|e| error_response(e.status, &e.message))
-            })
+        super::auth::route(ctx, caller, request).unwrap_or_else(|| {
+            // A network's request (`/api/net/NAME/...`, `ui --plant`) is answered by its own context.
+            let routed = match super::networks::target(ctx, &request.url) {
+                None => route(ctx, &request.method, &request.url, &request.body),
+                Some(Ok((network, url))) => route(&network, &request.method, &url, &request.body),
+                Some(Err(message)) => Err(err(404, message)),
+            };
+            routed.unwrap_or_else(|e| error_response(e.status, &e.message))
+        })
     })
 }
 
@@ -177,7 +180,7 @@ fn json_uint(body: &Value, name: &str, max: u64) -> Result<u64, ApiError> {
     }
 }
 
-pub(crate) fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Resp, ApiError> {
+fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Resp, ApiError> {
     let (path, q) = url.split_once('?').unwrap_or((url, ""));
     let pairs = parse_query(q);
     let segments: Vec<&str> = path.split('/').filter(|s| !s.is_empty()).collect();
@@ -231,6 +234,8 @@ pub(crate) fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) ->
                 Ok(super::project_api::compare(shared, ctx.project.as_ref()))
             }
             (["project", "compare"], _, _) => Err(wrong()),
+            (["networks"], true, _) => Ok(json_response(200, &super::networks::list(ctx))),
+            (["networks"], _, _) => Err(wrong()),
             (
                 ["state"]
                 | ["token"]

@@ -9,8 +9,6 @@
 //! Logins, roles, CSRF and the guard apply to every network's requests as to one; the audit log
 //! names the network in what was done (`net line-b: breaker open`).
 
-use super::api::{error_response, json_response};
-use super::http::Response;
 use super::Context;
 use crate::model::Shared;
 use serde_json::{json, Map, Value};
@@ -45,40 +43,33 @@ pub(crate) fn split(path: &str) -> (Option<&str>, String) {
     (Some(name), format!("/api/{rest}"))
 }
 
-/// Answers `GET /api/networks` and every `/api/net/NAME/...` request; `None` for the others.
-pub(crate) fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Option<Response> {
+/// Where a `/api/net/NAME/...` request goes: the network's context and the request's URL within
+/// it (`/api/rest?query`), or why there is none (an unknown network: the plant's are named).
+/// `None` for any other request.
+pub(crate) fn target(ctx: &Context, url: &str) -> Option<Result<(Arc<Context>, String), String>> {
     let (path, query) = url.split_once('?').map_or((url, None), |(p, q)| (p, Some(q)));
-    if path == "/api/networks" {
-        return Some(match method {
-            "GET" | "HEAD" => json_response(200, &json!({"ok": true, "networks": list(ctx)})),
-            _ => error_response(405, &format!("{method} is not allowed on {path}")),
-        });
-    }
     let (Some(name), rest) = split(path) else {
         return None;
     };
     let Some(network) = ctx.networks.iter().find(|n| n.name == name) else {
         let known: Vec<&str> = ctx.networks.iter().map(|n| n.name.as_str()).collect();
-        let message = if known.is_empty() {
+        return Some(Err(if known.is_empty() {
             format!("no network {name:?}: this console runs one network (no --plant)")
         } else {
             format!("no network {name:?}: the plant's networks are {}", known.join(", "))
-        };
-        return Some(error_response(404, &message));
+        }));
     };
     let url = match query {
         Some(q) => format!("{rest}?{q}"),
         None => rest,
     };
-    Some(
-        super::api::route(&network.context, method, &url, body)
-            .unwrap_or_else(|e| error_response(e.status, &e.message)),
-    )
+    Some(Ok((Arc::clone(&network.context), url)))
 }
 
-/// The networks' names and buses.
-fn list(ctx: &Context) -> Vec<Value> {
-    ctx.networks.iter().map(|n| json!({"name": n.name, "bus": n.bus})).collect()
+/// `GET /api/networks`: the networks' names and buses (empty without a plant).
+pub(crate) fn list(ctx: &Context) -> Value {
+    let networks: Vec<Value> = ctx.networks.iter().map(|n| json!({"name": n.name, "bus": n.bus})).collect();
+    json!({"ok": true, "networks": networks})
 }
 
 /// Adds `networks` (each network's name, bus and state) to `GET /api/state`'s answer; nothing
