@@ -225,6 +225,8 @@ pub trait DriverEnable {
     fn enable(&mut self);
     /// Releases the driver (receive).
     fn release(&mut self);
+    /// Whether there is a driver to enable (an RS-485 line), so that its edges mean something.
+    const PRESENT: bool = true;
 }
 
 impl<const P: char, const N: u8> DriverEnable for Pin<P, N, Output<PushPull>> {
@@ -244,6 +246,40 @@ impl DriverEnable for NoDriverEnable {
     fn enable(&mut self) {}
 
     fn release(&mut self) {}
+
+    const PRESENT: bool = false;
+}
+
+/// Why the USART dropped a received character (the `USART_SR` error flags, RM0090 §30.6.1), in
+/// the order [`Usart::read_checked`] names them when several are set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum UartError {
+    /// A character arrived while the last one was still unread (ORE): one was lost.
+    Overrun,
+    /// The stop bit read low (FE).
+    Framing,
+    /// The parity bit was wrong (PE).
+    Parity,
+    /// The receiver sampled noise (NF).
+    Noise,
+}
+
+impl UartError {
+    /// The error the flags of `sr` name, if any.
+    const fn from_sr(sr: u16) -> Option<UartError> {
+        if sr & bits::SR_ORE != 0 {
+            Some(UartError::Overrun)
+        } else if sr & bits::SR_FE != 0 {
+            Some(UartError::Framing)
+        } else if sr & bits::SR_PE != 0 {
+            Some(UartError::Parity)
+        } else if sr & bits::SR_NF != 0 {
+            Some(UartError::Noise)
+        } else {
+            None
+        }
+    }
 }
 
 /// The instrument's USART, pins and driver enable on the reference board ([`crate::boards::reference`]).
@@ -400,15 +436,24 @@ where
     /// tried.
     pub fn read(&mut self) -> Option<u8> {
         loop {
-            let sr = self.usart.sr().read().bits();
-            if sr & (bits::SR_ERRORS | bits::SR_RXNE) == 0 {
-                return None;
-            }
-            let byte = self.usart.dr().read().bits() as u8;
-            if sr & bits::SR_ERRORS == 0 {
+            if let Ok(byte) = self.read_checked()? {
                 return Some(byte);
             }
         }
+    }
+
+    /// A received character or, for one with an error, the error (the character is read and
+    /// dropped, which clears the error, RM0090 §30.6.1); `None` when nothing waits.
+    pub fn read_checked(&mut self) -> Option<Result<u8, UartError>> {
+        let sr = self.usart.sr().read().bits();
+        if sr & (bits::SR_ERRORS | bits::SR_RXNE) == 0 {
+            return None;
+        }
+        let byte = self.usart.dr().read().bits() as u8;
+        Some(match UartError::from_sr(sr) {
+            Some(error) => Err(error),
+            None => Ok(byte),
+        })
     }
 
     /// Writes a byte if the transmit data register is empty.
@@ -449,9 +494,15 @@ pub struct Rs485 {
 }
 
 impl Rs485 {
-    /// A received character, if any (one with an error is dropped, [`Usart::read`]).
-    pub fn read(&mut self) -> Option<u8> {
-        self.usart.read().map(|b| b & self.data_mask)
+    /// A received character or the error of one the USART dropped ([`Usart::read_checked`]);
+    /// `None` when nothing waits.
+    pub fn read(&mut self) -> Option<Result<u8, UartError>> {
+        self.usart.read_checked().map(|r| r.map(|b| b & self.data_mask))
+    }
+
+    /// Whether the line has an RS-485 driver enable (false on RS-232).
+    pub const fn has_driver_enable(&self) -> bool {
+        De::PRESENT
     }
 
     /// Writes a byte if the transmit register is empty; enables the driver first.

@@ -65,7 +65,7 @@ fn main() {
 mod app {
     use crate::can::CanPort;
     use crate::config;
-    use crate::instrument::InstrumentPort;
+    use crate::instrument::{InstrumentPort, Received};
     use crate::log::{log_info as info, log_warn as warn};
     use crate::task::{ConverterTask, Hardware, Input, INPUTS};
     #[cfg(not(feature = "emulated"))]
@@ -238,10 +238,11 @@ mod app {
         }
     }
 
-    /// Queues `input` for the converter task and pends it; a full queue drops the input.
-    fn queue(inputs: &mut Deque<Input, INPUTS>, input: Input) {
-        let _ = inputs.push_back(input);
+    /// Queues `input` for the converter task and pends it; a full queue drops the input (`false`).
+    fn queue(inputs: &mut Deque<Input, INPUTS>, input: Input) -> bool {
+        let queued = inputs.push_back(input).is_ok();
         rtic::pend(CONVERTER_TASK);
+        queued
     }
 
     /// CAN FIFO 0 (the acceptance list): frames to the converter task.
@@ -283,10 +284,27 @@ mod app {
         mut inputs: impl Mutex<T = Deque<Input, INPUTS>>,
     ) {
         instrument_port.lock(|port| {
-            port.on_interrupt(|b| {
+            let mut lost = 0u32;
+            port.on_interrupt(|r| match r {
                 // A full queue drops the byte, as an overrun would; the profile resynchronises.
-                inputs.lock(|inputs| queue(inputs, Input::InstrumentByte(b)));
-            })
+                Received::Byte(b) => {
+                    inputs.lock(|inputs| queue(inputs, Input::InstrumentByte(b)));
+                }
+                Received::Event(kind) => {
+                    if !inputs.lock(|inputs| queue(inputs, Input::LineEvent(kind))) {
+                        lost += 1;
+                    }
+                }
+            });
+            // The driver's edges, from this interrupt or from `send` in the converter task.
+            while let Some(kind) = port.take_event() {
+                if !inputs.lock(|inputs| queue(inputs, Input::LineEvent(kind))) {
+                    lost += 1;
+                }
+            }
+            for _ in 0..lost {
+                port.count_lost_event();
+            }
         });
     }
 

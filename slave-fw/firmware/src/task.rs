@@ -18,6 +18,7 @@ use devicenet::led::Leds;
 use devicenet::slave::{Event, SettingChanged};
 use devicenet::{CanFrame, Instant, MacId};
 use slave_fw::converter::{Converter, ResetKind};
+use slave_fw::serial::trace::TraceKind;
 
 /// Capacity of the converter task's input queue, and the most inputs taken per wake-up.
 pub const INPUTS: usize = 64;
@@ -33,6 +34,9 @@ pub enum Input {
     BusOff,
     /// A byte from the instrument.
     InstrumentByte(u8),
+    /// A line event of the instrument's USART (an error, an RS-485 driver edge), for the
+    /// serial-line analyzer.
+    LineEvent(TraceKind),
 }
 
 /// The board's side of the converter task's outputs.
@@ -96,6 +100,11 @@ impl ConverterTask {
                     self.serial(&mut serial, now, hw);
                     self.converter.handle_can_frame(&frame, now);
                     self.drain(now, hw);
+                }
+                Input::LineEvent(kind) => {
+                    // After the bytes before it, so the analyzer keeps the line's order.
+                    self.serial(&mut serial, now, hw);
+                    self.converter.record_line_event(kind, now);
                 }
                 Input::BusOff => {
                     self.serial(&mut serial, now, hw);
@@ -402,6 +411,40 @@ mod tests {
         assert_eq!(wake_ups, wire.len().div_ceil(INPUTS), "at most {INPUTS} inputs per wake-up");
         assert_eq!(task.converter().profile().stats().frames_received - before, 3);
         assert_eq!(task.converter().profile().input_image()[0], 2, "the last frame's image");
+    }
+
+    #[test]
+    fn line_events_reach_the_trace_in_line_order() {
+        let mut hw = Recorder::default();
+        let (mut task, now) = established(&mut hw);
+        let from = task.converter().trace().next_seq();
+        let mut inputs = [
+            Input::LineEvent(TraceKind::DriverOn),
+            Input::LineEvent(TraceKind::DriverOff),
+            Input::InstrumentByte(0x68),
+            Input::LineEvent(TraceKind::UartFraming),
+            Input::InstrumentByte(0x01),
+            Input::LineEvent(TraceKind::UartParity),
+            Input::LineEvent(TraceKind::UartOverrun),
+        ]
+        .into_iter();
+        let first = inputs.next().unwrap();
+        task.take_inputs(first, || inputs.next(), now, &mut hw);
+        let trace = task.converter().trace();
+        let kinds: Vec<_> =
+            (from..trace.next_seq()).filter_map(|seq| trace.get(seq)).map(|e| e.kind).collect();
+        assert_eq!(
+            kinds,
+            [
+                TraceKind::DriverOn,
+                TraceKind::DriverOff,
+                TraceKind::Receive,
+                TraceKind::UartFraming,
+                TraceKind::Receive,
+                TraceKind::UartParity,
+                TraceKind::UartOverrun,
+            ]
+        );
     }
 
     #[test]
