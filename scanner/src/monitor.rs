@@ -965,7 +965,14 @@ mod tests {
 
     #[test]
     fn modbus_bits_and_references() {
-        let coils = ScanEntry { unit: 2, function: Function::ReadCoils, address: 9, count: 10, offset: 0 };
+        let coils = ScanEntry {
+            unit: 2,
+            function: Function::ReadCoils,
+            address: 9,
+            count: 10,
+            offset: 0,
+            word_order: Default::default(),
+        };
         let f = modbus_field(&coils, ByteOrder::LittleEndian, &[0b1000_0101, 0b10]);
         assert_eq!(f.text, "u2 fc1 @00010+10: 1, 0, 1, 0, 0, 0, 0, 1, 0, 1");
         let far = ScanEntry {
@@ -974,6 +981,7 @@ mod tests {
             address: 9999,
             count: 1,
             offset: 0,
+            word_order: Default::default(),
         };
         assert_eq!(modbus_ref(&far, 0), "410000");
     }

@@ -286,7 +286,7 @@ fn check_configuration(text: &str, config: &str, starts: usize) -> Result<(), (u
                     let key = t.key.map(|k| format!("{k}: ")).unwrap_or_default();
                     Err(((first + t.line).saturating_sub(1), format!("{key}{}", t.message)))
                 }
-                slave_fw::description::DescriptionErrorKind::Invalid { key, message } => {
+                slave_fw::description::DescriptionErrorKind::Invalid { key, message, .. } => {
                     Err((starts, format!("{key}: {message}")))
                 }
                 slave_fw::description::DescriptionErrorKind::Io(e) => Err((starts, e.to_string())),

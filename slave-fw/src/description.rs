@@ -78,6 +78,9 @@ pub enum DescriptionErrorKind {
         key: String,
         /// Why.
         message: String,
+        /// The 1-based line of the key in the text (of the nearest enclosing entry when the key
+        /// itself is not written, a default), when the text was parsed.
+        line: Option<usize>,
     },
 }
 
@@ -89,7 +92,10 @@ impl fmt::Display for DescriptionError {
         match &self.kind {
             DescriptionErrorKind::Io(e) => write!(f, "cannot read the device description: {e}"),
             DescriptionErrorKind::Toml(e) => write!(f, "{e}"),
-            DescriptionErrorKind::Invalid { key, message } => write!(f, "{key}: {message}"),
+            DescriptionErrorKind::Invalid { key, message, line: Some(line) } => {
+                write!(f, "line {line}: {key}: {message}")
+            }
+            DescriptionErrorKind::Invalid { key, message, line: None } => write!(f, "{key}: {message}"),
         }
     }
 }
@@ -184,7 +190,61 @@ fn value_at(
 }
 
 fn invalid(key: impl Into<String>, message: impl Into<String>) -> DescriptionErrorKind {
-    DescriptionErrorKind::Invalid { key: key.into(), message: message.into() }
+    DescriptionErrorKind::Invalid { key: key.into(), message: message.into(), line: None }
+}
+
+/// The 1-based line of dotted `key` (`profile.modbus.scan[1].word_order`) in `text`, or of the
+/// deepest entry on its path that the text writes.
+fn line_of(text: &str, key: &str) -> Option<usize> {
+    let root = toml::de::DeTable::parse(text).ok()?;
+    let mut best: Option<(usize, usize)> = None;
+    entry_at(root.get_ref(), key, &mut String::new(), &mut best);
+    let at = best?.1.min(text.len());
+    Some(text.get(..at).unwrap_or_default().matches('\n').count() + 1)
+}
+
+/// Records in `best` (path length, key start) the deepest entry of `table` at `path` that `key`
+/// runs through.
+fn entry_at(table: &toml::de::DeTable<'_>, key: &str, path: &mut String, best: &mut Option<(usize, usize)>) {
+    for (k, value) in table {
+        let len = path.len();
+        if !path.is_empty() {
+            path.push('.');
+        }
+        path.push_str(k.get_ref());
+        entry_value(value, k.span().start, key, path, best);
+        path.truncate(len);
+    }
+}
+
+fn entry_value(
+    value: &toml::Spanned<toml::de::DeValue<'_>>,
+    start: usize,
+    key: &str,
+    path: &mut String,
+    best: &mut Option<(usize, usize)>,
+) {
+    let on_path = key
+        .strip_prefix(path.as_str())
+        .is_some_and(|rest| rest.is_empty() || rest.starts_with('.') || rest.starts_with('['));
+    if !on_path {
+        return;
+    }
+    if best.is_none_or(|(n, _)| path.len() > n) {
+        *best = Some((path.len(), start));
+    }
+    match value.get_ref() {
+        toml::de::DeValue::Table(t) => entry_at(t, key, path, best),
+        toml::de::DeValue::Array(items) => {
+            for (i, item) in items.iter().enumerate() {
+                let len = path.len();
+                path.push_str(&format!("[{i}]"));
+                entry_value(item, item.span().start, key, path, best);
+                path.truncate(len);
+            }
+        }
+        _ => {}
+    }
 }
 
 #[derive(Deserialize)]
@@ -299,7 +359,12 @@ impl DeviceDescription {
         let no_file = |kind| DescriptionError { file: None, kind };
         let file: File = toml::from_str(text)
             .map_err(|e| no_file(DescriptionErrorKind::Toml(TomlError::new(&e, text))))?;
-        build(file).map_err(no_file)
+        build(file).map_err(|kind| match kind {
+            DescriptionErrorKind::Invalid { line: None, key, message } => {
+                no_file(DescriptionErrorKind::Invalid { line: line_of(text, &key), key, message })
+            }
+            other => no_file(other),
+        })
     }
 }
 

@@ -4,7 +4,7 @@
 use rstest::rstest;
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::description::DeviceDescription;
-use slave_fw::serial::modbus::Framing;
+use slave_fw::serial::modbus::{Framing, WordOrder};
 use slave_fw::serial::ProfileConfig;
 use std::path::Path;
 
@@ -139,6 +139,53 @@ fn modbus_framing_key() {
         assert_eq!(written.contains("framing = "), framing != Framing::Rtu, "{written}");
         assert_eq!(DeviceDescription::parse(&written).unwrap().converter, d.converter);
     }
+}
+
+/// `word_order` on a scan entry: each value reads and round-trips through the writer (the
+/// default is not written, so older files read and write as before); on an odd register count
+/// the error names the file, the line of the key and the key.
+#[test]
+fn modbus_word_order_key() {
+    let text = std::fs::read_to_string(example("modbus-meter.toml")).unwrap();
+    let find = "function = 3\naddress = 100\ncount = 2\n";
+    let old = DeviceDescription::parse(&text).unwrap();
+    let ProfileConfig::Modbus(m) = &old.converter.profile else { panic!("not Modbus") };
+    assert!(m.scan.iter().all(|e| e.word_order == WordOrder::Registers));
+    assert!(!old.to_toml().unwrap().contains("word_order"));
+    for (value, order) in [
+        ("abcd", WordOrder::Abcd),
+        ("badc", WordOrder::Badc),
+        ("cdab", WordOrder::Cdab),
+        ("dcba", WordOrder::Dcba),
+        ("registers", WordOrder::Registers),
+    ] {
+        let d =
+            DeviceDescription::parse(&text.replacen(find, &format!("{find}word_order = \"{value}\"\n"), 1))
+                .unwrap();
+        let ProfileConfig::Modbus(m) = &d.converter.profile else { panic!("not Modbus") };
+        assert_eq!(m.scan[1].word_order, order);
+        let written = d.to_toml().unwrap();
+        assert_eq!(written.contains(&format!("word_order = \"{value}\"")), order != WordOrder::Registers);
+        assert_eq!(DeviceDescription::parse(&written).unwrap().converter, d.converter);
+    }
+    let odd = "function = 3\naddress = 100\ncount = 1\nword_order = \"cdab\"\n";
+    let (err, path, bad) = load_error("word-order.toml", &text, find, odd);
+    let line = line_of(&bad, "word_order");
+    assert_eq!(
+        err,
+        format!(
+            "{}: line {line}: profile.modbus.scan[1].word_order: a 32-bit word order needs function 3, 4 \
+             or 16 and an even register count",
+            path.display()
+        )
+    );
+    let coils = "function = 1\naddress = 100\ncount = 2\nword_order = \"abcd\"\n";
+    let (err, _, _) = load_error("word-order-coils.toml", &text, find, coils);
+    assert!(err.contains("profile.modbus.scan[1].word_order: a 32-bit word order needs"), "{err}");
+    let (err, _, bad) =
+        load_error("word-order-bad.toml", &text, find, &format!("{find}word_order = \"abdc\"\n"));
+    let line = line_of(&bad, "word_order");
+    assert!(err.contains(&format!("line {line},")) && err.contains("unknown variant `abdc`"), "{err}");
 }
 
 #[test]

@@ -271,6 +271,7 @@ mod tests {
             address: 7,
             count: 1,
             offset: 0,
+            word_order: Default::default(),
         }])
         .unwrap();
         let config = ConverterConfig {

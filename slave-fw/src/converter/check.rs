@@ -256,8 +256,22 @@ mod tests {
 
     fn modbus() -> ConverterConfig {
         let scan = heapless::Vec::from_iter([
-            ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 0, count: 2, offset: 0 },
-            ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 8, count: 1, offset: 30 },
+            ScanEntry {
+                unit: 1,
+                function: Function::ReadInputRegisters,
+                address: 0,
+                count: 2,
+                offset: 0,
+                word_order: Default::default(),
+            },
+            ScanEntry {
+                unit: 1,
+                function: Function::ReadInputRegisters,
+                address: 8,
+                count: 1,
+                offset: 30,
+                word_order: Default::default(),
+            },
         ]);
         let mut m = ModbusConfig::new(scan);
         m.input_len = 8;

@@ -27,7 +27,9 @@
 //!   modbus   serial, response_timeout_ms u32, retries u8, poll_period_ms u32, input_len u16,
 //!            output_len u16, order u8 (bit 0 byte order: 0 little, 1 big; bits 1-2 framing:
 //!            0 RTU, 1 ASCII, 2 TCP, so older images read as RTU), scan: count u8, then
-//!            unit u8, function u8 (Modbus code), address u16, count u16, offset u16 each,
+//!            unit u8, function u8 (bits 0-4 the Modbus code; bits 5-7 the word order: 0 the
+//!            profile's byte order, so older images read unchanged, 1 abcd, 2 badc, 3 cdab,
+//!            4 dcba), address u16, count u16, offset u16 each,
 //!            health, on_idle, on_fault
 //! serial     baud u32, format u8 (bit 0 seven data bits, bits 1-2 parity 0 none 1 even 2 odd,
 //!            bit 3 two stop bits)
@@ -63,7 +65,7 @@
 //! passes [`ConverterConfig::check`], the same value rules as the TOML device description.
 
 use super::{ConverterConfig, InputAssembly, InvalidConfig};
-use crate::serial::modbus::{ByteOrder, Framing, Function, ModbusConfig, ScanEntry};
+use crate::serial::modbus::{ByteOrder, Framing, Function, ModbusConfig, ScanEntry, WordOrder};
 use crate::serial::{
     AckFormat, Checksum, CommandFormat, DataBits, FramedConfig, FramedProfileConfig, HealthConfig,
     IdleAction, LengthField, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
@@ -431,7 +433,8 @@ impl Writer<'_> {
                 self.u8(m.scan.len() as u8);
                 for e in &m.scan {
                     self.u8(e.unit);
-                    self.u8(e.function.code());
+                    let order = WordOrder::ALL.iter().position(|&w| w == e.word_order).unwrap_or(0) as u8;
+                    self.u8(order << 5 | e.function.code());
                     self.u16(e.address);
                     self.u16(e.count);
                     self.u16(e.offset);
@@ -691,11 +694,16 @@ impl Reader<'_> {
         for _ in 0..self.u8() {
             let unit = self.u8();
             let code = self.u8();
-            let function = Function::from_code(code).unwrap_or_else(|| {
-                self.fail(self.pos - 1);
-                Function::ReadCoils
-            });
-            let e = ScanEntry { unit, function, address: self.u16(), count: self.u16(), offset: self.u16() };
+            let (function, word_order) =
+                match (Function::from_code(code & 0x1F), WordOrder::ALL.get(usize::from(code >> 5))) {
+                    (Some(f), Some(&w)) => (f, w),
+                    _ => {
+                        self.fail(self.pos - 1);
+                        (Function::ReadCoils, WordOrder::Registers)
+                    }
+                };
+            let (address, count, offset) = (self.u16(), self.u16(), self.u16());
+            let e = ScanEntry { unit, function, address, count, offset, word_order };
             if scan.push(e).is_err() {
                 self.fail(self.pos - 8);
             }

@@ -533,6 +533,7 @@ mod tests {
             address: 0,
             count: 2,
             offset: 0,
+            word_order: Default::default(),
         }]);
         let mut m = ModbusConfig::new(scan);
         m.input_len = 4;

@@ -84,11 +84,13 @@ pub enum Field {
     OnFault,
     /// `framing` (Modbus)
     ModbusFraming,
+    /// `scan.word_order`
+    ScanWordOrder,
 }
 
 impl Field {
     /// Every field, in code order.
-    pub const ALL: [Field; 30] = [
+    pub const ALL: [Field; 31] = [
         Field::SerialBaud,
         Field::SerialDataBits,
         Field::SerialParity,
@@ -119,6 +121,7 @@ impl Field {
         Field::OnIdle,
         Field::OnFault,
         Field::ModbusFraming,
+        Field::ScanWordOrder,
     ];
 
     /// The key, dotted from the profile's root, as the description file spells it (`scan.count`).
@@ -154,6 +157,7 @@ impl Field {
             Field::OnIdle => "on_idle",
             Field::OnFault => "on_fault",
             Field::ModbusFraming => "framing",
+            Field::ScanWordOrder => "scan.word_order",
         }
     }
 
@@ -214,11 +218,14 @@ pub enum Conflict {
     SevenBitsNeedParity,
     /// Modbus TCP framing on a device without a TCP port (the firmware's own check).
     NoTcpPort,
+    /// A 32-bit word order on a scan entry that is not a register read or multiple-register
+    /// write with an even count.
+    WordOrderNeedsPairs,
 }
 
 impl Conflict {
     /// Every reason, in code order.
-    pub const ALL: [Conflict; 7] = [
+    pub const ALL: [Conflict; 8] = [
         Conflict::NoEndDelimiter,
         Conflict::EndEqualsStart,
         Conflict::ContainsEndDelimiter,
@@ -226,6 +233,7 @@ impl Conflict {
         Conflict::ModbusDataBits,
         Conflict::SevenBitsNeedParity,
         Conflict::NoTcpPort,
+        Conflict::WordOrderNeedsPairs,
     ];
 
     /// The reason in words.
@@ -238,6 +246,9 @@ impl Conflict {
             Conflict::ModbusDataBits => "Modbus RTU uses 8 data bits",
             Conflict::SevenBitsNeedParity => "7 data bits need parity on this USART",
             Conflict::NoTcpPort => "Modbus TCP needs a TCP connection, which this device does not have",
+            Conflict::WordOrderNeedsPairs => {
+                "a 32-bit word order needs function 3, 4 or 16 and an even register count"
+            }
         }
     }
 

@@ -227,6 +227,7 @@ mod tests {
             address: 0,
             count: 1,
             offset: 0,
+            word_order: Default::default(),
         }])
         .unwrap();
         let config = ProfileConfig::Modbus(crate::serial::modbus::ModbusConfig::new(scan));

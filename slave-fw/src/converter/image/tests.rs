@@ -10,9 +10,30 @@ use std::vec::Vec;
 /// The Modbus gateway of `descriptions/modbus-meter.toml`.
 pub(crate) fn modbus_meter() -> ConverterConfig {
     let scan = heapless::Vec::from_iter([
-        ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 0, count: 4, offset: 0 },
-        ScanEntry { unit: 1, function: Function::ReadHoldingRegisters, address: 100, count: 2, offset: 8 },
-        ScanEntry { unit: 1, function: Function::WriteMultipleRegisters, address: 16, count: 2, offset: 0 },
+        ScanEntry {
+            unit: 1,
+            function: Function::ReadInputRegisters,
+            address: 0,
+            count: 4,
+            offset: 0,
+            word_order: Default::default(),
+        },
+        ScanEntry {
+            unit: 1,
+            function: Function::ReadHoldingRegisters,
+            address: 100,
+            count: 2,
+            offset: 8,
+            word_order: Default::default(),
+        },
+        ScanEntry {
+            unit: 1,
+            function: Function::WriteMultipleRegisters,
+            address: 16,
+            count: 2,
+            offset: 0,
+            word_order: Default::default(),
+        },
     ]);
     let mut m = ModbusConfig::new(scan);
     m.response_timeout_ms = 200;
@@ -59,7 +80,14 @@ fn largest() -> ConverterConfig {
         m.scan.clear();
         m.input_len = SCAN_LIST_CAPACITY as u16;
         for i in 0..SCAN_LIST_CAPACITY as u16 {
-            let e = ScanEntry { unit: 1, function: Function::ReadCoils, address: i, count: 8, offset: i };
+            let e = ScanEntry {
+                unit: 1,
+                function: Function::ReadCoils,
+                address: i,
+                count: 8,
+                offset: i,
+                word_order: Default::default(),
+            };
             m.scan.push(e).unwrap();
         }
         m.on_idle = IdleAction::send(&[1; IDLE_FRAME_CAPACITY]).unwrap();
@@ -171,6 +199,68 @@ fn malformed_body() {
     assert_eq!(decode(&resealed(bytes)), Err(ImageError::Malformed { offset: 87 }));
 }
 
+/// The image offset of scan entry `i`'s function byte in `modbus_meter()`'s image.
+fn function_byte(bytes: &[u8], i: usize) -> usize {
+    let c = modbus_meter();
+    let ProfileConfig::Modbus(m) = &c.profile else { unreachable!() };
+    // The scan count byte, then 8 bytes per entry (the function second), then health and actions.
+    let scan_count = bytes.len() - CRC_LEN - health_and_actions_len(m) - 8 * m.scan.len() - 1;
+    scan_count + 1 + 8 * i + 1
+}
+
+fn health_and_actions_len(m: &ModbusConfig) -> usize {
+    let action = |a: &IdleAction| a.frame().map_or(1, |f| 2 + f.len());
+    5 + action(&m.on_idle) + action(&m.on_fault)
+}
+
+#[rstest]
+#[case::registers(WordOrder::Registers, 0x04)]
+#[case::abcd(WordOrder::Abcd, 0x24)]
+#[case::badc(WordOrder::Badc, 0x44)]
+#[case::cdab(WordOrder::Cdab, 0x64)]
+#[case::dcba(WordOrder::Dcba, 0x84)]
+fn the_word_order_rides_in_bits_5_to_7_of_the_function_byte(#[case] order: WordOrder, #[case] byte: u8) {
+    let mut c = modbus_meter();
+    if let ProfileConfig::Modbus(m) = &mut c.profile {
+        m.scan[0].word_order = order;
+    }
+    let bytes = image(&c);
+    assert_eq!(bytes[function_byte(&bytes, 0)], byte);
+    assert_eq!(decode(&bytes), Ok(c));
+}
+
+#[test]
+fn an_image_without_word_orders_reads_as_before() {
+    // The image of a version-1 configuration written before word orders existed: every function
+    // byte is a plain Modbus code (4, 3, 16), and every entry reads as `WordOrder::Registers`.
+    let bytes = image(&modbus_meter());
+    let at = function_byte(&bytes, 0);
+    assert_eq!([bytes[at], bytes[at + 8], bytes[at + 16]], [4, 3, 16]);
+    let ProfileConfig::Modbus(m) = decode(&bytes).unwrap().profile else { panic!("not Modbus") };
+    assert!(m.scan.iter().all(|e| e.word_order == WordOrder::Registers));
+}
+
+#[test]
+fn an_unknown_word_order_or_a_pair_order_on_an_odd_count_is_refused() {
+    let bytes = image(&modbus_meter());
+    let at = function_byte(&bytes, 0);
+    let mut unknown = bytes.clone();
+    unknown[at] = 5 << 5 | 4;
+    let offset = u16::try_from(at - HEADER_LEN).unwrap();
+    assert_eq!(decode(&resealed(unknown)), Err(ImageError::Malformed { offset }));
+    // Entry 0 reads 4 registers: CDAB is fine; on entry 1 with an odd count it is not.
+    let mut c = modbus_meter();
+    if let ProfileConfig::Modbus(m) = &mut c.profile {
+        m.scan[1].count = 1;
+        m.scan[1].word_order = WordOrder::Cdab;
+    }
+    let e = decode(&image(&c)).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "profile.modbus.scan[1].word_order: a 32-bit word order needs function 3, 4 or 16 and an even register count"
+    );
+}
+
 #[test]
 fn invalid_values_name_their_key_as_the_description_loader_does() {
     let mut bytes = image(&breaker());
@@ -253,13 +343,14 @@ fn framed() -> impl Strategy<Value = ProfileConfig> {
 
 fn modbus() -> impl Strategy<Value = ProfileConfig> {
     const FUNCTIONS: [u8; 8] = [1, 2, 3, 4, 5, 6, 15, 16];
-    let entry = (1..250u8, 0..8usize, any::<u16>(), 0..130u16, 0..70u16).prop_map(
-        |(unit, f, address, count, offset)| ScanEntry {
+    let entry = (1..250u8, 0..8usize, any::<u16>(), 0..130u16, 0..70u16, 0..WordOrder::ALL.len()).prop_map(
+        |(unit, f, address, count, offset, w)| ScanEntry {
             unit,
             function: Function::from_code(FUNCTIONS[f]).unwrap(),
             address,
             count,
             offset,
+            word_order: WordOrder::ALL[w],
         },
     );
     let scan = proptest::collection::vec(entry, 0..=SCAN_LIST_CAPACITY);

@@ -1,6 +1,6 @@
 //! A scan entry ([`ScanEntry`]) and its data between the DeviceNet images and the Modbus wire:
-//! the request an entry sends, the read data it stores in the [`ByteOrder`] of the images, and
-//! which output changes call for a write.
+//! the request an entry sends, the read data it stores in the [`ByteOrder`] of the images (and
+//! the [`WordOrder`] of its register pairs), and which output changes call for a write.
 
 use super::pdu::Function;
 use crate::serial::IMAGE_CAPACITY;
@@ -15,6 +15,66 @@ pub enum ByteOrder {
     LittleEndian,
     /// High byte first, as on the Modbus wire.
     BigEndian,
+}
+
+/// How an instrument lays a 32-bit value (DINT, UDINT, REAL) over a register pair, the way
+/// vendor manuals name it: the value's bytes are `A B C D`, most significant first, and the
+/// letters give their order on the wire, first register first (guide:
+/// docs/src/integrator/modbus.md, "32-bit word order"). The converter stores the value in the
+/// profile's [`ByteOrder`]: `D C B A` in little-endian images (as DeviceNet carries a DINT or
+/// REAL), `A B C D` in big-endian ones. Every order is a fixed permutation of the four bytes and
+/// its own inverse, so writes (function 16) take the image to the wire the same way.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
+pub enum WordOrder {
+    /// Each register on its own in the profile's [`ByteOrder`], no pairs (the default).
+    #[default]
+    Registers,
+    /// Big-endian: high register first, high byte first in each.
+    Abcd,
+    /// High register first, its bytes swapped ("byte swap").
+    Badc,
+    /// Low register first, high byte first in each ("word swap").
+    Cdab,
+    /// Little-endian: low register first, low byte first in each.
+    Dcba,
+}
+
+impl WordOrder {
+    /// Every order, in image code order (bits 5-7 of a scan entry's function byte).
+    pub const ALL: [WordOrder; 5] =
+        [WordOrder::Registers, WordOrder::Abcd, WordOrder::Badc, WordOrder::Cdab, WordOrder::Dcba];
+
+    /// Whether this is [`WordOrder::Registers`], the default.
+    pub fn is_registers(&self) -> bool {
+        *self == WordOrder::Registers
+    }
+
+    /// Whether this order moves bytes between the two registers of a pair (and so needs an even
+    /// register count).
+    pub const fn is_pairwise(self) -> bool {
+        !matches!(self, WordOrder::Registers)
+    }
+
+    /// The image byte `k` is wire byte `k ^ mask`: bit 0 swaps the bytes of a register, bit 1
+    /// the registers of a pair. The wire carries value byte `i` (0 = A) at `i ^ w` for `w` =
+    /// 0 (abcd), 1 (badc), 2 (cdab), 3 (dcba); a little-endian image holds value byte `k ^ 3` at
+    /// `k`, a big-endian one value byte `k`.
+    const fn mask(self, order: ByteOrder) -> usize {
+        let image = match order {
+            ByteOrder::LittleEndian => 3,
+            ByteOrder::BigEndian => 0,
+        };
+        match self {
+            // A register's two bytes: a one-register value `A B` on the wire.
+            WordOrder::Registers => image & 1,
+            WordOrder::Abcd => image,
+            WordOrder::Badc => image ^ 1,
+            WordOrder::Cdab => image ^ 2,
+            WordOrder::Dcba => image ^ 3,
+        }
+    }
 }
 
 /// One transaction of the scan list.
@@ -33,6 +93,9 @@ pub struct ScanEntry {
     pub count: u16,
     /// Byte offset of this entry's data in the input image (reads) or output image (writes).
     pub offset: u16,
+    /// How register pairs are ordered in the image (functions 3, 4 and 16 with an even count).
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "WordOrder::is_registers"))]
+    pub word_order: WordOrder,
 }
 
 impl ScanEntry {
@@ -77,12 +140,13 @@ pub(crate) fn store_read(input: &mut [u8], e: &ScanEntry, data: &[u8], order: By
 }
 
 /// Copies entry `e`'s data between the wire and its image, the same conversion either way: bits
-/// masked to the entry's quantity, register bytes swapped for little-endian images.
+/// masked to the entry's quantity, register bytes placed by the entry's [`WordOrder`] (an order is
+/// its own inverse, so reads and writes share it).
 fn convert(e: &ScanEntry, order: ByteOrder, from: &[u8], to: &mut [u8]) {
     let len = from.len();
-    let swap = usize::from(!e.function.is_bits() && order == ByteOrder::LittleEndian);
+    let mask = if e.function.is_bits() { 0 } else { e.word_order.mask(order) };
     for (k, d) in to.iter_mut().enumerate().take(len) {
-        *d = from.get(k ^ swap).copied().unwrap_or(0) & significant_bits(e, k, len);
+        *d = from.get(k ^ mask).copied().unwrap_or(0) & significant_bits(e, k, len);
     }
 }
 
@@ -129,4 +193,70 @@ pub(crate) fn append_crc(out: &mut [u8], n: usize) -> Option<usize> {
     let crc = crate::serial::checksum::crc16_modbus(out.get(..n)?).to_le_bytes();
     out.get_mut(n..n + 2)?.copy_from_slice(&crc);
     Some(n + 2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rstest::rstest;
+
+    /// 123.45 = 0x42F6_E666 as REAL, bytes A B C D = 42 F6 E6 66; the wire layouts from the
+    /// order table of modbus.maxenergic.com/modbus-float32-byte-order.html (register 1, then 2).
+    const VALUE: u32 = 0x42F6_E666;
+
+    fn entry(function: Function, count: u16, word_order: WordOrder) -> ScanEntry {
+        ScanEntry { unit: 1, function, address: 0, count, offset: 0, word_order }
+    }
+
+    #[rstest]
+    #[case::abcd(WordOrder::Abcd, [0x42, 0xF6, 0xE6, 0x66])]
+    #[case::cdab(WordOrder::Cdab, [0xE6, 0x66, 0x42, 0xF6])]
+    #[case::badc(WordOrder::Badc, [0xF6, 0x42, 0x66, 0xE6])]
+    #[case::dcba(WordOrder::Dcba, [0x66, 0xE6, 0xF6, 0x42])]
+    fn a_register_pair_reads_as_the_value(#[case] order: WordOrder, #[case] wire: [u8; 4]) {
+        for (byte_order, expected) in
+            [(ByteOrder::LittleEndian, VALUE.to_le_bytes()), (ByteOrder::BigEndian, VALUE.to_be_bytes())]
+        {
+            for f in [Function::ReadHoldingRegisters, Function::ReadInputRegisters] {
+                let mut input = [0u8; 4];
+                store_read(&mut input, &entry(f, 2, order), &wire, byte_order);
+                assert_eq!(input, expected, "{order:?} {byte_order:?} {f:?}");
+            }
+        }
+    }
+
+    #[rstest]
+    #[case::abcd(WordOrder::Abcd, [0x42, 0xF6, 0xE6, 0x66])]
+    #[case::cdab(WordOrder::Cdab, [0xE6, 0x66, 0x42, 0xF6])]
+    #[case::badc(WordOrder::Badc, [0xF6, 0x42, 0x66, 0xE6])]
+    #[case::dcba(WordOrder::Dcba, [0x66, 0xE6, 0xF6, 0x42])]
+    fn a_register_pair_writes_the_value_in_order(#[case] order: WordOrder, #[case] wire: [u8; 4]) {
+        let e = entry(Function::WriteMultipleRegisters, 2, order);
+        let mut out = [0u8; 16];
+        let n = encode_entry(&e, &VALUE.to_le_bytes(), ByteOrder::LittleEndian, &mut out).unwrap();
+        assert_eq!(out[..n], [[1, 16, 0, 0, 0, 2, 4].as_slice(), &wire].concat());
+        let n = encode_entry(&e, &VALUE.to_be_bytes(), ByteOrder::BigEndian, &mut out).unwrap();
+        assert_eq!(out[7..n], wire);
+    }
+
+    #[test]
+    fn two_pairs_are_ordered_each_on_its_own() {
+        let e = entry(Function::ReadHoldingRegisters, 4, WordOrder::Cdab);
+        let mut input = [0u8; 8];
+        store_read(&mut input, &e, &[3, 4, 1, 2, 7, 8, 5, 6], ByteOrder::BigEndian);
+        assert_eq!(input, [1, 2, 3, 4, 5, 6, 7, 8]);
+    }
+
+    #[rstest]
+    #[case::little_endian(ByteOrder::LittleEndian, [0xF6, 0x42, 0x66, 0xE6])]
+    #[case::big_endian(ByteOrder::BigEndian, [0x42, 0xF6, 0xE6, 0x66])]
+    fn without_a_word_order_registers_follow_the_byte_order(
+        #[case] order: ByteOrder,
+        #[case] image: [u8; 4],
+    ) {
+        let mut input = [0u8; 4];
+        let e = entry(Function::ReadHoldingRegisters, 2, WordOrder::Registers);
+        store_read(&mut input, &e, &[0x42, 0xF6, 0xE6, 0x66], order);
+        assert_eq!(input, image);
+    }
 }

@@ -33,7 +33,7 @@
 //! and ignored on writes; a single coil is bit 0).
 
 use super::entry::{append_crc, encode_entry, same_output, store_read};
-pub use super::entry::{ByteOrder, ScanEntry};
+pub use super::entry::{ByteOrder, ScanEntry, WordOrder};
 use super::framing::{Framer, Framing, Received};
 use super::pdu::{self, CodecError, ExceptionCode, ADU_CAPACITY};
 use crate::serial::error::{as_u32, ConfigError, Conflict, Field, Problem};
@@ -173,6 +173,19 @@ impl ModbusConfig {
         let max = u32::from(e.function.max_count()).min(as_u32(fit));
         ConfigError::check_range(Field::ScanCount, u32::from(e.count), 1, max)?;
         ConfigError::check_range(Field::ScanAddress, u32::from(e.address), 0, 0x1_0000 - u32::from(e.count))?;
+        // A 32-bit word order moves bytes between the registers of a pair: register functions
+        // only, an even count.
+        if e.word_order.is_pairwise() {
+            let registers = matches!(
+                e.function,
+                pdu::Function::ReadHoldingRegisters
+                    | pdu::Function::ReadInputRegisters
+                    | pdu::Function::WriteMultipleRegisters
+            );
+            if !registers || e.count % 2 != 0 {
+                return Err(ConfigError::conflict(Field::ScanWordOrder, Conflict::WordOrderNeedsPairs));
+            }
+        }
         ConfigError::check_range(
             Field::ScanOffset,
             u32::from(e.offset),

@@ -21,5 +21,5 @@ pub mod mbap;
 pub mod pdu;
 
 pub use framing::{FrameError, Framing, WIRE_CAPACITY};
-pub use master::{ByteOrder, ModbusConfig, ModbusMaster, ScanEntry, SCAN_LIST_CAPACITY};
+pub use master::{ByteOrder, ModbusConfig, ModbusMaster, ScanEntry, WordOrder, SCAN_LIST_CAPACITY};
 pub use pdu::{CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};

@@ -11,7 +11,7 @@ fn ms(n: u64) -> Instant {
 }
 
 fn entry(unit: u8, function: Function, address: u16, count: u16, offset: u16) -> ScanEntry {
-    ScanEntry { unit, function, address, count, offset }
+    ScanEntry { unit, function, address, count, offset, word_order: Default::default() }
 }
 
 /// Two reads, two writes:
