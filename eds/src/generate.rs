@@ -54,7 +54,7 @@ use slave_fw::converter::objects::{
 use slave_fw::converter::parameters::{Parameter, ParameterDef, CLASS_DESCRIPTOR, PARAMETERS};
 use slave_fw::converter::{ConverterConfig, InputAssembly, OUTPUT_ASSEMBLY, PARAMETER_CLASS};
 use slave_fw::description::DeviceDescription;
-use slave_fw::serial::modbus::{ByteOrder, Framing, ModbusConfig, ScanEntry};
+use slave_fw::serial::modbus::{ByteOrder, Framing, ModbusConfig, ScanEntry, WordOrder};
 use slave_fw::serial::{HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings};
 
 /// The `CreateDate` and `ModDate` written when [`GenerateOptions::date`] is not changed.
@@ -339,8 +339,16 @@ fn modbus_item(e: &ScanEntry) -> String {
     } else {
         format!("{many} {}-{}", e.address, (u32::from(e.address) + u32::from(e.count)).saturating_sub(1))
     };
+    // The default (registers one by one) is not named: such descriptions keep their help text.
+    let pairs = match e.word_order {
+        WordOrder::Registers => "",
+        WordOrder::Abcd => ", 32-bit values sent ABCD",
+        WordOrder::Badc => ", 32-bit values sent BADC",
+        WordOrder::Cdab => ", 32-bit values sent CDAB",
+        WordOrder::Dcba => ", 32-bit values sent DCBA",
+    };
     format!(
-        "{}: unit {} {items} (function {})",
+        "{}: unit {} {items} (function {}{pairs})",
         bytes(usize::from(e.offset), e.image_len()),
         e.unit,
         e.function.code()
@@ -894,6 +902,28 @@ mod tests {
         match named {
             Some(text) => assert!(help.contains(text), "{help}"),
             None => assert!(!help.contains("Modbus ASCII") && !help.contains("Modbus TCP"), "{help}"),
+        }
+    }
+
+    #[rstest]
+    #[case::registers(WordOrder::Registers, None)]
+    #[case::abcd(WordOrder::Abcd, Some("(function 3, 32-bit values sent ABCD)"))]
+    #[case::badc(WordOrder::Badc, Some("(function 3, 32-bit values sent BADC)"))]
+    #[case::cdab(WordOrder::Cdab, Some("(function 3, 32-bit values sent CDAB)"))]
+    #[case::dcba(WordOrder::Dcba, Some("(function 3, 32-bit values sent DCBA)"))]
+    fn the_assembly_help_names_the_word_order(#[case] order: WordOrder, #[case] named: Option<&str>) {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../slave-fw/descriptions/modbus-meter.toml");
+        let mut description = DeviceDescription::load(&path).unwrap();
+        let ProfileConfig::Modbus(m) = &mut description.converter.profile else { panic!("not Modbus") };
+        // Entry 1 reads holding registers 100-101 into input bytes 8-11.
+        m.scan[1].word_order = order;
+        let help = input_help(&description);
+        match named {
+            Some(text) => {
+                assert!(help.contains(&format!("unit 1 holding registers 100-101 {text}")), "{help}")
+            }
+            None => assert!(!help.contains("32-bit"), "{help}"),
         }
     }
 
