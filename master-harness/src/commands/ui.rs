@@ -58,7 +58,7 @@ pub struct UiArgs {
     /// A plant file (TOML): several networks, each `[[network]]` with its `name`, `bus` and
     /// `scanlist`, behind one console (guide: Several networks); not with a --bus other than sim.
     #[arg(long, value_name = "FILE.toml",
-          conflicts_with_all = ["scanlist", "adr", "project", "sparkplug", "modbus_tcp", "opcua"])]
+          conflicts_with_all = ["scanlist", "adr", "project", "modbus_tcp", "opcua"])]
     pub plant: Option<PathBuf>,
     /// Automatic device replacement (`adr = "config+address"`) for every node of a scan list
     /// built by the network scan (a scan list file says it per node).
@@ -145,6 +145,7 @@ pub fn execute(
             history: (!args.no_history).then_some(args.history.as_path()),
             mqtt: args.mqtt.as_deref(),
             tls: args.sparkplug.tls_files(),
+            sparkplug: &args.sparkplug,
             cycles: args.cycles,
         };
         return super::ui_plant::execute(opts, &plant, out, err, console);

@@ -12,10 +12,13 @@
 //! Each network keeps its samples in a history file of its own: `--history dnet-history.sqlite`
 //! gives `dnet-history-NAME.sqlite`; the audit log (every network's commands, the network named)
 //! stays in the `--history` file itself. With `--mqtt mqtt://HOST/PREFIX` each network publishes
-//! under `PREFIX/NAME/` as client `dnet-master-NAME`. `--sparkplug`, `--modbus-tcp`, `--opcua`
-//! and `--project` serve one network and are refused with `--plant` (a usage error).
+//! under `PREFIX/NAME/` as client `dnet-master-NAME`; with `--sparkplug GROUP/EDGE_NODE` instead,
+//! one edge node publishes every network's nodes as devices `NETWORK-macNN`, and a DCMD goes to
+//! its network's scanner thread (`super::ui_sparkplug`). `--modbus-tcp`, `--opcua` and
+//! `--project` serve one network and are refused with `--plant` (a usage error).
 
 use super::ui_access::AccessArgs;
+use super::ui_sparkplug::SparkplugArgs;
 use crate::options::{open_bus, GlobalOptions};
 use can_io::bus::BusSpec;
 use devicenet::MacId;
@@ -26,6 +29,8 @@ use dnet_scanner::monitor::InputLayout;
 use dnet_scanner::mqtt::{Publisher, TlsFiles};
 use dnet_scanner::plant::{read_plant, PlantNetwork};
 use dnet_scanner::report::{finish, table, Ending};
+use dnet_scanner::sparkplug::commands::Queues;
+use dnet_scanner::sparkplug::EdgeNode;
 use dnet_scanner::ui::thinning::Thinning;
 use dnet_scanner::ui::{known_descriptions, layout_for, serve_plant, ConsoleNetwork};
 use dnet_scanner::{sample_values, Scanner, ScannerOptions};
@@ -55,6 +60,8 @@ pub struct PlantArgs<'a> {
     pub mqtt: Option<&'a str>,
     /// The TLS files of `--mqtt`.
     pub tls: TlsFiles,
+    /// `--sparkplug` and its options (the one edge node of every network).
+    pub sparkplug: &'a SparkplugArgs,
     /// `--cycles N`.
     pub cycles: Option<u64>,
 }
@@ -104,6 +111,7 @@ struct Job {
     commands: mpsc::Receiver<ConsoleCommand>,
     history: Option<Arc<History>>,
     publisher: Option<Publisher>,
+    sparkplug: Option<Arc<EdgeNode>>,
     cycles: Option<u64>,
 }
 
@@ -149,14 +157,17 @@ pub fn execute(
         None => Arc::new(MemoryAudit::default()),
     };
     let slave = opts.slave_description()?;
+    let spb = args.sparkplug.sparkplug.is_some();
     let mut jobs = Vec::new();
     let mut console_networks = Vec::new();
+    let mut queues = Queues::new();
     for net in &plant.networks {
         let history = match args.history {
             Some(path) => Some(open_history(&history_path(path, &net.name))?),
             None => None,
         };
-        let publisher = match args.mqtt {
+        // With --sparkplug the broker gets the one edge node instead (started below).
+        let publisher = match args.mqtt.filter(|_| !spb) {
             Some(url) => {
                 let url = network_url(url, &net.name);
                 let client = format!("dnet-master-{}", net.name);
@@ -168,6 +179,7 @@ pub fn execute(
             None => None,
         };
         let (commands, command_rx) = mpsc::channel();
+        queues.insert(Some(net.name.clone()), commands.clone());
         let placeholder = Scanner::new(Default::default(), net.master_mac, ScannerOptions::default());
         let shared = Arc::new(Shared {
             state: Mutex::new(placeholder.state().clone()),
@@ -199,8 +211,19 @@ pub fn execute(
             commands: command_rx,
             history,
             publisher,
+            sparkplug: None,
             cycles: args.cycles,
         });
+    }
+    // One edge node for every network, started before any bus is touched (a refusal is exit 2).
+    let sparkplug = args.sparkplug.start_plant(args.mqtt, Arc::clone(&audit), queues)?.map(Arc::new);
+    if let Some(edge) = &sparkplug {
+        for job in &mut jobs {
+            job.sparkplug = Some(Arc::clone(edge));
+            if let Ok(mut status) = job.shared.mqtt.lock() {
+                *status = Some(edge.status());
+            }
+        }
     }
     let Some(first) = console_networks.first() else {
         return Err(HarnessError::NothingCompared("the plant file names no network".into()));
@@ -244,6 +267,8 @@ pub fn execute(
     }
     let outcomes: Vec<Outcome> = handles.into_iter().filter_map(|h| h.join().ok().flatten()).collect();
     server.stop();
+    // The last holder: NDEATH and a clean disconnect.
+    drop(sparkplug);
     if !start {
         for r in &refused {
             writeln!(err, "error: {r}").map_err(werr)?;
@@ -293,7 +318,7 @@ fn run_network(
     opened: &mpsc::Sender<(String, Result<(), HarnessError>)>,
     go: &mpsc::Receiver<bool>,
 ) -> Option<Outcome> {
-    let Job { net, opts, slave, shared, commands, history, publisher, cycles } = job;
+    let Job { net, opts, slave, shared, commands, history, publisher, sparkplug, cycles } = job;
     let mut bus = match open_bus(&opts, slave.as_ref().map(|d| &d.converter), None, None) {
         Ok(b) => {
             let _ = opened.send((net.name.clone(), Ok(())));
@@ -361,10 +386,18 @@ fn run_network(
                     *status = Some(p.status());
                 }
             }
+            if let Some(e) = &sparkplug {
+                e.publish_network_state(Some(&net.name), scanner.state());
+                e.publish_network_samples(Some(&net.name), &samples);
+                if let Ok(mut status) = shared.mqtt.lock() {
+                    *status = Some(e.status());
+                }
+            }
         }
     })();
     let ending = finish(&mut master, Some(&mut scanner), &result, keep);
     drop(publisher);
+    drop(sparkplug);
     Some(Outcome {
         name: net.name,
         state: Some(scanner.state().clone()),

@@ -4,13 +4,15 @@
 //!
 //! DCMD (outputs and breaker commands) is carried out only with `--sparkplug-commands`, through
 //! the scanner's command queue like the console's, and each one is recorded in the audit log
-//! (via `sparkplug`).
+//! (via `sparkplug`). With `--plant` the one edge node publishes every network's nodes
+//! (`NETWORK-macNN`), a DCMD goes to its network's scanner, and its audit entry names the
+//! network (`net NAME: ...`, as the console's do).
 
 use clap::Args;
-use dnet_scanner::audit::{AuditEntry, Via};
+use dnet_scanner::audit::{Audit, AuditEntry, Via};
 use dnet_scanner::model::Shared;
 use dnet_scanner::mqtt::TlsFiles;
-use dnet_scanner::sparkplug::commands::CommandRecord;
+use dnet_scanner::sparkplug::commands::{CommandRecord, Queues};
 use dnet_scanner::sparkplug::store::Window;
 use dnet_scanner::sparkplug::{Config, EdgeNode};
 use harness_common::error::HarnessError;
@@ -61,22 +63,50 @@ impl SparkplugArgs {
     /// Starts the edge node on `url` when `--sparkplug` is given (URL, ID, TLS files and the store
     /// checked here: a refusal is a usage error, exit 2, before the bus is touched).
     pub fn start(&self, url: Option<&str>, shared: &Arc<Shared>) -> Result<Option<EdgeNode>, HarnessError> {
-        let (Some(id), Some(url)) = (&self.sparkplug, url) else { return Ok(None) };
-        let audit = Arc::clone(&shared.audit);
+        let (Some(_), Some(url)) = (&self.sparkplug, url) else { return Ok(None) };
+        let queue = shared
+            .commands
+            .lock()
+            .map_err(|_| mqtt_err(url, "the command queue is poisoned".into()))?
+            .clone();
+        let edge = self.start_edge(url, Arc::clone(&shared.audit), Queues::from([(None, queue)]), false)?;
+        if let (Some(edge), Ok(mut status)) = (&edge, shared.mqtt.lock()) {
+            *status = Some(edge.status());
+        }
+        Ok(edge)
+    }
+
+    /// `ui --plant`: starts the one edge node of every network (`queues`: each network's scanner
+    /// command queue by name; `audit`: the plant's audit log) when `--sparkplug` is given.
+    pub fn start_plant(
+        &self,
+        url: Option<&str>,
+        audit: Arc<dyn Audit>,
+        queues: Queues,
+    ) -> Result<Option<EdgeNode>, HarnessError> {
+        match url {
+            Some(url) => self.start_edge(url, audit, queues, true),
+            None => Ok(None),
+        }
+    }
+
+    fn start_edge(
+        &self,
+        url: &str,
+        audit: Arc<dyn Audit>,
+        queues: Queues,
+        plant: bool,
+    ) -> Result<Option<EdgeNode>, HarnessError> {
+        let Some(id) = &self.sparkplug else { return Ok(None) };
         let log = move |r: &CommandRecord| {
+            let what = match &r.network {
+                Some(net) => format!("net {net}: {}", r.what),
+                None => r.what.clone(),
+            };
             // A log that cannot write does not stop the command (it was carried out).
-            let _ = audit.record(&AuditEntry::now(&r.user, Via::Sparkplug, Some(r.mac), &r.what, &r.result));
+            let _ = audit.record(&AuditEntry::now(&r.user, Via::Sparkplug, Some(r.mac), &what, &r.result));
         };
-        let commands = match self.sparkplug_commands {
-            true => Some(
-                shared
-                    .commands
-                    .lock()
-                    .map_err(|_| mqtt_err(url, "the command queue is poisoned".into()))?
-                    .clone(),
-            ),
-            false => None,
-        };
+        let commands = self.sparkplug_commands.then_some(queues);
         let config = Config {
             url: url.to_owned(),
             id: id.clone(),
@@ -87,12 +117,10 @@ impl SparkplugArgs {
                 max_age_ms: self.sparkplug_buffer_secs * 1000,
             },
             commands,
+            plant,
             log: Some(Box::new(log)),
         };
         let edge = EdgeNode::start(config).map_err(|e| mqtt_err(url, e.to_string()))?;
-        if let Ok(mut status) = shared.mqtt.lock() {
-            *status = Some(edge.status());
-        }
         Ok(Some(edge))
     }
 }

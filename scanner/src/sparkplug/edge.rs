@@ -120,20 +120,56 @@ impl MetricDef {
     }
 }
 
-/// The Sparkplug device name of a DeviceNet node: `mac05`.
-#[must_use]
-pub fn device_name(mac: u8) -> String {
-    format!("mac{mac:02}")
+/// A Sparkplug device: a DeviceNet node of one network. `network` is `None` for `ui` without
+/// `--plant` (one network), the plant file's network name with `--plant`.
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct DeviceKey {
+    /// The plant network's name (`[A-Za-z0-9_-]`), `None` without `--plant`.
+    pub network: Option<String>,
+    /// The node's MAC ID.
+    pub mac: u8,
 }
 
-/// The MAC ID of a device name `macNN` (0..=63), `None` for any other name.
+impl DeviceKey {
+    /// The node `mac` of the one network of `ui` without `--plant`.
+    #[must_use]
+    pub fn single(mac: u8) -> DeviceKey {
+        DeviceKey { network: None, mac }
+    }
+
+    /// The node `mac` of network `network` (`None`: the one network).
+    #[must_use]
+    pub fn of(network: Option<&str>, mac: u8) -> DeviceKey {
+        DeviceKey { network: network.map(str::to_owned), mac }
+    }
+}
+
+/// The Sparkplug device ID of a DeviceNet node: `mac05`, or `NETWORK-mac05` for a plant network.
+/// A network name is `[A-Za-z0-9_-]`, so the ID holds none of the characters Sparkplug B 3.0
+/// forbids in a topic element (`+`, `/`, `#`).
 #[must_use]
-pub fn device_mac(name: &str) -> Option<u8> {
-    let digits = name.strip_prefix("mac")?;
-    if digits.len() != 2 {
+pub fn device_name(key: &DeviceKey) -> String {
+    match &key.network {
+        None => format!("mac{:02}", key.mac),
+        Some(net) => format!("{net}-mac{:02}", key.mac),
+    }
+}
+
+/// The device of a device ID: `macNN` (0..=63) without `--plant`; `NETWORK-macNN` with it (the
+/// network as given, checked by the caller against the plant's). `None` for any other ID.
+#[must_use]
+pub fn device_key(name: &str, plant: bool) -> Option<DeviceKey> {
+    let (network, mac) = match (plant, name.rsplit_once('-')) {
+        (false, _) => (None, name),
+        (true, Some((net, mac))) if crate::plant::valid_name(net) => (Some(net.to_owned()), mac),
+        (true, _) => return None,
+    };
+    let digits = mac.strip_prefix("mac")?;
+    if digits.len() != 2 || !digits.bytes().all(|b| b.is_ascii_digit()) {
         return None;
     }
-    digits.parse::<u8>().ok().filter(|m| *m <= 63)
+    let mac = digits.parse::<u8>().ok().filter(|m| *m <= 63)?;
+    Some(DeviceKey { network, mac })
 }
 
 /// The unit of a decoded input value: the breaker's currents are in amperes; other profiles
@@ -190,11 +226,11 @@ fn device_metrics(node: &NodeState, layout: &InputLayout, values: &[(String, f64
 #[derive(Clone, Debug, PartialEq)]
 pub enum Change {
     /// A device appeared or its set of metrics changed: its DBIRTH is (re)sent.
-    Birth(u8),
+    Birth(DeviceKey),
     /// Metrics of a device that changed at `unix_ms` (DDATA).
     Data {
-        /// MAC ID.
-        mac: u8,
+        /// The device.
+        key: DeviceKey,
         /// Milliseconds since the Unix epoch.
         unix_ms: u64,
         /// The changed metrics.
@@ -218,21 +254,39 @@ pub struct Device {
 /// The edge node's view of every device (see the [module docs](self)).
 #[derive(Debug, Default)]
 pub struct Edge {
-    /// The devices by MAC ID.
-    pub devices: BTreeMap<u8, Device>,
-    /// The scanner's cycle count at the last [`Edge::update_state`] (DCMD waits on it).
-    pub cycles: u64,
+    /// The devices by network and MAC ID.
+    pub devices: BTreeMap<DeviceKey, Device>,
+    /// Each network's scanner cycle count at its last [`Edge::update_network_state`] (DCMD waits
+    /// on it); the key `None` is the one network without `--plant`.
+    pub cycles: BTreeMap<Option<String>, u64>,
 }
 
 impl Edge {
-    /// Takes the scanner's state after a cycle: new devices (a [`Change::Birth`]), changed status,
-    /// identity, images (a [`Change::Data`]).
+    /// [`Edge::update_network_state`] of the one network without `--plant`.
     pub fn update_state(&mut self, state: &ScannerState, unix_ms: u64) -> Vec<Change> {
+        self.update_network_state(None, state, unix_ms)
+    }
+
+    /// The cycle count of `network`'s scanner at its last state (0 before any).
+    #[must_use]
+    pub fn cycles_of(&self, network: Option<&str>) -> u64 {
+        self.cycles.get(&network.map(str::to_owned)).copied().unwrap_or(0)
+    }
+
+    /// Takes network `network`'s scanner state after a cycle: new devices (a [`Change::Birth`]),
+    /// changed status, identity, images (a [`Change::Data`]).
+    pub fn update_network_state(
+        &mut self,
+        network: Option<&str>,
+        state: &ScannerState,
+        unix_ms: u64,
+    ) -> Vec<Change> {
         let mut changes = Vec::new();
-        self.cycles = state.cycles;
+        self.cycles.insert(network.map(str::to_owned), state.cycles);
         for node in &state.nodes {
+            let key = DeviceKey::of(network, node.mac);
             let layout = layout_for(node, known_descriptions());
-            let known: Vec<(String, f64)> = match self.devices.get(&node.mac) {
+            let known: Vec<(String, f64)> = match self.devices.get(&key) {
                 Some(d) => d
                     .metrics
                     .values()
@@ -246,13 +300,13 @@ impl Edge {
             let mut defs = device_metrics(node, &layout, &known);
             // A known device's input image is reported from its samples, in their order and with
             // their times (the state holds only the last one of the cycle).
-            if let Some(image) = self.devices.get(&node.mac).and_then(|d| d.metrics.get("Inputs/Image")) {
+            if let Some(image) = self.devices.get(&key).and_then(|d| d.metrics.get("Inputs/Image")) {
                 for d in defs.iter_mut().filter(|d| d.name == "Inputs/Image") {
                     d.value = image.value.clone();
                 }
             }
-            changes.extend(self.merge(node.mac, defs, unix_ms, true));
-            if let Some(d) = self.devices.get_mut(&node.mac) {
+            changes.extend(self.merge(&key, defs, unix_ms, true));
+            if let Some(d) = self.devices.get_mut(&key) {
                 d.output.clone_from(&node.output);
                 d.output_size = node.output_size;
                 d.layout = layout;
@@ -261,12 +315,18 @@ impl Edge {
         changes
     }
 
-    /// Takes the decoded samples: changed input values (a [`Change::Data`] at the sample's time),
-    /// a value of a name the device's DBIRTH did not hold (a [`Change::Birth`]).
+    /// [`Edge::update_network_samples`] of the one network without `--plant`.
     pub fn update_samples(&mut self, samples: &[Sample]) -> Vec<Change> {
+        self.update_network_samples(None, samples)
+    }
+
+    /// Takes network `network`'s decoded samples: changed input values (a [`Change::Data`] at the
+    /// sample's time), a value of a name the device's DBIRTH did not hold (a [`Change::Birth`]).
+    pub fn update_network_samples(&mut self, network: Option<&str>, samples: &[Sample]) -> Vec<Change> {
         let mut changes = Vec::new();
         for s in samples {
-            let Some(device) = self.devices.get(&s.mac) else { continue };
+            let key = DeviceKey::of(network, s.mac);
+            let Some(device) = self.devices.get(&key) else { continue };
             let mut defs: Vec<MetricDef> = device
                 .metrics
                 .values()
@@ -284,20 +344,26 @@ impl Edge {
                 defs.push(def);
             }
             let at = u64::try_from(s.unix_ms).unwrap_or(0);
-            changes.extend(self.merge(s.mac, defs, at, false));
+            changes.extend(self.merge(&key, defs, at, false));
         }
         changes
     }
 
-    /// Merges the full metric set of `mac`: a new set of names is a birth (with `keep_inputs`,
+    /// Merges the full metric set of `key`: a new set of names is a birth (with `keep_inputs`,
     /// input values the set leaves out are kept), changed values are data.
-    fn merge(&mut self, mac: u8, defs: Vec<MetricDef>, unix_ms: u64, keep_inputs: bool) -> Vec<Change> {
-        let Some(device) = self.devices.get_mut(&mac) else {
+    fn merge(
+        &mut self,
+        key: &DeviceKey,
+        defs: Vec<MetricDef>,
+        unix_ms: u64,
+        keep_inputs: bool,
+    ) -> Vec<Change> {
+        let Some(device) = self.devices.get_mut(key) else {
             let metrics = defs.into_iter().map(|d| (d.name.clone(), d)).collect();
             let device =
                 Device { metrics, output: Vec::new(), output_size: None, layout: InputLayout::raw() };
-            self.devices.insert(mac, device);
-            return vec![Change::Birth(mac)];
+            self.devices.insert(key.clone(), device);
+            return vec![Change::Birth(key.clone())];
         };
         let mut names: Vec<&str> = defs.iter().map(|d| d.name.as_str()).collect();
         if keep_inputs {
@@ -314,7 +380,7 @@ impl Edge {
             for d in defs {
                 device.metrics.insert(d.name.clone(), d);
             }
-            return vec![Change::Birth(mac)];
+            return vec![Change::Birth(key.clone())];
         }
         let mut changed = Vec::new();
         for d in defs {
@@ -328,7 +394,7 @@ impl Edge {
         if changed.is_empty() {
             Vec::new()
         } else {
-            vec![Change::Data { mac, unix_ms, metrics: changed }]
+            vec![Change::Data { key: key.clone(), unix_ms, metrics: changed }]
         }
     }
 
@@ -343,11 +409,11 @@ impl Edge {
         Payload { timestamp: Some(unix_ms), metrics, seq: Some(0), ..Payload::default() }
     }
 
-    /// DBIRTH of `mac` with every metric, its unit and whether it is writable; `None` for a device
+    /// DBIRTH of `key` with every metric, its unit and whether it is writable; `None` for a device
     /// not seen.
     #[must_use]
-    pub fn dbirth(&self, mac: u8, unix_ms: u64, seq: u8) -> Option<Payload> {
-        let device = self.devices.get(&mac)?;
+    pub fn dbirth(&self, key: &DeviceKey, unix_ms: u64, seq: u8) -> Option<Payload> {
+        let device = self.devices.get(key)?;
         let metrics = device.metrics.values().map(|m| m.to_proto(unix_ms, true)).collect();
         Some(Payload { timestamp: Some(unix_ms), metrics, seq: Some(u64::from(seq)), ..Payload::default() })
     }
@@ -435,9 +501,9 @@ mod tests {
         let mut edge = Edge::default();
         let zeros = vec![0u8; image_len()];
         let s = state(vec![breaker_node(NodeStatus::Ok, zeros.clone())]);
-        assert_eq!(edge.update_state(&s, 1000), vec![Change::Birth(5)]);
+        assert_eq!(edge.update_state(&s, 1000), vec![Change::Birth(DeviceKey::single(5))]);
         assert_eq!(edge.update_state(&s, 2000), vec![], "nothing changed: nothing sent");
-        let birth = edge.dbirth(5, 1000, 1).unwrap();
+        let birth = edge.dbirth(&DeviceKey::single(5), 1000, 1).unwrap();
         let phase_a = birth.metrics.iter().find(|m| m.name.as_deref() == Some("Inputs/phase_a")).unwrap();
         assert_eq!(phase_a.datatype, Some(DataType::Double as u32));
         assert_eq!(phase_a.properties.as_ref().unwrap().keys, ["engUnit", "readOnly"]);
@@ -459,9 +525,10 @@ mod tests {
             ],
         };
         let changes = edge.update_samples(std::slice::from_ref(&sample));
-        let [Change::Data { mac: 5, unix_ms: 3000, metrics }] = changes.as_slice() else {
+        let [Change::Data { key, unix_ms: 3000, metrics }] = changes.as_slice() else {
             panic!("{changes:?}")
         };
+        assert_eq!(key, &DeviceKey::single(5));
         let names: Vec<&str> = metrics.iter().map(|m| m.name.as_str()).collect();
         assert_eq!(names, ["Inputs/Image", "Inputs/phase_a"], "only what changed");
         assert_eq!(edge.update_samples(&[sample]), vec![], "the same sample again: nothing");
@@ -479,7 +546,7 @@ mod tests {
             .any(|m| m.name == "Status/State" && m.value == MetricValue::Text("timed_out".into())));
         let odd =
             Sample { mac: 5, unix_ms: 3, bus_us: 0, input: vec![1], values: vec![("data".into(), 1.0)] };
-        assert_eq!(edge.update_samples(&[odd]), vec![Change::Birth(5)]);
+        assert_eq!(edge.update_samples(&[odd]), vec![Change::Birth(DeviceKey::single(5))]);
     }
 
     #[test]
@@ -499,11 +566,49 @@ mod tests {
     #[case::mac63("mac63", Some(63))]
     #[case::mac64("mac64", None)]
     #[case::short("mac5", None)]
+    #[case::sign("mac+5", None)]
     #[case::other("node05", None)]
+    #[case::network_without_plant("line-a-mac05", None)]
     fn device_names(#[case] name: &str, #[case] mac: Option<u8>) {
-        assert_eq!(device_mac(name), mac);
+        assert_eq!(device_key(name, false), mac.map(DeviceKey::single));
         if let Some(m) = mac {
-            assert_eq!(device_name(m), name);
+            assert_eq!(device_name(&DeviceKey::single(m)), name);
         }
+    }
+
+    /// With `--plant` a device ID is `NETWORK-macNN`: the network is the part before the last `-`
+    /// (network names may hold `-` themselves).
+    #[rstest::rstest]
+    #[case::plain("a-mac05", Some(("a", 5)))]
+    #[case::dashed("line-b-mac63", Some(("line-b", 63)))]
+    #[case::underscore("hall_2-mac00", Some(("hall_2", 0)))]
+    #[case::no_network("mac05", None)]
+    #[case::empty_network("-mac05", None)]
+    #[case::bad_network("a+b-mac05", None)]
+    #[case::bad_mac("a-mac64", None)]
+    #[case::no_mac("a-b", None)]
+    fn plant_device_names(#[case] name: &str, #[case] key: Option<(&str, u8)>) {
+        let key = key.map(|(n, m)| DeviceKey::of(Some(n), m));
+        assert_eq!(device_key(name, true), key);
+        if let Some(k) = &key {
+            assert_eq!(device_name(k), name);
+        }
+    }
+
+    /// Two networks with a node at the same MAC ID: two devices, each born and updated on its own.
+    #[test]
+    fn the_same_mac_on_two_networks_is_two_devices() {
+        let mut edge = Edge::default();
+        let zeros = vec![0u8; image_len()];
+        let s = state(vec![breaker_node(NodeStatus::Ok, zeros.clone())]);
+        let a = DeviceKey::of(Some("a"), 5);
+        let b = DeviceKey::of(Some("b"), 5);
+        assert_eq!(edge.update_network_state(Some("a"), &s, 1), vec![Change::Birth(a.clone())]);
+        assert_eq!(edge.update_network_state(Some("b"), &s, 1), vec![Change::Birth(b.clone())]);
+        let timed_out = state(vec![breaker_node(NodeStatus::TimedOut, zeros)]);
+        let changes = edge.update_network_state(Some("b"), &timed_out, 2);
+        assert!(matches!(changes.as_slice(), [Change::Data { key, .. }] if *key == b), "{changes:?}");
+        assert_eq!(edge.update_network_state(Some("a"), &s, 3), vec![], "a's node did not change");
+        assert_eq!(edge.devices.len(), 2);
     }
 }

@@ -1,5 +1,6 @@
 //! `--sparkplug GROUP/EDGE_NODE`: the scanner as a Sparkplug B edge node. Each DeviceNet node is a
-//! Sparkplug device (`mac05`) whose metrics are its identity, its status and every input value its
+//! Sparkplug device (`mac05`; with `--plant`, `NETWORK-mac05` under the one edge node, see
+//! [`edge::device_name`]) whose metrics are its identity, its status and every input value its
 //! profile decodes, with names and units. The payloads are Sparkplug B protobuf ([`proto`], the
 //! Eclipse Tahu `.proto` as `prost` messages); the client is `rumqttc`'s synchronous client, over
 //! TCP or TLS like [`crate::mqtt`].
@@ -42,10 +43,10 @@ pub mod events;
 pub mod proto;
 pub mod store;
 
-use crate::model::{ConsoleCommand, Sample, ScannerState};
+use crate::model::{Sample, ScannerState};
 use crate::mqtt::{mqtt_options, parse_url, TlsError, TlsFiles};
-use commands::{CommandLog, Dcmd};
-use edge::{Change, Edge};
+use commands::{CommandLog, Dcmd, Queues};
+use edge::{Change, DeviceKey, Edge};
 use prost::Message as _;
 use rumqttc::{Client, Event, LastWill, Packet, QoS};
 use std::path::PathBuf;
@@ -118,8 +119,10 @@ pub struct Config {
     pub store: PathBuf,
     /// How much the store keeps.
     pub window: Window,
-    /// DCMD enabled: the scanner's command queue.
-    pub commands: Option<Sender<ConsoleCommand>>,
+    /// DCMD enabled: each network's scanner command queue (the key `None` without `--plant`).
+    pub commands: Option<Queues>,
+    /// `--plant`: device IDs are `NETWORK-macNN` ([`edge::device_name`]).
+    pub plant: bool,
     /// Where DCMD are recorded.
     pub log: Option<CommandLog>,
 }
@@ -129,6 +132,7 @@ pub struct Config {
 struct Topics {
     group: String,
     edge: String,
+    plant: bool,
 }
 
 impl Topics {
@@ -136,8 +140,8 @@ impl Topics {
         format!("spBv1.0/{}/{kind}/{}", self.group, self.edge)
     }
 
-    fn device(&self, kind: &str, mac: u8) -> String {
-        format!("{}/{}", self.node(kind), edge::device_name(mac))
+    fn device(&self, kind: &str, key: &DeviceKey) -> String {
+        format!("{}/{}", self.node(kind), edge::device_name(key))
     }
 }
 
@@ -205,7 +209,7 @@ impl EdgeNode {
             )));
         }
         let (group, edge_id) = parse_id(&config.id)?;
-        let topics = Topics { group, edge: edge_id.clone() };
+        let topics = Topics { group, edge: edge_id.clone(), plant: config.plant };
         let options = mqtt_options(&endpoint, &format!("dnet-master-{edge_id}"), &config.tls)?;
         let store = Store::open(Some(&config.store), config.window)?;
         let bd_seq = store.bd_seq()?.map_or(0, |b| (b + 1) % 256);
@@ -286,14 +290,30 @@ impl EdgeNode {
     /// Takes the scanner's state after a cycle (new devices, status, identity, images). Never
     /// blocks on the network.
     pub fn publish_state(&self, state: &ScannerState) {
-        let now = u64::try_from(crate::model::unix_ms_now()).unwrap_or(0);
-        let changes = self.edge.lock().unwrap_or_else(PoisonError::into_inner).update_state(state, now);
-        self.queue(changes);
+        self.publish_network_state(None, state);
     }
 
     /// Takes the decoded samples (changed input values). Never blocks on the network.
     pub fn publish_samples(&self, samples: &[Sample]) {
-        let changes = self.edge.lock().unwrap_or_else(PoisonError::into_inner).update_samples(samples);
+        self.publish_network_samples(None, samples);
+    }
+
+    /// [`EdgeNode::publish_state`] of plant network `network` (`None`: the one network). Each
+    /// network's scanner thread calls it with its own name.
+    pub fn publish_network_state(&self, network: Option<&str>, state: &ScannerState) {
+        let now = u64::try_from(crate::model::unix_ms_now()).unwrap_or(0);
+        let changes = self
+            .edge
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .update_network_state(network, state, now);
+        self.queue(changes);
+    }
+
+    /// [`EdgeNode::publish_samples`] of plant network `network` (`None`: the one network).
+    pub fn publish_network_samples(&self, network: Option<&str>, samples: &[Sample]) {
+        let changes =
+            self.edge.lock().unwrap_or_else(PoisonError::into_inner).update_network_samples(network, samples);
         self.queue(changes);
     }
 
@@ -463,43 +483,43 @@ impl Outbox {
     fn births(&mut self) {
         let now = Self::now();
         let bd_seq = self.shared.bd_seq.load(Ordering::Relaxed);
-        let (mut nbirth, macs) = {
+        let (mut nbirth, keys) = {
             let edge = self.edge.lock().unwrap_or_else(PoisonError::into_inner);
-            (edge.nbirth(bd_seq, now), edge.devices.keys().copied().collect::<Vec<_>>())
+            (edge.nbirth(bd_seq, now), edge.devices.keys().cloned().collect::<Vec<_>>())
         };
         nbirth.metrics.push(self.last_event.birth(now));
         self.seq = 0;
         if !self.publish(self.topics.node("NBIRTH"), &nbirth) {
             return;
         }
-        for mac in macs {
-            if !self.dbirth(mac, now) {
+        for key in keys {
+            if !self.dbirth(&key, now) {
                 return;
             }
         }
     }
 
-    fn dbirth(&mut self, mac: u8, now: u64) -> bool {
+    fn dbirth(&mut self, key: &DeviceKey, now: u64) -> bool {
         let seq = self.next_seq();
-        let payload = self.edge.lock().unwrap_or_else(PoisonError::into_inner).dbirth(mac, now, seq);
+        let payload = self.edge.lock().unwrap_or_else(PoisonError::into_inner).dbirth(key, now, seq);
         match payload {
-            Some(p) => self.publish(self.topics.device("DBIRTH", mac), &p),
+            Some(p) => self.publish(self.topics.device("DBIRTH", key), &p),
             None => true,
         }
     }
 
     fn change(&mut self, change: Change) {
         match change {
-            Change::Birth(mac) => {
+            Change::Birth(key) => {
                 if self.client.is_some() {
-                    self.dbirth(mac, Self::now());
+                    self.dbirth(&key, Self::now());
                 }
             }
-            Change::Data { mac, unix_ms, metrics } => {
+            Change::Data { key, unix_ms, metrics } => {
                 if self.client.is_some() {
                     let seq = self.next_seq();
                     if self.publish(
-                        self.topics.device("DDATA", mac),
+                        self.topics.device("DDATA", &key),
                         &edge::ddata(&metrics, unix_ms, seq, false),
                     ) {
                         return;
@@ -507,7 +527,7 @@ impl Outbox {
                 }
                 let payload = edge::ddata(&metrics, unix_ms, 0, false);
                 let before = self.store.dropped;
-                if self.store.push(mac, unix_ms, &payload.encode_to_vec()).is_err() {
+                if self.store.push(&key, unix_ms, &payload.encode_to_vec()).is_err() {
                     self.shared.dropped.fetch_add(1, Ordering::Relaxed);
                 }
                 self.shared.dropped.fetch_add(self.store.dropped - before, Ordering::Relaxed);
@@ -533,7 +553,7 @@ impl Outbox {
                 for m in &mut payload.metrics {
                     m.is_historical = Some(true);
                 }
-                if !self.publish(self.topics.device("DDATA", row.mac), &payload) {
+                if !self.publish(self.topics.device("DDATA", &row.key), &payload) {
                     break;
                 }
                 sent = Some(row.id);
@@ -559,9 +579,10 @@ impl Outbox {
             return;
         }
         let device = topic.strip_prefix(&format!("{}/", self.topics.node("DCMD")));
-        if let (Some(mac), Some(dcmd)) = (device.and_then(edge::device_mac), &self.dcmd) {
+        let key = device.and_then(|d| edge::device_key(d, self.topics.plant));
+        if let (Some(key), Some(dcmd)) = (key, &self.dcmd) {
             // A full queue of commands: the host is flooding; the DCMD is not carried out.
-            let _ = dcmd.try_send(Dcmd { mac, payload });
+            let _ = dcmd.try_send(Dcmd { key, payload });
         }
     }
 }
