@@ -4,6 +4,11 @@
 //! host (pysparkplug, `tests/python/sparkplug_host.py`) sees each edge node's NBIRTH and its node's
 //! DBIRTH under its own ID; stopping one leaves the other's data flowing.
 //!
+//! Several networks in one process: one `ui --plant` with two simulated networks (`a`, `line-b`,
+//! a breaker at MAC 5 on each) is one edge node `plant1/cell` whose devices are `a-mac05` and
+//! `line-b-mac05`; a DCMD Close to `line-b-mac05` closes network line-b's breaker and not a's
+//! (with `--sparkplug-commands`, audited with the network's name), and nothing without the flag.
+//!
 //! Needs mosquitto, pysparkplug and the built dnet-master: ignored in the plain host-test run, run
 //! by scripts/check's plant-networks stage.
 

@@ -23,7 +23,8 @@ use std::sync::Arc;
 #[derive(Args, Clone, Debug)]
 pub struct SparkplugArgs {
     /// Publish to --mqtt as a Sparkplug B edge node GROUP/EDGE_NODE (instead of plain JSON): one
-    /// device per node (`mac05`), births, data by exception, store and forward.
+    /// device per node (`mac05`; `NETWORK-mac05` with --plant), births, data by exception, store
+    /// and forward.
     #[arg(long, value_name = "GROUP/EDGE_NODE", requires = "mqtt")]
     pub sparkplug: Option<String>,
     /// Carry out Sparkplug DCMD: writes of `Outputs/Image`, the breakers' `Commands/Open` and

@@ -17,6 +17,9 @@
 //! | `spBv1.0/G/NCMD/E` | received: `Node Control/Rebirth` = true sends NBIRTH and every DBIRTH again | - |
 //! | `spBv1.0/G/DCMD/E/macNN` | received with `--sparkplug-commands`: `Outputs/Image`, `Commands/Open`, `Commands/Close` | - |
 //!
+//! With `--plant` every `macNN` above is `NETWORK-macNN` ([`edge::device_name`]): one NBIRTH, one
+//! bdSeq and one seq count for every network's devices.
+//!
 //! `bdSeq` (0..=255) is in NBIRTH and in the will NDEATH set for the same connection; it goes up by
 //! one with each new MQTT session, and is kept in the store file across restarts. `seq` is 0 in
 //! NBIRTH and goes up by one (255 wraps to 0) with each DBIRTH, DDATA and NDATA after it.
