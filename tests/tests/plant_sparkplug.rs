@@ -8,8 +8,10 @@
 //! a breaker at MAC 5 on each) is one edge node `plant1/cell` whose devices are `a-mac05` and
 //! `line-b-mac05`; a DCMD Close to `line-b-mac05` closes network line-b's breaker and not a's
 //! (with `--sparkplug-commands`, audited with the network's name), and nothing without the flag.
+//! The same on the real SLCAN path: two soft-slave benches on socat ptys, the Close in line-b's
+//! breaker log only.
 //!
-//! Needs mosquitto, pysparkplug and the built dnet-master: ignored in the plain host-test run, run
+//! Needs mosquitto, pysparkplug, socat and the built dnet-master: ignored in the plain host-test run, run
 //! by scripts/check's plant-networks stage.
 
 use pty_rig::console::console_addr;
@@ -97,13 +99,14 @@ input_size = 18
 output_size = 8
 "#;
 
-/// A plant file in `dir`: simulated networks `a` and `b`, each scanning its own breaker at MAC 5.
-fn plant_file(dir: &std::path::Path) -> std::path::PathBuf {
+/// A plant file in `dir`: networks `a` and `line-b` on `buses`, each scanning its own breaker at
+/// MAC 5.
+fn plant_file(dir: &std::path::Path, buses: [&str; 2]) -> std::path::PathBuf {
     let mut text = String::new();
-    for name in ["a", "line-b"] {
+    for (name, bus) in ["a", "line-b"].into_iter().zip(buses) {
         std::fs::write(dir.join(format!("{name}.toml")), LIST).unwrap();
         text.push_str(&format!(
-            "[[network]]\nname = \"{name}\"\nbus = \"sim\"\nscanlist = \"{name}.toml\"\n\n"
+            "[[network]]\nname = \"{name}\"\nbus = \"{bus}\"\nscanlist = \"{name}.toml\"\n\n"
         ));
     }
     let path = dir.join("plant.toml");
@@ -111,14 +114,25 @@ fn plant_file(dir: &std::path::Path) -> std::path::PathBuf {
     path
 }
 
-/// `dnet-master --slave-mac 5 ui --plant FILE --mqtt URL --sparkplug plant1/cell [--sparkplug-commands]`.
+/// `dnet-master --slave-mac 5 ui --plant FILE --mqtt URL --sparkplug plant1/cell
+/// [--sparkplug-commands]` on two simulated networks.
 fn plant_instance(dir: &std::path::Path, url: &str, commands: bool) -> Proc {
-    let file = plant_file(dir);
+    plant_instance_on(dir, url, commands, &["--slave-mac", "5"], ["sim", "sim"])
+}
+
+/// [`plant_instance`] with the `global` options, on `buses`.
+fn plant_instance_on(
+    dir: &std::path::Path,
+    url: &str,
+    commands: bool,
+    global: &[&str],
+    buses: [&str; 2],
+) -> Proc {
+    let file = plant_file(dir, buses);
     let store = dir.join("spb-plant.sqlite");
     let history = dir.join("history.sqlite");
-    let mut args = vec![
-        "--slave-mac",
-        "5",
+    let mut args = global.to_vec();
+    args.extend([
         "ui",
         "--plant",
         file.to_str().unwrap(),
@@ -132,7 +146,7 @@ fn plant_instance(dir: &std::path::Path, url: &str, commands: bool) -> Proc {
         "plant1/cell",
         "--sparkplug-store",
         store.to_str().unwrap(),
-    ];
+    ]);
     if commands {
         args.push("--sparkplug-commands");
     }
@@ -238,6 +252,40 @@ fn a_plant_dcmd_is_refused_without_the_flag() {
             host.seen.push(v);
         }
     }
+    p.signal("INT");
+    assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
+}
+
+/// The real SLCAN path: two benches on socat ptys (`dnet-sim-breaker` behind `dnet-soft-slave`, each
+/// at MAC 5) as the networks of one `ui --plant` edge node. A DCMD Close to `line-b-mac05` reaches
+/// line-b's breaker (its log says `command close`) and not a's.
+#[test]
+#[ignore = "needs socat, mosquitto and pysparkplug: run by scripts/check's plant-networks stage"]
+fn a_plant_dcmd_on_slcan_reaches_its_networks_breaker_only() {
+    if !pty_rig::require_socat() {
+        return;
+    }
+    let a = pty_rig::PtyRig::breaker("plant-spb-slcan-a", &["--period", "0.3"], None);
+    let b = pty_rig::PtyRig::breaker("plant-spb-slcan-b", &["--period", "0.3"], None);
+    let dir = scratch("plant-sparkplug-slcan");
+    let (_broker, mut host, url) = broker_and_host(&dir, "plant1");
+    let (bus_a, bus_b) = (a.master_bus_arg(), b.master_bus_arg());
+    let mut p = plant_instance_on(&dir, &url, true, &["--bitrate", "250k"], [&bus_a, &bus_b]);
+    both_births(&mut host);
+    host.send(&serde_json::json!({"dcmd": ["cell", "line-b-mac05"], "name": "Commands/Close",
+                                  "type": "BOOLEAN", "value": true}));
+    let end = std::time::Instant::now() + Duration::from_secs(20);
+    while !b.breaker_log().contains("command close") && std::time::Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    assert!(
+        b.breaker_log().contains("command close"),
+        "line-b's breaker:\n{}\n{}",
+        b.breaker_log(),
+        p.dump()
+    );
+    assert!(!a.breaker_log().contains("command"), "network a's breaker got a command:\n{}", a.breaker_log());
+    host.seen_or_next(Duration::from_secs(30), "line-b-mac05's switch closed", closed("line-b-mac05"));
     p.signal("INT");
     assert_eq!(p.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", p.dump());
 }
