@@ -6,7 +6,8 @@
 //! (`console at http://127.0.0.1:8080/`), so a page opened at once follows the bring-up. Then the
 //! scanner's loop runs, one full scan cycle at a time; between cycles it carries out the console's
 //! commands, publishes the state and the frames to the console, records the samples and publishes
-//! them. On the simulated bus the simulation runs in real time (a console is watched by people).
+//! them. On the simulated bus the simulation runs in real time (a console is watched by people),
+//! or as fast as the host allows with `--sim-unpaced` (soak measurements).
 //!
 //! What is kept in the history: every change of a node's input image, and one sample a second while
 //! it stays the same ([`SAMPLE_EVERY_MS`](dnet_scanner::ui::thinning::SAMPLE_EVERY_MS)): a poll every 10 ms of an instrument that reports once a
@@ -83,6 +84,14 @@ pub struct UiArgs {
     /// Stop after N full scan cycles (default: until SIGINT / SIGTERM).
     #[arg(long, value_name = "N")]
     pub cycles: Option<u64>,
+    /// With --bus sim only (another bus: exit 2): run the simulation as fast as the host allows
+    /// instead of in real time, for soak measurements. Times are then simulated: the scan cycles,
+    /// the simulated devices' timers (a breaker's 1 s status frame) and the samples' bus time run
+    /// on the simulated clock; wall-clock timers do not (the history's timestamps, its one sample a
+    /// second of an unchanged input and its retention, Sparkplug B and audit timestamps, the MQTT
+    /// keep-alive and reconnects, console sessions): they count wall time, not simulated time.
+    #[arg(long, conflicts_with = "plant")]
+    pub sim_unpaced: bool,
     /// Accounts and TLS: `--users`, `--tls-cert`, `--tls-key` (`super::ui_access`).
     #[command(flatten)]
     pub access: super::ui_access::AccessArgs,
@@ -152,6 +161,15 @@ pub fn execute(
     }
     let werr = |source| HarnessError::Write { path: "standard output".into(), source };
     // Everything that can be refused, before the bus is touched.
+    if args.sim_unpaced && opts.bus != BusSpec::Sim {
+        writeln!(
+            err,
+            "error: --sim-unpaced runs the simulated bus unpaced: it needs --bus sim, not {}",
+            opts.bus
+        )
+        .map_err(werr)?;
+        return Ok(2);
+    }
     let master_mac = opts.master_mac_or_default();
     let given = args.scanlist.as_deref().map(|p| read_scan_list(p, master_mac.as_raw())).transpose()?;
     let project = match args.project.as_deref().map(|f| dnet_scanner::project::read(f).map(|p| (f, p))) {
@@ -196,8 +214,9 @@ pub fn execute(
     }
     out.flush().map_err(werr)?;
 
-    // The console is watched by people: its simulation runs in real time.
-    let realtime = GlobalOptions { realtime: true, ..opts.clone() };
+    // The console is watched by people: its simulation runs in real time, unless a soak
+    // measurement asks for it unpaced.
+    let realtime = GlobalOptions { realtime: !args.sim_unpaced, ..opts.clone() };
     let mut bus = open_bus(&realtime, slave.as_ref().map(|d| &d.converter), None, None)?;
     let mut session = Session::new(bus.as_mut());
     session.set_stop(console.stop.clone());
