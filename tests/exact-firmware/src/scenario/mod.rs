@@ -8,6 +8,7 @@
 //! | `bring-up`, `breaker`, `power-cycle` | every board | [`bring_up`] |
 //! | `configure` | every board | [`configure`] |
 //! | `ccv` | every board | [`ccv`] |
+//! | `line-events` | every board | [`line_events`] |
 //! | `download-cut` | every board | [`download_cut`] |
 //! | `wrong-bit-rate`, `bus-load`, `bus-off` | every board | [`can`] |
 //! | `switches` | boards with DIP switches (the reference board) | [`switches`] |
@@ -22,6 +23,7 @@ pub mod ccv;
 pub mod configure;
 pub mod download_cut;
 pub mod leds;
+pub mod line_events;
 pub mod self_test;
 pub mod switches;
 pub mod world;
@@ -53,7 +55,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 16] = [
+pub const ALL: [Scenario; 17] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -70,6 +72,7 @@ pub const ALL: [Scenario; 16] = [
     Scenario { name: "autobaud-silent-bus", applies: without_switches, run: autobaud::silent_bus },
     Scenario { name: "leds", applies: every_board, run: leds::leds },
     Scenario { name: "can-self-test-fault", applies: every_board, run: self_test::can_self_test_fault },
+    Scenario { name: "line-events", applies: every_board, run: line_events::line_events },
 ];
 
 /// The result of one scenario on one board.
