@@ -325,8 +325,14 @@ fn explicit(c: &mut Converter, now: Instant, data: &[u8]) -> Vec<Vec<u8>> {
 
 fn modbus_image() -> Vec<u8> {
     use slave_fw::serial::modbus::{Function, ModbusConfig, ScanEntry};
-    let scan =
-        [ScanEntry { unit: 1, function: Function::ReadInputRegisters, address: 0, count: 4, offset: 0, word_order: Default::default() }];
+    let scan = [ScanEntry {
+        unit: 1,
+        function: Function::ReadInputRegisters,
+        address: 0,
+        count: 4,
+        offset: 0,
+        word_order: Default::default(),
+    }];
     let config = ConverterConfig {
         profile: ProfileConfig::Modbus(ModbusConfig::new(scan.into_iter().collect())),
         ..ConverterConfig::breaker_reference()
