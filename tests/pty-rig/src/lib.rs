@@ -13,7 +13,8 @@
 //! [`console`] (raw HTTP/1.1 to `dnet-master ui`, a free loopback address, waiting until it
 //! listens, the page's CSRF token, starting and stopping the console), [`browser`] (a script of
 //! `tests/browser/` driving chromium), [`mqtt`] (a mosquitto of the test's own) and
-//! [`sparkplug`] (the independent Sparkplug B host on pysparkplug).
+//! [`sparkplug`] (the independent Sparkplug B host on pysparkplug); the Modbus tests share
+//! [`pymodbus`] (a pymodbus server as the instrument, the gateway description, the monitor run).
 //!
 //! The programs are found with [`bin`]: next to the test executable (`target/<profile>/`), or in
 //! `DNET_BIN_DIR`.
@@ -24,6 +25,7 @@
 pub mod browser;
 pub mod console;
 pub mod mqtt;
+pub mod pymodbus;
 pub mod sparkplug;
 
 use std::io::{BufRead, BufReader, Read};
@@ -305,6 +307,16 @@ pub fn bin(name: &str) -> PathBuf {
         path.display()
     );
     path
+}
+
+/// `dnet-soft-slave` on SLCAN at `can.a`, its instrument at `serial` (a pty end or
+/// `tcp:HOST:PORT`), described by `config`.
+pub fn soft_slave(can: &PtyPair, serial: &str, config: &Path) -> Proc {
+    let bus = format!("slcan:{}", can.a);
+    Proc::spawn(
+        bin("dnet-soft-slave"),
+        &["--bus", &bus, "--serial", serial, "--config", config.to_str().unwrap()],
+    )
 }
 
 /// The bench on pseudo-terminals: an instrument process on the `serial` pair, `dnet-soft-slave`
