@@ -11,37 +11,12 @@
 //! plant-networks stage.
 
 use pty_rig::console::{csrf_token, get, http, spawn_ui, stop_ui};
-use pty_rig::{bin, scratch, PtyRig};
+use pty_rig::plant::{plant_file, two_breaker_benches, BREAKER_SCANLIST};
+use pty_rig::{bin, scratch};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
-
-const LIST: &str = r#"
-[[node]]
-mac = 5
-connection = "poll"
-vendor_id = 0x1234
-device_type = 0x000C
-product_code = 1
-major_revision = 1
-input_size = 18
-output_size = 8
-"#;
-
-/// A plant file in `dir` with a network per `(name, bus)`, each with its own copy of [`LIST`].
-fn plant(dir: &Path, networks: &[(&str, &str)]) -> PathBuf {
-    let mut text = String::new();
-    for (name, bus) in networks {
-        std::fs::write(dir.join(format!("{name}.toml")), LIST).unwrap();
-        text.push_str(&format!(
-            "[[network]]\nname = \"{name}\"\nbus = \"{bus}\"\nscanlist = \"{name}.toml\"\n\n"
-        ));
-    }
-    let path = dir.join("plant.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
 
 fn json(text: &str) -> Value {
     serde_json::from_str(text).unwrap_or_else(|e| panic!("{e}: {text}"))
@@ -71,10 +46,9 @@ fn two_slcan_networks_in_one_console() {
     if !pty_rig::require_socat() {
         return;
     }
-    let a = PtyRig::breaker("plant-slcan-a", &["--period", "0.3"], None);
-    let b = PtyRig::breaker("plant-slcan-b", &["--period", "0.3"], None);
+    let (a, b) = two_breaker_benches("plant-slcan");
     let dir = scratch("plant-slcan");
-    let file = plant(&dir, &[("a", &a.master_bus_arg()), ("b", &b.master_bus_arg())]);
+    let file = plant_file(&dir, &[("a", &a.master_bus_arg()), ("b", &b.master_bus_arg())]);
     let history = dir.join("history.sqlite");
     let dump = || format!("--- network a:\n{}\n--- network b:\n{}", a.dump(), b.dump());
     let (mut ui, addr) = spawn_ui(
@@ -115,11 +89,11 @@ fn two_slcan_networks_in_one_console() {
     let token = csrf_token(&addr);
     let (status, body) = http(&addr, "POST", "/api/net/b/node/5/breaker/close", Some(&token), "{}");
     assert_eq!(status, 200, "{body}\n{}", ui.dump());
-    let end = Instant::now() + Duration::from_secs(15);
-    while !b.breaker_log().contains("command close") && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(200));
-    }
-    assert!(b.breaker_log().contains("command close"), "network b's breaker:\n{}", b.breaker_log());
+    assert!(
+        b.wait_breaker_log("command close", Duration::from_secs(15)),
+        "network b's breaker:\n{}",
+        b.breaker_log()
+    );
     assert!(!a.breaker_log().contains("command"), "network a's breaker got a command:\n{}", a.breaker_log());
     // The node's detail through b's own API, and the audit log names the network.
     let (status, node) = get(&addr, "/api/net/b/node/5");
@@ -153,7 +127,7 @@ fn dnet(args: &[&str]) -> (i32, String, String) {
 #[ignore = "needs the built dnet-master: run by scripts/check's plant-networks stage"]
 fn two_simulated_networks_run_their_cycles() {
     let dir = scratch("plant-sim");
-    let file = plant(&dir, &[("line-a", "sim"), ("line-b", "sim")]);
+    let file = plant_file(&dir, &[("line-a", "sim"), ("line-b", "sim")]);
     let (code, out, err) = dnet(&[
         "--slave-mac",
         "5",
@@ -187,7 +161,7 @@ fn a_plant_that_cannot_start_is_refused_before_any_bus() {
         dnet(&args)
     };
     // A scan list refused: the network and the scan list's file and line named.
-    let file = plant(&dir, &[("good", "sim"), ("bad", "sim")]);
+    let file = plant_file(&dir, &[("good", "sim"), ("bad", "sim")]);
     std::fs::write(dir.join("bad.toml"), "[[node]]\nmac = 5\ninput_size = 18\noutput_size = 8\nspeed = 1\n")
         .unwrap();
     let (code, out, err) = run(&file, &[]);
@@ -195,7 +169,7 @@ fn a_plant_that_cannot_start_is_refused_before_any_bus() {
     assert!(err.contains("network bad: ") && err.contains("bad.toml:5"), "{err}");
     assert!(!out.contains("console at"), "nothing started: {out}");
     // A bus that cannot be opened: named with its network; the other network never scanned.
-    let file = plant(&dir, &[("good", "sim"), ("gone", "slcan:/nonexistent/tty")]);
+    let file = plant_file(&dir, &[("good", "sim"), ("gone", "slcan:/nonexistent/tty")]);
     let (code, out, err) = run(&file, &["--slave-mac", "5"]);
     assert_eq!(code, 2, "{out}\n{err}");
     assert!(err.contains("network gone: "), "{err}");
@@ -223,8 +197,8 @@ fn each_network_publishes_under_its_name() {
     let port = pty_rig::console::free_port();
     let _broker = pty_rig::mqtt::Mosquitto::start(&dir, port, None);
     // Network a scans MAC 5, network b MAC 6 (both simulated buses hold both).
-    let file = plant(&dir, &[("a", "sim"), ("b", "sim")]);
-    std::fs::write(dir.join("b.toml"), LIST.replace("mac = 5", "mac = 6")).unwrap();
+    let file = plant_file(&dir, &[("a", "sim"), ("b", "sim")]);
+    std::fs::write(dir.join("b.toml"), BREAKER_SCANLIST.replace("mac = 5", "mac = 6")).unwrap();
     let sub = Command::new("mosquitto_sub")
         .args(["-h", "127.0.0.1", "-p", &port.to_string(), "-t", "plant/#", "-v", "-W", "20", "-C", "60"])
         .stdout(std::process::Stdio::piped())

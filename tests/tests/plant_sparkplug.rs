@@ -15,6 +15,7 @@
 //! by scripts/check's plant-networks stage.
 
 use pty_rig::console::console_addr;
+use pty_rig::plant::{plant_file, two_breaker_benches};
 use pty_rig::sparkplug::broker_and_host;
 use pty_rig::{bin, scratch, Proc};
 use serde_json::Value;
@@ -86,41 +87,14 @@ fn two_instances_publish_under_their_own_edge_node_ids() {
     assert_eq!(b.wait(Duration::from_secs(20)).and_then(|s| s.code()), Some(130), "{}", b.dump());
 }
 
-/// The scan list of each network of [`plant_file`]: the simulated breaker at MAC 5.
-const LIST: &str = r#"
-[[node]]
-mac = 5
-connection = "poll"
-vendor_id = 0x1234
-device_type = 0x000C
-product_code = 1
-major_revision = 1
-input_size = 18
-output_size = 8
-"#;
-
-/// A plant file in `dir`: networks `a` and `line-b` on `buses`, each scanning its own breaker at
-/// MAC 5.
-fn plant_file(dir: &std::path::Path, buses: [&str; 2]) -> std::path::PathBuf {
-    let mut text = String::new();
-    for (name, bus) in ["a", "line-b"].into_iter().zip(buses) {
-        std::fs::write(dir.join(format!("{name}.toml")), LIST).unwrap();
-        text.push_str(&format!(
-            "[[network]]\nname = \"{name}\"\nbus = \"{bus}\"\nscanlist = \"{name}.toml\"\n\n"
-        ));
-    }
-    let path = dir.join("plant.toml");
-    std::fs::write(&path, text).unwrap();
-    path
-}
-
 /// `dnet-master --slave-mac 5 ui --plant FILE --mqtt URL --sparkplug plant1/cell
 /// [--sparkplug-commands]` on two simulated networks.
 fn plant_instance(dir: &std::path::Path, url: &str, commands: bool) -> Proc {
     plant_instance_on(dir, url, commands, &["--slave-mac", "5"], ["sim", "sim"])
 }
 
-/// [`plant_instance`] with the `global` options, on `buses`.
+/// [`plant_instance`] with the `global` options, networks `a` and `line-b` on `buses` (each
+/// scanning its own breaker at MAC 5).
 fn plant_instance_on(
     dir: &std::path::Path,
     url: &str,
@@ -128,7 +102,7 @@ fn plant_instance_on(
     global: &[&str],
     buses: [&str; 2],
 ) -> Proc {
-    let file = plant_file(dir, buses);
+    let file = plant_file(dir, &[("a", buses[0]), ("line-b", buses[1])]);
     let store = dir.join("spb-plant.sqlite");
     let history = dir.join("history.sqlite");
     let mut args = global.to_vec();
@@ -265,8 +239,7 @@ fn a_plant_dcmd_on_slcan_reaches_its_networks_breaker_only() {
     if !pty_rig::require_socat() {
         return;
     }
-    let a = pty_rig::PtyRig::breaker("plant-spb-slcan-a", &["--period", "0.3"], None);
-    let b = pty_rig::PtyRig::breaker("plant-spb-slcan-b", &["--period", "0.3"], None);
+    let (a, b) = two_breaker_benches("plant-spb-slcan");
     let dir = scratch("plant-sparkplug-slcan");
     let (_broker, mut host, url) = broker_and_host(&dir, "plant1");
     let (bus_a, bus_b) = (a.master_bus_arg(), b.master_bus_arg());
@@ -274,12 +247,8 @@ fn a_plant_dcmd_on_slcan_reaches_its_networks_breaker_only() {
     both_births(&mut host);
     host.send(&serde_json::json!({"dcmd": ["cell", "line-b-mac05"], "name": "Commands/Close",
                                   "type": "BOOLEAN", "value": true}));
-    let end = std::time::Instant::now() + Duration::from_secs(20);
-    while !b.breaker_log().contains("command close") && std::time::Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(200));
-    }
     assert!(
-        b.breaker_log().contains("command close"),
+        b.wait_breaker_log("command close", Duration::from_secs(20)),
         "line-b's breaker:\n{}\n{}",
         b.breaker_log(),
         p.dump()

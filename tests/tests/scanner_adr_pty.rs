@@ -8,6 +8,7 @@
 //! Needs socat and the programs (`dnet-master`, `dnet-soft-slave`, `dnet-sim-breaker`): ignored in
 //! the plain host-test run, run by scripts/check's scanner-adr stage.
 
+use pty_rig::plant::BREAKER_SCANLIST;
 use pty_rig::{Proc, PtyRig};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -23,19 +24,6 @@ fn programmable(dir: &Path) -> PathBuf {
     path
 }
 
-const LIST: &str = r#"
-[[node]]
-mac = 5
-connection = "poll"
-vendor_id = 0x1234
-device_type = 0x000C
-product_code = 1
-major_revision = 1
-input_size = 18
-output_size = 8
-adr = "config+address"
-"#;
-
 #[test]
 #[ignore = "needs socat: run by scripts/check's scanner-adr stage"]
 fn a_stopped_soft_slave_is_replaced_by_a_fresh_one_at_63() {
@@ -49,7 +37,8 @@ fn a_stopped_soft_slave_is_replaced_by_a_fresh_one_at_63() {
     let new_state = dir.join("new-state.json");
     let _ = std::fs::remove_file(&new_state);
     let list = dir.join("list.toml");
-    std::fs::write(&list, LIST).unwrap();
+    // The breaker, replaced automatically with its configuration and address.
+    std::fs::write(&list, format!("{BREAKER_SCANLIST}adr = \"config+address\"\n")).unwrap();
     let old_arg = old_state.to_str().unwrap().to_string();
     let mut rig = PtyRig::breaker_with(
         "scanner-adr-pty",

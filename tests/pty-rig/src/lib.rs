@@ -14,7 +14,8 @@
 //! listens, the page's CSRF token, starting and stopping the console), [`browser`] (a script of
 //! `tests/browser/` driving chromium), [`mqtt`] (a mosquitto of the test's own) and
 //! [`sparkplug`] (the independent Sparkplug B host on pysparkplug); the Modbus tests share
-//! [`pymodbus`] (a pymodbus server as the instrument, the gateway description, the monitor run).
+//! [`pymodbus`] (a pymodbus server as the instrument, the gateway description, the monitor run),
+//! the multi-network tests [`plant`] (a plant file, two breaker benches).
 //!
 //! The programs are found with [`bin`]: next to the test executable (`target/<profile>/`), or in
 //! `DNET_BIN_DIR`.
@@ -25,6 +26,7 @@
 pub mod browser;
 pub mod console;
 pub mod mqtt;
+pub mod plant;
 pub mod pymodbus;
 pub mod sparkplug;
 
@@ -408,6 +410,18 @@ impl PtyRig {
     /// The breaker's event log.
     pub fn breaker_log(&self) -> String {
         std::fs::read_to_string(self.dir.join("breaker.log")).unwrap_or_default()
+    }
+
+    /// Waits up to `timeout` for the breaker's event log to contain `needle`; whether it does.
+    pub fn wait_breaker_log(&self, needle: &str, timeout: std::time::Duration) -> bool {
+        let end = std::time::Instant::now() + timeout;
+        while !self.breaker_log().contains(needle) {
+            if std::time::Instant::now() >= end {
+                return false;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(200));
+        }
+        true
     }
 
     /// Stops the soft slave with SIGTERM: it must exit 0 and report its run.
