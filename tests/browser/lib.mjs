@@ -73,3 +73,21 @@ export async function openPage(browser, url, options) {
 export const check = (cond, what) => {
   if (!cond) throw new Error(what);
 };
+
+/// One whole script: its settings, chromium, a page at the console's URL in a context made with
+/// `options`, and `body({ page, errors, context, step, artifacts })` run on it; then the browser
+/// closed and the exit (1 when a step failed or `body` threw: a failed step has printed why).
+export async function runScript(options, body) {
+  const { url, artifacts, executablePath } = settings();
+  const steps = new Steps();
+  const browser = await launch(executablePath);
+  try {
+    const { context, page, errors } = await openPage(browser, url, options);
+    await body({ page, errors, context, step: steps.step, artifacts });
+  } catch (e) {
+    if (!steps.failed) console.log(`FAIL ${e && e.message ? e.message : e}`);
+    steps.failed = steps.failed || 1;
+  } finally {
+    await steps.finish(browser, artifacts);
+  }
+}

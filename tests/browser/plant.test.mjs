@@ -7,16 +7,10 @@
 // shows a tab per network; network a's grid has MAC 5 in I/O and not MAC 6; a click on b's tab
 // shows MAC 6 in I/O and not MAC 5, asked through /api/net/b/; b's node opens in the device view.
 // Screenshots go into ARTIFACTS_DIR. Run by tests/tests/plant_browser.rs.
-import { check, launch, openPage, settings, Steps } from "./lib.mjs";
+import { check, runScript } from "./lib.mjs";
 import { join } from "node:path";
 
-const { url, artifacts, executablePath } = settings();
-const steps = new Steps();
-const { step } = steps;
-
-const browser = await launch(executablePath);
-try {
-  const { page, errors } = await openPage(browser, url, { viewport: { width: 1280, height: 1000 } });
+await runScript({ viewport: { width: 1280, height: 1000 } }, async ({ page, errors, step, artifacts }) => {
   const asked = [];
   page.on("request", (r) => asked.push(new URL(r.url()).pathname));
   const inIo = (mac) => page.$eval(`#cell-${mac}`, (c) => c.classList.contains("in-list") && c.classList.contains("st-ok"));
@@ -56,9 +50,4 @@ try {
     check(!asked.includes("/api/node/6"), "the device view asked the first network for MAC 6");
     check(errors.length === 0, errors.join("\n"));
   });
-} catch (_) {
-  // The failed step has printed why.
-  steps.failed = steps.failed || 1;
-} finally {
-  await steps.finish(browser, artifacts);
-}
+});

@@ -7,16 +7,10 @@
 // verdict, compares the panel with GET /api/project/compare (the counts of what was compared, a row
 // per difference), clicks Compare and sees a new comparison asked; a screenshot goes into
 // ARTIFACTS_DIR. Run by tests/tests/project_console_browser.rs.
-import { check, launch, openPage, settings, Steps } from "./lib.mjs";
+import { check, runScript } from "./lib.mjs";
 import { join } from "node:path";
 
-const { url, artifacts, executablePath } = settings();
-const steps = new Steps();
-const { step } = steps;
-
-const browser = await launch(executablePath);
-try {
-  const { page, errors } = await openPage(browser, url, { viewport: { width: 1280, height: 1000 } });
+await runScript({ viewport: { width: 1280, height: 1000 } }, async ({ page, errors, step, artifacts }) => {
 
   await step("the Project panel shows the differences of MAC 6", async () => {
     // The first comparison may come before the scan list (503): the button asks again.
@@ -64,9 +58,4 @@ try {
   });
 
   check(errors.length === 0, `page errors: ${errors.join("; ")}`);
-} catch (_) {
-  steps.failed = steps.failed || 1;
-} finally {
-  await browser.close();
-  process.exit(steps.failed ? 1 : 0);
-}
+});
