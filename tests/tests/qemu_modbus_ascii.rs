@@ -15,41 +15,11 @@
 //! DNET_QEMU=1 DNET_PYTHON=.venv/bin/python cargo test -p system-tests --test qemu_modbus_ascii -- --ignored
 //! ```
 
+use pty_rig::pymodbus::{self, Link, GATEWAY_REGISTERS};
 use pty_rig::{bin, require_pymodbus, scratch, workspace_dir, Proc};
-use serde_json::Value;
 use slave_fw::serial::StatusByte;
 use std::path::Path;
 use std::time::Duration;
-
-/// pymodbus's serial server with the ASCII framer on `argv[1]` at 19200 baud, unit 1: input
-/// registers 0..3 = 0x0102, 0x0304, 0x0506, 0x0708; holding registers 16..17 = 0, 0;
-/// 100..101 = 0xABCD, 0x1234. Prints `ready`, and one line per write.
-const MODBUS_ASCII_SERVER: &str = r#"
-import asyncio, sys
-from pymodbus.framer import FramerType
-from pymodbus.server import ModbusSerialServer
-from pymodbus.simulator import DataType, SimData, SimDevice
-
-async def on_access(function_code, _start, address, _count, _registers, set_values):
-    if set_values is not None:
-        values = ",".join(f"0x{int(v):04X}" for v in set_values)
-        print(f"write unit=1 function={function_code} address={address} values={values}", flush=True)
-    return None
-
-async def main():
-    bits = [SimData(address=0, values=[False], datatype=DataType.BITS)]
-    holding = [SimData(address=16, values=[0, 0], datatype=DataType.REGISTERS),
-               SimData(address=100, values=[0xABCD, 0x1234], datatype=DataType.REGISTERS)]
-    inputs = [SimData(address=0, values=[0x0102, 0x0304, 0x0506, 0x0708], datatype=DataType.REGISTERS)]
-    device = SimDevice(id=1, simdata=(bits, list(bits), holding, inputs), action=on_access)
-    server = ModbusSerialServer(device, framer=FramerType.ASCII, port=sys.argv[1], baudrate=19200,
-                                bytesize=8, parity="N", stopbits=1)
-    await server.serve_forever(background=True)
-    print("ready", flush=True)
-    await asyncio.Event().wait()
-
-asyncio.run(main())
-"#;
 
 /// The emulated board's MAC ID (the script's default build).
 const BOARD: &str = "5";
@@ -115,8 +85,7 @@ fn the_firmware_reads_and_writes_a_modbus_ascii_instrument_and_refuses_tcp() {
             .unwrap_or_else(|| panic!("no {key}"))
     };
     let (usart1, usart2) = (value("USART1="), value("USART2="));
-    let server = Proc::spawn(&python, &["-c", MODBUS_ASCII_SERVER, &usart2]);
-    assert!(server.wait_stdout("ready", Duration::from_secs(20)).is_some(), "{}", server.dump());
+    let server = pymodbus::server(&python, Link::Ascii(&usart2), &GATEWAY_REGISTERS);
 
     let ascii = meter_with(&dir, "ascii", "seven");
     let (code, out, err) = dnet_master(&usart1, &["configure", "--mac", BOARD, ascii.to_str().unwrap()]);
@@ -129,13 +98,7 @@ fn the_firmware_reads_and_writes_a_modbus_ascii_instrument_and_refuses_tcp() {
             &["--json", "monitor", "--mac", BOARD, "--epr", "100", "--count", "30", "--output", "11223344"],
         );
         assert_eq!(code, Some(0), "monitor:\n{out}\n{err}\n{}", qemu.dump());
-        let json: Value =
-            serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("monitor's JSON: {e}\n{out}"));
-        let list = json["samples"].as_array().unwrap_or_else(|| panic!("no samples in {json}")).clone();
-        let raw = |s: &Value| -> Vec<u8> {
-            s["raw"].as_array().unwrap().iter().map(|b| u8::try_from(b.as_u64().unwrap()).unwrap()).collect()
-        };
-        raw(list.last().unwrap_or_else(|| panic!("no sample: {json}")))
+        pymodbus::last_sample(&out)
     };
     let last = poll(&qemu);
     assert_eq!(last.len(), 14, "{last:02X?}");
