@@ -10,7 +10,7 @@
 //! Needs socat, the test virtual environment (pymodbus) and the built `dnet-soft-slave` and
 //! `dnet-master`: ignored in the plain host-test run, run by `scripts/check` with `-- --ignored`.
 
-use pty_rig::pymodbus::{self, Link, Registers};
+use pty_rig::pymodbus::{self, Link, Registers, Scan};
 use pty_rig::{require_pymodbus, require_socat, scratch, soft_slave, PtyPair};
 use slave_fw::serial::StatusByte;
 use std::time::Duration;
@@ -20,32 +20,8 @@ use std::time::Duration;
 const REGISTERS: Registers<'static> =
     Registers { holding: &[(16, &[0, 0]), (100, &[0xE666, 0x42F6])], inputs: &[(0, &[0x66E6, 0xF642])] };
 
-/// The gateway: holding 100..101 (CDAB) to input bytes 0..3, input 0..1 (DCBA) to 4..7, holding
-/// 16..17 (CDAB) read back to 8..11, output bytes 0..3 written to holding 16..17 (CDAB).
-const GATEWAY: &str = r#"
-[identity]
-vendor_id = 0x1234
-device_type = 0x000C
-product_code = 2
-major_revision = 1
-minor_revision = 0
-serial_number = 0x00C0FFEE
-product_name = "Modbus-DeviceNet Gateway"
-
-[network]
-mac_id = 5
-baud_rate = "250k"
-
-[io]
-input_assembly = "with_status"
-produced_size = 14
-consumed_size = 4
-
-[profile]
-kind = "modbus"
-
-[profile.modbus]
-response_timeout_ms = 300
+/// The gateway's `[profile.modbus]` table: RTU at 19200 8N1, big-endian images.
+const MODBUS: &str = r#"response_timeout_ms = 300
 retries = 1
 poll_period_ms = 50
 byte_order = "big_endian"
@@ -55,39 +31,16 @@ baud = 19200
 data_bits = "eight"
 parity = "none"
 stop_bits = "one"
-
-[[profile.modbus.scan]]
-unit = 1
-function = 3
-address = 100
-count = 2
-offset = 0
-word_order = "cdab"
-
-[[profile.modbus.scan]]
-unit = 1
-function = 4
-address = 0
-count = 2
-offset = 4
-word_order = "dcba"
-
-[[profile.modbus.scan]]
-unit = 1
-function = 3
-address = 16
-count = 2
-offset = 8
-word_order = "cdab"
-
-[[profile.modbus.scan]]
-unit = 1
-function = 16
-address = 16
-count = 2
-offset = 0
-word_order = "cdab"
 "#;
+
+/// The gateway's scans: holding 100..101 (CDAB) to input bytes 0..3, input 0..1 (DCBA) to 4..7,
+/// holding 16..17 (CDAB) read back to 8..11, output bytes 0..3 written to holding 16..17 (CDAB).
+const SCANS: [Scan<'static>; 4] = [
+    Scan { word_order: Some("cdab"), ..Scan::new(3, 100, 2, 0) },
+    Scan { word_order: Some("dcba"), ..Scan::new(4, 0, 2, 4) },
+    Scan { word_order: Some("cdab"), ..Scan::new(3, 16, 2, 8) },
+    Scan { word_order: Some("cdab"), ..Scan::new(16, 16, 2, 0) },
+];
 
 /// 123.45 as a big-endian REAL.
 const REAL: [u8; 4] = [0x42, 0xF6, 0xE6, 0x66];
@@ -106,7 +59,7 @@ fn register_pairs_reach_the_poll_data_and_the_instrument_in_their_word_order() {
     let serial = PtyPair::new();
     let server = pymodbus::server(&python, Link::Rtu(&serial.a), &REGISTERS);
     let config = dir.join("modbus-word-order.toml");
-    std::fs::write(&config, GATEWAY).unwrap();
+    std::fs::write(&config, pymodbus::description(14, MODBUS, &SCANS)).unwrap();
     let can = PtyPair::new();
     let mut slave = soft_slave(&can, &serial.b, &config);
 

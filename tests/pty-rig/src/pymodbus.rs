@@ -99,18 +99,37 @@ pub fn server(python: &Path, link: Link<'_>, registers: &Registers<'_>) -> Proc 
     server
 }
 
-/// The gateway description of MAC ID 5 that maps [`GATEWAY_REGISTERS`] (input registers 0..3 to
-/// input bytes 0..7, holding 100..101 to 8..11, holding 16..17 read back to 12..15, output bytes
-/// 0..3 written to holding 16..17; 18 bytes with status and freshness; stale after 1 s, cleared),
-/// with `modbus` as the body of its `[profile.modbus]` table (framing, timing, and any
-/// sub-tables such as `[profile.modbus.serial]`).
-pub fn gateway_description(modbus: &str) -> String {
-    let scan = |function: u8, address: u16, count: u16, offset: u16| {
-        format!(
-            "\n[[profile.modbus.scan]]\nunit = 1\nfunction = {function}\naddress = {address}\ncount = {count}\noffset = {offset}\n"
-        )
-    };
-    format!(
+/// One `[[profile.modbus.scan]]` entry of unit 1.
+#[derive(Debug, Clone, Copy)]
+pub struct Scan<'a> {
+    /// The Modbus function (3, 4: read into the input image; 6, 16: write from the output image).
+    pub function: u8,
+    /// The first register.
+    pub address: u16,
+    /// How many registers.
+    pub count: u16,
+    /// The byte offset in the image.
+    pub offset: u16,
+    /// `word_order` of 32-bit values (`"cdab"`, ...), when not the default.
+    pub word_order: Option<&'a str>,
+}
+
+impl Scan<'_> {
+    /// An entry in the default word order.
+    pub const fn new(function: u8, address: u16, count: u16, offset: u16) -> Scan<'static> {
+        Scan { function, address, count, offset, word_order: None }
+    }
+}
+
+/// The scan list of the gateway of [`gateway_description`].
+const GATEWAY_SCANS: [Scan<'static>; 4] =
+    [Scan::new(4, 0, 4, 0), Scan::new(3, 100, 2, 8), Scan::new(3, 16, 2, 12), Scan::new(16, 16, 2, 0)];
+
+/// A Modbus gateway's description: MAC ID 5 at 250 kbit/s, the status assembly of
+/// `produced_size` bytes, 4 output bytes, `modbus` as the body of its `[profile.modbus]` table
+/// (framing, timing, and any sub-tables such as `[profile.modbus.serial]`), and `scans`.
+pub fn description(produced_size: u16, modbus: &str, scans: &[Scan<'_>]) -> String {
+    let mut text = format!(
         r#"[identity]
 vendor_id = 0x1234
 device_type = 0x000C
@@ -126,23 +145,34 @@ baud_rate = "250k"
 
 [io]
 input_assembly = "with_status"
-produced_size = 18
+produced_size = {produced_size}
 consumed_size = 4
 
 [profile]
 kind = "modbus"
 
 [profile.modbus]
-{modbus}
-[profile.modbus.health]
-stale_timeout_ms = 1000
-stale_policy = "clear"
-{}{}{}{}"#,
-        scan(4, 0, 4, 0),
-        scan(3, 100, 2, 8),
-        scan(3, 16, 2, 12),
-        scan(16, 16, 2, 0)
-    )
+{modbus}"#
+    );
+    for s in scans {
+        text += &format!(
+            "\n[[profile.modbus.scan]]\nunit = 1\nfunction = {}\naddress = {}\ncount = {}\noffset = {}\n",
+            s.function, s.address, s.count, s.offset
+        );
+        if let Some(order) = s.word_order {
+            text += &format!("word_order = \"{order}\"\n");
+        }
+    }
+    text
+}
+
+/// The gateway that maps [`GATEWAY_REGISTERS`] (input registers 0..3 to input bytes 0..7, holding
+/// 100..101 to 8..11, holding 16..17 read back to 12..15, output bytes 0..3 written to holding
+/// 16..17; 18 bytes with status and freshness; stale after 1 s, cleared): [`description`] with
+/// `modbus` and the health table.
+pub fn gateway_description(modbus: &str) -> String {
+    let health = "\n[profile.modbus.health]\nstale_timeout_ms = 1000\nstale_policy = \"clear\"\n";
+    description(18, &format!("{modbus}{health}"), &GATEWAY_SCANS)
 }
 
 /// `dnet-master --bus MASTER_BUS --json monitor --mac 5 --epr 100 --count 30 --output OUTPUT`
