@@ -204,7 +204,11 @@ fn slave_config_descriptions() {
     std::fs::write(&bad, text).unwrap();
     let o = dnet(&["--slave-config", bad.to_str().unwrap(), "connect"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("bad-device.toml: network.mac_id: 99 is outside 0..=63"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("bad-device.toml: line 17: network.mac_id: 99 is outside 0..=63"),
+        "{}",
+        stderr(&o)
+    );
     let o = dnet(&["--slave-config", "/nonexistent.toml", "connect"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("cannot read"), "{}", stderr(&o));

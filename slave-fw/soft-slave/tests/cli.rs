@@ -72,7 +72,7 @@ fn a_bad_description_names_the_file_and_the_key() {
     let o = soft(&["--bus", "socketcan:can0", "--serial", "/dev/null", "--config", path.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
     let err = stderr(&o);
-    assert!(err.contains("bad.toml: network.mac_id: 70 is outside 0..=63"), "{err}");
+    assert!(err.contains("bad.toml: line 17: network.mac_id: 70 is outside 0..=63"), "{err}");
 }
 
 /// Issue 33: `parityy = "even"` in `[profile.serial]` used to be ignored and the soft slave ran.
