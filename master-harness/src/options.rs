@@ -41,6 +41,18 @@ pub fn parse_number(s: &str) -> Result<u32, String> {
     r.map_err(|_| format!("'{s}' is not a number (decimal, or hex with 0x)"))
 }
 
+/// `--duration SECONDS` (`monitor`, `serial-trace`): a finite number of seconds, 0 or more.
+pub fn duration_secs(value: Option<f64>) -> Result<Option<Duration>, HarnessError> {
+    match value {
+        Some(d) if !(d.is_finite() && d >= 0.0) => Err(HarnessError::InvalidValue {
+            option: "--duration",
+            value: d.to_string(),
+            expected: "seconds >= 0",
+        }),
+        d => Ok(d.map(|d| Duration::from_micros((d * 1e6) as u64))),
+    }
+}
+
 /// Parses a 16-bit number (decimal or `0x` hex).
 pub fn parse_u16(s: &str) -> Result<u16, String> {
     u16::try_from(parse_number(s)?).map_err(|_| format!("{s} does not fit in 16 bits"))

@@ -62,19 +62,11 @@ pub fn execute(
     let own = args.description.as_deref().map(DeviceDescription::load).transpose()?;
     let target = args.mac.unwrap_or_else(|| default_device(own.as_ref(), slave.as_ref()));
     let run = DeviceRun::new(opts, Some(target), slave.as_ref())?;
-    let duration = match args.duration {
-        Some(d) if !(d.is_finite() && d >= 0.0) => {
-            return Err(HarnessError::InvalidValue {
-                option: "--duration",
-                value: d.to_string(),
-                expected: "seconds >= 0",
-            })
-        }
-        Some(d) => Some(Duration::from_micros((d * 1e6) as u64)),
+    let duration = match crate::options::duration_secs(args.duration)? {
         None if opts.bus == BusSpec::Sim && !opts.realtime && args.count.is_none() => {
             Some(Duration::from_secs(10))
         }
-        None => None,
+        d => d,
     };
     let monitor_opts = MonitorOptions {
         connect: ConnectOptions {

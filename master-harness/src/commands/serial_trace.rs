@@ -317,16 +317,7 @@ pub fn execute(
     err: &mut dyn Write,
     console: &Console,
 ) -> Result<u8, HarnessError> {
-    let duration = match args.duration {
-        Some(d) if !(d.is_finite() && d >= 0.0) => {
-            return Err(HarnessError::InvalidValue {
-                option: "--duration",
-                value: d.to_string(),
-                expected: "seconds >= 0",
-            })
-        }
-        d => d.map(|d| Duration::from_micros((d * 1e6) as u64)),
-    };
+    let duration = crate::options::duration_secs(args.duration)?;
     let slave = opts.slave_description()?;
     let run = DeviceRun::new(opts, Some(args.mac), slave.as_ref())?;
     run.run(out, err, console, |master, _, out| {
