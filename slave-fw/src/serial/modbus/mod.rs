@@ -14,6 +14,7 @@
 //! dependencies to `heapless` and `devicenet`.
 
 pub mod ascii;
+mod config;
 mod entry;
 pub mod framing;
 pub mod master;

@@ -1,6 +1,8 @@
 use super::*;
 use crate::serial::modbus::{Function, Request, Response};
-use crate::serial::{LinkState, StalePolicy, StatusByte};
+use crate::serial::{
+    DataBits, Field, IdleAction, LinkState, Problem, SerialSettings, StalePolicy, StatusByte,
+};
 use proptest::prelude::*;
 use rstest::rstest;
 use std::string::ToString;
