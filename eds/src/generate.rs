@@ -724,6 +724,10 @@ fn setting_presentation(a: SettingsAttribute, s: &Settings<'_>, input_len: usize
         }
         A::SerialProfile => Presentation::new("The instrument protocol on the serial line", 0, 1)
             .choices(&[(0, "Framed serial"), (1, "Modbus RTU master")]),
+        // Not an EDS parameter (not in SETTINGS_PARAMS): read by `dnet-master serial-trace` and
+        // the console to decode the line trace.
+        A::ModbusFraming => Presentation::new("The Modbus framing on the serial line", 0, 2)
+            .choices(&[(0, "RTU"), (1, "ASCII"), (2, "TCP (MBAP)")]),
     }
 }
 

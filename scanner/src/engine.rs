@@ -723,6 +723,10 @@ impl Scanner {
                 let answer = self.explicit(master, mac, class, instance, attribute, Some(&value));
                 let _ = reply.send(answer);
             }
+            ConsoleCommand::Request { mac, service, class, instance, data, reply } => {
+                let answer = self.explicit_request(master, mac, service, class, instance, &data);
+                let _ = reply.send(answer);
+            }
             ConsoleCommand::Events { since, reply } => {
                 let _ = reply.send(self.events.since(since));
             }
@@ -764,6 +768,37 @@ impl Scanner {
             None => master.get(target, class_id, instance, attribute),
         };
         r.map(|(data, _)| data).map_err(|e| e.to_string())
+    }
+
+    /// [`ConsoleCommand::Request`]: `service` with `data` on `mac`'s explicit connection.
+    fn explicit_request(
+        &mut self,
+        master: &mut Master<'_, '_>,
+        mac: u8,
+        service: u8,
+        class: u16,
+        instance: u16,
+        data: &[u8],
+    ) -> Result<master_core::client::ReplyBody, String> {
+        let n = self
+            .nodes
+            .iter()
+            .find(|n| n.entry.mac == mac)
+            .ok_or(format!("MAC {mac} is not in the scan list"))?;
+        if !n.in_io || n.busy() {
+            return Err(format!("MAC {mac} has no explicit connection now ({})", n.state.status.name()));
+        }
+        let target = MacId::new(mac).ok_or(format!("MAC {mac} is out of range"))?;
+        let request = devicenet::explicit::Request {
+            service: devicenet::explicit::ServiceCode::from(service),
+            class,
+            instance,
+            data,
+        };
+        master
+            .request(target, master_core::client::Port::Explicit, &request)
+            .map(|answer| answer.reply.body)
+            .map_err(|e| e.to_string())
     }
 
     /// The input samples received since the last call, oldest first.

@@ -46,6 +46,7 @@ pub mod plant;
 pub mod project;
 pub mod report;
 pub mod scan;
+pub mod serial_trace;
 pub mod sparkplug;
 pub mod timing;
 pub mod ui;

@@ -471,6 +471,23 @@ pub enum ConsoleCommand {
         /// The answer (empty on success).
         reply: Sender<Reply>,
     },
+    /// Any explicit request (`service` with `data`) on the node's explicit connection, answered
+    /// with the device's reply, success or error response (the serial-line analyzer's Read_Trace,
+    /// `ui::serial_trace_api`).
+    Request {
+        /// MAC ID.
+        mac: u8,
+        /// The service code.
+        service: u8,
+        /// Class.
+        class: u16,
+        /// Instance.
+        instance: u16,
+        /// The request data after the path.
+        data: Vec<u8>,
+        /// The device's reply, or why there was none (a timeout, a node that is not ok).
+        reply: Sender<Result<master_core::client::ReplyBody, String>>,
+    },
     /// The events after sequence number `since` ([`crate::events`]).
     Events {
         /// The last sequence number seen (0: all).

@@ -373,6 +373,10 @@ fn run(
                 ConsoleCommand::Set { reply, .. } => {
                     let _ = reply.send(Err("error response: attribute not settable (0x0E)".into()));
                 }
+                // Nor any other service (the serial-line analyzer's Read_Trace).
+                ConsoleCommand::Request { reply, .. } => {
+                    let _ = reply.send(Err("the fake scanner serves Get and Set only".into()));
+                }
                 // The fake scanner keeps no health: the request goes unanswered (503).
                 ConsoleCommand::Health { .. } => {}
                 // Nor events or scan-list changes.

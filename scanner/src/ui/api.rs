@@ -203,6 +203,12 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
             (["frames"], true, _) => frames(shared, &pairs),
             (["node", mac], true, _) => node(shared, parse_mac(mac)?),
             (["node", mac, "params"], true, _) => params(shared, parse_mac(mac)?),
+            (["node", mac, "serial-trace"], true, _) => Ok(super::serial_trace_api::poll(
+                shared,
+                &ctx.serial_traces,
+                parse_mac(mac)?,
+                number(&pairs, "since")?,
+            )),
             (["node", mac, "output"], _, true) => {
                 let mac = parse_mac(mac)?;
                 let data = match parse_json(body)? {
@@ -241,7 +247,7 @@ fn route(ctx: &Arc<Context>, method: &str, url: &str, body: &[u8]) -> Result<Res
                 | ["token"]
                 | ["frames"]
                 | ["node", _]
-                | ["node", _, "params" | "output" | "get" | "set"]
+                | ["node", _, "params" | "output" | "get" | "set" | "serial-trace"]
                 | ["node", _, "breaker", _]
                 | ["history"]
                 | ["export.csv"]

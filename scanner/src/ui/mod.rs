@@ -28,7 +28,7 @@
 //! | view | what it shows |
 //! |---|---|
 //! | Network | the 64 MAC IDs, each with its status (colour and the scanner's numeric code), product name, I/O connection (poll, strobe, cos, cyclic) and I/O sizes; the scanner's state, cycle time, bus load and MQTT state; with `dnet-master ui --project FILE`, the Project panel: what of the network project was compared, what not and why, every difference ([`crate::project::console`]) |
-//! | Device (click a node) | identity; the input image decoded by the device's profile (breaker: the four phase currents, the switch state, parameters 0–3; Modbus: the scan-list values; otherwise raw bytes) with the status byte and freshness counter when the input assembly carries them; a live plot of the numeric values from the history; the breaker's Open / Close / Set parameter buttons and their outcome (status bits 4–6, or the switch state with assembly 100); explicit Get / Set; the Parameter object's table |
+//! | Device (click a node) | identity; for a serial converter, the Serial line panel (its line trace decoded, polled while open); the input image decoded by the device's profile (breaker: the four phase currents, the switch state, parameters 0–3; Modbus: the scan-list values; otherwise raw bytes) with the status byte and freshness counter when the input assembly carries them; a live plot of the numeric values from the history; the breaker's Open / Close / Set parameter buttons and their outcome (status bits 4–6, or the switch state with assembly 100); explicit Get / Set; the Parameter object's table |
 //! | Trace | the live frames decoded as `dnet-master decode` does, filtered by MAC and message kind; Start / Stop recording with the files named |
 //!
 //! The page polls the API (state every 500 ms, frames every 300 ms, the plot every second): a
@@ -46,6 +46,7 @@
 //! | `GET /api/frames?after=SEQ&mac=N&kind=K&limit=L` | `{"next": SEQ, "frames": [FrameRow...]}`: the frames after `SEQ` (default 0) concerning MAC `N`, of kind `K` (`explicit`, `io`, `duplicate_mac`, `ucmm`, `offline`), the newest `L` (default 500, at most 5000); `next` is the sequence number to ask after next time |
 //! | `GET /api/node/MAC` | `{"node": NodeState, "profile", "fields", "link", "note", "input_hex", "output_hex"}`: the node decoded by its profile ([`layout_for`]); `fields` each `{name, values, text}`; `link` the status byte and freshness counter decoded, or `null` |
 //! | `GET /api/project/compare` | the network project of `--project FILE` against the running network ([`crate::project::console`]): `{"ok", "project", "compared": {nodes, scan_list, identity, configuration, parameters}, "not_compared": [{mac, what, why, wanted}], "differences": [{mac, what, expected, found}], "equal"}`; `equal` only when something was compared and nothing differs or was left out; `409` when nothing could be compared, `404` without `--project` |
+//! | `GET /api/node/MAC/serial-trace?since=N` | the converter's serial-line analyzer read with Read_Trace and decoded by its profile (`serial_trace_api`): `{"ok", "converter", "profile", "next", "lines": [{n, seq, time_ms, kind, hex, decoded}], "dropped", "entries", "missed"}`; `converter: false` with a `note` for a node without the analyzer (class 0x68) |
 //! | `GET /api/node/MAC/params` | `{"params": [ParamRow...], "note"}`: the Parameter object (class 0x0F) read with Get_Attribute_Single; empty with a note when the device has none |
 //! | `GET /api/history?mac=N&from=MS&to=MS&limit=L` | `{"mac", "samples": [{unix_ms, bus_us, input, values: [[name, number]...]}]}` from the history database (default: the last 60 s, at most 2000 samples, the newest when there are more) |
 //! | `GET /api/export.csv?mac=N&from=MS&to=MS` | the samples as a CSV download (`mac` left out: every node), at most [`MAX_EXPORT`] bytes |
@@ -90,6 +91,7 @@ mod networks;
 mod project_api;
 mod record;
 mod scanlist_api;
+mod serial_trace_api;
 pub mod thinning;
 pub mod tls;
 
@@ -134,6 +136,8 @@ pub(crate) struct Context {
     pub(crate) project: Option<(String, crate::project::Project)>,
     /// The plant's networks (`ui --plant`; empty: one network, [`networks`]).
     pub(crate) networks: Vec<networks::NetworkContext>,
+    /// The serial-line analyzer's lines kept per node (`serial_trace_api`).
+    pub(crate) serial_traces: serial_trace_api::Traces,
 }
 
 /// Who may use the console and how it is reached: the accounts (`None`: no logins, loopback
@@ -233,6 +237,7 @@ pub fn serve_plant(
                 auth: Auth::new(None, token.clone(), tls),
                 project: None,
                 networks: Vec::new(),
+                serial_traces: Default::default(),
             }),
         })
         .collect();
@@ -243,6 +248,7 @@ pub fn serve_plant(
         auth: Auth::new(access.users, token, tls),
         project: access.project,
         networks,
+        serial_traces: Default::default(),
     });
     let handler = {
         let context = Arc::clone(&context);

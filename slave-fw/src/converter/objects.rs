@@ -22,7 +22,7 @@
 //! protocol §3.3).
 
 use super::InputAssembly;
-use crate::serial::modbus::ModbusConfig;
+use crate::serial::modbus::{Framing, ModbusConfig};
 use crate::serial::{
     Counter, FramedProfileConfig, HealthConfig, IdleAction, LinkState, LinkStatus, Parity, Profile,
     ProfileConfig, StalePolicy, StopBits,
@@ -259,13 +259,15 @@ pub enum SettingsAttribute {
     IdleAction = 9,
     /// The fault action: 0 nothing, 1 send the configured frame.
     FaultAction = 10,
-    /// The serial profile: 0 framed serial, 1 Modbus RTU master.
+    /// The serial profile: 0 framed serial, 1 Modbus master (its framing: attribute 12).
     SerialProfile = 11,
+    /// The Modbus framing: 0 RTU, 1 ASCII, 2 TCP (MBAP); 0 for a framed instrument.
+    ModbusFraming = 12,
 }
 
 impl SettingsAttribute {
     /// Every attribute, in id order.
-    pub const ALL: [SettingsAttribute; 11] = [
+    pub const ALL: [SettingsAttribute; 12] = [
         SettingsAttribute::SerialBaud,
         SettingsAttribute::SerialParity,
         SettingsAttribute::SerialStopBits,
@@ -277,12 +279,13 @@ impl SettingsAttribute {
         SettingsAttribute::IdleAction,
         SettingsAttribute::FaultAction,
         SettingsAttribute::SerialProfile,
+        SettingsAttribute::ModbusFraming,
     ];
 
     /// The attribute with id `id`, if the object has one.
     pub const fn from_id(id: u8) -> Option<SettingsAttribute> {
         use SettingsAttribute as A;
-        // The identity on 1..=11: compiled to a range check (tested against `ALL`).
+        // The identity on 1..=12: compiled to a range check (tested against `ALL`).
         Some(match id {
             1 => A::SerialBaud,
             2 => A::SerialParity,
@@ -295,6 +298,7 @@ impl SettingsAttribute {
             9 => A::IdleAction,
             10 => A::FaultAction,
             11 => A::SerialProfile,
+            12 => A::ModbusFraming,
             _ => return None,
         })
     }
@@ -329,6 +333,7 @@ impl SettingsAttribute {
             A::IdleAction => ("Idle action", ""),
             A::FaultAction => ("Fault action", ""),
             A::SerialProfile => ("Serial profile", ""),
+            A::ModbusFraming => ("Modbus framing", ""),
         };
         AttributeSpec {
             class: SETTINGS_CLASS,
@@ -365,6 +370,11 @@ impl SettingsAttribute {
             A::IdleAction => s.idle_frame.into(),
             A::FaultAction => s.fault_frame.into(),
             A::SerialProfile => s.modbus.into(),
+            A::ModbusFraming => match s.framing {
+                Framing::Rtu => 0,
+                Framing::Ascii => 1,
+                Framing::Tcp => 2,
+            },
         }
     }
 }
@@ -392,8 +402,10 @@ pub struct SettingsValues {
     pub idle_frame: bool,
     /// Whether a poll connection fault sends a frame.
     pub fault_frame: bool,
-    /// `true` for the Modbus RTU master, `false` for a framed instrument.
+    /// `true` for the Modbus master, `false` for a framed instrument.
     pub modbus: bool,
+    /// The Modbus framing ([`Framing::Rtu`] for a framed instrument).
+    pub framing: Framing,
 }
 
 impl SettingsValues {
@@ -422,14 +434,19 @@ impl SettingsValues {
     /// The values of either profile's configuration: one body for both, the profile's parts
     /// picked by one match (firmware size budget).
     fn of(config: ConfigRef<'_>, input: InputAssembly) -> SettingsValues {
-        let (serial, health, response_timeout_ms, retries, [on_idle, on_fault], modbus) = match config {
+        let (serial, health, response_timeout_ms, retries, [on_idle, on_fault], framing) = match config {
             ConfigRef::Framed(c) => {
                 let s = &c.sequencer;
-                (&c.serial, c.health, s.response_timeout_ms, s.retries, [&s.on_idle, &s.on_fault], false)
+                (&c.serial, c.health, s.response_timeout_ms, s.retries, [&s.on_idle, &s.on_fault], None)
             }
-            ConfigRef::Modbus(c) => {
-                (&c.serial, c.health, c.response_timeout_ms, c.retries, [&c.on_idle, &c.on_fault], true)
-            }
+            ConfigRef::Modbus(c) => (
+                &c.serial,
+                c.health,
+                c.response_timeout_ms,
+                c.retries,
+                [&c.on_idle, &c.on_fault],
+                Some(c.framing),
+            ),
         };
         SettingsValues {
             baud: serial.baud,
@@ -441,7 +458,8 @@ impl SettingsValues {
             retries,
             idle_frame: sends(on_idle),
             fault_frame: sends(on_fault),
-            modbus,
+            modbus: framing.is_some(),
+            framing: framing.unwrap_or_default(),
         }
     }
 }
@@ -477,7 +495,7 @@ mod tests {
         assert_eq!(LinkAttribute::from_id(0), None);
         assert_eq!(LinkAttribute::from_id(16), None);
         assert_eq!(SettingsAttribute::from_id(0), None);
-        assert_eq!(SettingsAttribute::from_id(12), None);
+        assert_eq!(SettingsAttribute::from_id(13), None);
     }
 
     #[test]
