@@ -193,6 +193,7 @@ async function refreshNode() {
     $("explicit-result").textContent = "";
     $("cmd-outcome").textContent = "";
     lastCommand = null;
+    serialReset();
   }
   const now = Date.now();
   $("export-csv").href = netPath(`/api/export.csv?mac=${n.mac}&from=${now - 3600e3}&to=${now + 1000}`);
@@ -521,6 +522,61 @@ async function refreshEvents() {
   try { showEvents(await api(`/api/events?since=${eventsSeen}`)); } finally { eventsBusy = false; }
 }
 
+// ---- serial line (scanner/src/ui/serial_trace_api.rs, docs/src/plant/console.md) --------------
+// The converter's line trace, polled while the panel is open: each poll asks for the lines after
+// the last one shown, so nothing new costs the device one Read_Trace. Newest first, at most 300 rows.
+const SERIAL_ROWS = 300;
+let serialOpen = false, serialSeen = 0, serialBusy = false;
+function serialReset() {
+  serialOpen = false; serialSeen = 0;
+  $("serial-table").tBodies[0].replaceChildren();
+  $("serial-wrap").hidden = true;
+  $("serial-profile").hidden = true;
+  $("serial-note").textContent = ""; $("serial-note").className = "outcome";
+  $("btn-serial").textContent = "Open";
+}
+function serialToggle() {
+  const open = !serialOpen;
+  serialReset();
+  serialOpen = open;
+  $("btn-serial").textContent = open ? "Close" : "Open";
+  if (open) { $("serial-note").textContent = "reading…"; refreshSerial(); }
+}
+const SERIAL_ERROR = /^(not a |incomplete frame|bytes outside)/;
+function showSerial(r) {
+  const note = $("serial-note");
+  if (!r.ok) { note.className = "outcome err"; note.textContent = r.error; return; }
+  if (!r.converter) { note.className = "outcome"; note.textContent = r.note; $("serial-wrap").hidden = true; return; }
+  $("serial-wrap").hidden = false;
+  $("serial-profile").hidden = false;
+  $("serial-profile").textContent = r.profile;
+  note.className = "outcome";
+  note.textContent = `${r.entries} entries read` + (r.missed ? ` · ${r.missed} entries missed (the ring overran)` : "")
+    + (r.dropped ? ` · ${r.dropped} lines no longer kept by the console` : "");
+  const body = $("serial-table").tBodies[0];
+  for (const l of r.lines) {
+    if (l.n <= serialSeen) continue;
+    serialSeen = l.n;
+    const bytes = l.kind === "tx" || l.kind === "rx";
+    const cls = l.kind === "missed" || l.kind.endsWith(" err") || l.kind.startsWith("uart") || SERIAL_ERROR.test(l.decoded) ? "line-error"
+      : bytes ? "" : "line-event";
+    body.prepend(el("tr", { "data-kind": l.kind, "data-n": l.n, class: cls },
+      el("td", { text: l.kind === "missed" || l.kind === "restart" ? "" : `#${l.seq}` }), el("td", { text: String(l.time_ms) }),
+      el("td", { text: l.kind }), el("td", { class: "meaning", text: l.decoded }), el("td", { class: "bytes", text: l.hex })));
+  }
+  while (body.rows.length > SERIAL_ROWS) body.deleteRow(-1);
+  if (r.next < serialSeen) serialSeen = r.next;
+}
+async function refreshSerial() {
+  if (!serialOpen || serialBusy || currentMac === null || $("view-device").hidden) return;
+  serialBusy = true;
+  const mac = currentMac;
+  try {
+    const r = await api(`/api/node/${mac}/serial-trace?since=${serialSeen}`);
+    if (serialOpen && mac === currentMac) showSerial(r);
+  } finally { serialBusy = false; }
+}
+
 function init() {
   $("btn-health-clear").addEventListener("click", async () => showHealth(await post("/api/health/clear")));
   $("login-form").addEventListener("submit", login);
@@ -535,6 +591,7 @@ function init() {
   });
   $("explicit-form").addEventListener("submit", (e) => { e.preventDefault(); explicit(e.submitter ? e.submitter.dataset.op : "get"); });
   $("btn-params").addEventListener("click", readParams);
+  $("btn-serial").addEventListener("click", serialToggle);
   $("export-csv").addEventListener("click", () => {
     const now = Date.now();
     $("export-csv").href = netPath(`/api/export.csv?mac=${currentMac}&from=${now - 3600e3}&to=${now + 1000}`);
@@ -549,6 +606,7 @@ function init() {
   setInterval(() => { if (!$("view-device").hidden) refreshNode(); }, 250);
   setInterval(refreshPlot, 1000);
   setInterval(refreshTrace, 300);
+  setInterval(refreshSerial, 500);
   refreshHealth();
   setInterval(refreshHealth, 2000);
   refreshEvents();
