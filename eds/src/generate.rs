@@ -54,8 +54,12 @@ use slave_fw::converter::objects::{
 use slave_fw::converter::parameters::{Parameter, ParameterDef, CLASS_DESCRIPTOR, PARAMETERS};
 use slave_fw::converter::{ConverterConfig, InputAssembly, OUTPUT_ASSEMBLY, PARAMETER_CLASS};
 use slave_fw::description::DeviceDescription;
+use slave_fw::serial::modbus::units::valid_bits_len;
 use slave_fw::serial::modbus::{ByteOrder, Framing, ModbusConfig, ScanEntry, WordOrder};
 use slave_fw::serial::{HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings};
+
+mod units;
+pub use units::{FIRST_UNIT_PARAM, PARAMS_PER_UNIT};
 
 /// The `CreateDate` and `ModDate` written when [`GenerateOptions::date`] is not changed.
 pub const DEFAULT_DATE: Date = Date { year: 2025, month: 1, day: 1 };
@@ -158,7 +162,7 @@ pub fn generate(description: &DeviceDescription, options: &GenerateOptions) -> E
         }),
         params: Some(params_section),
         enum_par: None,
-        groups: Some(groups()),
+        groups: Some(groups(description)),
         other_sections: Vec::new(),
     }
 }
@@ -348,11 +352,25 @@ fn modbus_item(e: &ScanEntry) -> String {
         WordOrder::Dcba => ", 32-bit values sent DCBA",
     };
     format!(
-        "{}: unit {} {items} (function {}{pairs})",
+        "{}: unit {} {items} (function {}{pairs}{})",
         bytes(usize::from(e.offset), e.image_len()),
         e.unit,
-        e.function.code()
+        e.function.code(),
+        schedule_text(e)
     )
+}
+
+/// An entry's schedule when it is not the default (every scan cycle, or on change): such
+/// descriptions keep their help text. The schedule is no parameter: the device serves no scan
+/// list over the network.
+fn schedule_text(e: &ScanEntry) -> String {
+    let verb = if e.function.is_write() { "sent" } else { "read" };
+    match (e.trigger_offset, e.period_ms) {
+        (Some(b), _) => format!(", {verb} once per change of output byte {b}"),
+        (None, Some(p)) if e.function.is_write() => format!(", also sent every {p} ms"),
+        (None, Some(p)) => format!(", read every {p} ms"),
+        (None, None) => String::new(),
+    }
 }
 
 fn modbus_layout(m: &ModbusConfig, writes: bool) -> String {
@@ -377,7 +395,15 @@ fn input_help(description: &DeviceDescription) -> String {
     let len = converter.profile.input_len();
     let data = match &converter.profile {
         ProfileConfig::Framed(_) => format!("{}: the data of the instrument's status frame", bytes(0, len)),
-        ProfileConfig::Modbus(m) => modbus_layout(m, false),
+        ProfileConfig::Modbus(m) => match m.valid_bits_offset {
+            Some(offset) => format!(
+                "{}; {}: data-valid bits, bit k for scan entry k (1 while its last transaction \
+                 succeeded within the stale timeout)",
+                modbus_layout(m, false),
+                bytes(usize::from(offset), valid_bits_len(m.scan.len()))
+            ),
+            None => modbus_layout(m, false),
+        },
     };
     match converter.input {
         InputAssembly::Plain => data,
@@ -396,7 +422,16 @@ fn output_help(description: &DeviceDescription) -> String {
                                      a command is executed once, when the code or the sequence number changes"
                 .to_string()
         }
-        ProfileConfig::Modbus(m) => format!("{}; written when they change", modbus_layout(m, true)),
+        ProfileConfig::Modbus(m) => {
+            let writes = || m.scan.iter().filter(|e| e.function.is_write());
+            let on_change =
+                match (writes().all(|e| e.write.is_change()), writes().any(|e| e.write.is_change())) {
+                    (true, _) => "; written when they change",
+                    (false, true) => "; the others written when they change",
+                    (false, false) => "",
+                };
+            format!("{}{on_change}", modbus_layout(m, true))
+        }
     }
 }
 
@@ -406,7 +441,7 @@ struct Spec {
     path: [u8; 6],
     descriptor: u16,
     data_type: DataType,
-    name: &'static str,
+    name: String,
     units: &'static str,
     help: String,
     min: i128,
@@ -429,7 +464,7 @@ impl Spec {
             descriptor: Some(Descriptor(descriptor)),
             data_type: Some(self.data_type),
             data_size: self.data_type.fixed_size(),
-            name: self.name.to_string(),
+            name: self.name.clone(),
             units: self.units.to_string(),
             help: self.help.clone(),
             min: Some(Value::Int(self.min)),
@@ -529,7 +564,7 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
             path: devicenet(1),
             descriptor: switch_descriptor,
             data_type: DataType::Usint,
-            name: "MAC ID",
+            name: "MAC ID".into(),
             units: "",
             help: format!("The node address on DeviceNet{switch_help}"),
             min: 0,
@@ -542,7 +577,7 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
             path: devicenet(2),
             descriptor: switch_descriptor,
             data_type: DataType::Usint,
-            name: "Data rate",
+            name: "Data rate".into(),
             units: "",
             help: format!("The DeviceNet data rate{switch_help}"),
             min: 0,
@@ -555,7 +590,7 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
             path: devicenet(3),
             descriptor: 0,
             data_type: DataType::Bool,
-            name: "Bus-off interrupt",
+            name: "Bus-off interrupt".into(),
             units: "",
             help: "What the CAN controller does on bus-off".into(),
             min: 0,
@@ -565,6 +600,7 @@ fn parameters(description: &DeviceDescription) -> Vec<Spec> {
         },
     ]);
     specs.extend(link_parameters());
+    specs.extend(units::unit_parameters(description));
     specs
 }
 
@@ -616,7 +652,7 @@ fn parameter_object_param(
         path: logical_path(PARAMETER_CLASS, p.instance(), 1),
         descriptor: p.descriptor(config),
         data_type: data_type(def.data_type),
-        name: def.name,
+        name: def.name.into(),
         units: def.units,
         help: def.help.to_string(),
         min: def.min.into(),
@@ -644,7 +680,7 @@ fn attribute_param(number: u32, spec: AttributeSpec, default: u32, shown: Presen
             Access::GetMonitor => MONITOR,
         },
         data_type: data_type(spec.data_type),
-        name: spec.name,
+        name: spec.name.into(),
         units: spec.units,
         help: shown.help,
         min: shown.min,
@@ -768,7 +804,7 @@ fn link_presentation(a: LinkAttribute) -> Presentation {
     }
 }
 
-fn groups() -> GroupsSection {
+fn groups(description: &DeviceDescription) -> GroupsSection {
     let link: Vec<u32> = (FIRST_LINK_PARAM..FIRST_LINK_PARAM + LINK_PARAM_COUNT).collect();
     let list = [
         ("Serial line", vec![FIRST_SETTINGS_PARAM + 2, 1, 2, 3]),
@@ -776,10 +812,12 @@ fn groups() -> GroupsSection {
         ("I/O behaviour", vec![6, FIRST_SETTINGS_PARAM, FIRST_SETTINGS_PARAM + 1]),
         ("DeviceNet", vec![FIRST_DEVICENET_PARAM, FIRST_DEVICENET_PARAM + 1, FIRST_DEVICENET_PARAM + 2]),
         ("Serial link statistics", link),
+        ("Modbus units", units::unit_group(description)),
     ];
     GroupsSection {
         groups: list
             .into_iter()
+            .filter(|(_, params)| !params.is_empty())
             .zip(1u32..)
             .map(|((name, params), n)| (n, Group { name: name.to_string(), params }))
             .collect(),
@@ -792,6 +830,7 @@ mod tests {
     use super::*;
     use rstest::rstest;
     use slave_fw::converter::SETTINGS_CLASS;
+    use slave_fw::serial::modbus::WriteMode;
 
     #[rstest]
     #[case::adapter(0x0C, "Communications Adapter")]
@@ -929,6 +968,30 @@ mod tests {
             }
             None => assert!(!help.contains("32-bit"), "{help}"),
         }
+    }
+
+    #[test]
+    fn the_assembly_help_names_each_entry_schedule() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../slave-fw/descriptions/modbus-meter.toml");
+        let mut description = DeviceDescription::load(&path).unwrap();
+        assert!(output_help(&description).ends_with("; written when they change"));
+        let ProfileConfig::Modbus(m) = &mut description.converter.profile else { panic!("not Modbus") };
+        // Entry 1 reads holding registers 100-101; entry 2 writes holding registers 16-17 from
+        // output bytes 0-3.
+        m.scan[1].period_ms = Some(5000);
+        m.scan[2].write = WriteMode::Trigger;
+        m.scan[2].trigger_offset = Some(4);
+        m.output_len = 5;
+        description.converter.profile.validate().unwrap();
+        let input = input_help(&description);
+        assert!(input.contains("unit 1 holding registers 100-101 (function 3, read every 5000 ms)"), "{input}");
+        let output = output_help(&description);
+        assert!(
+            output.contains("unit 1 holding registers 16-17 (function 16, sent once per change of output byte 4)"),
+            "{output}"
+        );
+        assert!(!output.contains("written when they change"), "{output}");
     }
 
     #[rstest]

@@ -972,6 +972,9 @@ mod tests {
             count: 10,
             offset: 0,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         };
         let f = modbus_field(&coils, ByteOrder::LittleEndian, &[0b1000_0101, 0b10]);
         assert_eq!(f.text, "u2 fc1 @00010+10: 1, 0, 1, 0, 0, 0, 0, 1, 0, 1");
@@ -982,6 +985,9 @@ mod tests {
             count: 1,
             offset: 0,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         };
         assert_eq!(modbus_ref(&far, 0), "410000");
     }

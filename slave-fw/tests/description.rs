@@ -4,7 +4,7 @@
 use rstest::rstest;
 use slave_fw::converter::{ConverterConfig, InputAssembly};
 use slave_fw::description::DeviceDescription;
-use slave_fw::serial::modbus::{Framing, WordOrder};
+use slave_fw::serial::modbus::{Framing, WordOrder, WriteMode};
 use slave_fw::serial::ProfileConfig;
 use std::path::Path;
 
@@ -186,6 +186,57 @@ fn modbus_word_order_key() {
         load_error("word-order-bad.toml", &text, find, &format!("{find}word_order = \"abdc\"\n"));
     let line = line_of(&bad, "word_order");
     assert!(err.contains(&format!("line {line},")) && err.contains("unknown variant `abdc`"), "{err}");
+}
+
+/// The schedule keys of a scan entry: they read, round-trip through the writer (defaults are
+/// not written), grow the output image to hold a trigger byte, and a key that does not apply is
+/// an error naming the file, the line and the key.
+#[test]
+fn modbus_schedule_keys() {
+    let text = std::fs::read_to_string(example("modbus-meter.toml")).unwrap();
+    let read = "function = 3\naddress = 100\ncount = 2\n";
+    let write = "function = 16\naddress = 16\ncount = 2\n";
+    assert!(!DeviceDescription::parse(&text).unwrap().to_toml().unwrap().contains("\nperiod_ms"));
+    let scheduled = text.replacen(read, &format!("{read}period_ms = 5000\n"), 1).replacen(
+        write,
+        &format!("{write}write = \"trigger\"\ntrigger_offset = 6\n"),
+        1,
+    );
+    let d = DeviceDescription::parse(&scheduled).unwrap();
+    let ProfileConfig::Modbus(m) = &d.converter.profile else { panic!("not Modbus") };
+    assert_eq!(m.scan[1].period_ms, Some(5000));
+    assert_eq!((m.scan[2].write, m.scan[2].trigger_offset), (WriteMode::Trigger, Some(6)));
+    assert_eq!(m.output_len, 7, "the output image holds the trigger byte");
+    let written = d.to_toml().unwrap();
+    assert!(written.contains("write = \"trigger\"") && written.contains("trigger_offset = 6"), "{written}");
+    assert_eq!(DeviceDescription::parse(&written).unwrap().converter, d.converter);
+    let (err, path, bad) = load_error("schedule.toml", &text, read, &format!("{read}write = \"cyclic\"\n"));
+    let line = line_of(&bad, "write");
+    assert_eq!(
+        err,
+        format!(
+            "{}: line {line}: profile.modbus.scan[1].write: applies to write entries (functions 5, 6, 15, 16) only",
+            path.display()
+        )
+    );
+    let (err, _, bad) = load_error(
+        "schedule-trigger.toml",
+        &text,
+        write,
+        &format!("{write}write = \"trigger\"\ntrigger_offset = 1\n"),
+    );
+    let line = line_of(&bad, "trigger_offset");
+    assert!(
+        err.contains(&format!(
+            "line {line}: profile.modbus.scan[2].trigger_offset: overlaps the image bytes of entry 2"
+        )),
+        "{err}"
+    );
+    let (err, _, _) = load_error("schedule-period.toml", &text, read, &format!("{read}period_ms = 0\n"));
+    assert!(
+        err.contains("profile.modbus.scan[1].period_ms: 0 is outside the allowed range 1..=3600000"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -332,6 +332,9 @@ fn modbus_image() -> Vec<u8> {
         count: 4,
         offset: 0,
         word_order: Default::default(),
+        period_ms: None,
+        write: Default::default(),
+        trigger_offset: None,
     }];
     let config = ConverterConfig {
         profile: ProfileConfig::Modbus(ModbusConfig::new(scan.into_iter().collect())),

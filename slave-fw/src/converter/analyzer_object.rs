@@ -272,6 +272,9 @@ mod tests {
             count: 1,
             offset: 0,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         }])
         .unwrap();
         let config = ConverterConfig {

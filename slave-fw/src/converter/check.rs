@@ -263,6 +263,9 @@ mod tests {
                 count: 2,
                 offset: 0,
                 word_order: Default::default(),
+                period_ms: None,
+                write: Default::default(),
+                trigger_offset: None,
             },
             ScanEntry {
                 unit: 1,
@@ -271,6 +274,9 @@ mod tests {
                 count: 1,
                 offset: 30,
                 word_order: Default::default(),
+                period_ms: None,
+                write: Default::default(),
+                trigger_offset: None,
             },
         ]);
         let mut m = ModbusConfig::new(scan);

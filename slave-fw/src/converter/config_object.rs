@@ -635,7 +635,7 @@ mod tests {
     #[case::read_bad_which(1, READ_CHUNK, &[2, 0, 0, 1], Err((0x20, 0xFF)))]
     #[case::read_nothing_pending(1, READ_CHUNK, &[1, 0, 0, 1], Err((0x0C, 0xFF)))]
     #[case::read_short(1, READ_CHUNK, &[0, 0, 0], Err((0x13, 0xFF)))]
-    #[case::begin_too_large(1, BEGIN_DOWNLOAD, &[0x41, 0x01], Err((0x15, 0xFF)))]
+    #[case::begin_too_large(1, BEGIN_DOWNLOAD, &[0x81, 0x01], Err((0x15, 0xFF)))]
     #[case::write_without_begin(1, WRITE_CHUNK, &[0, 0, 1], Err((0x0C, 0xFF)))]
     #[case::commit_without_begin(1, COMMIT_DOWNLOAD, &[], Err((0x0C, 0xFF)))]
     fn services(

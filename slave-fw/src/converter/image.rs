@@ -29,7 +29,10 @@
 //!            0 RTU, 1 ASCII, 2 TCP, so older images read as RTU), scan: count u8, then
 //!            unit u8, function u8 (bits 0-4 the Modbus code; bits 5-7 the word order: 0 the
 //!            profile's byte order, so older images read unchanged, 1 abcd, 2 badc, 3 cdab,
-//!            4 dcba), address u16, count u16, offset u16 each,
+//!            4 dcba), address u16, count u16, offset u16 (bits 0-14; bit 15: a schedule
+//!            follows, so older images read unchanged) each, then the schedule if flagged:
+//!            flags u8 (bit 0 period_ms u32 follows, bit 1 trigger_offset u16 follows, bits 2-3
+//!            write mode 0 change, 1 cyclic, 2 trigger), then those fields,
 //!            health, on_idle, on_fault
 //! serial     baud u32, format u8 (bit 0 seven data bits, bits 1-2 parity 0 none 1 even 2 odd,
 //!            bit 3 two stop bits)
@@ -65,7 +68,7 @@
 //! passes [`ConverterConfig::check`], the same value rules as the TOML device description.
 
 use super::{ConverterConfig, InputAssembly, InvalidConfig};
-use crate::serial::modbus::{ByteOrder, Framing, Function, ModbusConfig, ScanEntry, WordOrder};
+use crate::serial::modbus::{ByteOrder, Framing, Function, ModbusConfig, ScanEntry, WordOrder, WriteMode};
 use crate::serial::{
     AckFormat, Checksum, CommandFormat, DataBits, FramedConfig, FramedProfileConfig, HealthConfig,
     IdleAction, LengthField, Parity, ProfileConfig, SequencerConfig, SerialSettings, StalePolicy, StopBits,
@@ -78,9 +81,9 @@ use devicenet::MacId;
 /// The image format version this firmware writes and reads.
 pub const IMAGE_VERSION: u8 = 1;
 /// The largest image: the largest configuration (a Modbus profile with 16 scan entries, a 32-byte
-/// product name, two 32-byte idle/fault frames) takes 285 bytes; rounded up to leave room for a
-/// later version's additions.
-pub const MAX_IMAGE: usize = 320;
+/// product name, two 32-byte idle/fault frames, every scan entry with its own period) takes 365
+/// bytes; rounded up to leave room for a later version's additions.
+pub const MAX_IMAGE: usize = 384;
 /// The image's leading bytes.
 pub const MAGIC: [u8; 4] = *b"DNCI";
 /// Header bytes: magic, version, body length.
@@ -437,12 +440,29 @@ impl Writer<'_> {
                     self.u8(order << 5 | e.function.code());
                     self.u16(e.address);
                     self.u16(e.count);
-                    self.u16(e.offset);
+                    self.schedule(e);
                 }
                 self.health(&m.health);
                 self.action(&m.on_idle);
                 self.action(&m.on_fault);
             }
+        }
+    }
+
+    /// A scan entry's offset, with bit 15 set and the schedule after it when it has one.
+    fn schedule(&mut self, e: &ScanEntry) {
+        let mode = WriteMode::ALL.iter().position(|&w| w == e.write).unwrap_or(0) as u8;
+        let flags = u8::from(e.period_ms.is_some()) | u8::from(e.trigger_offset.is_some()) << 1 | mode << 2;
+        self.u16(e.offset & 0x7FFF | u16::from(flags != 0) << 15);
+        if flags == 0 {
+            return;
+        }
+        self.u8(flags);
+        if let Some(p) = e.period_ms {
+            self.u32(p);
+        }
+        if let Some(b) = e.trigger_offset {
+            self.u16(b);
         }
     }
 
@@ -692,6 +712,7 @@ impl Reader<'_> {
         };
         let mut scan = heapless::Vec::new();
         for _ in 0..self.u8() {
+            let start = self.pos;
             let unit = self.u8();
             let code = self.u8();
             let (function, word_order) =
@@ -703,9 +724,21 @@ impl Reader<'_> {
                     }
                 };
             let (address, count, offset) = (self.u16(), self.u16(), self.u16());
-            let e = ScanEntry { unit, function, address, count, offset, word_order };
+            let (period_ms, write, trigger_offset) = self.schedule(offset);
+            let offset = offset & 0x7FFF;
+            let e = ScanEntry {
+                unit,
+                function,
+                address,
+                count,
+                offset,
+                word_order,
+                period_ms,
+                write,
+                trigger_offset,
+            };
             if scan.push(e).is_err() {
-                self.fail(self.pos - 8);
+                self.fail(start);
             }
         }
         ModbusConfig {
@@ -722,6 +755,19 @@ impl Reader<'_> {
             on_idle: self.action(),
             on_fault: self.action(),
         }
+    }
+
+    /// A scan entry's schedule, present when bit 15 of its `offset` field is set.
+    fn schedule(&mut self, offset: u16) -> (Option<u32>, WriteMode, Option<u16>) {
+        if offset & 0x8000 == 0 {
+            return (None, WriteMode::Change, None);
+        }
+        // Bits 0-1 the fields that follow, bits 2-3 the write mode (0..=2).
+        let flags = self.code(12);
+        let period = (flags & 1 != 0).then(|| self.u32());
+        let trigger = (flags & 2 != 0).then(|| self.u16());
+        let mode = WriteMode::ALL.get(usize::from(flags >> 2)).copied().unwrap_or(WriteMode::Change);
+        (period, mode, trigger)
     }
 
     fn serial(&mut self) -> SerialSettings {

@@ -534,6 +534,9 @@ mod tests {
             count: 2,
             offset: 0,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         }]);
         let mut m = ModbusConfig::new(scan);
         m.input_len = 4;

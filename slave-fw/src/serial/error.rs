@@ -86,11 +86,17 @@ pub enum Field {
     ModbusFraming,
     /// `scan.word_order`
     ScanWordOrder,
+    /// `scan.period_ms`
+    ScanPeriod,
+    /// `scan.write`
+    ScanWrite,
+    /// `scan.trigger_offset`
+    ScanTrigger,
 }
 
 impl Field {
     /// Every field, in code order.
-    pub const ALL: [Field; 31] = [
+    pub const ALL: [Field; 34] = [
         Field::SerialBaud,
         Field::SerialDataBits,
         Field::SerialParity,
@@ -122,6 +128,9 @@ impl Field {
         Field::OnFault,
         Field::ModbusFraming,
         Field::ScanWordOrder,
+        Field::ScanPeriod,
+        Field::ScanWrite,
+        Field::ScanTrigger,
     ];
 
     /// The key, dotted from the profile's root, as the description file spells it (`scan.count`).
@@ -158,6 +167,9 @@ impl Field {
             Field::OnFault => "on_fault",
             Field::ModbusFraming => "framing",
             Field::ScanWordOrder => "scan.word_order",
+            Field::ScanPeriod => "scan.period_ms",
+            Field::ScanWrite => "scan.write",
+            Field::ScanTrigger => "scan.trigger_offset",
         }
     }
 
@@ -221,11 +233,25 @@ pub enum Conflict {
     /// A 32-bit word order on a scan entry that is not a register read or multiple-register
     /// write with an even count.
     WordOrderNeedsPairs,
+    /// A `write` mode other than "change" on a read entry.
+    WriteModeOnRead,
+    /// `write = "cyclic"` without `period_ms`.
+    CyclicNeedsPeriod,
+    /// `write = "trigger"` without `trigger_offset`.
+    TriggerNeedsOffset,
+    /// `period_ms` on a write entry that is not `write = "cyclic"`.
+    PeriodNeedsCyclic,
+    /// `trigger_offset` on a write entry that is not `write = "trigger"`.
+    TriggerNeedsTriggerMode,
+    /// A read entry with both `period_ms` and `trigger_offset`.
+    PeriodOrTrigger,
+    /// A `trigger_offset` with no output image.
+    TriggerNeedsOutput,
 }
 
 impl Conflict {
     /// Every reason, in code order.
-    pub const ALL: [Conflict; 8] = [
+    pub const ALL: [Conflict; 15] = [
         Conflict::NoEndDelimiter,
         Conflict::EndEqualsStart,
         Conflict::ContainsEndDelimiter,
@@ -234,6 +260,13 @@ impl Conflict {
         Conflict::SevenBitsNeedParity,
         Conflict::NoTcpPort,
         Conflict::WordOrderNeedsPairs,
+        Conflict::WriteModeOnRead,
+        Conflict::CyclicNeedsPeriod,
+        Conflict::TriggerNeedsOffset,
+        Conflict::PeriodNeedsCyclic,
+        Conflict::TriggerNeedsTriggerMode,
+        Conflict::PeriodOrTrigger,
+        Conflict::TriggerNeedsOutput,
     ];
 
     /// The reason in words.
@@ -249,6 +282,15 @@ impl Conflict {
             Conflict::WordOrderNeedsPairs => {
                 "a 32-bit word order needs function 3, 4 or 16 and an even register count"
             }
+            Conflict::WriteModeOnRead => "applies to write entries (functions 5, 6, 15, 16) only",
+            Conflict::CyclicNeedsPeriod => "write = \"cyclic\" needs period_ms",
+            Conflict::TriggerNeedsOffset => "write = \"trigger\" needs trigger_offset",
+            Conflict::PeriodNeedsCyclic => "a write entry takes period_ms with write = \"cyclic\" only",
+            Conflict::TriggerNeedsTriggerMode => {
+                "a write entry takes trigger_offset with write = \"trigger\" only"
+            }
+            Conflict::PeriodOrTrigger => "a read entry takes period_ms or trigger_offset, not both",
+            Conflict::TriggerNeedsOutput => "a trigger byte needs an output image (output_len is 0)",
         }
     }
 

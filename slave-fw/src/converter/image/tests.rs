@@ -1,5 +1,6 @@
 use super::*;
 use crate::serial::framed_profile::MAX_COMMAND_FORMATS;
+use crate::serial::modbus::schedule::MAX_PERIOD_MS;
 use crate::serial::modbus::SCAN_LIST_CAPACITY;
 use crate::serial::IDLE_FRAME_CAPACITY;
 use proptest::prelude::*;
@@ -17,6 +18,9 @@ pub(crate) fn modbus_meter() -> ConverterConfig {
             count: 4,
             offset: 0,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         },
         ScanEntry {
             unit: 1,
@@ -25,6 +29,9 @@ pub(crate) fn modbus_meter() -> ConverterConfig {
             count: 2,
             offset: 8,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         },
         ScanEntry {
             unit: 1,
@@ -33,6 +40,9 @@ pub(crate) fn modbus_meter() -> ConverterConfig {
             count: 2,
             offset: 0,
             word_order: Default::default(),
+            period_ms: None,
+            write: Default::default(),
+            trigger_offset: None,
         },
     ]);
     let mut m = ModbusConfig::new(scan);
@@ -87,6 +97,9 @@ fn largest() -> ConverterConfig {
                 count: 8,
                 offset: i,
                 word_order: Default::default(),
+                period_ms: Some(MAX_PERIOD_MS),
+                write: Default::default(),
+                trigger_offset: None,
             };
             m.scan.push(e).unwrap();
         }
@@ -154,7 +167,7 @@ fn round_trip(#[case] config: ConverterConfig) {
 #[test]
 fn largest_configuration_fits_max_image() {
     let n = image(&largest()).len();
-    assert_eq!(n, 285);
+    assert_eq!(n, 365);
     assert!(n <= MAX_IMAGE);
 }
 
@@ -261,6 +274,63 @@ fn an_unknown_word_order_or_a_pair_order_on_an_odd_count_is_refused() {
     );
 }
 
+/// The modbus-meter gateway with a periodic read (entry 1), a triggered write (entry 2, trigger
+/// byte 4) and the output image grown to hold the trigger byte.
+fn scheduled_meter() -> ConverterConfig {
+    let mut c = modbus_meter();
+    if let ProfileConfig::Modbus(m) = &mut c.profile {
+        m.scan[1].period_ms = Some(0x0001_86A0);
+        m.scan[2].write = WriteMode::Trigger;
+        m.scan[2].trigger_offset = Some(4);
+        m.output_len = 5;
+    }
+    c.device = c.device_config();
+    c
+}
+
+#[test]
+fn a_schedule_follows_its_entry_flagged_in_bit_15_of_the_offset() {
+    let c = scheduled_meter();
+    let bytes = image(&c);
+    let plain = image(&modbus_meter());
+    // Entry 1 gains flags 0x01 and the period 100 000 ms; entry 2 flags 0x0A (trigger, mode 2)
+    // and the trigger byte 4; the output length grows from 4 to 5.
+    assert_eq!(bytes.len(), plain.len() + 5 + 3);
+    let entry1 = [0x01, 0x03, 100, 0, 2, 0, 8, 0x80, 0x01, 0xA0, 0x86, 0x01, 0x00];
+    let entry2 = [0x01, 0x10, 16, 0, 2, 0, 0, 0x80, 0x0A, 4, 0];
+    let at = bytes.windows(entry1.len()).position(|w| w == entry1).expect("entry 1 with its period");
+    assert_eq!(bytes[at + entry1.len()..at + entry1.len() + entry2.len()], entry2);
+    assert_eq!(decode(&bytes), Ok(c));
+}
+
+#[test]
+fn an_image_without_schedules_reads_as_before() {
+    let ProfileConfig::Modbus(m) = decode(&image(&modbus_meter())).unwrap().profile else {
+        panic!("not Modbus")
+    };
+    assert!(m
+        .scan
+        .iter()
+        .all(|e| e.period_ms.is_none() && e.write == WriteMode::Change && e.trigger_offset.is_none()));
+}
+
+#[test]
+fn an_unknown_write_mode_or_an_invalid_schedule_is_refused() {
+    let bytes = image(&scheduled_meter());
+    let flags = bytes.windows(3).position(|w| w == [0x80, 0x0A, 4]).unwrap() + 1;
+    let mut unknown = bytes.clone();
+    unknown[flags] = 0x0E;
+    let offset = u16::try_from(flags - HEADER_LEN).unwrap();
+    assert_eq!(decode(&resealed(unknown)), Err(ImageError::Malformed { offset }));
+    // Mode "change" with a trigger byte: decoded, then refused with the description's words.
+    let mut change = bytes.clone();
+    change[flags] = 0x02;
+    assert_eq!(
+        decode(&resealed(change)).unwrap_err().to_string(),
+        "profile.modbus.scan[2].trigger_offset: a write entry takes trigger_offset with write = \"trigger\" only"
+    );
+}
+
 #[test]
 fn invalid_values_name_their_key_as_the_description_loader_does() {
     let mut bytes = image(&breaker());
@@ -343,16 +413,19 @@ fn framed() -> impl Strategy<Value = ProfileConfig> {
 
 fn modbus() -> impl Strategy<Value = ProfileConfig> {
     const FUNCTIONS: [u8; 8] = [1, 2, 3, 4, 5, 6, 15, 16];
-    let entry = (1..250u8, 0..8usize, any::<u16>(), 0..130u16, 0..70u16, 0..WordOrder::ALL.len()).prop_map(
-        |(unit, f, address, count, offset, w)| ScanEntry {
+    let schedule = (proptest::option::of(0..4_000_000u32), 0..3usize, proptest::option::of(0..70u16));
+    let entry = (1..250u8, 0..8usize, any::<u16>(), 0..130u16, 0..70u16, 0..WordOrder::ALL.len(), schedule)
+        .prop_map(|(unit, f, address, count, offset, w, (period_ms, mode, trigger_offset))| ScanEntry {
             unit,
             function: Function::from_code(FUNCTIONS[f]).unwrap(),
             address,
             count,
             offset,
             word_order: WordOrder::ALL[w],
-        },
-    );
+            period_ms,
+            write: WriteMode::ALL[mode],
+            trigger_offset,
+        });
     let scan = proptest::collection::vec(entry, 0..=SCAN_LIST_CAPACITY);
     (
         serial(),

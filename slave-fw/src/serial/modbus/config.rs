@@ -57,13 +57,15 @@ impl ModbusConfig {
     pub const MAX_POLL_PERIOD_MS: u32 = 3_600_000;
 
     /// A configuration for `scan` with 19200 8E1, 1 s response timeout, 2 retries, a 100 ms poll
-    /// period, images just large enough for the scan list, little-endian registers, 3 s stale
-    /// timeout holding the last value, nothing on idle or fault.
+    /// period, images just large enough for the scan list (and its trigger bytes), little-endian
+    /// registers, 3 s stale timeout holding the last value, nothing on idle or fault.
     pub fn new(scan: Vec<ScanEntry, SCAN_LIST_CAPACITY>) -> Self {
         let end = |write: bool| {
             scan.iter().filter(|e| e.function.is_write() == write).map(|e| e.range().end).max().unwrap_or(0)
         };
         let len = |write| u16::try_from(end(write)).unwrap_or(u16::MAX);
+        // The output image also holds every trigger byte ([`ScanEntry::trigger_offset`]).
+        let triggers = scan.iter().filter_map(|e| e.trigger_offset).map(|b| b.saturating_add(1)).max();
         ModbusConfig {
             serial: SerialSettings::new_8e1(19200),
             framing: Framing::Rtu,
@@ -71,7 +73,7 @@ impl ModbusConfig {
             retries: 2,
             poll_period_ms: 100,
             input_len: len(false),
-            output_len: len(true),
+            output_len: len(true).max(triggers.unwrap_or(0)),
             byte_order: ByteOrder::LittleEndian,
             scan,
             health: HealthConfig::default(),

@@ -3,6 +3,7 @@
 //! the [`WordOrder`] of its register pairs), and which output changes call for a write.
 
 use super::pdu::Function;
+pub use super::schedule::WriteMode;
 use crate::serial::IMAGE_CAPACITY;
 
 /// How a register's two bytes are laid out in the DeviceNet images.
@@ -96,6 +97,18 @@ pub struct ScanEntry {
     /// How register pairs are ordered in the image (functions 3, 4 and 16 with an even count).
     #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "WordOrder::is_registers"))]
     pub word_order: WordOrder,
+    /// Reads: read every `period_ms` instead of every scan cycle; writes with
+    /// [`WriteMode::Cyclic`]: re-sent every `period_ms` (`1..=3_600_000`). `None`: the scan cycle
+    /// (reads) or no re-sending (writes). See the [schedule](super::schedule) module.
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "Option::is_none"))]
+    pub period_ms: Option<u32>,
+    /// When a write entry is sent (write functions only; reads keep the default).
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "WriteMode::is_change"))]
+    pub write: WriteMode,
+    /// The output image byte whose every change of value sends this entry once: a write with
+    /// [`WriteMode::Trigger`], or a read (then read only on trigger, not every cycle).
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "Option::is_none"))]
+    pub trigger_offset: Option<u16>,
 }
 
 impl ScanEntry {
@@ -205,7 +218,17 @@ mod tests {
     const VALUE: u32 = 0x42F6_E666;
 
     fn entry(function: Function, count: u16, word_order: WordOrder) -> ScanEntry {
-        ScanEntry { unit: 1, function, address: 0, count, offset: 0, word_order }
+        ScanEntry {
+            unit: 1,
+            function,
+            address: 0,
+            count,
+            offset: 0,
+            word_order,
+            period_ms: None,
+            write: WriteMode::Change,
+            trigger_offset: None,
+        }
     }
 
     #[rstest]

@@ -7,7 +7,9 @@
 //! Write entries (5, 6, 15, 16) are sent whenever their bytes of the output image have changed
 //! since they were last written, ahead of the next read, so outputs reach the instrument within
 //! one transaction. A write that fails (no answer after retries, or an exception) stays pending
-//! and is tried again in the next cycle, not sooner.
+//! and is tried again in the next cycle, not sooner. That is the default; an entry's own
+//! schedule (a period, a cyclic re-send, a trigger byte) and the order of everything that is due
+//! are the [`schedule`](super::schedule) module's.
 //!
 //! Each transaction waits [`response_timeout_ms`](ModbusConfig::response_timeout_ms) after the
 //! end of its transmission and is repeated up to [`retries`](ModbusConfig::retries) times after a
@@ -35,10 +37,11 @@
 //! and ignored on writes; a single coil is bit 0).
 
 pub use super::config::{ModbusConfig, SCAN_LIST_CAPACITY};
-use super::entry::{append_crc, encode_entry, same_output, store_read};
+use super::entry::{append_crc, encode_entry, store_read};
 pub use super::entry::{ByteOrder, ScanEntry, WordOrder};
 use super::framing::{Framer, Framing, Received};
 use super::pdu::{self, CodecError, ExceptionCode, ADU_CAPACITY};
+use super::schedule::{called_for, Timetable};
 use crate::serial::error::{as_u32, ConfigError};
 use crate::serial::health::{Counter, LinkHealth, LinkStatus, Stats};
 use crate::serial::sequencer::{CommandOutcome, OutputMode};
@@ -114,7 +117,8 @@ pub struct ModbusMaster {
     retry: Option<(usize, u8)>,
     cycle_running: bool,
     cycle_started: Instant,
-    next_read: usize,
+    /// Which entries are due, and the next period instants (the [schedule](super::schedule)).
+    timetable: Timetable<SCAN_LIST_CAPACITY>,
     cycles: u32,
     /// The line is quiet enough to transmit from this instant.
     quiet_at: Instant,
@@ -168,7 +172,7 @@ impl ModbusMaster {
             retry: None,
             cycle_running: false,
             cycle_started: now,
-            next_read: 0,
+            timetable: Timetable::new(now),
             cycles: 0,
             quiet_at: now,
             unexpected_burst: false,
@@ -203,7 +207,7 @@ impl ModbusMaster {
     /// Takes the consumed poll data received at `now`: the output image (shorter data is padded
     /// with zeros), or an empty slice for an idle poll. Write entries whose bytes changed are
     /// queued.
-    pub fn set_outputs(&mut self, outputs: &[u8], _now: Instant) {
+    pub fn set_outputs(&mut self, outputs: &[u8], now: Instant) {
         if outputs.is_empty() {
             self.enter(OutputMode::Idle);
             return;
@@ -217,9 +221,14 @@ impl ModbusMaster {
         for (slot, &b) in new.iter_mut().take(len).zip(outputs) {
             *slot = b;
         }
-        for (e, state) in self.config.scan.iter().zip(self.entries.iter_mut()) {
-            if e.function.is_write() && (!self.outputs_valid || !same_output(e, &self.output, &new)) {
+        for (i, (e, state)) in self.config.scan.iter().zip(self.entries.iter_mut()).enumerate() {
+            if !called_for(e, &self.output, &new, !self.outputs_valid) {
+                continue;
+            }
+            if e.function.is_write() {
                 state.dirty = true;
+            } else {
+                self.timetable.trigger(i, now);
             }
         }
         self.output = new;
@@ -449,33 +458,23 @@ impl ModbusMaster {
         }
     }
 
-    /// Read entry `i` is done for this cycle: the cycle advances. Called for reads only, whose
-    /// callers know the entry's kind (firmware size); a write is done once sent or failed.
+    /// Read entry `i` is done (answered or given up): the cycle is complete once none of its
+    /// reads is due. Called for reads only, whose callers know the entry's kind (firmware size);
+    /// a write is done once sent or failed.
     fn finish_read(&mut self, i: usize) {
-        self.next_read = i + 1;
-        if self.cycle_running && self.next_read_entry().is_none() {
+        self.timetable.sent(i);
+        if self.cycle_running && !self.timetable.cycle_pending(&self.config.scan) {
             self.complete_cycle();
         }
-    }
-
-    fn next_read_entry(&self) -> Option<usize> {
-        self.config
-            .scan
-            .iter()
-            .enumerate()
-            .skip(self.next_read)
-            .find(|(_, e)| !e.function.is_write())
-            .map(|(i, _)| i)
     }
 
     fn start_cycle(&mut self, now: Instant) {
         self.cycle_running = true;
         self.cycle_started = now;
-        self.next_read = 0;
         for s in self.entries.iter_mut() {
             s.failed_this_cycle = false;
         }
-        if self.next_read_entry().is_none() {
+        if !self.timetable.start_cycle(&self.config.scan, now) {
             self.complete_cycle();
         }
     }
@@ -508,10 +507,11 @@ impl ModbusMaster {
         if !self.cycle_running && now >= self.cycle_started + self.poll_period() {
             self.start_cycle(now);
         }
+        self.timetable.poll(&self.config.scan, now);
     }
 
-    /// The next transaction, regardless of line silence: a retry, the idle/fault frame, a changed
-    /// write, the next read of the running cycle.
+    /// The next transaction, regardless of line silence: a retry, the idle/fault frame, a write
+    /// called for by a change, then the earliest due entry of the [timetable](super::schedule).
     fn next_job(&self) -> Option<(Job, u8)> {
         if self.awaiting.is_some() {
             return None;
@@ -533,10 +533,7 @@ impl ModbusMaster {
                 return Some((Job::Entry(i), 1));
             }
         }
-        if self.cycle_running {
-            return self.next_read_entry().map(|i| (Job::Entry(i), 1));
-        }
-        None
+        self.timetable.next_due(&self.config.scan, self.outputs_valid).map(|i| (Job::Entry(i), 1))
     }
 
     /// Advances to `now` and returns the next request to write to the UART, if the line is free
@@ -548,6 +545,9 @@ impl ModbusMaster {
             let (job, attempt) = self.next_job()?;
             if now < self.quiet_at {
                 return None;
+            }
+            if let Job::Entry(i) = job {
+                self.timetable.sent(i);
             }
             if !self.encode(job) {
                 // Only reachable with a configuration that bypassed `validate`.
@@ -636,6 +636,7 @@ impl ModbusMaster {
         } else {
             None
         };
+        let own = own.into_iter().chain(self.timetable.poll_at(&self.config.scan)).min();
         match (own, self.health.poll_at()) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),

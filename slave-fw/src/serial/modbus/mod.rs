@@ -20,7 +20,9 @@ pub mod framing;
 pub mod master;
 pub mod mbap;
 pub mod pdu;
+pub mod schedule;
 
 pub use framing::{FrameError, Framing, WIRE_CAPACITY};
 pub use master::{ByteOrder, ModbusConfig, ModbusMaster, ScanEntry, WordOrder, SCAN_LIST_CAPACITY};
 pub use pdu::{CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};
+pub use schedule::WriteMode;

@@ -13,7 +13,17 @@ fn ms(n: u64) -> Instant {
 }
 
 fn entry(unit: u8, function: Function, address: u16, count: u16, offset: u16) -> ScanEntry {
-    ScanEntry { unit, function, address, count, offset, word_order: Default::default() }
+    ScanEntry {
+        unit,
+        function,
+        address,
+        count,
+        offset,
+        word_order: Default::default(),
+        period_ms: None,
+        write: Default::default(),
+        trigger_offset: None,
+    }
 }
 
 /// Two reads, two writes:
