@@ -6,7 +6,7 @@
 // ptys. Opens MAC 5's view, opens the Serial line panel and waits for the breaker's status frames
 // decoded; gives Close (confirmed) and waits for the command frame, its acknowledgement and a
 // status frame with the switch closed; compares the panel's rows with GET
-// /api/node/5/serial-trace. A screenshot goes into ARTIFACTS_DIR. Run by
+// /api/node/5/serial-trace. A screenshot of the panel goes into ARTIFACTS_DIR. Run by
 // tests/tests/serial_trace_browser.rs.
 import { check, runScript } from "./lib.mjs";
 import { join } from "node:path";
@@ -44,7 +44,7 @@ await runScript({ viewport: { width: 1280, height: 1400 } }, async ({ page, erro
     const closed = r.findIndex((x) => / switch Closed$/.test(x.decoded));
     check(closed < command, `closed at row ${closed}, command at ${command}`);
     check(r[command].hex === "68 01 02 02 16", r[command].hex);
-    await page.screenshot({ path: join(artifacts, "console-serial-line.png"), fullPage: true });
+    await page.locator("#serial-card").screenshot({ path: join(artifacts, "console-serial-line.png") });
   });
 
   await step("the panel shows what GET /api/node/5/serial-trace says", async () => {
