@@ -430,7 +430,14 @@ fn output_help(description: &DeviceDescription) -> String {
                     (false, true) => "; the others written when they change",
                     (false, false) => "",
                 };
-            format!("{}{on_change}", modbus_layout(m, true))
+            let mut triggers: Vec<u16> = m.scan.iter().filter_map(|e| e.trigger_offset).collect();
+            triggers.sort_unstable();
+            triggers.dedup();
+            let triggers: String = triggers
+                .iter()
+                .map(|b| format!("; byte {b}: trigger byte, each change of value sends the entries it names"))
+                .collect();
+            format!("{}{on_change}{triggers}", modbus_layout(m, true))
         }
     }
 }
@@ -762,8 +769,11 @@ fn setting_presentation(a: SettingsAttribute, s: &Settings<'_>, input_len: usize
             .choices(&[(0, "Framed serial"), (1, "Modbus RTU master")]),
         // Not an EDS parameter (not in SETTINGS_PARAMS): read by `dnet-master serial-trace` and
         // the console to decode the line trace.
-        A::ModbusFraming => Presentation::new("The Modbus framing on the serial line", 0, 2)
-            .choices(&[(0, "RTU"), (1, "ASCII"), (2, "TCP (MBAP)")]),
+        A::ModbusFraming => Presentation::new("The Modbus framing on the serial line", 0, 2).choices(&[
+            (0, "RTU"),
+            (1, "ASCII"),
+            (2, "TCP (MBAP)"),
+        ]),
     }
 }
 
@@ -985,13 +995,19 @@ mod tests {
         m.output_len = 5;
         description.converter.profile.validate().unwrap();
         let input = input_help(&description);
-        assert!(input.contains("unit 1 holding registers 100-101 (function 3, read every 5000 ms)"), "{input}");
+        assert!(
+            input.contains("unit 1 holding registers 100-101 (function 3, read every 5000 ms)"),
+            "{input}"
+        );
         let output = output_help(&description);
         assert!(
-            output.contains("unit 1 holding registers 16-17 (function 16, sent once per change of output byte 4)"),
+            output.contains(
+                "unit 1 holding registers 16-17 (function 16, sent once per change of output byte 4)"
+            ),
             "{output}"
         );
         assert!(!output.contains("written when they change"), "{output}");
+        assert!(output.ends_with("; byte 4: trigger byte, each change of value sends the entries it names"));
     }
 
     #[rstest]
