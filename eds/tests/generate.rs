@@ -6,11 +6,12 @@
 
 use eds::generate::{
     generate, generate_text, GenerateOptions, DEFAULT_DATE, FIRST_DEVICENET_PARAM, FIRST_LINK_PARAM,
+    FIRST_UNIT_PARAM, PARAMS_PER_UNIT,
 };
 use eds::model::Eds;
 use eds::value::{ConnectionMask, DataType, Date, Descriptor, LinkPath, Revision, Value};
 use rstest::rstest;
-use slave_fw::converter::{PARAMETER_CLASS, SERIAL_LINK_CLASS, SETTINGS_CLASS};
+use slave_fw::converter::{PARAMETER_CLASS, SERIAL_LINK_CLASS, SETTINGS_CLASS, UNITS_CLASS};
 use slave_fw::description::DeviceDescription;
 use slave_fw::serial::{IdleAction, Parity, ProfileConfig, StalePolicy, StopBits};
 use std::path::PathBuf;
@@ -210,15 +211,37 @@ fn model_equals_the_description(#[case] name: &str) {
             "Param{n} descriptor {descriptor:?}"
         );
         assert_eq!(descriptor.has(Descriptor::ENUMERATED_STRINGS), eds.enum_strings(n).is_some(), "Param{n}");
-        if n >= FIRST_LINK_PARAM {
+        let path = p.link_path.as_ref().and_then(LinkPath::attribute).unwrap();
+        if n >= FIRST_UNIT_PARAM {
+            // The Modbus unit table: instance k + 1 for the k-th unit, attributes 2-5.
+            let k = n - FIRST_UNIT_PARAM;
             assert!(descriptor.monitor(), "Param{n}");
-            let path = p.link_path.as_ref().and_then(LinkPath::attribute).unwrap();
+            assert_eq!(
+                (path.class, path.instance, path.attribute),
+                (UNITS_CLASS, (k / PARAMS_PER_UNIT + 1) as u16, Some((k % PARAMS_PER_UNIT + 2) as u16)),
+                "Param{n}"
+            );
+        } else if n >= FIRST_LINK_PARAM {
+            assert!(descriptor.monitor(), "Param{n}");
             assert_eq!(
                 (path.class, path.attribute),
                 (SERIAL_LINK_CLASS, Some((n - FIRST_LINK_PARAM + 1) as u16))
             );
         }
     }
+    // One state and three counters per distinct unit of a Modbus scan list; none for a framed
+    // instrument.
+    let units = match &d.converter.profile {
+        ProfileConfig::Framed(_) => 0,
+        ProfileConfig::Modbus(m) => {
+            let mut distinct: Vec<u8> = m.scan.iter().map(|e| e.unit).collect();
+            distinct.sort_unstable();
+            distinct.dedup();
+            distinct.len() as u32
+        }
+    };
+    let last = eds.params().map(|(n, _)| n).max().unwrap();
+    assert_eq!(last, FIRST_UNIT_PARAM + units * PARAMS_PER_UNIT - 1, "the last parameter");
     assert!(eds.enum_par.is_none(), "one enum dialect: EnumN in [Params]");
 }
 

@@ -14,7 +14,7 @@
 
 use crate::commands::{
     completions, configure, conformance, connect, decode, explicit, man, monitor, params, project, recover,
-    replay, scan, scanner, serial_trace, ui, user,
+    replay, scan, scanner, serial_trace, ui, units, user,
 };
 use crate::options::GlobalOptions;
 use can_io::trace::write::log_format;
@@ -80,6 +80,9 @@ pub enum Command {
     /// Read the converter's serial-line analyzer (vendor class 0x68): the last bytes each way on
     /// the instrument's line and the line events, decoded by its profile; --follow keeps reading.
     SerialTrace(serial_trace::SerialTraceArgs),
+    /// Read a Modbus gateway's unit table (vendor class 0x69): per unit its state, lost data,
+    /// retries, exceptions and the time since its last answer.
+    Units(units::UnitsArgs),
     /// Network projects: upload the network to a TOML file (scan list, identity and keying,
     /// stored configuration, parameters), compare the network with it, download it back.
     Project(project::ProjectArgs),
@@ -167,6 +170,7 @@ pub fn execute(
         Command::Params(args) => params::execute(opts, args, out, err, console),
         Command::Decode(args) => decode::execute(opts, args, out, err, console),
         Command::SerialTrace(args) => serial_trace::execute(opts, args, out, err, console),
+        Command::Units(args) => units::execute(opts, args, out, err, console),
         Command::Project(args) => project::execute(opts, args, out, err, console),
         Command::Conformance(args) => conformance::execute(opts, args, out, err, console),
         Command::Completions(args) => completions::execute(args, Cli::command(), out),

@@ -67,6 +67,7 @@ pub mod consistency;
 pub mod image;
 pub mod objects;
 pub mod parameters;
+pub mod units_object;
 mod vendor;
 
 pub use check::{InvalidConfig, KeyCode};
@@ -75,6 +76,7 @@ pub use config_object::{ConfigOrigin, ConfigState, PlatformCheck, CONFIG_CLASS};
 
 pub use objects::{SERIAL_LINK_CLASS, SETTINGS_CLASS};
 pub use parameters::PARAMETER_CLASS;
+pub use units_object::UNITS_CLASS;
 use vendor::VendorObjects;
 
 /// Input assembly instance with the instrument's image only.
@@ -446,6 +448,7 @@ impl Converter {
             config: &mut self.config,
             io_established,
             trace: &mut self.trace,
+            now,
         };
         self.node.handle_frame_with(frame, now, &mut objects);
         self.sync(now);

@@ -35,9 +35,11 @@
 //! in the guide (docs/src/reference/description-file.md) and in `slave-fw/descriptions/`.
 
 use crate::converter::{ConverterConfig, InputAssembly, InvalidConfig};
+use crate::serial::modbus::units::valid_bits_len;
 use crate::serial::modbus::{ByteOrder, Framing, ModbusConfig, ScanEntry, SCAN_LIST_CAPACITY};
 use crate::serial::{
     FramedProfileConfig, HealthConfig, IdleAction, ProfileConfig, SequencerConfig, SerialSettings,
+    IMAGE_CAPACITY,
 };
 use devicenet::slave::{BaudRate, DeviceConfig, Identity, Switches};
 use devicenet::MacId;
@@ -333,6 +335,7 @@ struct ModbusSection {
     health: Option<HealthConfig>,
     on_idle: Option<IdleAction>,
     on_fault: Option<IdleAction>,
+    valid_bits_offset: Option<u16>,
     scan: Vec<ScanEntry>,
 }
 
@@ -524,6 +527,15 @@ fn build_profile(section: ProfileSection) -> Result<ProfileConfig, DescriptionEr
             }
             if let Some(v) = m.on_fault {
                 c.on_fault = v;
+            }
+            if let Some(offset) = m.valid_bits_offset {
+                // The input image grows to hold the bits; `validate` names the key when they
+                // cannot fit.
+                let end = usize::from(offset) + valid_bits_len(c.scan.len());
+                if end <= IMAGE_CAPACITY {
+                    c.input_len = c.input_len.max(end as u16);
+                }
+                c.valid_bits_offset = Some(offset);
             }
             Ok(ProfileConfig::Modbus(c))
         }

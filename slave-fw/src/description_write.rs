@@ -81,6 +81,9 @@ struct Modbus<'a> {
     health: &'a HealthConfig,
     on_idle: &'a IdleAction,
     on_fault: &'a IdleAction,
+    /// Left out when there are no data-valid bits.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    valid_bits_offset: Option<u16>,
     scan: &'a [ScanEntry],
 }
 
@@ -144,6 +147,7 @@ impl DeviceDescription {
                     health: &m.health,
                     on_idle: &m.on_idle,
                     on_fault: &m.on_fault,
+                    valid_bits_offset: m.valid_bits_offset,
                     scan: &m.scan,
                 }),
             },

@@ -23,4 +23,5 @@ pub mod ui_modbus;
 pub mod ui_opcua;
 pub mod ui_plant;
 pub mod ui_sparkplug;
+pub mod units;
 pub mod user;

@@ -26,7 +26,8 @@
 //!            health
 //!   modbus   serial, response_timeout_ms u32, retries u8, poll_period_ms u32, input_len u16,
 //!            output_len u16, order u8 (bit 0 byte order: 0 little, 1 big; bits 1-2 framing:
-//!            0 RTU, 1 ASCII, 2 TCP, so older images read as RTU), scan: count u8, then
+//!            0 RTU, 1 ASCII, 2 TCP, so older images read as RTU; bit 3: valid_bits_offset u16
+//!            follows, so older images read without data-valid bits), scan: count u8, then
 //!            unit u8, function u8 (bits 0-4 the Modbus code; bits 5-7 the word order: 0 the
 //!            profile's byte order, so older images read unchanged, 1 abcd, 2 badc, 3 cdab,
 //!            4 dcba), address u16, count u16, offset u16 (bits 0-14; bit 15: a schedule
@@ -432,7 +433,11 @@ impl Writer<'_> {
                     Framing::Ascii => 1,
                     Framing::Tcp => 2,
                 };
-                self.u8(framing << 1 | u8::from(m.byte_order == ByteOrder::BigEndian));
+                let bits = u8::from(m.valid_bits_offset.is_some()) << 3;
+                self.u8(bits | framing << 1 | u8::from(m.byte_order == ByteOrder::BigEndian));
+                if let Some(offset) = m.valid_bits_offset {
+                    self.u16(offset);
+                }
                 self.u8(m.scan.len() as u8);
                 for e in &m.scan {
                     self.u8(e.unit);
@@ -702,10 +707,14 @@ impl Reader<'_> {
         let poll_period_ms = self.u32();
         let input_len = self.u16();
         let output_len = self.u16();
-        // Bit 0 the byte order, bits 1-2 the framing (0..=2).
-        let order = self.code(6);
+        // Bit 0 the byte order, bits 1-2 the framing (0..=2), bit 3 the data-valid bits.
+        let order = self.code(14);
+        if order & 6 == 6 {
+            self.fail(self.pos - 1);
+        }
+        let valid_bits_offset = (order & 8 != 0).then(|| self.u16());
         let byte_order = if order & 1 != 0 { ByteOrder::BigEndian } else { ByteOrder::LittleEndian };
-        let framing = match order >> 1 {
+        let framing = match (order >> 1) & 3 {
             0 => Framing::Rtu,
             1 => Framing::Ascii,
             _ => Framing::Tcp,
@@ -754,6 +763,7 @@ impl Reader<'_> {
             health: self.health(),
             on_idle: self.action(),
             on_fault: self.action(),
+            valid_bits_offset,
         }
     }
 

@@ -1,7 +1,7 @@
 //! The request handler of the converter's own objects ([`VendorObjects`]): the serial link and
 //! settings objects (`objects.rs`), the configuration object (`config_object.rs`), the Parameter
-//! object (`parameters.rs`) and the serial-line analyzer (`analyzer_object.rs`), each class sent
-//! to the file that serves it. The node calls it for every class the DeviceNet core does not serve
+//! object (`parameters.rs`), the serial-line analyzer (`analyzer_object.rs`) and the Modbus unit
+//! health object (`units_object.rs`), each class sent to the file that serves it. The node calls it for every class the DeviceNet core does not serve
 //! itself.
 
 use super::analyzer_object::{self, ANALYZER_CLASS};
@@ -10,11 +10,13 @@ use super::objects::{
     AttributeType, LinkAttribute, SettingsAttribute, SettingsValues, SERIAL_LINK_CLASS, SETTINGS_CLASS,
 };
 use super::parameters::{self, PARAMETER_CLASS};
+use super::units_object::{self, UNITS_CLASS};
 use super::InputAssembly;
 use crate::serial::trace::Trace;
 use crate::serial::Profile;
 use devicenet::explicit::{Request, ServiceCode};
 use devicenet::slave::{ObjectHandler, Reply, ServiceError};
+use devicenet::Instant;
 
 /// The vendor objects' request handler, borrowing the serial side while the node serves a
 /// request.
@@ -29,6 +31,8 @@ pub(super) struct VendorObjects<'a> {
     pub(super) io_established: bool,
     /// The serial-line analyzer's ring.
     pub(super) trace: &'a mut Trace,
+    /// When the request arrived (the unit table's ages).
+    pub(super) now: Instant,
 }
 
 impl VendorObjects<'_> {
@@ -62,6 +66,7 @@ impl ObjectHandler for VendorObjects<'_> {
             CONFIG_CLASS => return Some(self.config.handle(req, reply, self.io_established)),
             PARAMETER_CLASS => return Some(parameters::handle(self.config, req, reply, self.io_established)),
             ANALYZER_CLASS => return Some(analyzer_object::handle(self.trace, req, reply)),
+            UNITS_CLASS => return Some(units_object::handle(self.profile, self.now, req, reply)),
             _ => return None,
         };
         let known = |id| {
@@ -86,9 +91,10 @@ impl ObjectHandler for VendorObjects<'_> {
         })
     }
 
-    /// The serial link, settings, configuration and analyzer objects serve their revision, 1, and
-    /// nothing else at class instance 0: the node answers there.
+    /// The serial link, settings, configuration, analyzer and unit health objects serve their
+    /// revision, 1, and nothing else at class instance 0: the node answers there.
     fn class_revision(&self, class: u16) -> Option<u16> {
-        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS | ANALYZER_CLASS).then_some(1)
+        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS | ANALYZER_CLASS | UNITS_CLASS)
+            .then_some(1)
     }
 }

@@ -92,11 +92,13 @@ pub enum Field {
     ScanWrite,
     /// `scan.trigger_offset`
     ScanTrigger,
+    /// `valid_bits_offset`
+    ValidBitsOffset,
 }
 
 impl Field {
     /// Every field, in code order.
-    pub const ALL: [Field; 34] = [
+    pub const ALL: [Field; 35] = [
         Field::SerialBaud,
         Field::SerialDataBits,
         Field::SerialParity,
@@ -131,6 +133,7 @@ impl Field {
         Field::ScanPeriod,
         Field::ScanWrite,
         Field::ScanTrigger,
+        Field::ValidBitsOffset,
     ];
 
     /// The key, dotted from the profile's root, as the description file spells it (`scan.count`).
@@ -170,6 +173,7 @@ impl Field {
             Field::ScanPeriod => "scan.period_ms",
             Field::ScanWrite => "scan.write",
             Field::ScanTrigger => "scan.trigger_offset",
+            Field::ValidBitsOffset => "valid_bits_offset",
         }
     }
 

@@ -467,6 +467,7 @@ fn modbus() -> impl Strategy<Value = ProfileConfig> {
                     health,
                     on_idle,
                     on_fault,
+                    valid_bits_offset: None,
                 })
             },
         )

@@ -46,6 +46,11 @@ pub struct ModbusConfig {
     pub on_idle: IdleAction,
     /// Sent once on entry into fault, like `on_idle`.
     pub on_fault: IdleAction,
+    /// Where the data-valid bits start in the input image, one bit per scan entry (entry `k` is
+    /// bit `k % 8` of byte `offset + k / 8`); `None`: no bits. See the [`units`](super::units)
+    /// module.
+    #[cfg_attr(feature = "serde", serde(default, skip_serializing_if = "Option::is_none"))]
+    pub valid_bits_offset: Option<u16>,
 }
 
 impl ModbusConfig {
@@ -58,7 +63,8 @@ impl ModbusConfig {
 
     /// A configuration for `scan` with 19200 8E1, 1 s response timeout, 2 retries, a 100 ms poll
     /// period, images just large enough for the scan list (and its trigger bytes), little-endian
-    /// registers, 3 s stale timeout holding the last value, nothing on idle or fault.
+    /// registers, 3 s stale timeout holding the last value, nothing on idle or fault, no
+    /// data-valid bits.
     pub fn new(scan: Vec<ScanEntry, SCAN_LIST_CAPACITY>) -> Self {
         let end = |write: bool| {
             scan.iter().filter(|e| e.function.is_write() == write).map(|e| e.range().end).max().unwrap_or(0)
@@ -79,11 +85,12 @@ impl ModbusConfig {
             health: HealthConfig::default(),
             on_idle: IdleAction::Nothing,
             on_fault: IdleAction::Nothing,
+            valid_bits_offset: None,
         }
     }
 
-    /// Checks every field, every scan entry against its function and image, and that read
-    /// entries do not overlap in the input image.
+    /// Checks every field, every scan entry against its function and image, that read entries
+    /// do not overlap in the input image, nor the data-valid bits any of them.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.serial.validate()?;
         // ASCII takes 7 data bits (§2.5.2.1) or 8, which many ASCII instruments offer too.
@@ -120,6 +127,7 @@ impl ModbusConfig {
                 .at(i));
             }
         }
+        super::units::validate(self)?;
         self.health.validate()?;
         check_idle_frame(Field::OnIdle, &self.on_idle, 2, IDLE_FRAME_CAPACITY)?;
         check_idle_frame(Field::OnFault, &self.on_fault, 2, IDLE_FRAME_CAPACITY)

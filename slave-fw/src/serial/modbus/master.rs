@@ -42,6 +42,7 @@ pub use super::entry::{ByteOrder, ScanEntry, WordOrder};
 use super::framing::{Framer, Framing, Received};
 use super::pdu::{self, CodecError, ExceptionCode, ADU_CAPACITY};
 use super::schedule::{called_for, Timetable};
+use super::units::{UnitHealth, UnitRow};
 use crate::serial::error::{as_u32, ConfigError};
 use crate::serial::health::{Counter, LinkHealth, LinkStatus, Stats};
 use crate::serial::sequencer::{CommandOutcome, OutputMode};
@@ -98,6 +99,8 @@ impl CycleFlag {
 pub struct ModbusMaster {
     config: ModbusConfig,
     health: LinkHealth,
+    /// Per-unit health and the data-valid bits.
+    units: UnitHealth,
     input: Vec<u8, IMAGE_CAPACITY>,
     output: [u8; IMAGE_CAPACITY],
     outputs_valid: bool,
@@ -145,6 +148,7 @@ impl ModbusMaster {
     #[inline(never)]
     pub(crate) fn build(config: ModbusConfig, now: Instant) -> Self {
         let health = LinkHealth::build(config.health, now);
+        let units = UnitHealth::new(&config, now);
         let mut input = Vec::new();
         // validate() bounds input_len by IMAGE_CAPACITY.
         let _ = input.resize(usize::from(config.input_len).min(IMAGE_CAPACITY), 0);
@@ -158,6 +162,7 @@ impl ModbusMaster {
         let mut master = ModbusMaster {
             config,
             health,
+            units,
             input,
             output: [0; IMAGE_CAPACITY],
             outputs_valid: false,
@@ -395,6 +400,7 @@ impl ModbusMaster {
             // An exception: byte 2 is its code (§7).
             self.health.on_frame(now);
             self.health.count(Counter::ModbusExceptions);
+            self.units.on_exception(i, now, &mut self.input);
             self.exception.current = true;
             self.last_exception = Some((i, byte2));
             if write {
@@ -424,6 +430,9 @@ impl ModbusMaster {
         } else {
             let data = adu.get(3..3 + usize::from(byte2)).unwrap_or(&[]);
             store_read(&mut self.input, &entry, data, self.config.byte_order);
+        }
+        self.units.on_answer(i, now, &mut self.input);
+        if !write {
             self.finish_read(i);
         }
     }
@@ -441,6 +450,7 @@ impl ModbusMaster {
             self.retry = Some((i, attempt.saturating_add(1)));
         } else {
             self.request_timeout.current = true;
+            self.units.on_lost(i, &mut self.input);
             if self.is_write(i) {
                 self.health.count(Counter::CommandsFailed);
                 self.write_outcome = CommandOutcome::Failed;
@@ -491,6 +501,7 @@ impl ModbusMaster {
         if self.health.poll(now) {
             self.health.apply_stale_policy(&mut self.input);
         }
+        self.units.poll(now, &mut self.input);
         if let (Some(_), Some(t)) = (self.framer.poll(now), self.awaiting) {
             self.awaiting = None;
             self.rx.clear();
@@ -585,6 +596,9 @@ impl ModbusMaster {
                             self.health.count(Counter::CommandsRetried);
                         }
                     }
+                    if attempt > 1 {
+                        self.units.on_retry(i);
+                    }
                 }
             }
             self.health.count(Counter::FramesSent);
@@ -625,7 +639,8 @@ impl ModbusMaster {
     }
 
     /// When to call [`poll_transmit`](Self::poll_transmit) next: a response deadline, the end of
-    /// the line silence when a transaction is waiting, the next cycle start, the stale deadline.
+    /// the line silence when a transaction is waiting, the next cycle start, the stale deadline,
+    /// the end of a data-valid bit.
     pub fn poll_at(&self) -> Option<Instant> {
         let own = if let Some(t) = self.awaiting {
             Some(self.framer.poll_at().map_or(t.deadline, |c| c.min(t.deadline)))
@@ -637,10 +652,10 @@ impl ModbusMaster {
             None
         };
         let own = own.into_iter().chain(self.timetable.poll_at(&self.config.scan)).min();
-        match (own, self.health.poll_at()) {
+        [self.health.poll_at(), self.units.poll_at()].into_iter().fold(own, |a, b| match (a, b) {
             (Some(a), Some(b)) => Some(a.min(b)),
             (a, b) => a.or(b),
-        }
+        })
     }
 
     /// The input image (`input_len` bytes).
@@ -671,6 +686,16 @@ impl ModbusMaster {
     /// The last exception: scan list index and code.
     pub fn last_exception(&self) -> Option<(usize, ExceptionCode)> {
         self.last_exception.map(|(i, code)| (i, ExceptionCode::from(code)))
+    }
+
+    /// The per-unit health table and the data-valid bits.
+    pub fn units(&self) -> &UnitHealth {
+        &self.units
+    }
+
+    /// Row `row` of the unit table at `now` ([`UnitHealth::row`]).
+    pub fn unit_row(&self, row: usize, now: Instant) -> Option<UnitRow> {
+        self.units.row(row, now)
     }
 
     /// Read cycles completed since start-up (wraps).

@@ -21,8 +21,10 @@ pub mod master;
 pub mod mbap;
 pub mod pdu;
 pub mod schedule;
+pub mod units;
 
 pub use framing::{FrameError, Framing, WIRE_CAPACITY};
 pub use master::{ByteOrder, ModbusConfig, ModbusMaster, ScanEntry, WordOrder, SCAN_LIST_CAPACITY};
 pub use pdu::{CodecError, ExceptionCode, Function, Request, Response, ADU_CAPACITY};
 pub use schedule::WriteMode;
+pub use units::{UnitHealth, UnitRow, UnitState, UNIT_CAPACITY};

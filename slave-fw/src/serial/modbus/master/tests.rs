@@ -510,3 +510,4 @@ proptest! {
 }
 
 mod framing;
+mod units;
