@@ -228,3 +228,11 @@ fn an_overrun_ring_is_a_missed_line_and_memory_is_bounded() {
     assert_eq!(lines[0]["n"].as_u64(), Some(next - LINES_KEPT as u64 + 1));
     assert_eq!(v["dropped"].as_u64(), Some(next - LINES_KEPT as u64 - 1), "{v}");
 }
+
+#[test]
+fn a_viewer_may_read_the_trace() {
+    // Reading is a GET: the least privileged role's action (no CSRF token, no audit entry).
+    let action = super::super::auth::required("GET", "/api/node/5/serial-trace");
+    assert_eq!(action, crate::accounts::Action::View);
+    assert!(crate::accounts::Role::Viewer.may(action));
+}
