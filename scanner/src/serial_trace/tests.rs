@@ -269,3 +269,49 @@ fn events_are_lines_of_their_own_in_every_profile() {
         assert_eq!(texts(&lines), [("driver on", "")], "{profile:?}");
     }
 }
+
+/// Bytes held by a decoder between lines, at most: an ASCII frame's characters (or the loose
+/// bytes before one is printed) per direction.
+fn held(d: &Decoder) -> usize {
+    let ascii = d.ascii.iter().map(|s| s.raw.len()).max().unwrap_or(0);
+    let mbap = d.mbap.iter().map(|s| s.raw.len()).max().unwrap_or(0);
+    d.tx.len().max(d.rx.len()).max(ascii).max(mbap)
+}
+
+proptest::proptest! {
+    /// Any entries, in any profile: no panic, and what the decoder holds stays within one longest
+    /// frame (an ASCII frame, 513 characters) per direction.
+    #[test]
+    fn any_entries_decode_without_panic_in_bounded_memory(
+        entries in proptest::collection::vec(
+            (0u8..9, proptest::collection::vec(proptest::prelude::any::<u8>(), 0..=CHUNK)),
+            0..200,
+        ),
+        profile in 0usize..5,
+    ) {
+        let profile = [
+            LineProfile::Breaker,
+            LineProfile::ModbusRtu,
+            LineProfile::ModbusAscii,
+            LineProfile::ModbusTcp,
+            LineProfile::Raw,
+        ][profile];
+        let mut d = Decoder::new(profile);
+        for (k, (kind, bytes)) in entries.iter().enumerate() {
+            let kind = TraceKind::from_code(*kind).unwrap();
+            let _ = d.push(k as u32, &entry(k as u32, kind, bytes));
+            proptest::prop_assert!(held(&d) <= ascii::FRAME_CAPACITY, "{} bytes held", held(&d));
+        }
+    }
+
+    /// Noise and colons on an ASCII line: every byte given reaches a line or is still held.
+    #[test]
+    fn ascii_bytes_are_printed_or_held(bytes in proptest::collection::vec(
+        proptest::sample::select(b":0123456789ABCDEFG\r\nx".to_vec()), 0..400)
+    ) {
+        let mut d = Decoder::new(LineProfile::ModbusAscii);
+        let lines = push_all(&mut d, 0, TraceKind::Receive, &bytes);
+        let printed: usize = lines.iter().map(|l| if l.hex.is_empty() { 0 } else { l.hex.len().div_ceil(3) }).sum();
+        proptest::prop_assert_eq!(printed + d.ascii[1].raw.len(), bytes.len());
+    }
+}
