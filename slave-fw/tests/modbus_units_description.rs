@@ -60,3 +60,20 @@ fn bits_over_a_read_entry_name_the_key_and_line() {
         "{err}"
     );
 }
+
+/// A downloaded image with bits over a read entry is refused, the key named as the device's
+/// refusal record carries it.
+#[test]
+fn an_image_with_overlapping_bits_is_refused_naming_the_key() {
+    let mut config = DeviceDescription::parse(&with_bits("12")).unwrap().converter;
+    let ProfileConfig::Modbus(m) = &mut config.profile else { panic!("modbus profile") };
+    m.valid_bits_offset = Some(8);
+    let bytes = image::encode_to_vec(&config).unwrap();
+    let err = image::decode(&bytes).unwrap_err();
+    let image::ImageError::Invalid(invalid) = err else { panic!("{err:?}") };
+    assert_eq!(
+        invalid.to_string(),
+        "profile.modbus.valid_bits_offset: overlaps the image bytes of entry 1",
+        "{invalid:?}"
+    );
+}
