@@ -1,14 +1,15 @@
 //! Per-unit health the way it is used: pymodbus's RTU server (the independent implementation)
 //! serves units 1 and 2 on one end of a socat pty pair, `dnet-soft-slave` is the Modbus master on
 //! the other with a scan list over both units and `valid_bits_offset = 4`, and `dnet-master`
-//! polls it over SLCAN. Both data-valid bits are 1 and `dnet-master units` shows both units ok;
-//! then the server stops answering unit 2 (its request handler drops unit 2's requests, as a unit
-//! that lost power would): unit 2's bit goes to 0, unit 1's stays 1, and the unit table read over
+//! polls it over SLCAN. Both data-valid bits are 1; then the server stops answering unit 2 (its
+//! request handler drops unit 2's requests, as a unit that lost power would): unit 2's bit goes to 0, unit 1's stays 1, and the unit table read over
 //! DeviceNet (class 0x69, `dnet-master units --json` and `dnet-master get`) shows lost data and
-//! retries for unit 2 only.
+//! retries for unit 2 only, as do the unit parameters of the EDS `dnet-eds generate` makes from
+//! the same description (checked by `dnet-eds check`, read with `dnet-master params --eds`).
+//! Each `dnet-master` run starts with its own duplicate MAC ID check (2 s): five runs in all.
 //!
-//! Needs socat, the test virtual environment (pymodbus) and the built `dnet-soft-slave` and
-//! `dnet-master`: ignored in the plain host-test run, run by `scripts/check` with `-- --ignored`.
+//! Needs socat, the test virtual environment (pymodbus) and the built `dnet-soft-slave`,
+//! `dnet-master` and `dnet-eds`: ignored in the plain host-test run, run by `scripts/check` with `-- --ignored`.
 
 use pty_rig::pymodbus;
 use pty_rig::{bin, require_pymodbus, require_socat, scratch, soft_slave, Proc, PtyPair};
@@ -156,8 +157,6 @@ fn a_silent_unit_clears_its_valid_bit_and_counts_alone() {
     assert_eq!(&poll[..4], &[0x11, 0x11, 0x22, 0x22], "both units' registers");
     assert_eq!(poll[4], 0b11, "both data-valid bits");
     assert_eq!(poll[5] & 0x0F, StatusByte::LINK_OK, "{:#04X}", poll[5]);
-    let both = units(&bus, &[&slave, &server]);
-    assert_eq!(both, [(1, "ok".into(), 0, 0), (2, "ok".into(), 0, 0)], "{both:?}");
 
     // Unit 2 falls silent: after its next transaction's retries its bit is 0.
     std::fs::write(&mute, b"").unwrap();
@@ -178,6 +177,25 @@ fn a_silent_unit_clears_its_valid_bit_and_counts_alone() {
         (0..hex.len()).step_by(2).map(|i| u8::from_str_radix(&hex[i..i + 2], 16).unwrap()).collect();
     let counted = u32::from_le_bytes(bytes.as_slice().try_into().unwrap_or_else(|_| panic!("{get}")));
     assert!(u64::from(counted) >= *lost, "lost data still counting up: {get}");
+
+    // The EDS of the same description names the unit parameters, passes the checker, and its
+    // link paths read the same counters from the device (`dnet-master params --eds`).
+    let eds = dir.join("modbus-units.eds");
+    let mut generate =
+        Proc::spawn(bin("dnet-eds"), &["generate", config.to_str().unwrap(), "-o", eds.to_str().unwrap()]);
+    assert_eq!(generate.wait(Duration::from_secs(10)).and_then(|s| s.code()), Some(0), "{}", generate.dump());
+    let mut check = Proc::spawn(bin("dnet-eds"), &["check", eds.to_str().unwrap()]);
+    assert_eq!(check.wait(Duration::from_secs(10)).and_then(|s| s.code()), Some(0), "{}", check.dump());
+    let params =
+        master_json(&bus, &["params", "--mac", "5", "--eds", eds.to_str().unwrap()], &[&slave, &server]);
+    let list = params["params"].as_array().unwrap_or_else(|| panic!("no params in {params}"));
+    let value = |name: &str| {
+        let p = list.iter().find(|p| p["name"] == name).unwrap_or_else(|| panic!("no {name} in {params}"));
+        p["value"].as_u64().unwrap_or_else(|| panic!("no value in {p}"))
+    };
+    assert_eq!((value("Unit 1 state"), value("Unit 1 lost data"), value("Unit 1 retries")), (1, 0, 0));
+    assert_eq!(value("Unit 2 state"), 2, "lost");
+    assert!(value("Unit 2 lost data") >= *lost && value("Unit 2 retries") >= *retries, "{params}");
 
     let report = pymodbus::stop(&mut slave);
     assert!(report.contains("0 checksum and 0 framing errors"), "{report}");
