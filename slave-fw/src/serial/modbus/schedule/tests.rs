@@ -180,7 +180,9 @@ fn a_write_on_change_is_called_for_by_its_bytes(
 
 fn checked(scan: &[ScanEntry]) -> Result<(), std::string::String> {
     let mut c = ModbusConfig::new(heapless::Vec::from_slice(scan).unwrap());
-    c.output_len = c.output_len.max(4);
+    // Four output bytes or the writes' end, not grown to hold a trigger byte as `new` does.
+    let writes = scan.iter().filter(|e| e.function.is_write()).map(|e| e.range().end).max();
+    c.output_len = writes.unwrap_or(0).max(4) as u16;
     c.validate().map_err(|e| e.to_string())
 }
 
