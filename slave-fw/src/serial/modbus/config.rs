@@ -127,7 +127,7 @@ impl ModbusConfig {
                 .at(i));
             }
         }
-        super::units::validate(self)?;
+        super::valid_bits::validate(self.valid_bits_offset, &self.scan, self.input_len)?;
         self.health.validate()?;
         check_idle_frame(Field::OnIdle, &self.on_idle, 2, IDLE_FRAME_CAPACITY)?;
         check_idle_frame(Field::OnFault, &self.on_fault, 2, IDLE_FRAME_CAPACITY)

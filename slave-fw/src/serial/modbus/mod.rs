@@ -22,6 +22,7 @@ pub mod mbap;
 pub mod pdu;
 pub mod schedule;
 pub mod units;
+mod valid_bits;
 
 pub use framing::{FrameError, Framing, WIRE_CAPACITY};
 pub use master::{ByteOrder, ModbusConfig, ModbusMaster, ScanEntry, WordOrder, SCAN_LIST_CAPACITY};

@@ -31,46 +31,12 @@
 //! Tests: `master/tests/units.rs`, through the master and its test slave.
 
 use super::config::{ModbusConfig, SCAN_LIST_CAPACITY};
-use crate::serial::error::{as_u32, ConfigError, Field, Problem};
-use crate::serial::IMAGE_CAPACITY;
+pub use super::valid_bits::valid_bits_len;
 use devicenet::{Duration, Instant};
 use heapless::Vec;
 
 /// The most units in the table: one per scan entry at most.
 pub const UNIT_CAPACITY: usize = SCAN_LIST_CAPACITY;
-
-/// Bytes the data-valid bits of a scan list of `entries` take.
-pub const fn valid_bits_len(entries: usize) -> usize {
-    entries.div_ceil(8)
-}
-
-/// Checks [`ModbusConfig::valid_bits_offset`]: the bits lie within `input_len` and overlap no read
-/// entry's data.
-pub(super) fn validate(config: &ModbusConfig) -> Result<(), ConfigError> {
-    let Some(offset) = config.valid_bits_offset else {
-        return Ok(());
-    };
-    let len = valid_bits_len(config.scan.len());
-    let input = usize::from(config.input_len);
-    if input < len {
-        // No offset fits: the image is too short for the bits.
-        return ConfigError::check_range(Field::InputLen, as_u32(input), as_u32(len), as_u32(IMAGE_CAPACITY));
-    }
-    ConfigError::check_range(Field::ValidBitsOffset, u32::from(offset), 0, as_u32(input - len))?;
-    let bits = usize::from(offset)..usize::from(offset) + len;
-    let overlap = config.scan.iter().position(|e| {
-        let r = e.range();
-        !e.function.is_write() && r.start < bits.end && bits.start < r.end
-    });
-    match overlap {
-        Some(other) => Err(ConfigError {
-            field: Field::ValidBitsOffset,
-            index: None,
-            problem: Problem::Overlap { other: u16::try_from(other).unwrap_or(u16::MAX) },
-        }),
-        None => Ok(()),
-    }
-}
 
 /// A unit's state (module docs); the number is its code on the bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
