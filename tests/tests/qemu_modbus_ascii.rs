@@ -16,7 +16,7 @@
 //! ```
 
 use pty_rig::pymodbus::{self, Link, GATEWAY_REGISTERS};
-use pty_rig::{bin, require_pymodbus, scratch, workspace_dir, Proc};
+use pty_rig::{bin, qemu, require_pymodbus, scratch, workspace_dir, Proc};
 use slave_fw::serial::StatusByte;
 use std::path::Path;
 use std::time::Duration;
@@ -53,54 +53,31 @@ fn dnet_master(usart1: &str, args: &[&str]) -> (Option<i32>, String, String) {
 #[test]
 #[ignore = "runs QEMU and pymodbus: scripts/qemu-firmware --build-only && DNET_QEMU=1 cargo test -p system-tests --test qemu_modbus_ascii -- --ignored"]
 fn the_firmware_reads_and_writes_a_modbus_ascii_instrument_and_refuses_tcp() {
-    if std::env::var("DNET_QEMU").as_deref() != Ok("1") {
-        eprintln!("DNET_QEMU=1 not set: not running QEMU");
+    if !qemu::enabled() {
         return;
     }
     let Some(python) = require_pymodbus() else {
         return;
     };
     let dir = scratch("qemu-modbus-ascii");
-    let flash_dir = dir.join("flash");
-    std::fs::create_dir_all(&flash_dir).unwrap();
-    let pty_file = dir.join("qemu.ptys");
-    let mut qemu = Proc::spawn(
-        workspace_dir().join("scripts/qemu-firmware"),
-        &[
-            "--no-build",
-            "--timeout",
-            "180",
-            "--flash-dir",
-            flash_dir.to_str().unwrap(),
-            "--pty-file",
-            pty_file.to_str().unwrap(),
-        ],
-    );
-    assert!(qemu.wait_stdout("FLASH=", Duration::from_secs(20)).is_some(), "{}", qemu.dump());
-    let lines = qemu.stdout.lines();
-    let value = |key: &str| {
-        lines
-            .iter()
-            .find_map(|l| l.strip_prefix(key).map(str::to_string))
-            .unwrap_or_else(|| panic!("no {key}"))
-    };
-    let (usart1, usart2) = (value("USART1="), value("USART2="));
-    let server = pymodbus::server(&python, Link::Ascii(&usart2), &GATEWAY_REGISTERS);
+    let board = qemu::Board::start(&dir, 180);
+    let (usart1, usart2) = (board.usart1.as_str(), board.usart2.as_str());
+    let server = pymodbus::server(&python, Link::Ascii(usart2), &GATEWAY_REGISTERS);
 
     let ascii = meter_with(&dir, "ascii", "seven");
-    let (code, out, err) = dnet_master(&usart1, &["configure", "--mac", BOARD, ascii.to_str().unwrap()]);
-    assert_eq!(code, Some(0), "configure:\n{out}\n{err}\n{}", qemu.dump());
+    let (code, out, err) = dnet_master(usart1, &["configure", "--mac", BOARD, ascii.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "configure:\n{out}\n{err}\n{}", board.qemu.dump());
 
     // The poll command 11 22 33 44 goes to holding registers 16..17 (little-endian image).
     let poll = |qemu: &Proc| {
         let (code, out, err) = dnet_master(
-            &usart1,
+            usart1,
             &["--json", "monitor", "--mac", BOARD, "--epr", "100", "--count", "30", "--output", "11223344"],
         );
         assert_eq!(code, Some(0), "monitor:\n{out}\n{err}\n{}", qemu.dump());
         pymodbus::last_sample(&out)
     };
-    let last = poll(&qemu);
+    let last = poll(&board.qemu);
     assert_eq!(last.len(), 14, "{last:02X?}");
     assert_eq!(&last[..8], &[0x02, 0x01, 0x04, 0x03, 0x06, 0x05, 0x08, 0x07], "input registers 0..3");
     assert_eq!(&last[8..12], &[0xCD, 0xAB, 0x34, 0x12], "holding registers 100..101");
@@ -110,10 +87,9 @@ fn the_firmware_reads_and_writes_a_modbus_ascii_instrument_and_refuses_tcp() {
 
     // Modbus TCP is refused where the board checks a configuration, and ASCII keeps running.
     let tcp = meter_with(&dir, "tcp", "eight");
-    let (code, out, err) = dnet_master(&usart1, &["configure", "--mac", BOARD, tcp.to_str().unwrap()]);
+    let (code, out, err) = dnet_master(usart1, &["configure", "--mac", BOARD, tcp.to_str().unwrap()]);
     assert_ne!(code, Some(0), "a TCP download must be refused:\n{out}\n{err}");
     assert!(format!("{out}{err}").contains("profile.modbus.framing"), "{out}\n{err}");
-    let last = poll(&qemu);
+    let last = poll(&board.qemu);
     assert_eq!(&last[..8], &[0x02, 0x01, 0x04, 0x03, 0x06, 0x05, 0x08, 0x07], "still reading over ASCII");
-    qemu.terminate();
 }

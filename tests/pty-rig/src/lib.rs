@@ -28,6 +28,7 @@ pub mod console;
 pub mod mqtt;
 pub mod plant;
 pub mod pymodbus;
+pub mod qemu;
 pub mod sparkplug;
 
 use std::io::{BufRead, BufReader, Read};
