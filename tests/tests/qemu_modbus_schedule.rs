@@ -15,7 +15,7 @@
 mod modbus_schedule_support;
 
 use modbus_schedule_support::{exercise, DESCRIPTION, SERVER};
-use pty_rig::{bin, qemu, require_pymodbus, scratch, Proc};
+use pty_rig::{qemu, require_pymodbus, scratch, Proc};
 use std::time::Duration;
 
 #[test]
@@ -29,25 +29,12 @@ fn the_firmware_runs_a_downloaded_schedule() {
     };
     let dir = scratch("qemu-modbus-schedule");
     let board = qemu::Board::start(&dir, 90);
-    let (usart1, usart2) = (board.usart1.as_str(), board.usart2.as_str());
+    let usart2 = board.usart2.as_str();
     let server = Proc::spawn(&python, &["-c", SERVER, usart2]);
     assert!(server.wait_stdout("ready", Duration::from_secs(20)).is_some(), "{}", server.dump());
 
-    let config = dir.join("modbus-schedule.toml");
-    std::fs::write(&config, DESCRIPTION).unwrap();
-    let bus = format!("slcan:{usart1}");
-    let mut configure = Proc::spawn(
-        bin("dnet-master"),
-        &["--bus", &bus, "configure", "--mac", "5", config.to_str().unwrap()],
-    );
-    let status = configure.wait(Duration::from_secs(60));
-    assert_eq!(
-        status.and_then(|s| s.code()),
-        Some(0),
-        "configure:\n{}\n{}",
-        configure.dump(),
-        board.qemu.dump()
-    );
+    board.configure(&dir, "modbus-schedule.toml", DESCRIPTION, 5);
+    let bus = board.bus();
     // QEMU's timer runs slower than the host's clock under load (1.3-1.4 s per firmware second in
     // one run on a busy 2-core machine): the gaps are checked loosely, the rates against each other.
     exercise(&bus, &server, &[&board.qemu], 0.9..2.0);

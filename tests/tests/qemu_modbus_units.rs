@@ -14,7 +14,7 @@
 mod modbus_units_support;
 
 use modbus_units_support::{exercise, DESCRIPTION, SERVER};
-use pty_rig::{bin, qemu, require_pymodbus, scratch, Proc};
+use pty_rig::{qemu, require_pymodbus, scratch, Proc};
 use std::time::Duration;
 
 #[test]
@@ -28,27 +28,14 @@ fn the_firmware_keeps_per_unit_health() {
     };
     let dir = scratch("qemu-modbus-units");
     let board = qemu::Board::start(&dir, 90);
-    let (usart1, usart2) = (board.usart1.as_str(), board.usart2.as_str());
+    let usart2 = board.usart2.as_str();
     let mute = dir.join("mute-unit-2");
     let _ = std::fs::remove_file(&mute);
     let server = Proc::spawn(&python, &["-c", SERVER, usart2, mute.to_str().unwrap()]);
     assert!(server.wait_stdout("ready", Duration::from_secs(20)).is_some(), "{}", server.dump());
 
-    let config = dir.join("modbus-units.toml");
-    std::fs::write(&config, DESCRIPTION).unwrap();
-    let bus = format!("slcan:{usart1}");
-    let mut configure = Proc::spawn(
-        bin("dnet-master"),
-        &["--bus", &bus, "configure", "--mac", "5", config.to_str().unwrap()],
-    );
-    let status = configure.wait(Duration::from_secs(60));
-    assert_eq!(
-        status.and_then(|s| s.code()),
-        Some(0),
-        "configure:\n{}\n{}",
-        configure.dump(),
-        board.qemu.dump()
-    );
+    let config = board.configure(&dir, "modbus-units.toml", DESCRIPTION, 5);
+    let bus = board.bus();
     exercise(&bus, &config, &dir, &mute, &[&board.qemu, &server], false);
     let _ = std::fs::remove_file(&mute);
 }

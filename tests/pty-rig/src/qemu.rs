@@ -2,8 +2,8 @@
 //! `scripts/qemu-firmware --build-only` left) with its settings flash in a folder of the test's
 //! scratch directory, and the two ptys it prints: USART1 carries SLCAN, USART2 the instrument line.
 
-use crate::{workspace_dir, Proc};
-use std::path::Path;
+use crate::{bin, workspace_dir, Proc};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Whether the QEMU tests are asked for (`DNET_QEMU=1`, as `scripts/check` sets); says so on
@@ -55,6 +55,39 @@ impl Board {
         };
         let (usart1, usart2) = (value("USART1="), value("USART2="));
         Board { qemu, usart1, usart2 }
+    }
+
+    /// The `--bus` argument that reaches the board: `slcan:` its USART1 pty.
+    pub fn bus(&self) -> String {
+        format!("slcan:{}", self.usart1)
+    }
+
+    /// Writes `description` to `dir/name` and downloads it to the board at `mac` with
+    /// `dnet-master configure` (at most 60 s); panics (failing the test) unless it exits 0.
+    /// Returns the description's path.
+    pub fn configure(&self, dir: &Path, name: &str, description: &str, mac: u8) -> PathBuf {
+        let config = dir.join(name);
+        std::fs::write(&config, description).expect("write the description");
+        let mut configure = Proc::spawn(
+            bin("dnet-master"),
+            &[
+                "--bus",
+                &self.bus(),
+                "configure",
+                "--mac",
+                &mac.to_string(),
+                config.to_str().expect("a UTF-8 scratch path"),
+            ],
+        );
+        let status = configure.wait(Duration::from_secs(60));
+        assert_eq!(
+            status.and_then(|s| s.code()),
+            Some(0),
+            "configure:\n{}\n{}",
+            configure.dump(),
+            self.qemu.dump()
+        );
+        config
     }
 }
 
