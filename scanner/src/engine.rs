@@ -745,6 +745,20 @@ impl Scanner {
         }
     }
 
+    /// `mac` as the target of a console request: a node of the scan list with its explicit
+    /// connection usable now (in I/O and not busy), or why not.
+    fn explicit_target(&self, mac: u8) -> Result<MacId, String> {
+        let n = self
+            .nodes
+            .iter()
+            .find(|n| n.entry.mac == mac)
+            .ok_or(format!("MAC {mac} is not in the scan list"))?;
+        if !n.in_io || n.busy() {
+            return Err(format!("MAC {mac} has no explicit connection now ({})", n.state.status.name()));
+        }
+        MacId::new(mac).ok_or(format!("MAC {mac} is out of range"))
+    }
+
     fn explicit(
         &mut self,
         master: &mut Master<'_, '_>,
@@ -754,15 +768,7 @@ impl Scanner {
         attribute: u8,
         value: Option<&[u8]>,
     ) -> Result<Vec<u8>, String> {
-        let n = self
-            .nodes
-            .iter()
-            .find(|n| n.entry.mac == mac)
-            .ok_or(format!("MAC {mac} is not in the scan list"))?;
-        if !n.in_io || n.busy() {
-            return Err(format!("MAC {mac} has no explicit connection now ({})", n.state.status.name()));
-        }
-        let target = MacId::new(mac).ok_or(format!("MAC {mac} is out of range"))?;
+        let target = self.explicit_target(mac)?;
         let r = match value {
             Some(v) => master.set(target, class_id, instance, attribute, v),
             None => master.get(target, class_id, instance, attribute),
@@ -780,15 +786,7 @@ impl Scanner {
         instance: u16,
         data: &[u8],
     ) -> Result<master_core::client::ReplyBody, String> {
-        let n = self
-            .nodes
-            .iter()
-            .find(|n| n.entry.mac == mac)
-            .ok_or(format!("MAC {mac} is not in the scan list"))?;
-        if !n.in_io || n.busy() {
-            return Err(format!("MAC {mac} has no explicit connection now ({})", n.state.status.name()));
-        }
-        let target = MacId::new(mac).ok_or(format!("MAC {mac} is out of range"))?;
+        let target = self.explicit_target(mac)?;
         let request = devicenet::explicit::Request {
             service: devicenet::explicit::ServiceCode::from(service),
             class,
