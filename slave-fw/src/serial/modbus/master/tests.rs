@@ -114,10 +114,15 @@ impl Slave {
 /// Runs master and slave on a virtual clock from `*now` to `until`; the slave answers 5 ms
 /// after each request.
 fn run(m: &mut ModbusMaster, slave: &mut Slave, now: &mut Instant, until: Instant) {
+    run_unless(m, slave, None, now, until);
+}
+
+/// [`run`], with unit `mute` (when given) not answering.
+fn run_unless(m: &mut ModbusMaster, slave: &mut Slave, mute: Option<u8>, now: &mut Instant, until: Instant) {
     for _ in 0..10_000 {
         while let Some(req) = m.poll_transmit(*now) {
             let req = req.to_vec();
-            if let Some(resp) = slave.answer(&req) {
+            if let Some(resp) = slave.answer(&req).filter(|_| Some(req[0]) != mute) {
                 *now += Duration::from_millis(5);
                 m.on_bytes(&resp, *now);
             }

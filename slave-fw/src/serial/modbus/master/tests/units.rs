@@ -25,25 +25,7 @@ fn two_units() -> ModbusConfig {
 
 /// [`run`], with unit `mute` not answering.
 fn run_muted(m: &mut ModbusMaster, slave: &mut Slave, mute: u8, now: &mut Instant, until: Instant) {
-    for _ in 0..10_000 {
-        while let Some(req) = m.poll_transmit(*now) {
-            let req = req.to_vec();
-            let answer = slave.answer(&req);
-            if let Some(resp) = answer.filter(|_| req[0] != mute) {
-                *now += Duration::from_millis(5);
-                m.on_bytes(&resp, *now);
-            }
-        }
-        match m.poll_at() {
-            Some(t) if t <= until => *now = t.max(*now + Duration::from_micros(1)),
-            _ => {
-                *now = (*now).max(until);
-                m.poll(*now);
-                return;
-            }
-        }
-    }
-    panic!("runaway");
+    run_unless(m, slave, Some(mute), now, until);
 }
 
 fn row(m: &ModbusMaster, r: usize, now: Instant) -> UnitRow {
