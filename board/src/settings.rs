@@ -366,6 +366,44 @@ impl<F: SettingsFlash> SettingsStore<F> {
     }
 }
 
+/// What [`SettingsStore::migrate_from`] found and did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Migration {
+    /// This journal already holds a valid record: the old location was not read.
+    NotNeeded,
+    /// The old location's newest record was saved here with this sequence number.
+    Moved {
+        /// The record's sequence number in this journal.
+        sequence: u32,
+    },
+    /// This journal is empty and the old location holds no valid record either.
+    NothingToMove,
+}
+
+impl<F: SettingsFlash> SettingsStore<F> {
+    /// Moves the settings of a journal at an older location into this one, once: when this
+    /// journal holds no valid record, the newest valid record of `old` (read with the same
+    /// [`load`](SettingsStore::load)) is [`save`](SettingsStore::save)d here. The save is
+    /// power-safe as every save: a reset before it completes leaves this journal empty, so the
+    /// migration runs again at the next start. `old` is only read, never erased or written.
+    ///
+    /// The firmware calls it at start, before anything may erase the old location (on the
+    /// STM32F446RE the old sectors become the update's DFU slot).
+    pub fn migrate_from<G: SettingsFlash>(
+        &mut self,
+        old: &mut SettingsStore<G>,
+    ) -> Result<Migration, FlashError> {
+        if self.load()?.is_some() {
+            return Ok(Migration::NotNeeded);
+        }
+        match old.load()? {
+            Some(loaded) => Ok(Migration::Moved { sequence: self.save(&loaded.settings)? }),
+            None => Ok(Migration::NothingToMove),
+        }
+    }
+}
+
 /// Two `N`-byte sectors in RAM with NOR flash semantics, and an optional power cut after a given
 /// number of byte operations. It backs the host tests and the emulated board (where settings last
 /// until the emulator stops).
@@ -603,6 +641,91 @@ mod tests {
         assert_eq!(store.save(&settings(3)), Ok(2));
         let loaded = store.load().unwrap().unwrap();
         assert_eq!((loaded.settings, loaded.slot), (settings(3), 2));
+    }
+
+    /// The old location's sectors: larger than the new one's, as the STM32's 128 KiB sectors are
+    /// against the new journal's 16 KiB ones.
+    type OldFlash = RamFlash<{ 5 * RECORD_LEN }>;
+
+    /// An old journal whose newest record is `settings(n)` after `n` saves.
+    fn old_journal(n: u8) -> SettingsStore<OldFlash> {
+        let mut old = SettingsStore::new(OldFlash::new());
+        for i in 1..=n {
+            old.save(&with_image(i, 300)).unwrap();
+        }
+        old
+    }
+
+    #[test]
+    fn migration_moves_the_newest_old_record() {
+        let mut old = old_journal(7);
+        let before = old.flash().clone();
+        let mut new = SettingsStore::new(Flash::new());
+        assert_eq!(new.migrate_from(&mut old), Ok(Migration::Moved { sequence: 1 }));
+        assert_eq!(new.load_or_default(), with_image(7, 300));
+        // The old location is read only.
+        assert_eq!(old.flash().sector(Sector::A), before.sector(Sector::A));
+        assert_eq!(old.flash().sector(Sector::B), before.sector(Sector::B));
+        // Done once: the next start finds the new journal in use and leaves it alone.
+        assert_eq!(new.migrate_from(&mut old), Ok(Migration::NotNeeded));
+        assert_eq!(new.load().unwrap().map(|l| l.sequence), Some(1));
+    }
+
+    #[test]
+    fn migration_with_nothing_at_the_old_location() {
+        let mut old = SettingsStore::new(OldFlash::new());
+        // Torn or foreign bytes there are not a record either.
+        let mut flash = old.into_inner();
+        flash.program(Sector::B, 0, &[0x12; RECORD_LEN]).unwrap();
+        old = SettingsStore::new(flash);
+        let mut new = SettingsStore::new(Flash::new());
+        assert_eq!(new.migrate_from(&mut old), Ok(Migration::NothingToMove));
+        assert_eq!(new.load(), Ok(None));
+    }
+
+    #[test]
+    fn migration_leaves_a_journal_in_use_alone() {
+        let mut old = old_journal(3);
+        let mut new = SettingsStore::new(Flash::new());
+        new.save(&settings(50)).unwrap();
+        assert_eq!(new.migrate_from(&mut old), Ok(Migration::NotNeeded));
+        assert_eq!(new.load_or_default(), settings(50));
+    }
+
+    /// A power cut after every possible number of byte operations of the migration's save, then
+    /// a restart that migrates again: the new journal ends with the old record every time.
+    #[test]
+    fn a_cut_migration_is_repeated_at_the_next_start() {
+        let mut old = old_journal(4);
+        let mut cuts = 0;
+        for budget in 0.. {
+            let mut flash = Flash::new();
+            flash.cut_power_after(Some(budget));
+            let mut new = SettingsStore::new(flash);
+            let first = new.migrate_from(&mut old);
+            let mut flash = new.into_inner();
+            flash.cut_power_after(None);
+            let mut new = SettingsStore::new(flash);
+            match first {
+                Ok(moved) => {
+                    assert_eq!(moved, Migration::Moved { sequence: 1 }, "budget {budget}");
+                    assert_eq!(new.migrate_from(&mut old), Ok(Migration::NotNeeded));
+                    break;
+                }
+                Err(e) => {
+                    assert_eq!(e, FlashError::PowerLost, "budget {budget}");
+                    cuts += 1;
+                    // The torn record is no record: the restart migrates again, into the next slot.
+                    assert_eq!(
+                        new.migrate_from(&mut old),
+                        Ok(Migration::Moved { sequence: 1 }),
+                        "budget {budget}"
+                    );
+                }
+            }
+            assert_eq!(new.load_or_default(), with_image(4, 300), "budget {budget}");
+        }
+        assert_eq!(cuts, RECORD_LEN);
     }
 
     #[test]
