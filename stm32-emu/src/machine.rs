@@ -104,6 +104,15 @@ pub enum Fault {
     /// The ELF file is not a 32-bit little-endian ARM executable, or has a loadable segment
     /// outside flash.
     Elf(String),
+    /// Two loadable segments of the ELF files given to [`Stm32::load_elfs`] would be programmed
+    /// over each other (a bootloader and an application linked into the same flash): nothing
+    /// was programmed.
+    ElfOverlap {
+        /// The segment met first (the lower ELF index, or the lower address in one file).
+        first: ElfSegment,
+        /// The segment it overlaps.
+        second: ElfSegment,
+    },
     /// The power failed: a planned power cut of the FLASH model
     /// ([`crate::flash::Flash::plan_power_cut`]) happened. The machine stopped after the
     /// access; [`Stm32::power_on_reset`] powers it up again on the flash array as the cut left it.
@@ -147,6 +156,7 @@ impl fmt::Display for Fault {
                 write!(f, "{name} at {base:#010x}: outside the peripheral region or overlapping")
             }
             Fault::Elf(e) => write!(f, "ELF: {e}"),
+            Fault::ElfOverlap { first, second } => write!(f, "{first} overlaps {second}"),
             Fault::PowerCut { at } => write!(f, "power cut at {at} ns (planned in the FLASH model)"),
             Fault::Unclocked(UnclockedAccess { peripheral, address, gate, pc, write }) => {
                 let (kind, result) = if *write { ("store to", "lost") } else { ("load from", "read 0") };
@@ -160,6 +170,26 @@ impl fmt::Display for Fault {
 }
 
 impl std::error::Error for Fault {}
+
+/// A loadable segment of one of the ELF files given to [`Stm32::load_elfs`], as
+/// [`Fault::ElfOverlap`] names it: the file's index in the list and the flash bytes its
+/// contents take (`start..end`, load addresses).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ElfSegment {
+    /// The file's index in the list (0: the first, e.g. the bootloader).
+    pub elf: usize,
+    /// The segment's load address.
+    pub start: u32,
+    /// The address after its last byte.
+    pub end: u32,
+}
+
+/// `ELF 1's segment 0x08020000..0x08020400`.
+impl fmt::Display for ElfSegment {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "ELF {}'s segment {:#010x}..{:#010x}", self.elf, self.start, self.end)
+    }
+}
 
 impl From<CoreFault> for Fault {
     fn from(fault: CoreFault) -> Fault {
@@ -263,15 +293,41 @@ impl Stm32 {
     }
 
     /// Programs the loadable segments of an ELF executable into flash at their load addresses
-    /// (as a debug probe flashes it), then performs a power-on reset.
+    /// (as a debug probe flashes it), then performs a power-on reset: [`Stm32::load_elfs`] with
+    /// one file.
     pub fn load_elf(&mut self, elf: &[u8]) -> Result<(), Fault> {
-        let segments = crate::cpu::elf::load_segments(elf).map_err(|e| Fault::Elf(e.to_string()))?;
-        for (address, data) in segments {
-            let offset = address.checked_sub(FLASH_BASE).filter(|o| o + data.len() as u32 <= FLASH_SIZE);
-            let Some(offset) = offset else {
-                return Err(Fault::Elf(format!("segment at {address:#010x} is not in flash")));
-            };
-            self.program_flash(offset, data)?;
+        self.load_elfs(&[elf])
+    }
+
+    /// Programs the loadable segments of every ELF executable of `elfs` into flash at their
+    /// load addresses (a probe flashing a bootloader and then the application it starts), then
+    /// performs one power-on reset, through the vector table at 0x0800_0000 (the first file's,
+    /// normally). Nothing is programmed if a file cannot be read, has a segment outside flash, or
+    /// has a segment that overlaps another's ([`Fault::ElfOverlap`] names both).
+    pub fn load_elfs(&mut self, elfs: &[&[u8]]) -> Result<(), Fault> {
+        let mut segments: Vec<(ElfSegment, &[u8])> = Vec::new();
+        for (index, elf) in elfs.iter().enumerate() {
+            let which = if elfs.len() > 1 { format!("ELF {index}: ") } else { String::new() };
+            let loads = crate::cpu::elf::load_segments(elf).map_err(|e| Fault::Elf(format!("{which}{e}")))?;
+            for (address, data) in loads {
+                let end = u64::from(address) + data.len() as u64;
+                let in_flash = address >= FLASH_BASE && end <= u64::from(FLASH_BASE) + u64::from(FLASH_SIZE);
+                if !in_flash {
+                    return Err(Fault::Elf(format!("{which}segment at {address:#010x} is not in flash")));
+                }
+                segments.push((ElfSegment { elf: index, start: address, end: end as u32 }, data));
+            }
+        }
+        segments.sort_by_key(|(segment, _)| (segment.start, segment.elf));
+        for pair in segments.windows(2) {
+            let (a, b) = (pair[0].0, pair[1].0);
+            if b.start < a.end {
+                let (first, second) = if (a.elf, a.start) <= (b.elf, b.start) { (a, b) } else { (b, a) };
+                return Err(Fault::ElfOverlap { first, second });
+            }
+        }
+        for (segment, data) in segments {
+            self.program_flash(segment.start - FLASH_BASE, data)?;
         }
         self.power_on_reset()
     }
