@@ -10,6 +10,8 @@
 //! With the `emulated` feature RCC is left at reset (HSI, 16 MHz on every bus; QEMU models no
 //! PLL and would spin forever waiting for it) and CAN1 is not touched (QEMU has no bxCAN).
 
+pub mod nor_flash;
+
 use crate::boards::{Usart as UsartName, SELECTED};
 use crate::clocks;
 use crate::leds;

@@ -15,11 +15,12 @@
 //! | [`switches`] | DIP switch decoding and the MAC/baud/"changed" decision at reset (boards without switches: the stored values) | yes |
 //! | [`leds`] | MS/NS bicolour LED pin levels, or what a board's one LED shows | yes |
 //! | [`self_test`] | the power-up self-test of the CAN path in silent loopback mode: its frame, bound and verdict | yes |
+//! | [`flash_layout`] | the firmware update's flash layout on every board (bootloader, settings, STATE, ACTIVE, DFU), the bootloader's key block, the board ID | yes |
 //! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
 //! | [`memory`] | the memory map and `memory.x` per chip (`board/memory/`: settings in the last two flash sectors, 10–11 or 6–7) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make, and the USART register values (`BRR`, `CR1`, `CR2`) that make them | yes |
 //! | [`uid`] | the DeviceNet serial number, folded from the MCU's 96-bit unique ID (CRC-32) | yes |
-//! | `hw` | peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status, the unique ID's read (real board) (`target_os = "none"` only) | – |
+//! | `hw` | the update partitions' flash driver (`hw::nor_flash`: embedded-storage's `NorFlash` per run of equal sectors, word programming), peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status, the unique ID's read (real board) (`target_os = "none"` only) | – |
 //!
 //! ## Features
 //!
@@ -28,6 +29,7 @@
 //! | `reference` (default), `olimex-p405`, `olimex-p405-rs485`, `nucleo-f446re` | the board (exactly one); it also chooses stm32f4xx-hal's chip feature (`stm32f405` or `stm32f446`) and `memory.x` |
 //! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
+//! | `bootloader-link` | build.rs ships no `memory.x`: the bootloader (`bootloader/`) links with its own |
 //! | `fault-btr`, `fault-filter`, `fault-can-clock`, `fault-flash-unlock`, `fault-usart-brr` | **self-test only, never in a release build**: each makes one hardware fact wrong (bit timing for half PCLK1; a Group 2 filter bank that matches nothing; CAN1's clock enable undone; flash programmed without the unlock sequence; the instrument USART's BRR for half its clock) so that `scripts/exact-firmware --self-test` can prove a scenario catches it. Such a build has the symbol `BOARD_FAULT_SELF_TEST_ONLY`, and `scripts/firmware-size` refuses an ELF that has it |
 //!
 //! It depends on the protocol core only (for the MAC ID and data rate types); the SLCAN codec the
@@ -48,6 +50,7 @@ pub mod bit_timing;
 pub mod boards;
 pub mod clocks;
 pub mod filters;
+pub mod flash_layout;
 pub mod leds;
 pub mod memory;
 pub mod pins;

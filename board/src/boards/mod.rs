@@ -168,6 +168,11 @@ pub struct BoardSpec {
     pub name: &'static str,
     /// The Cargo feature that selects it.
     pub feature: &'static str,
+    /// The board ID of the firmware update (issue 31): the number a firmware image's image-info
+    /// block and the bootloader's key block carry, so that no board runs another board's image
+    /// (reference 1, olimex-p405 2, olimex-p405-rs485 3, nucleo-f446re 4; the emulated build is
+    /// [`crate::flash_layout::EMULATED_BOARD_ID`]).
+    pub board_id: u16,
     /// The microcontroller.
     pub chip: Chip,
     /// Clocks.

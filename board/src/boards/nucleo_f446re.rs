@@ -55,6 +55,7 @@ use crate::pins::{pin, Port};
 pub const BOARD: BoardSpec = BoardSpec {
     name: "NUCLEO-F446RE + Waveshare RS485 CAN Shield",
     feature: "nucleo-f446re",
+    board_id: 4,
     chip: Chip::Stm32f446re,
     clocks: ClockTree {
         hse_hz: 8_000_000,

@@ -50,6 +50,7 @@ use crate::pins::{pin, Port};
 pub const BOARD: BoardSpec = BoardSpec {
     name: "Olimex STM32-P405",
     feature: "olimex-p405",
+    board_id: 2,
     chip: Chip::Stm32f405rg,
     clocks: ClockTree {
         hse_hz: 8_000_000,
@@ -76,6 +77,7 @@ pub const BOARD: BoardSpec = BoardSpec {
 pub const BOARD_RS485: BoardSpec = BoardSpec {
     name: "Olimex STM32-P405, RS-485 on UEXT",
     feature: "olimex-p405-rs485",
+    board_id: 3,
     instrument: UEXT_RS485,
     ..BOARD
 };

@@ -23,6 +23,7 @@ use crate::pins::{pin, Port};
 pub const BOARD: BoardSpec = BoardSpec {
     name: "reference adapter board",
     feature: "reference",
+    board_id: 1,
     chip: Chip::Stm32f405rg,
     clocks: ClockTree {
         hse_hz: 8_000_000,
