@@ -42,6 +42,15 @@
 //! an exception would preempt (PM0214 §2.5.2 "Wakeup from WFI"; PRIMASK does not keep the
 //! core asleep). SCR.SLEEPONEXIT sleeps on the return to thread mode.
 //!
+//! # Resets
+//!
+//! A power-on reset ([`Stm32::power_on_reset`], after [`Stm32::load_elfs`]) clears SRAM; a
+//! system reset keeps it. A system reset comes from AIRCR.SYSRESETREQ or from a model
+//! ([`Machine::system_reset`]: the IWDG's timeout, [`crate::iwdg`]); it is performed before the
+//! next instruction, and its cause reaches the RCC model's RCC_CSR flags (SFTRSTF, IWDGRSTF).
+//! The core restarts through the vector table at 0 (the flash alias: 0x0800_0000's), whatever
+//! VTOR held.
+//!
 //! # Faults
 //!
 //! What would be a BusFault, UsageFault or HardFault on the chip (an access to an unmapped
@@ -56,7 +65,7 @@
 use crate::cpu::bus::{Bus, UnclockedAccess, FLASH_BASE, FLASH_SIZE};
 use crate::cpu::core::{Core, CoreFault, MemoryMap, Return, SliceEnd};
 use crate::cpu::scs::{exception, Scs};
-use crate::periph::{Clocks, Machine, Nanos, Peripheral, ResetKind};
+use crate::periph::{Clocks, Machine, Nanos, Peripheral, ResetCause, ResetKind};
 use std::fmt;
 use unicorn_engine::RegisterARM;
 
@@ -336,18 +345,25 @@ impl Stm32 {
     /// core started from the vector table. Flash keeps its contents.
     pub fn power_on_reset(&mut self) -> Result<(), Fault> {
         self.core.clear_ram();
-        self.reset(ResetKind::PowerOn)
+        self.reset(ResetKind::PowerOn, None)
     }
 
-    /// System reset (RM0090 §7.1.2), as AIRCR.SYSRESETREQ requests it: SRAM kept.
+    /// System reset (RM0090 §7.1.2), as AIRCR.SYSRESETREQ requests it: SRAM kept, the RCC
+    /// model's SFTRSTF set.
     pub fn system_reset(&mut self) -> Result<(), Fault> {
-        self.reset(ResetKind::System)
+        self.reset(ResetKind::System, Some(ResetCause::Software))
     }
 
-    fn reset(&mut self, kind: ResetKind) -> Result<(), Fault> {
+    /// A reset of `kind`; a system reset's `cause` goes to the models
+    /// ([`Peripheral::record_reset_cause`]: RCC_CSR's flags).
+    fn reset(&mut self, kind: ResetKind, cause: Option<ResetCause>) -> Result<(), Fault> {
         let bus = self.core.bus_mut();
         bus.scs.reset();
+        bus.reset_request = None;
         bus.reset_all(kind);
+        if let Some(cause) = cause {
+            bus.record_reset_cause(cause);
+        }
         self.sleeping = false;
         self.resets += 1;
         self.core.refresh_flash();
@@ -493,6 +509,9 @@ impl Stm32 {
         }
         if self.core.bus_mut().scs.take_reset_request() {
             return self.system_reset();
+        }
+        if let Some(cause) = self.core.bus_mut().reset_request.take() {
+            return self.reset(ResetKind::System, Some(cause));
         }
         if self.take_exception()? {
             // The handler's first instruction is the next slice's (a caller sees the entry).

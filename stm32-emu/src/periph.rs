@@ -142,6 +142,19 @@ pub enum ResetKind {
     System,
 }
 
+/// What caused a system reset, for the RCC_CSR flags (RM0090 §7.1, §7.3.21).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResetCause {
+    /// SYSRESETREQ of the core (SFTRSTF).
+    Software,
+    /// The independent watchdog (IWDGRSTF).
+    IndependentWatchdog,
+    /// The window watchdog (WWDGRSTF).
+    WindowWatchdog,
+    /// The NRST pin pulled low from outside (PINRSTF).
+    Pin,
+}
+
 /// What a model may ask of the rest of the machine during an access or an [`Peripheral::advance`].
 pub trait Machine {
     /// The clock frequencies now in force.
@@ -179,6 +192,12 @@ pub trait Machine {
     /// is set, RM0090 §3.6.1): the machine adds the time to its clock. The default ignores it.
     fn stall(&mut self, nanos: Nanos) {
         let _ = nanos;
+    }
+    /// Asks for a system reset (RM0090 §7.1.2) for `cause` (the IWDG's count reaching 0): the
+    /// machine performs it before the next instruction and tells every model the cause
+    /// ([`Peripheral::record_reset_cause`]). The default ignores it.
+    fn system_reset(&mut self, cause: ResetCause) {
+        let _ = cause;
     }
 }
 
@@ -245,5 +264,10 @@ pub trait Peripheral {
     fn clock_gate(&self, gate: ClockGate) -> Option<bool> {
         let _ = gate;
         None
+    }
+    /// For the RCC model only: the cause of the system reset just performed (after
+    /// [`Peripheral::reset`]), for its RCC_CSR flags. The default ignores it.
+    fn record_reset_cause(&mut self, cause: ResetCause) {
+        let _ = cause;
     }
 }

@@ -16,6 +16,7 @@
 //! reconfigured while running) are recorded as [`RccNote`]s for the machine to report.
 
 use crate::gpio::{lanes, read_lanes};
+pub use crate::periph::ResetCause;
 use crate::periph::{ClockGate, Clocks, Machine, Nanos, Peripheral, ResetKind, Width};
 
 /// The RCC's base address (RM0090 §2.3 table 1).
@@ -203,19 +204,6 @@ impl std::fmt::Display for RccNote {
     }
 }
 
-/// What reset the machine performed, for the RCC_CSR flags (RM0090 §7.1, §7.3.21).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ResetCause {
-    /// SYSRESETREQ of the core (SFTRSTF).
-    Software,
-    /// The independent watchdog (IWDGRSTF).
-    IndependentWatchdog,
-    /// The window watchdog (WWDGRSTF).
-    WindowWatchdog,
-    /// The NRST pin pulled low from outside (PINRSTF).
-    Pin,
-}
-
 /// The RCC.
 #[derive(Clone, Debug)]
 pub struct Rcc {
@@ -311,8 +299,8 @@ impl Rcc {
         self.rstr[i] >> bit & 1 != 0
     }
 
-    /// Records the cause of a reset in RCC_CSR. The machine calls it with the
-    /// [`Peripheral::reset`] of a system reset. Every internal reset source drives the NRST pin
+    /// Records the cause of a reset in RCC_CSR. The machine calls it (through
+    /// [`Peripheral::record_reset_cause`]) after the [`Peripheral::reset`] of a system reset. Every internal reset source drives the NRST pin
     /// low through the pulse generator (RM0090 §7.1.2, figure "Simplified diagram of the reset
     /// circuit"), so PINRSTF is set with SFTRSTF, IWDGRSTF and WWDGRSTF.
     pub fn record_reset_cause(&mut self, cause: ResetCause) {
@@ -699,6 +687,10 @@ impl Peripheral for Rcc {
 
     fn clocks(&self) -> Option<Clocks> {
         Some(self.current_clocks())
+    }
+
+    fn record_reset_cause(&mut self, cause: ResetCause) {
+        Rcc::record_reset_cause(self, cause);
     }
 
     fn clock_gate(&self, gate: ClockGate) -> Option<bool> {

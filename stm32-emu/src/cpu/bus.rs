@@ -3,7 +3,7 @@
 //! also the [`Machine`] the models see.
 
 use super::scs::{Masks, Scs};
-use crate::periph::{ClockGate, Clocks, Machine, Nanos, Peripheral, Width};
+use crate::periph::{ClockGate, Clocks, Machine, Nanos, Peripheral, ResetCause, Width};
 
 /// The flash memory array's base address (RM0090 §2.3 "Memory map", §3.3 table 5).
 pub const FLASH_BASE: u32 = 0x0800_0000;
@@ -93,6 +93,8 @@ pub struct Bus {
     pub stalled: Nanos,
     /// When a model reported a power cut ([`Machine::power_cut`]), not yet taken by the machine.
     pub power_cut: Option<Nanos>,
+    /// A system reset a model asked for ([`Machine::system_reset`]), not yet performed.
+    pub reset_request: Option<ResetCause>,
     /// The model answering the current access reported a bus error ([`Machine::bus_error`]).
     model_bus_error: bool,
     /// The model answering the current access refused it, its clock gate closed
@@ -126,6 +128,7 @@ impl Bus {
             unclocked: None,
             stalled: 0,
             power_cut: None,
+            reset_request: None,
             interrupt: None,
             stop_requested: false,
         }
@@ -361,6 +364,15 @@ impl Bus {
         self.slots.iter().filter_map(|s| s.model.as_ref()?.next_event()).min()
     }
 
+    /// Tells every model the cause of the system reset just performed.
+    pub fn record_reset_cause(&mut self, cause: ResetCause) {
+        for slot in &mut self.slots {
+            if let Some(model) = slot.model.as_mut() {
+                model.record_reset_cause(cause);
+            }
+        }
+    }
+
     /// Resets every model.
     pub fn reset_all(&mut self, kind: crate::periph::ResetKind) {
         for slot in &mut self.slots {
@@ -436,6 +448,11 @@ impl Machine for Bus {
 
     fn stall(&mut self, nanos: Nanos) {
         self.stalled += nanos;
+    }
+
+    fn system_reset(&mut self, cause: ResetCause) {
+        self.reset_request.get_or_insert(cause);
+        self.stop_requested = true;
     }
 }
 
