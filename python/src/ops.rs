@@ -263,6 +263,13 @@ pub fn monitor_next(
     if let Some(r) = &mut m.remaining {
         *r = r.saturating_sub(1);
     }
-    let layout = m.layout.as_ref().unwrap_or(&state.layout);
-    Ok(Some(Sample::new(at.total_micros(), raw, layout)))
+    let strobe = state.io.get(&m.mac.as_raw()).is_some_and(|s| s.kind == IoKind::Strobe);
+    let sample = match &m.layout {
+        Some(layout) => Sample::new(at.total_micros(), raw, layout),
+        // A bit-strobe response carries the first 8 input bytes only: raw, as dnet-master
+        // monitor shows it.
+        None if strobe => Sample::new(at.total_micros(), raw, &InputLayout::raw()),
+        None => Sample::new(at.total_micros(), raw, &state.layout),
+    };
+    Ok(Some(sample))
 }

@@ -114,6 +114,20 @@ def test_poll_output_and_parameter_command():
         assert image[10:12] == b"\x34\x12", image.hex()
 
 
+@pytest.mark.parametrize("io, kind, size", [("strobe", "strobe", 8), ("cos", "change_of_state", 18),
+                                            ("cyclic", "cyclic", 18)])
+def test_other_io_connections(io, kind, size):
+    with dnet.Master() as m:
+        r = m.connect(5, io=io)
+        assert r["ok"] and r["device"]["io"]["kind"] == kind
+        # A bit-strobe response carries the first 8 input bytes; a production the whole image.
+        assert len(m.poll(5)) == size
+        samples = list(m.monitor(5, count=2))
+        assert len(samples) == 2 and samples[1]["time_us"] > samples[0]["time_us"]
+        # Decoded by the profile, but a strobe response (8 bytes) is shown raw.
+        assert bool(samples[0]["fields"]) == (io != "strobe") and samples[0].get("note") is None
+
+
 def test_scan_finds_every_simulated_device():
     with dnet.Master(slave_macs=[5, 7]) as m:
         found = m.scan()
