@@ -99,7 +99,8 @@ class Master:
         """Samples of ``mac``, one every EPR, decoded by the device's profile."""
 
 class MonitorIter(Iterator[Dict[str, Any]]):
-    """The samples of Master.monitor: ``time_us``, ``fields``, ``link``, ``stale``, ``raw``."""
+    """The samples of Master.monitor: ``time_us``, ``fields``, ``link``, ``stale``, ``raw``, and
+    ``note`` when the data is not decoded although a description was given."""
 
     def __iter__(self) -> "MonitorIter": ...
     def __next__(self) -> Dict[str, Any]: ...
