@@ -317,6 +317,10 @@ pub enum HarnessError {
     /// A replay diverged from its transcript.
     #[error("{0}")]
     Divergence(Box<Divergence>),
+    /// A firmware update stopped (`firmware-update`); a file that does not fit the device is a
+    /// usage error, the device's refusals are not.
+    #[error(transparent)]
+    Update(Box<master_core::update::UpdateError>),
 }
 
 impl HarnessError {
@@ -341,6 +345,9 @@ impl HarnessError {
     /// A bad command-line value, option combination or input file: exit status 2.
     #[must_use]
     pub fn is_usage(&self) -> bool {
+        if let HarnessError::Update(u) = self {
+            return matches!(**u, master_core::update::UpdateError::File { .. });
+        }
         !matches!(
             self,
             HarnessError::Master(_)

@@ -19,6 +19,7 @@
 //! | [`decode`] | DeviceNet meaning of frames, with reassembly |
 //! | [`error`] | [`MasterError`](error::MasterError): why an operation stopped |
 //! | [`stop`] | [`Stop`](stop::Stop): a stop asked for by a signal, seen by the session while it waits |
+//! | [`update`] | the firmware update through the update object (class 0x6A): the signed file checked against the device, Update, Transfer, Verify, Apply, the device's return and its verdict |
 //!
 //! ## What it must not depend on
 //!
@@ -56,5 +57,6 @@ pub mod error;
 pub mod master;
 pub mod session;
 pub mod stop;
+pub mod update;
 
 pub use master::{io, recovery};

@@ -13,8 +13,8 @@
 //! stopped it). Output files are created before the bus is touched.
 
 use crate::commands::{
-    completions, configure, conformance, connect, decode, explicit, man, monitor, params, project, recover,
-    replay, scan, scanner, serial_trace, ui, units, user,
+    completions, configure, conformance, connect, decode, explicit, firmware_update, man, monitor, params,
+    project, recover, replay, scan, scanner, serial_trace, sign_firmware, ui, units, user,
 };
 use crate::options::GlobalOptions;
 use can_io::trace::write::log_format;
@@ -74,6 +74,18 @@ pub enum Command {
     /// Read (and with --set write) every parameter of the device: its Parameter object, or the
     /// `[Params]` of an EDS through their link paths.
     Params(params::ParamsArgs),
+    /// Update the device's firmware over DeviceNet (update object, class 0x6A): the signed FILE
+    /// checked against the device (board, size, key; the signature with --public-key), sent in
+    /// 128-byte chunks, verified and applied; then the device is awaited and its new revision and
+    /// whether the image confirmed are reported. Run again with the same file to resume an
+    /// interrupted transfer. Only the master that holds the device's explicit connection can
+    /// update it (the device refuses everyone else), and not while an I/O connection is
+    /// established.
+    FirmwareUpdate(firmware_update::FirmwareUpdateArgs),
+    /// Sign a firmware image for firmware-update: the ELF's loadable segments (or a flat binary)
+    /// followed by the 128-byte trailer signed with the Ed25519 seed in --key; refused when the
+    /// image-info block at 0x200 is missing or names another board than --board.
+    SignFirmware(sign_firmware::SignFirmwareArgs),
     /// Pretty-print a trace as DeviceNet messages (candump -L, pcap, pcapng, PCAN trc, Vector
     /// asc and blf, csv).
     Decode(decode::DecodeArgs),
@@ -168,6 +180,8 @@ pub fn execute(
         Command::Monitor(args) => monitor::execute(opts, args, out, err, console),
         Command::Configure(args) => configure::execute(opts, args, out, err, console),
         Command::Params(args) => params::execute(opts, args, out, err, console),
+        Command::FirmwareUpdate(args) => firmware_update::execute(opts, args, out, err, console),
+        Command::SignFirmware(args) => sign_firmware::execute(opts, args, out, err),
         Command::Decode(args) => decode::execute(opts, args, out, err, console),
         Command::SerialTrace(args) => serial_trace::execute(opts, args, out, err, console),
         Command::Units(args) => units::execute(opts, args, out, err, console),
