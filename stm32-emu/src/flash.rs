@@ -16,7 +16,23 @@
 //! set (a CR write, an array read or write, §3.6.1, §3.6.4) completes the operation at once and
 //! adds the remaining busy time to [`Flash::take_stall`], for the machine to add to its clock.
 //!
-//! The contents survive emulated power cycles: [`Flash::image`] and [`Flash::from_image`]. A
+//! The STM32F446RE has 512 KiB, sectors 0–7 (RM0390 §3.3 table 4; [`ArraySize::Kib512`], which
+//! [`crate::machine::Stm32::add_flash`] selects for that chip): an erase of sector 8–11 is refused
+//! like one of 12–15 (PGSERR, [`FlashNote::NoSuchSector`]: what the chip does is not documented),
+//! and a program beyond 0x0807_FFFF is a bus error, what an access to a reserved address is on
+//! the chip (the machine maps no flash there, so a CPU load or store faults before it reaches
+//! the model). PGSERR rather than a silent erase of nothing: firmware that names sector 8 on
+//! this part is wrong, and the error flag makes the HAL's erase fail loudly.
+//!
+//! The option bytes ([`OptionBytes`]: nWRP, RDP, USER, BOR_LEV) are flash cells too: OPTSTRT
+//! programs FLASH_OPTCR's values into them (at once: the model gives the operation no busy time),
+//! every reset loads them back into OPTCR (RM0090 §3.7.1), and the write protection in force is
+//! theirs, so an OPTCR write without OPTSTRT protects nothing and is gone at the next reset. RDP
+//! is kept but not enforced (no debugger here), and a level 1 → 0 change does not erase the
+//! array.
+//!
+//! The contents survive emulated power cycles: [`Flash::image`] and [`Flash::from_image`] for the
+//! array, [`Flash::option_bytes`] and [`Flash::with_option_bytes`] for the option bytes. A
 //! power cut can be planned at the n-th program or erase operation ([`Flash::plan_power_cut`]),
 //! with that operation not started or torn half-way; the model then stops and reports it
 //! ([`Flash::power_cut`]).
@@ -24,12 +40,44 @@
 use crate::gpio::{lanes, read_lanes};
 use crate::periph::{Machine, Nanos, Peripheral, ResetKind, Width};
 
+mod options;
+pub use options::OptionBytes;
+
 /// The interface registers' base address (RM0090 §2.3 table 1).
 pub const BASE: u32 = 0x4002_3C00;
 /// The main memory array's address (RM0090 §3.3 table 5).
 pub const ARRAY_BASE: u32 = 0x0800_0000;
-/// The main memory array's size: 1 MiB on the STM32F405RG.
+/// The main memory array's size: 1 MiB on the STM32F405RG. (The model always keeps this many
+/// bytes; on a smaller part, [`ArraySize`], the rest stays erased and out of reach.)
 pub const ARRAY_SIZE: usize = 1024 * 1024;
+
+/// How much of the array the part has (RM0090 §3.3 table 5, RM0390 §3.3 table 4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ArraySize {
+    /// 1 MiB, sectors 0–11 (STM32F405RG).
+    #[default]
+    Mib1,
+    /// 512 KiB, sectors 0–7 (STM32F446RE).
+    Kib512,
+}
+
+impl ArraySize {
+    /// The size in bytes.
+    pub const fn bytes(self) -> usize {
+        match self {
+            ArraySize::Mib1 => ARRAY_SIZE,
+            ArraySize::Kib512 => ARRAY_SIZE / 2,
+        }
+    }
+
+    /// The number of sectors.
+    pub const fn sectors(self) -> u8 {
+        match self {
+            ArraySize::Mib1 => 12,
+            ArraySize::Kib512 => 8,
+        }
+    }
+}
 /// The flash global interrupt's position (RM0090 §12.2 table 61).
 pub const IRQ: u16 = 4;
 /// KEY1 of the unlock sequence (RM0090 §3.6.1).
@@ -217,8 +265,9 @@ pub enum FlashNote {
         /// FLASH_ACR.LATENCY.
         latency: u32,
     },
-    /// STRT with an erase of a sector the part does not have (SNB 12–15 on a 1 MiB part):
-    /// RM0090 does not say what happens; the model raises PGSERR.
+    /// STRT with an erase of a sector the part does not have (SNB 12–15 on a 1 MiB part, 8–15
+    /// on a 512 KiB one): RM0090 and RM0390 do not say what happens (RM0390's FLASH_CR lists
+    /// SNB values for sectors 0–7 only; not retrieved here); the model raises PGSERR.
     NoSuchSector(u8),
     /// An array write while BSY was set: the bus stalled (RM0090 §3.6.4).
     Stalled,
@@ -233,7 +282,7 @@ impl std::fmt::Display for FlashNote {
                     "flash read with {latency} wait states at HCLK {hclk} Hz (RM0090 table 10 asks more)"
                 )
             }
-            FlashNote::NoSuchSector(n) => write!(f, "erase of sector {n}, which a 1 MiB part does not have"),
+            FlashNote::NoSuchSector(n) => write!(f, "erase of sector {n}, which this part does not have"),
             FlashNote::Stalled => f.write_str("flash array written while BSY: the bus stalled"),
         }
     }
@@ -243,6 +292,9 @@ impl std::fmt::Display for FlashNote {
 #[derive(Clone, Debug)]
 pub struct Flash {
     array: Vec<u8>,
+    size: ArraySize,
+    /// The option bytes programmed (OPTCR's values at every reset).
+    options: OptionBytes,
     timing: FlashTiming,
     voltage: VoltageRange,
     now: Nanos,
@@ -278,9 +330,9 @@ impl std::fmt::Display for WrongImageSize {
 
 impl std::error::Error for WrongImageSize {}
 
-/// The OPTCR reset value: nWRP all set (no protection), RDP level 0 (0xAA), OPTLOCK set
-/// (RM0090 §3.9.6: 0x0FFF AAED).
-const OPTCR_RESET: u32 = 0x0FFF_AAED;
+/// FLASH_OPTCR's OPTLOCK and OPTSTRT (RM0090 §3.9.6).
+const OPTLOCK: u32 = 1 << 0;
+const OPTSTRT: u32 = 1 << 1;
 
 impl Flash {
     /// An erased array (every byte 0xFF), registers at reset, the datasheet's timing, 3.3 V.
@@ -299,13 +351,15 @@ impl Flash {
     fn with_array(array: Vec<u8>) -> Flash {
         Flash {
             array,
+            size: ArraySize::Mib1,
+            options: OptionBytes::FACTORY,
             timing: FlashTiming::default(),
             voltage: VoltageRange::V27To36,
             now: 0,
             acr: 0,
             cr: cr::LOCK,
             sr: 0,
-            optcr: OPTCR_RESET,
+            optcr: OptionBytes::FACTORY.optcr() | OPTLOCK,
             key1_seen: false,
             optkey1_seen: false,
             locked_up: false,
@@ -324,6 +378,31 @@ impl Flash {
     pub fn with_timing(mut self, timing: FlashTiming) -> Flash {
         self.timing = timing;
         self
+    }
+
+    /// A part with `size` of flash (the array keeps [`ARRAY_SIZE`] bytes; beyond `size` they
+    /// stay as they are and out of reach).
+    pub fn with_size(mut self, size: ArraySize) -> Flash {
+        self.size = size;
+        self
+    }
+
+    /// The part's flash size.
+    pub fn size(&self) -> ArraySize {
+        self.size
+    }
+
+    /// Option bytes as a previous power cycle left them ([`Flash::option_bytes`]); OPTCR shows
+    /// them (locked), as after a reset.
+    pub fn with_option_bytes(mut self, options: OptionBytes) -> Flash {
+        self.options = options;
+        self.optcr = options.optcr() | OPTLOCK;
+        self
+    }
+
+    /// The option bytes programmed: what survives a power cycle with [`Flash::image`].
+    pub fn option_bytes(&self) -> OptionBytes {
+        self.options
     }
 
     /// Runs at `voltage` (the board: 2.7–3.6 V).
@@ -449,7 +528,12 @@ impl Flash {
     }
 
     fn write_protected(&self, sector: u8) -> bool {
-        sector < 12 && self.optcr >> (16 + sector) & 1 == 0
+        self.options.write_protected(sector)
+    }
+
+    /// Sector `n`'s offset and size, if the part has it.
+    fn existing_sector(&self, n: u8) -> Option<(usize, usize)> {
+        sector(n).filter(|_| n < self.size.sectors())
     }
 
     /// The sector holding array offset `offset`.
@@ -464,9 +548,15 @@ impl Flash {
         let snb = ((self.cr & cr::SNB) >> 3) as u8;
         let psize = self.psize() as usize;
         let (range, busy) = if self.cr & cr::MER != 0 {
-            (0..ARRAY_SIZE, self.timing.mass_erase[psize])
+            // A mass erase with a protected sector is refused (RM0090 §3.6.3 does not say;
+            // RM0090 §3.9.4's WRPERR covers "an erase ... to a write-protected part").
+            if (0..self.size.sectors()).any(|n| self.write_protected(n)) {
+                self.error(sr::WRPERR);
+                return;
+            }
+            (0..self.size.bytes(), self.timing.mass_erase[psize])
         } else if self.cr & cr::SER != 0 {
-            let Some((start, len)) = sector(snb) else {
+            let Some((start, len)) = self.existing_sector(snb) else {
                 self.note(FlashNote::NoSuchSector(snb));
                 self.error(sr::PGSERR);
                 return;
@@ -546,12 +636,16 @@ impl Flash {
     }
 
     /// FLASH_OPTCR (RM0090 §3.9.6), writable while OPTLOCK is clear. OPTSTRT programs the
-    /// option bytes: the model takes the register's values at once (no busy time).
+    /// register's values into the option bytes, at once (no busy time), unless an operation is
+    /// under way (§3.7.2: BSY must be clear; the model then ignores OPTSTRT).
     fn write_optcr(&mut self, value: u32) {
-        if self.optcr & 1 != 0 {
+        if self.optcr & OPTLOCK != 0 {
             return;
         }
-        self.optcr = value & 0x0FFF_FFED & !2;
+        self.optcr = OptionBytes::from_optcr(value).optcr() | value & OPTLOCK;
+        if value & OPTSTRT != 0 && !self.busy() {
+            self.options = OptionBytes::from_optcr(value);
+        }
     }
 
     fn read_register(&mut self, offset: u32) -> u32 {
@@ -614,7 +708,12 @@ impl Flash {
         if bytes != psize_bytes || self.psize() > self.voltage.max_psize() {
             return self.error(sr::PGPERR);
         }
-        if at % 16 + bytes > 16 || at + bytes > ARRAY_SIZE {
+        if at + bytes > self.size.bytes() {
+            // Past the part's flash the memory map is reserved (RM0390's memory map): a bus error.
+            self.bus_error = true;
+            return;
+        }
+        if at % 16 + bytes > 16 {
             return self.error(sr::PGAERR);
         }
         if self.write_protected(Flash::sector_of(at)) {
@@ -701,7 +800,8 @@ impl Peripheral for Flash {
         self.acr = 0;
         self.cr = cr::LOCK;
         self.sr = 0;
-        self.optcr |= 1;
+        // OPTCR loads the option bytes at reset (RM0090 §3.7.1), locked.
+        self.optcr = self.options.optcr() | OPTLOCK;
         self.key1_seen = false;
         self.optkey1_seen = false;
         self.locked_up = false;

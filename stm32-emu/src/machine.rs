@@ -62,7 +62,7 @@
 //! and the enable bit: firmware that touches a peripheral it has not clocked is broken, and would
 //! otherwise spin on a flag that never rises.
 
-use crate::cpu::bus::{Bus, UnclockedAccess, FLASH_BASE, FLASH_SIZE};
+use crate::cpu::bus::{Bus, UnclockedAccess, FLASH_BASE};
 use crate::cpu::core::{Core, CoreFault, MemoryMap, Return, SliceEnd};
 use crate::cpu::scs::{exception, Scs};
 use crate::periph::{Clocks, Machine, Nanos, Peripheral, ResetCause, ResetKind};
@@ -75,8 +75,8 @@ pub enum Chip {
     /// STM32F405RG: 1 MiB flash, 112 + 16 KiB SRAM, 64 KiB CCM, 82 interrupt lines (RM0090
     /// §2.3.1, §12.2).
     Stm32F405,
-    /// STM32F446RE: 512 KiB flash in the RE package (mapped as 1 MiB here), 128 KiB SRAM, no
-    /// CCM, 97 interrupt lines (RM0390 §2.3, §10.2).
+    /// STM32F446RE: 512 KiB flash in the RE package (sectors 0–7; an access past 0x0807_FFFF
+    /// is a bus fault), 128 KiB SRAM, no CCM, 97 interrupt lines (RM0390 §2.3, §10.2).
     Stm32F446,
 }
 
@@ -256,8 +256,13 @@ impl Stm32 {
     /// Adds the FLASH interface model ([`crate::flash::Flash`], which keeps the array itself)
     /// at its register block (RM0090 §2.3 table 1: 0x4002_3C00). Its array becomes the
     /// machine's flash contents (a model made [`crate::flash::Flash::from_image`] brings a
-    /// previous run's); CPU stores into flash go to [`crate::flash::Flash::array_write`].
+    /// previous run's); CPU stores into flash go to [`crate::flash::Flash::array_write`]. On the
+    /// F446 the model is given the chip's 512 KiB ([`crate::flash::ArraySize::Kib512`]).
     pub fn add_flash(&mut self, flash: crate::flash::Flash) -> Result<(), Fault> {
+        let flash = match self.chip {
+            Chip::Stm32F405 => flash,
+            Chip::Stm32F446 => flash.with_size(crate::flash::ArraySize::Kib512),
+        };
         let port = crate::cpu::flash_port::FlashPort::new(flash);
         self.add_peripheral(crate::flash::BASE, 0x400, Box::new(port))?;
         self.core.bus_mut().sync_flash_arrays();
@@ -277,10 +282,11 @@ impl Stm32 {
     }
 
     /// Writes `bytes` into the flash array at `offset` from 0x0800_0000 (a programmer's
-    /// download: no FLASH model involved).
+    /// download: no FLASH model involved). Refused past the chip's flash (512 KiB on the F446).
     pub fn program_flash(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Fault> {
         let start = offset as usize;
-        let end = start.checked_add(bytes.len()).filter(|&e| e <= FLASH_SIZE as usize);
+        let size = self.chip.memory().flash_bytes() as usize;
+        let end = start.checked_add(bytes.len()).filter(|&e| e <= size);
         let Some(end) = end else {
             return Err(Fault::Elf(format!("{} bytes at flash offset {offset:#x} do not fit", bytes.len())));
         };
@@ -314,13 +320,14 @@ impl Stm32 {
     /// normally). Nothing is programmed if a file cannot be read, has a segment outside flash, or
     /// has a segment that overlaps another's ([`Fault::ElfOverlap`] names both).
     pub fn load_elfs(&mut self, elfs: &[&[u8]]) -> Result<(), Fault> {
+        let flash_end = u64::from(FLASH_BASE) + u64::from(self.chip.memory().flash_bytes());
         let mut segments: Vec<(ElfSegment, &[u8])> = Vec::new();
         for (index, elf) in elfs.iter().enumerate() {
             let which = if elfs.len() > 1 { format!("ELF {index}: ") } else { String::new() };
             let loads = crate::cpu::elf::load_segments(elf).map_err(|e| Fault::Elf(format!("{which}{e}")))?;
             for (address, data) in loads {
                 let end = u64::from(address) + data.len() as u64;
-                let in_flash = address >= FLASH_BASE && end <= u64::from(FLASH_BASE) + u64::from(FLASH_SIZE);
+                let in_flash = address >= FLASH_BASE && end <= flash_end;
                 if !in_flash {
                     return Err(Fault::Elf(format!("{which}segment at {address:#010x} is not in flash")));
                 }

@@ -145,3 +145,47 @@ fn sleep_on_exit() {
     assert_eq!(mcu.register(RegisterARM::R4), thread_count, "the thread no longer runs");
     assert!(mcu.sleeping());
 }
+
+/// The STM32F446RE's flash ends at 0x0807_FFFF (RM0390 §3.3, 512 KiB): a load or store past it
+/// is a bus fault, the last byte is there, and a programmer's download past it is refused.
+#[rstest]
+#[case::f446_load_past_the_end(Chip::Stm32F446, 0x0808_0000, false, Some(0x0808_0000))]
+#[case::f446_store_past_the_end(Chip::Stm32F446, 0x0808_0000, true, Some(0x0808_0000))]
+#[case::f446_alias_past_the_end(Chip::Stm32F446, 0x0008_0000, false, Some(0x0008_0000))]
+#[case::f446_last_word(Chip::Stm32F446, 0x0807_FFFC, false, None)]
+#[case::f405_has_1_mib(Chip::Stm32F405, 0x0808_0000, true, None)]
+fn flash_ends_where_the_chip_s_does(
+    #[case] chip: Chip,
+    #[case] address: u32,
+    #[case] store: bool,
+    #[case] fault: Option<u32>,
+) {
+    let mut main = Asm::new(RESET);
+    main.ldr_const(0, address).movs(1, 0);
+    if store {
+        main.str(1, 0, 0);
+    } else {
+        main.ldr(1, 0, 0);
+    }
+    main.movs(4, 42);
+    let here = main.here();
+    main.b(here);
+    let mut mcu = Stm32::new(chip, [0; 12]).expect("machine");
+    mcu.add_flash(stm32_emu::flash::Flash::new()).expect("FLASH");
+    flash(&mut mcu, &image(&mut [(RESET, main)], &[]));
+    let result = mcu.run_for(10_000);
+    match fault {
+        Some(at) => {
+            let Err(stm32_emu::machine::Fault::Core(CoreFault::Bus { address, write, .. })) = result else {
+                panic!("no bus fault: {result:?}");
+            };
+            assert_eq!((address, write), (at, store));
+        }
+        None => {
+            result.expect("runs");
+            assert_eq!(mcu.register(RegisterARM::R4), 42);
+        }
+    }
+    let past_the_end = mcu.program_flash(0x8_0000, &[0]);
+    assert_eq!(past_the_end.is_err(), chip == Chip::Stm32F446, "{past_the_end:?}");
+}

@@ -57,8 +57,21 @@ pub struct MemoryMap {
     /// Core-coupled memory from 0x1000_0000, in bytes (0 where there is none).
     pub ccm: u32,
     /// The flash size in KiB as the device's F_SIZE register at 0x1FFF_7A22 reads it (RM0090
-    /// §39.2 "Flash size").
+    /// §39.2 "Flash size"); the CPU sees this much flash (at most [`FLASH_SIZE`]), and an access
+    /// past it is a bus fault.
     pub flash_kib: u16,
+}
+
+impl MemoryMap {
+    /// The flash the CPU sees, in bytes.
+    pub const fn flash_bytes(self) -> u32 {
+        let bytes = self.flash_kib as u32 * 1024;
+        if bytes < FLASH_SIZE {
+            bytes
+        } else {
+            FLASH_SIZE
+        }
+    }
 }
 
 /// SRAM's base address.
@@ -194,8 +207,9 @@ impl Core {
         uc.ctl_set_cpu_model(ArmCpuModel::CORTEX_M4 as i32)?;
         // The flash array and its alias at 0 (boot from main flash, RM0090 §2.4 "Boot
         // configuration", BOOT0 = 0): two copies refreshed together, never written by the CPU.
-        uc.mem_map(u64::from(FLASH_BASE), u64::from(FLASH_SIZE), Prot::READ | Prot::EXEC)?;
-        uc.mem_map(0, u64::from(FLASH_SIZE), Prot::READ | Prot::EXEC)?;
+        let flash = u64::from(map.flash_bytes());
+        uc.mem_map(u64::from(FLASH_BASE), flash, Prot::READ | Prot::EXEC)?;
+        uc.mem_map(0, flash, Prot::READ | Prot::EXEC)?;
         uc.mem_map(u64::from(SRAM_BASE), u64::from(map.sram), Prot::ALL)?;
         if map.ccm > 0 {
             // The CCM is on the D-bus only: data, no instruction fetch (RM0090 §2.3.1).
@@ -364,8 +378,9 @@ impl Core {
             return;
         }
         let flash = core::mem::take(&mut self.bus_mut().flash);
-        let _ = self.uc.mem_write(u64::from(FLASH_BASE), &flash);
-        let _ = self.uc.mem_write(0, &flash);
+        let seen = &flash[..(self.map.flash_bytes() as usize).min(flash.len())];
+        let _ = self.uc.mem_write(u64::from(FLASH_BASE), seen);
+        let _ = self.uc.mem_write(0, seen);
         let bus = self.bus_mut();
         bus.flash = flash;
         bus.flash_dirty = false;

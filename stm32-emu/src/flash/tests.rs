@@ -302,3 +302,104 @@ fn image_must_be_the_array_size() {
     f.load(0, &[1, 2, 3]);
     assert_eq!(&f.image()[..4], &[1, 2, 3, 0xFF]);
 }
+
+/// OPTKEYR's sequence, then OPTCR = `optcr` (with OPTSTRT when `start`), as the HAL's
+/// `flash::unlock_option_bytes` and a write of FLASH_OPTCR do.
+fn write_options(f: &mut Flash, m: &mut TestMachine, options: OptionBytes, start: bool) {
+    f.write(reg::OPTKEYR, Width::Word, OPTKEY1, m);
+    f.write(reg::OPTKEYR, Width::Word, OPTKEY2, m);
+    f.write(reg::OPTCR, Width::Word, options.optcr() | if start { 2 } else { 0 }, m);
+}
+
+#[test]
+fn write_protection_of_sector_0_survives_a_power_cycle() {
+    let mut m = TestMachine::default();
+    let mut f = fast();
+    let protect_0 = OptionBytes::FACTORY.with_write_protection(0, true);
+    write_options(&mut f, &mut m, protect_0, true);
+    // A power cycle: a new model from what the old one kept.
+    let mut f = Flash::from_image(f.image().to_vec()).unwrap().with_timing(FlashTiming::FAST);
+    assert_eq!(f.read(reg::OPTCR, Width::Word, &mut m), 0x0FFF_AAED, "a fresh model: factory options");
+    f = f.with_option_bytes(protect_0);
+    assert_eq!(f.read(reg::OPTCR, Width::Word, &mut m), 0x0FFE_AAED, "nWRP0 clear, OPTLOCK set");
+    assert!(hal_unlock(&mut f, &mut m));
+    assert_eq!(hal_erase(&mut f, &mut m, 0), sr::WRPERR);
+    f.write(reg::SR, Width::Word, sr::W1C, &mut m);
+    assert_eq!(hal_program(&mut f, &mut m, 0x100, &[0]), sr::WRPERR);
+    assert_eq!(f.image()[0x100], 0xFF);
+    f.write(reg::SR, Width::Word, sr::W1C, &mut m);
+    assert_eq!(hal_erase(&mut f, &mut m, 1), 0, "sector 1 is not protected");
+    assert_eq!(hal_program(&mut f, &mut m, 0x4000, &[0x5A]), 0);
+    assert_eq!(f.image()[0x4000], 0x5A);
+}
+
+#[rstest]
+#[case::programmed(true, true)]
+#[case::written_without_optstrt(false, false)]
+fn optcr_reloads_the_option_bytes_at_reset(#[case] start: bool, #[case] protected: bool) {
+    let mut m = TestMachine::default();
+    let mut f = fast();
+    write_options(&mut f, &mut m, OptionBytes::FACTORY.with_write_protection(10, true), start);
+    assert!(hal_unlock(&mut f, &mut m));
+    let error = if protected { sr::WRPERR } else { 0 };
+    assert_eq!(hal_erase(&mut f, &mut m, 10), error, "protection in force: the option bytes'");
+    for kind in [ResetKind::System, ResetKind::PowerOn] {
+        f.reset(kind);
+        let optcr = f.read(reg::OPTCR, Width::Word, &mut m);
+        assert_eq!(optcr >> 26 & 1 == 0, protected, "{kind:?}: OPTCR {optcr:#010x}");
+        assert_eq!(optcr & 1, 1, "locked again");
+    }
+    assert_eq!(f.option_bytes().write_protected(10), protected);
+}
+
+#[test]
+fn mass_erase_with_a_protected_sector_is_refused() {
+    let mut m = TestMachine::default();
+    let mut f = Flash::from_image(vec![0; ARRAY_SIZE]).unwrap().with_timing(FlashTiming::FAST);
+    write_options(&mut f, &mut m, OptionBytes::FACTORY.with_write_protection(0, true), true);
+    assert!(hal_unlock(&mut f, &mut m));
+    modify_cr(&mut f, &mut m, cr::PSIZE, cr::MER | cr::STRT | 2 << 8);
+    assert_eq!(hal_wait(&mut f, &mut m), sr::WRPERR);
+    assert!(f.image().iter().all(|&b| b == 0), "nothing erased");
+}
+
+#[test]
+fn option_bytes_fields() {
+    let factory = OptionBytes::FACTORY;
+    assert_eq!((factory.read_protection(), factory.read_protection_level_0()), (0xAA, true));
+    assert!(!factory.hardware_watchdog());
+    assert!(OptionBytes::from_optcr(factory.optcr() & !(1 << 5)).hardware_watchdog(), "WDG_SW clear");
+    assert_eq!(
+        OptionBytes::from_optcr(0xFFFF_FFFF).optcr(),
+        0x0FFF_FFEC,
+        "control and reserved bits dropped"
+    );
+    assert!(!factory.with_write_protection(12, true).write_protected(12), "no sector 12 bit");
+}
+
+/// The STM32F446RE's 512 KiB (RM0390 §3.3: sectors 0–7).
+#[rstest]
+#[case::sector_7(7, 0)]
+#[case::sector_8(8, sr::PGSERR)]
+#[case::sector_11(11, sr::PGSERR)]
+fn f446_has_sectors_0_to_7(#[case] sector: u32, #[case] error: u32) {
+    let mut m = TestMachine::default();
+    let mut f = fast().with_size(ArraySize::Kib512);
+    assert!(hal_unlock(&mut f, &mut m));
+    assert_eq!(hal_erase(&mut f, &mut m, sector), error);
+    assert_eq!(f.notes().contains(&FlashNote::NoSuchSector(sector as u8)), error != 0);
+}
+
+#[test]
+fn f446_program_past_512_kib_is_a_bus_error() {
+    let mut m = TestMachine::default();
+    let mut f = fast().with_size(ArraySize::Kib512);
+    assert!(hal_unlock(&mut f, &mut m));
+    modify_cr(&mut f, &mut m, cr::PSIZE, cr::PG);
+    f.array_write(0x8_0000, Width::Byte, 0, &mut m);
+    assert!(f.take_bus_error());
+    assert_eq!((f.image()[0x8_0000], f.operations()), (0xFF, 0));
+    f.array_write(0x7_FFFF, Width::Byte, 0, &mut m);
+    assert!(!f.take_bus_error());
+    assert_eq!(f.image()[0x7_FFFF], 0);
+}
