@@ -368,7 +368,7 @@ pub enum UpdateError {
 }
 
 /// The name of an update object's refusal (design page, "Refusals"): 0xD0 with additional codes
-/// 1–5, 0x16, and every other status as the decoder names it.
+/// 1–5, 0x16, and every other status by its CIP name: `0x10/0xFF (device state conflict)`.
 pub fn refusal_text(general: GeneralStatus, additional: u8) -> String {
     let code = general.as_raw();
     let named = match (code, additional) {
@@ -382,7 +382,7 @@ pub fn refusal_text(general: GeneralStatus, additional: u8) -> String {
     };
     match named {
         Some(name) => format!("0x{code:02X}/0x{additional:02X} ({name})"),
-        None => format!("0x{code:02X}/0x{additional:02X} ({})", decode::error_text(general, additional)),
+        None => format!("0x{code:02X}/0x{additional:02X} ({})", general.name().unwrap_or("unknown status")),
     }
 }
 
@@ -437,10 +437,11 @@ fn read<const N: usize>(
     let bytes = match answer.reply.body {
         ReplyBody::Success(bytes) => bytes,
         ReplyBody::Error { general, additional } => {
-            let text = refusal_text(general, additional);
             if class_id == CLASS && general == GeneralStatus::ObjectDoesNotExist {
+                let text = decode::error_text(general, additional);
                 return Err(UpdateError::NotUpdatable { mac: mac.as_raw(), text });
             }
+            let text = refusal_text(general, additional);
             return Err(UpdateError::Refused { mac: mac.as_raw(), step, general, additional, text });
         }
     };
@@ -653,5 +654,47 @@ fn come_back(master: &mut Master<'_, '_>, mac: MacId, applied_at: Instant) -> Re
             Err(MasterError::Timeout { .. }) => return Err(not_back),
             Err(e) => return Err(e.into()),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::master::MasterConfig;
+    use crate::session::Session;
+    use can_io::bus::Bitrate;
+    use can_io::sim::{PowerOn, SimBus};
+    use converter_sim::SoftSlave;
+    use rstest::rstest;
+
+    #[rstest]
+    #[case::bad_signature(0xD0, 1, "0xD0/0x01 (bad signature)")]
+    #[case::another_board(0xD0, 2, "0xD0/0x02 (another board)")]
+    #[case::length(0xD0, 3, "0xD0/0x03 (length mismatch)")]
+    #[case::no_info(0xD0, 4, "0xD0/0x04 (no image-info block)")]
+    #[case::another_key(0xD0, 5, "0xD0/0x05 (another key)")]
+    #[case::not_updatable(0x16, 0xFF, "0x16/0xFF (this firmware cannot be updated over the network)")]
+    #[case::io(0x10, 0xFF, "0x10/0xFF (device state conflict)")]
+    fn refusals_keep_their_codes_with_names(#[case] general: u8, #[case] additional: u8, #[case] text: &str) {
+        assert_eq!(refusal_text(GeneralStatus::from(general), additional), text);
+    }
+
+    #[test]
+    fn a_device_without_the_update_object_cannot_be_updated() {
+        let mac = MacId::new(5).unwrap();
+        let mut bus = SimBus::new(Bitrate::K250);
+        bus.attach(Box::new(SoftSlave::reference(mac)), PowerOn::WhenMasterOnline);
+        let mut session = Session::new(&mut bus);
+        let mut master = Master::new(&mut session, MasterConfig::default());
+        let bytes = file::tests::signed(1000, 5);
+        let file = UpdateFile::parse("f.bin", bytes).unwrap();
+        let mut events = Vec::new();
+        let err = run(&mut master, mac, &file, None, &mut |e| events.push(e)).unwrap_err();
+        assert!(
+            matches!(&err, UpdateError::NotUpdatable { mac: 5, text } if text.starts_with("object does not exist")),
+            "{err}"
+        );
+        assert!(events.is_empty(), "nothing announced: {events:?}");
+        assert_eq!(session.failures(), 0);
     }
 }

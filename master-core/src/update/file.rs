@@ -193,7 +193,7 @@ pub fn check_file(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::update::DeviceState;
     use rstest::rstest;
