@@ -14,7 +14,7 @@
 //! | [`cpu`] | the Cortex-M4 on unicorn: memory map, ELF loading, NVIC, SCB, SysTick, exception entry and return (unicorn has no NVIC) | PM0214 §2.3, §4.2–§4.5 |
 //! | [`machine`] | the chip: models by address, time (one instruction, one HCLK cycle), sleep, resets (with their cause in RCC_CSR), several ELF files (a bootloader and its application) loaded before the power-on reset | RM0090 §2.3, §7.1 |
 //! | [`rcc`] | HSI, HSE, PLL with ready flags, clock gates, resets | RM0090 §7.3 |
-//! | [`flash`] | the FLASH interface and its array: unlock, PSIZE, sector erase, error flags, power cuts | RM0090 §3 |
+//! | [`flash`] | the FLASH interface and its array: unlock, PSIZE, sector erase, error flags, power cuts, option bytes kept across power cycles (write protection, RDP, WDG_SW), the F446's 512 KiB | RM0090 §3, RM0390 §3 |
 //! | [`gpio`] | modes, alternate functions, pulls, BSRR, LCKR, levels from outside | RM0090 §8.4 |
 //! | [`usart`] | BRR and oversampling, parity, stop bits, flags, the line's timing and garbling | RM0090 §30 |
 //! | [`bxcan`] | CAN1: modes, BTR, filters, mailboxes, FIFOs, error counting, bus-off | RM0090 §32 |
