@@ -8,8 +8,11 @@ use core::fmt;
 
 /// Largest I/O assembly (produced or consumed size) the node holds, in bytes.
 pub const MAX_IO_SIZE: usize = 128;
-/// Largest explicit message (header + body) the node reassembles or sends.
-pub const MAX_EXPLICIT_SIZE: usize = 64;
+/// Largest explicit message (header + body) the node reassembles or sends: a firmware update's
+/// Transfer request (header, service, class, instance, chunk number and a 128-byte chunk: 136
+/// bytes; docs/src/development/firmware-update.md) with 4 bytes to spare. The Connection object's
+/// explicit messaging instance reports it as its produced and consumed sizes.
+pub const MAX_EXPLICIT_SIZE: usize = 140;
 /// The most input data a bit-strobe response carries: a strobe response is never fragmented
 /// (protocol §II.1.3), so a device with a larger input image answers a strobe with the first
 /// `STROBE_MAX_SIZE` bytes of it (docs/src/reference/io-connections.md).

@@ -91,8 +91,39 @@ fn oversized_fragmented_request_is_rejected_with_too_much_data() {
     let mut rig = Rig::explicit();
     let mut acks = Vec::new();
     acks.extend(rig.send(0x42C, &[0x80, 0x00, 0x10, 0x04, 0x96, 0x03, 0, 0]));
-    for count in 1..=12u8 {
+    // 6 body bytes a fragment: one more fragment than MAX_EXPLICIT_SIZE holds.
+    let middles = (MAX_EXPLICIT_SIZE / 6) as u8;
+    for count in 1..=middles {
         acks.extend(rig.send(0x42C, &[0x80, 0x40 | count, 0, 0, 0, 0, 0, 0]));
     }
     assert!(acks.iter().any(|(_, d)| d.len() == 3 && d[2] == 0x01), "an ack with status 1: {acks:02X?}");
+}
+
+#[test]
+fn a_firmware_update_transfer_request_is_reassembled_and_served() {
+    // Service 0x4D, class 0x6A, instance 1, chunk number (4), 128 bytes: 135 body bytes in 23
+    // fragments of 6 (the last 3), each acknowledged with status 0 (firmware-update.md).
+    let mut body = std::vec![0x4D, 0x6A, 0x01, 0, 0, 0, 0];
+    body.extend((0..128).map(|i| i as u8));
+    let fragments: Vec<&[u8]> = body.chunks(6).collect();
+    assert_eq!(fragments.len(), 23);
+    let mut rig = Rig::explicit();
+    for (count, part) in fragments.iter().enumerate() {
+        let kind = match count {
+            0 => 0x00,
+            22 => 0x80,
+            _ => 0x40,
+        };
+        let mut frame = std::vec![0x80, kind | count as u8];
+        frame.extend_from_slice(part);
+        let out = rig.send(0x42C, &frame);
+        assert_eq!(out[0], (0x42B, std::vec![0x80, 0xC0 | count as u8, 0x00]), "fragment {count} acked");
+        if count == 22 {
+            // Served: the rig has no class 0x6A, so the answer is an error response, not a
+            // "too much data" acknowledgement.
+            assert_eq!(out.get(1), Some(&(0x42B, std::vec![0x00, 0x94, 0x16, 0xFF])), "{out:02X?}");
+        } else {
+            assert_eq!(out.len(), 1, "fragment {count}");
+        }
+    }
 }

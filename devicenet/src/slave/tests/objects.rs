@@ -65,8 +65,9 @@ fn explicit_services(#[case] body: &[u8], #[case] response: &[u8]) {
 #[case::e_produced_id(1, 4, &[0x2B, 0x04])]
 #[case::e_consumed_id(1, 5, &[0x2C, 0x04])]
 #[case::e_comm_characteristics(1, 6, &[0x21])]
-#[case::e_produced_size(1, 7, &[0x40, 0x00])]
-#[case::e_consumed_size(1, 8, &[0x40, 0x00])]
+// MAX_EXPLICIT_SIZE, 140: a firmware update's Transfer request fits (config.rs).
+#[case::e_produced_size(1, 7, &[0x8C, 0x00])]
+#[case::e_consumed_size(1, 8, &[0x8C, 0x00])]
 #[case::e_epr(1, 9, &[0xC4, 0x09])]
 #[case::e_watchdog(1, 12, &[0x01])]
 #[case::e_produced_path_len(1, 13, &[0x00, 0x00])]
