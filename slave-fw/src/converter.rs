@@ -79,6 +79,25 @@ pub use parameters::PARAMETER_CLASS;
 pub use units_object::UNITS_CLASS;
 use vendor::VendorObjects;
 
+/// An object the application serves beside the converter's own, over the same explicit
+/// connection (so only the master that owns it reaches the object): the firmware update object
+/// ([`crate::update`]), which needs the board's flash. Requests to a class that neither the node
+/// nor the converter serves go to it ([`Converter::handle_can_frame_with`]).
+pub trait ApplicationObject {
+    /// Serves `req` when its class is the object's, `None` otherwise. `io_established`: an I/O
+    /// connection is established.
+    fn handle(
+        &mut self,
+        req: &devicenet::explicit::Request<'_>,
+        reply: &mut devicenet::slave::Reply<'_>,
+        io_established: bool,
+        now: Instant,
+    ) -> Option<Result<(), devicenet::slave::ServiceError>>;
+
+    /// As [`devicenet::slave::ObjectHandler::class_revision`].
+    fn class_revision(&self, class: u16) -> Option<u16>;
+}
+
 /// Input assembly instance with the instrument's image only.
 pub const PLAIN_INPUT_ASSEMBLY: u8 = 100;
 /// Input assembly instance with the image, the status byte and the freshness counter.
@@ -441,6 +460,26 @@ impl Converter {
 
     /// A CAN frame was received.
     pub fn handle_can_frame(&mut self, frame: &CanFrame, now: Instant) {
+        self.handle_can_frame_inner(frame, now, None);
+    }
+
+    /// [`Converter::handle_can_frame`] with an object the application serves beside the
+    /// converter's own (the firmware update object, [`crate::update`]).
+    pub fn handle_can_frame_with(
+        &mut self,
+        frame: &CanFrame,
+        now: Instant,
+        extra: &mut dyn ApplicationObject,
+    ) {
+        self.handle_can_frame_inner(frame, now, Some(extra));
+    }
+
+    fn handle_can_frame_inner(
+        &mut self,
+        frame: &CanFrame,
+        now: Instant,
+        extra: Option<&mut dyn ApplicationObject>,
+    ) {
         let io_established = self.node.poll_connection().state == ConnectionState::Established;
         let mut objects = VendorObjects {
             profile: &self.profile,
@@ -449,6 +488,11 @@ impl Converter {
             io_established,
             trace: &mut self.trace,
             now,
+            // The trait object's lifetime shortened to this call's (a reborrow).
+            extra: match extra {
+                Some(e) => Some(e),
+                None => None,
+            },
         };
         self.node.handle_frame_with(frame, now, &mut objects);
         self.sync(now);

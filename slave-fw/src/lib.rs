@@ -23,6 +23,7 @@
 //! | [`serial::profile`] | [`Profile`](serial::Profile): one concrete type the converter drives for any instrument |
 //! | [`converter`] | the [`Converter`](converter::Converter): slave node + profile, input assemblies 100/101, the Identity Reset's delay ([`RESET_DELAY`](converter::RESET_DELAY), [`poll_reset`](converter::Converter::poll_reset)) |
 //! | [`converter::objects`] | the vendor objects 0x64 (serial link) and 0x65 (settings): one attribute table each, served by the converter and written into the EDS by `eds::generate` |
+//! | [`update`] | the firmware update object, class 0x6A: an image received in chunks into the DFU flash, checked against its signature, handed to the bootloader |
 //! | [`image`] | the binary configuration image: a whole `ConverterConfig` with header and CRC-32, as stored and downloaded |
 //! | `description` (feature `description`) | the TOML device description file: parse, validate, build a `ConverterConfig` |
 //! | `description_write` (feature `description`) | the TOML form of a description, read back to the same configuration |
@@ -34,7 +35,8 @@
 //!
 //! ## What it must not depend on
 //!
-//! The core (`devicenet`) and `heapless` only (and `serde`/`toml` behind the host-only
+//! The core (`devicenet`), `heapless`, and for the update object `embedded-storage` (the flash
+//! trait) and `fw-image` (the signed image) only (and `serde`/`toml` behind the host-only
 //! `description` feature): no CAN I/O, no simulated equipment (that is `converter-sim`), no
 //! harness. The firmware and the soft slave run it as it is.
 //!
@@ -64,6 +66,7 @@ pub mod converter;
 /// slave and the tools have always named it.
 pub use converter::image;
 pub mod serial;
+pub mod update;
 
 #[cfg(feature = "description")]
 pub mod description;

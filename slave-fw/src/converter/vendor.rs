@@ -1,7 +1,8 @@
 //! The request handler of the converter's own objects ([`VendorObjects`]): the serial link and
 //! settings objects (`objects.rs`), the configuration object (`config_object.rs`), the Parameter
 //! object (`parameters.rs`), the serial-line analyzer (`analyzer_object.rs`) and the Modbus unit
-//! health object (`units_object.rs`), each class sent to the file that serves it. The node calls it for every class the DeviceNet core does not serve
+//! health object (`units_object.rs`), each class sent to the file that serves it, and any other class
+//! to the application's object ([`super::ApplicationObject`]: the update object). The node calls it for every class the DeviceNet core does not serve
 //! itself.
 
 use super::analyzer_object::{self, ANALYZER_CLASS};
@@ -33,6 +34,8 @@ pub(super) struct VendorObjects<'a> {
     pub(super) trace: &'a mut Trace,
     /// When the request arrived (the unit table's ages).
     pub(super) now: Instant,
+    /// The application's object, asked for every class not ours ([`super::ApplicationObject`]).
+    pub(super) extra: Option<&'a mut dyn super::ApplicationObject>,
 }
 
 impl VendorObjects<'_> {
@@ -67,7 +70,7 @@ impl ObjectHandler for VendorObjects<'_> {
             PARAMETER_CLASS => return Some(parameters::handle(self.config, req, reply, self.io_established)),
             ANALYZER_CLASS => return Some(analyzer_object::handle(self.trace, req, reply)),
             UNITS_CLASS => return Some(units_object::handle(self.profile, self.now, req, reply)),
-            _ => return None,
+            _ => return self.extra.as_mut()?.handle(req, reply, self.io_established, self.now),
         };
         let known = |id| {
             if link {
@@ -94,7 +97,9 @@ impl ObjectHandler for VendorObjects<'_> {
     /// The serial link, settings, configuration, analyzer and unit health objects serve their
     /// revision, 1, and nothing else at class instance 0: the node answers there.
     fn class_revision(&self, class: u16) -> Option<u16> {
-        matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS | ANALYZER_CLASS | UNITS_CLASS)
-            .then_some(1)
+        if matches!(class, SERIAL_LINK_CLASS | SETTINGS_CLASS | CONFIG_CLASS | ANALYZER_CLASS | UNITS_CLASS) {
+            return Some(1);
+        }
+        self.extra.as_ref()?.class_revision(class)
     }
 }
