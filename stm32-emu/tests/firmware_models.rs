@@ -1,4 +1,4 @@
-//! The exact board firmware ELF on the crate's own models (RCC, FLASH, GPIO, USART, bxCAN):
+//! The exact board firmware ELF on the crate's own models (RCC, FLASH, GPIO, USART, bxCAN, IWDG):
 //! it reaches the point where it enables the CAN controller and runs SysTick.
 //!
 //! Ignored by default: it needs the thumb build (see tests/firmware_boot.rs). Run it with
@@ -30,7 +30,9 @@ fn the_board_firmware_boots_on_the_models() -> Result<(), Box<dyn std::error::Er
         mcu.add_peripheral(usart.base(), 0x400, Box::new(Usart::new(usart)))?;
     }
     mcu.add_peripheral(CAN1_BASE, 0x400, Box::new(Bxcan::new()))?;
-    mcu.load_elf(&elf)?;
+    mcu.add_peripheral(stm32_emu::iwdg::BASE, 0x400, Box::new(stm32_emu::iwdg::Iwdg::new()))?;
+    let elfs = firmware_elf::with_bootloader(elf)?;
+    mcu.load_elfs(&elfs.iter().map(Vec::as_slice).collect::<Vec<_>>())?;
 
     mcu.run_until(100_000_000, |m| m.exceptions_taken(SYSTICK) >= 10)?;
     let mcr = mcu.read_peripheral(CAN1_BASE).ok_or("no CAN1")?;

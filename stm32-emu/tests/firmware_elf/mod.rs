@@ -36,3 +36,26 @@ pub fn board_elf() -> Result<(PathBuf, Vec<u8>), String> {
         )
     })
 }
+
+/// The files to load for the board firmware `elf` (issue 31): `elf` alone when it is linked at
+/// 0x0800_0000 (no bootloader), else the reference board's bootloader first, which starts it:
+/// the one named by `STM32_EMU_BOOTLOADER`, or scripts/build-bootloader's `bootloader-reference`.
+pub fn with_bootloader(elf: Vec<u8>) -> Result<Vec<Vec<u8>>, String> {
+    let segments = stm32_emu::cpu::elf::load_segments(&elf).map_err(|e| format!("firmware ELF: {e}"))?;
+    if segments.iter().any(|&(address, _)| address == 0x0800_0000) {
+        return Ok(vec![elf]);
+    }
+    let path = match std::env::var("STM32_EMU_BOOTLOADER") {
+        Ok(path) => PathBuf::from(path),
+        Err(_) => Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../target/thumbv7em-none-eabihf/firmware/bootloader-reference"),
+    };
+    let bootloader = std::fs::read(&path).map_err(|e| {
+        format!(
+            "{}: {e} (the firmware is linked past 0x0800_0000 and needs the bootloader: \
+             scripts/build-bootloader --test-key reference, or name one in STM32_EMU_BOOTLOADER)",
+            path.display()
+        )
+    })?;
+    Ok(vec![bootloader, elf])
+}
