@@ -102,7 +102,8 @@ fn finish(
     match result {
         Ok(report) => Ran::from(Ok(report_outcome(args, file, &report, shown))),
         Err(e) => {
-            let at = shown.next_chunk;
+            // Once applied, the device runs (or swaps in) the new image: nothing to resume.
+            let at = shown.next_chunk.filter(|_| !shown.applied);
             let partial = at.filter(|&n| n > 0).map(|n| Outcome {
                 text: format!(
                     "MAC {}: {n} of {} chunks are at the device; run the same command again to resume at chunk {n}",
@@ -201,6 +202,8 @@ struct Shown {
     last_line: Option<Instant>,
     /// The next chunk the device expects, as far as this run knows.
     next_chunk: Option<u32>,
+    /// Apply was answered.
+    applied: bool,
 }
 
 impl Shown {
@@ -214,6 +217,7 @@ impl Shown {
             transfer_from: None,
             last_line: None,
             next_chunk: None,
+            applied: false,
         }
     }
 
@@ -241,7 +245,10 @@ impl Shown {
                 None
             }
             Event::Verified => Some(format!("MAC {}: signature verified by the device; applying", self.mac)),
-            Event::Applied => Some(format!("MAC {}: applied; waiting for the device to come back", self.mac)),
+            Event::Applied => {
+                self.applied = true;
+                Some(format!("MAC {}: applied; waiting for the device to come back", self.mac))
+            }
             Event::Back => Some(format!("MAC {}: back on-line; reading its revision", self.mac)),
         };
         let Some(text) = text else { return };
