@@ -78,7 +78,10 @@ mod target {
                 let mut buffer = Aligned([0; 2048]);
                 // A flash error mid-swap: the image in ACTIVE may be partly copied; the watchdog
                 // resets it and the next start resumes the swap from its progress words.
-                matches!(bootloader.prepare_boot(&mut buffer.0), Ok(State::Swap) | Err(_))
+                let prepared = bootloader.prepare_boot(&mut buffer.0);
+                // prepare_boot answers the state it found (SWAP after a revert too): STATE as it
+                // left it tells a trial image (still SWAP) from a reverted one (REVERT).
+                prepared.is_err() || matches!(bootloader.read_state(&mut buffer.0), Ok(State::Swap) | Err(_))
             }
         };
         start_watchdog(&dp.IWDG, trial);
