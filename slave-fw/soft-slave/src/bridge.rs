@@ -24,6 +24,7 @@
 
 use crate::clock::{format_instant, Clock};
 use crate::error::SoftSlaveError;
+use crate::firmware::{FirmwareDir, SoftUpdate};
 use crate::serial::{SerialEvent, SerialLine};
 use crate::state::{StateFile, StoredState};
 use can_io::bus::{Bus, Origin};
@@ -34,6 +35,7 @@ use devicenet::slave::{ConnectionKind, FaultReason, SettingChanged};
 use devicenet::{CanFrame, Duration, Event, Instant, MacId};
 use slave_fw::converter::{Converter, ConverterConfig};
 use slave_fw::serial::{LinkState, Stats};
+use slave_fw::update::BootState;
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -81,6 +83,10 @@ pub struct Bridge {
     summary: RunSummary,
     /// The deliberate fault, if any, and its hook (renewed with the converter at a reset).
     mutant: Option<(&'static Mutant, FaultHook)>,
+    /// The firmware update object over its directory (`--firmware-dir`, [`crate::firmware`]).
+    firmware: Option<(FirmwareDir, SoftUpdate)>,
+    /// Running an applied image not yet confirmed (until the next on-line).
+    trial: bool,
 }
 
 impl Bridge {
@@ -106,6 +112,8 @@ impl Bridge {
             log: None,
             report: Box::new(std::io::sink()),
             mutant: None,
+            firmware: None,
+            trial: false,
             last_now: now,
             link,
             summary: RunSummary::default(),
@@ -131,6 +139,18 @@ impl Bridge {
     /// The converter a start or a reset begins with: the stored state on the description.
     fn fresh(&self, now: Instant) -> Result<Converter, SoftSlaveError> {
         Ok(self.state.converter(&self.config, self.mac_override, now)?)
+    }
+
+    /// Serves the firmware update object (class 0x6A) over `dir` ([`crate::firmware`]).
+    pub fn set_firmware(&mut self, dir: FirmwareDir) -> Result<(), SoftSlaveError> {
+        let object = dir.object(BootState::Confirmed)?;
+        self.firmware = Some((dir, object));
+        Ok(())
+    }
+
+    /// The firmware update object, when served.
+    pub fn firmware(&self) -> Option<&SoftUpdate> {
+        self.firmware.as_ref().map(|(_, object)| object)
     }
 
     /// Runs with `mutant`'s deliberate fault (test equipment: `dnet-soft-slave --mutant`).
@@ -216,7 +236,8 @@ impl Bridge {
         self.drain(now)?;
         let mut deadline = now + POLL_SLICE;
         let held = self.mutant.as_ref().and_then(|(_, hook)| hook.poll_at());
-        for at in [self.converter.poll_at(), end, held].into_iter().flatten() {
+        let apply = self.firmware.as_ref().and_then(|(_, object)| object.poll_at());
+        for at in [self.converter.poll_at(), end, held, apply].into_iter().flatten() {
             deadline = deadline.min(at.max(now));
         }
         // The bus's own clock is only used for its deadline.
@@ -233,7 +254,10 @@ impl Bridge {
                     None => Some(ev.frame),
                 };
                 if let Some(frame) = frame {
-                    self.converter.handle_can_frame(&frame, at);
+                    match &mut self.firmware {
+                        Some((_, object)) => self.converter.handle_can_frame_with(&frame, at, object),
+                        None => self.converter.handle_can_frame(&frame, at),
+                    }
                 }
                 self.drain(at)?;
             }
@@ -268,6 +292,7 @@ impl Bridge {
             self.summary.serial_bytes_sent += bytes.len() as u64;
         }
         while let Some(event) = self.converter.poll_event() {
+            self.on_firmware_event(&event, now);
             self.on_event(event, now)?;
         }
         if let Some(image) = self.converter.poll_new_image() {
@@ -295,6 +320,19 @@ impl Bridge {
             self.converter.power_on(now);
             self.summary.resets += 1;
             self.note(now, "Identity Reset: the converter restarts (duplicate MAC ID check)");
+            self.restart_firmware_object(now)?;
+            return Ok(());
+        }
+        if self.firmware.as_mut().is_some_and(|(_, object)| object.poll_reset(now)) {
+            // Apply's reset: the soft slave's stand-in for the bootloader's swap (crate::firmware).
+            self.trial = true;
+            self.converter = self.fresh(now)?;
+            if let Some((m, hook)) = &mut self.mutant {
+                *hook = m.hook();
+            }
+            self.converter.power_on(now);
+            self.summary.resets += 1;
+            self.restart_firmware_object(now)?;
             return Ok(());
         }
         let state = self.converter.profile().status().state;
@@ -308,6 +346,32 @@ impl Bridge {
                 }
                 LinkState::Starting => "instrument link starting".to_string(),
             };
+            self.note(now, &text);
+        }
+        Ok(())
+    }
+
+    /// The update object's share of an event: the session ends with the explicit connection,
+    /// and an image on trial confirms itself once on-line.
+    fn on_firmware_event(&mut self, event: &Event, now: Instant) {
+        let Some((_, object)) = &mut self.firmware else { return };
+        object.on_event(event);
+        if *event == Event::Online && self.trial {
+            object.confirm();
+            self.trial = false;
+            self.note(now, "firmware update: the new image is on-line and confirmed");
+        }
+    }
+
+    /// A new update object after a reset, as the board's firmware starts with one: the running
+    /// revision read again (`active.bin`), on trial after Apply.
+    fn restart_firmware_object(&mut self, now: Instant) -> Result<(), SoftSlaveError> {
+        let Some((dir, object)) = &mut self.firmware else { return Ok(()) };
+        let boot = if self.trial { BootState::Trial } else { BootState::Confirmed };
+        *object = dir.object(boot)?;
+        if self.trial {
+            let text =
+                format!("firmware update applied: running revision {} on trial until on-line", dir.running());
             self.note(now, &text);
         }
         Ok(())

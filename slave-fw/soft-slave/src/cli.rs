@@ -6,6 +6,7 @@ use crate::breaker::{BreakerOptions, BreakerRunner};
 use crate::bridge::{Bridge, RunSummary};
 use crate::clock::{from_secs_f64, Clock};
 use crate::error::SoftSlaveError;
+use crate::firmware::FirmwareDir;
 use crate::serial::{settings_text, SerialLine};
 use crate::state::{StateFile, StoredState};
 use crate::tcp::{TcpLine, TcpTarget, BACKOFF_FIRST, BACKOFF_MAX};
@@ -80,6 +81,18 @@ pub struct SoftSlaveArgs {
     /// equipment only: never on a plant network.
     #[arg(long, value_name = "ID", value_parser = converter_sim::mutants::parse)]
     pub mutant: Option<&'static converter_sim::mutants::Mutant>,
+    /// Serve the firmware update object (class 0x6A) with DIR standing in for the board's flash
+    /// and bootloader: dfu.bin (the DFU sectors and the resume log), active.bin (the applied
+    /// image and its trailer, whose revision the soft slave then reports); needs --firmware-key.
+    #[arg(long, value_name = "DIR", requires = "firmware_key")]
+    pub firmware_dir: Option<PathBuf>,
+    /// The Ed25519 public key images must be signed with: 32 raw bytes (the repository's TEST
+    /// key is contrib/keys/test-ed25519.public).
+    #[arg(long, value_name = "FILE", requires = "firmware_dir")]
+    pub firmware_key: Option<PathBuf>,
+    /// The board ID the update object accepts.
+    #[arg(long, value_name = "N", default_value_t = crate::firmware::DEFAULT_BOARD_ID, requires = "firmware_dir")]
+    pub firmware_board_id: u16,
 }
 
 /// `dnet-sim-breaker`: the simulated breaker on a serial port.
@@ -314,8 +327,15 @@ pub fn run_soft_slave(
             m.id, m.fault, m.target
         );
     }
+    let firmware = match (&args.firmware_dir, &args.firmware_key) {
+        (Some(dir), Some(key)) => Some(FirmwareDir::new(dir, key, args.firmware_board_id)?),
+        _ => None,
+    };
     let mut bridge = Bridge::new(base, bus, serial, clock)?;
     bridge.set_state(state, state_file, args.mac)?;
+    if let Some(firmware) = firmware {
+        bridge.set_firmware(firmware)?;
+    }
     if let Some(m) = args.mutant {
         bridge.set_mutant(m);
     }

@@ -53,6 +53,9 @@ pub enum SoftSlaveError {
     /// The `--state` file is unreadable, malformed or cannot be written (names the file).
     #[error("state file {0}")]
     State(#[from] crate::state::StateError),
+    /// The firmware directory or key (`--firmware-dir`, `--firmware-key`).
+    #[error(transparent)]
+    Firmware(#[from] crate::firmware::FirmwareDirError),
     /// The SIGINT/SIGTERM handler could not be installed.
     #[error("cannot install the SIGINT/SIGTERM handler: {0}")]
     Signal(String),
@@ -69,6 +72,7 @@ impl SoftSlaveError {
             | SoftSlaveError::Config(_)
             | SoftSlaveError::Usage(_)
             | SoftSlaveError::State(_)
+            | SoftSlaveError::Firmware(_)
             | SoftSlaveError::Log { .. }
             | SoftSlaveError::LogFormat(_) => 2,
             _ => 1,

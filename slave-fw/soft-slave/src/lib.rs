@@ -16,6 +16,7 @@
 //! | [`serial`] | [`SerialLine`](serial::SerialLine): the instrument's port, opened with the profile's settings, read and written by two threads so the CAN side never waits on it |
 //! | [`bridge`] | [`Bridge`](bridge::Bridge): the main loop — bus, serial line and converter, the drain order of the converter docs, Identity Reset, the `candump -L` log |
 //! | [`breaker`] | [`BreakerRunner`](breaker::BreakerRunner): the simulated breaker on any byte stream, with fault knobs and an event log |
+//! | [`firmware`] | `--firmware-dir DIR`: the firmware update object (class 0x6A) over files standing in for the DFU flash and the bootloader |
 //! | [`state`] | `--state FILE`: the settings and configuration image kept across restarts, replaced atomically |
 //! | [`tcp`] | [`TcpLine`](tcp::TcpLine): the instrument behind a serial device server (`--serial tcp:HOST:PORT`), reconnected with back-off |
 //! | [`cli`] | the two command lines (clap) and their `run` functions |
@@ -87,6 +88,7 @@ pub mod bridge;
 pub mod cli;
 pub mod clock;
 pub mod error;
+pub mod firmware;
 pub mod serial;
 pub mod state;
 pub mod tcp;
