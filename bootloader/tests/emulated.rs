@@ -143,6 +143,22 @@ fn a_well_signed_image_is_swapped_byte_exact() {
     assert_eq!(flash_at(&mcu, DFU.base + ACTIVE.size, old.len()), old, "the old image kept for a revert");
     assert_eq!(flash_at(&mcu, STATE.base, 4), [SWAP_MAGIC; 4], "still on trial");
     assert_eq!(flash_at(&mcu, STATE.base + 8, 8), [0; 8], "both swap steps marked done");
+    // The check is the deepest path (salty's SHA-512 and Ed25519).
+    let stack = stack_used(&mcu);
+    eprintln!("bootloader stack: {stack} bytes at the deepest");
+    assert!((1024..8 * 1024).contains(&stack), "{stack} bytes of stack");
+}
+
+/// The bootloader's deepest stack use: SRAM is zero after the power-on reset and the stack
+/// (flip-link: below `.bss`, whose 4 bytes end SRAM less the reset-surviving cell) grows down,
+/// so the lowest non-zero word is (at least) as deep as it went. The applications use no stack.
+fn stack_used(mcu: &Stm32) -> u32 {
+    const SRAM: u32 = 0x2000_0000;
+    const STACK_TOP: u32 = 0x2001_FFF0;
+    let mut ram = vec![0u8; (STACK_TOP - SRAM) as usize];
+    assert!(mcu.read_memory(SRAM, &mut ram), "SRAM readable");
+    let lowest = ram.chunks(4).position(|w| w != [0; 4]).expect("the stack was used");
+    STACK_TOP - SRAM - 4 * lowest as u32
 }
 
 #[test]
