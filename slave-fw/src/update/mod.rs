@@ -11,7 +11,7 @@
 //!
 //! | service | request | response | refused with |
 //! |---|---|---|---|
-//! | 0x0E Get_Attribute_Single | attribute | the value ([`UpdateObject`] lists them) | 0x14, 0x11-style length errors |
+//! | 0x0E Get_Attribute_Single | attribute | the value ([`UpdateObject`] lists them) | 0x14, 0x13, 0x15 |
 //! | 0x4B Update | size UDINT, board ID UINT, revision 2 × USINT, image ID 8 bytes | transfer size UINT (128), next chunk UDINT | 0x10, 0x15, 0x20, 0xD0/2, 0x19 |
 //! | 0x4D Transfer | chunk number UDINT, the chunk | chunk number UDINT, state UINT | 0x10, 0x0C, 0x20, 0x13, 0x19 |
 //! | 0x4C Verify | the 128-byte trailer | state UINT | 0x10, 0x0C, 0x20, 0xD0/1–5, 0x19 |
