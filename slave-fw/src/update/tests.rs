@@ -500,3 +500,81 @@ fn a_flash_of_another_geometry_is_refused() {
         Err(GeometryError::WriteSize(32))
     ));
 }
+
+mod through_the_converter {
+    //! The object behind the converter (`Converter::handle_can_frame_with`): reached over the
+    //! owner's explicit connection only.
+
+    use super::*;
+    use crate::converter::{ApplicationObject, Converter, ConverterConfig};
+    use devicenet::{CanFrame, Duration};
+
+    /// Counts the requests that reach the object.
+    struct Counting<'a> {
+        inner: Object<'a>,
+        reached: usize,
+    }
+
+    impl ApplicationObject for Counting<'_> {
+        fn handle(
+            &mut self,
+            req: &Request<'_>,
+            reply: &mut Reply<'_>,
+            io_established: bool,
+            now: Instant,
+        ) -> Option<Result<(), ServiceError>> {
+            let r = self.inner.handle(req, reply, io_established, now);
+            self.reached += usize::from(r.is_some());
+            r
+        }
+
+        fn class_revision(&self, class: u16) -> Option<u16> {
+            self.inner.class_revision(class)
+        }
+    }
+
+    /// The replies on the node's explicit response identifier (MAC 5) to one frame.
+    fn send(c: &mut Converter, obj: &mut Counting<'_>, now: Instant, id: u16, data: &[u8]) -> Vec<Vec<u8>> {
+        c.handle_can_frame_with(&CanFrame::from_raw(id, data).unwrap(), now, obj);
+        std::iter::from_fn(|| c.poll_can_transmit())
+            .filter(|f| f.id().as_raw() == 0x42B)
+            .map(|f| f.data().to_vec())
+            .collect()
+    }
+
+    #[test]
+    fn only_the_owners_explicit_connection_reaches_the_object() {
+        let mut flash = flash();
+        let mut obj = Counting { inner: object(&mut flash, BootState::Confirmed), reached: 0 };
+        let mut c = Converter::new(ConverterConfig::breaker_reference(), Instant::ZERO).unwrap();
+        let mut now = Instant::ZERO;
+        c.power_on(now);
+        let end = now + Duration::from_secs(3);
+        while let Some(at) = c.poll_at().filter(|&at| at <= end) {
+            now = at.max(now);
+            c.handle_timeout(now);
+            while c.poll_can_transmit().is_some() {}
+        }
+        // Before any allocation: the Group 2 Only port serves the DeviceNet object alone.
+        let g2 = send(&mut c, &mut obj, now, 0x42E, &[0x00, 0x0E, 0x6A, 0x01, 0x07]);
+        assert_eq!(obj.reached, 0, "Group 2 Only: {g2:02X?}");
+        // Master 0 allocates the explicit connection (protocol §3.4).
+        let alloc = send(&mut c, &mut obj, now, 0x42E, &[0x00, 0x4B, 0x03, 0x01, 0x01, 0x00]);
+        assert_eq!(alloc, [vec![0x00, 0xCB, 0x00]]);
+        // Its Get of attribute 7 (the board ID) reaches the object.
+        let get = send(&mut c, &mut obj, now, 0x42C, &[0x00, 0x0E, 0x6A, 0x01, 0x07]);
+        assert_eq!(get, [vec![0x00, 0x8E, 0x01, 0x00]]);
+        assert_eq!(obj.reached, 1);
+        // Class attribute 1, the revision, answered by the node from class_revision.
+        let rev = send(&mut c, &mut obj, now, 0x42C, &[0x00, 0x0E, 0x6A, 0x00, 0x01]);
+        assert_eq!(rev, [vec![0x00, 0x8E, 0x01, 0x00]]);
+        // Master 1 on the same identifier: not the owner, ignored.
+        let other = send(&mut c, &mut obj, now, 0x42C, &[0x01, 0x0E, 0x6A, 0x01, 0x07]);
+        assert_eq!(other, Vec::<Vec<u8>>::new());
+        assert_eq!(obj.reached, 1);
+        // Without the object the class does not exist.
+        c.handle_can_frame(&CanFrame::from_raw(0x42C, &[0x00, 0x0E, 0x6A, 0x01, 0x07]).unwrap(), now);
+        let plain: Vec<_> = std::iter::from_fn(|| c.poll_can_transmit()).map(|f| f.data().to_vec()).collect();
+        assert_eq!(plain, [vec![0x00, 0x94, 0x16, 0xFF]]);
+    }
+}
