@@ -1,4 +1,5 @@
-//! Puts the selected board's `memory.x` (board/memory/<chip>.x, chosen by the board feature) where
+//! Puts the selected build's `memory.x` (board/memory/<chip>.x, chosen by the board feature, or
+//! stm32f405rg-emulated.x with the `emulated` feature: no bootloader, linked from 0x0800_0000) where
 //! cortex-m-rt's `link.x` finds it: the link search path of whatever binary depends on this crate;
 //! none with the `bootloader-link` feature (the bootloader brings its own).
 
@@ -15,9 +16,14 @@ fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     // The STM32F446RE board's file when its feature is on, else the STM32F405RG's (the reference
     // board and the Olimex STM32-P405); src/boards refuses any other combination.
-    let chip =
-        if env::var_os("CARGO_FEATURE_NUCLEO_F446RE").is_some() { "stm32f446re" } else { "stm32f405rg" };
-    let source = format!("memory/{chip}.x");
+    let file = if env::var_os("CARGO_FEATURE_EMULATED").is_some() {
+        "stm32f405rg-emulated"
+    } else if env::var_os("CARGO_FEATURE_NUCLEO_F446RE").is_some() {
+        "stm32f446re"
+    } else {
+        "stm32f405rg"
+    };
+    let source = format!("memory/{file}.x");
     fs::copy(&source, out.join("memory.x")).expect("copy memory.x");
     println!("cargo:rustc-link-search={}", out.display());
 }

@@ -11,6 +11,14 @@
 //! PLL and would spin forever waiting for it) and CAN1 is not touched (QEMU has no bxCAN).
 
 pub mod nor_flash;
+mod old_settings;
+
+pub use old_settings::OldSettingsFlash;
+#[cfg(not(feature = "emulated"))]
+mod watchdog;
+
+#[cfg(not(feature = "emulated"))]
+pub use watchdog::feed_watchdog;
 
 use crate::boards::{Usart as UsartName, SELECTED};
 use crate::clocks;
@@ -612,11 +620,11 @@ pub fn unique_id() -> [u32; 3] {
     unsafe { [base.read_volatile(), base.add(1).read_volatile(), base.add(2).read_volatile()] }
 }
 
-/// The settings sectors of the internal flash (10 and 11, or 6 and 7 on the STM32F446RE:
-/// [`memory`]), as a [`SettingsFlash`].
+/// The settings sectors of the internal flash (sectors 1 and 2: [`memory`]), as a
+/// [`SettingsFlash`].
 ///
-/// Erasing a 128 KiB sector stalls the CPU for 1–2 s (the code runs from the same bank); it happens
-/// once every 1024 saves.
+/// Erasing a 16 KiB sector stalls the CPU (the code runs from the same bank; 250 ms by stm32-emu's
+/// datasheet timing, not confirmed); it happens once every 25 saves.
 pub struct InternalFlash {
     flash: LockedFlash,
 }

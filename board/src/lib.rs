@@ -17,7 +17,7 @@
 //! | [`self_test`] | the power-up self-test of the CAN path in silent loopback mode: its frame, bound and verdict | yes |
 //! | [`flash_layout`] | the firmware update's flash layout on every board (bootloader, settings, STATE, ACTIVE, DFU), the bootloader's key block, the board ID | yes |
 //! | [`settings`] | the power-safe settings journal (CRC-32 from `devicenet::crc32`, two sectors, sequence numbers) | yes |
-//! | [`memory`] | the memory map and `memory.x` per chip (`board/memory/`: settings in the last two flash sectors, 10–11 or 6–7) | yes |
+//! | [`memory`] | the memory map and `memory.x` per chip (`board/memory/`: the firmware in ACTIVE, settings in sectors 1–2, their old location read once; the emulated build from 0x0800_0000) | yes |
 //! | [`uart`] | the instrument line's character formats the USART can make, and the USART register values (`BRR`, `CR1`, `CR2`) that make them | yes |
 //! | [`uid`] | the DeviceNet serial number, folded from the MCU's 96-bit unique ID (CRC-32) | yes |
 //! | `hw` | the update partitions' flash driver (`hw::nor_flash`: embedded-storage's `NorFlash` per run of equal sectors, word programming), peripheral set-up, the USARTs driven through their registers (`hw::Usart`), the flash sector driver (the emulated board's: a host file over semihosting), CAN error status, the unique ID's read (real board) (`target_os = "none"` only) | – |
@@ -30,7 +30,7 @@
 //! | `emulated` | `hw` builds the board QEMU's `netduinoplus2` emulates: RCC untouched (HSI, 16 MHz), no bxCAN; USART1 carries SLCAN (the codec is `can_io::slcan`) |
 //! | `defmt` | `defmt::Format` on the value types |
 //! | `bootloader-link` | build.rs ships no `memory.x`: the bootloader (`bootloader/`) links with its own |
-//! | `fault-btr`, `fault-filter`, `fault-can-clock`, `fault-flash-unlock`, `fault-usart-brr` | **self-test only, never in a release build**: each makes one hardware fact wrong (bit timing for half PCLK1; a Group 2 filter bank that matches nothing; CAN1's clock enable undone; flash programmed without the unlock sequence; the instrument USART's BRR for half its clock) so that `scripts/exact-firmware --self-test` can prove a scenario catches it. Such a build has the symbol `BOARD_FAULT_SELF_TEST_ONLY`, and `scripts/firmware-size` refuses an ELF that has it |
+//! | `fault-btr`, `fault-filter`, `fault-can-clock`, `fault-flash-unlock`, `fault-usart-brr`, `fault-never-confirm` | **self-test only, never in a release build**: each makes one hardware fact wrong (bit timing for half PCLK1; a Group 2 filter bank that matches nothing; CAN1's clock enable undone; flash programmed without the unlock sequence; the instrument USART's BRR for half its clock) so that `scripts/exact-firmware --self-test` can prove a scenario catches it; `fault-never-confirm` changes nothing here and only marks the firmware's build whose trial image never confirms (the update's rollback scenario). Such a build has the symbol `BOARD_FAULT_SELF_TEST_ONLY`, and `scripts/firmware-size` refuses an ELF that has it |
 //!
 //! It depends on the protocol core only (for the MAC ID and data rate types); the SLCAN codec the
 //! emulated board speaks is `can_io::slcan`, shared with the host.
@@ -73,7 +73,8 @@ pub use settings::{Settings, SettingsStore};
     feature = "fault-filter",
     feature = "fault-can-clock",
     feature = "fault-flash-unlock",
-    feature = "fault-usart-brr"
+    feature = "fault-usart-brr",
+    feature = "fault-never-confirm"
 ))]
 #[used]
 #[allow(unsafe_code)] // #[no_mangle] (an unsafe attribute): the symbol must keep its name for firmware-size

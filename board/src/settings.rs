@@ -20,12 +20,16 @@
 //! the record's CRC. The host tests cut the power after every single byte written or erased, with
 //! configuration images of several hundred bytes, to prove it. The logic
 //! is written against the [`SettingsFlash`] trait; [`RamFlash`] implements it in memory (host tests,
-//! the emulated board) and the firmware's driver implements it on the STM32's sectors 10 and 11
+//! the emulated board) and the firmware's driver implements it on the STM32's sectors 1 and 2
 //! ([`crate::memory`]).
 //!
-//! With 128 KiB sectors a sector holds 204 records, so a sector is erased once every 204 saves
+//! With 16 KiB sectors a sector holds 25 records, so a sector is erased once every 25 saves
 //! (settings change rarely: a MAC ID or data rate set over the network, a configuration
 //! download); the 32-bit sequence number cannot wrap within the flash's endurance.
+//!
+//! Before the firmware update (issue 31) the journal lived in the chip's last two 128 KiB sectors;
+//! [`SettingsStore::migrate_from`] moves its newest record into the new sectors once, at the first
+//! start of a firmware with the new layout.
 //!
 //! Records of the earlier 128-byte layout (magic `DNS1`) are not read: a board updated from it
 //! starts from the defaults, as a new board does.

@@ -147,7 +147,8 @@ pub struct SwitchBank {
 pub struct FlashLayout {
     /// Total flash.
     pub flash_size: u32,
-    /// Flash the program may use, from the start of flash.
+    /// Flash the program may use, from ACTIVE ([`crate::flash_layout::ACTIVE`]: 128 KiB less the
+    /// signed image's trailer).
     pub program_size: u32,
     /// The settings journal's two sectors (numbers, for the erase command).
     pub settings_sectors: [u8; 2],

@@ -9,7 +9,7 @@
 //! | instrument | USART1, D8 = PA9 TX, D2 = PA10 RX (AF7), the shield's RS-485 transceiver with DE and /RE on D7 = PA8, high = transmit | \[2\] §2.2, §2.3.1, \[3\] (pin table: "D7 PA8 RS485 Sending & Receiving Enable Terminal") |
 //! | shield jumper | "485 RXD/TXD JMP" on the D8/D2 (UART1) side, not D0/D1: PA2/PA3 are the ST-LINK's virtual COM port | \[2\] §2.2, \[1\] (`usart2` is the console) |
 //! | LED | LD2, green, PA5, high = lit | \[1\] (`gpioa 5 GPIO_ACTIVE_HIGH`, "User LD2"), \[4\] |
-//! | settings | flash sectors 6 and 7 (2 × 128 KiB at 0x0804_0000): the F446RE has sectors 0–7 only | RM0390 §3.3 (flash organisation) |
+//! | settings | flash sectors 1 and 2 (2 × 16 KiB at 0x0800_4000), the firmware update's layout; sectors 6 and 7 before it (now DFU): the F446RE has sectors 0–7 only | RM0390 §3.3 (flash organisation) |
 //!
 //! Contradictions: the issue names the shield's RS-485 transceiver SP3485; the shield's user
 //! manual Rev 1.4 \[2\] says MAX3485, and Zephyr's page \[3\] says "SP3485/MAX3485" in its overview
@@ -76,10 +76,10 @@ pub const BOARD: BoardSpec = BoardSpec {
     switches: None,
     flash: FlashLayout {
         flash_size: 512 * 1024,
-        program_size: 256 * 1024,
-        settings_sectors: [6, 7],
-        settings_bases: [0x0804_0000, 0x0806_0000],
-        settings_sector_size: 128 * 1024,
+        program_size: crate::flash_layout::MAX_IMAGE_LEN,
+        settings_sectors: [1, 2],
+        settings_bases: [0x0800_4000, 0x0800_8000],
+        settings_sector_size: 16 * 1024,
         ram_size: 128 * 1024,
         ccmram_size: 0,
     },

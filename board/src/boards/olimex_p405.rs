@@ -11,7 +11,7 @@
 //! | UEXT | 1 +3.3 V, 2 GND, 3 PA9 USART1_TX, 4 PA10 USART1_RX, 5 PB6, 6 PB7, 7 PA6, 8 PA7, 9 PA5, 10 PA4 (SPI1_NSS) | \[1\] ("UEXT" table) |
 //! | user button | PA0 | \[1\], \[2\] |
 //! | OTG FS VBUS sense | PC4 (so PA9 is free for USART1) | \[4\] (`GPIO_OTGFS_VBUS` … `GPIO_PIN4`) |
-//! | settings | flash sectors 10 and 11, as on the reference board (same chip) | RM0090 §3.3 |
+//! | settings | flash sectors 1 and 2, as on the reference board (same chip) | RM0090 §3.3 |
 //!
 //! Not confirmed by any source read for this work, to check against Olimex's user manual and
 //! schematic (`STM32-P103_P405_sch.pdf`) before relying on it: the CAN and RS-232 transceiver

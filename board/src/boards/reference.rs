@@ -8,11 +8,11 @@
 //! | service port | USART1, PA9 / PA10 (unused on the board, SLCAN in the emulated build) |
 //! | DIP switches | PB0–PB7 to ground, pull-ups |
 //! | LEDs | PC0–PC3: MS green, MS red, NS green, NS red, high = lit |
-//! | settings | flash sectors 10 and 11 (2 × 128 KiB at 0x080C_0000) |
+//! | settings | flash sectors 1 and 2 (2 × 16 KiB at 0x0800_4000; sectors 10 and 11 before the firmware update) |
 //!
 //! Sources: the board's own design (guide: docs/src/development/firmware.md,
 //! docs/src/integrator/wiring.md); the STM32F405 facts from
-//! RM0090 (flash organisation §3.3, Table 5: sectors 10 and 11 at 0x080C_0000 and 0x080E_0000)
+//! RM0090 (flash organisation §3.3, Table 5: sectors 1 and 2 at 0x0800_4000 and 0x0800_8000)
 //! and DS8626 (alternate functions: CAN1 PB8/PB9 AF9, USART2 PA2/PA3 AF7).
 
 use super::{BoardSpec, ClockTree, FlashLayout, InstrumentPort, LedWiring, SwitchBank, Usart};
@@ -46,14 +46,15 @@ pub const BOARD: BoardSpec = BoardSpec {
     memory_x: include_str!("../../memory/stm32f405rg.x"),
 };
 
-/// The STM32F405RG's flash with the settings in sectors 10 and 11 (RM0090 §3.3, Table 5), and
-/// its SRAM1 + SRAM2 (128 KiB) and CCM RAM (64 KiB).
+/// The STM32F405RG's flash in the firmware update's layout ([`crate::flash_layout`]: the program
+/// in ACTIVE, the settings in sectors 1 and 2; RM0090 §3.3, Table 5), and its SRAM1 + SRAM2
+/// (128 KiB) and CCM RAM (64 KiB).
 pub const STM32F405RG_LAYOUT: FlashLayout = FlashLayout {
     flash_size: 1024 * 1024,
-    program_size: 768 * 1024,
-    settings_sectors: [10, 11],
-    settings_bases: [0x080C_0000, 0x080E_0000],
-    settings_sector_size: 128 * 1024,
+    program_size: crate::flash_layout::MAX_IMAGE_LEN,
+    settings_sectors: [1, 2],
+    settings_bases: [0x0800_4000, 0x0800_8000],
+    settings_sector_size: 16 * 1024,
     ram_size: 128 * 1024,
     ccmram_size: 64 * 1024,
 };

@@ -59,12 +59,15 @@ impl StepClock {
 impl Bxcan {
     /// Self-tests the controller, finds the rate by autobaud when `autobaud` (else uses `baud`),
     /// and joins the bus with the acceptance filters for `mac` (module docs). The rate it joined
-    /// at, or why the self-test failed (the driver then stays off the bus).
+    /// at, or why the self-test failed (the driver then stays off the bus). Autobaud may listen
+    /// for as long as the bus stays quiet: it calls `feed` (the watchdog's, `crate::trial`) at
+    /// every step.
     pub fn start(
         can1: Can1,
         baud: BaudRate,
         autobaud: bool,
         mac: MacId,
+        feed: impl Fn(),
     ) -> (Bxcan, Result<BaudRate, Failure>) {
         let mut clock = StepClock { now: Instant::ZERO };
         let mut can = bxcan::Can::builder(can1)
@@ -79,7 +82,7 @@ impl Bxcan {
             can.modify_config().leave_disabled();
             return (Bxcan { can, on_bus: false }, Err(failure));
         }
-        let rate = if autobaud { find_rate(&mut can, &mut clock) } else { baud };
+        let rate = if autobaud { find_rate(&mut can, &mut clock, feed) } else { baud };
         can.modify_config()
             .set_loopback(false)
             .set_silent(false)
@@ -133,12 +136,13 @@ fn run_self_test(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> Result<()
 }
 
 /// Autobaud ([`board::autobaud`]): listens in silent mode, rate after rate, until one is found.
-fn find_rate(can: &mut bxcan::Can<Can1>, clock: &mut StepClock) -> BaudRate {
+fn find_rate(can: &mut bxcan::Can<Can1>, clock: &mut StepClock, feed: impl Fn()) -> BaudRate {
     let mut autobaud = Autobaud::new(clock.now);
     // The receive error counter when listening at this rate started: it rises with each receive
     // error (and falls by one with each good frame, which is no error).
     let mut rec_at_start = listen_at(can, autobaud.rate());
     loop {
+        feed();
         let now = clock.step();
         // Leaves initialisation mode after 11 recessive bits: at once on a quiet bus, between
         // frames on a busy one.

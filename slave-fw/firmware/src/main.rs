@@ -24,6 +24,12 @@
 //!   is opened with its serial settings. A downloaded image the converter hands over is stored in
 //!   the settings journal and runs from the next reset.
 //!
+//! - Firmware update (issue 31, real boards): the image carries its image-info block
+//!   (`image_info`, linked 0x200 into the image) and is linked at ACTIVE, started by the
+//!   bootloader; at reset it moves the settings from their location before the update (board's
+//!   `SettingsStore::migrate_from`), and `trial` confirms an image on trial once the node is
+//!   on-line and feeds the independent watchdog from the converter task.
+//!
 //! The `emulated` feature swaps only the lowest layer (clock from HSI, CAN as SLCAN on USART1,
 //! MAC from `DNET_MAC`); see the guide, docs/src/development/firmware.md.
 //!
@@ -39,12 +45,16 @@ mod can_bxcan;
 mod can_slcan;
 #[cfg(any(target_os = "none", test))]
 mod config;
+#[cfg(any(target_os = "none", test))]
+mod image_info;
 #[cfg(target_os = "none")]
 mod instrument;
 #[cfg(any(target_os = "none", test))]
 mod log;
 #[cfg(any(target_os = "none", test))]
 mod task;
+#[cfg(all(target_os = "none", not(feature = "emulated")))]
+mod trial;
 
 #[cfg(all(target_os = "none", not(feature = "defmt")))]
 use panic_halt as _;
@@ -69,8 +79,12 @@ mod app {
     use crate::log::{log_info as info, log_warn as warn};
     use crate::task::{ConverterTask, Hardware, Input, INPUTS};
     #[cfg(not(feature = "emulated"))]
+    use crate::trial::{Confirmation, Trial};
+    #[cfg(not(feature = "emulated"))]
     use board::hw::BusState;
     use board::hw::{Board, LedPins};
+    #[cfg(not(feature = "emulated"))]
+    use board::settings::Migration;
     use board::settings::{Settings, SettingsStore};
     use cortex_m::peripheral::syst::SystClkSource;
     use devicenet::slave::Event;
@@ -129,6 +143,9 @@ mod app {
         leds: LedPins,
         /// The settings flash.
         store: SettingsStore<Flash>,
+        /// The image's trial boot and the watchdog (real boards).
+        #[cfg(not(feature = "emulated"))]
+        trial: Trial,
     }
 
     #[init]
@@ -136,6 +153,12 @@ mod app {
         let Ok(mut board) = Board::take(cx.device) else {
             panic!("board set-up failed");
         };
+        // Before anything slow (the self-test, autobaud): the watchdog the bootloader started
+        // is fed from here on, unless this image runs on trial.
+        #[cfg(not(feature = "emulated"))]
+        let trial = Trial::start();
+        #[cfg(not(feature = "emulated"))]
+        trial.feed();
         // SysTick: 1 kHz interrupt from the core clock.
         let mut syst = cx.core.SYST;
         syst.set_clock_source(SystClkSource::Core);
@@ -145,7 +168,18 @@ mod app {
         syst.enable_counter();
 
         #[cfg(not(feature = "emulated"))]
-        let mut store = SettingsStore::new(board.flash);
+        let mut store = {
+            let mut store = SettingsStore::new(board.flash);
+            // The journal's location before the firmware update, moved once (board::memory): before
+            // anything may erase it (on the F446 it is DFU now).
+            let mut old = SettingsStore::new(board::hw::OldSettingsFlash::new());
+            match store.migrate_from(&mut old) {
+                Ok(Migration::Moved { .. }) => info!("settings: moved from their old location"),
+                Ok(_) => {}
+                Err(_) => warn!("settings: could not move them from their old location"),
+            }
+            store
+        };
         #[cfg(feature = "emulated")]
         let mut store = {
             let _ = board.flash;
@@ -171,6 +205,7 @@ mod app {
                 resolved.baud_rate,
                 resolved.autobaud,
                 resolved.mac_id,
+                || trial.feed(),
             );
             if let Ok(rate) = started {
                 config::joined_at(&mut resolved, &mut settings, rate);
@@ -187,6 +222,10 @@ mod app {
         if let Err(failure) = self_test {
             warn!("CAN self-test failed: {}; staying off the bus", failure);
             converter.set_major_unrecoverable_fault(now());
+        }
+        #[cfg(not(feature = "emulated"))]
+        if trial.is_pending() {
+            info!("on trial: confirms once on-line");
         }
         info!(
             "MAC {=u8}, baud attribute {=u8}, {=str}",
@@ -208,7 +247,13 @@ mod app {
                 inputs: Deque::new(),
             },
             Local {
-                state: TaskState { task: ConverterTask::new(converter, settings), leds: board.leds, store },
+                state: TaskState {
+                    task: ConverterTask::new(converter, settings),
+                    leds: board.leds,
+                    store,
+                    #[cfg(not(feature = "emulated"))]
+                    trial,
+                },
             },
         )
     }
@@ -346,6 +391,8 @@ mod app {
         can: &'a mut C,
         instrument_port: &'a mut P,
         store: &'a mut SettingsStore<Flash>,
+        #[cfg(not(feature = "emulated"))]
+        trial: &'a mut Trial,
     }
 
     impl<C, P> Hardware for Io<'_, C, P>
@@ -379,6 +426,15 @@ mod app {
 
         fn event(&mut self, event: &Event) {
             info!("event {}", event);
+            #[cfg(not(feature = "emulated"))]
+            if *event == Event::Online {
+                match self.trial.online() {
+                    Confirmation::NotOnTrial => {}
+                    Confirmation::Confirmed => info!("on-line: image confirmed"),
+                    Confirmation::Failed => warn!("on-line: the image could not be confirmed"),
+                    Confirmation::Withheld => warn!("on-line: fault-never-confirm, not confirmed"),
+                }
+            }
         }
     }
 
@@ -393,11 +449,20 @@ mod app {
     )]
     fn converter_task(cx: converter_task::Context) {
         let converter_task::LocalResources { state, powered_on, next_led, .. } = cx.local;
+        #[cfg(not(feature = "emulated"))]
+        let TaskState { task, leds, store, trial } = state;
+        #[cfg(feature = "emulated")]
         let TaskState { task, leds, store } = state;
         let converter_task::SharedResources { mut can, mut instrument_port, mut inputs, .. } = cx.shared;
         macro_rules! io {
             () => {
-                &mut Io { can: &mut can, instrument_port: &mut instrument_port, store: &mut *store }
+                &mut Io {
+                    can: &mut can,
+                    instrument_port: &mut instrument_port,
+                    store: &mut *store,
+                    #[cfg(not(feature = "emulated"))]
+                    trial: &mut *trial,
+                }
             };
         }
         if !*powered_on {
@@ -412,6 +477,9 @@ mod app {
             rtic::pend(CONVERTER_TASK);
         }
         task.handle_timeout(now(), io!());
+        // This task runs at least every LED_PERIOD: the watchdog's regular feed.
+        #[cfg(not(feature = "emulated"))]
+        trial.feed();
 
         let now_ms = millis();
         let now_ = Instant::from_millis(now_ms);

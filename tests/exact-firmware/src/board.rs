@@ -147,7 +147,7 @@ mod tests {
         assert_eq!(names, ["reference", "olimex-p405", "olimex-p405-rs485", "nucleo-f446re"]);
         let nucleo = BoardKind::by_name("nucleo-f446re").expect("nucleo");
         assert_eq!(nucleo.chip(), stm32_emu::machine::Chip::Stm32F446);
-        assert_eq!(nucleo.settings_offset(), 0x4_0000, "sector 6");
+        assert_eq!(nucleo.settings_offset(), 0x4000, "sector 1 (the firmware update's layout)");
         assert!(nucleo.switches().is_none());
         assert_eq!(BoardKind::by_name("reference").and_then(|b| b.switches()), Some((Port::B, 0)));
     }

@@ -44,6 +44,7 @@ use converter_sim::SimulatedBreaker;
 use devicenet::{CanFrame, CanId, Instant, MacId};
 use std::cell::RefCell;
 use std::collections::VecDeque;
+use std::path::Path;
 use std::rc::Rc;
 
 thread_local! {
@@ -95,6 +96,54 @@ pub struct CanCounts {
     pub overruns: u64,
 }
 
+/// What is flashed into a board before its first power-on: the firmware ELF and, on a board with
+/// the firmware update (issue 31), the bootloader ELF that starts it. Both are programmed at their
+/// load addresses, as a probe flashes them; the reset vector is then the bootloader's.
+#[derive(Clone, Debug)]
+pub struct Firmware {
+    /// The firmware (`slave-fw-firmware`) ELF.
+    pub elf: Vec<u8>,
+    /// The bootloader ELF, if the board has one.
+    pub bootloader: Option<Vec<u8>>,
+}
+
+impl Firmware {
+    /// The firmware `elf`, started by `bootloader` when there is one.
+    pub fn new(elf: Vec<u8>, bootloader: Option<Vec<u8>>) -> Firmware {
+        Firmware { elf, bootloader }
+    }
+
+    /// The firmware ELF at `elf` and its bootloader: `bootloader` when given, else, for a firmware
+    /// linked at ACTIVE (`board::flash_layout::ACTIVE`, which needs the bootloader to start it), the
+    /// build beside it, `bootloader-<board>` (scripts/build-bootloader's name); a firmware linked at
+    /// the start of flash (before issue 31) runs alone. Errors name the file.
+    pub fn from_files(board: &str, elf: &Path, bootloader: Option<&Path>) -> Result<Firmware, String> {
+        let read = |path: &Path| std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()));
+        let firmware = read(elf)?;
+        let segments =
+            stm32_emu::cpu::elf::load_segments(&firmware).map_err(|e| format!("{}: {e}", elf.display()))?;
+        let Some(lowest) = segments.iter().map(|(address, _)| *address).min() else {
+            return Err(format!("{}: no loadable segment", elf.display()));
+        };
+        let bootloader = match bootloader {
+            Some(path) => Some(read(path)?),
+            None if lowest >= board::flash_layout::ACTIVE.base => {
+                let beside = elf.with_file_name(format!("bootloader-{board}"));
+                Some(read(&beside).map_err(|e| {
+                    format!("{e} (the firmware is linked at ACTIVE: it needs the board's bootloader, --bootloader or scripts/build-bootloader)")
+                })?)
+            }
+            None => None,
+        };
+        Ok(Firmware { elf: firmware, bootloader })
+    }
+
+    /// The ELF files in the order they are flashed: the bootloader first.
+    pub fn images(&self) -> Vec<&[u8]> {
+        self.bootloader.iter().map(Vec::as_slice).chain([self.elf.as_slice()]).collect()
+    }
+}
+
 /// The exact firmware of one board on the models. See the [module docs](self).
 pub struct EmulatedBoard {
     kind: BoardKind,
@@ -129,9 +178,14 @@ pub struct EmulatedBoard {
 pub type SliceWatch = Box<dyn FnMut(&mut Stm32)>;
 
 impl EmulatedBoard {
-    /// The board `kind` with `elf` in its flash, set to `setting` (switches and settings journal),
+    /// The board `kind` with `elf` (and its bootloader) in its flash, set to `setting` (switches and settings journal),
     /// on a bus at `bus_rate`; powered off until [`SimDevice::power_on`].
-    pub fn new(kind: BoardKind, elf: &[u8], setting: NodeSetting, bus_rate: Bitrate) -> Result<Self, Fault> {
+    pub fn new(
+        kind: BoardKind,
+        elf: &Firmware,
+        setting: NodeSetting,
+        bus_rate: Bitrate,
+    ) -> Result<Self, Fault> {
         EmulatedBoard::with_power_cut(kind, elf, setting, bus_rate, None)
     }
 
@@ -140,7 +194,7 @@ impl EmulatedBoard {
     /// ([`EmulatedBoard::power_cut`]) until the next power-on, on the flash array as it left it.
     pub fn with_power_cut(
         kind: BoardKind,
-        elf: &[u8],
+        elf: &Firmware,
         setting: NodeSetting,
         bus_rate: Bitrate,
         cut: Option<(u64, CutKind)>,
@@ -153,6 +207,8 @@ impl EmulatedBoard {
         }
         mcu.add_flash(flash)?;
         mcu.add_peripheral(stm32_emu::pwr::BASE, 0x400, Box::new(stm32_emu::pwr::Pwr::new(kind.chip())))?;
+        // The bootloader starts it before every jump; the firmware feeds it (issue 31).
+        mcu.add_peripheral(stm32_emu::iwdg::BASE, 0x400, Box::new(stm32_emu::iwdg::Iwdg::new()))?;
         let mut switch_port = None;
         let mut gpios = Vec::new();
         for port in [Port::A, Port::B, Port::C, Port::D, Port::E, Port::H] {
@@ -174,7 +230,7 @@ impl EmulatedBoard {
         let can = Shared::new(Bxcan::new());
         let can_handle = can.handle();
         mcu.add_peripheral(CAN1_BASE, 0x400, Box::new(can))?;
-        mcu.load_elf(elf)?;
+        mcu.load_elfs(&elf.images())?;
         mcu.program_flash(kind.settings_offset(), &setting.record(kind.switches().is_some()))?;
         if let (Some(gpio), Some((_, first))) = (switch_port, kind.switches()) {
             // Each switch closes its pin to ground against the pull-up: "on" reads low.

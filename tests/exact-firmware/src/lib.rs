@@ -1,7 +1,7 @@
 //! # exact-firmware
 //!
-//! The exact firmware ELF of every board, run on the register-level models of stm32-emu, as a
-//! device of the simulated CAN bus: the bench master's library (master-core, what `dnet-master`
+//! The exact firmware ELF of every board, run on the register-level models of stm32-emu (with its
+//! board's bootloader, which starts it: [`device::Firmware`]), as a device of the simulated CAN bus: the bench master's library (master-core, what `dnet-master`
 //! runs) drives it unchanged, and the simulated breaker of converter-sim sits on its instrument
 //! USART (issue 26).
 //!
@@ -19,7 +19,9 @@
 //! On every board `bring-up`, `breaker`, `power-cycle`, `configure`, `ccv` (the configuration
 //! consistency value after a download and a power cycle), `download-cut` (a power cut
 //! at every flash operation of a download), `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and
-//! `can-self-test-fault` (the CAN self-test failing); on a board with DIP switches `switches`;
+//! `can-self-test-fault` (the CAN self-test failing), `settings-migration` (the settings an
+//! earlier firmware stored in the chip's last two sectors moved into the journal's new sectors);
+//! on a board with DIP switches `switches`;
 //! on a board without them `mac63-autobaud-125k`, `-250k`, `-500k` and `autobaud-silent-bus`
 //! ([`scenario`] says what each compares). The binary `exact-firmware` runs those that apply on
 //! every board ELF given and scripts/exact-firmware on every board's build. `bus-off` found the

@@ -2,14 +2,15 @@
 //! each, then `exact firmware: B boards, S scenarios passed, F failed`; exits 0 only when F is 0.
 //!
 //! ```text
-//! exact-firmware --board reference --elf target/…/slave-fw-firmware-reference [--board … --elf …]
+//! exact-firmware --board reference --elf target/…/slave-fw-firmware-reference [--bootloader ELF] [--board … --elf …]
 //! exact-firmware --dir target/thumbv7em-none-eabihf/firmware [--only BOARD] [--scenario NAME]
 //! exact-firmware … [--limit SECONDS] [--jobs N]
 //! ```
 //!
 //! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
 //! `configure`, `ccv`, `download-cut` (a power cut at every flash operation of a download),
-//! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and `can-self-test-fault` on every board;
+//! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds`, `can-self-test-fault`, `line-events` and
+//! `settings-migration` on every board;
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
 //! apply to a board is not run on it and not listed.
@@ -23,10 +24,13 @@
 //! lines are printed together when it is done, in the order of the boards.
 //!
 //! With `--dir`, the ELFs are the copies scripts/firmware-size makes: `slave-fw-firmware-<board>`
-//! for each board of the board crate.
+//! for each board of the board crate. A firmware linked at ACTIVE (0x0802_0000, issue 31) is
+//! flashed with its board's bootloader: `--bootloader ELF` after its `--elf`, else
+//! `bootloader-<board>` beside the firmware ELF (scripts/build-bootloader's copy); the reset vector
+//! is then the bootloader's, which starts the firmware.
 
 use exact_firmware::board::BoardKind;
-use exact_firmware::device::set_wall_deadline;
+use exact_firmware::device::{set_wall_deadline, Firmware};
 use exact_firmware::scenario::{self, Options, Outcome, Scenario};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -35,14 +39,21 @@ use std::time::Duration;
 
 fn usage() -> ExitCode {
     eprintln!(
-        "usage: exact-firmware (--board NAME --elf PATH)... | --dir DIR [--only BOARD]... [--scenario NAME]... [--limit SECONDS] [--jobs N]"
+        "usage: exact-firmware (--board NAME --elf PATH [--bootloader PATH])... | --dir DIR [--only BOARD]... [--scenario NAME]... [--limit SECONDS] [--jobs N]"
     );
     ExitCode::from(2)
 }
 
+/// A board's name, its firmware ELF and, if given, its bootloader ELF.
+struct BoardFiles {
+    name: String,
+    elf: PathBuf,
+    bootloader: Option<PathBuf>,
+}
+
 /// What the command line asks for.
 struct Run {
-    boards: Vec<(String, PathBuf)>,
+    boards: Vec<BoardFiles>,
     scenarios: Vec<&'static Scenario>,
     limit: Duration,
     jobs: usize,
@@ -50,7 +61,7 @@ struct Run {
 
 fn parse() -> Option<Run> {
     let mut args = std::env::args().skip(1);
-    let mut boards: Vec<(String, PathBuf)> = Vec::new();
+    let mut boards: Vec<BoardFiles> = Vec::new();
     let mut pending: Option<String> = None;
     let mut dir: Option<PathBuf> = None;
     let mut only: Vec<String> = Vec::new();
@@ -61,7 +72,12 @@ fn parse() -> Option<Run> {
         let value = args.next()?;
         match arg.as_str() {
             "--board" => pending = Some(value),
-            "--elf" => boards.push((pending.take()?, PathBuf::from(value))),
+            "--elf" => {
+                boards.push(BoardFiles { name: pending.take()?, elf: PathBuf::from(value), bootloader: None })
+            }
+            "--bootloader" => {
+                boards.last_mut().filter(|b| b.bootloader.is_none())?.bootloader = Some(value.into())
+            }
             "--dir" => dir = Some(PathBuf::from(value)),
             "--only" => only.push(value),
             "--scenario" => names.push(value),
@@ -72,10 +88,11 @@ fn parse() -> Option<Run> {
     }
     if let Some(dir) = dir {
         for kind in BoardKind::all() {
-            boards.push((kind.name.to_string(), dir.join(format!("slave-fw-firmware-{}", kind.name))));
+            let elf = dir.join(format!("slave-fw-firmware-{}", kind.name));
+            boards.push(BoardFiles { name: kind.name.to_string(), elf, bootloader: None });
         }
     }
-    boards.retain(|(name, _)| only.is_empty() || only.contains(name));
+    boards.retain(|b| only.is_empty() || only.contains(&b.name));
     if let Some(unknown) = names.iter().find(|n| !scenario::ALL.iter().any(|s| s.name == n.as_str())) {
         eprintln!("exact-firmware: no scenario called {unknown}");
         return None;
@@ -89,9 +106,10 @@ fn parse() -> Option<Run> {
 }
 
 /// Every chosen scenario that applies to one board; a board that cannot be loaded fails each.
-fn run_board(name: &str, path: &PathBuf, scenarios: &[&Scenario], limit: Duration) -> Vec<Outcome> {
+fn run_board(files: &BoardFiles, scenarios: &[&Scenario], limit: Duration) -> Vec<Outcome> {
+    let name = files.name.as_str();
     let loaded = BoardKind::by_name(name).ok_or_else(|| format!("no board called {name}")).and_then(|kind| {
-        std::fs::read(path).map(|elf| (kind, elf)).map_err(|e| format!("{}: {e}", path.display()))
+        Firmware::from_files(name, &files.elf, files.bootloader.as_deref()).map(|elf| (kind, elf))
     });
     let mut outcomes = Vec::new();
     for s in scenarios {
@@ -120,8 +138,8 @@ fn main() -> ExitCode {
             let (run, next) = (&run, &next);
             scope.spawn(move || loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some((name, path)) = run.boards.get(i) else { break };
-                let outcomes = run_board(name, path, &run.scenarios, run.limit);
+                let Some(files) = run.boards.get(i) else { break };
+                let outcomes = run_board(files, &run.scenarios, run.limit);
                 if sender.send((i, outcomes)).is_err() {
                     break;
                 }

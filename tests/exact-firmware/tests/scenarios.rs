@@ -9,28 +9,31 @@
 use can_io::bus::Bitrate;
 use devicenet::MacId;
 use exact_firmware::board::BoardKind;
+use exact_firmware::device::Firmware;
 use exact_firmware::scenario::{self, Options, Scenario};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 /// The reference board's ELF: `EXACT_FIRMWARE_ELF`, else the newest board (not the QEMU
 /// `emulated`, semihosting) build of the reference board in the firmware target directory.
-fn reference_elf() -> Vec<u8> {
+fn reference_elf() -> Firmware {
     if let Ok(path) = std::env::var("EXACT_FIRMWARE_ELF") {
-        return std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+        return Firmware::from_files("reference", Path::new(&path), None).unwrap_or_else(|e| panic!("{e}"));
     }
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/thumbv7em-none-eabihf/firmware");
-    let mut found: Option<(SystemTime, Vec<u8>)> = None;
+    let mut found: Option<(SystemTime, PathBuf)> = None;
     for name in ["slave-fw-firmware", "slave-fw-firmware-reference"] {
         let path = dir.join(name);
         let (Ok(elf), Ok(meta)) = (std::fs::read(&path), std::fs::metadata(&path)) else { continue };
         let emulated = stm32_emu::cpu::elf::symbol_address(&elf, "HostFileFlash").is_some();
         let modified = meta.modified().unwrap_or(SystemTime::UNIX_EPOCH);
         if !emulated && found.as_ref().is_none_or(|(t, _)| modified > *t) {
-            found = Some((modified, elf));
+            found = Some((modified, path));
         }
     }
-    found.map(|(_, elf)| elf).unwrap_or_else(|| panic!("no reference board ELF in {}", dir.display()))
+    let (_, path) = found.unwrap_or_else(|| panic!("no reference board ELF in {}", dir.display()));
+    // A firmware linked at ACTIVE takes scripts/build-bootloader's bootloader-reference beside it.
+    Firmware::from_files("reference", &path, None).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn reference() -> BoardKind {

@@ -57,7 +57,7 @@ use devicenet::reference::POLL_COMMAND;
 use devicenet::slave::BaudRate;
 use devicenet::{CanFrame, Group2Message, Identifier, Instant, MacId};
 use exact_firmware::board::{BoardKind, NodeSetting};
-use exact_firmware::device::{EmulatedBoard, OnBus};
+use exact_firmware::device::{EmulatedBoard, Firmware, OnBus};
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
 use std::cell::RefCell;
@@ -90,8 +90,8 @@ const SWEEP_PAUSE_US: u64 = 20_000;
 /// Why a board's figures could not be measured.
 #[derive(Debug)]
 enum FigureError {
-    /// The ELF could not be read.
-    Elf { path: PathBuf, error: std::io::Error },
+    /// The firmware or its bootloader ELF could not be read (the message names the file).
+    Elf(String),
     /// The sizes file could not be read.
     Sizes { path: PathBuf, error: std::io::Error },
     /// The machine could not be built or stopped with a fault.
@@ -107,7 +107,7 @@ enum FigureError {
 impl fmt::Display for FigureError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            FigureError::Elf { path, error } => write!(f, "{}: {error}", path.display()),
+            FigureError::Elf(why) => f.write_str(why),
             FigureError::Sizes { path, error } => write!(f, "{}: {error}", path.display()),
             FigureError::Machine(why) => write!(f, "the machine: {why}"),
             FigureError::Connect(why) => write!(f, "bring-up: {why}"),
@@ -257,8 +257,8 @@ fn read_sizes(path: &PathBuf) -> Result<Vec<(String, u64, u64)>, FigureError> {
 }
 
 /// Every figure of one board.
-fn measure(kind: BoardKind, path: &PathBuf) -> Result<Figures, FigureError> {
-    let elf = std::fs::read(path).map_err(|error| FigureError::Elf { path: path.clone(), error })?;
+fn measure(kind: BoardKind, path: &std::path::Path) -> Result<Figures, FigureError> {
+    let elf = Firmware::from_files(kind.name, path, None).map_err(FigureError::Elf)?;
     let (board, mut now) = connected(kind, &elf)?;
     let hclk = board.borrow_mut().mcu().clocks().hclk;
     let poll = requests(&board, &mut now, &poll_command()?)?;
@@ -294,7 +294,7 @@ fn median(values: &mut [u64]) -> u64 {
 }
 
 /// The board brought up by the master at 500 kbit/s, and the bus's time then (µs).
-fn connected(kind: BoardKind, elf: &[u8]) -> Result<(Board, u64), FigureError> {
+fn connected(kind: BoardKind, elf: &Firmware) -> Result<(Board, u64), FigureError> {
     let setting = NodeSetting { mac: MAC, rate: BaudRate::Kbps500, bus_off_interrupt: false };
     let device = EmulatedBoard::new(kind, elf, setting, Bitrate::K500)
         .map_err(|e| FigureError::Machine(e.to_string()))?;

@@ -30,6 +30,10 @@ struct Args {
     /// target/thumbv7em-none-eabihf/firmware/slave-fw-firmware-BOARD).
     #[arg(long)]
     elf: PathBuf,
+    /// The board's bootloader ELF (scripts/build-bootloader leaves it in
+    /// target/thumbv7em-none-eabihf/firmware/bootloader-BOARD), flashed beside the firmware.
+    #[arg(long)]
+    bootloader: Option<PathBuf>,
     /// The pty the SLCAN adapter answers on (one end of a socat pty pair; the host opens the other).
     #[arg(long)]
     slcan: String,
@@ -96,6 +100,7 @@ fn main() -> ExitCode {
     let options = ServeOptions {
         board: args.board,
         elf: args.elf,
+        bootloader: args.bootloader,
         slcan: args.slcan,
         instrument: args.instrument,
         instrument_line: args.instrument_line,

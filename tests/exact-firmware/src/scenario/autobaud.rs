@@ -6,6 +6,7 @@
 
 use super::world::{bitrate, duplicate_mac_id, machine_fault, master_checks, Handle, Options};
 use crate::board::{BoardKind, NodeSetting};
+use crate::device::Firmware;
 use crate::device::{EmulatedBoard, OnBus};
 use can_io::bus::{Bus, Origin};
 use can_io::sim::{PowerOn, SimBus};
@@ -25,7 +26,7 @@ const NEW_MAC: MacId = MacId::from_low_bits(5);
 
 /// The board with an erased settings journal, as it leaves the factory; `rate` is only the
 /// bus's.
-fn blank_board(board: BoardKind, elf: &[u8], rate: BaudRate) -> Result<Handle, String> {
+fn blank_board(board: BoardKind, elf: &Firmware, rate: BaudRate) -> Result<Handle, String> {
     let setting = NodeSetting { mac: MacId::MAX, rate, bus_off_interrupt: false };
     let mut device =
         EmulatedBoard::new(board, elf, setting, bitrate(rate)).map_err(|e| format!("the machine: {e}"))?;
@@ -44,17 +45,17 @@ fn blank_board(board: BoardKind, elf: &[u8], rate: BaudRate) -> Result<Handle, S
 }
 
 /// The `mac63-autobaud` scenario at 125 kbit/s.
-pub fn at_125k(board: BoardKind, elf: &[u8], _: &Options) -> Result<(), String> {
+pub fn at_125k(board: BoardKind, elf: &Firmware, _: &Options) -> Result<(), String> {
     mac63_autobaud(board, elf, BaudRate::Kbps125)
 }
 
 /// The `mac63-autobaud` scenario at 250 kbit/s.
-pub fn at_250k(board: BoardKind, elf: &[u8], _: &Options) -> Result<(), String> {
+pub fn at_250k(board: BoardKind, elf: &Firmware, _: &Options) -> Result<(), String> {
     mac63_autobaud(board, elf, BaudRate::Kbps250)
 }
 
 /// The `mac63-autobaud` scenario at 500 kbit/s.
-pub fn at_500k(board: BoardKind, elf: &[u8], _: &Options) -> Result<(), String> {
+pub fn at_500k(board: BoardKind, elf: &Firmware, _: &Options) -> Result<(), String> {
     mac63_autobaud(board, elf, BaudRate::Kbps500)
 }
 
@@ -65,7 +66,7 @@ pub fn at_500k(board: BoardKind, elf: &[u8], _: &Options) -> Result<(), String> 
 /// then holds MAC 5 at `rate`, and after a power cycle on a bus where nobody else talks the
 /// node's first frame is its duplicate MAC ID check at 5 (no autobaud: the rate is stored), and
 /// the master brings it up there.
-fn mac63_autobaud(board: BoardKind, elf: &[u8], rate: BaudRate) -> Result<(), String> {
+fn mac63_autobaud(board: BoardKind, elf: &Firmware, rate: BaudRate) -> Result<(), String> {
     let handle = blank_board(board, elf, rate)?;
     let mut bus = SimBus::new(bitrate(rate));
     bus.attach(Box::new(OnBus(Rc::clone(&handle))), PowerOn::AtStart);
@@ -146,7 +147,7 @@ fn mac63_autobaud(board: BoardKind, elf: &[u8], rate: BaudRate) -> Result<(), St
 /// as long on the one-instruction-per-cycle core of stm32-emu, so the second dwell ends past 8 s
 /// of emulated time, and each emulated second of that busy loop costs several seconds of wall
 /// time.
-pub fn silent_bus(board: BoardKind, elf: &[u8], _: &Options) -> Result<(), String> {
+pub fn silent_bus(board: BoardKind, elf: &Firmware, _: &Options) -> Result<(), String> {
     let handle = blank_board(board, elf, BaudRate::Kbps125)?;
     let seen = Rc::new(RefCell::new(Vec::new()));
     let record = Rc::clone(&seen);

@@ -2,6 +2,7 @@
 
 use super::world::{bus_with, direction, machine_fault, world, Options, MAC};
 use crate::board::BoardKind;
+use crate::device::Firmware;
 use can_io::sim::PowerOn;
 use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN, SWITCH_BYTE, SWITCH_CLOSED, SWITCH_OPEN};
 use devicenet::reference::BRING_UP;
@@ -13,7 +14,7 @@ use slave_fw::serial::breaker::SwitchState;
 /// The 28 frames of protocol §2, byte for byte and in order, every check holding. The
 /// serial number in the device's frames is the reference's own: the emulated chip's unique ID
 /// folds to it ([`crate::uid`]), nothing is substituted.
-pub fn bring_up(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn bring_up(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
     let mut session = Session::new(&mut bus);
     let connected = Master::new(&mut session, MasterConfig::default()).connect(&ConnectOptions::default());
@@ -43,7 +44,7 @@ pub fn bring_up(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), S
 
 /// Close, then open, through the poll output: the breaker on the instrument USART obeys and its
 /// switch state comes back in the input image.
-pub fn breaker(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn breaker(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());
@@ -89,7 +90,7 @@ const BOI: (u16, u16, u8) = (3, 1, 3);
 /// setting, DeviceNet object attribute 3) on the running node; the settings journal in flash
 /// then holds it (decoded by the board crate); after a power cycle (SRAM and every register
 /// reset, the flash array kept) a new bring-up reads it back from the node.
-pub fn power_cycle(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn power_cycle(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
     let (class, instance, attribute) = BOI;
     {

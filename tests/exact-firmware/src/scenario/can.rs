@@ -2,6 +2,7 @@
 
 use super::world::{machine_fault, world, Options, MAC};
 use crate::board::{BoardKind, NodeSetting};
+use crate::device::Firmware;
 use can_io::bus::{Bitrate, Origin};
 use can_io::sim::PowerOn;
 use devicenet::slave::BaudRate;
@@ -15,7 +16,7 @@ use master_core::session::Session;
 /// listens; the peaks, as a bus-off recovery clears both). With the bus-off interrupt setting 0
 /// (the default) a node that went bus-off stays off the bus and hears nothing more, so either
 /// its REC rose or it went bus-off.
-pub fn wrong_bit_rate(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn wrong_bit_rate(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let options = Options { bus_rate: Bitrate::K500, ..*options };
     let (mut bus, handle) = world(board, elf, &options, PowerOn::AtStart)?;
     let mut session = Session::new(&mut bus);
@@ -51,7 +52,7 @@ pub fn wrong_bit_rate(board: BoardKind, elf: &[u8], options: &Options) -> Result
 /// node at 125k on a 500k bus, alone, drives its controller bus-off with its own flagged
 /// frames. With BOI 0 it stays bus-off (one bus-off, still off a second later); with BOI 1 it
 /// resets the controller and continues, so it goes bus-off again and again.
-pub fn bus_off(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn bus_off(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     for boi in [false, true] {
         let setting = NodeSetting { bus_off_interrupt: boi, ..options.setting };
         let options = Options { bus_rate: Bitrate::K500, setting };
@@ -100,7 +101,7 @@ pub const FLOOD: usize = 2000;
 /// node's responses, which win the arbitration); every delivery to the node is followed by a
 /// look at FOVR of both FIFOs. The load is checked too: the frames' time on the wire over the
 /// flood's span.
-pub fn bus_load(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn bus_load(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let setting = NodeSetting { rate: BaudRate::Kbps500, ..options.setting };
     let options = Options { bus_rate: Bitrate::K500, setting };
     let (mut bus, handle) = world(board, elf, &options, PowerOn::WhenMasterOnline)?;

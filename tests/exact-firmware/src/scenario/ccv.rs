@@ -4,6 +4,7 @@
 use super::configure::METER;
 use super::world::{bus_with, machine_fault, master_checks, world, Options, MAC};
 use crate::board::BoardKind;
+use crate::device::Firmware;
 use can_io::sim::PowerOn;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
@@ -25,7 +26,7 @@ fn read_ccv(master: &mut Master<'_, '_>, when: &str) -> Result<u16, String> {
 /// [`consistency_value`] of the bytes downloaded, not the factory value), power-cycles the
 /// board and reads the same value again: the CCV follows the stored configuration, is computed
 /// by the firmware as by the host, and survives a reset.
-pub fn ccv(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn ccv(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     use master_harness::configure::download;
     let meter =
         slave_fw::description::DeviceDescription::parse(METER).map_err(|e| format!("the meter: {e}"))?;

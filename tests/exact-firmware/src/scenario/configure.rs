@@ -2,6 +2,7 @@
 
 use super::world::{bus_with, machine_fault, world, Options, MAC};
 use crate::board::BoardKind;
+use crate::device::Firmware;
 use can_io::sim::PowerOn;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
@@ -15,7 +16,7 @@ pub const METER: &str = include_str!("../../../../slave-fw/descriptions/modbus-m
 /// stored image is still in force (configuration state 1, the description's product name) and
 /// the instrument USART runs the description's line, 19200 bit/s 8E1. No Modbus slave answers
 /// on the line here (the QEMU test's pymodbus does): what the gateway reads is not checked.
-pub fn configure(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn configure(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     use master_harness::configure::{download, CONFIGURATION_CLASS};
     let meter =
         slave_fw::description::DeviceDescription::parse(METER).map_err(|e| format!("the meter: {e}"))?;

@@ -31,6 +31,7 @@ use super::configure::METER;
 use super::world::{bus_with, duplicate_mac_id, machine_fault, world, Handle, Options, MAC};
 use crate::board::BoardKind;
 use crate::device::EmulatedBoard;
+use crate::device::Firmware;
 use can_io::bus::Bus;
 use can_io::sim::PowerOn;
 use devicenet::Instant;
@@ -190,7 +191,7 @@ fn configuration_of(line: &LineSettings) -> Option<InForce> {
 /// A board whose settings sectors hold `sectors` (at flash offset `start`), not powered yet.
 fn board_with(
     board: BoardKind,
-    elf: &[u8],
+    elf: &Firmware,
     options: &Options,
     start: usize,
     sectors: &[u8],
@@ -205,7 +206,7 @@ fn board_with(
 /// [`MAC`] within 100 ms; then which configuration its instrument line shows.
 fn quick_power_up(
     board: BoardKind,
-    elf: &[u8],
+    elf: &Firmware,
     options: &Options,
     start: usize,
     sectors: &[u8],
@@ -261,7 +262,7 @@ struct Recording {
 }
 
 /// Runs the download on a fresh board, its flash operations recorded.
-fn record(board: BoardKind, elf: &[u8], options: &Options) -> Result<Recording, String> {
+fn record(board: BoardKind, elf: &Firmware, options: &Options) -> Result<Recording, String> {
     use master_harness::configure::download;
     let meter =
         slave_fw::description::DeviceDescription::parse(METER).map_err(|e| format!("the meter: {e}"))?;
@@ -304,12 +305,12 @@ fn record(board: BoardKind, elf: &[u8], options: &Options) -> Result<Recording, 
 }
 
 /// See the [module docs](self).
-pub fn download_cut(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn download_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     cut_at_every_operation(board, elf, options).map(|_| ())
 }
 
 /// [`download_cut`], giving the number of flash operations covered.
-pub fn cut_at_every_operation(board: BoardKind, elf: &[u8], options: &Options) -> Result<usize, String> {
+pub fn cut_at_every_operation(board: BoardKind, elf: &Firmware, options: &Options) -> Result<usize, String> {
     let meter =
         slave_fw::description::DeviceDescription::parse(METER).map_err(|e| format!("the meter: {e}"))?;
     let Recording { operations, mut array, start, factory_name } = record(board, elf, options)?;

@@ -8,6 +8,7 @@
 
 use super::world::{machine_fault, master_checks, Handle, Options, MAC};
 use crate::board::BoardKind;
+use crate::device::Firmware;
 use crate::device::{EmulatedBoard, OnBus, STEP};
 use board::boards::LedWiring;
 use can_io::sim::{PowerOn, SimBus};
@@ -188,7 +189,7 @@ fn check_flashing(
 /// - allocated, polled every 100 ms: NS green (one LED: lit);
 /// - the poll connection timed out (polls stopped; expected packet rate 100 ms, so 400 ms): NS
 ///   flashing red (one LED: flashing).
-pub fn leds(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn leds(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let mut device = EmulatedBoard::new(board, elf, options.setting, options.bus_rate)
         .map_err(|e| format!("the machine: {e}"))?;
     let origin = device.mcu().now();

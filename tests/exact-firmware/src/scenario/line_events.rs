@@ -11,6 +11,7 @@
 
 use super::world::{machine_fault, world, Options, MAC};
 use crate::board::BoardKind;
+use crate::device::Firmware;
 use can_io::sim::PowerOn;
 use converter_sim::device::{COMMAND_CLOSE, COMMAND_OPEN};
 use devicenet::explicit::{Request, ServiceCode};
@@ -57,7 +58,7 @@ fn read_kinds(master: &mut Master<'_, '_>) -> Result<Vec<TraceKind>, String> {
 }
 
 /// Close, a framing error injected, Open; then the ring read back.
-pub fn line_events(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn line_events(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let (mut bus, handle) = world(board, elf, options, PowerOn::WhenMasterOnline)?;
     let mut session = Session::new(&mut bus);
     let mut master = Master::new(&mut session, MasterConfig::default());

@@ -15,6 +15,7 @@
 //! | `mac63-autobaud-125k`, `-250k`, `-500k`, `autobaud-silent-bus` | boards without switches | [`autobaud`] |
 //! | `leds` | every board | [`leds`] |
 //! | `can-self-test-fault` | every board | [`self_test`] |
+//! | `settings-migration` | every board (linked at ACTIVE, issue 31) | [`migration`] |
 
 pub mod autobaud;
 pub mod bring_up;
@@ -24,11 +25,13 @@ pub mod configure;
 pub mod download_cut;
 pub mod leds;
 pub mod line_events;
+pub mod migration;
 pub mod self_test;
 pub mod switches;
 pub mod world;
 
 use crate::board::BoardKind;
+use crate::device::Firmware;
 pub use world::{Options, MAC};
 
 /// A scenario: its name, the boards it applies to, and what it runs.
@@ -39,7 +42,7 @@ pub struct Scenario {
     /// Whether it applies to a board (switches, autobaud).
     pub applies: fn(BoardKind) -> bool,
     /// Runs it on `elf` of `board`; `Err` says why it failed.
-    pub run: fn(BoardKind, &[u8], &Options) -> Result<(), String>,
+    pub run: fn(BoardKind, &Firmware, &Options) -> Result<(), String>,
 }
 
 fn every_board(_: BoardKind) -> bool {
@@ -55,7 +58,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 17] = [
+pub const ALL: [Scenario; 18] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -73,6 +76,7 @@ pub const ALL: [Scenario; 17] = [
     Scenario { name: "leds", applies: every_board, run: leds::leds },
     Scenario { name: "can-self-test-fault", applies: every_board, run: self_test::can_self_test_fault },
     Scenario { name: "line-events", applies: every_board, run: line_events::line_events },
+    Scenario { name: "settings-migration", applies: every_board, run: migration::settings_migration },
 ];
 
 /// The result of one scenario on one board.
@@ -98,7 +102,7 @@ impl Outcome {
 
 /// Runs `scenario` on `elf` of `board`. A scenario that does not apply to the board fails
 /// (the runner does not call it for such a board).
-pub fn run(scenario: &Scenario, board: BoardKind, elf: &[u8], options: &Options) -> Outcome {
+pub fn run(scenario: &Scenario, board: BoardKind, elf: &Firmware, options: &Options) -> Outcome {
     let result = if (scenario.applies)(board) {
         (scenario.run)(board, elf, options)
     } else {

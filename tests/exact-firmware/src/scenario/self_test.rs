@@ -11,6 +11,7 @@
 use super::leds::{watch_leds, Levels};
 use super::world::{machine_fault, world, Options, MAC};
 use crate::board::BoardKind;
+use crate::device::Firmware;
 use board::boards::LedWiring;
 use can_io::bus::Origin;
 use can_io::sim::PowerOn;
@@ -60,7 +61,7 @@ fn check_leds(changes: &[(Nanos, Levels)], from: Nanos, end: Nanos, levels: Leve
 /// nothing at [`MAC`], the controller is left asleep (off the bus), and from 1.8 s after power-on
 /// (the power-up LED test over) the LEDs show Module Status solid red and Network Status off (one
 /// LED: lit) throughout.
-pub fn can_self_test_fault(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn can_self_test_fault(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let (mut bus, handle) = world(board, elf, options, PowerOn::AtStart)?;
     handle.borrow_mut().break_can_loopback();
     let origin = handle.borrow_mut().mcu().now();

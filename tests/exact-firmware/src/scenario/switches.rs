@@ -5,6 +5,7 @@
 use super::world::{bitrate, bus_with, machine_fault, master_checks, power_cycled, Handle, Options};
 use crate::board::{BoardKind, NodeSetting};
 use crate::device::EmulatedBoard;
+use crate::device::Firmware;
 use can_io::sim::PowerOn;
 use devicenet::slave::BaudRate;
 use devicenet::{Duration, MacId};
@@ -45,7 +46,7 @@ struct Expected {
 /// and reads the attributes; `while_running` then runs on the live node (its master and MAC).
 fn boot(
     previous: &Handle,
-    elf: &[u8],
+    elf: &Firmware,
     switches: u8,
     want: &Expected,
     while_running: &mut dyn FnMut(&Handle, &mut Master<'_, '_>, MacId) -> Result<(), String>,
@@ -93,7 +94,7 @@ fn boot(
 /// 2. power cycle: the node runs at MAC 33 on a 500k bus, both "changed" again;
 /// 3. the rate switches in the program position (3), MAC switches unchanged: the stored MAC 5
 ///    at 125k rules; attribute 6 clear (the MAC switches did not move), 7 set, 9 reads 3.
-pub fn switches(board: BoardKind, elf: &[u8], options: &Options) -> Result<(), String> {
+pub fn switches(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     if board.switches().is_none() {
         return Err("the board has no switches".into());
     }

@@ -2,6 +2,7 @@
 //! checks they share.
 
 use crate::board::{BoardKind, NodeSetting};
+use crate::device::Firmware;
 use crate::device::{EmulatedBoard, OnBus};
 use can_io::bus::{Bitrate, Origin};
 use can_io::sim::{PowerOn, SimBus};
@@ -41,7 +42,7 @@ pub type Handle = Rc<RefCell<EmulatedBoard>>;
 /// The bus with the emulated board on it, and the test's handle on the board.
 pub fn world(
     board: BoardKind,
-    elf: &[u8],
+    elf: &Firmware,
     options: &Options,
     power: PowerOn,
 ) -> Result<(SimBus, Handle), String> {
@@ -100,7 +101,7 @@ pub fn duplicate_mac_id(mac: MacId) -> u16 {
 /// The same board powered up again with the flash array `previous` left (a power cycle), on a
 /// bus at `options.bus_rate`: a new machine, since the emulated board's bus rate is fixed when
 /// it is built.
-pub fn power_cycled(previous: &Handle, elf: &[u8], options: &Options) -> Result<Handle, String> {
+pub fn power_cycled(previous: &Handle, elf: &Firmware, options: &Options) -> Result<Handle, String> {
     let (kind, array) = {
         let mut board = previous.borrow_mut();
         (board.kind(), board.mcu().flash().to_vec())

@@ -128,10 +128,10 @@ mod tests {
         file.save(&flash).unwrap();
         let [(oa, sa), (ob, sb)] = file.load().unwrap().expect("saved");
         assert_eq!((oa, ob), (a, b));
-        assert_eq!((sa[0], sa[1], sb[7], sb.len()), (0xA5, 0, 0x5A, 128 * 1024));
+        assert_eq!((sa[0], sa[1], sb[7], sb.len()), (0xA5, 0, 0x5A, 16 * 1024));
         std::fs::write(file.path(), [0u8; 10]).unwrap();
         let err = file.load().unwrap_err().to_string();
-        assert!(err.contains("10 bytes, but the reference board's two settings sectors are 262144"), "{err}");
+        assert!(err.contains("10 bytes, but the reference board's two settings sectors are 32768"), "{err}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -62,7 +62,7 @@ pub mod flash_file;
 pub mod line;
 
 use crate::board::{BoardKind, NodeSetting};
-use crate::device::EmulatedBoard;
+use crate::device::{EmulatedBoard, Firmware};
 use can_io::sim::{MasterOnlineWatch, SimDevice};
 use can_io::slcan::{self, Adapter, LineBuffer};
 use devicenet::slave::BaudRate;
@@ -89,6 +89,8 @@ pub struct ServeOptions {
     pub board: BoardKind,
     /// The ELF's path.
     pub elf: PathBuf,
+    /// The bootloader ELF's path (issue 31), flashed beside the firmware; `None`: the firmware only.
+    pub bootloader: Option<PathBuf>,
     /// The SLCAN pty (the adapter's serial port).
     pub slcan: String,
     /// The instrument pty.
@@ -245,8 +247,9 @@ pub const SAVE_AFTER: std::time::Duration = std::time::Duration::from_millis(100
 /// The board, its flash set up from the file (or new) and `options`' MAC and rate.
 fn build_board(options: &ServeOptions, file: &FlashFile) -> Result<(EmulatedBoard, bool), ServeError> {
     let kind = options.board;
-    let elf = std::fs::read(&options.elf)
-        .map_err(|source| ServeError::Elf { path: options.elf.clone(), source })?;
+    let read =
+        |path: &PathBuf| std::fs::read(path).map_err(|source| ServeError::Elf { path: path.clone(), source });
+    let elf = Firmware::new(read(&options.elf)?, options.bootloader.as_ref().map(read).transpose()?);
     let has_switches = kind.switches().is_some();
     let given = match (options.mac, options.rate) {
         (Some(mac), Some(rate)) => Some((mac, rate)),
