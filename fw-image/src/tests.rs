@@ -131,3 +131,47 @@ fn sign_refuses_an_image_above_the_largest() {
 fn revision_displays_as_major_dot_minor() {
     assert_eq!(Revision { major: 1, minor: 2 }.to_string(), "1.2");
 }
+
+mod properties {
+    //! No input makes a parser panic; what is written reads back.
+
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn trailer_parse_takes_any_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+            let _ = Trailer::parse(&bytes);
+        }
+
+        #[test]
+        fn info_parse_takes_any_bytes(bytes in proptest::collection::vec(any::<u8>(), 0..0x220)) {
+            let _ = ImageInfo::parse(&bytes);
+        }
+
+        #[test]
+        fn a_trailer_reads_back(
+            image_len in 1u32..=MAX_IMAGE_LEN as u32,
+            board_id: u16,
+            major: u8,
+            minor: u8,
+            key_id: [u8; 8],
+            sig in proptest::collection::vec(any::<u8>(), 64),
+        ) {
+            let t = Trailer {
+                image_len,
+                board_id,
+                revision: Revision { major, minor },
+                key_id: KeyId(key_id),
+                signature: sig.try_into().unwrap(),
+            };
+            prop_assert_eq!(Trailer::parse(&t.to_bytes()), Ok(t));
+        }
+
+        #[test]
+        fn an_info_block_reads_back(board_id: u16, major: u8, minor: u8) {
+            let info = ImageInfo { board_id, revision: Revision { major, minor } };
+            prop_assert_eq!(ImageInfo::from_bytes(&info.to_bytes()), Ok(info));
+        }
+    }
+}

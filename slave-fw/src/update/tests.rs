@@ -578,3 +578,30 @@ mod through_the_converter {
         assert_eq!(plain, [vec![0x00, 0x94, 0x16, 0xFF]]);
     }
 }
+
+mod properties {
+    //! No request makes the object panic, whatever state a session is in.
+
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        #[test]
+        fn any_request_sequence_is_answered(
+            requests in proptest::collection::vec(
+                (prop_oneof![Just(0x0Eu8), Just(0x10), Just(0x4B), Just(0x4C), Just(0x4D), Just(0x4E), any::<u8>()],
+                 proptest::collection::vec(any::<u8>(), 0..140),
+                 any::<bool>()),
+                1..12),
+        ) {
+            let mut flash = flash();
+            let mut obj = object(&mut flash, BootState::Confirmed);
+            // A session first, so that Transfer, Verify and Apply meet a state to act on.
+            update(&mut obj, IMAGE_LEN).unwrap();
+            for (service, data, io) in requests {
+                let _ = call(&mut obj, service, &data, io);
+            }
+        }
+    }
+}
