@@ -122,6 +122,8 @@ impl NorFlash for FileFlash {
         for (h, b) in have.iter_mut().zip(bytes) {
             *h &= b;
         }
+        // Synced, so that a chunk is on disk before its log word: a host crash never leaves a
+        // logged chunk that is not there.
         self.file.write_all_at(&have, u64::from(offset)).map_err(|_| FileFlashError)?;
         self.file.sync_data().map_err(|_| FileFlashError)
     }
