@@ -69,8 +69,11 @@ pub struct Bus {
     pub scs: Scs,
     /// The flash memory array; the CPU sees a copy, refreshed when `flash_dirty` is set.
     pub flash: Vec<u8>,
-    /// The flash array changed since the CPU's copy was refreshed.
-    pub flash_dirty: bool,
+    /// The bytes of the flash array (a half-open range of offsets) that may have changed since
+    /// the CPU's copy was refreshed; `None` when none did. Only this range is copied into the
+    /// CPU's view: a whole copy per programmed word also threw away every translated block of
+    /// code and made a 128 KiB swap take seconds.
+    pub flash_dirty: Option<(usize, usize)>,
     /// Time at the start of the current slice of instructions.
     pub slice_start: Nanos,
     /// HCLK during the current slice.
@@ -114,7 +117,7 @@ impl Bus {
             slots: Vec::new(),
             scs: Scs::new(irqs),
             flash: vec![0xFF; FLASH_SIZE as usize],
-            flash_dirty: true,
+            flash_dirty: Some((0, FLASH_SIZE as usize)),
             slice_start: 0,
             hclk: Clocks::RESET.hclk,
             clocks: Clocks::RESET,
@@ -207,12 +210,23 @@ impl Bus {
         Some(result)
     }
 
-    /// Copies `model`'s flash array (if it keeps one) over the machine's copy when they differ.
+    /// Widens the range of flash offsets the CPU's copy must take again to `start..end`.
+    pub fn mark_flash_dirty(&mut self, start: usize, end: usize) {
+        self.flash_dirty = Some(match self.flash_dirty {
+            Some((s, e)) => (s.min(start), e.max(end)),
+            None => (start, end),
+        });
+    }
+
+    /// Copies `model`'s flash array (if it keeps one) over the machine's copy where they differ.
     fn take_flash_array(&mut self, model: &dyn Peripheral) {
         if let Some(array) = model.flash_array() {
-            if array.len() == self.flash.len() && array != &self.flash[..] {
-                self.flash.copy_from_slice(array);
-                self.flash_dirty = true;
+            if array.len() != self.flash.len() {
+                return;
+            }
+            if let Some((start, end)) = changed_span(array, &self.flash) {
+                self.flash[start..end].copy_from_slice(&array[start..end]);
+                self.mark_flash_dirty(start, end);
                 self.stop_requested = true;
             }
         }
@@ -289,7 +303,7 @@ impl Bus {
                 break;
             }
         }
-        self.flash_dirty = true;
+        // The model's array is compared afterwards (`with_model`), which marks what changed.
         self.stop_requested = true;
     }
 
@@ -299,7 +313,7 @@ impl Bus {
             let array = slot.model.as_ref().and_then(|m| m.flash_array());
             if let Some(array) = array.filter(|a| a.len() == self.flash.len()) {
                 self.flash.copy_from_slice(array);
-                self.flash_dirty = true;
+                self.flash_dirty = Some((0, array.len()));
             }
         }
     }
@@ -308,7 +322,7 @@ impl Bus {
     /// keep one ([`Peripheral::flash_load`]).
     pub fn load_flash(&mut self, offset: usize, bytes: &[u8]) {
         self.flash[offset..offset + bytes.len()].copy_from_slice(bytes);
-        self.flash_dirty = true;
+        self.mark_flash_dirty(offset, offset + bytes.len());
         for slot in &mut self.slots {
             if let Some(model) = slot.model.as_mut() {
                 model.flash_load(offset as u32, bytes);
@@ -433,7 +447,7 @@ impl Machine for Bus {
     }
 
     fn flash_memory(&mut self) -> Option<&mut [u8]> {
-        self.flash_dirty = true;
+        self.mark_flash_dirty(0, self.flash.len());
         self.stop_requested = true;
         Some(&mut self.flash)
     }
@@ -549,5 +563,46 @@ mod tests {
         bus.ppb_write(0xE000_E400 + 8, Width::Byte, 0xE0);
         assert_eq!(bus.ppb_read(0xE000_E408, Width::Byte), 0xE0);
         assert_eq!(bus.scs.priority(16 + 8), 0xE0);
+    }
+}
+
+/// The smallest range `start..end` outside which `a` and `b` (of one length) are equal, or `None`
+/// when they are equal: compared a block at a time from each end (a program changes one word, an
+/// erase one sector, of a 1 MiB array).
+fn changed_span(a: &[u8], b: &[u8]) -> Option<(usize, usize)> {
+    const BLOCK: usize = 256;
+    let blocks = a.len().div_ceil(BLOCK);
+    let block = |i: usize| (i * BLOCK, ((i + 1) * BLOCK).min(a.len()));
+    let differs = |i: usize| {
+        let (s, e) = block(i);
+        a[s..e] != b[s..e]
+    };
+    let first = (0..blocks).find(|&i| differs(i))?;
+    let last = (first..blocks).rev().find(|&i| differs(i)).unwrap_or(first);
+    let (s, _) = block(first);
+    let (_, e) = block(last);
+    let start = s + a[s..e].iter().zip(&b[s..e]).position(|(x, y)| x != y).unwrap_or(0);
+    let end = e - a[s..e].iter().zip(&b[s..e]).rev().position(|(x, y)| x != y).unwrap_or(0);
+    Some((start, end))
+}
+
+#[cfg(test)]
+mod changed_span_tests {
+    use super::changed_span;
+
+    #[test]
+    fn equal_arrays_have_no_span() {
+        assert_eq!(changed_span(&[1u8; 1000], &[1u8; 1000]), None);
+    }
+
+    #[test]
+    fn the_span_is_exactly_the_changed_bytes() {
+        let a = vec![0xFFu8; 4096];
+        for (start, end) in [(0, 1), (4095, 4096), (255, 257), (100, 3000), (1024, 1028)] {
+            let mut b = a.clone();
+            b[start] = 0;
+            b[end - 1] = 0;
+            assert_eq!(changed_span(&a, &b), Some((start, end)), "{start}..{end}");
+        }
     }
 }

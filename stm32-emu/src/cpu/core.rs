@@ -372,18 +372,20 @@ impl Core {
         self.read_memory(address, &mut b).then(|| u32::from_le_bytes(b))
     }
 
-    /// Copies the flash array into the CPU's two copies if it changed.
+    /// Copies what changed of the flash array into the CPU's two copies (0x0800_0000 and the
+    /// boot alias at 0).
     pub fn refresh_flash(&mut self) {
-        if !self.bus().flash_dirty {
+        let Some((start, end)) = self.bus_mut().flash_dirty.take() else {
             return;
-        }
+        };
         let flash = core::mem::take(&mut self.bus_mut().flash);
-        let seen = &flash[..(self.map.flash_bytes() as usize).min(flash.len())];
-        let _ = self.uc.mem_write(u64::from(FLASH_BASE), seen);
-        let _ = self.uc.mem_write(0, seen);
-        let bus = self.bus_mut();
-        bus.flash = flash;
-        bus.flash_dirty = false;
+        let end = end.min(self.map.flash_bytes() as usize).min(flash.len());
+        if start < end {
+            let seen = &flash[start..end];
+            let _ = self.uc.mem_write(u64::from(FLASH_BASE) + start as u64, seen);
+            let _ = self.uc.mem_write(start as u64, seen);
+        }
+        self.bus_mut().flash = flash;
     }
 
     /// Fills SRAM and CCM with zeros (power-on: their contents are not kept).
@@ -615,7 +617,7 @@ fn after_access(uc: &mut Unicorn<'_, Bus>) {
     let stop = bus.stop_requested
         || bus.scs.preempting(masks).is_some()
         || bus.scs.reset_pending()
-        || bus.flash_dirty;
+        || bus.flash_dirty.is_some();
     if stop {
         bus.stop_requested = true;
     }
