@@ -17,8 +17,6 @@
 //! than ACTIVE; STATE holds `2 + 4N` words for N pages of ACTIVE. The host tests check them, and
 //! the bootloader's `prepare_boot` asserts them again at run time.
 
-use crate::boards::SELECTED;
-
 /// Start of the flash array.
 pub const FLASH_BASE: u32 = 0x0800_0000;
 
@@ -115,12 +113,6 @@ pub const MAX_IMAGE_LEN: u32 = ACTIVE.size - TRAILER_LEN;
 pub const KEY_BLOCK_LEN: usize = 64;
 /// Address of the key block: the last [`KEY_BLOCK_LEN`] bytes of sector 0.
 pub const KEY_BLOCK_ADDRESS: u32 = BOOTLOADER.end() - KEY_BLOCK_LEN as u32;
-
-/// The board ID of the emulated (QEMU) build, which has no bootloader and no update.
-pub const EMULATED_BOARD_ID: u16 = 5;
-/// The board ID of this build's board ([`crate::boards::BoardSpec::board_id`], or
-/// [`EMULATED_BOARD_ID`] with the `emulated` feature).
-pub const BOARD_ID: u16 = if cfg!(feature = "emulated") { EMULATED_BOARD_ID } else { SELECTED.board_id };
 
 /// The sector of the array's first eight (the same on both chips) that holds `address`.
 pub const fn sector_of(address: u32) -> Option<Partition> {
@@ -243,7 +235,7 @@ impl KeyBlock {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::boards::ALL;
+    use crate::boards::{ALL, EMULATED_BOARD_ID};
 
     /// embassy-boot's page: the larger of ACTIVE's and DFU's erase size.
     const PAGE: u32 = LARGE_SECTOR_SIZE;

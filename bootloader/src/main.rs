@@ -42,7 +42,8 @@ mod check;
 
 #[cfg(target_os = "none")]
 mod target {
-    use board::flash_layout::{KeyBlock, ACTIVE, BOARD_ID, KEY_BLOCK_LEN};
+    use board::boards::BOARD_ID;
+    use board::flash_layout::{KeyBlock, ACTIVE, KEY_BLOCK_LEN};
     use board::hw::nor_flash::UpdateFlash;
     use cortex_m_rt::entry;
     use embassy_boot::{BootLoader, BootLoaderConfig, State};

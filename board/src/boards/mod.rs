@@ -172,7 +172,7 @@ pub struct BoardSpec {
     /// The board ID of the firmware update (issue 31): the number a firmware image's image-info
     /// block and the bootloader's key block carry, so that no board runs another board's image
     /// (reference 1, olimex-p405 2, olimex-p405-rs485 3, nucleo-f446re 4; the emulated build is
-    /// [`crate::flash_layout::EMULATED_BOARD_ID`]).
+    /// [`EMULATED_BOARD_ID`]).
     pub board_id: u16,
     /// The microcontroller.
     pub chip: Chip,
@@ -206,6 +206,13 @@ impl BoardSpec {
 }
 
 /// Every board, for the host tests.
+/// The board ID of the emulated (QEMU) build, which has no bootloader and no update.
+pub const EMULATED_BOARD_ID: u16 = 5;
+
+/// The board ID of this build's board ([`BoardSpec::board_id`] of [`SELECTED`], or
+/// [`EMULATED_BOARD_ID`] with the `emulated` feature).
+pub const BOARD_ID: u16 = if cfg!(feature = "emulated") { EMULATED_BOARD_ID } else { SELECTED.board_id };
+
 pub const ALL: [&BoardSpec; 4] =
     [&reference::BOARD, &olimex_p405::BOARD, &olimex_p405::BOARD_RS485, &nucleo_f446re::BOARD];
 

@@ -14,7 +14,7 @@ use fw_image::{ImageInfo, Revision, INFO_LEN, INFO_OFFSET};
 include!(concat!(env!("OUT_DIR"), "/revision.rs"));
 
 /// The block's content for this build.
-pub const INFO: ImageInfo = ImageInfo { board_id: board::flash_layout::BOARD_ID, revision: REVISION };
+pub const INFO: ImageInfo = ImageInfo { board_id: board::boards::BOARD_ID, revision: REVISION };
 
 // memory.x places the section where fw-image looks for the block, with room for it.
 const _: () = assert!(board::memory::IMAGE_INFO_OFFSET as usize == INFO_OFFSET);
