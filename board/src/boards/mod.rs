@@ -205,7 +205,6 @@ impl BoardSpec {
     }
 }
 
-/// Every board, for the host tests.
 /// The board ID of the emulated (QEMU) build, which has no bootloader and no update.
 pub const EMULATED_BOARD_ID: u16 = 5;
 
@@ -213,6 +212,7 @@ pub const EMULATED_BOARD_ID: u16 = 5;
 /// [`EMULATED_BOARD_ID`] with the `emulated` feature).
 pub const BOARD_ID: u16 = if cfg!(feature = "emulated") { EMULATED_BOARD_ID } else { SELECTED.board_id };
 
+/// Every board, for the host tests.
 pub const ALL: [&BoardSpec; 4] =
     [&reference::BOARD, &olimex_p405::BOARD, &olimex_p405::BOARD_RS485, &nucleo_f446re::BOARD];
 
