@@ -337,6 +337,12 @@ impl EmulatedBoard {
         &mut self.mcu
     }
 
+    /// `len` bytes of the flash array from `address` (0x0800_0000 on), as far as the array goes.
+    pub fn mcu_flash(&self, address: u32, len: usize) -> Vec<u8> {
+        let start = address.saturating_sub(board::memory::FLASH_BASE) as usize;
+        self.mcu.flash().iter().skip(start).take(len).copied().collect()
+    }
+
     /// The newest valid record of the settings journal in flash (board/src/settings.rs: the
     /// highest sequence number across both sectors), decoded by the board crate.
     pub fn stored_settings(&self) -> Option<(board::settings::Settings, u32)> {

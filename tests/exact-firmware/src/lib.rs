@@ -20,7 +20,9 @@
 //! consistency value after a download and a power cycle), `download-cut` (a power cut
 //! at every flash operation of a download), `wrong-bit-rate`, `bus-load`, `bus-off`, `leds` and
 //! `can-self-test-fault` (the CAN self-test failing), `settings-migration` (the settings an
-//! earlier firmware stored in the chip's last two sectors moved into the journal's new sectors);
+//! earlier firmware stored in the chip's last two sectors moved into the journal's new sectors),
+//! `trial-confirm` (the firmware, signed with the TEST key and swapped in by the bootloader, runs
+//! on trial and confirms itself once on-line);
 //! on a board with DIP switches `switches`;
 //! on a board without them `mac63-autobaud-125k`, `-250k`, `-500k` and `autobaud-silent-bus`
 //! ([`scenario`] says what each compares). The binary `exact-firmware` runs those that apply on

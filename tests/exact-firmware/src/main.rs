@@ -9,8 +9,8 @@
 //!
 //! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
 //! `configure`, `ccv`, `download-cut` (a power cut at every flash operation of a download),
-//! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds`, `can-self-test-fault`, `line-events` and
-//! `settings-migration` on every board;
+//! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds`, `can-self-test-fault`, `line-events`,
+//! `settings-migration` and `trial-confirm` on every board;
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
 //! apply to a board is not run on it and not listed.

@@ -16,6 +16,7 @@
 //! | `leds` | every board | [`leds`] |
 //! | `can-self-test-fault` | every board | [`self_test`] |
 //! | `settings-migration` | every board (linked at ACTIVE, issue 31) | [`migration`] |
+//! | `trial-confirm` | every board: an image swapped in by the bootloader confirms once on-line | [`trial`] |
 
 pub mod autobaud;
 pub mod bring_up;
@@ -28,6 +29,7 @@ pub mod line_events;
 pub mod migration;
 pub mod self_test;
 pub mod switches;
+pub mod trial;
 pub mod world;
 
 use crate::board::BoardKind;
@@ -58,7 +60,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 18] = [
+pub const ALL: [Scenario; 19] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -77,6 +79,7 @@ pub const ALL: [Scenario; 18] = [
     Scenario { name: "can-self-test-fault", applies: every_board, run: self_test::can_self_test_fault },
     Scenario { name: "line-events", applies: every_board, run: line_events::line_events },
     Scenario { name: "settings-migration", applies: every_board, run: migration::settings_migration },
+    Scenario { name: "trial-confirm", applies: every_board, run: trial::trial_confirm },
 ];
 
 /// The result of one scenario on one board.
