@@ -512,7 +512,7 @@ fn bad_arguments_are_refused_with_the_reason() {
         (
             vec!["--board".into(), "nucleo-f446re".into(), "--flash".into(), path(&flash).to_string()],
             1,
-            "100 bytes, but the nucleo-f446re board's two settings sectors are 262144 bytes",
+            "100 bytes, but the nucleo-f446re board's two settings sectors are 32768 bytes",
         ),
     ];
     for (extra, code, why) in cases {

@@ -110,13 +110,11 @@ pub struct ServeOptions {
 /// Why serving stopped or could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum ServeError {
-    /// The ELF cannot be read.
-    #[error("ELF {path}: {source} (scripts/firmware-size builds every board's ELF into target/thumbv7em-none-eabihf/firmware/)")]
-    Elf {
-        /// The path.
-        path: PathBuf,
-        /// What failed.
-        source: std::io::Error,
+    /// The firmware ELF or its bootloader cannot be read or has no loadable segment.
+    #[error("{reason} (scripts/firmware-size builds every board's ELF into target/thumbv7em-none-eabihf/firmware/, scripts/build-bootloader its bootloader)")]
+    Firmware {
+        /// What failed, naming the file.
+        reason: String,
     },
     /// The machine refused the ELF or the flash contents.
     #[error("{what}: {fault}")]
@@ -247,9 +245,9 @@ pub const SAVE_AFTER: std::time::Duration = std::time::Duration::from_millis(100
 /// The board, its flash set up from the file (or new) and `options`' MAC and rate.
 fn build_board(options: &ServeOptions, file: &FlashFile) -> Result<(EmulatedBoard, bool), ServeError> {
     let kind = options.board;
-    let read =
-        |path: &PathBuf| std::fs::read(path).map_err(|source| ServeError::Elf { path: path.clone(), source });
-    let elf = Firmware::new(read(&options.elf)?, options.bootloader.as_ref().map(read).transpose()?);
+    // As the runner does: a firmware linked at ACTIVE takes the bootloader beside it unless one is given.
+    let elf = Firmware::from_files(kind.name, &options.elf, options.bootloader.as_deref())
+        .map_err(|reason| ServeError::Firmware { reason })?;
     let has_switches = kind.switches().is_some();
     let given = match (options.mac, options.rate) {
         (Some(mac), Some(rate)) => Some((mac, rate)),
