@@ -17,6 +17,7 @@
 //! | `can-self-test-fault` | every board | [`self_test`] |
 //! | `settings-migration` | every board (linked at ACTIVE, issue 31) | [`migration`] |
 //! | `trial-confirm` | every board: an image swapped in by the bootloader confirms once on-line | [`trial`] |
+//! | `update-object` | every board: class 0x6A's attributes 5–8 (chunk size, largest image, board ID, key ID) | [`update_object`] |
 
 pub mod autobaud;
 pub mod bring_up;
@@ -30,6 +31,7 @@ pub mod migration;
 pub mod self_test;
 pub mod switches;
 pub mod trial;
+pub mod update_object;
 pub mod world;
 
 use crate::board::BoardKind;
@@ -60,7 +62,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 19] = [
+pub const ALL: [Scenario; 20] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -80,6 +82,7 @@ pub const ALL: [Scenario; 19] = [
     Scenario { name: "line-events", applies: every_board, run: line_events::line_events },
     Scenario { name: "settings-migration", applies: every_board, run: migration::settings_migration },
     Scenario { name: "trial-confirm", applies: every_board, run: trial::trial_confirm },
+    Scenario { name: "update-object", applies: every_board, run: update_object::update_object },
 ];
 
 /// The result of one scenario on one board.
