@@ -373,7 +373,7 @@ impl Core {
     }
 
     /// Copies what changed of the flash array into the CPU's two copies (0x0800_0000 and the
-    /// boot alias at 0).
+    /// boot alias at 0), and drops the code Unicorn translated from those bytes.
     pub fn refresh_flash(&mut self) {
         let Some((start, end)) = self.bus_mut().flash_dirty.take() else {
             return;
@@ -382,8 +382,13 @@ impl Core {
         let end = end.min(self.map.flash_bytes() as usize).min(flash.len());
         if start < end {
             let seen = &flash[start..end];
-            let _ = self.uc.mem_write(u64::from(FLASH_BASE) + start as u64, seen);
-            let _ = self.uc.mem_write(start as u64, seen);
+            for base in [u64::from(FLASH_BASE), 0] {
+                let _ = self.uc.mem_write(base + start as u64, seen);
+                // Unicorn keeps the code it translated from the old bytes: without this, code run
+                // from a sector before it was erased and programmed again (a swapped image) would
+                // run stale.
+                let _ = self.uc.ctl_remove_cache(base + start as u64, base + end as u64);
+            }
         }
         self.bus_mut().flash = flash;
     }
