@@ -18,16 +18,21 @@
 //! | `settings-migration` | every board (linked at ACTIVE, issue 31) | [`migration`] |
 //! | `trial-confirm` | every board: an image swapped in by the bootloader confirms once on-line | [`trial`] |
 //! | `update-object` | every board: class 0x6A's attributes 5–8 (chunk size, largest image, board ID, key ID) | [`update_object`] |
+//! | `firmware-update-rollback` | every board: an image that never confirms is reverted by the watchdog | [`rollback`] |
+//! | `firmware-update-bad-signature` | every board: a bad signature or another board's image is refused by the bootloader | [`bad_signature`] |
 
 pub mod autobaud;
+pub mod bad_signature;
 pub mod bring_up;
 pub mod can;
 pub mod ccv;
 pub mod configure;
+pub mod dfu;
 pub mod download_cut;
 pub mod leds;
 pub mod line_events;
 pub mod migration;
+pub mod rollback;
 pub mod self_test;
 pub mod switches;
 pub mod trial;
@@ -62,7 +67,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 20] = [
+pub const ALL: [Scenario; 22] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -83,6 +88,12 @@ pub const ALL: [Scenario; 20] = [
     Scenario { name: "settings-migration", applies: every_board, run: migration::settings_migration },
     Scenario { name: "trial-confirm", applies: every_board, run: trial::trial_confirm },
     Scenario { name: "update-object", applies: every_board, run: update_object::update_object },
+    Scenario { name: "firmware-update-rollback", applies: every_board, run: rollback::rollback },
+    Scenario {
+        name: "firmware-update-bad-signature",
+        applies: every_board,
+        run: bad_signature::bad_signature,
+    },
 ];
 
 /// The result of one scenario on one board.
