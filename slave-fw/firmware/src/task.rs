@@ -289,14 +289,13 @@ impl<A: Application> ConverterTask<A> {
         if let Some(image) = self.converter.poll_new_image() {
             store_image(&mut self.settings, image, hw);
         }
-        if let Some(kind) = self.converter.poll_reset(now) {
+        // An Identity Reset, or Apply's reset into the bootloader (a power cycle), each
+        // RESET_DELAY after its request; the response drained first, above.
+        let due = self.converter.poll_reset(now);
+        if let Some(kind) = due.or_else(|| self.application.poll_reset(now).then_some(ResetKind::PowerCycle))
+        {
             info!("reset, type {=u8}", kind.as_raw());
             hw.reset(kind);
-        }
-        // Apply's reset, RESET_DELAY after its response was queued (frames drain first).
-        if self.application.poll_reset(now) {
-            info!("firmware update applied: reset into the bootloader");
-            hw.reset(ResetKind::PowerCycle);
         }
     }
 

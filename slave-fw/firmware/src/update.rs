@@ -35,6 +35,16 @@
 //! the acceptance filters pass only frames for this node. SysTick's interrupts are lost too,
 //! so the millisecond clock runs about 1 s slow per sector erased: the node's timers take
 //! longer, never shorter.
+//!
+//! **Known limits** (found on stm32-emu, not yet settled; docs/src/integrator/updating.md):
+//! - The node queues the acknowledgement of a request's last fragment before it serves the
+//!   request and sends both after, so Update's two erases (about 2 s) hold that acknowledgement
+//!   back past a master's 1 s fragment acknowledge timeout (`dnet-master`'s aborts after one
+//!   re-send). A second run resumes the announced image without erasing and goes through.
+//! - Apply's reset is due `RESET_DELAY` after the request's time, read before STATE's erase. On
+//!   the chip the clock stands still during the erase (above), so the response has its 100 ms;
+//!   stm32-emu runs the code during an erase and its clock runs on, so there the reset can come
+//!   before the response has left.
 
 use crate::image_info;
 use board::flash_layout::{self, DFU, STATE};
