@@ -52,7 +52,7 @@ use board::hw::nor_flash::{read_key_block, FlashOpError, SlotFlash, StateFlash};
 use embassy_boot::{AlignedBuffer, BlockingFirmwareState};
 use embedded_storage::nor_flash::{ErrorType, NorFlash, ReadNorFlash};
 use fw_image::{Revision, Trailer};
-use slave_fw::update::{BootState, MarkError, MarkUpdated, Platform, UpdateObject};
+use slave_fw::update::{BootState, MarkError, MarkUpdated, Platform, UpdateObject, PAGE_SIZE};
 
 /// The update object over DFU and STATE.
 pub type FirmwareUpdate = UpdateObject<FedFlash, StateMark>;
@@ -62,6 +62,12 @@ const DFU_FLASH: SlotFlash = match SlotFlash::new(DFU) {
     Some(flash) => flash,
     None => panic!("flash_layout::DFU is not whole 128 KiB sectors"),
 };
+// The object's geometry (`UpdateObject::new` checks it again at run time, `GeometryError`): the
+// 128 KiB page is whole erase units, the 16-byte log header whole words, DFU's offset 0 is sector
+// 6's first byte and DFU holds the two pages.
+const _: () = assert!(PAGE_SIZE % SlotFlash::ERASE_SIZE == 0 && 16 % SlotFlash::WRITE_SIZE == 0);
+const _: () = assert!(DFU.first_sector == 6 && DFU.size as usize == 2 * PAGE_SIZE);
+
 /// STATE, sector 3 (one 16 KiB sector, checked at compile time).
 const STATE_FLASH: StateFlash = match StateFlash::new(STATE) {
     Some(flash) => flash,
