@@ -108,20 +108,24 @@ pub struct Firmware {
     /// The same board's `fault-never-confirm` build at another revision, if there is one: the
     /// image of the rollback scenario (`firmware-update-rollback`).
     pub never_confirm: Option<Vec<u8>>,
+    /// The same board's firmware built at another revision, if there is one: the image of the
+    /// update over the bus (`firmware-update`).
+    pub newer: Option<Vec<u8>>,
 }
 
 impl Firmware {
     /// The firmware `elf`, started by `bootloader` when there is one.
     pub fn new(elf: Vec<u8>, bootloader: Option<Vec<u8>>) -> Firmware {
-        Firmware { elf, bootloader, never_confirm: None }
+        Firmware { elf, bootloader, never_confirm: None, newer: None }
     }
 
     /// The firmware ELF at `elf` and its bootloader: `bootloader` when given, else, for a firmware
     /// linked at ACTIVE (`board::flash_layout::ACTIVE`, which needs the bootloader to start it), the
     /// build beside it, `bootloader-<board>` (scripts/build-bootloader's name); a firmware linked at
-    /// the start of flash (before issue 31) runs alone. The `fault-never-confirm` build is taken
-    /// from beside the firmware ELF, its name with `-never-confirm` appended
-    /// (scripts/exact-firmware's copy), when it is there. Errors name the file.
+    /// the start of flash (before issue 31) runs alone. The `fault-never-confirm` build and the
+    /// build at another revision are taken from beside the firmware ELF, its name with
+    /// `-never-confirm` and `-newer` appended (scripts/exact-firmware's copies), when they are
+    /// there. Errors name the file.
     pub fn from_files(board: &str, elf: &Path, bootloader: Option<&Path>) -> Result<Firmware, String> {
         let read = |path: &Path| std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()));
         let firmware = read(elf)?;
@@ -140,14 +144,17 @@ impl Firmware {
             }
             None => None,
         };
-        let mut name = elf.as_os_str().to_owned();
-        name.push("-never-confirm");
-        let never_confirm = match std::fs::read(&name) {
-            Ok(bytes) => Some(bytes),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-            Err(e) => return Err(format!("{}: {e}", Path::new(&name).display())),
+        let beside = |suffix: &str| {
+            let mut name = elf.as_os_str().to_owned();
+            name.push(suffix);
+            match std::fs::read(&name) {
+                Ok(bytes) => Ok(Some(bytes)),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+                Err(e) => Err(format!("{}: {e}", Path::new(&name).display())),
+            }
         };
-        Ok(Firmware { elf: firmware, bootloader, never_confirm })
+        let (never_confirm, newer) = (beside("-never-confirm")?, beside("-newer")?);
+        Ok(Firmware { elf: firmware, bootloader, never_confirm, newer })
     }
 
     /// The ELF files in the order they are flashed: the bootloader first.

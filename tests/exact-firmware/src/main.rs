@@ -10,11 +10,13 @@
 //! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
 //! `configure`, `ccv`, `download-cut` (a power cut at every flash operation of a download),
 //! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds`, `can-self-test-fault`, `line-events`,
-//! `settings-migration`, `trial-confirm`, `update-object`, `firmware-update-rollback` and
-//! `firmware-update-bad-signature` on every board;
+//! `settings-migration`, `trial-confirm`, `update-object`, `firmware-update-rollback`,
+//! `firmware-update-bad-signature` and `firmware-update` on every board;
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
-//! apply to a board is not run on it and not listed.
+//! apply to a board is not run on it and not listed. `firmware-update-power-cut` (a power cut at
+//! a sample of the bootloader's swap, about 3 minutes of CPU per board) runs only when named
+//! with `--scenario` (`scenario::ON_REQUEST`).
 //!
 //! `--limit` bounds each scenario's wall time (default 300 s, the longest scenario,
 //! `download-cut`, taking a minute or more on a busy machine): past it the machine stops and the
@@ -100,8 +102,13 @@ fn parse() -> Option<Run> {
         eprintln!("exact-firmware: no scenario called {unknown}");
         return None;
     }
-    let scenarios: Vec<_> =
-        scenario::ALL.iter().filter(|s| names.is_empty() || names.iter().any(|n| n == s.name)).collect();
+    let scenarios: Vec<_> = scenario::ALL
+        .iter()
+        .filter(|s| match names.is_empty() {
+            true => !scenario::ON_REQUEST.contains(&s.name),
+            false => names.iter().any(|n| n == s.name),
+        })
+        .collect();
     if boards.is_empty() || pending.is_some() || scenarios.is_empty() {
         return None;
     }

@@ -20,6 +20,8 @@
 //! | `update-object` | every board: class 0x6A's attributes 5–8 (chunk size, largest image, board ID, key ID) | [`update_object`] |
 //! | `firmware-update-rollback` | every board: an image that never confirms is reverted by the watchdog | [`rollback`] |
 //! | `firmware-update-bad-signature` | every board: a bad signature or another board's image is refused by the bootloader | [`bad_signature`] |
+//! | `firmware-update` | every board: the update over the bus by `master-core`'s client, confirmed, then a power cycle with no flash operation | [`update`] |
+//! | `firmware-update-power-cut` | every board, only when named ([`ON_REQUEST`]): a power cut at a sample of the swap's flash operations, the new image comes up | [`swap_cut`] |
 
 pub mod autobaud;
 pub mod bad_signature;
@@ -34,8 +36,10 @@ pub mod line_events;
 pub mod migration;
 pub mod rollback;
 pub mod self_test;
+pub mod swap_cut;
 pub mod switches;
 pub mod trial;
+pub mod update;
 pub mod update_object;
 pub mod world;
 
@@ -67,7 +71,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 22] = [
+pub const ALL: [Scenario; 24] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -94,7 +98,14 @@ pub const ALL: [Scenario; 22] = [
         applies: every_board,
         run: bad_signature::bad_signature,
     },
+    Scenario { name: "firmware-update", applies: every_board, run: update::firmware_update },
+    Scenario { name: "firmware-update-power-cut", applies: every_board, run: swap_cut::swap_cut },
 ];
+
+/// The scenarios run only when named (`--scenario NAME`): too slow for every run.
+/// `firmware-update-power-cut` takes about 3 minutes of CPU time per board (12 cuts, each
+/// emulating the bootloader's check and swap twice).
+pub const ON_REQUEST: [&str; 1] = ["firmware-update-power-cut"];
 
 /// The result of one scenario on one board.
 #[derive(Clone, Debug)]
