@@ -11,9 +11,17 @@
 //! master brings the old firmware up. The refused images differ from the old firmware (the ELF's
 //! image) in their image-info block, so a swap would show in ACTIVE even if the swapped image
 //! confirmed (STATE BOOT too).
+//!
+//! Then over the bus: the first file (image and flipped trailer) sent by `master-core`'s update
+//! client without a public key, so that the device is the one to check: every chunk goes, Verify
+//! is refused with 0xD0/1 (bad signature), STATE is not SWAP, ACTIVE still holds the old firmware
+//! and it answers at its revision. The other board's file is not sent: the client refuses it
+//! before sending (`check_file`, master-core's tests), so the device's Update refusal (0xD0/2) is
+//! not reached here.
 
 use super::dfu::{
-    active_holds, dfu_holds, flat_image, place_in_dfu, run_until, state, test_signed, with_info, BOOT_MAGIC,
+    active_holds, dfu_holds, fast_flash_board, flat_image, place_in_dfu, run_until, state, test_signed,
+    with_info, BOOT_MAGIC, SWAP_MAGIC,
 };
 use super::trial::SETTLE;
 use super::world::{bus_with, machine_fault, Options};
@@ -24,6 +32,7 @@ use devicenet::Instant;
 use fw_image::ImageInfo;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
+use master_core::update::{self, Step, UpdateError, UpdateFile};
 use std::cell::RefCell;
 use std::rc::Rc;
 
@@ -46,7 +55,62 @@ pub fn bad_signature(board: BoardKind, elf: &Firmware, options: &Options) -> Res
     let foreign = with_info(&old, ImageInfo { board_id: other, ..info });
     let trailer = test_signed(&foreign)?.to_bytes();
     refused(board, elf, options, &foreign, &trailer)
-        .map_err(|e| format!("an image signed for board ID {other}: {e}"))
+        .map_err(|e| format!("an image signed for board ID {other}: {e}"))?;
+    let mut file = newer.clone();
+    file.extend_from_slice(&flipped.to_bytes());
+    refused_at_verify(board, elf, options, file)
+        .map_err(|e| format!("over the bus, a signature bit flipped: {e}"))
+}
+
+/// The flipped file sent by `master-core`'s update client without a public key (so that the
+/// client does not refuse it itself): every chunk goes, the device refuses Verify with 0xD0/1
+/// (bad signature), STATE is not SWAP, ACTIVE holds the old firmware and it still answers at its
+/// revision.
+fn refused_at_verify(
+    board: BoardKind,
+    elf: &Firmware,
+    options: &Options,
+    file: Vec<u8>,
+) -> Result<(), String> {
+    let old = flat_image(&elf.elf)?;
+    let file = UpdateFile::parse("flipped.bin", file).map_err(|e| format!("the signed file: {e}"))?;
+    let handle = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
+    let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let connected = master.connect(&ConnectOptions::default());
+    machine_fault(&handle)?;
+    connected.map_err(|e| format!("connect: {e}"))?;
+    let mac = options.setting.mac;
+    let before = master
+        .open_explicit(mac)
+        .map_err(UpdateError::from)
+        .and_then(|()| update::device_info(&mut master, mac));
+    let outcome = update::run(&mut master, mac, &file, None, &mut |_| {});
+    machine_fault(&handle)?;
+    let before = before.map_err(|e| format!("before: {e}"))?;
+    match outcome {
+        Err(UpdateError::Refused { step: Step::Verify, general, additional: 1, .. })
+            if general.as_raw() == 0xD0 => {}
+        other => return Err(format!("the update ended {other:?}, not Verify refused with 0xD0/1")),
+    }
+    let state = state(&handle);
+    if state == [SWAP_MAGIC; 4] || !active_holds(&handle, &old) {
+        return Err(format!(
+            "after the refusal: STATE {state:02x?}, ACTIVE the old firmware: {}",
+            active_holds(&handle, &old)
+        ));
+    }
+    let after = update::device_info(&mut master, mac);
+    machine_fault(&handle)?;
+    let after = after.map_err(|e| format!("after the refusal: {e}"))?;
+    if after.revision != before.revision {
+        return Err(format!(
+            "the device runs {:?} after the refusal, {:?} before",
+            after.revision, before.revision
+        ));
+    }
+    Ok(())
 }
 
 /// `image` and `trailer` in DFU, STATE SWAP: after the power-on the request is cancelled and the
