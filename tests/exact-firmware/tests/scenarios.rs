@@ -78,3 +78,26 @@ fn bring_up_fails_when_the_node_is_at_another_mac() {
     eprintln!("{}", outcome.line());
     assert!(outcome.result.is_err(), "{}", outcome.line());
 }
+
+#[test]
+#[ignore = "needs scripts/exact-firmware's builds (slave-fw-firmware-reference and its -newer beside it)"]
+fn rollback_fails_when_the_image_confirms() {
+    let mut elf = reference_elf();
+    let newer =
+        elf.newer.clone().expect("slave-fw-firmware-reference-newer beside the ELF (scripts/exact-firmware)");
+    // A build that confirms in place of the fault-never-confirm one: nothing to roll back.
+    elf.never_confirm = Some(newer);
+    let outcome =
+        scenario::run(&scenario("firmware-update-rollback"), reference(), &elf, &Options::default());
+    eprintln!("{}", outcome.line());
+    assert!(outcome.result.is_err(), "{}", outcome.line());
+}
+
+#[test]
+#[ignore = "needs scripts/exact-firmware's builds (slave-fw-firmware-reference and its -newer beside it)"]
+fn firmware_update_fails_without_a_build_at_another_revision() {
+    let mut elf = reference_elf();
+    elf.newer = Some(elf.elf.clone());
+    let outcome = scenario::run(&scenario("firmware-update"), reference(), &elf, &Options::default());
+    assert!(outcome.result.is_err(), "{}", outcome.line());
+}

@@ -30,6 +30,11 @@ pub fn firmware_update(board: BoardKind, elf: &Firmware, options: &Options) -> R
         return Err("no build at another revision beside the firmware ELF (<elf>-newer, scripts/exact-firmware builds it)".into());
     };
     let new = flat_image(newer)?;
+    let old = flat_image(&elf.elf)?;
+    match (fw_image::ImageInfo::parse(&old), fw_image::ImageInfo::parse(&new)) {
+        (Ok(o), Ok(n)) if o.board_id == n.board_id && o.revision != n.revision => {}
+        other => return Err(format!("the newer build must be this board's at another revision: {other:?}")),
+    }
     let trailer = test_signed(&new)?;
     let mut bytes = new.clone();
     bytes.extend_from_slice(&trailer.to_bytes());
