@@ -15,8 +15,8 @@
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
 //! apply to a board is not run on it and not listed. `firmware-update-power-cut` (a power cut at
-//! a sample of the bootloader's swap, about 3 minutes of CPU per board) runs only when named
-//! with `--scenario` (`scenario::ON_REQUEST`).
+//! a sample of the bootloader's swap and after a chunk of the transfer, about 4 minutes of CPU
+//! per board) runs only when named with `--scenario` (`scenario::ON_REQUEST`).
 //!
 //! `--limit` bounds each scenario's wall time (default 300 s, the longest scenario,
 //! `download-cut`, taking a minute or more on a busy machine): past it the machine stops and the

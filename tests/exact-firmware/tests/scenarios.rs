@@ -101,3 +101,11 @@ fn firmware_update_fails_without_a_build_at_another_revision() {
     let outcome = scenario::run(&scenario("firmware-update"), reference(), &elf, &Options::default());
     assert!(outcome.result.is_err(), "{}", outcome.line());
 }
+
+#[test]
+#[ignore = "needs scripts/exact-firmware's builds (slave-fw-firmware-reference and its -newer beside it)"]
+fn the_transfer_half_of_the_power_cut_resumes_on_the_reference_board() {
+    let elf = reference_elf();
+    let result = exact_firmware::scenario::transfer_cut::transfer_cut(reference(), &elf, &Options::default());
+    assert!(result.is_ok(), "{result:?}");
+}

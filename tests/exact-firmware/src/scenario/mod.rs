@@ -38,6 +38,7 @@ pub mod rollback;
 pub mod self_test;
 pub mod swap_cut;
 pub mod switches;
+pub mod transfer_cut;
 pub mod trial;
 pub mod update;
 pub mod update_object;
@@ -103,8 +104,8 @@ pub const ALL: [Scenario; 24] = [
 ];
 
 /// The scenarios run only when named (`--scenario NAME`): too slow for every run.
-/// `firmware-update-power-cut` takes about 3 minutes of CPU time per board (12 cuts, each
-/// emulating the bootloader's check and swap twice).
+/// `firmware-update-power-cut` takes about 4 minutes of CPU time per board (12 cuts, each
+/// emulating the bootloader's check and swap twice, then two updates over the bus).
 pub const ON_REQUEST: [&str; 1] = ["firmware-update-power-cut"];
 
 /// The result of one scenario on one board.

@@ -1,4 +1,5 @@
-//! `firmware-update-power-cut` (every board; issue 31), the swap half: a power cut at a sample of
+//! `firmware-update-power-cut` (every board; issue 31): the transfer half is
+//! [`super::transfer_cut`]'s, run after this one. The swap half: a power cut at a sample of
 //! the bootloader's flash operations while it swaps a new image in, then power again: the new
 //! image comes up and confirms, ACTIVE byte for byte.
 //!
@@ -232,7 +233,8 @@ fn cut_and_power_up(
 
 /// See the [module docs](self).
 pub fn swap_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
-    cut_during_the_swap(board, elf, options).map(|_| ())
+    cut_during_the_swap(board, elf, options)?;
+    super::transfer_cut::transfer_cut(board, elf, options).map_err(|e| format!("the transfer half: {e}"))
 }
 
 /// [`swap_cut`], giving the number of the swap's flash operations and of the cuts made.
