@@ -12,6 +12,9 @@
 //! `NorFlash` declares one 128 KiB erase size for the whole array and programs bytes (PSIZE x8):
 //! neither fits embassy-boot's 16 KiB STATE nor its word-sized progress marks.
 //!
+//! [`read_key_block`] reads the bootloader's key block (end of sector 0) for the firmware's update
+//! object, through the same read path.
+//!
 //! Reads are plain memory reads of the memory-mapped array. The data cache (FLASH_ACR DCEN, off
 //! after reset, on when the firmware's HAL enables it) is reset after every erase and program, so
 //! that no stale line is read back after the array changed underneath it.
@@ -23,7 +26,10 @@ use embedded_storage::nor_flash::{
 };
 use stm32f4xx_hal::pac;
 
-use crate::flash_layout::{self, Partition, LARGE_SECTOR_SIZE, SMALL_SECTOR_SIZE};
+use crate::flash_layout::{
+    self, KeyBlock, KeyBlockError, Partition, KEY_BLOCK_ADDRESS, KEY_BLOCK_LEN, LARGE_SECTOR_SIZE,
+    SMALL_SECTOR_SIZE,
+};
 
 /// STATE's flash: 16 KiB sectors.
 pub type StateFlash = FlashSectors<{ SMALL_SECTOR_SIZE as usize }>;
@@ -175,6 +181,25 @@ impl UpdateFlash {
     }
 }
 
+/// Reads the bootloader's key block ([`KEY_BLOCK_ADDRESS`], the end of sector 0): the key and the
+/// revision the firmware's update object reports and checks with. Only reads.
+///
+/// # Errors
+/// [`KeyBlockError`] when the bytes there are not a key block (no bootloader, another layout).
+pub fn read_key_block() -> Result<KeyBlock, KeyBlockError> {
+    // Checked at compile time: sector 0 is one 16 KiB sector.
+    const SECTOR_0: StateFlash = match StateFlash::new(flash_layout::BOOTLOADER) {
+        Some(flash) => flash,
+        None => panic!("flash_layout::BOOTLOADER is not one 16 KiB sector"),
+    };
+    let mut sector = SECTOR_0;
+    // The block lies inside sector 0 (flash_layout's tests), so the bounds check passes; were it
+    // ever to fail, the erased bytes left in `bytes` fail the CRC.
+    let mut bytes = [0xFFu8; KEY_BLOCK_LEN];
+    let _ = sector.read(KEY_BLOCK_ADDRESS - flash_layout::BOOTLOADER.base, &mut bytes);
+    KeyBlock::parse(&bytes)
+}
+
 fn registers() -> &'static pac::flash::RegisterBlock {
     // SAFETY: the FLASH register block's fixed address; every access below is a volatile register
     // access, and operations run to completion within one call (type docs).
@@ -253,14 +278,7 @@ impl<const ERASE_SIZE: usize> NorFlash for FlashSectors<ERASE_SIZE> {
         let mut at = self.partition.base + from;
         while at < self.partition.base + to {
             let sector = flash_layout::sector_of(at).ok_or(FlashOpError::OutOfBounds)?;
-            // RM0090 §3.6.3: SER and SNB (with PSIZE), then STRT, then wait for BSY.
-            unlocked(|flash| {
-                let cr = CR_SER | CR_PSIZE_X32 | (u32::from(sector.first_sector) << CR_SNB_SHIFT);
-                // SAFETY: SER, SNB of a sector in the partition, PSIZE x32.
-                flash.cr().write(|w| unsafe { w.bits(cr) });
-                flash.cr().write(|w| unsafe { w.bits(cr | CR_STRT) });
-                wait_and_check(flash)
-            })?;
+            erase_sector(sector)?;
             at = sector.end();
         }
         Ok(())
@@ -268,22 +286,42 @@ impl<const ERASE_SIZE: usize> NorFlash for FlashSectors<ERASE_SIZE> {
 
     fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashOpError> {
         check_write(self, offset, bytes.len()).map_err(kind_error)?;
-        let base = self.partition.base + offset;
-        unlocked(|flash| {
-            // RM0090 §3.6.4: PG with PSIZE x32, then one word at a time, each waited for.
-            // SAFETY: PG and PSIZE x32.
-            flash.cr().write(|w| unsafe { w.bits(CR_PG | CR_PSIZE_X32) });
-            for (i, word) in bytes.chunks_exact(4).enumerate() {
-                let value = u32::from_le_bytes([word[0], word[1], word[2], word[3]]);
-                let address = (base + 4 * i as u32) as *mut u32;
-                // SAFETY: a word-aligned address in the partition (checked above) while PG is set:
-                // the controller programs it.
-                unsafe { core::ptr::write_volatile(address, value) };
-                wait_and_check(flash)?;
-            }
-            Ok(())
-        })
+        program(self.partition.base + offset, bytes)
     }
+}
+
+// The two operations apart from `FlashSectors`' erase size, so that each is in the firmware once
+// however many partition types it uses.
+
+/// Erases `sector`, a sector of a partition (checked by the caller).
+fn erase_sector(sector: Partition) -> Result<(), FlashOpError> {
+    // RM0090 §3.6.3: SER and SNB (with PSIZE), then STRT, then wait for BSY.
+    unlocked(|flash| {
+        let cr = CR_SER | CR_PSIZE_X32 | (u32::from(sector.first_sector) << CR_SNB_SHIFT);
+        // SAFETY: SER, SNB of a sector in the partition, PSIZE x32.
+        flash.cr().write(|w| unsafe { w.bits(cr) });
+        flash.cr().write(|w| unsafe { w.bits(cr | CR_STRT) });
+        wait_and_check(flash)
+    })
+}
+
+/// Programs `bytes` (whole words) at `base`, a word-aligned address of a partition with room for
+/// them (checked by the caller).
+fn program(base: u32, bytes: &[u8]) -> Result<(), FlashOpError> {
+    unlocked(|flash| {
+        // RM0090 §3.6.4: PG with PSIZE x32, then one word at a time, each waited for.
+        // SAFETY: PG and PSIZE x32.
+        flash.cr().write(|w| unsafe { w.bits(CR_PG | CR_PSIZE_X32) });
+        for (i, word) in bytes.chunks_exact(4).enumerate() {
+            let value = u32::from_le_bytes([word[0], word[1], word[2], word[3]]);
+            let address = (base + 4 * i as u32) as *mut u32;
+            // SAFETY: a word-aligned address in the partition (checked by the caller) while PG is
+            // set: the controller programs it.
+            unsafe { core::ptr::write_volatile(address, value) };
+            wait_and_check(flash)?;
+        }
+        Ok(())
+    })
 }
 
 fn kind_error(error: NorFlashErrorKind) -> FlashOpError {

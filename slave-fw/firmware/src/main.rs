@@ -28,7 +28,9 @@
 //!   (`image_info`, linked 0x200 into the image) and is linked at ACTIVE, started by the
 //!   bootloader; at reset it moves the settings from their location before the update (board's
 //!   `SettingsStore::migrate_from`), and `trial` confirms an image on trial once the node is
-//!   on-line and feeds the independent watchdog from the converter task.
+//!   on-line and feeds the independent watchdog from the converter task. The converter task
+//!   serves the update object (class 0x6A, `update`) beside the converter's objects; its Apply
+//!   ends in a reset into the bootloader. The emulated board has no update object.
 //!
 //! The `emulated` feature swaps only the lowest layer (clock from HSI, CAN as SLCAN on USART1,
 //! MAC from `DNET_MAC`); see the guide, docs/src/development/firmware.md.
@@ -55,6 +57,8 @@ mod log;
 mod task;
 #[cfg(all(target_os = "none", not(feature = "emulated")))]
 mod trial;
+#[cfg(all(target_os = "none", not(feature = "emulated")))]
+mod update;
 
 #[cfg(all(target_os = "none", not(feature = "defmt")))]
 use panic_halt as _;
@@ -77,6 +81,8 @@ mod app {
     use crate::config;
     use crate::instrument::{InstrumentPort, Received};
     use crate::log::{log_info as info, log_warn as warn};
+    #[cfg(feature = "emulated")]
+    use crate::task::NoApplication;
     use crate::task::{ConverterTask, Hardware, Input, INPUTS};
     #[cfg(not(feature = "emulated"))]
     use crate::trial::{Confirmation, Trial};
@@ -99,6 +105,13 @@ mod app {
     type Driver = crate::can_bxcan::Bxcan;
     #[cfg(feature = "emulated")]
     type Driver = crate::can_slcan::Slcan;
+
+    /// The object beside the converter's: the update object (none without a key block).
+    #[cfg(not(feature = "emulated"))]
+    type App = Option<crate::update::FirmwareUpdate>;
+    /// QEMU models no flash controller: no update object, class 0x6A answers 0x16.
+    #[cfg(feature = "emulated")]
+    type App = NoApplication;
 
     #[cfg(not(feature = "emulated"))]
     type Flash = board::hw::InternalFlash;
@@ -137,8 +150,8 @@ mod app {
 
     /// The converter task's own resources.
     pub struct TaskState {
-        /// The converter and the settings in force.
-        task: ConverterTask,
+        /// The converter, the settings in force and the update object.
+        task: ConverterTask<App>,
         /// The MS/NS LEDs.
         leds: LedPins,
         /// The settings flash.
@@ -227,6 +240,16 @@ mod app {
         if trial.is_pending() {
             info!("on trial: confirms once on-line");
         }
+        #[cfg(not(feature = "emulated"))]
+        let app: App = match crate::update::object(trial.boot_state()) {
+            Ok(object) => Some(object),
+            Err(why) => {
+                warn!("no firmware update object: {}", why);
+                None
+            }
+        };
+        #[cfg(feature = "emulated")]
+        let app = NoApplication;
         info!(
             "MAC {=u8}, baud attribute {=u8}, {=str}",
             resolved.mac_id.as_raw(),
@@ -248,7 +271,7 @@ mod app {
             },
             Local {
                 state: TaskState {
-                    task: ConverterTask::new(converter, settings),
+                    task: ConverterTask::with_application(converter, settings, app),
                     leds: board.leds,
                     store,
                     #[cfg(not(feature = "emulated"))]
@@ -435,6 +458,11 @@ mod app {
                     Confirmation::Withheld => warn!("on-line: fault-never-confirm, not confirmed"),
                 }
             }
+        }
+
+        #[cfg(not(feature = "emulated"))]
+        fn image_on_trial(&self) -> bool {
+            self.trial.is_pending()
         }
     }
 

@@ -11,14 +11,22 @@
 //! without draining would push responses and a `ResetRequested` or `SettingChanged` out of them.
 //! Consecutive instrument bytes are one input (up to [`SERIAL_BATCH`] bytes in one
 //! `handle_serial` call).
+//!
+//! Beside the converter the task may own an [`Application`] object: the firmware update object
+//! (class 0x6A, `slave_fw::update`) on the real boards (`crate::update`), none ([`NoApplication`])
+//! on the emulated board, where requests to its class get 0x16. Frames reach it through
+//! `Converter::handle_can_frame_with`, as on the soft slave; it sees the events, and its reset
+//! (Apply's) is carried out in the drain after the converter's.
 
 use crate::log::{log_info as info, log_warn as warn};
 use board::settings::Settings;
 use devicenet::led::Leds;
 use devicenet::slave::{Event, SettingChanged};
 use devicenet::{CanFrame, Instant, MacId};
-use slave_fw::converter::{Converter, ResetKind};
+use embedded_storage::nor_flash::NorFlash;
+use slave_fw::converter::{ApplicationObject, Converter, ResetKind};
 use slave_fw::serial::trace::TraceKind;
+use slave_fw::update::{MarkUpdated, UpdateObject};
 
 /// Capacity of the converter task's input queue, and the most inputs taken per wake-up.
 pub const INPUTS: usize = 64;
@@ -53,20 +61,114 @@ pub trait Hardware {
     fn save_settings(&mut self, settings: &Settings) -> bool;
     /// Resets the device (Identity Reset, protocol §3.2); on the board this does not return.
     fn reset(&mut self, kind: ResetKind);
-    /// Sees every event the converter passes on, before the task acts on it (the log).
+    /// Sees every event the converter passes on, before the task acts on it (the log; on a real
+    /// board, `Event::Online` confirms an image on trial).
     fn event(&mut self, _event: &Event) {}
+    /// The running image is on trial and has not confirmed (after [`Hardware::event`] saw
+    /// `Event::Online`, a confirmation that failed or was withheld).
+    fn image_on_trial(&self) -> bool {
+        false
+    }
 }
 
-/// The converter and the settings in force: everything the converter task owns besides the LEDs.
-pub struct ConverterTask {
+/// An object the application serves beside the converter's own (module docs).
+pub trait Application {
+    /// The object for `Converter::handle_can_frame_with`; `None`: requests to a class neither
+    /// the node nor the converter serves get 0x16 (object does not exist).
+    fn object(&mut self) -> Option<&mut dyn ApplicationObject>;
+    /// Sees every event the converter passes on (the update session ends with the explicit
+    /// connection).
+    fn on_event(&mut self, event: &Event);
+    /// The running image confirmed itself: on-line and not on trial any more.
+    fn confirmed(&mut self);
+    /// `true` once, when the object's reset is due (the update object's, after Apply).
+    fn poll_reset(&mut self, now: Instant) -> bool;
+    /// When [`Application::poll_reset`] must run next.
+    fn poll_at(&self) -> Option<Instant>;
+}
+
+/// No object beside the converter's (the emulated board).
+pub struct NoApplication;
+
+impl Application for NoApplication {
+    fn object(&mut self) -> Option<&mut dyn ApplicationObject> {
+        None
+    }
+    fn on_event(&mut self, _: &Event) {}
+    fn confirmed(&mut self) {}
+    fn poll_reset(&mut self, _: Instant) -> bool {
+        false
+    }
+    fn poll_at(&self) -> Option<Instant> {
+        None
+    }
+}
+
+/// An object, or none (the firmware's when the bootloader's key block is missing).
+impl<T: Application> Application for Option<T> {
+    fn object(&mut self) -> Option<&mut dyn ApplicationObject> {
+        self.as_mut().and_then(T::object)
+    }
+    fn on_event(&mut self, event: &Event) {
+        if let Some(app) = self {
+            app.on_event(event);
+        }
+    }
+    fn confirmed(&mut self) {
+        if let Some(app) = self {
+            app.confirmed();
+        }
+    }
+    fn poll_reset(&mut self, now: Instant) -> bool {
+        self.as_mut().is_some_and(|app| app.poll_reset(now))
+    }
+    fn poll_at(&self) -> Option<Instant> {
+        self.as_ref().and_then(T::poll_at)
+    }
+}
+
+/// The firmware update object: its session ends with the explicit connection, a trial ends
+/// with the confirmation, and Apply's reset is [`UpdateObject::poll_reset`]'s.
+impl<F: NorFlash, M: MarkUpdated> Application for UpdateObject<F, M> {
+    fn object(&mut self) -> Option<&mut dyn ApplicationObject> {
+        Some(self)
+    }
+    fn on_event(&mut self, event: &Event) {
+        UpdateObject::on_event(self, event);
+    }
+    fn confirmed(&mut self) {
+        self.confirm();
+    }
+    fn poll_reset(&mut self, now: Instant) -> bool {
+        UpdateObject::poll_reset(self, now)
+    }
+    fn poll_at(&self) -> Option<Instant> {
+        UpdateObject::poll_at(self)
+    }
+}
+
+/// The converter, the settings in force and the application's object: everything the converter
+/// task owns besides the LEDs.
+pub struct ConverterTask<A = NoApplication> {
     converter: Converter,
     settings: Settings,
+    application: A,
 }
 
+#[cfg(test)]
 impl ConverterTask {
-    /// The task for `converter`, running with the stored `settings`.
+    /// The task for `converter`, running with the stored `settings`, without an object beside
+    /// the converter's (the tests').
     pub fn new(converter: Converter, settings: Settings) -> ConverterTask {
-        ConverterTask { converter, settings }
+        ConverterTask::with_application(converter, settings, NoApplication)
+    }
+}
+
+impl<A: Application> ConverterTask<A> {
+    /// The task for `converter`, running with the stored `settings`, serving `application`'s
+    /// object too.
+    pub fn with_application(converter: Converter, settings: Settings, application: A) -> ConverterTask<A> {
+        ConverterTask { converter, settings, application }
     }
 
     /// Powers the converter on at `now` and drains.
@@ -98,7 +200,10 @@ impl ConverterTask {
                 }
                 Input::Frame(frame) => {
                     self.serial(&mut serial, now, hw);
-                    self.converter.handle_can_frame(&frame, now);
+                    match self.application.object() {
+                        Some(object) => self.converter.handle_can_frame_with(&frame, now, object),
+                        None => self.converter.handle_can_frame(&frame, now),
+                    }
                     self.drain(now, hw);
                 }
                 Input::LineEvent(kind) => {
@@ -128,9 +233,12 @@ impl ConverterTask {
         self.drain(now, hw);
     }
 
-    /// When [`ConverterTask::handle_timeout`] must run next.
+    /// When [`ConverterTask::handle_timeout`] must run next (the application's reset included).
     pub fn poll_at(&self) -> Option<Instant> {
-        self.converter.poll_at()
+        match (self.converter.poll_at(), self.application.poll_at()) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
     }
 
     /// The LEDs at `now`.
@@ -142,6 +250,12 @@ impl ConverterTask {
     #[cfg(test)]
     pub fn converter(&self) -> &Converter {
         &self.converter
+    }
+
+    /// The application's object (the tests look into it).
+    #[cfg(test)]
+    pub fn application(&self) -> &A {
+        &self.application
     }
 
     /// The settings in force, with the changes made over the network (the tests look at them).
@@ -175,7 +289,11 @@ impl ConverterTask {
         if let Some(image) = self.converter.poll_new_image() {
             store_image(&mut self.settings, image, hw);
         }
-        if let Some(kind) = self.converter.poll_reset(now) {
+        // An Identity Reset, or Apply's reset into the bootloader (a power cycle), each
+        // RESET_DELAY after its request; the response drained first, above.
+        let due = self.converter.poll_reset(now);
+        if let Some(kind) = due.or_else(|| self.application.poll_reset(now).then_some(ResetKind::PowerCycle))
+        {
             info!("reset, type {=u8}", kind.as_raw());
             hw.reset(kind);
         }
@@ -184,7 +302,10 @@ impl ConverterTask {
     /// The application's part of an event: outputs, idle polls and connection faults are the
     /// converter's, and so is the reset's timing.
     fn on_event(&mut self, event: Event, hw: &mut impl Hardware) {
+        self.application.on_event(&event);
         match event {
+            // `hw.event` has seen it first: a trial image has confirmed, unless it is still on trial.
+            Event::Online if !hw.image_on_trial() => self.application.confirmed(),
             Event::ResetCanController => hw.restart_can(),
             Event::SettingChanged(change) => {
                 match change {
@@ -205,7 +326,7 @@ impl ConverterTask {
     }
 }
 
-impl ConverterTask {
+impl<A: Application> ConverterTask<A> {
     /// Stores the settings in force.
     fn save(&mut self, hw: &mut impl Hardware) {
         if !hw.save_settings(&self.settings) {
@@ -256,6 +377,8 @@ mod tests {
         resets: Vec<(usize, ResetKind)>,
         restarts: usize,
         macs: Vec<MacId>,
+        /// What [`Hardware::image_on_trial`] says.
+        on_trial: bool,
     }
 
     impl Hardware for Recorder {
@@ -282,6 +405,9 @@ mod tests {
         fn event(&mut self, event: &Event) {
             self.events.push(*event);
         }
+        fn image_on_trial(&self) -> bool {
+            self.on_trial
+        }
     }
 
     fn frame(id: u16, data: &[u8]) -> CanFrame {
@@ -291,8 +417,13 @@ mod tests {
     /// The reference converter powered on at 2 s and brought up by the master's side of
     /// protocol §2, one input per wake-up; then a 5 s EPR on the poll connection.
     fn established(hw: &mut Recorder) -> (ConverterTask, Instant) {
+        established_with(hw, NoApplication)
+    }
+
+    /// [`established`] with `application`'s object beside the converter's.
+    fn established_with<A: Application>(hw: &mut Recorder, application: A) -> (ConverterTask<A>, Instant) {
         let converter = Converter::new(ConverterConfig::breaker_reference(), Instant::ZERO).unwrap();
-        let mut task = ConverterTask::new(converter, Settings::default());
+        let mut task = ConverterTask::with_application(converter, Settings::default(), application);
         let mut now = Instant::from_millis(2000);
         task.power_on(now, hw);
         let online = now + Duration::from_secs(2);
@@ -486,4 +617,7 @@ mod tests {
         assert_eq!(task.leds(self_test_over).network, devicenet::led::Lit::Off, "duplicate MAC check again");
         assert!(hw.events.contains(&Event::ResetCanController));
     }
+
+    /// The application's object in the converter task.
+    mod application;
 }

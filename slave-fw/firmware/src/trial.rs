@@ -5,7 +5,8 @@
 //! swap it leaves STATE at SWAP, and an image that does not confirm is reverted at the next reset.
 //! So this firmware:
 //!
-//! - reads STATE at start ([`Trial::start`]): SWAP means this image runs on trial;
+//! - reads STATE at start ([`Trial::start`]): SWAP means this image runs on trial, REVERT that
+//!   the bootloader rolled the last one back ([`Trial::boot_state`], for the update object);
 //! - confirms once the node is on-line (the duplicate MAC ID check passed: [`Trial::online`]),
 //!   with embassy-boot's `BlockingFirmwareState::mark_booted` over board's STATE flash driver;
 //! - feeds the watchdog from the converter task, which runs at least every LED period
@@ -19,6 +20,7 @@
 use board::flash_layout;
 use board::hw::nor_flash::StateFlash;
 use embassy_boot::{AlignedBuffer, BlockingFirmwareState, State};
+use slave_fw::update::BootState;
 
 /// The STATE partition as a flash (whole 16 KiB sectors, checked at compile time).
 const STATE_FLASH: StateFlash = match StateFlash::new(flash_layout::STATE) {
@@ -31,6 +33,8 @@ pub struct Trial {
     state: StateFlash,
     /// The image runs on trial and has not confirmed yet.
     pending: bool,
+    /// STATE said REVERT at start: the bootloader rolled the last image back.
+    rolled_back: bool,
 }
 
 /// What [`Trial::online`] did.
@@ -53,9 +57,24 @@ impl Trial {
     pub fn start() -> Trial {
         let mut state = STATE_FLASH;
         let mut aligned = AlignedBuffer([0u8; flash_layout::WRITE_SIZE as usize]);
-        let pending =
-            matches!(BlockingFirmwareState::new(&mut state, &mut aligned.0).get_state(), Ok(State::Swap));
-        Trial { state, pending }
+        let read = BlockingFirmwareState::new(&mut state, &mut aligned.0).get_state();
+        Trial {
+            state,
+            pending: matches!(read, Ok(State::Swap)),
+            rolled_back: matches!(read, Ok(State::Revert)),
+        }
+    }
+
+    /// How this image was started, for the update object's state (attribute 1): on trial, or
+    /// after a rollback (embassy-boot leaves REVERT in STATE until the next update marks one).
+    pub const fn boot_state(&self) -> BootState {
+        if self.pending {
+            BootState::Trial
+        } else if self.rolled_back {
+            BootState::RolledBack
+        } else {
+            BootState::Confirmed
+        }
     }
 
     /// This image runs on trial and has not confirmed yet.

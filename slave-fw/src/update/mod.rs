@@ -138,7 +138,8 @@ pub struct Platform {
 /// Apply's work: mark the verified image in DFU for the bootloader. The reset follows.
 pub trait MarkUpdated {
     /// Marks the image of `trailer.image_len` bytes, which Verify accepted, for the swap (the
-    /// firmware: embassy-boot's `verify_and_mark_updated`, which checks the signature again).
+    /// firmware: embassy-boot's `mark_updated`; the bootloader checks the image again before it
+    /// swaps it in).
     ///
     /// # Errors
     /// Anything that failed; the master gets 0x19 and the old image keeps running.

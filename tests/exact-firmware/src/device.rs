@@ -105,18 +105,27 @@ pub struct Firmware {
     pub elf: Vec<u8>,
     /// The bootloader ELF, if the board has one.
     pub bootloader: Option<Vec<u8>>,
+    /// The same board's `fault-never-confirm` build at another revision, if there is one: the
+    /// image of the rollback scenario (`firmware-update-rollback`).
+    pub never_confirm: Option<Vec<u8>>,
+    /// The same board's firmware built at another revision, if there is one: the image of the
+    /// update over the bus (`firmware-update`).
+    pub newer: Option<Vec<u8>>,
 }
 
 impl Firmware {
     /// The firmware `elf`, started by `bootloader` when there is one.
     pub fn new(elf: Vec<u8>, bootloader: Option<Vec<u8>>) -> Firmware {
-        Firmware { elf, bootloader }
+        Firmware { elf, bootloader, never_confirm: None, newer: None }
     }
 
     /// The firmware ELF at `elf` and its bootloader: `bootloader` when given, else, for a firmware
     /// linked at ACTIVE (`board::flash_layout::ACTIVE`, which needs the bootloader to start it), the
     /// build beside it, `bootloader-<board>` (scripts/build-bootloader's name); a firmware linked at
-    /// the start of flash (before issue 31) runs alone. Errors name the file.
+    /// the start of flash (before issue 31) runs alone. The `fault-never-confirm` build and the
+    /// build at another revision are taken from beside the firmware ELF, its name with
+    /// `-never-confirm` and `-newer` appended (scripts/exact-firmware's copies), when they are
+    /// there. Errors name the file.
     pub fn from_files(board: &str, elf: &Path, bootloader: Option<&Path>) -> Result<Firmware, String> {
         let read = |path: &Path| std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()));
         let firmware = read(elf)?;
@@ -135,7 +144,17 @@ impl Firmware {
             }
             None => None,
         };
-        Ok(Firmware { elf: firmware, bootloader })
+        let beside = |suffix: &str| {
+            let mut name = elf.as_os_str().to_owned();
+            name.push(suffix);
+            match std::fs::read(&name) {
+                Ok(bytes) => Ok(Some(bytes)),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+                Err(e) => Err(format!("{}: {e}", Path::new(&name).display())),
+            }
+        };
+        let (never_confirm, newer) = (beside("-never-confirm")?, beside("-newer")?);
+        Ok(Firmware { elf: firmware, bootloader, never_confirm, newer })
     }
 
     /// The ELF files in the order they are flashed: the bootloader first.
@@ -150,6 +169,7 @@ pub struct EmulatedBoard {
     mcu: Stm32,
     can: Rc<RefCell<Bxcan>>,
     instrument: Rc<RefCell<Usart>>,
+    iwdg: Rc<RefCell<stm32_emu::iwdg::Iwdg>>,
     setting: NodeSetting,
     bus_rate: u32,
     breaker: SimulatedBreaker,
@@ -199,16 +219,30 @@ impl EmulatedBoard {
         bus_rate: Bitrate,
         cut: Option<(u64, CutKind)>,
     ) -> Result<Self, Fault> {
-        let mut mcu = Stm32::new(kind.chip(), unique_id_for_serial(REFERENCE_SERIAL))?;
-        mcu.add_peripheral(RCC_BASE, 0x400, Box::new(Rcc::new(kind.hse())))?;
         let mut flash = Flash::new();
         if let Some((operation, how)) = cut {
             flash.plan_power_cut(operation, how);
         }
+        EmulatedBoard::with_flash(kind, elf, setting, bus_rate, flash)
+    }
+
+    /// [`EmulatedBoard::new`] on the FLASH model `flash` as given (its timing, a planned power
+    /// cut), `elf` and the settings then programmed into it.
+    pub fn with_flash(
+        kind: BoardKind,
+        elf: &Firmware,
+        setting: NodeSetting,
+        bus_rate: Bitrate,
+        flash: Flash,
+    ) -> Result<Self, Fault> {
+        let mut mcu = Stm32::new(kind.chip(), unique_id_for_serial(REFERENCE_SERIAL))?;
+        mcu.add_peripheral(RCC_BASE, 0x400, Box::new(Rcc::new(kind.hse())))?;
         mcu.add_flash(flash)?;
         mcu.add_peripheral(stm32_emu::pwr::BASE, 0x400, Box::new(stm32_emu::pwr::Pwr::new(kind.chip())))?;
         // The bootloader starts it before every jump; the firmware feeds it (issue 31).
-        mcu.add_peripheral(stm32_emu::iwdg::BASE, 0x400, Box::new(stm32_emu::iwdg::Iwdg::new()))?;
+        let iwdg = Shared::new(stm32_emu::iwdg::Iwdg::new());
+        let iwdg_handle = iwdg.handle();
+        mcu.add_peripheral(stm32_emu::iwdg::BASE, 0x400, Box::new(iwdg))?;
         let mut switch_port = None;
         let mut gpios = Vec::new();
         for port in [Port::A, Port::B, Port::C, Port::D, Port::E, Port::H] {
@@ -250,6 +284,7 @@ impl EmulatedBoard {
             mcu,
             can: can_handle,
             instrument,
+            iwdg: iwdg_handle,
             setting,
             bus_rate: bus_rate.bits_per_second(),
             breaker,
@@ -297,6 +332,11 @@ impl EmulatedBoard {
     /// The flash operations so far ([`Stm32::flash_operations`]).
     pub fn flash_operations(&self) -> u64 {
         self.mcu.flash_operations().unwrap_or(0)
+    }
+
+    /// The system resets the independent watchdog caused since the board was built.
+    pub fn watchdog_resets(&self) -> u32 {
+        self.iwdg.borrow().watchdog_resets()
     }
 
     /// The simulated breaker on the instrument line.

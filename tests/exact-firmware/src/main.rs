@@ -10,10 +10,13 @@
 //! The scenarios (`exact_firmware::scenario`): `bring-up`, `breaker`, `power-cycle`,
 //! `configure`, `ccv`, `download-cut` (a power cut at every flash operation of a download),
 //! `wrong-bit-rate`, `bus-load`, `bus-off`, `leds`, `can-self-test-fault`, `line-events`,
-//! `settings-migration` and `trial-confirm` on every board;
+//! `settings-migration`, `trial-confirm`, `update-object`, `firmware-update-rollback`,
+//! `firmware-update-bad-signature` and `firmware-update` on every board;
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
-//! apply to a board is not run on it and not listed.
+//! apply to a board is not run on it and not listed. `firmware-update-power-cut` (a power cut at
+//! a sample of the bootloader's swap and after a chunk of the transfer, about 4 minutes of CPU
+//! per board) runs only when named with `--scenario` (`scenario::ON_REQUEST`).
 //!
 //! `--limit` bounds each scenario's wall time (default 300 s, the longest scenario,
 //! `download-cut`, taking a minute or more on a busy machine): past it the machine stops and the
@@ -27,7 +30,9 @@
 //! for each board of the board crate. A firmware linked at ACTIVE (0x0802_0000, issue 31) is
 //! flashed with its board's bootloader: `--bootloader ELF` after its `--elf`, else
 //! `bootloader-<board>` beside the firmware ELF (scripts/build-bootloader's copy); the reset vector
-//! is then the bootloader's, which starts the firmware.
+//! is then the bootloader's, which starts the firmware. `firmware-update-rollback` takes the
+//! board's `fault-never-confirm` build from beside the firmware ELF, its name with
+//! `-never-confirm` appended (scripts/exact-firmware builds it); without it that scenario fails.
 
 use exact_firmware::board::BoardKind;
 use exact_firmware::device::{set_wall_deadline, Firmware};
@@ -97,8 +102,13 @@ fn parse() -> Option<Run> {
         eprintln!("exact-firmware: no scenario called {unknown}");
         return None;
     }
-    let scenarios: Vec<_> =
-        scenario::ALL.iter().filter(|s| names.is_empty() || names.iter().any(|n| n == s.name)).collect();
+    let scenarios: Vec<_> = scenario::ALL
+        .iter()
+        .filter(|s| match names.is_empty() {
+            true => !scenario::ON_REQUEST.contains(&s.name),
+            false => names.iter().any(|n| n == s.name),
+        })
+        .collect();
     if boards.is_empty() || pending.is_some() || scenarios.is_empty() {
         return None;
     }

@@ -48,7 +48,9 @@ fn scenario(name: &str) -> Scenario {
 #[ignore = "needs the thumb build of slave-fw-firmware"]
 fn every_scenario_passes_on_the_reference_board() {
     let elf = reference_elf();
-    for s in scenario::ALL.iter().filter(|s| (s.applies)(reference())) {
+    for s in
+        scenario::ALL.iter().filter(|s| (s.applies)(reference()) && !scenario::ON_REQUEST.contains(&s.name))
+    {
         let outcome = scenario::run(s, reference(), &elf, &Options::default());
         assert!(outcome.result.is_ok(), "{}", outcome.line());
         assert_eq!(outcome.line(), format!("ok   reference {}", s.name));
@@ -75,4 +77,35 @@ fn bring_up_fails_when_the_node_is_at_another_mac() {
     let outcome = scenario::run(&scenario("bring-up"), reference(), &elf, &options);
     eprintln!("{}", outcome.line());
     assert!(outcome.result.is_err(), "{}", outcome.line());
+}
+
+#[test]
+#[ignore = "needs scripts/exact-firmware's builds (slave-fw-firmware-reference and its -newer beside it)"]
+fn rollback_fails_when_the_image_confirms() {
+    let mut elf = reference_elf();
+    let newer =
+        elf.newer.clone().expect("slave-fw-firmware-reference-newer beside the ELF (scripts/exact-firmware)");
+    // A build that confirms in place of the fault-never-confirm one: nothing to roll back.
+    elf.never_confirm = Some(newer);
+    let outcome =
+        scenario::run(&scenario("firmware-update-rollback"), reference(), &elf, &Options::default());
+    eprintln!("{}", outcome.line());
+    assert!(outcome.result.is_err(), "{}", outcome.line());
+}
+
+#[test]
+#[ignore = "needs scripts/exact-firmware's builds (slave-fw-firmware-reference and its -newer beside it)"]
+fn firmware_update_fails_without_a_build_at_another_revision() {
+    let mut elf = reference_elf();
+    elf.newer = Some(elf.elf.clone());
+    let outcome = scenario::run(&scenario("firmware-update"), reference(), &elf, &Options::default());
+    assert!(outcome.result.is_err(), "{}", outcome.line());
+}
+
+#[test]
+#[ignore = "needs scripts/exact-firmware's builds (slave-fw-firmware-reference and its -newer beside it)"]
+fn the_transfer_half_of_the_power_cut_resumes_on_the_reference_board() {
+    let elf = reference_elf();
+    let result = exact_firmware::scenario::transfer_cut::transfer_cut(reference(), &elf, &Options::default());
+    assert!(result.is_ok(), "{result:?}");
 }

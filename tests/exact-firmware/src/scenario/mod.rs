@@ -17,19 +17,31 @@
 //! | `can-self-test-fault` | every board | [`self_test`] |
 //! | `settings-migration` | every board (linked at ACTIVE, issue 31) | [`migration`] |
 //! | `trial-confirm` | every board: an image swapped in by the bootloader confirms once on-line | [`trial`] |
+//! | `update-object` | every board: class 0x6A's attributes 5–8 (chunk size, largest image, board ID, key ID) | [`update_object`] |
+//! | `firmware-update-rollback` | every board: an image that never confirms is reverted by the watchdog | [`rollback`] |
+//! | `firmware-update-bad-signature` | every board: a bad signature or another board's image is refused by the bootloader | [`bad_signature`] |
+//! | `firmware-update` | every board: the update over the bus by `master-core`'s client, confirmed, then a power cycle with no flash operation | [`update`] |
+//! | `firmware-update-power-cut` | every board, only when named ([`ON_REQUEST`]): a power cut at a sample of the swap's flash operations, the new image comes up | [`swap_cut`] |
 
 pub mod autobaud;
+pub mod bad_signature;
 pub mod bring_up;
 pub mod can;
 pub mod ccv;
 pub mod configure;
+pub mod dfu;
 pub mod download_cut;
 pub mod leds;
 pub mod line_events;
 pub mod migration;
+pub mod rollback;
 pub mod self_test;
+pub mod swap_cut;
 pub mod switches;
+pub mod transfer_cut;
 pub mod trial;
+pub mod update;
+pub mod update_object;
 pub mod world;
 
 use crate::board::BoardKind;
@@ -60,7 +72,7 @@ fn without_switches(board: BoardKind) -> bool {
 }
 
 /// Every scenario, in the order the runner runs them.
-pub const ALL: [Scenario; 19] = [
+pub const ALL: [Scenario; 24] = [
     Scenario { name: "bring-up", applies: every_board, run: bring_up::bring_up },
     Scenario { name: "breaker", applies: every_board, run: bring_up::breaker },
     Scenario { name: "power-cycle", applies: every_board, run: bring_up::power_cycle },
@@ -80,7 +92,21 @@ pub const ALL: [Scenario; 19] = [
     Scenario { name: "line-events", applies: every_board, run: line_events::line_events },
     Scenario { name: "settings-migration", applies: every_board, run: migration::settings_migration },
     Scenario { name: "trial-confirm", applies: every_board, run: trial::trial_confirm },
+    Scenario { name: "update-object", applies: every_board, run: update_object::update_object },
+    Scenario { name: "firmware-update-rollback", applies: every_board, run: rollback::rollback },
+    Scenario {
+        name: "firmware-update-bad-signature",
+        applies: every_board,
+        run: bad_signature::bad_signature,
+    },
+    Scenario { name: "firmware-update", applies: every_board, run: update::firmware_update },
+    Scenario { name: "firmware-update-power-cut", applies: every_board, run: swap_cut::swap_cut },
 ];
+
+/// The scenarios run only when named (`--scenario NAME`): too slow for every run.
+/// `firmware-update-power-cut` takes about 4 minutes of CPU time per board (12 cuts, each
+/// emulating the bootloader's check and swap twice, then two updates over the bus).
+pub const ON_REQUEST: [&str; 1] = ["firmware-update-power-cut"];
 
 /// The result of one scenario on one board.
 #[derive(Clone, Debug)]

@@ -1,0 +1,115 @@
+//! `firmware-update` (every board; issue 31): the whole update over the bus, as
+//! `dnet-master firmware-update` runs it. `master-core`'s update client
+//! (`master_core::update::run`) drives the emulated board in virtual time with the board's
+//! firmware built at revision 9.8 (`DNET_FW_REVISION`; scripts/exact-firmware keeps it beside the
+//! firmware ELF as `<elf>-newer`: the firmware reports the revision it was built with, so an image
+//! with only its image-info block changed would not do), signed with the TEST key: Update, the Transfers, Verify, Apply; the device resets; the bootloader checks and swaps;
+//! the new image comes on-line and confirms. The client must report the new revision (class 0x6A
+//! attribute 2) and `confirmed`; STATE says BOOT and ACTIVE holds the new image byte for byte.
+//! Then a power cycle: the new image comes up again with no flash operation at all. The FLASH
+//! model runs at `FlashTiming::FAST` ([`fast_flash_board`]) for wall time.
+
+use super::dfu::{active_holds, dfu_holds, fast_flash_board, flat_image, state, test_signed, BOOT_MAGIC};
+use super::world::{bus_with, machine_fault, Options};
+use crate::board::BoardKind;
+use crate::device::Firmware;
+use board::flash_layout::{DFU, MAX_IMAGE_LEN};
+use can_io::sim::PowerOn;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
+use master_core::session::Session;
+use master_core::update::{self, Outcome, UpdateFile};
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// The repository's TEST public key (contrib/keys), the client's check before sending.
+const TEST_PUBLIC_KEY: &[u8; 32] = include_bytes!("../../../../contrib/keys/test-ed25519.public");
+
+/// The scenario; see the module docs.
+pub fn firmware_update(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
+    let Some(newer) = &elf.newer else {
+        return Err("no build at another revision beside the firmware ELF (<elf>-newer, scripts/exact-firmware builds it)".into());
+    };
+    let new = flat_image(newer)?;
+    let old = flat_image(&elf.elf)?;
+    match (fw_image::ImageInfo::parse(&old), fw_image::ImageInfo::parse(&new)) {
+        (Ok(o), Ok(n)) if o.board_id == n.board_id && o.revision != n.revision => {}
+        other => return Err(format!("the newer build must be this board's at another revision: {other:?}")),
+    }
+    let trailer = test_signed(&new)?;
+    let mut bytes = new.clone();
+    bytes.extend_from_slice(&trailer.to_bytes());
+    let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
+    let handle = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
+    let report = {
+        let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
+        let mut session = Session::new(&mut bus);
+        let mut master = Master::new(&mut session, MasterConfig::default());
+        let connected = master.connect(&ConnectOptions::default());
+        machine_fault(&handle)?;
+        connected.map_err(|e| format!("connect: {e}"))?;
+        let report = update::run(&mut master, options.setting.mac, &file, Some(TEST_PUBLIC_KEY), &mut |_| {});
+        machine_fault(&handle)?;
+        report
+            .map_err(|e| format!("the update: {e} ({})", flash_facts(&handle, &new, &trailer.to_bytes())))?
+    };
+    if report.outcome != Outcome::Confirmed || report.revision != trailer.revision {
+        return Err(format!(
+            "the client reports {} at revision {:?}, not confirmed at {:?}",
+            report.outcome, report.revision, trailer.revision
+        ));
+    }
+    if report.sent != report.chunks || report.resumed_at != 0 {
+        return Err(format!(
+            "{} of {} chunks sent, from chunk {}",
+            report.sent, report.chunks, report.resumed_at
+        ));
+    }
+    let state = state(&handle);
+    if state != [BOOT_MAGIC; 4] || !active_holds(&handle, &new) {
+        return Err(format!(
+            "after the update: STATE {state:02x?} (want BOOT), ACTIVE the new image: {}",
+            active_holds(&handle, &new)
+        ));
+    }
+    let operations = handle.borrow().flash_operations();
+    let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let connected = master.connect(&ConnectOptions::default());
+    machine_fault(&handle)?;
+    connected.map_err(|e| format!("connect after the power cycle: {e}"))?;
+    let info = master
+        .open_explicit(options.setting.mac)
+        .map_err(update::UpdateError::from)
+        .and_then(|()| update::device_info(&mut master, options.setting.mac));
+    machine_fault(&handle)?;
+    let info = info.map_err(|e| format!("after the power cycle: {e}"))?;
+    if info.revision != report.revision {
+        return Err(format!(
+            "after the power cycle the revision is {:?}, not {:?}",
+            info.revision, report.revision
+        ));
+    }
+    let after = handle.borrow().flash_operations();
+    if after != operations || !active_holds(&handle, &new) {
+        return Err(format!(
+            "the power cycle took {} flash operations (want 0); ACTIVE the new image: {}",
+            after - operations,
+            active_holds(&handle, &new)
+        ));
+    }
+    Ok(())
+}
+
+/// What STATE, DFU and ACTIVE hold, for a failure's message.
+fn flash_facts(handle: &super::world::Handle, new: &[u8], trailer: &[u8]) -> String {
+    let dfu_trailer = handle.borrow().mcu_flash(DFU.base + MAX_IMAGE_LEN, trailer.len());
+    format!(
+        "STATE {:02x?}, DFU the new image: {}, DFU's trailer the file's: {}, ACTIVE the new image: {}, {} watchdog resets",
+        state(handle),
+        dfu_holds(handle, new),
+        dfu_trailer == trailer,
+        active_holds(handle, new),
+        handle.borrow().watchdog_resets()
+    )
+}
