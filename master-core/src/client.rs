@@ -18,7 +18,7 @@ use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
 use devicenet::fragment::{
-    AbortReason, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter, FragmentKind,
+    AbortReason, AckOutcome, AckStatus, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter, FragmentKind,
     TransmitEvent,
 };
 use devicenet::messages::{DEVICE_HEARTBEAT, DEVICE_SHUTDOWN};
@@ -114,6 +114,13 @@ enum State {
     Awaiting {
         deadline: Instant,
     },
+    /// The last request fragment went out and its acknowledge is overdue, but the device is one
+    /// that serves a request before it acknowledges the request's last fragment
+    /// ([`Transaction::with_late_last_ack`]): waiting for that acknowledge until the deadline.
+    LastAck {
+        deadline: Instant,
+        sent: Instant,
+    },
     Done,
 }
 
@@ -133,6 +140,13 @@ pub struct Transaction {
     rx: Box<ExplicitReassembler<MAX_MESSAGE>>,
     out: VecDeque<CanFrame>,
     outcome: Option<Result<Reply, ClientError>>,
+    /// Waits for the last request fragment's acknowledge as long as for the response
+    /// ([`Transaction::with_late_last_ack`]).
+    late_last_ack: bool,
+    /// Request fragments acknowledged so far.
+    acked: usize,
+    /// When the last request fragment was first sent.
+    last_sent: Option<Instant>,
 }
 
 impl Transaction {
@@ -189,7 +203,33 @@ impl Transaction {
             rx: Box::new(ExplicitReassembler::new()),
             out: VecDeque::new(),
             outcome: None,
+            late_last_ack: false,
+            acked: 0,
+            last_sent: None,
         })
+    }
+
+    /// For a request the device serves before it acknowledges the request's last fragment: the
+    /// update object's Update, which erases the DFU sectors (about 2 s, the CPU stalled) before
+    /// the adapter's transmit queue moves on (docs/src/reference/protocol.md §6.5). The last
+    /// fragment is sent once, not re-sent after the 1 s fragment acknowledge timeout (a re-send
+    /// would be acknowledged again after the response, a stray acknowledge by then), and its
+    /// acknowledge is awaited as long as the response, the transaction's timeout from when that
+    /// fragment went out. Every other fragment keeps the 1 s timeout and its one re-send.
+    #[must_use]
+    pub fn with_late_last_ack(mut self) -> Transaction {
+        self.late_last_ack = true;
+        self
+    }
+
+    /// The number of request fragments (6 body bytes each, protocol §4.1).
+    fn fragments(&self) -> usize {
+        self.message.len().saturating_sub(1).div_ceil(6)
+    }
+
+    /// `true` while the fragment awaited or due is the request's last.
+    fn on_last_fragment(&self) -> bool {
+        self.acked + 1 >= self.fragments()
     }
 
     /// The device.
@@ -241,11 +281,22 @@ impl Transaction {
     fn pump(&mut self, now: Instant) {
         let id = self.request_id();
         while let Some(p) = self.tx.poll_transmit(now) {
+            if self.late_last_ack && self.on_last_fragment() {
+                match self.last_sent {
+                    // The re-send: left out (see `with_late_last_ack`).
+                    Some(_) => continue,
+                    None => self.last_sent = Some(now),
+                }
+            }
             self.queue(id, &p);
         }
         while let Some(ev) = self.tx.poll_event(now) {
             match ev {
                 TransmitEvent::Completed => self.state = State::Awaiting { deadline: now + self.timeout },
+                TransmitEvent::Aborted(AbortReason::AckTimeout) if self.late_last_ack && self.on_last_fragment() => {
+                    let sent = self.last_sent.unwrap_or(now);
+                    self.state = State::LastAck { deadline: sent + self.timeout, sent };
+                }
                 TransmitEvent::Aborted(AbortReason::AckTimeout) => self.finish(Err(ClientError::RequestAborted(
                     "request fragment not acknowledged, also after one re-send (fragment acknowledge timeout)".into(),
                 ))),
@@ -272,7 +323,7 @@ impl Transaction {
         match self.state {
             State::Idle | State::Done => None,
             State::Sending => self.tx.poll_at(),
-            State::Awaiting { deadline } => Some(deadline),
+            State::Awaiting { deadline } | State::LastAck { deadline, .. } => Some(deadline),
         }
     }
 
@@ -288,6 +339,9 @@ impl Transaction {
                 };
                 self.finish(Err(ClientError::Timeout { name, after: self.timeout }));
             }
+            State::LastAck { deadline, .. } if now >= deadline => self.finish(Err(ClientError::RequestAborted(
+                format!("last request fragment not acknowledged within {} ms", self.timeout.total_millis()),
+            ))),
             _ => {}
         }
     }
@@ -330,7 +384,7 @@ impl Transaction {
         if header.fragmented {
             return Handled::Frame(self.fragment(frame, now, failures));
         }
-        if self.state == State::Sending {
+        if matches!(self.state, State::Sending | State::LastAck { .. }) {
             failures.push("unfragmented response while the request is still being sent".into());
             return Handled::Frame(Verdict::Fail(failures));
         }
@@ -341,6 +395,47 @@ impl Transaction {
             format!("response to {} checked: identifier, header MAC, XID, service", self.service_name());
         self.finish(Ok(reply));
         Handled::Frame(Verdict::Ok(note).with_failures(failures))
+    }
+
+    /// The acknowledge of the last request fragment, after the 1 s fragment acknowledge timeout
+    /// ([`Transaction::with_late_last_ack`]).
+    fn late_ack(
+        &mut self,
+        data: &[u8],
+        frag: &ExplicitFragment,
+        now: Instant,
+        sent: Instant,
+        mut failures: Vec<String>,
+    ) -> Verdict {
+        let last = u8::try_from(self.fragments().saturating_sub(1) % 64).unwrap_or(0);
+        if frag.fragment.count != last {
+            failures.push(format!(
+                "acknowledge of request fragment #{}, the last one sent is #{last}",
+                frag.fragment.count
+            ));
+            return Verdict::Fail(failures);
+        }
+        if data.len() != 3 {
+            failures.push(format!("fragment acknowledge of DLC {}, expected 3", data.len()));
+        }
+        match frag.ack_status() {
+            Some(AckStatus::Success) => {
+                self.state = State::Awaiting { deadline: now + self.timeout };
+                Verdict::Ok(format!(
+                    "acknowledge of the last request fragment #{last}, {} ms after it (the device serves this request first)",
+                    now.saturating_duration_since(sent).total_millis()
+                ))
+                .with_failures(failures)
+            }
+            status => {
+                let text = status.map_or("none".to_string(), |s| s.to_string());
+                self.finish(Err(ClientError::RequestAborted(format!(
+                    "the device rejected a request fragment: ack status {text}"
+                ))));
+                Verdict::Ok(format!("acknowledge of the last request fragment #{last}: status {text}"))
+                    .with_failures(failures)
+            }
+        }
     }
 
     fn service_name(&self) -> String {
@@ -389,6 +484,9 @@ impl Transaction {
             }
         };
         if frag.fragment.kind == FragmentKind::Ack {
+            if let State::LastAck { sent, .. } = self.state {
+                return self.late_ack(data, &frag, now, sent, failures);
+            }
             if self.state != State::Sending {
                 failures.push("fragment acknowledge while no request fragment is outstanding".into());
                 return Verdict::Fail(failures);
@@ -396,12 +494,14 @@ impl Transaction {
             if data.len() != 3 {
                 failures.push(format!("fragment acknowledge of DLC {}, expected 3", data.len()));
             }
-            self.tx.handle_ack(data, now);
+            if self.tx.handle_ack(data, now) == AckOutcome::Progress {
+                self.acked += 1;
+            }
             self.pump(now);
             return Verdict::Ok(format!("acknowledge of request fragment #{}", frag.fragment.count))
                 .with_failures(failures);
         }
-        if self.state == State::Sending {
+        if matches!(self.state, State::Sending | State::LastAck { .. }) {
             failures.push("response fragment while the request is still being sent".into());
             return Verdict::Fail(failures);
         }
@@ -638,3 +738,6 @@ pub fn run(
 ) -> Result<Outcome<usize>, MasterError> {
     drive(&mut SessionLink { session, other }, tx)
 }
+
+#[cfg(test)]
+mod tests;

@@ -408,6 +408,28 @@ impl<'s, 'b> Master<'s, 'b> {
         port: Port,
         request: &Request<'_>,
     ) -> Result<Answer, MasterError> {
+        self.request_as(target, port, request, false)
+    }
+
+    /// [`Master::request`] for a request the device serves before it acknowledges the request's
+    /// last fragment (a long flash erase: the update object's Update): that acknowledge is
+    /// awaited as long as the response ([`Transaction::with_late_last_ack`]).
+    pub fn request_served_first(
+        &mut self,
+        target: MacId,
+        port: Port,
+        request: &Request<'_>,
+    ) -> Result<Answer, MasterError> {
+        self.request_as(target, port, request, true)
+    }
+
+    fn request_as(
+        &mut self,
+        target: MacId,
+        port: Port,
+        request: &Request<'_>,
+        late_last_ack: bool,
+    ) -> Result<Answer, MasterError> {
         let what = step_name(request);
         let format = if port == Port::Group2Only { BodyFormat::Class8Instance8 } else { self.body_format };
         let mut tx = Transaction::new(
@@ -419,6 +441,9 @@ impl<'s, 'b> Master<'s, 'b> {
             format,
             self.config.response_timeout,
         )?;
+        if late_last_ack {
+            tx = tx.with_late_last_ack();
+        }
         let (outcome, record) = self.run(&mut tx)?;
         self.last_record = record;
         match outcome {

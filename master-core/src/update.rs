@@ -394,9 +394,14 @@ fn call(
     step: Step,
     service: u8,
     data: &[u8],
+    slow: bool,
 ) -> Result<Vec<u8>, UpdateError> {
     let req = Request { service: ServiceCode::from(service), class: CLASS, instance: INSTANCE, data };
-    let answer = master.request(mac, Port::Explicit, &req)?;
+    let answer = if slow {
+        master.request_served_first(mac, Port::Explicit, &req)?
+    } else {
+        master.request(mac, Port::Explicit, &req)?
+    };
     match answer.reply.body {
         ReplyBody::Success(bytes) => Ok(bytes),
         ReplyBody::Error { general, additional } => {
@@ -407,7 +412,10 @@ fn call(
     }
 }
 
-/// [`call`] with the response timeout [`UPDATE_TIMEOUT`].
+/// [`call`] with the response timeout [`UPDATE_TIMEOUT`], also for the acknowledge of the
+/// request's last fragment: the adapter erases flash before it answers (Update: both DFU
+/// sectors, about 2 s with the CPU stalled), and its acknowledge of that fragment leaves with the
+/// response ([`Master::request_served_first`]).
 fn call_slow(
     master: &mut Master<'_, '_>,
     mac: MacId,
@@ -417,7 +425,7 @@ fn call_slow(
 ) -> Result<Vec<u8>, UpdateError> {
     let usual = master.config.response_timeout;
     master.config.response_timeout = UPDATE_TIMEOUT.max(usual);
-    let result = call(master, mac, step, service, data);
+    let result = call(master, mac, step, service, data, true);
     master.config.response_timeout = usual;
     result
 }
@@ -600,7 +608,7 @@ fn transfer(
         data.extend_from_slice(part);
         let mut attempt = 1;
         let answer = loop {
-            match call(master, mac, Step::Transfer(n), TRANSFER, &data) {
+            match call(master, mac, Step::Transfer(n), TRANSFER, &data, false) {
                 Err(UpdateError::Master(MasterError::Timeout { .. })) if attempt < CHUNK_ATTEMPTS => {
                     attempt += 1;
                     resent += 1;
