@@ -453,6 +453,14 @@ impl Flash {
         std::mem::take(&mut self.stall)
     }
 
+    /// Waits for the operation under way to end, as an instruction fetch from the array does
+    /// (RM0090 §3.6.3-§3.6.4: a read of the flash while BSY is set stalls the bus): the time left
+    /// goes to [`Flash::take_stall`]. The machine calls it after an access that started an
+    /// operation while its code runs from flash ([`crate::cpu::flash_port`]).
+    pub fn wait_idle(&mut self) {
+        self.stall_until_idle();
+    }
+
     /// The misuses recorded so far.
     pub fn notes(&self) -> &[FlashNote] {
         &self.notes

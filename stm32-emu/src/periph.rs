@@ -188,6 +188,12 @@ pub trait Machine {
     /// model, [`crate::flash::Flash::plan_power_cut`]): the machine stops the core after it and
     /// reports the cut. The default ignores it.
     fn power_cut(&mut self) {}
+    /// Whether the core runs code from the flash array (the instruction executing is at
+    /// 0x0800_0000 or its alias at 0), so that its next instruction fetch stalls while the FLASH
+    /// interface is busy (RM0090 §3.6.4). The default: no.
+    fn fetches_from_flash(&self) -> bool {
+        false
+    }
     /// Stalls the core for `nanos` (the bus held the access, e.g. the flash interface while BSY
     /// is set, RM0090 §3.6.1): the machine adds the time to its clock. The default ignores it.
     fn stall(&mut self, nanos: Nanos) {

@@ -464,6 +464,10 @@ impl Machine for Bus {
         self.stalled += nanos;
     }
 
+    fn fetches_from_flash(&self) -> bool {
+        self.pc < FLASH_SIZE || (FLASH_BASE..FLASH_BASE + FLASH_SIZE).contains(&self.pc)
+    }
+
     fn system_reset(&mut self, cause: ResetCause) {
         self.reset_request.get_or_insert(cause);
         self.stop_requested = true;

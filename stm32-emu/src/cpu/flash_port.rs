@@ -6,7 +6,14 @@
 //! ([`Machine::bus_error`]); its stalls ([`Flash::take_stall`], an access while BSY waits for
 //! the operation) go to the machine's clock ([`Machine::stall`]); its planned power cut
 //! ([`Flash::power_cut`]) stops the machine ([`Machine::power_cut`]), once. CPU loads from the array
-//! never reach the model (the CPU reads the machine's copy), so they do not stall.
+//! never reach the model (the CPU reads the machine's copy), so they do not stall; but code that
+//! runs from flash cannot fetch its next instruction while an operation is under way (RM0090
+//! §3.6.4: a flash read while BSY stalls the bus), so an access that starts a program or an erase
+//! while the core executes from flash ([`Machine::fetches_from_flash`]) stalls the core until the
+//! operation ends ([`Flash::wait_idle`]): no instruction runs and no interrupt is taken
+//! meanwhile, SysTick's wraps pend one interrupt, as on the chip, where a firmware's millisecond
+//! count falls behind by the erase. (The F4's ART instruction cache could serve a loop that fits
+//! in it during the operation; RM0090 does not say, and the model does not.)
 
 use crate::flash::Flash;
 use crate::periph::{Machine, Nanos, Peripheral, ResetKind, Width};
@@ -28,6 +35,14 @@ impl FlashPort {
     /// The model.
     pub fn flash(&self) -> &Flash {
         &self.flash
+    }
+
+    /// Holds the core until the operation an access started ends when the core's code is in
+    /// flash (module docs).
+    fn fetch_stall(&mut self, machine: &mut dyn Machine) {
+        if self.flash.next_event().is_some() && machine.fetches_from_flash() {
+            self.flash.wait_idle();
+        }
     }
 
     /// Passes the model's bus error and stall of the access on to the machine.
@@ -59,6 +74,7 @@ impl Peripheral for FlashPort {
 
     fn write(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) {
         self.flash.write(offset, width, value, machine);
+        self.fetch_stall(machine);
         self.report(machine);
     }
 
@@ -76,6 +92,7 @@ impl Peripheral for FlashPort {
 
     fn flash_store(&mut self, offset: u32, width: Width, value: u32, machine: &mut dyn Machine) -> bool {
         self.flash.array_write(offset, width, value, machine);
+        self.fetch_stall(machine);
         self.report(machine);
         true
     }
@@ -100,11 +117,14 @@ mod tests {
     use crate::gpio::tests::TestMachine;
     use crate::periph::{ClockGate, Clocks};
 
-    /// A machine that counts the power cuts reported to it.
+    /// A machine that counts the power cuts reported to it, adds up its stalls and runs its
+    /// code from flash or not.
     #[derive(Default)]
     struct CutMachine {
         inner: TestMachine,
         cuts: u32,
+        stalled: Nanos,
+        code_in_flash: bool,
     }
 
     impl Machine for CutMachine {
@@ -123,6 +143,42 @@ mod tests {
         fn power_cut(&mut self) {
             self.cuts += 1;
         }
+        fn stall(&mut self, nanos: Nanos) {
+            self.stalled += nanos;
+        }
+        fn fetches_from_flash(&self) -> bool {
+            self.code_in_flash
+        }
+    }
+
+    /// Unlocks CR and starts the erase of sector 1 (SER, SNB 1, STRT; RM0090 §3.9.5); returns
+    /// SR read right after (BSY is bit 16).
+    fn erase_sector_1(port: &mut FlashPort, m: &mut CutMachine) -> u32 {
+        port.write(0x04, Width::Word, KEY1, m);
+        port.write(0x04, Width::Word, KEY2, m);
+        port.write(0x10, Width::Word, 1 << 1 | 1 << 3, m);
+        port.write(0x10, Width::Word, 1 << 16 | 1 << 1 | 1 << 3, m);
+        port.read(0x0C, Width::Word, m)
+    }
+
+    #[test]
+    fn code_in_flash_stalls_through_an_erase() {
+        let timing = FlashTiming::DATASHEET;
+        let mut port = FlashPort::new(Flash::new().with_timing(timing));
+        let m = &mut CutMachine { code_in_flash: true, ..CutMachine::default() };
+        let sr = erase_sector_1(&mut port, m);
+        assert_eq!(sr & 1 << 16, 0, "BSY clear by the next instruction");
+        assert_eq!(m.stalled, timing.erase_16k[0], "the whole erase (PSIZE x8) as a stall");
+        assert_eq!(port.flash().image()[0x4000], 0xFF);
+    }
+
+    #[test]
+    fn code_in_ram_runs_on_during_an_erase() {
+        let mut port = FlashPort::new(Flash::new().with_timing(FlashTiming::DATASHEET));
+        let m = &mut CutMachine::default();
+        let sr = erase_sector_1(&mut port, m);
+        assert_ne!(sr & 1 << 16, 0, "BSY set: the code polls it");
+        assert_eq!(m.stalled, 0);
     }
 
     #[test]

@@ -7,12 +7,15 @@
 //! the new image comes on-line and confirms. The client must report the new revision (class 0x6A
 //! attribute 2) and `confirmed`; STATE says BOOT and ACTIVE holds the new image byte for byte.
 //! Then a power cycle: the new image comes up again with no flash operation at all. The FLASH
-//! model runs at `FlashTiming::FAST` ([`fast_flash_board`]) for wall time.
+//! model runs at the datasheet's times (`FlashTiming::DATASHEET`), the core stalled through each
+//! erase as code in flash is on the chip: Update's two 128 KiB erases hold back its last
+//! fragment's acknowledge about 2 s (the client waits for it), and Apply's STATE erase stops the
+//! firmware's clock, so its reset comes after its response has left.
 
-use super::dfu::{active_holds, dfu_holds, fast_flash_board, flat_image, state, test_signed, BOOT_MAGIC};
-use super::world::{bus_with, machine_fault, Options};
+use super::dfu::{active_holds, dfu_holds, flat_image, state, test_signed, BOOT_MAGIC};
+use super::world::{bus_with, machine_fault, Handle, Options};
 use crate::board::BoardKind;
-use crate::device::Firmware;
+use crate::device::{EmulatedBoard, Firmware};
 use board::flash_layout::{DFU, MAX_IMAGE_LEN};
 use can_io::sim::PowerOn;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
@@ -26,32 +29,7 @@ const TEST_PUBLIC_KEY: &[u8; 32] = include_bytes!("../../../../contrib/keys/test
 
 /// The scenario; see the module docs.
 pub fn firmware_update(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
-    let Some(newer) = &elf.newer else {
-        return Err("no build at another revision beside the firmware ELF (<elf>-newer, scripts/exact-firmware builds it)".into());
-    };
-    let new = flat_image(newer)?;
-    let old = flat_image(&elf.elf)?;
-    match (fw_image::ImageInfo::parse(&old), fw_image::ImageInfo::parse(&new)) {
-        (Ok(o), Ok(n)) if o.board_id == n.board_id && o.revision != n.revision => {}
-        other => return Err(format!("the newer build must be this board's at another revision: {other:?}")),
-    }
-    let trailer = test_signed(&new)?;
-    let mut bytes = new.clone();
-    bytes.extend_from_slice(&trailer.to_bytes());
-    let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
-    let handle = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
-    let report = {
-        let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
-        let mut session = Session::new(&mut bus);
-        let mut master = Master::new(&mut session, MasterConfig::default());
-        let connected = master.connect(&ConnectOptions::default());
-        machine_fault(&handle)?;
-        connected.map_err(|e| format!("connect: {e}"))?;
-        let report = update::run(&mut master, options.setting.mac, &file, Some(TEST_PUBLIC_KEY), &mut |_| {});
-        machine_fault(&handle)?;
-        report
-            .map_err(|e| format!("the update: {e} ({})", flash_facts(&handle, &new, &trailer.to_bytes())))?
-    };
+    let Timed { handle, report, new, trailer, .. } = timed_update(board, elf, options)?;
     if report.outcome != Outcome::Confirmed || report.revision != trailer.revision {
         return Err(format!(
             "the client reports {} at revision {:?}, not confirmed at {:?}",
@@ -99,6 +77,57 @@ pub fn firmware_update(board: BoardKind, elf: &Firmware, options: &Options) -> R
         ));
     }
     Ok(())
+}
+
+/// An update run by [`timed_update`].
+pub struct Timed {
+    /// The board, updated.
+    pub handle: Handle,
+    /// The client's report.
+    pub report: update::Report,
+    /// The bus time of the client's whole run (`master_core::update::run`: the device's
+    /// attributes read, Update, the chunks, Verify, Apply, the device back and confirmed).
+    pub elapsed: devicenet::Duration,
+    /// The new image.
+    pub new: Vec<u8>,
+    /// Its trailer.
+    pub trailer: fw_image::Trailer,
+}
+
+/// Connects to a new `board` at `options.bus_rate` and updates it to its `<elf>-newer` build over
+/// the bus; the figure of the update time (benches/update_time.rs) and the scenario's first half.
+pub fn timed_update(board: BoardKind, elf: &Firmware, options: &Options) -> Result<Timed, String> {
+    let Some(newer) = &elf.newer else {
+        return Err("no build at another revision beside the firmware ELF (<elf>-newer, scripts/exact-firmware builds it)".into());
+    };
+    let new = flat_image(newer)?;
+    let old = flat_image(&elf.elf)?;
+    match (fw_image::ImageInfo::parse(&old), fw_image::ImageInfo::parse(&new)) {
+        (Ok(o), Ok(n)) if o.board_id == n.board_id && o.revision != n.revision => {}
+        other => return Err(format!("the newer build must be this board's at another revision: {other:?}")),
+    }
+    let trailer = test_signed(&new)?;
+    let mut bytes = new.clone();
+    bytes.extend_from_slice(&trailer.to_bytes());
+    let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
+    let device = EmulatedBoard::new(board, elf, options.setting, options.bus_rate)
+        .map_err(|e| format!("the machine: {e}"))?;
+    let handle = Rc::new(RefCell::new(device));
+    let (report, elapsed) = {
+        let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
+        let mut session = Session::new(&mut bus);
+        let mut master = Master::new(&mut session, MasterConfig::default());
+        let connected = master.connect(&ConnectOptions::default());
+        machine_fault(&handle)?;
+        connected.map_err(|e| format!("connect: {e}"))?;
+        let start = master.session.now();
+        let report = update::run(&mut master, options.setting.mac, &file, Some(TEST_PUBLIC_KEY), &mut |_| {});
+        machine_fault(&handle)?;
+        let report = report
+            .map_err(|e| format!("the update: {e} ({})", flash_facts(&handle, &new, &trailer.to_bytes())))?;
+        (report, master.session.now().saturating_duration_since(start))
+    };
+    Ok(Timed { handle, report, elapsed, new, trailer })
 }
 
 /// What STATE, DFU and ACTIVE hold, for a failure's message.
