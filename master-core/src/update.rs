@@ -563,8 +563,16 @@ pub fn run(
     })
 }
 
-/// Update: the announcement; returns the chunk the device expects first.
-fn announce(
+/// Update (0x4B): announces `file` to the device whose explicit connection `master` holds;
+/// returns the chunk the device expects first (0 for a new image, the resume point for the image
+/// it holds in part). [`run`]'s step 3, on its own for a test that only asks where a transfer
+/// would resume.
+///
+/// # Errors
+///
+/// A refusal, a timeout, or an answer that is not the 128-byte chunk size and a chunk number
+/// within `chunks` ([`UpdateError::Announce`]).
+pub fn announce(
     master: &mut Master<'_, '_>,
     mac: MacId,
     file: &UpdateFile,

@@ -36,15 +36,16 @@
 //! so the millisecond clock runs about 1 s slow per sector erased: the node's timers take
 //! longer, never shorter.
 //!
-//! **Known limits** (found on stm32-emu, not yet settled; docs/src/integrator/updating.md):
+//! **What the stall means for the master and for Apply** (both met on stm32-emu, whose FLASH
+//! model stalls code in flash through an erase as the chip does):
 //! - The node queues the acknowledgement of a request's last fragment before it serves the
 //!   request and sends both after, so Update's two erases (about 2 s) hold that acknowledgement
-//!   back past a master's 1 s fragment acknowledge timeout (`dnet-master`'s aborts after one
-//!   re-send). A second run resumes the announced image without erasing and goes through.
-//! - Apply's reset is due `RESET_DELAY` after the request's time, read before STATE's erase. On
-//!   the chip the clock stands still during the erase (above), so the response has its 100 ms;
-//!   stm32-emu runs the code during an erase and its clock runs on, so there the reset can come
-//!   before the response has left.
+//!   back past DeviceNet's 1 s fragment acknowledge timeout. `master_core`'s update client waits
+//!   for it as long as for the response (docs/src/development/firmware-update.md, "Update's
+//!   erase and the acknowledge of its last fragment").
+//! - Apply's reset is due `RESET_DELAY` after the request's time, read before STATE's erase; the
+//!   millisecond clock stands still during the erase, so the response still has its 100 ms to
+//!   leave after it.
 
 use crate::image_info;
 use board::flash_layout::{self, DFU, STATE};

@@ -1,14 +1,20 @@
-//! `firmware-update-power-cut`'s transfer half (issue 31): a power cut right after the device
-//! acknowledged a chunk, half-way through the transfer. `master-core`'s update client sends the
-//! board's build at another revision (`<elf>-newer`, as `firmware-update` does); when the device
-//! has acknowledged chunk `chunks / 2` (so it must hold it, and its log word, in flash) the whole
-//! flash array is taken as a power cut there leaves it. A new board on that array powers up: the
-//! old firmware comes up at its revision, and the client, run again, resumes at the next chunk
-//! (`chunks / 2 + 1`) and completes: confirmed at the new revision, ACTIVE byte for byte the new
-//! image. (A chunk torn by the cut is not done here.)
+//! `firmware-update-power-cut`'s transfer half (issue 31): a power cut after **every** chunk of
+//! the transfer. `master-core`'s update client sends the board's build at another revision
+//! (`<elf>-newer`, as `firmware-update` does) once, uncut; each time the device has acknowledged
+//! chunk `n` (so it holds the chunk and its log word in flash) the DFU sectors are taken as a
+//! power cut there leaves them (nothing else changes in the array during the transfer: STATE
+//! only at Apply). Then, for every `n`, a new board powers up on the array of before the update
+//! with DFU as the cut after chunk `n` left it: the old firmware comes up at its revision, and
+//! the client's Update (`master_core::update::announce`) is answered with the resume point
+//! `n + 1`. For the cut after the middle chunk the client then runs the whole update again: it
+//! resumes there and completes, confirmed at the new revision, ACTIVE byte for byte the new
+//! image. (A chunk torn half-way by a cut is not here: the object finds it neither erased nor
+//! the chunk and starts the image over, `slave_fw::update`'s tests.)
 
 use super::dfu::{active_holds, fast_flash_board, flat_image, test_signed};
 use super::world::{bus_with, machine_fault, Handle, Options};
+use board::flash_layout::DFU;
+use fw_image::Revision;
 use crate::board::BoardKind;
 use crate::device::Firmware;
 use can_io::sim::PowerOn;
@@ -39,6 +45,51 @@ fn update_on(
     report.map_err(|e| format!("the update: {e}"))
 }
 
+/// The DFU sectors (`board::flash_layout::DFU`) from the flash array.
+fn dfu_of(array: &[u8]) -> Vec<u8> {
+    let start = (DFU.base - board::memory::FLASH_BASE) as usize;
+    array[start..start + DFU.size as usize].to_vec()
+}
+
+/// A new board on `array` with DFU replaced by `dfu`.
+fn board_on(
+    board: BoardKind,
+    elf: &Firmware,
+    options: &Options,
+    array: &[u8],
+    dfu: &[u8],
+) -> Result<Handle, String> {
+    let mut array = array.to_vec();
+    let start = (DFU.base - board::memory::FLASH_BASE) as usize;
+    array[start..start + dfu.len()].copy_from_slice(dfu);
+    // The model's array is 1 MiB; the F446 has 512 KiB of it (RM0390).
+    if board.spec.chip == board::boards::Chip::Stm32f446re {
+        array.truncate(512 * 1024);
+    }
+    let mut device = fast_flash_board(board, elf, options, None)?;
+    device.mcu().program_flash(0, &array).map_err(|e| format!("the array the cut left: {e}"))?;
+    Ok(Rc::new(RefCell::new(device)))
+}
+
+/// Powers the board up, connects, and asks where the transfer of `file` resumes: the running
+/// revision (class 0x6A attribute 2) and Update's next chunk.
+fn resume_point(handle: &Handle, options: &Options, file: &UpdateFile) -> Result<(Revision, u32), String> {
+    let mut bus = bus_with(handle, options, PowerOn::WhenMasterOnline);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let connected = master.connect(&ConnectOptions::default());
+    machine_fault(handle)?;
+    connected.map_err(|e| format!("connect: {e}"))?;
+    let mac = options.setting.mac;
+    let answer = master
+        .open_explicit(mac)
+        .map_err(update::UpdateError::from)
+        .and_then(|()| update::device_info(&mut master, mac))
+        .and_then(|info| Ok((info.revision, update::announce(&mut master, mac, file, file.chunks())?)));
+    machine_fault(handle)?;
+    answer.map_err(|e| e.to_string())
+}
+
 /// See the [module docs](self).
 pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
     let Some(newer) = &elf.newer else {
@@ -50,25 +101,36 @@ pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Resu
     bytes.extend_from_slice(&trailer.to_bytes());
     let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
     let handle = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
-    let half = file.chunks() / 2;
-    let mut cut: Option<Vec<u8>> = None;
+    let before = handle.borrow_mut().mcu().flash().to_vec();
+    let mut cuts: Vec<Vec<u8>> = Vec::new();
     let watched = Rc::clone(&handle);
     let first = update_on(&handle, options, &file, &mut |event| {
-        if matches!(event, Event::Chunk { chunk, .. } if chunk == half) {
-            cut = Some(watched.borrow_mut().mcu().flash().to_vec());
+        if let Event::Chunk { chunk, .. } = event {
+            if usize::try_from(chunk).is_ok_and(|c| c == cuts.len()) {
+                cuts.push(dfu_of(watched.borrow_mut().mcu().flash()));
+            }
         }
     })?;
     if first.outcome != Outcome::Confirmed {
         return Err(format!("the uncut update ended {}", first.outcome));
     }
-    let mut array = cut.ok_or_else(|| format!("chunk {half} was never acknowledged"))?;
-    // The model's array is 1 MiB; the F446 has 512 KiB of it (RM0390).
-    if board.spec.chip == board::boards::Chip::Stm32f446re {
-        array.truncate(512 * 1024);
+    if cuts.len() != file.chunks() as usize {
+        return Err(format!("{} of {} chunks acknowledged in order", cuts.len(), file.chunks()));
     }
-    let mut device = fast_flash_board(board, elf, options, None)?;
-    device.mcu().program_flash(0, &array).map_err(|e| format!("the array the cut left: {e}"))?;
-    let handle = Rc::new(RefCell::new(device));
+    for (n, dfu) in cuts.iter().enumerate() {
+        let device = board_on(board, elf, options, &before, dfu)?;
+        let (revision, next) =
+            resume_point(&device, options, &file).map_err(|e| format!("after a cut once chunk {n} was acknowledged: {e}"))?;
+        if revision != first.before.revision || next as usize != n + 1 {
+            return Err(format!(
+                "after a cut once chunk {n} was acknowledged: revision {revision:?} (want the old {:?}), resume at chunk {next} (want {})",
+                first.before.revision,
+                n + 1
+            ));
+        }
+    }
+    let half = cuts.len() / 2;
+    let handle = board_on(board, elf, options, &before, &cuts[half])?;
     let second = update_on(&handle, options, &file, &mut |_| {})
         .map_err(|e| format!("after a cut once chunk {half} was acknowledged: {e}"))?;
     if second.before.revision != first.before.revision {
@@ -77,7 +139,7 @@ pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Resu
             second.before.revision, first.before.revision
         ));
     }
-    if second.resumed_at != half + 1
+    if second.resumed_at as usize != half + 1
         || second.outcome != Outcome::Confirmed
         || second.revision != trailer.revision
     {
