@@ -18,8 +18,8 @@ use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
 use devicenet::fragment::{
-    AbortReason, AckOutcome, AckStatus, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter, FragmentKind,
-    TransmitEvent,
+    AbortReason, AckOutcome, AckStatus, ExplicitFragment, ExplicitReassembler, ExplicitReceive,
+    ExplicitTransmitter, FragmentKind, TransmitEvent,
 };
 use devicenet::messages::{DEVICE_HEARTBEAT, DEVICE_SHUTDOWN};
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
@@ -339,9 +339,12 @@ impl Transaction {
                 };
                 self.finish(Err(ClientError::Timeout { name, after: self.timeout }));
             }
-            State::LastAck { deadline, .. } if now >= deadline => self.finish(Err(ClientError::RequestAborted(
-                format!("last request fragment not acknowledged within {} ms", self.timeout.total_millis()),
-            ))),
+            State::LastAck { deadline, .. } if now >= deadline => {
+                self.finish(Err(ClientError::RequestAborted(format!(
+                    "last request fragment not acknowledged within {} ms",
+                    self.timeout.total_millis()
+                ))))
+            }
             _ => {}
         }
     }

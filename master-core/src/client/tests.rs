@@ -66,11 +66,15 @@ fn late_last_ack_is_awaited_without_a_resend() {
         assert!(sent(&mut tx).is_empty(), "nothing re-sent at {ms} ms");
         assert!(!tx.is_done(), "still waiting at {ms} ms");
     }
-    let Handled::Frame(verdict) = tx.handle_frame(&ack(3), at_ms(2_100)) else { panic!("the ack is the transaction's") };
+    let Handled::Frame(verdict) = tx.handle_frame(&ack(3), at_ms(2_100)) else {
+        panic!("the ack is the transaction's")
+    };
     assert!(matches!(&verdict, Verdict::Ok(note) if note.contains("2100 ms")), "{verdict:?}");
-    let response =
-        CanFrame::new(Identifier::group2(mac(DEVICE), Group2Message::ExplicitResponse), &[0x00, 0xCB, 128, 0, 0, 0, 0, 0])
-            .unwrap();
+    let response = CanFrame::new(
+        Identifier::group2(mac(DEVICE), Group2Message::ExplicitResponse),
+        &[0x00, 0xCB, 128, 0, 0, 0, 0, 0],
+    )
+    .unwrap();
     assert!(matches!(tx.handle_frame(&response, at_ms(2_101)), Handled::Frame(Verdict::Ok(_))));
     let reply = tx.take_outcome().unwrap().unwrap();
     assert_eq!(reply.data(), Some(&[128, 0, 0, 0, 0, 0][..]));
@@ -87,7 +91,10 @@ fn late_last_ack_times_out_after_the_response_timeout() {
     assert!(!tx.is_done());
     tx.handle_timeout(at_ms(10_000));
     let err = tx.take_outcome().unwrap().unwrap_err();
-    assert_eq!(err, ClientError::RequestAborted("last request fragment not acknowledged within 10000 ms".into()));
+    assert_eq!(
+        err,
+        ClientError::RequestAborted("last request fragment not acknowledged within 10000 ms".into())
+    );
 }
 
 #[test]
@@ -108,7 +115,10 @@ fn without_it_the_last_fragment_is_resent_once_then_aborted() {
     assert_eq!(sent(&mut tx), vec![last], "one re-send after the 1 s acknowledge timeout");
     tx.handle_timeout(at_ms(2_000));
     let err = tx.take_outcome().unwrap().unwrap_err();
-    assert!(matches!(err, ClientError::RequestAborted(ref why) if why.contains("also after one re-send")), "{err:?}");
+    assert!(
+        matches!(err, ClientError::RequestAborted(ref why) if why.contains("also after one re-send")),
+        "{err:?}"
+    );
     // A late acknowledge is then no longer the transaction's.
     assert_eq!(tx.handle_frame(&ack(3), at_ms(2_100)), Handled::NotMine);
 }

@@ -14,11 +14,11 @@
 //! of its own would take; a host adapter's latency per frame comes on top.
 
 use can_io::bus::Bitrate;
+use devicenet::slave::BaudRate;
 use exact_firmware::board::BoardKind;
 use exact_firmware::device::Firmware;
 use exact_firmware::scenario::update::timed_update;
 use exact_firmware::scenario::world::Options;
-use devicenet::slave::BaudRate;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -27,7 +27,8 @@ fn main() -> ExitCode {
     if boards.is_empty() {
         boards.push("reference".into());
     }
-    let target = std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| PathBuf::from("../../target"), PathBuf::from);
+    let target =
+        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| PathBuf::from("../../target"), PathBuf::from);
     let dir = target.join("thumbv7em-none-eabihf/firmware");
     let mut failed = false;
     for name in &boards {

@@ -14,12 +14,13 @@
 //! `firmware-update-bad-signature` and `firmware-update` on every board;
 //! `switches` on a board with DIP switches (the reference board); `mac63-autobaud-125k`,
 //! `-250k`, `-500k` and `autobaud-silent-bus` on a board without them. A scenario that does not
-//! apply to a board is not run on it and not listed. `firmware-update-power-cut` (a power cut at
-//! a sample of the bootloader's swap and after a chunk of the transfer, about 4 minutes of CPU
-//! per board) runs only when named with `--scenario` (`scenario::ON_REQUEST`).
+//! apply to a board is not run on it and not listed. `firmware-update-power-cut` (a power cut
+//! after every chunk of the transfer and at 12 points of the bootloader's swap, about 6 minutes
+//! of CPU per board) runs only when named with `--scenario` (`scenario::ON_REQUEST`).
 //!
 //! `--limit` bounds each scenario's wall time (default 300 s, the longest scenario,
-//! `download-cut`, taking a minute or more on a busy machine): past it the machine stops and the
+//! `download-cut`, taking a minute or more on a busy machine; 1,800 s for
+//! `firmware-update-power-cut`): past it the machine stops and the
 //! scenario fails (`the machine stopped: no verdict within the wall-time limit`), so that a
 //! firmware which keeps the emulator busy fails instead of hanging the runner.
 //!
@@ -60,9 +61,17 @@ struct BoardFiles {
 struct Run {
     boards: Vec<BoardFiles>,
     scenarios: Vec<&'static Scenario>,
-    limit: Duration,
+    /// `--limit`, if given.
+    limit: Option<Duration>,
     jobs: usize,
 }
+
+/// The wall-time limit of a scenario without `--limit`: the longest of the default ones,
+/// `download-cut`, takes a minute or more on a busy machine.
+const DEFAULT_LIMIT: Duration = Duration::from_secs(300);
+/// The same for a scenario run only on request (`firmware-update-power-cut`: 510 power-ups after
+/// a cut and the swap's cuts, about 6 minutes on an idle core).
+const ON_REQUEST_LIMIT: Duration = Duration::from_secs(1800);
 
 fn parse() -> Option<Run> {
     let mut args = std::env::args().skip(1);
@@ -71,7 +80,7 @@ fn parse() -> Option<Run> {
     let mut dir: Option<PathBuf> = None;
     let mut only: Vec<String> = Vec::new();
     let mut names: Vec<String> = Vec::new();
-    let mut limit = Duration::from_secs(300);
+    let mut limit = None;
     let mut jobs = 1;
     while let Some(arg) = args.next() {
         let value = args.next()?;
@@ -86,7 +95,7 @@ fn parse() -> Option<Run> {
             "--dir" => dir = Some(PathBuf::from(value)),
             "--only" => only.push(value),
             "--scenario" => names.push(value),
-            "--limit" => limit = Duration::from_secs(value.parse().ok()?),
+            "--limit" => limit = Some(Duration::from_secs(value.parse().ok()?)),
             "--jobs" => jobs = value.parse().ok().filter(|&n| n > 0)?,
             _ => return None,
         }
@@ -116,7 +125,7 @@ fn parse() -> Option<Run> {
 }
 
 /// Every chosen scenario that applies to one board; a board that cannot be loaded fails each.
-fn run_board(files: &BoardFiles, scenarios: &[&Scenario], limit: Duration) -> Vec<Outcome> {
+fn run_board(files: &BoardFiles, scenarios: &[&Scenario], limit: Option<Duration>) -> Vec<Outcome> {
     let name = files.name.as_str();
     let loaded = BoardKind::by_name(name).ok_or_else(|| format!("no board called {name}")).and_then(|kind| {
         Firmware::from_files(name, &files.elf, files.bootloader.as_deref()).map(|elf| (kind, elf))
@@ -126,6 +135,10 @@ fn run_board(files: &BoardFiles, scenarios: &[&Scenario], limit: Duration) -> Ve
         let outcome = match &loaded {
             Ok((kind, _)) if !(s.applies)(*kind) => continue,
             Ok((kind, elf)) => {
+                let limit = limit.unwrap_or(match scenario::ON_REQUEST.contains(&s.name) {
+                    true => ON_REQUEST_LIMIT,
+                    false => DEFAULT_LIMIT,
+                });
                 set_wall_deadline(Some(std::time::Instant::now() + limit));
                 scenario::run(s, *kind, elf, &Options::default())
             }

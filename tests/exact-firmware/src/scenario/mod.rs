@@ -21,7 +21,7 @@
 //! | `firmware-update-rollback` | every board: an image that never confirms is reverted by the watchdog | [`rollback`] |
 //! | `firmware-update-bad-signature` | every board: a bad signature or another board's image is refused by the bootloader | [`bad_signature`] |
 //! | `firmware-update` | every board: the update over the bus by `master-core`'s client, confirmed, then a power cycle with no flash operation | [`update`] |
-//! | `firmware-update-power-cut` | every board, only when named ([`ON_REQUEST`]): a power cut at a sample of the swap's flash operations, the new image comes up | [`swap_cut`] |
+//! | `firmware-update-power-cut` | every board, only when named ([`ON_REQUEST`]): a power cut at 12 points of the swap, the new image comes up; after every chunk of the transfer, the old firmware comes up and the transfer resumes at the next chunk | [`swap_cut`], [`transfer_cut`] |
 
 pub mod autobaud;
 pub mod bad_signature;
@@ -104,8 +104,9 @@ pub const ALL: [Scenario; 24] = [
 ];
 
 /// The scenarios run only when named (`--scenario NAME`): too slow for every run.
-/// `firmware-update-power-cut` takes about 4 minutes of CPU time per board (12 cuts, each
-/// emulating the bootloader's check and swap twice, then two updates over the bus).
+/// `firmware-update-power-cut` takes about 6 minutes of CPU time per board (12 cuts of the swap,
+/// each emulating the bootloader's check and swap twice; an update over the bus, a power-up after
+/// each of its 510 chunks, and a resumed update).
 pub const ON_REQUEST: [&str; 1] = ["firmware-update-power-cut"];
 
 /// The result of one scenario on one board.
