@@ -13,14 +13,12 @@
 //! the chunk and starts the image over, `slave_fw::update`'s tests.)
 
 use super::dfu::{active_holds, fast_flash_board, flat_image, test_signed};
-use super::world::{bus_with, machine_fault, Handle, Options};
+use super::world::{with_master, Handle, Options};
 use crate::board::BoardKind;
 use crate::device::Firmware;
 use board::flash_layout::DFU;
 use can_io::sim::PowerOn;
 use fw_image::Revision;
-use master_core::master::{ConnectOptions, Master, MasterConfig};
-use master_core::session::Session;
 use master_core::update::{self, Event, Outcome, Report, UpdateFile};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -35,15 +33,10 @@ fn update_on(
     file: &UpdateFile,
     progress: &mut dyn FnMut(Event),
 ) -> Result<Report, String> {
-    let mut bus = bus_with(handle, options, PowerOn::WhenMasterOnline);
-    let mut session = Session::new(&mut bus);
-    let mut master = Master::new(&mut session, MasterConfig::default());
-    let connected = master.connect(&ConnectOptions::default());
-    machine_fault(handle)?;
-    connected.map_err(|e| format!("connect: {e}"))?;
-    let report = update::run(&mut master, options.setting.mac, file, Some(TEST_PUBLIC_KEY), progress);
-    machine_fault(handle)?;
-    report.map_err(|e| format!("the update: {e}"))
+    with_master(handle, options, PowerOn::WhenMasterOnline, |master| {
+        update::run(master, options.setting.mac, file, Some(TEST_PUBLIC_KEY), progress)
+            .map_err(|e| format!("the update: {e}"))
+    })
 }
 
 /// The DFU sectors (`board::flash_layout::DFU`) from the flash array.
@@ -84,20 +77,15 @@ fn cut_array(handle: &Handle, array: &[u8], dfu: &[u8]) -> Result<(), String> {
 fn resume_point(handle: &Handle, options: &Options, file: &UpdateFile) -> Result<(Revision, u32), String> {
     // The board powers up with the master: their duplicate MAC ID checks overlap (2 s of
     // emulation less per cut than after the master's own).
-    let mut bus = bus_with(handle, options, PowerOn::AtStart);
-    let mut session = Session::new(&mut bus);
-    let mut master = Master::new(&mut session, MasterConfig::default());
-    let connected = master.connect(&ConnectOptions::default());
-    machine_fault(handle)?;
-    connected.map_err(|e| format!("connect: {e}"))?;
-    let mac = options.setting.mac;
-    let answer = master
-        .open_explicit(mac)
-        .map_err(update::UpdateError::from)
-        .and_then(|()| update::device_info(&mut master, mac))
-        .and_then(|info| Ok((info.revision, update::announce(&mut master, mac, file, file.chunks())?)));
-    machine_fault(handle)?;
-    answer.map_err(|e| e.to_string())
+    with_master(handle, options, PowerOn::AtStart, |master| {
+        let mac = options.setting.mac;
+        master
+            .open_explicit(mac)
+            .map_err(update::UpdateError::from)
+            .and_then(|()| update::device_info(master, mac))
+            .and_then(|info| Ok((info.revision, update::announce(master, mac, file, file.chunks())?)))
+            .map_err(|e| e.to_string())
+    })
 }
 
 /// See the [module docs](self).

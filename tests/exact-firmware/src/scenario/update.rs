@@ -13,13 +13,11 @@
 //! firmware's clock, so its reset comes after its response has left.
 
 use super::dfu::{active_holds, dfu_holds, flat_image, state, test_signed, BOOT_MAGIC};
-use super::world::{bus_with, machine_fault, Handle, Options};
+use super::world::{with_master, Handle, Options};
 use crate::board::BoardKind;
 use crate::device::{EmulatedBoard, Firmware};
 use board::flash_layout::{DFU, MAX_IMAGE_LEN};
 use can_io::sim::PowerOn;
-use master_core::master::{ConnectOptions, Master, MasterConfig};
-use master_core::session::Session;
 use master_core::update::{self, Outcome, UpdateFile};
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -50,18 +48,13 @@ pub fn firmware_update(board: BoardKind, elf: &Firmware, options: &Options) -> R
         ));
     }
     let operations = handle.borrow().flash_operations();
-    let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
-    let mut session = Session::new(&mut bus);
-    let mut master = Master::new(&mut session, MasterConfig::default());
-    let connected = master.connect(&ConnectOptions::default());
-    machine_fault(&handle)?;
-    connected.map_err(|e| format!("connect after the power cycle: {e}"))?;
-    let info = master
-        .open_explicit(options.setting.mac)
-        .map_err(update::UpdateError::from)
-        .and_then(|()| update::device_info(&mut master, options.setting.mac));
-    machine_fault(&handle)?;
-    let info = info.map_err(|e| format!("after the power cycle: {e}"))?;
+    let info = with_master(&handle, options, PowerOn::WhenMasterOnline, |master| {
+        master
+            .open_explicit(options.setting.mac)
+            .map_err(update::UpdateError::from)
+            .and_then(|()| update::device_info(master, options.setting.mac))
+            .map_err(|e| format!("after the power cycle: {e}"))
+    })?;
     if info.revision != report.revision {
         return Err(format!(
             "after the power cycle the revision is {:?}, not {:?}",
@@ -113,20 +106,12 @@ pub fn timed_update(board: BoardKind, elf: &Firmware, options: &Options) -> Resu
     let device = EmulatedBoard::new(board, elf, options.setting, options.bus_rate)
         .map_err(|e| format!("the machine: {e}"))?;
     let handle = Rc::new(RefCell::new(device));
-    let (report, elapsed) = {
-        let mut bus = bus_with(&handle, options, PowerOn::WhenMasterOnline);
-        let mut session = Session::new(&mut bus);
-        let mut master = Master::new(&mut session, MasterConfig::default());
-        let connected = master.connect(&ConnectOptions::default());
-        machine_fault(&handle)?;
-        connected.map_err(|e| format!("connect: {e}"))?;
+    let (report, elapsed) = with_master(&handle, options, PowerOn::WhenMasterOnline, |master| {
         let start = master.session.now();
-        let report = update::run(&mut master, options.setting.mac, &file, Some(TEST_PUBLIC_KEY), &mut |_| {});
-        machine_fault(&handle)?;
-        let report = report
+        let report = update::run(master, options.setting.mac, &file, Some(TEST_PUBLIC_KEY), &mut |_| {})
             .map_err(|e| format!("the update: {e} ({})", flash_facts(&handle, &new, &trailer.to_bytes())))?;
-        (report, master.session.now().saturating_duration_since(start))
-    };
+        Ok((report, master.session.now().saturating_duration_since(start)))
+    })?;
     Ok(Timed { handle, report, elapsed, new, trailer })
 }
 

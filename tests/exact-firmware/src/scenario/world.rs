@@ -9,6 +9,7 @@ use can_io::sim::{PowerOn, SimBus};
 use devicenet::reference::Direction;
 use devicenet::slave::BaudRate;
 use devicenet::MacId;
+use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -57,6 +58,25 @@ pub fn bus_with(handle: &Handle, options: &Options, power: PowerOn) -> SimBus {
     let mut bus = SimBus::new(options.bus_rate);
     bus.attach(Box::new(OnBus(Rc::clone(handle))), power);
     bus
+}
+
+/// Puts the board on a new bus (powered up as `power`), connects a master to it and runs `f`
+/// with that master; the machine's fault comes first, then the connect's error, then `f`'s.
+pub fn with_master<T>(
+    handle: &Handle,
+    options: &Options,
+    power: PowerOn,
+    f: impl FnOnce(&mut Master<'_, '_>) -> Result<T, String>,
+) -> Result<T, String> {
+    let mut bus = bus_with(handle, options, power);
+    let mut session = Session::new(&mut bus);
+    let mut master = Master::new(&mut session, MasterConfig::default());
+    let connected = master.connect(&ConnectOptions::default());
+    machine_fault(handle)?;
+    connected.map_err(|e| format!("connect: {e}"))?;
+    let result = f(&mut master);
+    machine_fault(handle)?;
+    result
 }
 
 /// The machine's fault, if it stopped.
