@@ -211,11 +211,12 @@ impl Transaction {
 
     /// For a request the device serves before it acknowledges the request's last fragment: the
     /// update object's Update, which erases the DFU sectors (about 2 s, the CPU stalled) before
-    /// the adapter's transmit queue moves on (docs/src/reference/protocol.md §6.5). The last
-    /// fragment is sent once, not re-sent after the 1 s fragment acknowledge timeout (a re-send
-    /// would be acknowledged again after the response, a stray acknowledge by then), and its
-    /// acknowledge is awaited as long as the response, the transaction's timeout from when that
-    /// fragment went out. Every other fragment keeps the 1 s timeout and its one re-send.
+    /// the adapter's transmit queue moves on (the guide's protocol §6.5,
+    /// docs/src/protocol/objects.md). The last fragment is sent once, not re-sent after the 1 s
+    /// fragment acknowledge timeout (a re-send would be acknowledged again after the response, a
+    /// stray acknowledge by then), and its acknowledge is awaited as long as the response, the
+    /// transaction's timeout from when that fragment went out. Every other fragment keeps the
+    /// 1 s timeout and its one re-send.
     #[must_use]
     pub fn with_late_last_ack(mut self) -> Transaction {
         self.late_last_ack = true;
