@@ -615,8 +615,16 @@ impl<const N: usize> ExplicitTransmitter<N> {
         self.offset.saturating_add(EXPLICIT_FRAGMENT_BODY).min(self.body().len())
     }
 
-    fn is_last_fragment(&self) -> bool {
+    /// Whether the current fragment (the one due, awaiting its ack, or the one a transfer ended
+    /// on) is the message's last.
+    pub fn is_last_fragment(&self) -> bool {
         self.fragment_end() >= self.body().len()
+    }
+
+    /// The current fragment's count (protocol §4.1: 0 for the first, then one more each, modulo
+    /// 64).
+    pub fn fragment_count(&self) -> u8 {
+        self.count
     }
 
     /// The frame data of the current fragment.

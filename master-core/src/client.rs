@@ -18,8 +18,8 @@ use crate::session::{is_from_device, Session, Verdict};
 use can_io::bus::Origin;
 use devicenet::explicit::{split_message, BodyFormat, GeneralStatus, Header, Request, Response, ServiceCode};
 use devicenet::fragment::{
-    AbortReason, AckOutcome, AckStatus, ExplicitFragment, ExplicitReassembler, ExplicitReceive,
-    ExplicitTransmitter, FragmentKind, TransmitEvent,
+    AbortReason, AckStatus, ExplicitFragment, ExplicitReassembler, ExplicitReceive, ExplicitTransmitter,
+    FragmentKind, TransmitEvent,
 };
 use devicenet::messages::{DEVICE_HEARTBEAT, DEVICE_SHUTDOWN};
 use devicenet::{CanFrame, Duration, Group2Message, Identifier, Instant, MacId};
@@ -119,7 +119,6 @@ enum State {
     /// ([`Transaction::with_late_last_ack`]): waiting for that acknowledge until the deadline.
     LastAck {
         deadline: Instant,
-        sent: Instant,
     },
     Done,
 }
@@ -143,8 +142,6 @@ pub struct Transaction {
     /// Waits for the last request fragment's acknowledge as long as for the response
     /// ([`Transaction::with_late_last_ack`]).
     late_last_ack: bool,
-    /// Request fragments acknowledged so far.
-    acked: usize,
     /// When the last request fragment was first sent.
     last_sent: Option<Instant>,
 }
@@ -204,7 +201,6 @@ impl Transaction {
             out: VecDeque::new(),
             outcome: None,
             late_last_ack: false,
-            acked: 0,
             last_sent: None,
         })
     }
@@ -221,16 +217,6 @@ impl Transaction {
     pub fn with_late_last_ack(mut self) -> Transaction {
         self.late_last_ack = true;
         self
-    }
-
-    /// The number of request fragments (6 body bytes each, protocol §4.1).
-    fn fragments(&self) -> usize {
-        self.message.len().saturating_sub(1).div_ceil(6)
-    }
-
-    /// `true` while the fragment awaited or due is the request's last.
-    fn on_last_fragment(&self) -> bool {
-        self.acked + 1 >= self.fragments()
     }
 
     /// The device.
@@ -282,7 +268,7 @@ impl Transaction {
     fn pump(&mut self, now: Instant) {
         let id = self.request_id();
         while let Some(p) = self.tx.poll_transmit(now) {
-            if self.late_last_ack && self.on_last_fragment() {
+            if self.late_last_ack && self.tx.is_last_fragment() {
                 match self.last_sent {
                     // The re-send: left out (see `with_late_last_ack`).
                     Some(_) => continue,
@@ -294,9 +280,9 @@ impl Transaction {
         while let Some(ev) = self.tx.poll_event(now) {
             match ev {
                 TransmitEvent::Completed => self.state = State::Awaiting { deadline: now + self.timeout },
-                TransmitEvent::Aborted(AbortReason::AckTimeout) if self.late_last_ack && self.on_last_fragment() => {
+                TransmitEvent::Aborted(AbortReason::AckTimeout) if self.late_last_ack && self.tx.is_last_fragment() => {
                     let sent = self.last_sent.unwrap_or(now);
-                    self.state = State::LastAck { deadline: sent + self.timeout, sent };
+                    self.state = State::LastAck { deadline: sent + self.timeout };
                 }
                 TransmitEvent::Aborted(AbortReason::AckTimeout) => self.finish(Err(ClientError::RequestAborted(
                     "request fragment not acknowledged, also after one re-send (fragment acknowledge timeout)".into(),
@@ -408,10 +394,10 @@ impl Transaction {
         data: &[u8],
         frag: &ExplicitFragment,
         now: Instant,
-        sent: Instant,
         mut failures: Vec<String>,
     ) -> Verdict {
-        let last = u8::try_from(self.fragments().saturating_sub(1) % 64).unwrap_or(0);
+        let last = self.tx.fragment_count();
+        let sent = self.last_sent.unwrap_or(now);
         if frag.fragment.count != last {
             failures.push(format!(
                 "acknowledge of request fragment #{}, the last one sent is #{last}",
@@ -488,8 +474,8 @@ impl Transaction {
             }
         };
         if frag.fragment.kind == FragmentKind::Ack {
-            if let State::LastAck { sent, .. } = self.state {
-                return self.late_ack(data, &frag, now, sent, failures);
+            if matches!(self.state, State::LastAck { .. }) {
+                return self.late_ack(data, &frag, now, failures);
             }
             if self.state != State::Sending {
                 failures.push("fragment acknowledge while no request fragment is outstanding".into());
@@ -498,9 +484,7 @@ impl Transaction {
             if data.len() != 3 {
                 failures.push(format!("fragment acknowledge of DLC {}, expected 3", data.len()));
             }
-            if self.tx.handle_ack(data, now) == AckOutcome::Progress {
-                self.acked += 1;
-            }
+            self.tx.handle_ack(data, now);
             self.pump(now);
             return Verdict::Ok(format!("acknowledge of request fragment #{}", frag.fragment.count))
                 .with_failures(failures);
