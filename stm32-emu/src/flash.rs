@@ -453,14 +453,6 @@ impl Flash {
         std::mem::take(&mut self.stall)
     }
 
-    /// Waits for the operation under way to end, as an instruction fetch from the array does
-    /// (RM0090 §3.6.3-§3.6.4: a read of the flash while BSY is set stalls the bus): the time left
-    /// goes to [`Flash::take_stall`]. The machine calls it after an access that started an
-    /// operation while its code runs from flash ([`crate::cpu::flash_port`]).
-    pub fn wait_idle(&mut self) {
-        self.stall_until_idle();
-    }
-
     /// The misuses recorded so far.
     pub fn notes(&self) -> &[FlashNote] {
         &self.notes
@@ -475,8 +467,11 @@ impl Flash {
         self.busy_until > self.now
     }
 
-    /// Stalls until the operation in progress ends (RM0090 §3.6.1, §3.6.4: the bus stalls).
-    fn stall_until_idle(&mut self) {
+    /// Stalls until the operation in progress ends (RM0090 §3.6.1, §3.6.4: the bus stalls), the
+    /// time left going to [`Flash::take_stall`]: an access while BSY, and an instruction fetch
+    /// from the array after an access that started an operation while the code runs from flash
+    /// ([`crate::cpu::flash_port`]).
+    pub fn stall_until_idle(&mut self) {
         if self.busy() {
             self.stall += self.busy_until - self.now;
             self.now = self.busy_until;

@@ -10,7 +10,7 @@
 //! runs from flash cannot fetch its next instruction while an operation is under way (RM0090
 //! §3.6.4: a flash read while BSY stalls the bus), so an access that starts a program or an erase
 //! while the core executes from flash ([`Machine::fetches_from_flash`]) stalls the core until the
-//! operation ends ([`Flash::wait_idle`]): no instruction runs and no interrupt is taken
+//! operation ends ([`Flash::stall_until_idle`]): no instruction runs and no interrupt is taken
 //! meanwhile, SysTick's wraps pend one interrupt, as on the chip, where a firmware's millisecond
 //! count falls behind by the erase. (The F4's ART instruction cache could serve a loop that fits
 //! in it during the operation; RM0090 does not say, and the model does not.)
@@ -41,7 +41,7 @@ impl FlashPort {
     /// flash (module docs).
     fn fetch_stall(&mut self, machine: &mut dyn Machine) {
         if self.flash.next_event().is_some() && machine.fetches_from_flash() {
-            self.flash.wait_idle();
+            self.flash.stall_until_idle();
         }
     }
 
