@@ -4,14 +4,18 @@
 //! read back.
 
 use super::world::Handle;
-use crate::device::EmulatedBoard;
+use crate::device::{EmulatedBoard, Firmware};
 use board::flash_layout::{ACTIVE, DFU, MAX_IMAGE_LEN, STATE};
 use board::memory::FLASH_BASE;
 use devicenet::Instant;
 use master_core::session::Session;
+use master_core::update::UpdateFile;
 
 /// The repository's TEST signing seed (contrib/keys/README.md: never for a release).
 pub const TEST_SEED: &[u8; 32] = include_bytes!("../../../../contrib/keys/test-ed25519.secret");
+/// Its public key: the bootloaders' of scripts/exact-firmware, and the update client's check
+/// before sending.
+pub const TEST_PUBLIC_KEY: &[u8; 32] = include_bytes!("../../../../contrib/keys/test-ed25519.public");
 /// embassy-boot's STATE magics (embassy-boot 0.7 `lib.rs`).
 pub const SWAP_MAGIC: u8 = 0xF0;
 /// STATE after a confirmation or a cancelled request.
@@ -33,6 +37,36 @@ pub fn flat_image(elf: &[u8]) -> Result<Vec<u8>, String> {
         image[offset..offset + data.len()].copy_from_slice(data);
     }
     Ok(image)
+}
+
+/// The update the scenarios send over the bus: the board's build at another revision
+/// (`<elf>-newer`), signed with the TEST key.
+pub struct NewerFile {
+    /// The flat image.
+    pub image: Vec<u8>,
+    /// Its trailer.
+    pub trailer: fw_image::Trailer,
+    /// The signed file, image and trailer, as `dnet-master firmware-update` reads it.
+    pub file: UpdateFile,
+}
+
+/// [`NewerFile`] of `elf`: fails without `<elf>-newer` (scripts/exact-firmware builds it) or when
+/// that build is not this board's at another revision than the firmware's.
+pub fn newer_file(elf: &Firmware) -> Result<NewerFile, String> {
+    let Some(newer) = &elf.newer else {
+        return Err("no build at another revision beside the firmware ELF (<elf>-newer, scripts/exact-firmware builds it)".into());
+    };
+    let image = flat_image(newer)?;
+    let old = flat_image(&elf.elf)?;
+    match (fw_image::ImageInfo::parse(&old), fw_image::ImageInfo::parse(&image)) {
+        (Ok(o), Ok(n)) if o.board_id == n.board_id && o.revision != n.revision => {}
+        other => return Err(format!("the newer build must be this board's at another revision: {other:?}")),
+    }
+    let trailer = test_signed(&image)?;
+    let mut bytes = image.clone();
+    bytes.extend_from_slice(&trailer.to_bytes());
+    let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
+    Ok(NewerFile { image, trailer, file })
 }
 
 /// `image` signed with the TEST key: its trailer.
@@ -97,7 +131,7 @@ pub fn old_and_newer(elf: &[u8]) -> Result<(Vec<u8>, Vec<u8>), String> {
 
 /// The board on a FLASH model with `FlashTiming::FAST` (the datasheet's program time, a
 /// thousandth of its erase times): the swap's four 128 KiB erases take milliseconds of emulated
-/// time instead of seconds the CPU spends polling BSY.
+/// time instead of seconds (which the core spends stalled, as code in flash is on the chip).
 pub fn fast_flash_board(
     board: crate::board::BoardKind,
     elf: &crate::device::Firmware,

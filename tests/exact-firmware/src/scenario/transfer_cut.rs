@@ -7,12 +7,12 @@
 //! on the array of before the update with DFU as the cut after chunk `n` left it, together with
 //! the master (their duplicate MAC ID checks overlap): the old firmware comes up at its revision, and
 //! the client's Update (`master_core::update::announce`) is answered with the resume point
-//! `n + 1`. For the cut after the middle chunk the client then runs the whole update again: it
+//! `n + 1`. On the cut after the middle chunk the client then runs the whole update again: it
 //! resumes there and completes, confirmed at the new revision, ACTIVE byte for byte the new
 //! image. (A chunk torn half-way by a cut is not here: the object finds it neither erased nor
 //! the chunk and starts the image over, `slave_fw::update`'s tests.)
 
-use super::dfu::{active_holds, fast_flash_board, flat_image, test_signed};
+use super::dfu::{active_holds, fast_flash_board, newer_file, NewerFile, TEST_PUBLIC_KEY};
 use super::world::{with_master, Handle, Options};
 use crate::board::BoardKind;
 use crate::device::Firmware;
@@ -22,9 +22,6 @@ use fw_image::Revision;
 use master_core::update::{self, Event, Outcome, Report, UpdateFile};
 use std::cell::RefCell;
 use std::rc::Rc;
-
-/// The repository's TEST public key (contrib/keys).
-const TEST_PUBLIC_KEY: &[u8; 32] = include_bytes!("../../../../contrib/keys/test-ed25519.public");
 
 /// Connects to the board and runs the update; `progress` sees its events.
 fn update_on(
@@ -43,19 +40,6 @@ fn update_on(
 fn dfu_of(array: &[u8]) -> Vec<u8> {
     let start = (DFU.base - board::memory::FLASH_BASE) as usize;
     array[start..start + DFU.size as usize].to_vec()
-}
-
-/// A new board on `array` with DFU replaced by `dfu`.
-fn board_on(
-    board: BoardKind,
-    elf: &Firmware,
-    options: &Options,
-    array: &[u8],
-    dfu: &[u8],
-) -> Result<Handle, String> {
-    let handle = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
-    cut_array(&handle, array, dfu)?;
-    Ok(handle)
 }
 
 /// Puts `array` with DFU replaced by `dfu` into the (powered-down) board's flash, as a power
@@ -90,14 +74,7 @@ fn resume_point(handle: &Handle, options: &Options, file: &UpdateFile) -> Result
 
 /// See the [module docs](self).
 pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
-    let Some(newer) = &elf.newer else {
-        return Err("no build at another revision beside the firmware ELF (<elf>-newer)".into());
-    };
-    let new = flat_image(newer)?;
-    let trailer = test_signed(&new)?;
-    let mut bytes = new.clone();
-    bytes.extend_from_slice(&trailer.to_bytes());
-    let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
+    let NewerFile { image: new, trailer, file } = newer_file(elf)?;
     let handle = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
     let before = handle.borrow_mut().mcu().flash().to_vec();
     let mut cuts: Vec<Vec<u8>> = Vec::new();
@@ -115,7 +92,7 @@ pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Resu
     if cuts.len() != file.chunks() as usize {
         return Err(format!("{} of {} chunks acknowledged in order", cuts.len(), file.chunks()));
     }
-    let device = board_on(board, elf, options, &before, &cuts[0])?;
+    let device = Rc::new(RefCell::new(fast_flash_board(board, elf, options, None)?));
     for (n, dfu) in cuts.iter().enumerate() {
         cut_array(&device, &before, dfu)?;
         let (revision, next) = resume_point(&device, options, &file)
@@ -129,8 +106,8 @@ pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Resu
         }
     }
     let half = cuts.len() / 2;
-    let handle = board_on(board, elf, options, &before, &cuts[half])?;
-    let second = update_on(&handle, options, &file, &mut |_| {})
+    cut_array(&device, &before, &cuts[half])?;
+    let second = update_on(&device, options, &file, &mut |_| {})
         .map_err(|e| format!("after a cut once chunk {half} was acknowledged: {e}"))?;
     if second.before.revision != first.before.revision {
         return Err(format!(
@@ -150,7 +127,7 @@ pub fn transfer_cut(board: BoardKind, elf: &Firmware, options: &Options) -> Resu
             second.revision
         ));
     }
-    if !active_holds(&handle, &new) {
+    if !active_holds(&device, &new) {
         return Err("after the resumed update ACTIVE does not hold the new image".into());
     }
     Ok(())

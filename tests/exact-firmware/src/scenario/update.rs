@@ -12,18 +12,15 @@
 //! fragment's acknowledge about 2 s (the client waits for it), and Apply's STATE erase stops the
 //! firmware's clock, so its reset comes after its response has left.
 
-use super::dfu::{active_holds, dfu_holds, flat_image, state, test_signed, BOOT_MAGIC};
+use super::dfu::{active_holds, dfu_holds, newer_file, state, NewerFile, BOOT_MAGIC, TEST_PUBLIC_KEY};
 use super::world::{with_master, Handle, Options};
 use crate::board::BoardKind;
 use crate::device::{EmulatedBoard, Firmware};
 use board::flash_layout::{DFU, MAX_IMAGE_LEN};
 use can_io::sim::PowerOn;
-use master_core::update::{self, Outcome, UpdateFile};
+use master_core::update::{self, Outcome};
 use std::cell::RefCell;
 use std::rc::Rc;
-
-/// The repository's TEST public key (contrib/keys), the client's check before sending.
-const TEST_PUBLIC_KEY: &[u8; 32] = include_bytes!("../../../../contrib/keys/test-ed25519.public");
 
 /// The scenario; see the module docs.
 pub fn firmware_update(board: BoardKind, elf: &Firmware, options: &Options) -> Result<(), String> {
@@ -90,19 +87,7 @@ pub struct Timed {
 /// Connects to a new `board` at `options.bus_rate` and updates it to its `<elf>-newer` build over
 /// the bus; the figure of the update time (benches/update_time.rs) and the scenario's first half.
 pub fn timed_update(board: BoardKind, elf: &Firmware, options: &Options) -> Result<Timed, String> {
-    let Some(newer) = &elf.newer else {
-        return Err("no build at another revision beside the firmware ELF (<elf>-newer, scripts/exact-firmware builds it)".into());
-    };
-    let new = flat_image(newer)?;
-    let old = flat_image(&elf.elf)?;
-    match (fw_image::ImageInfo::parse(&old), fw_image::ImageInfo::parse(&new)) {
-        (Ok(o), Ok(n)) if o.board_id == n.board_id && o.revision != n.revision => {}
-        other => return Err(format!("the newer build must be this board's at another revision: {other:?}")),
-    }
-    let trailer = test_signed(&new)?;
-    let mut bytes = new.clone();
-    bytes.extend_from_slice(&trailer.to_bytes());
-    let file = UpdateFile::parse("newer.bin", bytes).map_err(|e| format!("the signed file: {e}"))?;
+    let NewerFile { image: new, trailer, file } = newer_file(elf)?;
     let device = EmulatedBoard::new(board, elf, options.setting, options.bus_rate)
         .map_err(|e| format!("the machine: {e}"))?;
     let handle = Rc::new(RefCell::new(device));

@@ -6,6 +6,7 @@
 //! bootloader is built with `--test-key`). A quick check that the object is wired in; the update
 //! itself is the update scenarios'.
 
+use super::dfu::TEST_PUBLIC_KEY;
 use super::world::{machine_fault, master_checks, world, Options, MAC};
 use crate::board::BoardKind;
 use crate::device::Firmware;
@@ -14,8 +15,6 @@ use fw_image::KeyId;
 use master_core::master::{ConnectOptions, Master, MasterConfig};
 use master_core::session::Session;
 
-/// The repository's TEST public key (contrib/keys/README.md).
-const TEST_PUBLIC_KEY: &[u8; 32] = include_bytes!("../../../../contrib/keys/test-ed25519.public");
 /// The update object's class (the design page, "The update object, class 0x6A").
 const UPDATE_CLASS: u16 = 0x6A;
 /// Attribute 5: the bytes of one Transfer.
